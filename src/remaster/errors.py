@@ -1,0 +1,43 @@
+"""Errors that name what is wrong and where: the file, the key or column, and the rows."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+MAX_ROWS_SHOWN = 10
+
+
+def format_rows(rows: Iterable[int]) -> str:
+    """'rows 3, 7, 9' or 'rows 0, 1, ... (250 in all)' for long lists."""
+    rows = [int(r) for r in rows]
+    shown = ", ".join(str(r) for r in rows[:MAX_ROWS_SHOWN])
+    if len(rows) > MAX_ROWS_SHOWN:
+        shown += f", ... ({len(rows)} in all)"
+    return ("row " if len(rows) == 1 else "rows ") + shown
+
+
+class RemasterError(Exception):
+    """Base class of every error remaster raises on purpose."""
+
+
+class InputError(RemasterError, ValueError):
+    """Bad input: the message names the file, the key or column, and the offending rows.
+
+    Rows are 0-based positions in the table as stored.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, key: str | None = None,
+                 rows: Iterable[int] | None = None):
+        self.file = file
+        self.key = key
+        self.rows = None if rows is None else [int(r) for r in rows]
+        self.reason = message
+        where = ": ".join(str(part) for part in (file, key) if part)
+        text = f"{where}: {message}" if where else message
+        if self.rows:
+            text += f" ({format_rows(self.rows)})"
+        super().__init__(text)
+
+
+class KinematicsError(InputError):
+    """A robot model that cannot be used: missing frames, unsupported joints, a non-serial chain."""

@@ -1,0 +1,107 @@
+"""Rigid transforms: rotations, homogeneous matrices and Euler angles (SI units, radians).
+
+All functions broadcast over leading dimensions: an angle array of shape (...,) gives
+matrices of shape (..., 3, 3) or (..., 4, 4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def rot_x(angle) -> np.ndarray:
+    """Rotation about X, shape (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    one, zero = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([one, zero, zero], -1),
+                     np.stack([zero, c, -s], -1),
+                     np.stack([zero, s, c], -1)], -2)
+
+
+def rot_y(angle) -> np.ndarray:
+    """Rotation about Y, shape (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    one, zero = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([c, zero, s], -1),
+                     np.stack([zero, one, zero], -1),
+                     np.stack([-s, zero, c], -1)], -2)
+
+
+def rot_z(angle) -> np.ndarray:
+    """Rotation about Z, shape (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    one, zero = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([c, -s, zero], -1),
+                     np.stack([s, c, zero], -1),
+                     np.stack([zero, zero, one], -1)], -2)
+
+
+def skew(v) -> np.ndarray:
+    """Cross-product matrix K with K @ x = v x x, shape (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    zero = np.zeros_like(v[..., 0])
+    return np.stack([np.stack([zero, -v[..., 2], v[..., 1]], -1),
+                     np.stack([v[..., 2], zero, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], zero], -1)], -2)
+
+
+def rot_axis(axis, angle) -> np.ndarray:
+    """Rotation by `angle` about the unit vector `axis` (Rodrigues), shape (..., 3, 3)."""
+    axis = np.asarray(axis, dtype=float)
+    k = skew(axis)
+    angle = np.asarray(angle, dtype=float)[..., None, None]
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def euler_zyx_to_matrix(yaw, pitch, roll) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), the ZYX convention of the paper, shape (..., 3, 3)."""
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def matrix_to_euler_zyx(rotation) -> np.ndarray:
+    """Inverse of `euler_zyx_to_matrix`: (..., 3) array of (yaw, pitch, roll) in rad.
+
+    Pitch lies in [-pi/2, pi/2]; at pitch = +-pi/2 (gimbal lock) roll is set to 0.
+    """
+    r = np.asarray(rotation, dtype=float)
+    pitch = np.arcsin(np.clip(-r[..., 2, 0], -1.0, 1.0))
+    locked = np.abs(r[..., 2, 0]) > 1.0 - 1e-12
+    yaw = np.where(locked, np.arctan2(-r[..., 0, 1], r[..., 1, 1]), np.arctan2(r[..., 1, 0], r[..., 0, 0]))
+    roll = np.where(locked, 0.0, np.arctan2(r[..., 2, 1], r[..., 2, 2]))
+    return np.stack([yaw, pitch, roll], -1)
+
+
+def rpy_to_matrix(roll, pitch, yaw) -> np.ndarray:
+    """URDF's fixed-axis roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    return euler_zyx_to_matrix(yaw, pitch, roll)
+
+
+def homogeneous(rotation=None, translation=None) -> np.ndarray:
+    """4x4 homogeneous transform(s) from a rotation (..., 3, 3) and a translation (..., 3)."""
+    rotation = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+    translation = np.zeros(3) if translation is None else np.asarray(translation, dtype=float)
+    shape = np.broadcast_shapes(rotation.shape[:-2], translation.shape[:-1])
+    t = np.zeros(shape + (4, 4))
+    t[..., :3, :3] = rotation
+    t[..., :3, 3] = translation
+    t[..., 3, 3] = 1.0
+    return t
+
+
+def invert(transform) -> np.ndarray:
+    """Inverse of rigid homogeneous transform(s), (..., 4, 4)."""
+    t = np.asarray(transform, dtype=float)
+    r_t = np.swapaxes(t[..., :3, :3], -1, -2)
+    return homogeneous(r_t, -(r_t @ t[..., :3, 3, None])[..., 0])
+
+
+def translation(x=0.0, y=0.0, z=0.0) -> np.ndarray:
+    """Pure translation, 4x4."""
+    return homogeneous(None, np.array([x, y, z], dtype=float))
+
+
+def transform_points(transform, points) -> np.ndarray:
+    """Apply transform(s) (..., 4, 4) to points (..., 3)."""
+    t = np.asarray(transform, dtype=float)
+    p = np.asarray(points, dtype=float)
+    return (t[..., :3, :3] @ p[..., None])[..., 0] + t[..., :3, 3]
