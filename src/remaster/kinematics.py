@@ -337,10 +337,20 @@ class ForwardKinematics:
         self.q = q
         self.cos_q = np.cos(q)
         self.sin_q = np.sin(q)
-        axes = chain.joint_axes
-        self._skew_t = np.swapaxes(spatial.skew(axes), -1, -2)  # x @ K^T = a x x
-        self._rot_t = np.swapaxes(chain.joint_transforms[:, :3, :3], -1, -2)
-        self._trans = chain.joint_transforms[:, :3, 3]
+        # Rot(a, q + d) = Rot(a, q) Rot(a, d): the reading's part of each joint is folded into its
+        # fixed transform once, as (N, 3, 3, n) with configurations last so that each joint costs
+        # one small matrix product and one broadcast multiply-add per call.
+        self._axis_k = spatial.skew(chain.joint_axes)  # (N, 3, 3)
+        self._axis_k2 = self._axis_k @ self._axis_k
+        readings = self._axis_rotations(self.cos_q, self.sin_q)  # (n, N, 3, 3)
+        self._moved = np.ascontiguousarray(
+            np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
+        self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
+
+    def _axis_rotations(self, cos, sin) -> np.ndarray:
+        """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""
+        return (np.eye(3) + sin[..., None, None] * self._axis_k
+                + (1.0 - cos)[..., None, None] * self._axis_k2)
 
     def _trig(self, zero_offsets):
         if zero_offsets is None:
@@ -354,19 +364,18 @@ class ForwardKinematics:
     def points(self, point_in_flange, zero_offsets=None) -> np.ndarray:
         """Positions in the base frame of a point fixed in the flange frame (3,), e.g. a marker.
 
-        Returns (n, 3), or (m, n, 3) for a stack of m zero-offset vectors.
+        Returns (n, 3), or (m, n, 3) for a stack of m zero-offset vectors (m, N).
         """
-        cos, sin = self._trig(zero_offsets)
         x = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
-        x = np.broadcast_to(x, cos.shape[:-1] + (3,))
-        axes = self.chain.joint_axes
+        offsets = None if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
+        rotations = None if offsets is None else self._axis_rotations(np.cos(offsets), np.sin(offsets))
+        lead = () if offsets is None or offsets.ndim == 1 else offsets.shape[:1]
+        x = np.broadcast_to(x[:, None], lead + (3, len(self.q)))
         for j in range(self.chain.n_joints - 1, -1, -1):
-            c = cos[..., j, None]
-            s = sin[..., j, None]
-            along = (x @ axes[j])[..., None] * axes[j]
-            x = c * (x - along) + s * (x @ self._skew_t[j]) + along
-            x = x @ self._rot_t[j] + self._trans[j]
-        return x
+            if rotations is not None:
+                x = rotations[..., j, :, :] @ x
+            x = (self._moved[j] * x[..., None, :, :]).sum(-2) + self._shift[j]
+        return np.swapaxes(x, -1, -2)
 
     def flange_poses(self, zero_offsets=None) -> np.ndarray:
         """Flange poses in the base frame, (n, 4, 4) or (m, n, 4, 4)."""

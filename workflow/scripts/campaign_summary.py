@@ -1,0 +1,7 @@
+"""Read and validate one campaign folder; write its summary."""
+
+from remaster import campaign, io
+
+with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
+    data = io.read_campaign(snakemake.params.folder)  # noqa: F821
+    io.write_json(snakemake.output.summary, campaign.summarize(data))  # noqa: F821
