@@ -36,7 +36,7 @@ TIME_COLUMN = "time"
 MAX_POSITION = 20.0  # m: a marker farther than this from the sensor's origin is a unit mistake
 
 _JOINT_COLUMN = re.compile(r"q\d+")
-_SENSOR_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+SENSOR_NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
@@ -142,10 +142,10 @@ class Campaign:
 
 def _check_keys(section: Mapping, allowed: tuple[str, ...], where: str, source: str,
                 error: type[InputError] = InputError) -> None:
-    unknown = [str(k) for k in section if k not in allowed]
+    unknown = [f"{where}/{k}" if where else str(k) for k in section if k not in allowed]
     if unknown:
-        raise error(f"unknown key(s) {', '.join(unknown)}; allowed: {', '.join(allowed)}",
-                    file=source, key=where or None)
+        raise error(f"unknown key{'s' if len(unknown) > 1 else ''}; allowed: {', '.join(allowed)}",
+                    file=source, key=", ".join(unknown))
 
 
 def _mapping(value: Any, key: str, source: str, error: type[InputError] = InputError) -> Mapping:
@@ -233,7 +233,7 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
 
 def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
     where = f"sensors/{name}"
-    if not isinstance(name, str) or not _SENSOR_NAME.fullmatch(name):
+    if not isinstance(name, str) or not SENSOR_NAME_PATTERN.fullmatch(name):
         raise InputError("a sensor name must be a file stem (letters, digits, _ . -)", file=source, key=where)
     spec = _mapping(spec, where, source)
     _check_keys(spec, SENSOR_KEYS, where, source)
@@ -264,7 +264,7 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     meta = _mapping(meta, "", source)
     missing = [k for k in REQUIRED_KEYS if k not in meta]
     if missing:
-        raise InputError(f"missing required key(s) {', '.join(missing)}", file=source, key=", ".join(missing))
+        raise InputError(f"missing required key{'s' if len(missing) > 1 else ''}", file=source, key=", ".join(missing))
     _check_keys(meta, REQUIRED_KEYS + OPTIONAL_KEYS, "", source)
     name = meta["name"]
     if not isinstance(name, str) or not name.strip():
@@ -359,7 +359,7 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str) -> None:
         raise InputError("no optimization rows: the calibration needs some", file=source, key="set")
     duplicated = np.flatnonzero(df.duplicated(list(KEY_COLUMNS), keep=False).to_numpy())
     if duplicated.size:
-        raise InputError("duplicate (set, pose, solution)", file=source, key="set, pose, solution", rows=duplicated)
+        raise InputError("duplicate rows: each (set, pose, solution) may appear once", file=source, key="set, pose, solution", rows=duplicated)
 
     q = df[list(joint_columns(n_joints))].to_numpy(dtype=float, na_value=np.nan)
     bad_q = np.flatnonzero(~np.all(np.isfinite(q), axis=1))
@@ -382,8 +382,8 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str) -> None:
     if seen.any() and np.median(norms[seen]) > MAX_POSITION:
         too_far |= seen & (norms > MAX_POSITION)
     if too_far.any():
-        raise InputError(f"positions farther than {MAX_POSITION:g} m: looks like millimetres stored as "
-                         f"metres (store metres)", file=source, key="x, y, z", rows=np.flatnonzero(too_far))
+        raise InputError(f"marker positions beyond {MAX_POSITION:g} m: looks like millimetres stored "
+                         f"as metres (store metres)", file=source, key="x, y, z", rows=np.flatnonzero(too_far))
 
 
 def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, source: str) -> pd.DataFrame:
@@ -396,7 +396,7 @@ def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, sou
     if not isinstance(df, pd.DataFrame):
         raise InputError(f"sensor {sensor_name!r}: expected a table, got {type(df).__name__}", file=source)
     if len(df) == 0:
-        raise InputError(f"sensor {sensor_name!r}: the table is empty", file=source)
+        raise InputError(f"sensor {sensor_name!r}: the table has no rows", file=source)
     _check_columns(df, n_joints, source)
     _check_dtypes(df, n_joints, source)
     table = df.reset_index(drop=True)
@@ -411,3 +411,25 @@ def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joint
     """SensorData from a validated sensor spec (see `validate_metadata`) and its raw table."""
     return SensorData(name=name, kind=spec["kind"], marker=np.asarray(spec["marker"], dtype=float),
                       noise=spec["noise"], table=validate_sensor_table(table, n_joints, name, source))
+
+
+def summarize(campaign: Campaign) -> dict[str, Any]:
+    """What a campaign holds: robot, and per sensor the rows, poses and configurations per set,
+    and the rows whose marker was not seen (kept, listed by 0-based row)."""
+    sensors = {}
+    for name, sensor in campaign.sensors.items():
+        table = sensor.table
+        sets = {}
+        for set_name in SETS:
+            rows = table[sensor.set_mask(set_name)]
+            sets[set_name] = {"configurations": int(len(rows)), "poses": int(rows["pose"].nunique()),
+                              "measured": int(np.count_nonzero(sensor.measured_mask[sensor.set_mask(set_name)]))}
+        extra = [c for c in table.columns if c not in KEY_COLUMNS + POSITION_COLUMNS + sensor.joint_columns]
+        sensors[name] = {"kind": sensor.kind, "marker_m": sensor.marker.tolist(), "noise_m": sensor.noise,
+                         "rows": int(len(table)), "sets": sets, "missing_rows": sensor.missing_rows.tolist(),
+                         "n_missing": sensor.n_missing, "extra_columns": extra}
+    chain = campaign.chain
+    return {"campaign": campaign.name, "date": campaign.date.isoformat(),
+            "robot": {"name": chain.name, "joints": list(chain.joint_names), "base": chain.base_frame,
+                      "flange": chain.flange_frame},
+            "sensors": sensors}

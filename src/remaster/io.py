@@ -1,0 +1,258 @@
+"""Files: reading and writing campaign folders, YAML and JSON. The only module that touches paths.
+
+A campaign folder is campaign.yaml plus one <sensor>.parquet per sensor (docs/campaign-format.md).
+`read_campaign` checks the folder against that contract and returns a `remaster.campaign.Campaign`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import json
+import logging
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import yaml
+
+from .campaign import (
+    OPTIONAL_KEYS,
+    REQUIRED_KEYS,
+    SENSOR_NAME_PATTERN,
+    Campaign,
+    sensor_data,
+    validate_metadata,
+    validate_robot,
+)
+from .errors import InputError, KinematicsError, format_rows
+from .kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
+
+log = logging.getLogger(__name__)
+
+METADATA_FILE = "campaign.yaml"
+SHARED_ROBOTS = Path("data") / "robots"  # under the repository root
+CHAIN_CHECK_SEED = 20180612
+CHAIN_CHECK_CONFIGURATIONS = 16
+CHAIN_TOLERANCE = 1e-6  # m (and rad at a 1 m lever arm)
+
+
+# --------------------------------------------------------------------------- YAML and JSON
+
+
+def _plain(value: Any) -> Any:
+    """Nested mappings/sequences of NumPy or Python values -> plain dicts, lists, floats, ints, str."""
+    if isinstance(value, Mapping):
+        return {str(k) if isinstance(k, Path) else k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Content of a YAML file (yaml.safe_load); InputError naming the file if missing or malformed."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
+
+
+def write_yaml(path: str | Path, data: Any) -> Path:
+    """Write `data` as block YAML, keys in the given order, leaf lists inline; same data, same bytes."""
+    path = Path(path)
+    text = yaml.safe_dump(_plain(data), sort_keys=False, allow_unicode=True, default_flow_style=None, width=100)
+    path.write_text(text, encoding="utf-8", newline="\n")
+    return path
+
+
+def write_json(path: str | Path, data: Any) -> Path:
+    """Write `data` as indented JSON with sorted keys and a final newline; same data, same bytes.
+
+    NumPy values become plain numbers/lists, dates ISO strings; NaN and infinities become null,
+    so the file is strict JSON that any reader accepts.
+    """
+    path = Path(path)
+
+    def fallback(value: Any) -> Any:
+        if isinstance(value, (dt.date, dt.datetime)):
+            return value.isoformat()
+        raise TypeError(f"cannot write {type(value).__name__} to JSON ({path})")
+
+    text = json.dumps(_plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
+    path.write_text(text + "\n", encoding="utf-8", newline="\n")
+    return path
+
+
+@contextlib.contextmanager
+def log_to(path: str | Path, level: int = logging.INFO):
+    """Send remaster's log records to `path` for the duration; an exception is logged with its
+    traceback before it propagates, so a failed workflow job's log says why."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    logger = logging.getLogger("remaster")
+    logger.addHandler(handler)
+    previous = logger.level
+    logger.setLevel(level)
+    try:
+        yield logger
+    except Exception:
+        logger.exception("failed")
+        raise
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
+        handler.close()
+
+
+# --------------------------------------------------------------------------- robot
+
+
+def _urdf_candidates(urdf: str, folder: Path, repo_root: Path) -> list[Path]:
+    """Where a campaign's `robot/urdf` may live, in the order they are tried."""
+    candidates = [folder / urdf, repo_root / urdf, repo_root / SHARED_ROBOTS / Path(urdf).name]
+    return list(dict.fromkeys(candidates))
+
+
+def _in_robot_section(exc: KinematicsError, source: str, note: str = "") -> KinematicsError:
+    """The same problem, reported against campaign.yaml's robot/<key>."""
+    key = f"robot/{exc.key}" if exc.key else "robot"
+    return KinematicsError(exc.reason + note, file=source, key=key, rows=exc.rows)
+
+
+def load_chain(robot_meta: Mapping[str, Any], folder: str | Path, repo_root: str | Path | None = None, *,
+               source: str | None = None, name: str = "dh_robot") -> KinematicChain:
+    """The kinematic chain of a campaign's `robot` section.
+
+    `urdf` is looked for relative to `folder`, then to `repo_root` (default: the current
+    directory), then as repo_root/data/robots/<file name>; `base`/`flange` are its links. `dh`
+    builds a chain from DH rows (named `name`). When both are given they must agree to
+    CHAIN_TOLERANCE on the flange pose over fixed-seed random configurations within +-pi; the
+    URDF chain (joint names, limits, masses) is returned. `source` names campaign.yaml in errors.
+    """
+    folder = Path(folder)
+    repo_root = Path.cwd() if repo_root is None else Path(repo_root)
+    source = str(folder / METADATA_FILE) if source is None else source
+    robot = validate_robot(robot_meta, source)
+
+    urdf_chain = dh_chain = None
+    if "urdf" in robot:
+        candidates = _urdf_candidates(robot["urdf"], folder, repo_root)
+        urdf_path = next((p for p in candidates if p.is_file()), None)
+        if urdf_path is None:
+            raise KinematicsError(f"URDF file {robot['urdf']!r} not found (looked for "
+                                  f"{', '.join(str(p) for p in candidates)})", file=source, key="robot/urdf")
+        try:
+            urdf_chain = chain_from_urdf(urdf_path.read_text(encoding="utf-8"), robot.get("base"),
+                                         robot.get("flange"), source=str(urdf_path))
+        except KinematicsError as exc:
+            if exc.key not in ("base", "flange"):
+                raise
+            raise _in_robot_section(exc, source, f" (URDF {urdf_path})") from None
+    if "dh" in robot:
+        dh = robot["dh"]
+        try:
+            dh_chain = chain_from_dh(dh["rows"], dh["convention"], dh.get("flange"), name=name, source=source)
+        except KinematicsError as exc:
+            raise _in_robot_section(exc, source) from None
+    if urdf_chain is None or dh_chain is None:
+        return urdf_chain or dh_chain
+
+    if urdf_chain.n_joints != dh_chain.n_joints:
+        raise KinematicsError(f"urdf and dh describe different robots: the URDF chain has {urdf_chain.n_joints} "
+                              f"joints, the DH table {dh_chain.n_joints} rows", file=source, key="robot")
+    rng = np.random.default_rng(CHAIN_CHECK_SEED)
+    q = rng.uniform(-math.pi, math.pi, size=(CHAIN_CHECK_CONFIGURATIONS, urdf_chain.n_joints))
+    difference = max_chain_difference(urdf_chain, dh_chain, q)
+    if not difference <= CHAIN_TOLERANCE:
+        raise KinematicsError(f"urdf and dh describe different chains: flange poses differ by up to "
+                              f"{difference * 1e3:.4g} mm (tolerance {CHAIN_TOLERANCE * 1e3:g} mm)",
+                              file=source, key="robot")
+    return urdf_chain
+
+
+# --------------------------------------------------------------------------- campaigns
+
+
+def _read_parquet(path: Path) -> pd.DataFrame:
+    try:
+        return pd.read_parquet(path)
+    except (OSError, pa.ArrowException, ValueError) as exc:
+        raise InputError(f"cannot read Parquet: {exc}", file=str(path)) from None
+
+
+def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Campaign:
+    """Read and validate a campaign folder (campaign.yaml + one <sensor>.parquet per sensor).
+
+    `repo_root` (default: the current directory) is where shared URDFs are looked for. Raises
+    InputError (KinematicsError for the robot model) naming the file, key/column and rows.
+    Rows whose marker was not seen (x, y, z NaN) are kept and logged.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a campaign folder (no such directory)", file=str(folder))
+    source = str(folder / METADATA_FILE)
+    meta = validate_metadata(read_yaml(folder / METADATA_FILE), source)
+    folder_name = folder.resolve().name
+    if meta["name"] != folder_name:
+        raise InputError(f"is {meta['name']!r} but the folder is named {folder_name!r}; they must be equal",
+                         file=source, key="name")
+    chain = load_chain(meta["robot"], folder, repo_root, source=source, name=meta["name"])
+
+    tables = {path.stem: path for path in sorted(folder.glob("*.parquet"))}
+    for sensor in meta["sensors"]:
+        if sensor not in tables:
+            raise InputError(f"no file {sensor}.parquet in {folder}", file=source, key=f"sensors/{sensor}")
+    for stem, path in tables.items():
+        if stem not in meta["sensors"]:
+            raise InputError(f"no sensor {stem!r} under `sensors` in {source}: name it there or remove the file",
+                             file=str(path), key="sensors")
+
+    sensors = {}
+    for sensor, spec in meta["sensors"].items():
+        path = tables[sensor]
+        sensors[sensor] = sensor_data(sensor, spec, _read_parquet(path), chain.n_joints, str(path))
+        if sensors[sensor].n_missing:
+            log.info("%s: %d of %d rows without a measurement (marker not seen: %s)", path,
+                     sensors[sensor].n_missing, len(sensors[sensor].table), format_rows(sensors[sensor].missing_rows))
+    return Campaign(name=meta["name"], date=meta["date"], description=meta["description"],
+                    robot=_plain(meta["robot"]), chain=chain, sensors=sensors)
+
+
+def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]) -> Path:
+    """Write campaign.yaml and one <sensor>.parquet per table into `folder` (created if needed).
+
+    Deterministic: the same input gives byte-identical files. Top-level keys are written in the
+    contract's order (name, date, description, robot, sensors, then anything else), tables with
+    pyarrow and no pandas index. Does not validate (read the folder back with `read_campaign`),
+    and does not delete other files already in the folder.
+    """
+    folder = Path(folder)
+    for sensor in tables:
+        if not isinstance(sensor, str) or not SENSOR_NAME_PATTERN.fullmatch(sensor):
+            raise InputError("a sensor name must be a file stem (letters, digits, _ . -)", file=str(folder),
+                             key=f"sensors/{sensor}")
+    folder.mkdir(parents=True, exist_ok=True)
+    order = [k for k in REQUIRED_KEYS[:2] + OPTIONAL_KEYS + REQUIRED_KEYS[2:] if k in metadata]
+    write_yaml(folder / METADATA_FILE, {**{k: metadata[k] for k in order},
+                                        **{k: v for k, v in metadata.items() if k not in order}})
+    for sensor, table in tables.items():
+        pq.write_table(pa.Table.from_pandas(table, preserve_index=False), folder / f"{sensor}.parquet")
+    return folder
