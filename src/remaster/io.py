@@ -99,6 +99,25 @@ def write_json(path: str | Path, data: Any) -> Path:
     return path
 
 
+def read_csv(path: str | Path) -> pd.DataFrame:
+    """A CSV table; InputError naming the file if it is missing or unreadable."""
+    path = Path(path)
+    try:
+        return pd.read_csv(path)
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=str(path)) from None
+
+
+def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
+    """Write a table as CSV without its index, floats at full precision; same data, same bytes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(path, index=False, float_format="%.17g", lineterminator="\n")
+    return path
+
+
 @contextlib.contextmanager
 def log_to(path: str | Path, level: int = logging.INFO):
     """Send remaster's log records to `path` for the duration; an exception is logged with its

@@ -1,0 +1,116 @@
+"""Command line: `remaster plan` and `remaster simulate`.
+
+Each subcommand reads its inputs, calls the library and writes its outputs; errors in the input
+end with a message naming the file, key or column and rows, and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import io, planning, registration, scenario
+from .errors import RemasterError
+from .kinematics import ForwardKinematics
+
+DEFAULT_SCENARIOS = Path("data") / "simulation"
+
+
+def _simulate(args: argparse.Namespace) -> None:
+    paths = [Path(p) for p in args.scenarios] or sorted(DEFAULT_SCENARIOS.glob("*.yaml"))
+    if not paths:
+        raise RemasterError(f"no scenario given and none found in {DEFAULT_SCENARIOS}")
+    for path in paths:
+        spec = io.read_yaml(path)
+        chain = io.load_chain(spec["robot"], path.parent, Path.cwd(), source=str(path), name=spec["name"])
+        campaign = scenario.simulate(spec, chain, seed=args.seed)
+        folder = io.write_campaign(Path(args.raw_dir) / spec["name"], campaign.metadata, campaign.tables)
+        truth = io.write_json(Path(args.truth_dir) / f"{spec['name']}.json", campaign.truth)
+        rows = {name: len(t) for name, t in campaign.tables.items()}
+        print(f"{path}: wrote {folder} ({rows}) and {truth}")
+
+
+def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
+    if args.sensor_origin is not None:
+        return np.asarray(args.sensor_origin, dtype=float)
+    points = io.read_csv(args.registration_points)
+    joints = [f"q{j + 1}" for j in range(chain.n_joints)]
+    missing = [c for c in joints + ["x", "y", "z"] if c not in points.columns]
+    if missing:
+        raise RemasterError(f"{args.registration_points}: missing columns {', '.join(missing)}")
+    robot = ForwardKinematics(chain, points[joints].to_numpy(float)).points(args.marker)
+    t_nr = registration.three_point(robot, points[["x", "y", "z"]].to_numpy(float))
+    return np.linalg.inv(t_nr)[:3, 3]
+
+
+def _plan(args: argparse.Namespace) -> None:
+    robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
+    chain = io.load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(),
+                          source="command line")
+    origin = _sensor_origin(args, chain)
+    rng = np.random.default_rng(args.seed)
+    model = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
+    sight = planning.SightLine(origin, np.asarray(args.marker, dtype=float))
+    plan = planning.plan_set(chain, args.set, origin, [sight], rng, candidates=args.candidates,
+                             n_poses=args.poses, n_configurations=args.configurations, model=model, q3=args.q3)
+    table = plan.table.copy()
+    for j in range(chain.n_joints):
+        table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"])
+    io.write_csv(args.out, table)
+    print(f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
+          f"{plan.candidates} candidate poses; discarded: {plan.discarded}")
+
+
+def parser() -> argparse.ArgumentParser:
+    main = argparse.ArgumentParser(prog="remaster", description=__doc__.splitlines()[0])
+    commands = main.add_subparsers(dest="command", required=True)
+
+    simulate = commands.add_parser("simulate", help="regenerate simulated campaigns from scenarios")
+    simulate.add_argument("scenarios", nargs="*", help=f"scenario YAML files (default: {DEFAULT_SCENARIOS}/*.yaml)")
+    simulate.add_argument("--raw-dir", default="data/raw", help="where campaign folders go")
+    simulate.add_argument("--truth-dir", default="data/truth", help="where ground-truth JSON goes")
+    simulate.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    simulate.set_defaults(run=_simulate)
+
+    plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
+    plan.add_argument("--urdf", required=True, help="robot URDF")
+    plan.add_argument("--base", help="base frame (default: the URDF root)")
+    plan.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
+    where = plan.add_mutually_exclusive_group(required=True)
+    where.add_argument("--sensor-origin", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                       help="reference sensor origin in the robot base frame (m)")
+    where.add_argument("--registration-points", metavar="CSV",
+                       help="three configurations q1..qN (rad) with the marker measured by the sensor x, y, z (m): "
+                            "the sensor origin comes from a three-point registration as in the paper")
+    plan.add_argument("--marker", nargs=3, type=float, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"),
+                      help="marker in the flange frame (m)")
+    plan.add_argument("--set", default="optimization", choices=["optimization", "validation"])
+    plan.add_argument("--candidates", type=int, default=60, help="Latin-hypercube poses per batch")
+    plan.add_argument("--poses", type=int, help="exact number of poses (needs --configurations)")
+    plan.add_argument("--configurations", type=int, help="exact number of configurations (needs --poses)")
+    plan.add_argument("--q3", type=float, default=0.0, help="joint 3 held at this angle (rad) by the inverse kinematics")
+    plan.add_argument("--link-radius", type=float, default=0.06, help="capsule radius of the links (m)")
+    plan.add_argument("--floor", type=float, default=0.0, help="floor height in the base frame (m)")
+    plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--out", default="plan.csv")
+    plan.set_defaults(run=_plan)
+    return main
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    if getattr(args, "poses", None) is not None and getattr(args, "configurations", None) is None:
+        parser().error("--poses needs --configurations")
+    try:
+        args.run(args)
+    except RemasterError as exc:
+        print(f"remaster {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

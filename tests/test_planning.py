@@ -1,0 +1,122 @@
+"""The pose planner: its configurations satisfy every constraint it claims to check."""
+
+import numpy as np
+import pytest
+
+from remaster import kinematics, planning, spatial
+from remaster.errors import InputError
+
+SENSOR = np.array([1.6, 0.5, 1.0])
+MARKER = np.array([-0.1, 0.0, 0.02])
+
+
+@pytest.fixture(scope="module")
+def plan(iiwa):
+    rng = np.random.default_rng(7)
+    sights = [planning.SightLine(SENSOR, MARKER), planning.SightLine(np.array([1.6, 0.3, 1.6]), -MARKER)]
+    return planning.plan_set(iiwa, "optimization", SENSOR, sights, rng, candidates=60), sights
+
+
+def test_latin_hypercube_has_one_sample_per_stratum(rng):
+    u = planning.latin_hypercube(60, 4, rng)
+    assert u.shape == (60, 4) and np.all((u >= 0) & (u < 1))
+    for column in u.T:
+        assert sorted(np.floor(column * 60).astype(int)) == list(range(60))
+
+
+def test_pointing_pose_aims_tool_z_at_target(rng):
+    for _ in range(20):
+        position, target = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3) + [3, 0, 0]
+        pose = planning.pointing_pose(position, target, rng.uniform(-np.pi, np.pi))
+        direction = (target - position) / np.linalg.norm(target - position)
+        np.testing.assert_allclose(pose[:3, 2], direction, atol=1e-12)
+        np.testing.assert_allclose(pose[:3, :3].T @ pose[:3, :3], np.eye(3), atol=1e-12)
+        assert np.linalg.det(pose[:3, :3]) == pytest.approx(1.0)
+
+
+def test_candidate_poses_span_the_paper_workspace(rng):
+    poses = planning.candidate_poses(60, SENSOR, rng)
+    radius = np.linalg.norm(poses[:, :2, 3], axis=1)
+    assert np.all((radius >= 0.2) & (radius <= 0.5))
+    assert np.all((poses[:, 2, 3] >= 0.4) & (poses[:, 2, 3] <= 0.8))
+
+
+def test_plan_configurations_satisfy_every_constraint(iiwa, plan):
+    plan, sights = plan
+    q = plan.table[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    assert 20 <= plan.table["pose"].nunique() <= 60 and len(q) > 60
+    assert np.all(iiwa.within_limits(q))
+    above, apart = planning.collision_free(iiwa, q, planning.CollisionModel())
+    assert above.all() and apart.all()
+    for sight in sights:
+        assert planning.marker_visible(iiwa, q, sight, planning.CollisionModel()).all()
+    np.testing.assert_allclose(q[:, 2], 0.0)  # the redundancy is held at q3 = 0
+    # every configuration of a pose reaches the same flange pose, tool Z at the sensor
+    poses = kinematics.flange_poses(iiwa, q)
+    for _, group in plan.table.groupby("pose"):
+        same = poses[group.index]
+        np.testing.assert_allclose(same, np.broadcast_to(same[0], same.shape), atol=1e-9)
+        direction = SENSOR - same[0, :3, 3]
+        np.testing.assert_allclose(same[0, :3, 2], direction / np.linalg.norm(direction), atol=1e-9)
+    # solutions of one pose are distinct configurations
+    assert len(np.unique(q.round(9), axis=0)) == len(q)
+
+
+def test_plan_is_a_nearest_neighbour_tour(plan):
+    plan, _ = plan
+    q = plan.table[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    order = planning.nearest_neighbour_tour(q, start=np.zeros(7))
+    np.testing.assert_array_equal(order, np.arange(len(q)))
+
+
+def test_exact_sizes_are_met(iiwa):
+    rng = np.random.default_rng(3)
+    plan = planning.plan_set(iiwa, "validation", SENSOR, [planning.SightLine(SENSOR, MARKER)], rng,
+                             candidates=60, n_poses=20, n_configurations=90)
+    assert plan.table["pose"].nunique() == 20 and len(plan.table) == 90
+    assert (plan.table["set"] == "validation").all()
+
+
+def test_choose_poses_subset_sum():
+    counts = [8, 1, 4, 4, 2, 8, 6]
+    chosen = planning.choose_poses(counts, 3, 10)
+    assert len(chosen) == 3 and sum(counts[i] for i in chosen) == 10
+    assert list(chosen) == [2, 3, 4]  # the earliest subset (4 + 4 + 2)
+    with pytest.raises(InputError, match="exactly 100"):
+        planning.choose_poses(counts, 3, 100)
+
+
+def test_collision_checks_catch_floor_and_folded_wrist(iiwa):
+    q = np.radians([[0, 120, 0, 0, 0, 0, 0],    # bent down through the floor
+                    [0, 0, 0, -120, 0, -120, 0],  # wrist folded back onto the forearm
+                    [0, 0, 0, 0, 0, 0, 0]])       # upright
+    above, apart = planning.collision_free(iiwa, q, planning.CollisionModel())
+    np.testing.assert_array_equal(above, [False, True, True])
+    np.testing.assert_array_equal(apart, [True, False, True])
+
+
+def test_marker_hidden_by_a_link_or_facing_away(iiwa):
+    """Arm straight up, marker on the tool plate: a sensor on the far side of the upper arm is blocked."""
+    q = np.zeros((1, 7))
+    model = planning.CollisionModel()
+    marker = kinematics.marker_positions(iiwa, q, MARKER)[0]
+    tool_z = kinematics.flange_poses(iiwa, q)[0, :3, 2]
+    ahead = planning.SightLine(marker + 2.0 * tool_z, MARKER)
+    assert planning.marker_visible(iiwa, q, ahead, model).all()
+    behind = planning.SightLine(marker - 2.0 * tool_z, MARKER)
+    assert not planning.marker_visible(iiwa, q, behind, model).any()
+    # looking down the arm from straight below the marker, past the links, within the acceptance cone
+    through_arm = planning.SightLine(np.array([marker[0] * 0.2, 0.0, -1.0]), MARKER, acceptance=np.pi)
+    assert not planning.marker_visible(iiwa, q, through_arm, model).any()
+
+
+def test_segment_distances_match_brute_force(rng):
+    for k in range(100):
+        a0, a1, b0, b1 = rng.normal(size=(4, 3))
+        if k % 5 == 0:
+            a1 = a0.copy()  # a point
+        s = np.linspace(0, 1, 301)
+        brute = np.linalg.norm((a0 + s[:, None] * (a1 - a0))[:, None] - (b0 + s[:, None] * (b1 - b0))[None],
+                               axis=-1).min()
+        distance = planning.segment_distances(a0, a1, b0, b1)
+        assert distance <= brute + 1e-12 and distance >= brute - 1e-3

@@ -1,0 +1,135 @@
+"""The simulator: measurements are the true model seen from the sensor, campaigns are
+deterministic and pass the reader, and the bundled twin is sized like the paper."""
+
+import copy
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from remaster import io, kinematics, scenario, spatial
+from remaster.gravity import gravity_torques
+from remaster.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
+
+from .conftest import REPO
+
+SCENARIOS = REPO / "data" / "simulation"
+
+
+def small_scenario(**truth):
+    """kuka-twin's scenario with small sets, for speed."""
+    spec = io.read_yaml(SCENARIOS / "kuka-twin.yaml")
+    spec["plan"]["sets"] = {"optimization": {"poses": 6, "configurations": 25},
+                            "validation": {"poses": 4, "configurations": 16}}
+    spec["truth"].update(truth)
+    return spec
+
+
+def test_noise_free_measurement_is_true_kinematics_in_sensor_frame(iiwa, rng):
+    q = rng.uniform(iiwa.lower, iiwa.upper, (40, 7))
+    robot = TrueRobot(zero_offsets=np.radians([0.4, -0.2, 0.1, 0.1, 0.4, -0.1, 0.9]))
+    sensor = Sensor("lt", "laser_tracker", looking_at([1.6, 0.5, 1.0], [0, 0, 0.6]), 0.0, np.array([-0.1, 0, 0.02]))
+    expected = spatial.transform_points(spatial.invert(sensor.pose_in_robot),
+                                        kinematics.marker_positions(iiwa, q + robot.zero_offsets, sensor.marker))
+    np.testing.assert_allclose(measure(iiwa, robot, sensor, q, rng), expected, atol=1e-12)
+
+
+def test_noise_has_the_stated_size(iiwa, rng):
+    q = rng.uniform(iiwa.lower, iiwa.upper, (2000, 7))
+    robot = TrueRobot(zero_offsets=np.zeros(7))
+    sensor = Sensor("mc", "motion_capture", looking_at([1.6, 0.3, 1.6], [0, 0, 0.6]), 3e-5, np.array([0.1, 0, 0.02]))
+    clean = measure(iiwa, robot, Sensor(**{**sensor.__dict__, "noise": 0.0}), q, rng)
+    error = measure(iiwa, robot, sensor, q, rng) - clean
+    assert np.std(error) == pytest.approx(3e-5, rel=0.05)
+    assert np.abs(np.mean(error, axis=0)).max() < 4 * 3e-5 / np.sqrt(2000)
+
+
+def test_every_effect_changes_the_measurement_as_modelled(iiwa, rng):
+    q = rng.uniform(iiwa.lower, iiwa.upper, (30, 7))
+    base = TrueRobot(zero_offsets=np.zeros(7))
+    compliance = np.array([0, 2.5e-5, 0, 3e-5, 0, 5e-5, 0])
+    compliant = TrueRobot(zero_offsets=np.zeros(7), joint_compliance=compliance, payload_mass=1.2)
+    tau = gravity_torques(iiwa, q, payload_mass=1.2)
+    np.testing.assert_allclose(true_joint_angles(iiwa, compliant, q), q + compliance * tau, atol=1e-15)
+    scaled = TrueRobot(zero_offsets=np.zeros(7), joint_scale=np.full(7, 1e-3))
+    np.testing.assert_allclose(true_joint_angles(iiwa, scaled, q), 1.001 * q)
+    drifting = TrueRobot(zero_offsets=np.zeros(7), drift_rate=np.full(7, 1e-6))
+    np.testing.assert_allclose(true_joint_angles(iiwa, drifting, q, elapsed_s=np.full(30, 3600.0)), q + 3.6e-3)
+    with pytest.raises(ValueError, match="time"):
+        true_joint_angles(iiwa, drifting, q)
+
+    pose = looking_at([1.6, 0.5, 1.0], [0, 0, 0.6])
+    nominal = Sensor("s", "other", pose, 0.0, np.array([0.1, 0, 0.02]))
+    reference = measure(iiwa, base, nominal, q, rng)
+    scaled_sensor = Sensor("s", "other", pose, 0.0, nominal.marker, scale_error=1e-3)
+    np.testing.assert_allclose(measure(iiwa, base, scaled_sensor, q, rng), 1.001 * reference, atol=1e-15)
+    moved_marker = Sensor("s", "other", pose, 0.0, nominal.marker, marker_error=np.array([0, 0, 1e-3]))
+    shift = np.linalg.norm(measure(iiwa, base, moved_marker, q, rng) - reference, axis=1)
+    np.testing.assert_allclose(shift, 1e-3, rtol=1e-9)  # a rigid 1 mm move of the marker
+    errors = np.zeros((8, 6))
+    errors[3, 2] = 1e-3  # elbow link 1 mm longer along its z
+    longer = perturbed_chain(iiwa, errors)
+    np.testing.assert_allclose(longer.joint_transforms[3][:3, 3] - iiwa.joint_transforms[3][:3, 3],
+                               iiwa.joint_transforms[3][:3, :3] @ [0, 0, 1e-3], atol=1e-15)
+
+
+def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_path):
+    spec = small_scenario()
+    first = scenario.simulate(spec, iiwa)
+    second = scenario.simulate(copy.deepcopy(spec), iiwa)
+    digests = []
+    for run, out in enumerate((first, second)):
+        folder = io.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
+        io.write_json(tmp_path / str(run) / "truth.json", out.truth)
+        digests.append({p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+                        for p in sorted((tmp_path / str(run)).rglob("*")) if p.is_file()})
+    assert digests[0] == digests[1]
+    campaign = io.read_campaign(tmp_path / "0" / spec["name"], repo_root=REPO)
+    assert set(campaign.sensors) == {"motion_capture", "laser_tracker"}
+    lt = campaign.sensors["laser_tracker"]
+    assert len(lt.table) == 41 and lt.n_missing == 2  # the scenario's unseen points are kept
+    assert lt.missing_rows.tolist() == first.truth["sensors"]["laser_tracker"]["unseen_rows"]
+    other_seed = scenario.simulate(spec, iiwa, seed=1)
+    assert not np.allclose(other_seed.tables["laser_tracker"]["q1"], first.tables["laser_tracker"]["q1"])
+
+
+def test_truth_records_every_effect(iiwa):
+    out = scenario.simulate(small_scenario(joint_scale=[1e-4] * 7, drift_deg_per_hour=[0.01] + [0.0] * 6), iiwa)
+    assert set(out.truth["effects"]) == {"joint_compliance", "link_geometry", "joint_scale", "drift"}
+    np.testing.assert_allclose(out.truth["zero_offsets_deg"], [0.477, -0.192, 0.139, 0.099, 0.392, -0.114, 0.936])
+    assert "truth" not in out.metadata and "effects" not in str(out.metadata)
+
+
+def test_measurements_equal_truth_record_in_sensor_frame(iiwa):
+    """The truth file's marker positions, seen through T_NR, are the measurements up to the noise."""
+    out = scenario.simulate(small_scenario(), iiwa)
+    for name, table in out.tables.items():
+        truth = out.truth["sensors"][name]
+        expected = spatial.transform_points(np.array(truth["T_NR"]),
+                                            np.array(truth["true_marker_positions_robot_frame_m"]))
+        seen = table[["x", "y", "z"]].notna().all(axis=1).to_numpy()
+        error = table[["x", "y", "z"]].to_numpy()[seen] - expected[seen]
+        assert np.abs(error).max() < 5 * truth["noise_m"]
+
+
+@pytest.mark.parametrize("name", ["kuka-twin", "kuka-twin-2019", "kuka-compliance"])
+def test_bundled_campaigns_read_and_twin_is_sized_like_the_paper(name):
+    campaign = io.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
+    for sensor in campaign.sensors.values():
+        table = sensor.table
+        sizes = {s: (table[table["set"] == s]["pose"].nunique(), int((table["set"] == s).sum()))
+                 for s in ("optimization", "validation")}
+        assert sizes == {"optimization": (36, 173), "validation": (32, 156)}
+    assert (set(campaign.sensors) == {"laser_tracker"}) == (name == "kuka-compliance")
+
+
+def test_bundled_campaigns_are_what_the_scenarios_generate(iiwa):
+    """The committed kuka-twin is exactly what `remaster simulate` makes from its scenario."""
+    out = scenario.simulate(io.read_yaml(SCENARIOS / "kuka-twin.yaml"), iiwa)
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    for name, table in out.tables.items():
+        stored = campaign.sensors[name].table
+        np.testing.assert_array_equal(stored[["x", "y", "z"]].to_numpy(), table[["x", "y", "z"]].to_numpy())
+        np.testing.assert_array_equal(stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
+                                      table[[f"q{j}" for j in range(1, 8)]].to_numpy())
