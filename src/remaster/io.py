@@ -77,6 +77,7 @@ def write_yaml(path: str | Path, data: Any) -> Path:
     """Write `data` as block YAML, keys in the given order, leaf lists inline; same data, same bytes."""
     path = Path(path)
     text = yaml.safe_dump(_plain(data), sort_keys=False, allow_unicode=True, default_flow_style=None, width=100)
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8", newline="\n")
     return path
 
@@ -95,6 +96,7 @@ def write_json(path: str | Path, data: Any) -> Path:
         raise TypeError(f"cannot write {type(value).__name__} to JSON ({path})")
 
     text = json.dumps(_plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text + "\n", encoding="utf-8", newline="\n")
     return path
 
