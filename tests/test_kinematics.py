@@ -197,3 +197,31 @@ def test_bad_dh_tables_are_rejected():
         kinematics.chain_from_dh([[0, 0, 0.1, 0], [np.nan, 0, 0, 0]], "standard")
     with pytest.raises(KinematicsError, match="dh/flange"):
         kinematics.chain_from_dh(UR5_DH, "standard", flange=np.ones((4, 4)))
+
+
+def random_axis_chain(rng, n_joints=6):
+    """A chain with joint axes in arbitrary directions (not z), to exercise the general case."""
+    transforms = spatial.homogeneous(spatial.euler_zyx_to_matrix(*rng.uniform(-np.pi, np.pi, (3, n_joints))),
+                                     rng.uniform(-0.3, 0.3, (n_joints, 3)))
+    axes = rng.normal(size=(n_joints, 3))
+    axes[1] = [0.0, 0.0, -1.0]  # an axis opposite to z
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    tool = spatial.homogeneous(spatial.rot_x(0.4), [0.01, 0.02, 0.1])
+    return kinematics.KinematicChain(name="skew", joint_names=tuple(f"j{i}" for i in range(n_joints)),
+                                     joint_transforms=transforms, joint_axes=axes, tool_transform=tool,
+                                     lower=np.full(n_joints, -np.inf), upper=np.full(n_joints, np.inf))
+
+
+def test_compiled_points_equal_numpy_and_pinocchio_for_any_axes(rng):
+    chain = random_axis_chain(rng)
+    q = rng.uniform(-np.pi, np.pi, (40, chain.n_joints))
+    offsets = rng.normal(0, 0.05, (3, chain.n_joints))
+    marker = [0.05, -0.02, 0.03]
+    fk = kinematics.ForwardKinematics(chain, q)
+    np.testing.assert_allclose(fk.points(marker, offsets), fk.points_numpy(marker, offsets), atol=1e-12)
+    np.testing.assert_allclose(fk.points(marker, offsets[0]), fk.points_numpy(marker, offsets[0]), atol=1e-12)
+    model = kinematics.pinocchio_model(chain)
+    data = model.createData()
+    for qi, p in zip(q + offsets[1], fk.points(marker, offsets[1])):
+        pin.framesForwardKinematics(model, data, qi)
+        np.testing.assert_allclose(p, data.oMf[model.getFrameId("flange")].act(np.array(marker)), atol=TOLERANCE)

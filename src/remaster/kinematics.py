@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import spatial
+from . import _kernels, spatial
 from .errors import KinematicsError
 
 DH_CONVENTIONS = ("standard", "modified")
@@ -321,6 +321,18 @@ def _angles(q, zero_offsets) -> np.ndarray:
     return q + offsets[..., None, :] if offsets.ndim == 2 else q + offsets
 
 
+def _basis_with_z(axis) -> np.ndarray:
+    """An orthonormal right-handed basis (3, 3) whose third column is the unit `axis` (the
+    identity when the axis is z already, so that z-axis chains stay exact)."""
+    axis = np.asarray(axis, dtype=float)
+    if np.allclose(axis, [0.0, 0.0, 1.0], atol=0.0, rtol=0.0):
+        return np.eye(3)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(axis, x), axis])
+
+
 class ForwardKinematics:
     """Batched forward kinematics of one chain at fixed joint readings q (n, N).
 
@@ -339,13 +351,27 @@ class ForwardKinematics:
         self.sin_q = np.sin(q)
         # Rot(a, q + d) = Rot(a, q) Rot(a, d): the reading's part of each joint is folded into its
         # fixed transform once, as (N, 3, 3, n) with configurations last so that each joint costs
-        # one small matrix product and one broadcast multiply-add per call.
+        # one small matrix product and one broadcast multiply-add per call (the NumPy reference).
         self._axis_k = spatial.skew(chain.joint_axes)  # (N, 3, 3)
         self._axis_k2 = self._axis_k @ self._axis_k
         readings = self._axis_rotations(self.cos_q, self.sin_q)  # (n, N, 3, 3)
         self._moved = np.ascontiguousarray(
             np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
         self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
+        # The compiled kernels' form: each axis turned onto z by a basis B_j (a_j its third column),
+        # Rot(a_j, q) = B_j Rz(q) B_j^T, with B_j^T folded into the next fixed transform.
+        bases = np.array([_basis_with_z(a) for a in chain.joint_axes])
+        before = np.concatenate([np.eye(3)[None], np.swapaxes(bases[:-1], -1, -2)])
+        self.kernel_rotations = np.ascontiguousarray(before @ chain.joint_transforms[:, :3, :3] @ bases)
+        self.kernel_shifts = np.ascontiguousarray((before @ chain.joint_transforms[:, :3, 3, None])[..., 0])
+        self._last_basis_t = bases[-1].T
+        self.kernel_cos_q = np.ascontiguousarray(self.cos_q.T)
+        self.kernel_sin_q = np.ascontiguousarray(self.sin_q.T)
+
+    def flange_point(self, point_in_flange) -> np.ndarray:
+        """A point given in the flange frame, in the last joint's z-aligned frame (3,)."""
+        point = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
+        return self._last_basis_t @ point
 
     def _axis_rotations(self, cos, sin) -> np.ndarray:
         """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""
@@ -364,8 +390,16 @@ class ForwardKinematics:
     def points(self, point_in_flange, zero_offsets=None) -> np.ndarray:
         """Positions in the base frame of a point fixed in the flange frame (3,), e.g. a marker.
 
-        Returns (n, 3), or (m, n, 3) for a stack of m zero-offset vectors (m, N).
+        Returns (n, 3), or (m, n, 3) for a stack of m zero-offset vectors (m, N). Compiled.
         """
+        offsets = np.zeros(self.chain.n_joints) if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
+        stack = np.atleast_2d(offsets)
+        out = _kernels.points(self.kernel_rotations, self.kernel_shifts, self.flange_point(point_in_flange),
+                              self.kernel_cos_q, self.kernel_sin_q, np.cos(stack), np.sin(stack))
+        return out if offsets.ndim == 2 else out[0]
+
+    def points_numpy(self, point_in_flange, zero_offsets=None) -> np.ndarray:
+        """`points` in plain NumPy: the reference the compiled kernel is tested against."""
         x = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
         offsets = None if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
         rotations = None if offsets is None else self._axis_rotations(np.cos(offsets), np.sin(offsets))

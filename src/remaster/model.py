@@ -18,11 +18,12 @@ on the parameters (sines and cosines of the readings, T_NR) is computed once.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
 
-from . import spatial
+from . import _kernels, spatial
 from .kinematics import ForwardKinematics, KinematicChain
 
 REGISTRATION = ("x", "y", "z", "alpha", "beta", "gamma")
@@ -75,6 +76,9 @@ class ZeroOffsetModel:
         self.names = tuple(n for n, f in zip(self.all_names, self.free) if f)
         self.scale = np.array([display_scale(n) for n in self.names])
         self._fk = ForwardKinematics(chain, self.q)
+        self._start = self._fk.flange_point(self.marker)
+        self._measured_t = np.ascontiguousarray(self.measured.T)
+        self._free_index = np.flatnonzero(self.free)
 
     @property
     def n_points(self) -> int:
@@ -83,8 +87,9 @@ class ZeroOffsetModel:
     def full(self, theta) -> np.ndarray:
         """Free parameters (..., P) -> every parameter (..., 6 + N), held ones at their values."""
         theta = np.asarray(theta, dtype=float)
-        out = np.broadcast_to(self.fixed_values, theta.shape[:-1] + self.fixed_values.shape).copy()
-        out[..., self.free] = theta
+        out = np.empty(theta.shape[:-1] + self.fixed_values.shape)
+        out[...] = self.fixed_values
+        out[..., self._free_index] = theta
         return out
 
     def predict_full(self, every) -> np.ndarray:
@@ -104,12 +109,21 @@ class ZeroOffsetModel:
         return self.measured - self.predict(theta)
 
     def sum_squares(self, theta) -> np.ndarray:
-        """E(Theta) of eq. cost_function: scalar or (m,)."""
-        e = self.residuals(theta)
-        return np.einsum("...ij,...ij->...", e, e)
+        """E(Theta) of eq. cost_function: scalar or (m,). Compiled: this is the hot path."""
+        every = self.full(theta)
+        fk = self._fk
+        energy = _kernels.registered_sum_squares(fk.kernel_rotations, fk.kernel_shifts, self._start, fk.kernel_cos_q,
+                                                 fk.kernel_sin_q, every.reshape(-1, every.shape[-1]), self.t_nr,
+                                                 self._measured_t)
+        return energy if every.ndim == 2 else energy[0]
 
     def log_posterior(self, theta, sigma) -> np.ndarray:
         """-(3n + 2) log sigma - E / (2 sigma^2); -inf where sigma <= 0. Scalar or (m,)."""
+        if np.ndim(sigma) == 0:  # one chain step: plain floats are several times cheaper
+            sigma = float(sigma)
+            if sigma <= 0.0:
+                return -math.inf
+            return -(3 * self.n_points + 2) * math.log(sigma) - float(self.sum_squares(theta)) / (2.0 * sigma * sigma)
         sigma = np.asarray(sigma, dtype=float)
         energy = self.sum_squares(theta)
         positive = sigma > 0
