@@ -130,6 +130,9 @@ def test_bundled_campaigns_are_what_the_scenarios_generate(iiwa):
     campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     for name, table in out.tables.items():
         stored = campaign.sensors[name].table
-        np.testing.assert_array_equal(stored[["x", "y", "z"]].to_numpy(), table[["x", "y", "z"]].to_numpy())
-        np.testing.assert_array_equal(stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
-                                      table[[f"q{j}" for j in range(1, 8)]].to_numpy())
+        # equal up to rounding, so that a change in the order of floating-point operations
+        # does not force regenerating the data; regenerating with the same code is byte-identical
+        np.testing.assert_allclose(stored[["x", "y", "z"]].to_numpy(), table[["x", "y", "z"]].to_numpy(),
+                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
+                                   table[[f"q{j}" for j in range(1, 8)]].to_numpy(), rtol=0, atol=1e-12)
