@@ -67,11 +67,15 @@ def test_every_effect_changes_the_measurement_as_modelled(iiwa, rng):
     moved_marker = Sensor("s", "other", pose, 0.0, nominal.marker, marker_error=np.array([0, 0, 1e-3]))
     shift = np.linalg.norm(measure(iiwa, base, moved_marker, q, rng) - reference, axis=1)
     np.testing.assert_allclose(shift, 1e-3, rtol=1e-9)  # a rigid 1 mm move of the marker
-    errors = np.zeros((8, 6))
-    errors[3, 2] = 1e-3  # elbow link 1 mm longer along its z
-    longer = perturbed_chain(iiwa, errors)
-    np.testing.assert_allclose(longer.joint_transforms[3][:3, 3] - iiwa.joint_transforms[3][:3, 3],
-                               iiwa.joint_transforms[3][:3, :3] @ [0, 0, 1e-3], atol=1e-15)
+    errors = np.zeros((8, 2))
+    errors[3, 0] = 1e-3  # the link before joint 4 (the elbow) 1 mm longer
+    errors[5, 1] = 1e-3  # joint 6's axis tilted by a 1 mrad twist
+    perturbed = perturbed_chain(iiwa, errors)
+    reach = [np.linalg.norm(f[:3, 3]) for f in (iiwa.joint_transforms[3], perturbed.joint_transforms[3])]
+    assert reach[1] - reach[0] == pytest.approx(1e-3, abs=1e-15)
+    tilt = iiwa.joint_transforms[5][:3, :3].T @ perturbed.joint_transforms[5][:3, :3]
+    np.testing.assert_allclose(tilt, spatial.rot_x(1e-3), atol=1e-15)
+    np.testing.assert_array_equal(perturbed.joint_transforms[0], iiwa.joint_transforms[0])
 
 
 def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_path):

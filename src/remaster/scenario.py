@@ -50,9 +50,8 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
         sizes = truth["link_errors"]
         # a seed of their own keeps one robot's links the same across its campaigns
         draw = np.random.default_rng(sizes["seed"]) if "seed" in sizes else rng
-        link_errors = np.concatenate([
-            draw.normal(0.0, float(sizes["translation_std"]), (n_joints + 1, 3)),
-            draw.normal(0.0, float(sizes["rotation_std"]), (n_joints + 1, 3))], axis=1)
+        link_errors = np.column_stack([draw.normal(0.0, float(sizes["length_std"]), n_joints + 1),
+                                       draw.normal(0.0, float(sizes["twist_std"]), n_joints + 1)])
     payload = truth.get("payload") or {}
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
     return TrueRobot(
@@ -156,7 +155,9 @@ def _effects_record(robot: TrueRobot) -> dict:
                                        "payload_mass_kg": robot.payload_mass,
                                        "payload_com_m": robot.payload_com.tolist()}
     if robot.link_errors is not None:
-        effects["link_geometry"] = {"errors_translation_m_rotation_rad": robot.link_errors.tolist()}
+        effects["link_geometry"] = {"length_errors_m": robot.link_errors[:, 0].tolist(),
+                                    "twist_errors_rad": robot.link_errors[:, 1].tolist(),
+                                    "links": "F_1 .. F_N, F_tool (the fixed transform before each joint, then the tool)"}
     if robot.joint_scale is not None:
         effects["joint_scale"] = {"scale": robot.joint_scale.tolist()}
     if robot.drift_rate is not None:

@@ -32,7 +32,7 @@ class TrueRobot:
     joint_compliance: np.ndarray | None = None
     payload_mass: float = 0.0
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    link_errors: np.ndarray | None = None  # (N + 1, 6): translation (m) and rotation vector (rad) after each fixed transform
+    link_errors: np.ndarray | None = None  # (N + 1, 2): length (m) and twist (rad) errors of F_1..F_N, F_tool
     joint_scale: np.ndarray | None = None
     drift_rate: np.ndarray | None = None
 
@@ -69,19 +69,23 @@ def looking_at(position, target) -> np.ndarray:
 
 
 def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
-    """The chain with each fixed transform F_1..F_N, F_tool followed by a small rigid error
-    (translation (3,), rotation vector (3,)) from link_errors (N + 1, 6)."""
+    """The chain with link-geometry errors (N + 1, 2): for each fixed transform F_1..F_N, F_tool,
+    a length error (m) along its translation (none for a link of zero length) and a twist error
+    (rad), a rotation about the x axis of the frame it leads to, which tilts the next joint axis.
+    A rotation about the joint axis itself would be a zero-offset, so it is not a link error."""
     errors = np.asarray(link_errors, dtype=float)
-    if errors.shape != (chain.n_joints + 1, 6):
-        raise ValueError(f"link_errors must have shape ({chain.n_joints + 1}, 6), got {errors.shape}")
+    if errors.shape != (chain.n_joints + 1, 2):
+        raise ValueError(f"link_errors must have shape ({chain.n_joints + 1}, 2), got {errors.shape}")
 
-    def error_transform(row):
-        angle = np.linalg.norm(row[3:])
-        axis = row[3:] / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
-        return spatial.homogeneous(spatial.rot_axis(axis, angle), row[:3])
+    def perturbed(transform, length, twist):
+        out = transform.copy()
+        reach = np.linalg.norm(transform[:3, 3])
+        if reach > 0:
+            out[:3, 3] *= 1.0 + length / reach
+        return out @ spatial.homogeneous(spatial.rot_x(twist))
 
-    moved = np.array([f @ error_transform(e) for f, e in zip(chain.joint_transforms, errors[:-1])])
-    return replace(chain, joint_transforms=moved, tool_transform=chain.tool_transform @ error_transform(errors[-1]))
+    moved = np.array([perturbed(f, *e) for f, e in zip(chain.joint_transforms, errors[:-1])])
+    return replace(chain, joint_transforms=moved, tool_transform=perturbed(chain.tool_transform, *errors[-1]))
 
 
 def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elapsed_s=None) -> np.ndarray:
