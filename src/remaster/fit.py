@@ -12,12 +12,14 @@ Points whose marker was not seen are excluded from the fit and listed.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
-from . import identifiability, registration
-from .campaign import SensorData
+from . import diagnostics, identifiability, registration, samplers
+from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
 from .model import SIGMA, ZeroOffsetModel, display_scale
 from .spatial import transform_points
@@ -103,3 +105,211 @@ class PosteriorTarget:
     def residuals(self, theta_model) -> np.ndarray:
         """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
         return self.model.residuals(theta_model).ravel()
+
+
+# --------------------------------------------------------------------------- fitting
+
+METHODS = ("paper", "default", "emcee")
+METHOD_LABELS = {"paper": "Metropolis (paper)", "default": "adaptive Metropolis", "emcee": "emcee",
+                 "laplace": "least squares + Laplace"}
+
+
+def laplace_fit(model: ZeroOffsetModel) -> samplers.LaplaceResult:
+    """Least-squares MAP of the model parameters from zero corrections, with its Laplace covariance."""
+    target = PosteriorTarget(model)
+    return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale,
+                                          names=model.names)
+
+
+def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Identifiability,
+                   excluded_rows) -> dict:
+    """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, excluded rows."""
+    return {"names": list(result.names), "theta_map": result.theta_map.tolist(),
+            "covariance": result.covariance.tolist(), "std": result.std.tolist(),
+            "sigma_map": result.sigma_map, "sigma_mean": result.sigma_mean, "sigma_std": result.sigma_std,
+            "sum_squares": 2.0 * result.cost, "n_residuals": result.n_residuals,
+            "jacobian_singular_values_step_units": result.jacobian_singular_values.tolist(),
+            "identifiability": analysis.report(),
+            "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows]}
+
+
+def _laplace_start(report: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(start (P,), full covariance (P, P)) of the Laplace fit, sigma last."""
+    theta = np.append(report["theta_map"], report["sigma_map"])
+    p = len(theta)
+    covariance = np.zeros((p, p))
+    covariance[:-1, :-1] = report["covariance"]
+    covariance[-1, -1] = report["sigma_std"] ** 2
+    return theta, covariance
+
+
+def sample(model: ZeroOffsetModel, laplace: dict, method: str, settings: dict, rng: np.random.Generator,
+           progress=None) -> list[samplers.Chain]:
+    """Chains of one method on the model's posterior.
+
+    paper: the paper's Metropolis from Theta = 0, sigma = 1 mm; default: adaptive Metropolis from
+    overdispersed starts around the least-squares MAP, proposal seeded by the Laplace covariance;
+    emcee: walkers in a Laplace-sized ball around the MAP (one ensemble, its walkers split in
+    two halves for R-hat).
+    """
+    target = PosteriorTarget(model)
+    start, covariance = _laplace_start(laplace)
+    if method == "paper":
+        paper_start = np.append(np.zeros(len(model.names)), 1e-3)
+        return samplers.run_chains(samplers.metropolis_paper, target, rng, settings["chains"], paper_start,
+                                   n_samples=settings["samples"], burn_in=settings["burn_in"],
+                                   half_width=settings["half_width"], progress=progress)
+    if method == "default":
+        spread = np.sqrt(np.diag(covariance))
+        starts = start + 3.0 * spread * rng.standard_normal((settings["chains"], len(start)))
+        starts[:, -1] = np.abs(starts[:, -1])
+        return samplers.run_chains(samplers.metropolis_adaptive, target, rng, settings["chains"], starts,
+                                   covariance=covariance, n_samples=settings["samples"],
+                                   burn_in=settings["burn_in"], progress=progress)
+    if method == "emcee":
+        return [samplers.run_emcee(target, rng, start, np.sqrt(np.diag(covariance)), n_walkers=settings["walkers"],
+                                   n_steps=settings["steps"], burn_in=settings["burn_in"])]
+    raise ValueError(f"unknown sampling method {method!r}; use one of {METHODS}")
+
+
+def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
+    """Posterior samples (SI), one row per kept state: parameters, log_prob, chain, walker, step."""
+    frames = []
+    for number, chain in enumerate(chains):
+        steps = np.repeat(np.arange(chain.n_steps), chain.n_walkers)
+        walkers = np.tile(np.arange(chain.n_walkers), chain.n_steps)
+        frame = pd.DataFrame(chain.samples, columns=list(chain.names))
+        frame["log_prob"] = chain.log_prob
+        frame["chain"] = np.int64(number)
+        frame["walker"] = walkers.astype(np.int64)
+        frame["step"] = steps.astype(np.int64)
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
+def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
+    """Samples back into per-chain (n, W, P) arrays, the layout the diagnostics take."""
+    out = []
+    for _, part in frame.groupby("chain", sort=True):
+        walkers = int(part["walker"].max()) + 1
+        values = part.sort_values(["step", "walker"])[list(names)].to_numpy()
+        out.append(values.reshape(-1, walkers, len(names)))
+    if len(out) == 1 and out[0].shape[1] >= 4:  # one ensemble: its two halves of walkers as two chains
+        half = out[0].shape[1] // 2
+        out = [out[0][:, :half], out[0][:, half:]]
+    return out
+
+
+def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
+    """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second."""
+    frame = samples_frame(chains)
+    names = list(chains[0].names)
+    report = diagnostics.chain_report(chains_of(frame, names), names)
+    return {"method": chains[0].method, "chains": len(chains), "walkers": chains[0].n_walkers,
+            "kept_per_chain": chains[0].n_steps, "acceptance_rate": [c.acceptance_rate for c in chains],
+            "seconds": seconds, "min_ess": float(report["ess"].min()),
+            "min_ess_per_second": float(report["ess"].min() / seconds) if seconds > 0 else None,
+            "max_rhat": float(report["rhat"].max()),
+            "parameters": report.reset_index().to_dict(orient="records")}
+
+
+def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool:
+    """A sampler's own verdict: every R-hat below max_rhat and every ESS above min_ess."""
+    return diagnostics_report["max_rhat"] <= max_rhat and diagnostics_report["min_ess"] >= min_ess
+
+
+def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dict], laplace: dict,
+                tolerance: float, max_rhat: float, min_ess: float) -> pd.DataFrame:
+    """Every method's posterior mean and std per parameter and its disagreement with the default
+    sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
+    parameter, then mean_<method>, std_<method>, z_<method>, checked_<method> (SI).
+
+    The agreement is enforced (SamplerDisagreement) among the methods that converged by their
+    own diagnostics and the least-squares/Laplace solution; a method that did not converge (the
+    paper's sampler usually: its chain does not travel far enough in 2e5 small steps) is shown
+    with its disagreement and marked, since its means carry a bias its MCSE does not measure.
+    """
+    names = list(laplace["names"]) + [SIGMA]
+    results = {}
+    for method in ("default",) + tuple(m for m in samples if m != "default"):
+        results[method] = diagnostics.moments(chains_of(samples[method], names))
+    lap_mean = np.append(laplace["theta_map"], laplace["sigma_mean"])
+    lap_std = np.append(laplace["std"], laplace["sigma_std"])
+    results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
+    table = diagnostics.cross_check(results, names, tolerance=None, reference="default")
+    enforced = ["default", "laplace"] + [m for m in samples if m != "default" and
+                                         converged(sampler_reports[m], max_rhat, min_ess)]
+    diagnostics.check_agreement(table.loc[:, [c for c in table.columns if c[1] in enforced]], tolerance)
+    flat = pd.DataFrame(index=table.index)
+    for method in results:
+        for quantity in ("mean", "std", "z"):
+            flat[f"{quantity}_{method}"] = table[(quantity, method)]
+        flat[f"checked_{method}"] = method in enforced
+    return flat.reset_index()
+
+
+def posterior_summary(frame: pd.DataFrame, laplace: dict) -> pd.DataFrame:
+    """Per parameter: MLE (the posterior mean, as in the paper), std and 95 % interval in SI and
+    in display units (mm, deg), and its status; held parameters appear with status 'held'."""
+    names = list(laplace["names"]) + [SIGMA]
+    values = frame[names]
+    summary = pd.DataFrame({"mean": values.mean(), "std": values.std(ddof=1),
+                            "q2.5": values.quantile(0.025), "q97.5": values.quantile(0.975)})
+    summary["status"] = "estimated"
+    for name, value in laplace["identifiability"]["held_at_controller_value"].items():
+        summary.loc[name] = [value, np.nan, np.nan, np.nan, "held: not identifiable"]
+    summary = summary.loc[list(laplace["identifiability"]["parameters"]) + [SIGMA]]
+    scale = np.array([display_scale(n) for n in summary.index])
+    for column in ("mean", "std", "q2.5", "q97.5"):
+        summary[f"{column}_display"] = summary[column].astype(float) / scale
+    summary["display_unit"] = ["mm" if s == 1e-3 else "deg" for s in scale]
+    summary.index.name = "parameter"
+    return summary
+
+
+def remastering(summary: pd.DataFrame, joint_names, campaign: str, sensor: str) -> dict:
+    """The new zero-offset corrections (deg) with their uncertainty, ready to type into a controller:
+    new zero = old zero + correction. Held joints get no correction and say why. `summary` as
+    `posterior_summary` gives it, indexed by parameter or with a parameter column."""
+    if "parameter" in summary.columns:
+        summary = summary.set_index("parameter")
+    joints = []
+    for j, joint in enumerate(joint_names):
+        row = summary.loc[f"zero_offsets.q{j + 1}"]
+        held = row["status"] != "estimated"
+        joints.append({"joint": joint, "correction_deg": float(row["mean_display"]),
+                       "std_deg": None if held else float(row["std_display"]),
+                       "interval_95_deg": None if held else [float(row["q2.5_display"]), float(row["q97.5_display"])],
+                       "status": row["status"]})
+    return {"campaign": campaign, "sensor": sensor, "convention": "controller zero += correction (deg)",
+            "joints": joints}
+
+
+# --------------------------------------------------------------------------- workflow stages
+
+
+def registration_stage(campaign: Campaign, sensor: str) -> dict:
+    """The initial registration of one sensor, JSON-ready."""
+    return register(campaign.chain, campaign.sensors[sensor]).report()
+
+
+def _model(campaign: Campaign, sensor: str, registration_report: dict):
+    return build_model(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]))
+
+
+def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict) -> dict:
+    """Identifiability analysis and least-squares/Laplace fit of one sensor, JSON-ready."""
+    model, analysis, excluded = _model(campaign, sensor, registration_report)
+    return laplace_report(laplace_fit(model), analysis, excluded)
+
+
+def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict, method: str,
+                   settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, dict]:
+    """(posterior samples, sampler diagnostics) of one method for one sensor."""
+    model, _, _ = _model(campaign, sensor, registration_report)
+    if list(model.names) != list(laplace["names"]):
+        raise ValueError(f"the Laplace fit's parameters {laplace['names']} are not the model's {model.names}")
+    started = time.perf_counter()
+    chains = sample(model, laplace, method, settings, rng, progress)
+    seconds = time.perf_counter() - started
+    return samples_frame(chains), sampler_diagnostics(chains, seconds)

@@ -101,6 +101,59 @@ def write_json(path: str | Path, data: Any) -> Path:
     return path
 
 
+def write_parquet(path: str | Path, table: pd.DataFrame) -> Path:
+    """Write a table as Parquet without its index; same data, same bytes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(pa.Table.from_pandas(table, preserve_index=False), path)
+    return path
+
+
+def read_parquet(path: str | Path) -> pd.DataFrame:
+    """A Parquet table; InputError naming the file if it cannot be read."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", file=str(path))
+    return _read_parquet(path)
+
+
+def read_json(path: str | Path) -> Any:
+    """Content of a JSON file; InputError naming the file if missing or malformed."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
+
+
+def write_table(stem: str | Path, table: pd.DataFrame, caption: str, label: str) -> list[Path]:
+    """Write a table as <stem>.csv, <stem>.md and <stem>.tex (see `remaster.tables`)."""
+    from . import tables
+
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = [stem.with_suffix(".csv"), stem.with_suffix(".md"), stem.with_suffix(".tex")]
+    table.to_csv(paths[0], index=False, float_format="%.6g", lineterminator="\n")
+    paths[1].write_text(f"**{caption}**\n\n" + tables.to_markdown(table), encoding="utf-8", newline="\n")
+    paths[2].write_text(tables.to_latex(table, caption, label), encoding="utf-8", newline="\n")
+    return paths
+
+
+def write_figure(stem: str | Path, figure) -> list[Path]:
+    """Save a matplotlib figure as <stem>.png and <stem>.pdf, reproducibly (no timestamps), and close it."""
+    import matplotlib.pyplot as plt
+
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
+    figure.savefig(paths[0], dpi=120, metadata={"Software": None})
+    figure.savefig(paths[1], metadata={"Creator": None, "Producer": None, "CreationDate": None})
+    plt.close(figure)
+    return paths
+
+
 def read_csv(path: str | Path) -> pd.DataFrame:
     """A CSV table; InputError naming the file if it is missing or unreadable."""
     path = Path(path)

@@ -1,0 +1,71 @@
+"""The paper's figures (and a few more), drawn from result files only.
+
+Every function takes DataFrames or arrays and returns a matplotlib Figure (Agg backend, no
+screen); `remaster.io.write_figure` saves it as PNG and PDF. Units on the axes are mm and deg.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .model import DEG  # noqa: E402
+from .tables import sensor_label  # noqa: E402
+
+
+def _zero_offset_columns(samples: pd.DataFrame) -> list[str]:
+    return [c for c in samples.columns if c.startswith("zero_offsets.")]
+
+
+def _grid(count: int):
+    columns = min(4, count)
+    rows = int(np.ceil(count / columns))
+    fig, axes = plt.subplots(rows, columns, figsize=(3.2 * columns, 2.4 * rows), squeeze=False)
+    for ax in axes.flat[count:]:
+        ax.set_visible(False)
+    return fig, axes.flat
+
+
+def zero_offset_trace(trace: pd.DataFrame, burn_in: int, title: str) -> plt.Figure:
+    """Fig. zero_offset_trace: each free zero-offset (deg) against the step, with the burn-in
+    boundary. `trace` has a `step` column and one column per parameter (SI)."""
+    columns = _zero_offset_columns(trace)
+    fig, axes = _grid(len(columns))
+    for ax, name in zip(axes, columns):
+        ax.plot(trace["step"], trace[name] / DEG, lw=0.6, color="tab:blue")
+        ax.axvline(burn_in, color="tab:red", lw=0.8, ls="--")
+        ax.set_title(name.replace("zero_offsets.", "zero-offset "), fontsize=9)
+        ax.set_xlabel("step", fontsize=8)
+        ax.set_ylabel("deg", fontsize=8)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def zero_offset_histograms(samples: pd.DataFrame, title: str, truth_deg: dict[str, float] | None = None) -> plt.Figure:
+    """Fig. zero_offset_histograms: the posterior of each free zero-offset (deg), with its
+    mean; `truth_deg` (simulations only, never read by the pipeline itself) may mark the truth."""
+    columns = _zero_offset_columns(samples)
+    fig, axes = _grid(len(columns))
+    for ax, name in zip(axes, columns):
+        values = samples[name].to_numpy() / DEG
+        ax.hist(values, bins=40, color="tab:blue", alpha=0.8)
+        ax.axvline(values.mean(), color="k", lw=1.0)
+        if truth_deg and name in truth_deg:
+            ax.axvline(truth_deg[name], color="tab:green", lw=1.0, ls="--")
+        ax.set_title(name.replace("zero_offsets.", "zero-offset "), fontsize=9)
+        ax.set_xlabel("deg", fontsize=8)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def sensor_title(campaign: str, sensor: str, what: str) -> str:
+    return f"{campaign}, {sensor_label(sensor)}: {what}"
