@@ -5,10 +5,15 @@ configfile: "config.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/campaign.smk"
 include: "workflow/rules/fit.smk"
+include: "workflow/rules/tables_fit.smk"
 
 
 rule all:
     input:
         expand(f"{RESULTS}/{{campaign}}/campaign/summary.json", campaign=CAMPAIGNS),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/remastering.json"),
+        expand(f"{RESULTS}/{{campaign}}/tables/{{table}}.md", campaign=CAMPAIGNS,
+               table=["zero_offsets", "registration_params"]),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_trace_{{sensor}}.png"),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_histograms_{{sensor}}.png"),
     default_target: True

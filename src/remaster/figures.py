@@ -32,17 +32,19 @@ def _grid(count: int):
 
 
 def zero_offset_trace(trace: pd.DataFrame, burn_in: int, title: str) -> plt.Figure:
-    """Fig. zero_offset_trace: each free zero-offset (deg) against the step, with the burn-in
-    boundary. `trace` has a `step` column and one column per parameter (SI)."""
+    """Fig. zero_offset_trace: each free zero-offset (deg) against the step, one line per chain,
+    with the burn-in boundary. `trace` has step and chain columns and one column per parameter (SI)."""
     columns = _zero_offset_columns(trace)
     fig, axes = _grid(len(columns))
     for ax, name in zip(axes, columns):
-        ax.plot(trace["step"], trace[name] / DEG, lw=0.6, color="tab:blue")
-        ax.axvline(burn_in, color="tab:red", lw=0.8, ls="--")
+        for number, chain in trace.groupby("chain"):
+            ax.plot(chain["step"] / 1e3, chain[name] / DEG, lw=0.6, label=f"chain {number + 1}")
+        ax.axvline(burn_in / 1e3, color="tab:red", lw=0.8, ls="--")
         ax.set_title(name.replace("zero_offsets.", "zero-offset "), fontsize=9)
-        ax.set_xlabel("step", fontsize=8)
+        ax.set_xlabel("step (thousands)", fontsize=8)
         ax.set_ylabel("deg", fontsize=8)
         ax.tick_params(labelsize=7)
+    axes[0].legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig

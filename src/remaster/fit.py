@@ -187,6 +187,25 @@ def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+def trace_frame(chains: list[samplers.Chain], every: int = 100) -> pd.DataFrame:
+    """The whole run of each chain, every `every`-th step, burn-in included where the sampler
+    kept it (the paper's); step counts from the first step. For an ensemble, walker 0."""
+    frames = []
+    for number, chain in enumerate(chains):
+        burn_in = chain.settings.get("burn_in", 0)
+        kept = chain.per_walker()[::every, 0]
+        parts, steps = [kept], [burn_in + every * np.arange(len(kept))]
+        if "burn_in_trace" in chain.settings:
+            early = chain.settings["burn_in_trace"]
+            parts.insert(0, early)
+            steps.insert(0, chain.settings["trace_every"] * np.arange(len(early)))
+        frame = pd.DataFrame(np.concatenate(parts), columns=list(chain.names))
+        frame["step"] = np.concatenate(steps).astype(np.int64)
+        frame["chain"] = np.int64(number)
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
 def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
     """Samples back into per-chain (n, W, P) arrays, the layout the diagnostics take."""
     out = []
@@ -304,12 +323,12 @@ def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict) ->
 
 
 def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict, method: str,
-                   settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, dict]:
-    """(posterior samples, sampler diagnostics) of one method for one sensor."""
+                   settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
     model, _, _ = _model(campaign, sensor, registration_report)
     if list(model.names) != list(laplace["names"]):
         raise ValueError(f"the Laplace fit's parameters {laplace['names']} are not the model's {model.names}")
     started = time.perf_counter()
     chains = sample(model, laplace, method, settings, rng, progress)
     seconds = time.perf_counter() - started
-    return samples_frame(chains), sampler_diagnostics(chains, seconds)
+    return samples_frame(chains), trace_frame(chains), sampler_diagnostics(chains, seconds)

@@ -248,18 +248,20 @@ def _start(target: Target, start) -> _Walker:
 
 def _walk(target: Target, rng: np.random.Generator, walker: _Walker, n_steps: int,
           draw_steps: Callable[[np.random.Generator, int], np.ndarray], store: bool,
-          progress: _Progress) -> tuple[np.ndarray | None, np.ndarray | None, int]:
+          progress: _Progress, thin: int = 1) -> tuple[np.ndarray | None, np.ndarray | None, int]:
     """Advance `walker` in place by n_steps Metropolis steps with symmetric increments.
 
     draw_steps(rng, m) -> (m, P) increments in SI. Increments and log-uniforms are drawn a block
     at a time so the Python loop does only the accept/reject; with a symmetric proposal the
     acceptance ratio is the posterior ratio (eq. acceptance_ratio), compared in logs to avoid the
     under/overflow of sigma^-(3n+2). Returns (samples (n_steps, P), log_probs (n_steps,)) when
-    `store`, else (None, None), and the number of accepted proposals.
+    `store`, else (None, None), and the number of accepted proposals. With thin > 1 only every
+    thin-th state is stored (the random draws, hence the chain, are the same whatever thin is).
     """
     p = len(walker.theta)
-    samples = np.empty((n_steps, p)) if store else None
-    log_probs = np.empty(n_steps) if store else None
+    stored = -(-n_steps // thin)
+    samples = np.empty((stored, p)) if store else None
+    log_probs = np.empty(stored) if store else None
     log_prob = target.log_prob
     theta, lp = walker.theta, walker.log_prob
     accepted_total = 0
@@ -279,9 +281,9 @@ def _walk(target: Target, rng: np.random.Generator, walker: _Walker, n_steps: in
             if log_u[i] < lp_proposal - lp:
                 theta, lp = proposal, lp_proposal
                 accepted += 1
-            if store:
-                samples[begin + i] = theta
-                log_probs[begin + i] = lp
+            if store and (begin + i) % thin == 0:
+                samples[(begin + i) // thin] = theta
+                log_probs[(begin + i) // thin] = lp
         accepted_total += accepted
         progress.add(m, accepted)
     walker.theta, walker.log_prob = theta, float(lp)
@@ -314,12 +316,13 @@ def _gaussian_steps(covariance: np.ndarray):
 
 def metropolis_paper(target: Target, rng: np.random.Generator, start, n_samples: int = 200_000,
                      burn_in: int = 175_000, half_width: float = PAPER_HALF_WIDTH,
-                     progress: Callable[[int, int, float], None] | None = None) -> Chain:
+                     progress: Callable[[int, int, float], None] | None = None, trace_every: int = 100) -> Chain:
     """The paper's Metropolis: every parameter perturbed at once by U(-h, h) * scale.
 
     start (P,) SI (paper: Theta = 0, sigma = 1 mm); half_width h in step units (paper 0.0125 mm
     or deg); n_samples total iterations, the first burn_in discarded (paper 2e5 and 1.75e5).
-    progress(step, n_samples, acceptance so far) is called about every 10 %.
+    progress(step, n_samples, acceptance so far) is called about every 10 %. Every trace_every-th
+    state of the burn-in is kept in settings["burn_in_trace"] (k, P), for the trace figure.
     """
     scale = np.asarray(target.scale, dtype=float)
     settings = {"n_samples": n_samples, "burn_in": burn_in, "half_width": half_width,
@@ -328,7 +331,9 @@ def metropolis_paper(target: Target, rng: np.random.Generator, start, n_samples:
     walker = _start(target, start)
     draw = _uniform_steps(half_width * scale)
     tracker = _Progress(progress, n_samples)
-    _walk(target, rng, walker, burn_in, draw, False, tracker)  # burn-in is not stored: 2e5 x P floats saved
+    # the burn-in is stored thinned only: its trace shows where the chain travelled
+    settings["burn_in_trace"], _, _ = _walk(target, rng, walker, burn_in, draw, True, tracker, thin=trace_every)
+    settings["trace_every"] = trace_every
     samples, log_probs, accepted = _walk(target, rng, walker, kept, draw, True, tracker)
     return Chain(samples, log_probs, accepted / kept, tuple(target.names), "metropolis_paper", settings)
 

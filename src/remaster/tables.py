@@ -63,24 +63,32 @@ def display_value(name: str, value: float) -> float:
     return float(value) / display_scale(name)
 
 
-def zero_offsets_table(summaries: dict[str, pd.DataFrame], n_joints: int) -> pd.DataFrame:
+def _indexed(summary: pd.DataFrame) -> pd.DataFrame:
+    return summary.set_index("parameter") if "parameter" in summary.columns else summary
+
+
+def paper_order(sensors) -> list[str]:
+    """Sensors in the paper's column order (motion capture, laser tracker), then the others by name."""
+    known = list(SENSOR_LABELS)
+    return sorted(sensors, key=lambda s: (known.index(s) if s in known else len(known), s))
+
+
+def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Table MLE_zero_offsets: per joint, each sensor's MLE (posterior mean) and std in deg.
 
-    summaries: sensor -> DataFrame indexed by parameter name with columns mean, std (SI). A
-    parameter missing from a summary was held (not identifiable) and is marked so.
+    summaries: sensor -> `fit.posterior_summary` table (SI). A parameter held because the data
+    cannot determine it is marked 'held' instead of given a number.
     """
+    summaries = {sensor: _indexed(summaries[sensor]) for sensor in paper_order(summaries)}
+    names = [n for n in next(iter(summaries.values())).index if n.startswith("zero_offsets.")]
     rows = []
-    for j in range(n_joints):
-        name = f"zero_offsets.q{j + 1}"
-        row = {"Zero-Offset": f"dtheta{j + 1}"}
+    for name in sorted(names, key=lambda n: int(n.rsplit("q", 1)[1])):
+        row = {"Zero-Offset": "dtheta" + name.rsplit("q", 1)[1]}
         for sensor, summary in summaries.items():
             label = sensor_label(sensor)
-            if name in summary.index:
-                row[f"{label} MLE (deg)"] = display_value(name, summary.loc[name, "mean"])
-                row[f"{label} Std (deg)"] = display_value(name, summary.loc[name, "std"])
-            else:
-                row[f"{label} MLE (deg)"] = HELD
-                row[f"{label} Std (deg)"] = HELD
+            held = summary.loc[name, "status"] != "estimated"
+            row[f"{label} MLE (deg)"] = HELD if held else display_value(name, summary.loc[name, "mean"])
+            row[f"{label} Std (deg)"] = HELD if held else display_value(name, summary.loc[name, "std"])
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -93,6 +101,7 @@ REGISTRATION_ROWS = (("registration.x", "x (mm)"), ("registration.y", "y (mm)"),
 def registration_params_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
     the paper's row order."""
+    summaries = {sensor: _indexed(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
     for name, label in REGISTRATION_ROWS:
         row = {"Parameter": label}

@@ -38,6 +38,7 @@ rule sample:
         laplace=rules.laplace.output.laplace,
     output:
         samples=f"{FIT}/samples_{{method}}.parquet",
+        trace=f"{FIT}/trace_{{method}}.parquet",
         diagnostics=f"{FIT}/diagnostics_{{method}}.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/sample_{{method}}.log",
