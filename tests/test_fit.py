@@ -1,0 +1,137 @@
+"""The zero-offset fit end to end: coverage of the truth over many simulated campaigns, the
+samplers' agreement, recovery on the bundled twin, and the remastering outputs."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from remaster import fit, io
+from remaster.campaign import sensor_data
+from remaster.diagnostics import SamplerDisagreement
+from remaster.simulation import Sensor, TrueRobot, looking_at, measure
+
+from .conftest import REPO
+
+FAST = {"paper": {"chains": 2, "samples": 4000, "burn_in": 3000, "half_width": 0.0125},
+        "default": {"chains": 2, "samples": 5000, "burn_in": 1500},
+        "emcee": {"walkers": 32, "steps": 800, "burn_in": 300}}
+
+
+def simulated_sensor(chain, rng, n=80, noise=5e-5, missing=()):
+    """A sensor table from random configurations: known zero-offsets, no other effect."""
+    q = rng.uniform(np.maximum(chain.lower, -2.0), np.minimum(chain.upper, 2.0), (n, chain.n_joints))
+    truth = rng.normal(0.0, np.radians(0.4), chain.n_joints)
+    sensor = Sensor("laser_tracker", "laser_tracker", looking_at(rng.uniform([1.2, -0.5, 0.6], [2.0, 0.5, 1.5]),
+                                                                  [0, 0, 0.6]), noise, np.array([-0.1, 0.0, 0.02]))
+    xyz = measure(chain, TrueRobot(zero_offsets=truth), sensor, q, rng)
+    xyz[list(missing)] = np.nan
+    table = pd.DataFrame({"set": "optimization", "pose": np.arange(n, dtype=np.int64),
+                          "solution": np.zeros(n, dtype=np.int64)})
+    for j in range(chain.n_joints):
+        table[f"q{j + 1}"] = q[:, j]
+    table[["x", "y", "z"]] = xyz
+    spec = {"kind": "laser_tracker", "marker": sensor.marker, "noise": noise}
+    return sensor_data("laser_tracker", spec, table, chain.n_joints, "simulated.parquet"), truth
+
+
+def fitted(chain, sensor, methods=("default",), seed=0):
+    registration = fit.register(chain, sensor)
+    model, analysis, excluded = fit.build_model(chain, sensor, registration.t_nr)
+    laplace = fit.laplace_report(fit.laplace_fit(model), analysis, excluded)
+    samples, reports = {}, {}
+    for method in methods:
+        chains = fit.sample(model, laplace, method, FAST[method], np.random.default_rng(seed))
+        samples[method] = fit.samples_frame(chains)
+        reports[method] = fit.sampler_diagnostics(chains, 1.0)
+    return laplace, samples, reports
+
+
+def test_intervals_cover_the_truth_about_95_percent(iiwa):
+    """Simulation-based calibration of the 95 % intervals: 24 campaigns x 6 identifiable offsets."""
+    covered, total = 0, 0
+    for seed in range(24):
+        rng = np.random.default_rng(1000 + seed)
+        sensor, truth = simulated_sensor(iiwa, rng)
+        laplace, samples, _ = fitted(iiwa, sensor, seed=seed)
+        summary = fit.posterior_summary(samples["default"], laplace)
+        for j in range(1, 7):
+            row = summary.loc[f"zero_offsets.q{j + 1}"]
+            covered += bool(row["q2.5"] <= truth[j] <= row["q97.5"])
+            total += 1
+    # binomial(144, 0.95): mean 136.8, sd 2.6; MCMC quantiles add a little noise
+    assert 0.89 <= covered / total <= 1.0, f"{covered} of {total} intervals cover the truth"
+
+
+def test_samplers_agree_and_unseen_points_are_excluded(iiwa):
+    rng = np.random.default_rng(5)
+    sensor, _ = simulated_sensor(iiwa, rng, missing=(3, 17))
+    laplace, samples, reports = fitted(iiwa, sensor, methods=("default", "emcee", "paper"))
+    assert laplace["excluded_rows_marker_not_seen"] == [3, 17]
+    assert laplace["identifiability"]["held_at_controller_value"] == {"zero_offsets.q1": 0.0}
+    table = fit.cross_check(samples, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100)
+    assert {"z_default", "z_emcee", "z_laplace", "z_paper"} <= set(table.columns)
+    assert table["checked_emcee"].all() and table["checked_laplace"].all()
+    assert (table.loc[table["checked_paper"], "z_paper"].abs() <= 4.0).all()
+    # a method shifted by several posterior std is caught
+    shifted = samples["emcee"].copy()
+    shifted["zero_offsets.q3"] += 5 * shifted["zero_offsets.q3"].std()
+    with pytest.raises(SamplerDisagreement, match="zero_offsets.q3"):
+        fit.cross_check({**samples, "emcee": shifted}, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100)
+
+
+def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):
+    rng = np.random.default_rng(11)
+    sensor, _ = simulated_sensor(iiwa, rng, n=150, noise=3e-5)
+    laplace, samples, _ = fitted(iiwa, sensor)
+    sigma = samples["default"]["noise.sigma"]
+    assert sigma.mean() == pytest.approx(3e-5, rel=0.15)
+    assert laplace["sigma_mean"] == pytest.approx(sigma.mean(), rel=0.03)
+    assert laplace["sigma_std"] == pytest.approx(sigma.std(), rel=0.25)
+
+
+def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
+    """The bundled twin (its unmodelled compliance and link errors included): each identifiable
+    zero-offset within three posterior std of the truth, joint 1 held and reported as such."""
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    truth = np.radians(json.loads((REPO / "data" / "truth" / "kuka-twin.json").read_text())["zero_offsets_deg"])
+    for name, sensor in campaign.sensors.items():
+        laplace, samples, _ = fitted(campaign.chain, sensor)
+        summary = fit.posterior_summary(samples["default"], laplace)
+        assert summary.loc["zero_offsets.q1", "status"].startswith("held")
+        for j in range(1, 7):
+            row = summary.loc[f"zero_offsets.q{j + 1}"]
+            assert abs(row["mean"] - truth[j]) < 3 * row["std"], (name, j + 1, row["mean"], truth[j], row["std"])
+        assert 0.7e-3 < summary.loc["noise.sigma", "mean"] < 0.95e-3  # the paper's size
+
+
+def test_remastering_file_and_tables(iiwa):
+    from remaster import tables
+
+    rng = np.random.default_rng(2)
+    sensor, truth = simulated_sensor(iiwa, rng)
+    laplace, samples, _ = fitted(iiwa, sensor)
+    summary = fit.posterior_summary(samples["default"], laplace)
+    remaster = fit.remastering(summary.reset_index(), iiwa.joint_names, "sim", "laser_tracker")
+    assert remaster["joints"][0]["status"].startswith("held") and remaster["joints"][0]["std_deg"] is None
+    for j in range(1, 7):
+        entry = remaster["joints"][j]
+        assert entry["correction_deg"] == pytest.approx(np.degrees(summary.loc[f"zero_offsets.q{j + 1}", "mean"]))
+        low, high = entry["interval_95_deg"]
+        assert low < entry["correction_deg"] < high
+    table = tables.zero_offsets_table({"laser_tracker": summary, "motion_capture": summary})
+    assert list(table.columns)[1].startswith("Motion Capture")  # the paper's column order
+    assert table.iloc[0, 1] == tables.HELD and len(table) == 7
+    other = tables.registration_params_table({"laser_tracker": summary})
+    assert other["Parameter"].tolist() == ["x (mm)", "y (mm)", "z (mm)", "sigma (mm)", "alpha (deg)",
+                                           "beta (deg)", "gamma (deg)"]
+    assert other.loc[3, "Laser Tracker MLE"] == pytest.approx(summary.loc["noise.sigma", "mean"] * 1e3)
+
+
+def test_same_seed_same_samples(iiwa):
+    sensor, _ = simulated_sensor(iiwa, np.random.default_rng(9))
+    first = fitted(iiwa, sensor, methods=("default", "emcee"), seed=4)[1]
+    second = fitted(iiwa, sensor, methods=("default", "emcee"), seed=4)[1]
+    for method in first:
+        pd.testing.assert_frame_equal(first[method], second[method])
