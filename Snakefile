@@ -6,6 +6,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/campaign.smk"
 include: "workflow/rules/fit.smk"
 include: "workflow/rules/tables_fit.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:
@@ -16,4 +17,5 @@ rule all:
                table=["zero_offsets", "registration_params"]),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_trace_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_histograms_{{sensor}}.png"),
+        f"{RESULTS}/report.html",
     default_target: True

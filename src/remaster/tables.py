@@ -14,6 +14,12 @@ import pandas as pd
 
 from .model import SIGMA, display_scale
 
+CAPTIONS = {
+    "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
+    "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
+    "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
+    "zero_offset_histograms": "Posterior of the zero-offsets (default sampler)",
+}
 SENSOR_LABELS = {"motion_capture": "Motion Capture", "laser_tracker": "Laser Tracker"}
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
 

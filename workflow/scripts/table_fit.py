@@ -4,12 +4,8 @@ from pathlib import Path
 
 from remaster import io, tables
 
-CAPTIONS = {
-    "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
-    "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
-}
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     kind = snakemake.params.kind  # noqa: F821
     summaries = {s: io.read_csv(p) for s, p in zip(snakemake.params.sensors, snakemake.input.summaries)}  # noqa: F821
     table = getattr(tables, f"{kind}_table")(summaries)
-    io.write_table(Path(snakemake.output[0]).with_suffix(""), table, CAPTIONS[kind], kind)  # noqa: F821
+    io.write_table(Path(snakemake.output[0]).with_suffix(""), table, tables.CAPTIONS[kind], kind)  # noqa: F821

@@ -1,0 +1,14 @@
+"""results/report.html: every table and figure of the run on one self-contained page."""
+
+from pathlib import Path
+
+from remaster import io, report, tables
+
+with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
+    campaigns = {
+        name: {"summary": io.read_json(part["summary"]),
+               "tables": {t: io.read_csv(p) for t, p in part["tables"].items()},
+               "figures": {f: Path(p).read_bytes() for f, p in part["figures"].items()}}
+        for name, part in snakemake.params.layout.items()  # noqa: F821
+    }
+    Path(snakemake.output.html).write_text(report.build(campaigns, tables.CAPTIONS), encoding="utf-8")  # noqa: F821
