@@ -1,0 +1,27 @@
+"""The HTML report is one self-contained page with every table and figure it is given."""
+
+import base64
+
+import pandas as pd
+
+from remaster import report
+
+PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
+
+
+def test_page_embeds_tables_and_figures():
+    summary = {"campaign": "c1", "date": "2020-01-01",
+               "robot": {"name": "arm", "joints": ["j1", "j2"], "base": "b", "flange": "f"},
+               "sensors": {"laser_tracker": {"kind": "laser_tracker", "n_missing": 2, "missing_rows": [4, 9],
+                                             "sets": {"optimization": {"poses": 3, "configurations": 7}}}}}
+    table = pd.DataFrame({"Parameter": ["x (mm)", "<b>"], "MLE": [1.23456, float("nan")]})
+    page = report.build({"c1": {"summary": summary, "tables": {"registration_params": table},
+                                "figures": {"zero_offset_trace_laser_tracker": PNG}}},
+                        {"registration_params": "Registration", "zero_offset_trace": "Trace"})
+    assert page.startswith("<!DOCTYPE html>") and "</html>" in page
+    assert "<caption>Registration</caption>" in page and "1.235" in page
+    assert "&lt;b&gt;" in page  # text is escaped, never injected
+    assert "data:image/png;base64," + base64.b64encode(PNG).decode() in page
+    assert "Trace (laser tracker)" in page
+    assert "2 rows without a measurement" in page and "[4, 9]" in page
+    assert "src=\"http" not in page and "href=\"http" not in page  # nothing fetched from outside
