@@ -6,6 +6,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/campaign.smk"
 include: "workflow/rules/fit.smk"
 include: "workflow/rules/tables_fit.smk"
+include: "workflow/rules/accuracy.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -17,5 +18,12 @@ rule all:
                table=["zero_offsets", "registration_params"]),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_trace_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/zero_offset_histograms_{{sensor}}.png"),
+        expand(f"{RESULTS}/{{campaign}}/tables/{{table}}.md", campaign=CAMPAIGNS,
+               table=list(TABLE_NAMES) + ["sensor_comparison"]),
+        expand(f"{RESULTS}/{{campaign}}/tables/{{table}}_vs_paper.md",
+               campaign=[c for c in CAMPAIGNS if c in config["paper_twins"]], table=TABLE_NAMES),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/tcp_scatter_{{sensor}}.png"),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/post_registration_histograms_{{sensor}}.png"),
+        expand(f"{RESULTS}/{{campaign}}/figures/residuals.png", campaign=CAMPAIGNS),
         f"{RESULTS}/report.html",
     default_target: True

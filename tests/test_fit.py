@@ -135,3 +135,28 @@ def test_same_seed_same_samples(iiwa):
     second = fitted(iiwa, sensor, methods=("default", "emcee"), seed=4)[1]
     for method in first:
         pd.testing.assert_frame_equal(first[method], second[method])
+
+
+def test_gross_error_is_flagged_listed_and_left_out(iiwa):
+    """A laser tracker re-acquisition glitch of 4 mm on one point of a clean campaign."""
+    from remaster.campaign import sensor_data as rebuild
+
+    sensor, truth = simulated_sensor(iiwa, np.random.default_rng(21), noise=2e-4)
+    registration = fit.register(iiwa, sensor)
+    clean_model, _, _ = fit.build_model(iiwa, sensor, registration.t_nr)
+    assert fit.flag_outliers(clean_model, alpha=0.01).size == 0  # nothing flagged on clean data
+    table = sensor.table.copy()
+    table.loc[37, "y"] += 4e-3
+    glitched = rebuild("laser_tracker", {"kind": "laser_tracker", "marker": sensor.marker, "noise": 2e-4},
+                       table, 7, "glitch.parquet")
+    model, _, _ = fit.build_model(iiwa, glitched, registration.t_nr)
+    outliers = fit.flag_outliers(model, alpha=0.01)
+    np.testing.assert_array_equal(outliers, [37])
+    robust, analysis, excluded = fit.build_model(iiwa, glitched, registration.t_nr, exclude=outliers)
+    assert 37 not in robust.table_rows and robust.n_points == model.n_points - 1
+    report = fit.laplace_report(fit.laplace_fit(robust), analysis, excluded, outliers, robust)
+    assert report["excluded_rows_outliers"] == [37] and report["points_fitted"] == robust.n_points
+    offsets = np.array(report["theta_map"][6:])
+    std = np.array(report["std"][6:])
+    assert np.all(np.abs(offsets - truth[1:]) < 4 * std)  # the fit without the glitch is unbiased
+    assert report["sigma_map"] < 3e-4

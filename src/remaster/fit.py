@@ -12,17 +12,23 @@ Points whose marker was not seen are excluded from the fit and listed.
 
 from __future__ import annotations
 
+import logging
+import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+import scipy.optimize
+import scipy.stats
 
 from . import diagnostics, identifiability, registration, samplers
 from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
 from .model import SIGMA, ZeroOffsetModel, display_scale
 from .spatial import transform_points
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -69,15 +75,38 @@ def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimiz
     return Registration(three, tuple(int(r) for r in rows[triple]), kabsch, rms(three), rms(kabsch))
 
 
-def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str = "optimization"):
-    """(model with undetermined parameters held, identifiability analysis, excluded rows)."""
-    rows = measured_rows(sensor, set_name)
+def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str = "optimization", exclude=()):
+    """(model with undetermined parameters held, identifiability analysis, rows without a
+    measurement). `exclude`: further table rows left out (flagged outliers). The model's
+    `table_rows` (n,) says which table row each of its points is."""
+    rows = np.setdiff1d(measured_rows(sensor, set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
     analysis = identifiability.analyse(ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr))
     model = ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held)
+    model.table_rows = rows
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
+
+
+def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
+    """Table rows of gross measurement errors (a laser tracker's re-acquisition glitch, a swapped
+    marker): points whose residual after a robust (Cauchy-loss) least-squares fit is farther
+    from the model than an isotropic Gaussian of the robust scale sigma_r (1.4826 MAD of the
+    residual components) allows for any of the n points at family-wise level `alpha`:
+    |E_i| > sigma_r sqrt(chi2_3 quantile at 1 - alpha / n) (Bonferroni). The robust loss keeps one
+    glitch of several mm from dragging the fit towards it."""
+    scale = np.array([display_scale(n) for n in model.names])
+    start = np.zeros(len(model.names))
+    first = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), start, x_scale=scale)
+    spread = 1.4826 * np.median(np.abs(first.fun))
+    robust = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), first.x, x_scale=scale,
+                                          loss="cauchy", f_scale=max(spread, 1e-9))
+    residual = np.abs(model.residuals(robust.x))
+    sigma_r = 1.4826 * np.median(residual)
+    threshold = math.sqrt(scipy.stats.chi2.isf(alpha / model.n_points, df=3))
+    far = np.linalg.norm(residual, axis=1) > threshold * sigma_r
+    return model.table_rows[far]
 
 
 @dataclass(frozen=True)
@@ -122,15 +151,18 @@ def laplace_fit(model: ZeroOffsetModel) -> samplers.LaplaceResult:
 
 
 def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Identifiability,
-                   excluded_rows) -> dict:
-    """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, excluded rows."""
+                   excluded_rows, outlier_rows=(), model: ZeroOffsetModel | None = None) -> dict:
+    """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, the rows
+    left out (marker not seen; flagged as outliers) and the number of points fitted."""
     return {"names": list(result.names), "theta_map": result.theta_map.tolist(),
             "covariance": result.covariance.tolist(), "std": result.std.tolist(),
             "sigma_map": result.sigma_map, "sigma_mean": result.sigma_mean, "sigma_std": result.sigma_std,
             "sum_squares": 2.0 * result.cost, "n_residuals": result.n_residuals,
             "jacobian_singular_values_step_units": result.jacobian_singular_values.tolist(),
             "identifiability": analysis.report(),
-            "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows]}
+            "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows],
+            "excluded_rows_outliers": [int(r) for r in outlier_rows],
+            "points_fitted": None if model is None else int(model.n_points)}
 
 
 def _laplace_start(report: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -312,20 +344,27 @@ def registration_stage(campaign: Campaign, sensor: str) -> dict:
     return register(campaign.chain, campaign.sensors[sensor]).report()
 
 
-def _model(campaign: Campaign, sensor: str, registration_report: dict):
-    return build_model(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]))
+def _model(campaign: Campaign, sensor: str, registration_report: dict, exclude=()):
+    return build_model(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
+                       exclude=exclude)
 
 
-def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict) -> dict:
-    """Identifiability analysis and least-squares/Laplace fit of one sensor, JSON-ready."""
-    model, analysis, excluded = _model(campaign, sensor, registration_report)
-    return laplace_report(laplace_fit(model), analysis, excluded)
+def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict, outlier_alpha: float) -> dict:
+    """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor,
+    JSON-ready. Flagged outliers are left out of this and every later fit, and listed."""
+    model, _, _ = _model(campaign, sensor, registration_report)
+    outliers = flag_outliers(model, outlier_alpha)
+    if len(outliers):
+        log.warning("%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers),
+                    outliers.tolist())
+    model, analysis, excluded = _model(campaign, sensor, registration_report, exclude=outliers)
+    return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
 
 
 def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict, method: str,
                    settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
-    model, _, _ = _model(campaign, sensor, registration_report)
+    model, _, _ = _model(campaign, sensor, registration_report, exclude=laplace["excluded_rows_outliers"])
     if list(model.names) != list(laplace["names"]):
         raise ValueError(f"the Laplace fit's parameters {laplace['names']} are not the model's {model.names}")
     started = time.perf_counter()

@@ -19,6 +19,25 @@ CAPTIONS = {
     "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
     "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
     "zero_offset_histograms": "Posterior of the zero-offsets (default sampler)",
+    "relative_accuracy": "Relative Cartesian accuracy (eq. dist_equation) before (Vernier) and after (Bayesian) "
+                         "remastering, optimization set.",
+    "post_registration_accuracy": "Post-registration absolute position error (eq. post_reg_accuracy) before and "
+                                  "after remastering, optimization set.",
+    "theoretical_accuracy_optimization_configs": "Theoretical absolute position error from the uncertainty of the "
+                                                 "zero-offsets, unmodeled effects and noise, at the optimization "
+                                                 "configurations.",
+    "theoretical_accuracy_random_configs": "Theoretical absolute position error from the uncertainty of the "
+                                           "zero-offsets, unmodeled effects and noise, at random configurations "
+                                           "across the joint space.",
+    "theoretical_accuracy_zero_offsets_only": "Theoretical absolute position error from the uncertainty of the "
+                                              "zero-offsets alone, at random configurations.",
+    "validation_accuracy": "Accuracy on the validation set with the optimization set's parameters.",
+    "sensor_comparison": "The sensors side by side: estimates, differences in units of their combined "
+                         "uncertainty, and accuracy.",
+    "tcp_scatter": "TCPs of one configuration: Vernier (red), MLE (green), probable (yellow), probable with the "
+                   "Gaussian error (blue), X-Y, mm from the MLE TCP",
+    "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
+    "residuals": "Residuals after remastering against configuration and distance from the base",
 }
 SENSOR_LABELS = {"motion_capture": "Motion Capture", "laser_tracker": "Laser Tracker"}
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
@@ -104,9 +123,10 @@ REGISTRATION_ROWS = (("registration.x", "x (mm)"), ("registration.y", "y (mm)"),
                      ("registration.beta", "beta (deg)"), ("registration.gamma", "gamma (deg)"))
 
 
-def registration_params_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
+def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
-    the paper's row order."""
+    the paper's row order; with `fits` (sensor -> `fit.laplace_report`), three more rows: points
+    fitted, points without a measurement and points flagged as gross errors (both left out)."""
     summaries = {sensor: _indexed(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
     for name, label in REGISTRATION_ROWS:
@@ -115,5 +135,14 @@ def registration_params_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFram
             sensor_name = sensor_label(sensor)
             row[f"{sensor_name} MLE"] = display_value(name, summary.loc[name, "mean"])
             row[f"{sensor_name} Std"] = display_value(name, summary.loc[name, "std"])
+        rows.append(row)
+    counts = (("points fitted", lambda f: f["points_fitted"]),
+              ("points not seen (left out)", lambda f: len(f["excluded_rows_marker_not_seen"])),
+              ("points flagged as outliers (left out)", lambda f: len(f["excluded_rows_outliers"])))
+    for label, count in counts if fits else ():
+        row = {"Parameter": label}
+        for sensor in summaries:
+            row[f"{sensor_label(sensor)} MLE"] = str(int(count(fits[sensor])))  # a count, not a measurement
+            row[f"{sensor_label(sensor)} Std"] = ""
         rows.append(row)
     return pd.DataFrame(rows)

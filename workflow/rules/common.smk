@@ -1,4 +1,7 @@
-# Validates config.yaml against its schema (filling defaults) and lists the campaigns to process.
+# Validates config.yaml against its schema (filling defaults), checks what the schema cannot
+# (paths, burn-in shorter than the run) and lists the campaigns to process. Every refusal names the
+# config file(s) and the key (docs/bad-input.md).
+import os
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -6,17 +9,61 @@ from snakemake.utils import validate
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
 
-RAW = config["raw_dir"].rstrip("/")
-RESULTS = config["results_dir"].rstrip("/")
+CONFIG_FILES = " + ".join(str(f) for f in workflow.configfiles) or "config"
+
+
+def config_error(key, message):
+    """The error for a bad setting: the config file(s) (or --config), the key, what is wrong."""
+    return ValueError(f"{CONFIG_FILES}: {key}: {message}")
+
+
+def checked_path(key):
+    """A path setting. Relative paths are taken from the repository root and may not lead out of
+    it (`..`): a folder elsewhere is given by its absolute path, e.g. --config raw_dir=/data/campaigns."""
+    value = config[key]
+    if not value.strip():
+        raise config_error(key, "is empty")
+    if not os.path.isabs(value) and os.path.normpath(value).split(os.sep)[0] == "..":
+        raise config_error(key, f"{value!r} leads outside the repository; relative paths are taken from the "
+                                f"repository root: give an absolute path for a folder elsewhere")
+    return os.path.normpath(value)
+
+
+def check_paths(raw, results):
+    if not Path(raw).is_dir():
+        raise config_error("raw_dir", f"{raw!r} is not a directory (it should hold one folder per campaign)")
+    if Path(results).exists() and not Path(results).is_dir():
+        raise config_error("results_dir", f"{results!r} exists and is not a directory")
+    raw_path, results_path = Path(raw).resolve(), Path(results).resolve()
+    if raw_path == results_path or raw_path in results_path.parents or results_path in raw_path.parents:
+        raise config_error("results_dir", f"{results!r} overlaps raw_dir {raw!r}: generated files and campaign "
+                                          f"data must live in separate folders")
+
+
+def check_fit_settings():
+    for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps")):
+        settings = config["fit"][method]
+        if settings["burn_in"] >= settings[length]:
+            raise config_error(f"fit/{method}/burn_in", f"{settings['burn_in']} is not below fit/{method}/{length} "
+                                                        f"= {settings[length]}: no sample would be kept")
+
+
+RAW = checked_path("raw_dir")
+RESULTS = checked_path("results_dir")
+check_paths(RAW, RESULTS)
+check_fit_settings()
 
 
 def list_campaigns():
     if config["campaigns"]:
         missing = [c for c in config["campaigns"] if not Path(RAW, c, "campaign.yaml").is_file()]
         if missing:
-            raise ValueError(f"config.yaml: campaigns: no {RAW}/<name>/campaign.yaml for {', '.join(missing)}")
+            raise config_error("campaigns", f"no {RAW}/<name>/campaign.yaml for {', '.join(missing)}")
         return list(config["campaigns"])
-    return sorted(p.parent.name for p in Path(RAW).glob("*/campaign.yaml"))
+    found = sorted(p.parent.name for p in Path(RAW).glob("*/campaign.yaml"))
+    if not found:
+        raise config_error("raw_dir", f"{RAW!r} holds no campaign folder (<name>/campaign.yaml): nothing to process")
+    return found
 
 
 CAMPAIGNS = list_campaigns()

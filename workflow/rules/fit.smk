@@ -27,6 +27,7 @@ rule laplace:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/laplace.log",
     params:
         folder=lambda wc: f"{RAW}/{wc.campaign}",
+        outlier_alpha=config["outliers"]["alpha"],
     script:
         "../scripts/laplace.py"
 

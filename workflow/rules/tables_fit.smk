@@ -22,6 +22,7 @@ rule table_zero_offsets:
 rule table_registration_params:
     input:
         summaries=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv"),
+        laplace=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
     output:
         multiext(f"{TABLES}/registration_params", ".csv", ".md", ".tex"),
     log:

@@ -1,0 +1,281 @@
+"""Accuracy metrics on hand-made cases with known answers, and the accuracy stage on small
+simulated campaigns (one with several configurations per pose, one without)."""
+
+import datetime as dt
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import optimize, stats
+
+from remaster import accuracy, figures_accuracy, fit, metrics, spatial
+from remaster.campaign import Campaign, sensor_data
+from remaster.model import ZeroOffsetModel, parameter_names
+from remaster.simulation import Sensor, TrueRobot, looking_at, measure
+
+SMALL_FIT = {"chains": 2, "samples": 2000, "burn_in": 1000}
+
+
+def random_rigid(rng) -> np.ndarray:
+    rotation = spatial.euler_zyx_to_matrix(*rng.uniform(-np.pi, np.pi, 3))
+    return spatial.homogeneous(rotation, rng.uniform(-2.0, 2.0, 3))
+
+
+# --------------------------------------------------------------------------- relative accuracy
+
+
+def test_relative_errors_vanish_for_a_rigidly_moved_cloud(rng):
+    p_robot = rng.uniform(-1.0, 1.0, (12, 3))
+    p_ref = spatial.transform_points(random_rigid(rng), p_robot)
+    groups = np.repeat([0, 1, 2], 4)
+    errors = metrics.relative_errors(p_ref, p_robot, groups)
+    assert errors.shape == (3 * 6,)
+    np.testing.assert_allclose(errors, 0.0, atol=1e-12)
+
+
+def test_relative_error_of_a_hand_computed_pair(rng):
+    p_ref = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])  # 5 apart
+    p_robot = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 7.0]])  # 6 apart
+    np.testing.assert_allclose(metrics.relative_errors(p_ref, p_robot, [7, 7]), [1.0])
+    moved = spatial.transform_points(random_rigid(rng), p_ref)  # the sensor frame does not matter
+    np.testing.assert_allclose(metrics.relative_errors(moved, p_robot, [7, 7]), [1.0])
+
+
+def test_pairs_only_within_groups_and_unseen_rows_skipped(rng):
+    sizes = [1, 2, 3, 4, 5]
+    groups = np.repeat(np.arange(len(sizes)), sizes)
+    rng.shuffle(groups)
+    p_ref, p_robot = rng.normal(size=(2, len(groups), 3))
+    errors = metrics.relative_errors(p_ref, p_robot, groups)
+    assert errors.size == sum(k * (k - 1) // 2 for k in sizes)
+    assert np.all(errors >= 0)
+    p_ref[np.flatnonzero(groups == 4)[0]] = np.nan  # the group of five loses a row: 10 -> 6 pairs
+    assert metrics.relative_errors(p_ref, p_robot, groups).size == 0 + 1 + 3 + 6 + 6
+    assert metrics.relative_errors(p_ref[:0], p_robot[:0], groups[:0]).size == 0
+
+
+# --------------------------------------------------------------------------- post-registration, summaries
+
+
+def test_post_registration_errors_on_3_4_5_triangles():
+    p_ref = np.array([[3.0, 4.0, 0.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0]])
+    p_pred = np.array([[0.0, 0.0, 0.0], [1.0, 4.0, 5.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(metrics.post_registration_errors(p_ref, p_pred), [5.0, 5.0, 0.0])
+
+
+def test_interval_summary_known_quantiles_and_empty():
+    summary = metrics.interval_summary(np.arange(101.0))
+    assert summary == {"mean": 50.0, "q2.5": 2.5, "q97.5": 97.5, "count": 101}
+    assert metrics.interval_summary([1.0, np.nan, 3.0])["count"] == 2
+    for empty in ([], [np.nan]):
+        summary = metrics.interval_summary(empty)
+        assert summary["count"] == 0 and all(np.isnan(summary[k]) for k in ("mean", "q2.5", "q97.5"))
+
+
+# --------------------------------------------------------------------------- theoretical accuracy
+
+
+def test_theoretical_errors_zero_without_spread_and_maxwell_with_noise(iiwa, rng):
+    q = metrics.random_configurations(iiwa, 4, rng)
+    marker = np.array([0.1, 0.0, 0.02])
+    reference = np.radians([0.2, -0.1, 0.3, 0.0, 0.1, -0.2, 0.5])
+    draws = np.tile(reference, (500, 1))
+    exact = metrics.theoretical_errors(iiwa, q, marker, reference, draws, None, rng)
+    assert exact.shape == (2000,)
+    np.testing.assert_allclose(exact, 0.0, atol=1e-12)
+    sigma = 8e-4
+    noisy = metrics.theoretical_errors(iiwa, q, marker, reference, draws, np.full(500, sigma), rng)
+    assert np.all(noisy >= 0)
+    assert stats.kstest(noisy, stats.maxwell(scale=sigma).cdf).pvalue > 0.01
+    assert noisy.mean() == pytest.approx(2 * np.sqrt(2 / np.pi) * sigma, rel=0.05)
+
+
+def test_theoretical_errors_grow_with_offset_spread(iiwa, rng):
+    q = metrics.random_configurations(iiwa, 20, rng)
+    marker = np.array([0.1, 0.0, 0.02])
+    narrow = rng.normal(0.0, np.radians(0.01), (200, 7))
+    errors = metrics.theoretical_errors(iiwa, q, marker, np.zeros(7), narrow, None, rng)
+    wide = metrics.theoretical_errors(iiwa, q, marker, np.zeros(7), 10 * narrow, None, rng)
+    assert np.all(errors >= 0) and wide.mean() == pytest.approx(10 * errors.mean(), rel=0.02)
+
+
+def test_random_configurations_within_limits(iiwa, ur5_dh, rng):
+    q = metrics.random_configurations(iiwa, 500, rng)
+    assert q.shape == (500, 7) and iiwa.within_limits(q).all()
+    unlimited = metrics.random_configurations(ur5_dh, 500, rng)  # +-inf limits: +-pi
+    assert np.all(np.abs(unlimited) <= np.pi) and unlimited.min() < -2.5 and unlimited.max() > 2.5
+
+
+# --------------------------------------------------------------------------- the stage
+
+
+def simulated_campaign(chain, rng, poses=(12, 6), per_pose=4, noise=5e-5, missing=()):
+    """Optimization and validation sets of random configurations, `per_pose` to a pose label
+    (the relative metric only needs the groups), a laser tracker, known zero-offsets."""
+    n_opt, n_val = poses[0] * per_pose, poses[1] * per_pose
+    n = n_opt + n_val
+    q = rng.uniform(np.maximum(chain.lower, -2.0), np.minimum(chain.upper, 2.0), (n, chain.n_joints))
+    truth = rng.normal(0.0, np.radians(0.4), chain.n_joints)
+    marker = np.array([-0.1, 0.0, 0.02])
+    sensor = Sensor("laser_tracker", "laser_tracker", looking_at([1.6, 0.3, 1.2], [0, 0, 0.6]), noise, marker)
+    xyz = measure(chain, TrueRobot(zero_offsets=truth), sensor, q, rng)
+    xyz[list(missing)] = np.nan
+    table = pd.DataFrame({"set": ["optimization"] * n_opt + ["validation"] * n_val,
+                          "pose": np.concatenate([np.arange(n_opt), np.arange(n_val)]) // per_pose,
+                          "solution": np.concatenate([np.arange(n_opt), np.arange(n_val)]) % per_pose})
+    table[[f"q{j + 1}" for j in range(chain.n_joints)]] = q
+    table[["x", "y", "z"]] = xyz
+    spec = {"kind": "laser_tracker", "marker": marker, "noise": noise}
+    data = sensor_data("laser_tracker", spec, table, chain.n_joints, "simulated.parquet")
+    return Campaign("sim", dt.date(2020, 1, 1), "", {}, chain, {"laser_tracker": data})
+
+
+def fitted_stage(campaign, seed=0, **sizes):
+    sensor = campaign.sensors["laser_tracker"]
+    registration = fit.register(campaign.chain, sensor)
+    model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
+    laplace = fit.laplace_report(fit.laplace_fit(model), analysis, excluded)
+    samples = fit.samples_frame(fit.sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
+    out = accuracy.accuracy_tables(campaign, "laser_tracker", registration.report(), laplace, samples,
+                                   np.random.default_rng(seed), **{"n_draws": 300, "n_random": 60, **sizes})
+    return out, model, laplace, samples
+
+
+@pytest.fixture(scope="module")
+def stage(iiwa):
+    campaign = simulated_campaign(iiwa, np.random.default_rng(3), missing=(5, 60))
+    return (campaign, *fitted_stage(campaign))
+
+
+def test_bayesian_beats_vernier_on_every_metric(stage):
+    _, out, _, _, _ = stage
+    for table in accuracy.METRIC_TABLES:
+        rows = out[table].set_index("method")
+        assert list(rows.columns) == list(accuracy.SUMMARY_COLUMNS)
+        assert rows.loc["Bayesian", "mean_mm"] < rows.loc["Vernier", "mean_mm"], table
+        assert (rows[["mean_mm", "q2.5_mm", "q97.5_mm"]] >= 0).all().all()
+    counts = {t: out[t].set_index("method").loc["Bayesian", "count"] for t in accuracy.METRIC_TABLES}
+    # 12 poses of 4 with row 5 unseen: 11 x 6 + 3 pairs; 47 seen configurations; 300 draws x 48 or 60 configurations
+    assert counts == {"relative_accuracy": 69, "post_registration_accuracy": 47,
+                      "theoretical_accuracy_optimization_configs": 300 * 48,
+                      "theoretical_accuracy_random_configs": 300 * 60,
+                      "theoretical_accuracy_zero_offsets_only": 300 * 60}
+    # noise 0.05 mm: the MLE leaves about sigma * 1.6 per point, the zero-offsets alone almost nothing
+    assert out["post_registration_accuracy"].set_index("method").loc["Bayesian", "mean_mm"] < 0.15
+    assert out["theoretical_accuracy_zero_offsets_only"].set_index("method").loc["Bayesian", "mean_mm"] < 0.05
+
+
+def test_validation_rows_and_excluded_rows(stage):
+    _, out, _, _, _ = stage
+    validation = out["validation_accuracy"]
+    assert list(zip(validation["metric"], validation["method"])) == [
+        (m, method) for m in accuracy.VALIDATION_METRICS for method in accuracy.METHODS]
+    rows = validation.set_index(["metric", "method"])
+    assert rows.loc[("relative", "Bayesian"), "count"] == 5 * 6 + 3
+    assert (rows.loc[("relative", "Bayesian"), "mean_mm"] < rows.loc[("relative", "Vernier"), "mean_mm"])
+    for metric in ("post_registration", "post_registration_refit"):
+        assert rows.loc[(metric, "Bayesian"), "count"] == 23
+        assert rows.loc[(metric, "Bayesian"), "mean_mm"] < rows.loc[(metric, "Vernier"), "mean_mm"]
+    # refitting the registration on the validation points can only lower their sum of squares
+    errors = out["configuration_errors"]
+    for method in accuracy.METHODS:
+        part = errors[(errors["set"] == "validation") & (errors["method"] == method)]
+        by_registration = part.groupby("registration")["error_mm"].apply(lambda e: np.sum(e**2))
+        assert by_registration[accuracy.REGISTRATION_REFIT] <= by_registration[accuracy.REGISTRATION_AS_FITTED] + 1e-9
+    assert out["report"]["excluded_rows_marker_not_seen"] == {"optimization": [5], "validation": [60]}
+    assert 5 not in set(errors["row"]) and 60 not in set(errors["row"])
+
+
+def test_rows_flagged_by_the_fit_are_left_out_and_listed(stage):
+    campaign, _, model, laplace, samples = stage
+    flagged = accuracy.accuracy_tables(campaign, "laser_tracker", {"T_NR": model.t_nr.tolist()},
+                                       {**laplace, "excluded_rows_outliers": [9, 5]}, samples,
+                                       np.random.default_rng(0), n_draws=50, n_random=10)
+    assert flagged["report"]["excluded_rows_outliers"] == {"optimization": [9], "validation": []}  # 5 is unseen
+    assert flagged["report"]["excluded_counts"]["optimization"] == {"marker_not_seen": 1, "outliers": 1}
+    counts = {t: flagged[t].set_index("method").loc["Vernier", "count"] for t in accuracy.METRIC_TABLES[:3]}
+    assert counts == {"relative_accuracy": 69 - 3, "post_registration_accuracy": 46,
+                      "theoretical_accuracy_optimization_configs": 50 * 48}
+    assert 9 not in set(flagged["configuration_errors"]["row"])
+
+
+def test_vernier_is_the_least_squares_registration_and_bayesian_the_model(stage):
+    campaign, out, model, laplace, samples = stage
+    chain = campaign.chain
+    zero_offsets = {name: 0.0 for name in parameter_names(chain.n_joints)[6:]}
+    registration_only = ZeroOffsetModel(chain, model.q, model.measured, model.marker, model.t_nr, fixed=zero_offsets)
+    best = optimize.least_squares(lambda theta: registration_only.residuals(theta).ravel(), np.zeros(6),
+                                  x_scale=registration_only.scale, xtol=1e-14, ftol=1e-14)
+    used = out["remastering_parameters"].set_index("parameter")
+    np.testing.assert_allclose(used["Vernier"].to_numpy()[:6] * registration_only.scale, best.x, atol=1e-7)
+    errors = out["configuration_errors"]
+    optimization = errors[errors["set"] == "optimization"].set_index("method")
+    assert np.sum((optimization.loc["Vernier", "error_mm"] / 1e3) ** 2) == pytest.approx(2 * best.cost, rel=1e-6)
+    # the MLE's errors are the model's residuals at the posterior means
+    mle = accuracy.parameter_table(samples, laplace, chain.n_joints).mean().to_numpy()[:-1]
+    expected = np.linalg.norm(model.measured - model.predict_full(mle), axis=1) * 1e3
+    np.testing.assert_allclose(optimization.loc["Bayesian", "error_mm"], expected, rtol=1e-9)
+
+
+def test_tcp_scatter_and_paper_layout(stage):
+    _, out, _, _, _ = stage
+    scatter = out["tcp_scatter"]
+    assert scatter["kind"].value_counts().to_dict() == {"probable + noise": 300, "probable": 300, "MLE": 1,
+                                                        "Vernier": 1}
+    assert np.allclose(scatter.loc[scatter["kind"] == "MLE", ["x_mm", "y_mm", "z_mm"]], 0.0)
+    two = {"laser_tracker": out["relative_accuracy"], "motion_capture": out["relative_accuracy"]}
+    table = accuracy.paper_table(two)
+    assert list(table.columns) == ["Remastering Method", "Reference Sensor", "Mean (mm)", "95% Interval (mm)"]
+    assert list(table["Remastering Method"]) == ["Vernier", "Vernier", "Bayesian", "Bayesian"]
+    assert list(table["Reference Sensor"]) == ["Motion Capture", "Laser Tracker"] * 2
+    low, high = out["relative_accuracy"].loc[0, ["q2.5_mm", "q97.5_mm"]]
+    assert table.loc[0, "95% Interval (mm)"] == f"[{low:.3f}, {high:.3f}]"
+    comparison = accuracy.paper_comparison("relative_accuracy", table)
+    assert comparison.loc[0, "Paper Mean (mm)"] == 3.384  # tab:dist_accuracy_measure, Vernier, motion capture
+    assert comparison.loc[0, "Mean difference (mm)"] == pytest.approx(table.loc[0, "Mean (mm)"] - 3.384)
+    assert comparison.loc[0, "97.5% difference (mm)"] == pytest.approx(round(high, 3) - 6.513)
+    validation = accuracy.paper_table({"laser_tracker": out["validation_accuracy"]})
+    assert validation.columns[0] == "Metric" and len(validation) == 6
+    compared = accuracy.paper_comparison("validation_accuracy", validation)
+    assert compared["Paper Mean (mm)"].notna().sum() == 2  # the paper's Bayesian relative and post-registration
+
+
+def test_sensor_comparison(stage):
+    _, out, _, laplace, samples = stage
+    summary = fit.posterior_summary(samples, laplace)
+    other = summary.copy()
+    other["mean"] += 2 * other["std"].fillna(0.0)
+    table = accuracy.sensor_comparison({"laser_tracker": summary, "motion_capture": other.reset_index()},
+                                       {"laser_tracker": out, "motion_capture": out})
+    rows = table.set_index("quantity")
+    assert rows.loc["registration.x", "note"] == "not comparable (different frames)"
+    assert np.isnan(rows.loc["registration.x", "difference / combined std"])
+    assert rows.loc["zero_offsets.q1", "note"].startswith("held")
+    assert rows.loc["zero_offsets.q3", "difference / combined std"] == pytest.approx(2 / np.sqrt(2))
+    assert rows.loc["relative_accuracy: Bayesian", "difference"] == 0.0
+    single = accuracy.sensor_comparison({"laser_tracker": summary}, {"laser_tracker": out})
+    assert [c for c in single.columns if "estimate" in c] == ["Laser Tracker estimate"]
+    assert single["note"].str.startswith("only one sensor").all()
+
+
+def test_one_configuration_per_pose_gives_empty_relative_metrics(iiwa):
+    campaign = simulated_campaign(iiwa, np.random.default_rng(8), poses=(40, 10), per_pose=1)
+    out, _, _, _ = fitted_stage(campaign, n_draws=50, n_random=10)
+    for rows in (out["relative_accuracy"], out["validation_accuracy"].query("metric == 'relative'")):
+        assert (rows["count"] == 0).all() and rows[["mean_mm", "q2.5_mm", "q97.5_mm"]].isna().all().all()
+    table = accuracy.paper_table({"laser_tracker": out["relative_accuracy"]})
+    assert (table["95% Interval (mm)"] == accuracy.EMPTY_INTERVAL).all()
+    assert accuracy.paper_comparison("relative_accuracy", table)["2.5% (mm)"].isna().all()
+    assert (out["post_registration_accuracy"]["count"] == 40).all()
+
+
+def test_figures_draw_from_the_stage_tables(stage):
+    import matplotlib.pyplot as plt
+
+    _, out, _, _, _ = stage
+    figures = [figures_accuracy.tcp_scatter(out["tcp_scatter"], "TCPs"),
+               figures_accuracy.post_registration_histograms(out["configuration_errors"], "errors"),
+               figures_accuracy.residual_plots({"laser_tracker": out["configuration_errors"]}, "residuals")]
+    assert [len([a for a in f.axes if a.get_visible()]) for f in figures] == [1, 2, 2]
+    for figure in figures:
+        plt.close(figure)

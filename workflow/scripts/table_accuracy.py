@@ -1,0 +1,11 @@
+"""One of the paper's accuracy tables for a campaign: Vernier and Bayesian, every sensor."""
+
+from pathlib import Path
+
+from remaster import accuracy, io, tables
+
+with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
+    name = snakemake.params.table  # noqa: F821
+    per_sensor = {s: io.read_csv(p) for s, p in zip(snakemake.params.sensors, snakemake.input)}  # noqa: F821
+    io.write_table(Path(snakemake.output[0]).with_suffix(""), accuracy.paper_table(per_sensor),  # noqa: F821
+                   tables.CAPTIONS[name], name)
