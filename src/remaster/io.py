@@ -11,6 +11,7 @@ import datetime as dt
 import json
 import logging
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -61,7 +62,8 @@ def _plain(value: Any) -> Any:
 
 
 def read_yaml(path: str | Path) -> Any:
-    """Content of a YAML file (yaml.safe_load); InputError naming the file if missing or malformed."""
+    """Content of a YAML file (yaml.safe_load); InputError naming the file if missing or malformed,
+    or if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -70,6 +72,12 @@ def read_yaml(path: str | Path) -> Any:
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
+        tag = re.search(r"constructor for the tag '([^']*)'", str(getattr(exc, "problem", "")))
+        if tag:  # e.g. !!python/object/apply: safe_load has no constructor for it
+            mark = getattr(exc, "problem_mark", None)
+            line = f"line {mark.line + 1}: " if mark is not None else ""
+            raise InputError(f"{line}YAML tag {tag.group(1)!r} refused: remaster reads plain YAML (yaml.safe_load) "
+                             f"and never builds objects from tags; nothing was executed", file=str(path)) from None
         raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
 
 
@@ -152,6 +160,17 @@ def write_figure(stem: str | Path, figure) -> list[Path]:
     figure.savefig(paths[1], metadata={"Creator": None, "Producer": None, "CreationDate": None})
     plt.close(figure)
     return paths
+
+
+def file_digests(paths, relative_to_parent: bool = False) -> dict[str, str]:
+    """SHA-256 of each file, keyed by its path (or by its name within its folder)."""
+    import hashlib
+
+    out = {}
+    for path in map(Path, paths):
+        key = path.name if relative_to_parent else str(path)
+        out[key] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return out
 
 
 def read_csv(path: str | Path) -> pd.DataFrame:
@@ -302,7 +321,8 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
     sensors = {}
     for sensor, spec in meta["sensors"].items():
         path = tables[sensor]
-        sensors[sensor] = sensor_data(sensor, spec, _read_parquet(path), chain.n_joints, str(path))
+        sensors[sensor] = sensor_data(sensor, spec, _read_parquet(path), chain.n_joints, str(path),
+                                      limits=(chain.lower, chain.upper))
         if sensors[sensor].n_missing:
             log.info("%s: %d of %d rows without a measurement (marker not seen: %s)", path,
                      sensors[sensor].n_missing, len(sensors[sensor].table), format_rows(sensors[sensor].missing_rows))

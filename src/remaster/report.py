@@ -79,10 +79,23 @@ def _summary_notes(summary: dict) -> list[str]:
     return notes
 
 
-def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report") -> str:
+def audit_section(audit: dict) -> Section:
+    """Where every result came from: per campaign its content hash, with the run's configuration
+    hash, package version and seed (the full record is results/audit.json)."""
+    table = pd.DataFrame([{"campaign": name, "content SHA-256": record["content_sha256"],
+                           "files": len(record["files"]), "results": len(record["results"])}
+                          for name, record in audit["campaigns"].items()])
+    notes = [f"remaster {audit['remaster_version']} (Python {audit['python']}), seed {audit['seed']}, "
+             f"configuration SHA-256 {audit['config_sha256']}. Every result file's SHA-256 is in results/audit.json."]
+    return Section("Audit trail", notes, [("Campaign content hashes", table)])
+
+
+def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report",
+          audit: dict | None = None) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "tables":
     {table name: DataFrame}, "figures": {figure name: PNG bytes}}, in the order to show;
-    captions: table or figure name (figure names may end in _<sensor>) -> caption."""
+    captions: table or figure name (figure names may end in _<sensor>) -> caption; audit: the
+    run's `audit.audit_record`, shown last."""
 
     def caption(name: str) -> str:
         for key in sorted(captions, key=len, reverse=True):
@@ -98,4 +111,6 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
     intro = ["Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
              "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
              "marked 'held' (kept at the controller's value)."]
+    if audit is not None:
+        sections.append(audit_section(audit))
     return render(title, intro, sections)

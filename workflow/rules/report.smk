@@ -1,4 +1,6 @@
-# The HTML report: every table and figure of every campaign on one self-contained page.
+# The HTML report: every table and figure of every campaign on one self-contained page, and the
+# audit trail of the run.
+from types import SimpleNamespace
 
 REPORT_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison"]
 REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", "post_registration_histograms"]
@@ -23,6 +25,37 @@ def report_layout():
     return layout
 
 
+def audited_results(campaign):
+    """Every final result of a campaign: its tables, figures, fits, metrics and remastering files."""
+    part = report_layout()[campaign]
+    files = [part["summary"], *part["tables"].values(), *part["figures"].values()]
+    files += [str(Path(t).with_suffix(e)) for t in part["tables"].values() for e in (".md", ".tex")]
+    files += [str(Path(f).with_suffix(".pdf")) for f in part["figures"].values()]
+    for s in sensors_of(campaign):
+        base = f"{RESULTS}/{campaign}/{s}"
+        files += [f"{base}/remastering.json", f"{base}/registration.json", f"{base}/fit/summary.csv",
+                  f"{base}/fit/laplace.json", f"{base}/fit/cross_check.csv",
+                  *[f"{base}/fit/samples_{m}.parquet" for m in FIT_METHODS],
+                  *[f"{base}/metrics/{n}.csv" for n in ACCURACY_FILES]]
+    return files
+
+
+rule audit:
+    input:
+        campaigns=[f for c in CAMPAIGNS for f in campaign_files(SimpleNamespace(campaign=c))],
+        results=[f for c in CAMPAIGNS for f in audited_results(c)],
+    output:
+        audit=f"{RESULTS}/audit.json",
+    log:
+        f"{RESULTS}/logs/audit.log",
+    params:
+        campaigns={c: campaign_files(SimpleNamespace(campaign=c)) for c in CAMPAIGNS},
+        results={c: audited_results(c) for c in CAMPAIGNS},
+        config=config,
+    script:
+        "../scripts/audit.py"
+
+
 def report_files(wildcards=None):
     files = []
     for part in report_layout().values():
@@ -33,6 +66,7 @@ def report_files(wildcards=None):
 rule report:
     input:
         report_files,
+        audit=rules.audit.output.audit,
     output:
         html=f"{RESULTS}/report.html",
     log:

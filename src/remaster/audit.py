@@ -1,0 +1,46 @@
+"""The audit trail: what every result of a run was made from.
+
+For each campaign, the SHA-256 of each of its files and of the whole folder (over the sorted
+file names and their digests, so renaming or editing any file changes it), the configuration as
+used (and its digest), the package version and the seed, and the SHA-256 of every result file.
+A result can so be traced to exactly the data, settings and code that made it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+
+from . import __version__
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def folder_digest(file_digests: dict[str, str]) -> str:
+    """One digest of a set of files: SHA-256 over 'name digest' lines in name order."""
+    lines = "".join(f"{name} {digest}\n" for name, digest in sorted(file_digests.items()))
+    return sha256(lines.encode("utf-8"))
+
+
+def config_digest(config: dict) -> str:
+    """SHA-256 of the configuration as canonical JSON (sorted keys)."""
+    return sha256(json.dumps(config, sort_keys=True, separators=(",", ":")).encode("utf-8"))
+
+
+def audit_record(campaigns: dict[str, dict[str, str]], results: dict[str, dict[str, str]], config: dict) -> dict:
+    """campaigns: campaign -> {file name: SHA-256}; results: campaign -> {result path: SHA-256};
+    config: the workflow configuration as used. JSON-ready."""
+    return {
+        "remaster_version": __version__,
+        "python": platform.python_version(),
+        "seed": config.get("seed"),
+        "config_sha256": config_digest(config),
+        "config": config,
+        "campaigns": {
+            name: {"content_sha256": folder_digest(files), "files": dict(sorted(files.items())),
+                   "results": dict(sorted(results.get(name, {}).items()))}
+            for name, files in sorted(campaigns.items())},
+    }
