@@ -1,4 +1,4 @@
-"""Command line: `remaster plan` and `remaster simulate`.
+"""Command line: `remaster plan`, `remaster simulate` and `remaster import`.
 
 Each subcommand reads its inputs, calls the library and writes its outputs; errors in the input
 end with a message naming the file, key or column and rows, and exit status 2.
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io, planning, registration, scenario
+from . import importer, io, planning, registration, scenario
 from .errors import RemasterError
 from .kinematics import ForwardKinematics
 
@@ -24,13 +24,14 @@ def _simulate(args: argparse.Namespace) -> None:
     if not paths:
         raise RemasterError(f"no scenario given and none found in {DEFAULT_SCENARIOS}")
     for path in paths:
-        spec = io.read_yaml(path)
-        chain = io.load_chain(spec["robot"], path.parent, Path.cwd(), source=str(path), name=spec["name"])
-        campaign = scenario.simulate(spec, chain, seed=args.seed)
-        folder = io.write_campaign(Path(args.raw_dir) / spec["name"], campaign.metadata, campaign.tables)
-        truth = io.write_json(Path(args.truth_dir) / f"{spec['name']}.json", campaign.truth)
-        rows = {name: len(t) for name, t in campaign.tables.items()}
-        print(f"{path}: wrote {folder} ({rows}) and {truth}")
+        base = io.read_yaml(path)
+        chain = io.load_chain(base["robot"], path.parent, Path.cwd(), source=str(path), name=base["name"])
+        for spec, seed in scenario.copies(base, args.copies, args.seed):
+            campaign = scenario.simulate(spec, chain, seed=seed)
+            folder = io.write_campaign(Path(args.raw_dir) / spec["name"], campaign.metadata, campaign.tables)
+            truth = io.write_json(Path(args.truth_dir) / f"{spec['name']}.json", campaign.truth)
+            rows = {name: len(t) for name, t in campaign.tables.items()}
+            print(f"{path}: wrote {folder} ({rows}) and {truth}")
 
 
 def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
@@ -64,6 +65,14 @@ def _plan(args: argparse.Namespace) -> None:
           f"{plan.candidates} candidate poses; discarded: {plan.discarded}")
 
 
+def _import(args: argparse.Namespace) -> None:
+    folder, report = importer.import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
+    total = report["controller"]["rows"]
+    rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
+    print(f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
+          f"{folder / importer.REPORT_FILE}")
+
+
 def parser() -> argparse.ArgumentParser:
     main = argparse.ArgumentParser(prog="remaster", description=__doc__.splitlines()[0])
     commands = main.add_subparsers(dest="command", required=True)
@@ -73,6 +82,8 @@ def parser() -> argparse.ArgumentParser:
     simulate.add_argument("--raw-dir", default="data/raw", help="where campaign folders go")
     simulate.add_argument("--truth-dir", default="data/truth", help="where ground-truth JSON goes")
     simulate.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    simulate.add_argument("--copies", type=int, default=None, metavar="N",
+                          help="a fleet: N campaigns <name>-001 ... from seeds seed, seed + 1, ... (new poses and noise)")
     simulate.set_defaults(run=_simulate)
 
     plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
@@ -97,6 +108,14 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument("--seed", type=int, default=0)
     plan.add_argument("--out", default="plan.csv")
     plan.set_defaults(run=_plan)
+
+    imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
+    imp.add_argument("--config", required=True, metavar="IMPORT.yaml",
+                     help="campaign metadata, the controller log and sensor files with their columns, units and "
+                          "matching (format: remaster.importer)")
+    imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
+    imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
+    imp.set_defaults(run=_import)
     return main
 
 

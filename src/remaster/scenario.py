@@ -93,6 +93,15 @@ def estimated_sensor_origin(chain: KinematicChain, robot: TrueRobot, sensor: Sen
     return np.linalg.inv(t_nr)[:3, 3]
 
 
+def copies(spec: dict, count: int | None, seed: int | None = None):
+    """(scenario, seed) pairs: the scenario itself, or `count` copies named <name>-001, ... with
+    consecutive seeds from `seed` (default the scenario's), for a simulated fleet."""
+    first = spec["seed"] if seed is None else seed
+    if count is None:
+        return [(spec, first)]
+    return [({**spec, "name": f"{spec['name']}-{i + 1:03d}"}, first + i) for i in range(count)]
+
+
 def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> SimulatedCampaign:
     """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
     rng = np.random.default_rng(spec["seed"] if seed is None else seed)

@@ -1,0 +1,71 @@
+"""Figures across campaigns, drawn from `remaster.comparison` tables (Agg backend, deg on the axes)."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.dates as mdates  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .figures import _grid  # noqa: E402
+from .tables import paper_order, sensor_label  # noqa: E402
+
+MARKERS = "osD^v<>"
+
+
+def _days(dates) -> np.ndarray:
+    """Matplotlib date numbers (days) of ISO dates."""
+    return mdates.date2num(pd.to_datetime(pd.Index(dates)).to_numpy())
+
+
+def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
+    """Each zero-offset (deg) against the campaign date, one panel per joint, one series per sensor
+    with +-1 std error bars; a held parameter is an open marker at its held value, without a bar.
+
+    `table`: `comparison.zero_offsets_over_time` rows of one robot (ValueError otherwise). Sensors
+    of one campaign are drawn side by side, a little apart in time, so their bars do not overlap.
+    """
+    if table.empty:
+        raise ValueError("no zero-offsets to draw")
+    robots = sorted(table["robot"].unique())
+    if len(robots) > 1:
+        raise ValueError(f"rows of {len(robots)} robots ({', '.join(map(repr, robots))}): draw one robot at a time")
+    parameters = sorted(table["parameter"].unique(), key=lambda n: int(n.rsplit("q", 1)[1]))
+    sensors = paper_order(table["sensor"].unique())
+    campaigns = table[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
+    ticks = campaigns.groupby("date", sort=True)["campaign"].agg("\n".join)  # date -> its campaigns
+    tick_days = _days(ticks.index)
+    span = max(tick_days.max() - tick_days.min(), 1.0)
+    offsets = {s: (i - (len(sensors) - 1) / 2) * 0.02 * span for i, s in enumerate(sensors)}
+
+    fig, axes = _grid(len(parameters))
+    axes = list(axes)[:len(parameters)]
+    for ax, name in zip(axes, parameters):
+        for i, sensor in enumerate(sensors):
+            rows = table[(table["parameter"] == name) & (table["sensor"] == sensor)]
+            x = _days(rows["date"]) + offsets[sensor]
+            estimated = (rows["status"] == "estimated").to_numpy()
+            color, marker = f"C{i}", MARKERS[i % len(MARKERS)]
+            ax.errorbar(x[estimated], rows["mean_deg"][estimated], yerr=rows["std_deg"][estimated], fmt=marker,
+                        color=color, ms=4, capsize=2, lw=0.8, label=sensor_label(sensor))
+            if (~estimated).any():
+                ax.plot(x[~estimated], rows["mean_deg"][~estimated], marker, mfc="none", color=color, ms=5,
+                        label=f"{sensor_label(sensor)} (held)")
+        ax.set_xticks(tick_days, [f"{names}\n{date}" for date, names in ticks.items()], fontsize=6)
+        ax.set_xlim(tick_days.min() - 0.1 * span, tick_days.max() + 0.1 * span)
+        ax.set_title(name.replace("zero_offsets.", "zero-offset "), fontsize=9)
+        ax.set_ylabel("deg", fontsize=8)
+        ax.tick_params(axis="y", labelsize=7)
+    legend = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(label, handle)
+    fig.suptitle(f"{title} (bars: +-1 std)", fontsize=10)
+    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, 1))  # 0.3 in at the bottom for the legend
+    fig.legend(list(legend.values()), list(legend), fontsize=7, loc="lower center", ncols=len(legend), frameon=False)
+    return fig
+

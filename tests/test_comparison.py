@@ -1,0 +1,145 @@
+"""Cross-campaign comparison on hand-made posterior summaries with known answers."""
+
+from __future__ import annotations
+
+import math
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+
+from remaster import comparison, figures_comparison, io
+from remaster.errors import InputError
+from remaster.model import DEG, SIGMA
+
+from .conftest import REPO
+
+HELD = "held: not identifiable"
+
+
+def summary(means_deg, stds_deg, held=()):
+    """A posterior summary (SI, indexed by parameter) of zero-offsets q1..qN plus sigma;
+    joints in `held` (1-based) are held at 0 with no std."""
+    names = [f"zero_offsets.q{j + 1}" for j in range(len(means_deg))] + [SIGMA]
+    mean = [m * DEG for m in means_deg] + [8e-4]
+    std = [s * DEG for s in stds_deg] + [1e-5]
+    status = ["estimated"] * len(names)
+    for j in held:
+        mean[j - 1], std[j - 1], status[j - 1] = 0.0, np.nan, HELD
+    table = pd.DataFrame({"mean": mean, "std": std, "q2.5": np.nan, "q97.5": np.nan, "status": status},
+                         index=pd.Index(names, name="parameter"))
+    return table
+
+
+ROBOT = "urdf:kuka_iiwa14.urdf:iiwa_link_0:iiwa_link_ee"
+ENTRIES = [
+    # kuka-twin-2019 given first: the order of entries does not matter, dates do
+    comparison.Entry("kuka-twin-2019", "2019-06-18", "laser_tracker",
+                     summary([0.10, 0.34, 0.0], [0.009, 0.009, 0.01], held=[3]), ROBOT, "laser_tracker"),
+    ("kuka-twin", "2018-06-12", "laser_tracker", summary([0.10, 0.30, 0.05], [0.009, 0.009, 0.01]), ROBOT,
+     "laser_tracker"),
+    ("kuka-twin", "2018-06-12", "motion_capture", summary([0.11, 0.31, 0.10], [0.02, 0.01, 0.01]), ROBOT,
+     "motion_capture"),
+]
+
+
+def test_robot_identity_of_the_bundled_campaigns():
+    twin, twin_2019, compliance = (io.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
+                                   for c in ("kuka-twin", "kuka-twin-2019", "kuka-compliance"))
+    assert comparison.robot_identity(twin) == comparison.robot_identity(twin_2019) == ROBOT
+    assert comparison.robot_identity(twin["robot"]) == ROBOT  # the section alone
+    assert comparison.robot_identity(compliance) == ROBOT  # same model, another tool plate
+    other = {"robot": {**twin["robot"], "flange": "iiwa_link_7"}}
+    assert comparison.robot_identity(other) != ROBOT
+
+
+def test_robot_identity_of_dh_tables():
+    rows = [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0]]
+    a = comparison.robot_identity({"dh": {"convention": "standard", "rows": rows}})
+    b = comparison.robot_identity({"dh": {"convention": "standard", "rows": [[v + 1e-12 for v in r] for r in rows]}})
+    c = comparison.robot_identity({"dh": {"convention": "standard", "rows": [rows[0], [0.41, 0.0, 0.0, 0.0]]}})
+    assert a == b != c and a.startswith("dh:standard:")
+    with pytest.raises(InputError, match="robot"):
+        comparison.robot_identity({"name": "no robot"})
+
+
+def test_zero_offsets_over_time_is_a_long_table_in_degrees():
+    table = comparison.zero_offsets_over_time(ENTRIES)
+    assert list(table.columns[:9]) == comparison.OVER_TIME_COLUMNS
+    assert len(table) == 9  # 3 entries x 3 zero-offsets, sigma left out
+    assert table["campaign"].tolist() == ["kuka-twin"] * 6 + ["kuka-twin-2019"] * 3
+    assert table["sensor"].tolist()[:6] == ["motion_capture"] * 3 + ["laser_tracker"] * 3  # paper order
+    row = table[(table["campaign"] == "kuka-twin") & (table["parameter"] == "zero_offsets.q2")
+                & (table["sensor"] == "laser_tracker")].iloc[0]
+    assert row["mean_deg"] == pytest.approx(0.30) and row["std_deg"] == pytest.approx(0.009)
+    held = table[(table["campaign"] == "kuka-twin-2019") & (table["parameter"] == "zero_offsets.q3")].iloc[0]
+    assert held["status"] == HELD and math.isnan(held["std_deg"]) and held["mean_deg"] == 0.0
+
+
+def test_drift_between_consecutive_campaigns():
+    drift = comparison.drift_between(ENTRIES)
+    assert list(drift.columns) == comparison.DRIFT_COLUMNS
+    drift = drift.set_index("parameter")
+    # laser tracker only: motion capture has no later campaign
+    assert set(drift["sensor_a"]) == {"laser_tracker"} and set(drift["campaign_a"]) == {"kuka-twin"}
+    q1, q2, q3 = (drift.loc[f"zero_offsets.q{j}"] for j in (1, 2, 3))
+    assert q2["diff_deg"] == pytest.approx(0.04)
+    assert q2["combined_std_deg"] == pytest.approx(0.009 * math.sqrt(2))
+    assert q2["z"] == pytest.approx(3.1427, abs=1e-4) and q2["flagged"] and q2["status"] == "compared"
+    assert q1["diff_deg"] == pytest.approx(0.0, abs=1e-12) and not q1["flagged"]
+    assert q3["status"] == "not comparable: held in kuka-twin-2019 (not identifiable)" and not q3["flagged"]
+    assert math.isnan(q3["z"]) and math.isnan(q3["diff_deg"])
+    assert not comparison.drift_between(ENTRIES, significance=3.2).set_index("parameter").loc[
+        "zero_offsets.q2", "flagged"]
+
+
+def test_drift_only_within_one_robot_and_kind():
+    other = [("dh-arm-a", "2019-01-01", "laser_tracker", summary([0.5, 0.5, 0.5], [0.01] * 3), "dh:standard:x",
+              "laser_tracker")]
+    drift = comparison.drift_between(ENTRIES + other)
+    assert "dh-arm-a" not in set(drift["campaign_a"]) | set(drift["campaign_b"])
+    assert comparison.drift_between(ENTRIES[1:]).empty  # one campaign per robot and kind
+
+
+def test_sensor_agreement_within_each_campaign():
+    agreement = comparison.sensor_agreement(ENTRIES)
+    assert list(agreement.columns) == comparison.AGREEMENT_COLUMNS
+    assert set(agreement["campaign"]) == {"kuka-twin"}  # kuka-twin-2019 has one sensor
+    rows = agreement.set_index("parameter")
+    assert (rows["sensor_a"] == "motion_capture").all() and (rows["sensor_b"] == "laser_tracker").all()
+    q3 = rows.loc["zero_offsets.q3"]  # motion capture 0.10, laser tracker 0.05, std 0.01 each: z = -3.54
+    assert q3["diff_deg"] == pytest.approx(-0.05) and q3["z"] == pytest.approx(-0.05 / (0.01 * math.sqrt(2)))
+    assert q3["flagged"]
+    q1 = rows.loc["zero_offsets.q1"]
+    assert q1["z"] == pytest.approx(-0.01 / math.hypot(0.02, 0.009)) and not q1["flagged"]
+
+
+def test_summary_read_back_from_csv_is_accepted(tmp_path):
+    """The workflow stores summaries as CSV with a parameter column."""
+    path = io.write_csv(tmp_path / "summary.csv", summary([0.1, 0.2], [0.01, 0.01], held=[2]).reset_index())
+    table = comparison.zero_offsets_over_time([("c", "2020-01-01", "laser_tracker", pd.read_csv(path))])
+    assert table["status"].tolist() == ["estimated", HELD] and table["robot"].tolist() == ["", ""]
+    assert table["kind"].tolist() == ["laser_tracker"] * 2
+
+
+def test_bad_entries_are_named():
+    with pytest.raises(InputError, match="kuka-twin/laser_tracker: date"):
+        comparison.zero_offsets_over_time([("kuka-twin", "June 2018", "laser_tracker", summary([0.1], [0.01]))])
+    with pytest.raises(InputError, match="kuka-twin/laser_tracker: std"):
+        comparison.zero_offsets_over_time([("kuka-twin", "2018-06-12", "laser_tracker",
+                                            summary([0.1], [0.01]).drop(columns="std"))])
+    with pytest.raises(InputError, match="given twice"):
+        comparison.zero_offsets_over_time([ENTRIES[1], ENTRIES[1]])
+
+
+def test_zero_offsets_over_time_figure():
+    table = comparison.zero_offsets_over_time(ENTRIES)
+    fig = figures_comparison.zero_offsets_over_time_figure(table, "KUKA iiwa 14")
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(panels) == 3 and panels[1].get_title() == "zero-offset q2"
+    plt.close(fig)
+    mixed = comparison.zero_offsets_over_time(
+        ENTRIES + [("other", "2019-01-01", "laser_tracker", summary([0.1] * 3, [0.01] * 3), "dh:standard:x")])
+    with pytest.raises(ValueError, match="one robot at a time"):
+        figures_comparison.zero_offsets_over_time_figure(mixed, "mixed")
