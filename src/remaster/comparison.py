@@ -258,3 +258,27 @@ def sensor_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFra
     if not pairs:
         return pd.DataFrame(columns=AGREEMENT_COLUMNS)
     return pd.concat(pairs, ignore_index=True)[AGREEMENT_COLUMNS]
+
+
+def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame]) -> list[Entry]:
+    """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping) and
+    each sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table)."""
+    return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
+                  metadata[campaign]["sensors"][sensor]["kind"])
+            for (campaign, sensor), summary in summaries.items()]
+
+
+TABLES = {"zero_offsets_over_time": lambda entries, significance: zero_offsets_over_time(entries),
+          "drift_between_campaigns": drift_between, "sensor_agreement": sensor_agreement}
+
+
+def table(name: str, entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
+    """One of the cross-campaign tables by name (see TABLES)."""
+    if name not in TABLES:
+        raise ValueError(f"unknown comparison table {name!r}; tables: {sorted(TABLES)}")
+    return TABLES[name](entries, significance)
+
+
+def robot_slug(identity: str) -> str:
+    """A file-name-safe short form of a robot identity."""
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in identity)[:80]

@@ -91,11 +91,11 @@ def audit_section(audit: dict) -> Section:
 
 
 def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report",
-          audit: dict | None = None) -> str:
+          audit: dict | None = None, comparison: dict | None = None) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "tables":
     {table name: DataFrame}, "figures": {figure name: PNG bytes}}, in the order to show;
-    captions: table or figure name (figure names may end in _<sensor>) -> caption; audit: the
-    run's `audit.audit_record`, shown last."""
+    captions: table or figure name (figure names may end in _<sensor>) -> caption; comparison:
+    {"tables": ..., "figures": ...} across campaigns; audit: the run's `audit.audit_record`, shown last."""
 
     def caption(name: str) -> str:
         for key in sorted(captions, key=len, reverse=True):
@@ -111,6 +111,12 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
     intro = ["Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
              "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
              "marked 'held' (kept at the controller's value)."]
+    if comparison is not None:
+        sections.append(Section("Across campaigns and sensors",
+                                ["Campaigns of the same robot (same kinematic model) in date order, and the sensors "
+                                 "of each campaign, compared in units of their combined uncertainty."],
+                                [(caption(t), table) for t, table in comparison["tables"].items()],
+                                [(caption(f), png) for f, png in comparison["figures"].items()]))
     if audit is not None:
         sections.append(audit_section(audit))
     return render(title, intro, sections)

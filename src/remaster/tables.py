@@ -38,6 +38,10 @@ CAPTIONS = {
                    "Gaussian error (blue), X-Y, mm from the MLE TCP",
     "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
     "residuals": "Residuals after remastering against configuration and distance from the base",
+    "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg)",
+    "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
+                               "sensor kind, in units of their combined uncertainty; flagged where significant.",
+    "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty.",
 }
 SENSOR_LABELS = {"motion_capture": "Motion Capture", "laser_tracker": "Laser Tracker"}
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value

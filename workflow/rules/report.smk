@@ -56,10 +56,15 @@ rule audit:
         "../scripts/audit.py"
 
 
+def comparison_layout():
+    return {"tables": {t: f"{COMPARISON}/{t}.csv" for t in COMPARISON_TABLES},
+            "figures": {f"zero_offsets_over_time_{r}": f"{COMPARISON}/zero_offsets_over_time_{r}.png" for r in ROBOTS}}
+
+
 def report_files(wildcards=None):
     files = []
-    for part in report_layout().values():
-        files += [part["summary"], *part["tables"].values(), *part["figures"].values()]
+    for part in [*report_layout().values(), comparison_layout()]:
+        files += [*([part["summary"]] if "summary" in part else []), *part["tables"].values(), *part["figures"].values()]
     return files
 
 
@@ -73,5 +78,6 @@ rule report:
         f"{RESULTS}/logs/report.log",
     params:
         layout=report_layout(),
+        comparison=comparison_layout(),
     script:
         "../scripts/report.py"

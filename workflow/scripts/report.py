@@ -11,5 +11,9 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
                "figures": {f: Path(p).read_bytes() for f, p in part["figures"].items()}}
         for name, part in snakemake.params.layout.items()  # noqa: F821
     }
-    page = report.build(campaigns, tables.CAPTIONS, audit=io.read_json(snakemake.input.audit))  # noqa: F821
+    layout = snakemake.params.comparison  # noqa: F821
+    comparison = {"tables": {t: io.read_csv(p) for t, p in layout["tables"].items()},
+                  "figures": {f: Path(p).read_bytes() for f, p in layout["figures"].items()}}
+    page = report.build(campaigns, tables.CAPTIONS, audit=io.read_json(snakemake.input.audit),  # noqa: F821
+                        comparison=comparison)
     Path(snakemake.output.html).write_text(page, encoding="utf-8")  # noqa: F821
