@@ -8,6 +8,7 @@ for the robot section) naming the file, the key or column, and the 0-based rows 
 from __future__ import annotations
 
 import datetime as dt
+import difflib
 import math
 import re
 from collections.abc import Mapping
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from . import registration
 from .errors import InputError, KinematicsError
 from .kinematics import DH_CONVENTIONS, KinematicChain
 
@@ -34,6 +36,11 @@ KEY_COLUMNS = ("set", "pose", "solution")
 POSITION_COLUMNS = ("x", "y", "z")
 TIME_COLUMN = "time"
 MAX_POSITION = 20.0  # m: a marker farther than this from the sensor's origin is a unit mistake
+# Joint readings in degrees stored as radians: a reading beyond one turn (2 pi) or beyond the robot's
+# joint limits by more than this margin cannot be a controller's reading in rad.
+JOINT_MARGIN = math.radians(10.0)  # rad
+MAX_JOINT_ANGLE = 2.0 * math.pi  # rad
+N_REGISTRATION_PARAMETERS = 6  # x, y, z, alpha, beta, gamma of the registration correction
 
 _JOINT_COLUMN = re.compile(r"q\d+")
 SENSOR_NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
@@ -43,6 +50,13 @@ _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 def joint_columns(n_joints: int) -> tuple[str, ...]:
     """('q1', ..., 'qN')."""
     return tuple(f"q{j + 1}" for j in range(n_joints))
+
+
+def minimum_optimization_points(n_joints: int) -> int:
+    """Fewest measured optimization configurations a fit can use: their 3 coordinates each must
+    outnumber the parameters (6 registration, N zero-offsets, the noise sigma); at least 3 for
+    the registration."""
+    return max(3, (N_REGISTRATION_PARAMETERS + n_joints + 1) // 3 + 1)
 
 
 # --------------------------------------------------------------------------- data classes
@@ -140,12 +154,20 @@ class Campaign:
 # --------------------------------------------------------------------------- campaign.yaml
 
 
+def _spelling_hint(unknown, allowed) -> str:
+    """' (did you mean: sensor -> sensors?)' for unknown keys close to allowed ones, else ''."""
+    guesses = [f"{k} -> {close[0]}" for k in unknown
+               if (close := difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6))]
+    return f" (misspelt? {', '.join(guesses)})" if guesses else ""
+
+
 def _check_keys(section: Mapping, allowed: tuple[str, ...], where: str, source: str,
                 error: type[InputError] = InputError) -> None:
-    unknown = [f"{where}/{k}" if where else str(k) for k in section if k not in allowed]
+    unknown = [k for k in section if k not in allowed]
     if unknown:
-        raise error(f"unknown key{'s' if len(unknown) > 1 else ''}; allowed: {', '.join(allowed)}",
-                    file=source, key=", ".join(unknown))
+        raise error(f"unknown key{'s' if len(unknown) > 1 else ''}; allowed: {', '.join(allowed)}"
+                    f"{_spelling_hint(unknown, allowed)}",
+                    file=source, key=", ".join(f"{where}/{k}" if where else str(k) for k in unknown))
 
 
 def _mapping(value: Any, key: str, source: str, error: type[InputError] = InputError) -> Mapping:
@@ -264,7 +286,10 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     meta = _mapping(meta, "", source)
     missing = [k for k in REQUIRED_KEYS if k not in meta]
     if missing:
-        raise InputError(f"missing required key{'s' if len(missing) > 1 else ''}", file=source, key=", ".join(missing))
+        unknown = [k for k in meta if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
+        raise InputError(f"missing required key{'s' if len(missing) > 1 else ''}"
+                         f"{_spelling_hint(unknown, REQUIRED_KEYS + OPTIONAL_KEYS)}",
+                         file=source, key=", ".join(missing))
     _check_keys(meta, REQUIRED_KEYS + OPTIONAL_KEYS, "", source)
     name = meta["name"]
     if not isinstance(name, str) or not name.strip():
@@ -347,8 +372,52 @@ def _check_dtypes(df: pd.DataFrame, n_joints: int, source: str) -> None:
             raise InputError("negative index", file=source, key=column, rows=negative)
 
 
-def _check_rows(df: pd.DataFrame, n_joints: int, source: str) -> None:
-    """Values: known sets, unique (set, pose, solution), finite joints, plausible positions in m."""
+def _check_joint_units(q: np.ndarray, n_joints: int, source: str, limits) -> None:
+    """Joint readings in rad: none beyond one turn (+-2 pi) or beyond the robot's limits by more
+    than JOINT_MARGIN; otherwise they look like degrees stored as radians."""
+    columns = joint_columns(n_joints)
+    margin_deg = math.degrees(JOINT_MARGIN)
+    beyond_turn = np.abs(q) > MAX_JOINT_ANGLE + JOINT_MARGIN
+    if beyond_turn.any():
+        bad = [c for c, b in zip(columns, beyond_turn.any(axis=0)) if b]
+        raise InputError(f"joint values beyond one turn (+-2 pi rad = +-360 deg, {margin_deg:g} deg margin), up to "
+                         f"{np.abs(q[beyond_turn]).max():.6g}: looks like degrees stored as radians (store radians)",
+                         file=source, key=", ".join(bad), rows=np.flatnonzero(beyond_turn.any(axis=1)))
+    if limits is None:
+        return
+    lower, upper = (np.broadcast_to(np.asarray(limit, dtype=float), (n_joints,)) for limit in limits)
+    outside = (q < lower - JOINT_MARGIN) | (q > upper + JOINT_MARGIN)
+    if outside.any():
+        bad = np.flatnonzero(outside.any(axis=0))
+        details = "; ".join(
+            f"{columns[j]}: limits [{lower[j]:.4g}, {upper[j]:.4g}] rad, value {q[outside[:, j], j][0]:.6g}"
+            for j in bad)
+        raise InputError(f"joint values outside the robot's limits by more than {margin_deg:g} deg ({details}): "
+                         f"degrees stored as radians (store radians), or readings of another robot",
+                         file=source, key=", ".join(columns[j] for j in bad), rows=np.flatnonzero(outside.any(axis=1)))
+
+
+def _check_optimization_set(sets: np.ndarray, xyz: np.ndarray, seen: np.ndarray, n_joints: int, source: str) -> None:
+    """Enough measured optimization configurations for a determined fit, not all on one line."""
+    optimization = np.flatnonzero(sets == "optimization")
+    measured = np.flatnonzero((sets == "optimization") & seen)
+    needed = minimum_optimization_points(n_joints)
+    if measured.size < needed:
+        raise InputError(f"the optimization set has {measured.size} configuration(s) with a measured marker; the fit "
+                         f"needs at least {needed} (3 coordinates each must outnumber the "
+                         f"{N_REGISTRATION_PARAMETERS} registration parameters, {n_joints} zero-offsets and the noise)",
+                         file=source, key="set", rows=optimization)
+    try:
+        registration.spread_out_triple(xyz[measured])
+    except InputError:
+        raise InputError(f"the measured marker positions of the optimization set all lie on one line (a triangle "
+                         f"through them is under {registration.MIN_SPREAD * 1e3:g} mm high): no sensor frame can be "
+                         f"registered from them", file=source, key="x, y, z", rows=measured) from None
+
+
+def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> None:
+    """Values: known sets, unique (set, pose, solution), finite joints in rad (not degrees),
+    plausible positions in m, an optimization set large enough to fit and not on one line."""
     sets = df["set"].astype(object).to_numpy()
     unknown = np.flatnonzero([not (isinstance(s, str) and s in SETS) for s in sets])
     if unknown.size:
@@ -366,6 +435,7 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str) -> None:
     if bad_q.size:
         columns = [c for c, bad in zip(joint_columns(n_joints), ~np.all(np.isfinite(q), axis=0)) if bad]
         raise InputError("non-finite joint values", file=source, key=", ".join(columns), rows=bad_q)
+    _check_joint_units(q, n_joints, source, limits)
 
     xyz = df[list(POSITION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)
     nan = np.isnan(xyz)
@@ -384,10 +454,16 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str) -> None:
     if too_far.any():
         raise InputError(f"marker positions beyond {MAX_POSITION:g} m: looks like millimetres stored "
                          f"as metres (store metres)", file=source, key="x, y, z", rows=np.flatnonzero(too_far))
+    _check_optimization_set(sets, xyz, seen, n_joints, source)
 
 
-def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, source: str) -> pd.DataFrame:
+def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, source: str, *,
+                          limits=None) -> pd.DataFrame:
     """Check one sensor's table against the contract for a robot of `n_joints` joints.
+
+    `limits`: the robot's (lower, upper) joint limits (rad, +-inf when unknown); readings beyond
+    them by more than JOINT_MARGIN are refused as degrees stored as radians. Readings beyond one
+    turn are refused whatever the limits.
 
     Returns the table with a RangeIndex (row numbers as stored) and `time`, if present, as UTC
     timestamps (naive ones are taken as UTC); every other column is untouched. Rows whose x, y, z
@@ -400,17 +476,19 @@ def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, sou
     _check_columns(df, n_joints, source)
     _check_dtypes(df, n_joints, source)
     table = df.reset_index(drop=True)
-    _check_rows(table, n_joints, source)
+    _check_rows(table, n_joints, source, limits)
     if TIME_COLUMN in table.columns:
         time = table[TIME_COLUMN]
         table[TIME_COLUMN] = time.dt.tz_localize("UTC") if time.dt.tz is None else time.dt.tz_convert("UTC")
     return table
 
 
-def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joints: int, source: str) -> SensorData:
-    """SensorData from a validated sensor spec (see `validate_metadata`) and its raw table."""
+def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joints: int, source: str, *,
+                limits=None) -> SensorData:
+    """SensorData from a validated sensor spec (see `validate_metadata`) and its raw table;
+    `limits` as in `validate_sensor_table`."""
     return SensorData(name=name, kind=spec["kind"], marker=np.asarray(spec["marker"], dtype=float),
-                      noise=spec["noise"], table=validate_sensor_table(table, n_joints, name, source))
+                      noise=spec["noise"], table=validate_sensor_table(table, n_joints, name, source, limits=limits))
 
 
 def summarize(campaign: Campaign) -> dict[str, Any]:

@@ -83,6 +83,19 @@ def _floats(text: str | None, count: int, default: float, where: str) -> np.ndar
     return values
 
 
+def _number(text: str | None, default: float, where: str) -> float:
+    """One number of a URDF attribute (default when absent); KinematicsError naming `where` if unreadable."""
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        raise KinematicsError(f"cannot read a number from {text!r}", key=where) from None
+    if np.isnan(value):
+        raise KinematicsError("is NaN", key=where)
+    return value
+
+
 def _origin(element: ET.Element, where: str) -> np.ndarray:
     origin = element.find("origin")
     if origin is None:
@@ -98,12 +111,12 @@ def _link_inertia(link: ET.Element) -> LinkInertia | None:
         return None
     where = f"link {link.get('name')}/inertial"
     mass_el = inertial.find("mass")
-    mass = float(mass_el.get("value")) if mass_el is not None else 0.0
+    mass = _number(mass_el.get("value"), 0.0, f"{where}/mass") if mass_el is not None else 0.0
     pose = _origin(inertial, where)
     inertia_el = inertial.find("inertia")
     inertia = np.zeros((3, 3))
     if inertia_el is not None:
-        get = lambda k: float(inertia_el.get(k, 0.0))  # noqa: E731
+        get = lambda k: _number(inertia_el.get(k), 0.0, f"{where}/inertia/{k}")  # noqa: E731
         inertia = np.array([[get("ixx"), get("ixy"), get("ixz")],
                             [get("ixy"), get("iyy"), get("iyz")],
                             [get("ixz"), get("iyz"), get("izz")]])
@@ -141,8 +154,20 @@ def chain_from_urdf(xml_text: str, base: str | None = None, flange: str | None =
     """Chain from URDF text between links `base` (default: the root) and `flange` (default: the
     single leaf). `source` names the file in error messages. Fixed joints fold into the fixed
     transforms; revolute and continuous joints are the chain's joints; any other joint type on
-    the path is an error.
+    the path is an error. A URDF declaring XML entities is refused.
     """
+    try:
+        return _chain_from_urdf(xml_text, base, flange, source)
+    except KinematicsError as exc:
+        if exc.file is not None:
+            raise
+        raise KinematicsError(exc.reason, file=source, key=exc.key, rows=exc.rows) from None
+
+
+def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
+    if "<!ENTITY" in xml_text:
+        raise KinematicsError("declares XML entities (<!ENTITY ...>): refused, a URDF needs none and their "
+                              "expansion can exhaust memory", file=source)
     try:
         root = ET.fromstring(xml_text)
     except ET.ParseError as exc:
@@ -234,7 +259,11 @@ def chain_from_urdf(xml_text: str, base: str | None = None, flange: str | None =
             raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
         limit = joint.find("limit")
         if kind == "revolute" and limit is not None:
-            lo, hi = float(limit.get("lower", -np.inf)), float(limit.get("upper", np.inf))
+            lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
+            hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
+            if lo > hi:
+                raise KinematicsError(f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source,
+                                      key=f"{where}/limit")
         else:
             lo, hi = -np.inf, np.inf
         names.append(name)

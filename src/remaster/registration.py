@@ -48,9 +48,16 @@ def triangle_height(points) -> float:
 
 
 def three_point(points_robot, points_sensor) -> np.ndarray:
-    """T_NR from exactly three non-collinear corresponding points (3, 3) in R and in N."""
-    robot = _checked(points_robot, "points_robot", 3)[:3]
-    sensor = _checked(points_sensor, "points_sensor", 3)[:3]
+    """T_NR from exactly three non-collinear corresponding points (3, 3) in R and in N.
+
+    More than three points are refused rather than silently cut to the first three (use
+    `spread_out_triple` to choose three, or `kabsch` to use them all)."""
+    robot = _checked(points_robot, "points_robot", 3)
+    sensor = _checked(points_sensor, "points_sensor", 3)
+    for name, p in (("points_robot", robot), ("points_sensor", sensor)):
+        if len(p) != 3:
+            raise InputError(f"the three-point registration takes exactly 3 points, got {len(p)} (choose three with "
+                             f"spread_out_triple, or use kabsch for all of them)", key=name)
     for name, p in (("points_robot", robot), ("points_sensor", sensor)):
         if triangle_height(p) < MIN_SPREAD:
             raise InputError(f"the three registration points are (nearly) collinear: triangle height "
@@ -65,6 +72,13 @@ def kabsch(points_robot, points_sensor, weights=None) -> np.ndarray:
     if robot.shape != sensor.shape:
         raise InputError(f"{len(robot)} robot points but {len(sensor)} sensor points", key="points_sensor")
     w = np.ones(len(robot)) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (len(robot),):
+        raise InputError(f"expected {len(robot)} weights, one per point, got shape {w.shape}", key="weights")
+    bad = np.flatnonzero(~np.isfinite(w) | (w < 0))
+    if bad.size:
+        raise InputError("weights must be finite and not negative", key="weights", rows=bad)
+    if not w.sum() > 0:
+        raise InputError("every weight is zero", key="weights")
     w = w / w.sum()
     centre_r, centre_s = w @ robot, w @ sensor
     a, b = robot - centre_r, sensor - centre_s

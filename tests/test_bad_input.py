@@ -1,0 +1,324 @@
+"""Bad input gets a clear error naming the file, key or column and rows, a non-zero exit and no
+partial result (docs/bad-input.md). One test per catalogue entry not already proved elsewhere:
+tests/test_campaign.py, tests/test_kinematics.py and tests/test_registration.py hold the others."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from remaster import io, kinematics, metrics, registration, scenario
+from remaster.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
+from remaster.errors import InputError, KinematicsError
+
+from .conftest import REPO
+from .test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
+
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+TINY_FIT = {"fit": {"paper": {"chains": 2, "samples": 300, "burn_in": 200},
+                    "default": {"chains": 2, "samples": 300, "burn_in": 100},
+                    "emcee": {"walkers": 32, "steps": 200, "burn_in": 100}}}
+
+
+def parquet(folder: Path) -> str:
+    return str(folder / f"{SENSOR}.parquet")
+
+
+# --------------------------------------------------------------------------- campaign.yaml
+
+
+def test_misspelt_top_level_key_is_named_with_a_guess(tmp_path):
+    meta = metadata()
+    meta["sensor"] = meta.pop("sensors")
+    problem = read_error(make_campaign(tmp_path, meta))
+    assert problem.key == "sensors"
+    assert str(problem) == (f"{tmp_path / 'demo' / 'campaign.yaml'}: sensors: missing required key "
+                            f"(misspelt? sensor -> sensors)")
+
+
+def test_misspelt_sensor_key_is_named_with_a_guess(tmp_path):
+    meta = metadata()
+    meta["sensors"][SENSOR]["markr"] = meta["sensors"][SENSOR].pop("marker")
+    problem = read_error(make_campaign(tmp_path, meta))
+    assert problem.key == f"sensors/{SENSOR}/markr"
+    assert "unknown key" in str(problem) and "markr -> marker" in str(problem)
+
+
+def test_campaign_yaml_that_is_not_yaml_names_file_and_line(tmp_path):
+    folder = make_campaign(tmp_path)
+    (folder / "campaign.yaml").write_text("name: demo\nrobot: {urdf: [x\n")
+    problem = read_error(folder)
+    assert str(problem).startswith(f"{folder / 'campaign.yaml'}: not valid YAML") and "line" in str(problem)
+
+
+def test_campaign_yaml_that_is_not_a_mapping(tmp_path):
+    folder = make_campaign(tmp_path)
+    (folder / "campaign.yaml").write_text("- name: demo\n- date: 2018-06-12\n")
+    problem = read_error(folder)
+    assert str(problem) == f"{folder / 'campaign.yaml'}: must be a mapping, got list"
+
+
+def test_missing_campaign_yaml_or_folder(tmp_path):
+    folder = make_campaign(tmp_path)
+    (folder / "campaign.yaml").unlink()
+    assert str(read_error(folder)) == f"{folder / 'campaign.yaml'}: file not found"
+    assert "no such directory" in str(read_error(tmp_path / "nowhere"))
+
+
+# --------------------------------------------------------------------------- <sensor>.parquet
+
+
+def test_joints_in_degrees_beyond_one_turn_are_refused(tmp_path):
+    """A DH robot has no limits: readings beyond +-(2 pi + margin) are degrees whatever the robot."""
+    table = sensor_table(3)
+    table.loc[[2, 5], "q2"] = [95.0, -30.0]  # degrees
+    folder = make_campaign(tmp_path, metadata(robot={"dh": SMALL_DH}), {SENSOR: table})
+    problem = read_error(folder)
+    assert problem.file == parquet(folder) and problem.key == "q2" and problem.rows == [2, 5]
+    assert "looks like degrees stored as radians" in str(problem) and "up to 95" in str(problem)
+
+
+def test_a_whole_table_in_degrees_is_refused(tmp_path):
+    table = sensor_table()
+    columns = [f"q{j}" for j in range(1, 8)]
+    table[columns] = np.degrees(table[columns])
+    problem = read_error(make_campaign(tmp_path, tables={SENSOR: table}))
+    assert problem.key == ", ".join(columns) and "degrees" in str(problem)
+
+
+def test_joints_beyond_the_limits_by_far_are_refused_near_ones_kept(tmp_path, iiwa):
+    """The iiwa's joint 2 stops at 120 deg (2.094 rad): 4 (degrees stored as rad) is beyond it by
+    far; a reading just past the limit (within the 10 deg margin) is a controller's and is kept."""
+    table = sensor_table()
+    table.loc[[1, 4], "q2"] = 4.0
+    problem = read_error(make_campaign(tmp_path / "far", tables={SENSOR: table}))
+    assert problem.key == "q2" and problem.rows == [1, 4]
+    assert "outside the robot's limits by more than 10 deg" in str(problem) and "[-2.094, 2.094]" in str(problem)
+    table.loc[[1, 4], "q2"] = iiwa.upper[1] + 0.5 * JOINT_MARGIN
+    campaign = io.read_campaign(make_campaign(tmp_path / "near", tables={SENSOR: table}), repo_root=REPO)
+    assert campaign.sensors[SENSOR].q()[1, 1] == pytest.approx(iiwa.upper[1] + 0.5 * JOINT_MARGIN)
+
+
+def test_unreadable_parquet_names_the_file(tmp_path):
+    folder = make_campaign(tmp_path)
+    Path(parquet(folder)).write_bytes(b"PAR1 this is not a parquet file")
+    problem = read_error(folder)
+    assert str(problem).startswith(f"{parquet(folder)}: cannot read Parquet")
+
+
+def test_too_few_optimization_configurations(tmp_path):
+    needed = minimum_optimization_points(7)
+    assert needed == 5  # 3 x 5 = 15 coordinates > 6 registration + 7 zero-offsets + sigma
+    table = sensor_table(n_optimization=4, n_validation=3)
+    problem = read_error(make_campaign(tmp_path, tables={SENSOR: table}))
+    assert problem.key == "set" and problem.rows == [0, 1, 2, 3]
+    assert "has 4 configuration(s) with a measured marker; the fit needs at least 5" in str(problem)
+
+
+def test_unseen_markers_leaving_too_few_optimization_points(tmp_path):
+    table = sensor_table(n_optimization=6)
+    table.loc[[0, 3], ["x", "y", "z"]] = np.nan
+    problem = read_error(make_campaign(tmp_path, tables={SENSOR: table}))
+    assert problem.key == "set" and "has 4 configuration(s)" in str(problem)
+
+
+def test_collinear_optimization_points_are_refused(tmp_path):
+    table = sensor_table()
+    rows = table.index[table["set"] == "optimization"]
+    table.loc[rows, ["x", "y", "z"]] = np.outer(np.linspace(0.5, 1.5, len(rows)), [1.0, 0.4, 0.2])
+    problem = read_error(make_campaign(tmp_path, tables={SENSOR: table}))
+    assert problem.file == parquet(tmp_path / "demo") and problem.key == "x, y, z"
+    assert problem.rows == list(rows) and "lie on one line" in str(problem)
+
+
+def test_empty_validation_set_is_read_and_reported_empty(tmp_path):
+    """Not an error: the contract allows it. The summary says 0 validation configurations and
+    the accuracy metrics of an empty set have count 0 and no number (NaN), never an invented one."""
+    table = sensor_table(n_optimization=8, n_validation=0)
+    campaign = io.read_campaign(make_campaign(tmp_path, tables={SENSOR: table}), repo_root=REPO)
+    sets = summarize(campaign)["sensors"][SENSOR]["sets"]
+    assert sets["validation"] == {"configurations": 0, "poses": 0, "measured": 0}
+    assert sets["optimization"]["configurations"] == 8
+    sensor = campaign.sensors[SENSOR]
+    relative = metrics.relative_errors(sensor.positions("validation"), sensor.positions("validation"),
+                                       sensor.table.loc[sensor.set_mask("validation"), "pose"].to_numpy())
+    assert relative.shape == (0,)
+    summary = metrics.interval_summary(relative)
+    assert summary["count"] == 0 and math.isnan(summary["mean"])
+
+
+# --------------------------------------------------------------------------- robot model
+
+CLOSED_LOOP = """<robot name="loop"><link name="base"/><link name="a"/><link name="b"/><link name="tool"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 1 0"/></joint>
+  <joint name="j3" type="revolute"><parent link="base"/><child link="b"/><axis xyz="0 1 0"/></joint>
+  <joint name="flange" type="fixed"><parent link="b"/><child link="tool"/></joint></robot>"""
+
+
+def small_urdf_campaign(tmp_path, urdf_text):
+    folder = make_campaign(tmp_path, metadata(robot={"urdf": "robot.urdf", "base": "base", "flange": "tool"}),
+                           {SENSOR: sensor_table(3)})
+    (folder / "robot.urdf").write_text(urdf_text)
+    return folder
+
+
+def test_non_serial_urdf_in_a_campaign_names_the_urdf(tmp_path):
+    folder = small_urdf_campaign(tmp_path, CLOSED_LOOP)
+    problem = read_error(folder, KinematicsError)
+    assert problem.file == str(folder / "robot.urdf") and "not a serial chain" in str(problem)
+
+
+def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
+    from .test_campaign import SMALL_URDF
+
+    bad_limit = SMALL_URDF.replace('<joint name="j2" type="revolute">',
+                                   '<joint name="j2" type="revolute"><limit lower="-1.5" upper="one"/>')
+    problem = read_error(small_urdf_campaign(tmp_path / "limit", bad_limit), KinematicsError)
+    urdf = tmp_path / "limit" / "demo" / "robot.urdf"
+    assert str(problem) == f"{urdf}: joint j2/limit/upper: cannot read a number from 'one'"
+    bad_origin = SMALL_URDF.replace('<origin xyz="0.4 0 0"/>', '<origin xyz="0.4 0"/>')
+    problem = read_error(small_urdf_campaign(tmp_path / "origin", bad_origin), KinematicsError)
+    assert problem.file.endswith("robot.urdf") and problem.key == "joint j3/origin/xyz"
+
+
+def test_urdf_limits_upside_down(tmp_path):
+    from .test_campaign import SMALL_URDF
+
+    swapped = SMALL_URDF.replace('<joint name="j1" type="revolute">',
+                                 '<joint name="j1" type="revolute"><limit lower="1.0" upper="-1.0"/>')
+    with pytest.raises(KinematicsError, match=r"robot.urdf: joint j1/limit: lower limit 1 is above upper limit -1"):
+        kinematics.chain_from_urdf(swapped, "base", "tool", source="robot.urdf")
+
+
+# --------------------------------------------------------------------------- registration
+
+
+def test_three_point_registration_refuses_more_than_three_points(rng):
+    points = rng.uniform(-1, 1, (4, 3))
+    with pytest.raises(InputError, match="points_robot: the three-point registration takes exactly 3 points, got 4"):
+        registration.three_point(points, points)
+
+
+def test_kabsch_refuses_weights_that_would_give_a_quiet_nan(rng):
+    points = rng.uniform(-1, 1, (5, 3))
+    with pytest.raises(InputError, match=r"weights: weights must be finite and not negative \(rows 1, 3\)"):
+        registration.kabsch(points, points, weights=[1.0, -1.0, 1.0, np.nan, 1.0])
+    with pytest.raises(InputError, match="every weight is zero"):
+        registration.kabsch(points, points, weights=np.zeros(5))
+    with pytest.raises(InputError, match="expected 5 weights"):
+        registration.kabsch(points, points, weights=np.ones(4))
+
+
+# --------------------------------------------------------------------------- config.yaml (workflow)
+
+
+def dry_run(tmp_path, settings: dict) -> subprocess.CompletedProcess:
+    config = io.write_yaml(tmp_path / "bad-config.yaml", settings)
+    return subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True,
+                          timeout=300)
+
+
+def assert_refused(result: subprocess.CompletedProcess, *fragments: str) -> None:
+    output = result.stdout + result.stderr
+    assert result.returncode != 0, output[-2000:]
+    for fragment in fragments:
+        assert fragment in output, output[-2000:]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory, iiwa):
+    """A small simulated campaign folder `tiny` under raw/ (outside the repository)."""
+    root = tmp_path_factory.mktemp("bad_input_workflow")
+    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
+    spec["name"] = "tiny"
+    spec["plan"]["sets"] = {"optimization": {"poses": 4, "configurations": 12},
+                            "validation": {"poses": 2, "configurations": 6}}
+    out = scenario.simulate(spec, iiwa)
+    io.write_campaign(root / "raw" / "tiny", out.metadata, out.tables)
+    return root
+
+
+def test_config_misspelt_key(tmp_path):
+    assert_refused(dry_run(tmp_path, {"raw_dri": "data/raw"}), "'raw_dri' was unexpected")
+
+
+def test_config_raw_dir_that_does_not_exist(tmp_path):
+    result = dry_run(tmp_path, {"raw_dir": str(tmp_path / "nowhere")})
+    assert_refused(result, "bad-config.yaml", f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory")
+
+
+def test_config_relative_path_leading_outside_the_repository(tmp_path):
+    result = dry_run(tmp_path, {"results_dir": "../results"})
+    assert_refused(result, "results_dir: '../results' leads outside the repository", "absolute path")
+
+
+def test_config_results_inside_raw_data(tmp_path, tiny):
+    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tiny / "raw" / "results")})
+    assert_refused(result, "results_dir:", "overlaps raw_dir")
+    assert not (tiny / "raw" / "results").exists()
+
+
+def test_config_results_dir_that_is_a_file(tmp_path, tiny):
+    (tmp_path / "results.txt").write_text("not a folder")
+    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results.txt")})
+    assert_refused(result, "results_dir:", "exists and is not a directory")
+
+
+def test_config_burn_in_not_shorter_than_the_run(tmp_path):
+    result = dry_run(tmp_path, {"fit": {"emcee": {"steps": 500, "burn_in": 500}}})
+    assert_refused(result, "fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500")
+
+
+def test_config_campaign_that_is_not_there(tmp_path):
+    assert_refused(dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
+                   "campaigns: no data/raw/<name>/campaign.yaml for kuka-twim")
+
+
+def test_config_raw_dir_without_any_campaign(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
+
+
+def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path, tiny):
+    """The decision's other half: raw_dir and results_dir outside the repository, given as absolute paths."""
+    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT})
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "campaign_summary" in result.stdout and not (tmp_path / "results").exists()
+
+
+def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
+    """A campaign whose joints were stored in degrees: `snakemake -j1` exits non-zero, the log of
+    the failing job says why, and the failing job leaves no output file."""
+    raw = tmp_path / "raw"
+    shutil.copytree(tiny / "raw", raw)
+    table = pd.read_parquet(raw / "tiny" / "motion_capture.parquet")
+    joints = [f"q{j}" for j in range(1, 8)]
+    table[joints] = np.degrees(table[joints])
+    io.write_parquet(raw / "tiny" / "motion_capture.parquet", table)
+    results = tmp_path / "results"
+    config = io.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
+    result = subprocess.run(SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True,
+                            text=True, timeout=600)
+    output = result.stdout + result.stderr
+    assert result.returncode != 0, output[-2000:]
+    failed = re.findall(r"Error in rule (\w+):", output)
+    assert failed and set(failed) <= {"campaign_summary", "registration"}, output[-2000:]
+    outputs = {"campaign_summary": [results / "tiny" / "campaign" / "summary.json"],
+               "registration": [results / "tiny" / sensor / "registration.json"
+                                for sensor in ("laser_tracker", "motion_capture")]}
+    for rule in failed:
+        assert not any(path.exists() for path in outputs[rule])
+    assert [p for p in results.rglob("*") if p.is_file() and "logs" not in p.relative_to(results).parts] == []
+    logs = "".join(p.read_text() for p in (results / "logs").rglob("*.log"))
+    # q3 is held at 0 by the planner, so 0 deg = 0 rad is not named
+    assert "motion_capture.parquet: q1, q2, q4, q5, q6, q7: joint values beyond one turn" in logs
+    assert "looks like degrees stored as radians" in logs
