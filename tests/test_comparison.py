@@ -47,11 +47,15 @@ ENTRIES = [
 def test_robot_identity_of_the_bundled_campaigns():
     twin, twin_2019, compliance = (io.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
                                    for c in ("kuka-twin", "kuka-twin-2019", "kuka-compliance"))
-    assert comparison.robot_identity(twin) == comparison.robot_identity(twin_2019) == ROBOT
-    assert comparison.robot_identity(twin["robot"]) == ROBOT  # the section alone
-    assert comparison.robot_identity(compliance) == ROBOT  # same model, another tool plate
-    other = {"robot": {**twin["robot"], "flange": "iiwa_link_7"}}
-    assert comparison.robot_identity(other) != ROBOT
+    # the serial names the physical unit: the twin and its campaign a year later are one robot,
+    # kuka-compliance is another iiwa
+    assert comparison.robot_identity(twin) == comparison.robot_identity(twin_2019) == "serial:iiwa14-NIST-01"
+    assert comparison.robot_identity(twin["robot"]) == "serial:iiwa14-NIST-01"  # the section alone
+    assert comparison.robot_identity(compliance) == "serial:iiwa14-LAB-02"
+    # without a serial, the model: same URDF and frames
+    model = {k: v for k, v in twin["robot"].items() if k != "serial"}
+    assert comparison.robot_identity(model) == ROBOT
+    assert comparison.robot_identity({**model, "flange": "iiwa_link_7"}) != ROBOT
 
 
 def test_robot_identity_of_dh_tables():

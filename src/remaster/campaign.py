@@ -28,7 +28,7 @@ SENSOR_KINDS = ("motion_capture", "laser_tracker", "other")
 
 REQUIRED_KEYS = ("name", "date", "robot", "sensors")
 OPTIONAL_KEYS = ("description",)
-ROBOT_KEYS = ("urdf", "base", "flange", "dh")
+ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial")
 DH_KEYS = ("convention", "rows", "flange")
 SENSOR_KEYS = ("kind", "marker", "noise")
 
@@ -214,6 +214,11 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
     if "urdf" not in robot and "dh" not in robot:
         raise KinematicsError("needs `urdf` or `dh` (or both)", file=source, key="robot")
     checked: dict[str, Any] = {}
+    if "serial" in robot:  # optional: the physical unit, so that campaigns of one robot can be compared
+        if not (isinstance(robot["serial"], str) and robot["serial"].strip()):
+            raise KinematicsError(f"must be a non-empty string, got {robot['serial']!r}", file=source,
+                                  key="robot/serial")
+        checked["serial"] = robot["serial"]
     if "urdf" in robot:
         for key in ("urdf", "base", "flange"):
             value = robot.get(key)

@@ -86,9 +86,12 @@ def robot_identity(campaign: Any) -> str:
       is named after its campaign there: compare campaigns from the same kind of input,
       preferably campaign.yaml.
     Two campaign-local URDFs of the same file name are taken for the same model; the key names the
-    model, not the physical unit.
+    model, not the physical unit, unless the robot section gives the unit's `serial`: then the key
+    is 'serial:<serial>', and only campaigns of that very robot are compared.
     """
     robot = _robot_section(campaign)
+    if robot.get("serial"):
+        return f"serial:{robot['serial']}"
     if robot.get("urdf"):
         name = PurePosixPath(str(robot["urdf"]).replace("\\", "/")).name
         return f"urdf:{name}:{robot.get('base') or ''}:{robot.get('flange') or ''}"
