@@ -7,6 +7,7 @@ include: "workflow/rules/campaign.smk"
 include: "workflow/rules/fit.smk"
 include: "workflow/rules/tables_fit.smk"
 include: "workflow/rules/accuracy.smk"
+include: "workflow/rules/loop_closure.smk"
 include: "workflow/rules/comparison.smk"
 include: "workflow/rules/report.smk"
 
@@ -26,6 +27,10 @@ rule all:
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/tcp_scatter_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/post_registration_histograms_{{sensor}}.png"),
         expand(f"{RESULTS}/{{campaign}}/figures/residuals.png", campaign=CAMPAIGNS),
+        expand(f"{RESULTS}/{{campaign}}/tables/{{table}}.md", campaign=CAMPAIGNS,
+               table=["loop_closure", "loop_candidates"]),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_signatures_{{sensor}}.png"),
+        every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_residuals_{{sensor}}.png"),
         expand(f"{RESULTS}/comparison/{{table}}.md", table=COMPARISON_TABLES),
         expand(f"{RESULTS}/comparison/zero_offsets_over_time_{{robot}}.png", robot=ROBOTS),
         f"{RESULTS}/report.html",

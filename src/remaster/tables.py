@@ -38,6 +38,12 @@ CAPTIONS = {
                    "Gaussian error (blue), X-Y, mm from the MLE TCP",
     "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
     "residuals": "Residuals after remastering against configuration and distance from the base",
+    "loop_closure": "Loop closure: what zero-offset remastering leaves, and what is left after the effects the "
+                    "data support are added (least-squares fit; validation with the optimization fit's parameters).",
+    "loop_candidates": "Loop closure: every candidate effect's evidence (BIC gain), validation RMSE and fall, and "
+                       "the share of the residual it explains, per round.",
+    "loop_signatures": "The residual against each candidate effect's signature, first round",
+    "loop_residuals": "Post-registration errors before and after the loop closure",
     "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg)",
     "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
                                "sensor kind, in units of their combined uncertainty; flagged where significant.",

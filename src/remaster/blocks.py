@@ -1,0 +1,391 @@
+"""The measurement model as parameter blocks: the paper's zero-offsets and registration, plus
+optional blocks for the effects the paper's model leaves out (design.md, "parameter blocks").
+
+    angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i         (joint space)
+    p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)
+
+| block              | parameters (SI)                                        | display unit |
+|--------------------|--------------------------------------------------------|--------------|
+| `registration`     | x, y, z (m), alpha, beta, gamma (rad)                  | mm, deg      |
+| `zero_offsets`     | q1..qN (rad)                                           | deg          |
+| `joint_compliance` | q1..qN (rad/(N m)) times tau_j, gravity's torque;      | urad/(N m)   |
+|                    | payload_q1..qN (rad/(N m)) times the payload's part    |              |
+| `joint_scale`      | q1..qN (1), times the reading q_j                      | ppm          |
+| `marker_offset`    | x, y, z (m) added to the marker, flange frame          | mm           |
+| `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
+| `link_geometry`    | F<j>.length (m), F<j>.twist (rad), tool.*              | mm, deg      |
+| `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
+
+Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
+joint's angle, with v_k (n,) fixed per dataset (ones, gravity torques, readings, elapsed time).
+Gravity torques come once per dataset from Pinocchio (`remaster.gravity`), with a tool-plate
+payload m0 that is a setting. A true payload m differs from it by a torque of a different shape
+than the arm's own, which c alone cannot follow (1.5 kg off leaves several um on a laser
+tracker); c' on the payload's part of the torque absorbs it exactly: c'_j = c_j (m / m0 - 1).
+Link geometry is the simulator's parametrisation (`simulation.perturbed_chain`): a length error
+along each fixed transform's translation and a twist about the x axis of the frame it leads to.
+
+A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
+vector, a predict function and the paper's log-posterior (the same functions as
+`ZeroOffsetModel`'s, shared, not copied). Which extension parameters the data determine is
+decided in one place, `identifiable_extension`: QR with column pivoting of the extension's
+Jacobian columns after projecting out the base parameters' columns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from . import _kernels
+from .campaign import SensorData
+from .fit import measured_rows
+from .gravity import gravity_torques
+from .identifiability import JACOBIAN_STEP
+from .kinematics import ForwardKinematics, KinematicChain
+from .model import DEG, MM, REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from .simulation import perturbed_chain
+
+BASE = ("registration", "zero_offsets")
+EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
+PPM = 1e-6
+MICRORAD_PER_NM = 1e-6
+SECONDS_PER_HOUR = 3600.0
+# An extension column of the Jacobian below this fraction of the longest of its own block is
+# invisible in the data: e.g. the compliance of joint 1 about the vertical (zero torque), the
+# scale of a joint that never moves. Within a block, so that the choice of units does not matter.
+INVISIBLE = 1e-6
+# An extension column whose part outside the span of the base and of the extension columns
+# already kept is below this fraction of its length (the sine of its angle to that span) is
+# absorbed by them: its std would be more than 1/COLLINEAR times what it is alone.
+COLLINEAR = 1e-3
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """Settings of the extension blocks. payload_mass (kg) at payload_com (m, flange frame): the
+    tool plate for the gravity torques (an error in the mass is absorbed by the compliance
+    block's payload terms); drift_column: the table column the drift is a rate of
+    (None: `time` if the table has one, else the first column whose name contains
+    'temperature')."""
+
+    payload_mass: float = 1.0
+    payload_com: tuple[float, float, float] = (0.0, 0.0, 0.02)
+    drift_column: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Readings:
+    """What one set of one sensor gives the model, computed once.
+
+    rows (n,): 0-based table rows (measured ones only); q (n, N) rad; measured (n, 3) m, sensor
+    frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
+    readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
+    table's first time (or K since the first temperature), None without such a column;
+    drift_unit 's' or 'K'.
+    """
+
+    rows: np.ndarray
+    q: np.ndarray
+    measured: np.ndarray
+    torques: np.ndarray
+    payload_torques: np.ndarray
+    drift: np.ndarray | None = None
+    drift_unit: str | None = None
+
+    def regressor(self, key: str) -> np.ndarray:
+        """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
+        'payload_torques' or 'drift' (the same for every joint)."""
+        if key == "ones":
+            return np.ones_like(self.q)
+        if key == "drift":
+            return np.broadcast_to(self.drift[:, None], self.q.shape)
+        return getattr(self, key)
+
+
+def drift_variable(table: pd.DataFrame, column: str | None = None) -> tuple[np.ndarray, str, str] | None:
+    """(values (n_rows,) in s or K from the first measurement, column, unit 's' or 'K') of the
+    column a drift is a rate of, or None when the table has none (or it is not finite)."""
+    if column is None:
+        if "time" in table.columns:
+            column = "time"
+        else:
+            column = next((c for c in table.columns if "temperature" in c.lower()
+                           and pd.api.types.is_numeric_dtype(table[c].dtype)), None)
+            if column is None:
+                return None
+    series = table[column]
+    if pd.api.types.is_datetime64_any_dtype(series.dtype):
+        values = (series - series.min()).dt.total_seconds().to_numpy(dtype=float)
+        unit = "s"
+    else:
+        values = series.to_numpy(dtype=float)
+        values = values - values[0]
+        unit = "K"
+    return (values, column, unit) if np.all(np.isfinite(values)) else None
+
+
+def readings(chain: KinematicChain, sensor: SensorData, set_name: str, settings: ModelSettings = ModelSettings(),
+             exclude=()) -> Readings:
+    """The measured rows of one set but the table rows in `exclude` (flagged gross errors).
+    Gravity torques are taken at the readings: zero-offsets of a fraction of a degree change
+    them by well under 1 %, a compliance deflection of a few microradians."""
+    rows = np.setdiff1d(measured_rows(sensor, set_name), np.asarray(exclude, dtype=int))
+    q = sensor.table.loc[rows, list(sensor.joint_columns)].to_numpy(dtype=float)
+    measured = sensor.table.loc[rows, ["x", "y", "z"]].to_numpy(dtype=float)
+    torques = gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
+    payload = torques - gravity_torques(chain, q)
+    drift = drift_variable(sensor.table, settings.drift_column)
+    return Readings(rows, q, measured, torques, payload, None if drift is None else drift[0][rows],
+                    None if drift is None else drift[2])
+
+
+# --------------------------------------------------------------------------- parameters of each block
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """names (P,), scale (P,) SI size of one display unit, unit (P,) its label; for a joint-space
+    block, joints (P,) the joint each parameter moves and regressor (P,) the `Readings.regressor`
+    it multiplies."""
+
+    names: tuple[str, ...]
+    scale: np.ndarray
+    unit: tuple[str, ...]
+    joints: tuple[int, ...] = ()
+    regressor: tuple[str, ...] = ()
+
+
+def link_labels(chain: KinematicChain) -> list[tuple[int, int, str]]:
+    """(link row 0..N, column 0 length / 1 twist, parameter name) of the link-geometry block;
+    no length parameter for a fixed transform without translation."""
+    out = []
+    transforms = list(chain.joint_transforms) + [chain.tool_transform]
+    for i, transform in enumerate(transforms):
+        label = "tool" if i == chain.n_joints else f"F{i + 1}"
+        if np.linalg.norm(transform[:3, 3]) > 0:
+            out.append((i, 0, f"link_geometry.{label}.length"))
+        out.append((i, 1, f"link_geometry.{label}.twist"))
+    return out
+
+
+def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
+    """The parameters a block owns on this chain, in model order."""
+    if block == "registration":  # the paper's parameters, named and scaled as `remaster.model` does
+        names = parameter_names(chain.n_joints)[:len(REGISTRATION)]
+        scale = np.array([display_scale(n) for n in names])
+        return Parameters(names, scale, tuple("mm" if s == MM else "deg" for s in scale))
+    if block == "marker_offset":
+        return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
+    if block == "sensor_scale":
+        return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
+    if block == "link_geometry":
+        labels = link_labels(chain)
+        return Parameters(tuple(name for _, _, name in labels), np.array([MM if c == 0 else DEG for _, c, _ in labels]),
+                          tuple("mm" if c == 0 else "deg" for _, c, _ in labels))
+    rate = (DEG / SECONDS_PER_HOUR, "deg/h") if drift_unit != "K" else (DEG, "deg/K")
+    joint_space = {  # block: ((name prefix, regressor), ...), scale, unit
+        "zero_offsets": ((("q", "ones"),), DEG, "deg"),
+        "joint_compliance": ((("q", "torques"), ("payload_q", "payload_torques")), MICRORAD_PER_NM, "urad/(N m)"),
+        "joint_scale": ((("q", "q"),), PPM, "ppm"),
+        "drift": ((("q", "drift"),), *rate)}
+    if block not in joint_space:
+        raise ValueError(f"unknown block {block!r}; blocks are {BASE + EXTENSIONS}")
+    kinds, scale, unit = joint_space[block]
+    parts = [(f"{block}.{prefix}{j + 1}", j, regressor) for prefix, regressor in kinds for j in range(chain.n_joints)]
+    return Parameters(tuple(p[0] for p in parts), np.full(len(parts), scale), (unit,) * len(parts),
+                      tuple(p[1] for p in parts), tuple(p[2] for p in parts))
+
+
+def available(block: str, data: Readings) -> bool:
+    """Whether the data can carry a block at all (a drift needs a time or temperature column
+    that varies)."""
+    return block != "drift" or (data.drift is not None and np.ptp(data.drift) > 0)
+
+
+# --------------------------------------------------------------------------- the model
+
+
+class BlockModel:
+    """Predicted marker positions (sensor frame) of one set's readings for base + extension blocks.
+
+    chain: the nominal chain; data: `Readings`; marker (3,) m nominal, flange frame; t_nr (4, 4)
+    the initial registration; blocks: extension block names (any order; the model orders them
+    as EXTENSIONS); fixed: {parameter name: value} held (e.g. the zero-offset a free
+    registration absorbs, the extension parameters the data cannot see).
+    Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
+    """
+
+    # The paper's posterior and the holding of parameters are the same whatever the blocks.
+    full = ZeroOffsetModel.full
+    predict = ZeroOffsetModel.predict
+    residuals = ZeroOffsetModel.residuals
+    log_posterior = ZeroOffsetModel.log_posterior
+    jacobian = ZeroOffsetModel.jacobian
+    n_points = ZeroOffsetModel.n_points
+
+    def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
+                 fixed: Mapping[str, float] | None = None):
+        unknown = set(blocks) - set(EXTENSIONS)
+        if unknown:
+            raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
+        if "drift" in blocks and data.drift is None:
+            raise ValueError("a drift block needs a time or temperature column")
+        self.chain, self.data = chain, data
+        self.q, self.measured = data.q, data.measured
+        self.marker = np.asarray(marker, dtype=float)
+        self.t_nr = np.asarray(t_nr, dtype=float)
+        self.blocks = BASE + tuple(b for b in EXTENSIONS if b in blocks)
+        parts = [block_parameters(b, chain, data.drift_unit) for b in self.blocks]
+        self.all_names = tuple(n for p in parts for n in p.names)
+        self.all_scale = np.concatenate([p.scale for p in parts])
+        self.all_unit = tuple(u for p in parts for u in p.unit)
+        self.block_of = {n: b for b, p in zip(self.blocks, parts) for n in p.names}
+        fixed = dict(fixed or {})
+        unknown = set(fixed) - set(self.all_names)
+        if unknown:
+            raise ValueError(f"cannot hold parameters {sorted(unknown)} the model does not have")
+        self.fixed = fixed
+        self.free = np.array([n not in fixed for n in self.all_names])
+        self.fixed_values = np.array([fixed.get(n, 0.0) for n in self.all_names])
+        self._free_index = np.flatnonzero(self.free)
+        self.names = tuple(n for n, f in zip(self.all_names, self.free) if f)
+        self.scale = self.all_scale[self.free]
+        self.unit = tuple(u for u, f in zip(self.all_unit, self.free) if f)
+        self._setup_joint_space(parts)
+        index = {n: i for i, n in enumerate(self.all_names)}
+        self._marker_index = [index[n] for n in self.all_names if self.block_of[n] == "marker_offset"]
+        self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
+        self._links = ([(index[name], row, column) for row, column, name in link_labels(chain)]
+                       if "link_geometry" in self.blocks else [])
+        self._nominal = ForwardKinematics(chain, self.q[:1])  # the chain in the compiled kernel's form
+
+    def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
+        """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
+        index = {n: i for i, n in enumerate(self.all_names)}
+        rows = [(index[n], j, key) for p in parts for n, j, key in zip(p.names, p.joints, p.regressor)]
+        self._joint_params = np.array([i for i, _, _ in rows], dtype=int)
+        self._joint_values = np.array([self.data.regressor(key)[:, j] for _, j, key in rows])  # (K, n)
+        self._joint_onehot = np.eye(self.chain.n_joints)[[j for _, j, _ in rows]]  # (K, N)
+
+    def vector(self, values: Mapping[str, float]) -> np.ndarray:
+        """Free-parameter vector (P,) from {name: value}; parameters not given are 0."""
+        return np.array([float(values.get(n, 0.0)) for n in self.names])
+
+    def values(self, theta) -> dict[str, float]:
+        """{name: value} of every parameter (held ones included) from free parameters (P,)."""
+        return dict(zip(self.all_names, self.full(theta).tolist()))
+
+    def on(self, data: Readings) -> "BlockModel":
+        """The same model (blocks, registration, held parameters) on other readings, e.g. the
+        validation set."""
+        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed)
+
+    def angles(self, every) -> np.ndarray:
+        """Joint angles (n, N) or (m, n, N) the robot had, from every parameter (..., P_all)."""
+        theta = np.asarray(every, dtype=float)[..., self._joint_params]
+        return self.q + np.einsum("...k,kn,kj->...nj", theta, self._joint_values, self._joint_onehot)
+
+    def _robot_points(self, every: np.ndarray, angles: np.ndarray) -> np.ndarray:
+        """Marker positions (n, 3) in the robot frame for one parameter vector (P_all,)."""
+        fk = self._nominal
+        if self._links:
+            errors = np.zeros((self.chain.n_joints + 1, 2))
+            for index, row, column in self._links:
+                errors[row, column] = every[index]
+            fk = ForwardKinematics(perturbed_chain(self.chain, errors), self.q[:1])
+        marker = self.marker + every[self._marker_index] if self._marker_index else self.marker
+        n_joints = self.chain.n_joints
+        return _kernels.points(fk.kernel_rotations, fk.kernel_shifts, fk.flange_point(marker),
+                               np.ascontiguousarray(np.cos(angles).T), np.ascontiguousarray(np.sin(angles).T),
+                               np.ones((1, n_joints)), np.zeros((1, n_joints)))[0]
+
+    def predict_full(self, every) -> np.ndarray:
+        """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter
+        (P_all,) or (m, P_all). A stack is a loop over its m vectors (not over rows)."""
+        every = np.asarray(every, dtype=float)
+        stack = np.atleast_2d(every)
+        angles = self.angles(stack)
+        points = np.stack([self._robot_points(e, a) for e, a in zip(stack, angles)])
+        transform = correction_transforms(stack[:, :6]) @ self.t_nr
+        out = points @ np.swapaxes(transform[:, :3, :3], -1, -2) + transform[:, None, :3, 3]
+        if self._scale_index:
+            out = out * (1.0 + stack[:, self._scale_index])[:, :, None]
+        return out if every.ndim == 2 else out[0]
+
+    def sum_squares(self, theta) -> np.ndarray:
+        """Sum of squared residuals E(theta): scalar or (m,)."""
+        return np.sum(self.residuals(theta) ** 2, axis=(-2, -1))
+
+
+# --------------------------------------------------------------------------- identifiability of extensions
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """Which extension parameters the data determine. kept: free extension parameters;
+    dropped: {name: why} held at 0 ('invisible' with its relative size, or 'absorbed' with the
+    sine of its angle to the span of the base and the columns kept before it);
+    condition_number of the whole model's free Jacobian with unit-length columns (so
+    independent of units)."""
+
+    kept: tuple[str, ...]
+    dropped: dict[str, str]
+    condition_number: float
+
+    def report(self) -> dict:
+        return {"kept": list(self.kept), "dropped": dict(self.dropped), "condition_number_unit_columns":
+                self.condition_number, "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns "
+                "in model order, from the span of the base columns", "invisible_below": INVISIBLE,
+                "collinear_below": COLLINEAR}
+
+
+def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
+    """Which of the model's free extension parameters the data determine, at theta (default 0).
+
+    From the Jacobian: a column shorter than INVISIBLE x the longest of its block is invisible. The others, scaled to unit length, go through Gram-Schmidt (QR) in the model's
+    order, starting from the span of the base columns: a column is kept when its sine to the
+    span of the base and the columns kept before it exceeds COLLINEAR, else it is absorbed. The
+    order is a priority: a block's main parameters come before its secondary ones (a compliance
+    before its payload correction). Dropped parameters are held at 0.
+    """
+    theta = np.zeros(len(model.names)) if theta is None else np.asarray(theta, dtype=float)
+    jacobian = model.jacobian(theta, JACOBIAN_STEP)
+    is_base = np.array([model.block_of[n] in BASE for n in model.names])
+    ext_names = [n for n, b in zip(model.names, is_base) if not b]
+    ext = jacobian[:, ~is_base]
+    lengths = np.linalg.norm(ext, axis=0)
+    longest = {}
+    for name, length in zip(ext_names, lengths):
+        longest[model.block_of[name]] = max(longest.get(model.block_of[name], 0.0), length)
+    span, _ = np.linalg.qr(jacobian[:, is_base])
+    kept, dropped = [], {}
+    for i, name in enumerate(ext_names):
+        relative = lengths[i] / longest[model.block_of[name]] if lengths[i] > 0 else 0.0
+        if relative < INVISIBLE:
+            dropped[name] = f"invisible: effect {relative:.1e} of the block's largest"
+            continue
+        outside = ext[:, i] / lengths[i] - span @ (span.T @ ext[:, i] / lengths[i])
+        sine = float(np.linalg.norm(outside))
+        if sine > COLLINEAR:
+            kept.append(i)
+            span = np.column_stack([span, outside / sine])
+        else:
+            dropped[name] = f"absorbed: sine {sine:.1e} to the base and the parameters kept before it"
+    keep = is_base.copy()
+    keep[np.flatnonzero(~is_base)[kept]] = True
+    columns = jacobian[:, keep]
+    singular = np.linalg.svd(columns / np.linalg.norm(columns, axis=0), compute_uv=False)
+    return Reduction(tuple(ext_names[i] for i in kept), dropped, float(singular[0] / singular[-1]))
+
+
+def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
+                   base_held: Mapping[str, float]) -> tuple[BlockModel, Reduction]:
+    """The model of base + blocks with the base's held parameters held and the extension
+    parameters the data cannot determine held at 0."""
+    reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
+    held = {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
+    return BlockModel(chain, data, marker, t_nr, blocks, held), reduction

@@ -1,0 +1,72 @@
+"""Loop-closure figures: what each candidate effect would explain, and the errors before/after.
+
+Every function takes arrays from `remaster.loop_closure` and returns a matplotlib Figure (Agg
+backend, no screen); `remaster.io.write_figure` saves it. Axes in mm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .figures import _grid  # noqa: E402
+from .loop_closure import SETS, Signature  # noqa: E402
+from .model import MM  # noqa: E402
+
+AXES = ("x", "y", "z")
+
+
+def signatures(candidates: Mapping[str, Signature], title: str) -> plt.Figure:
+    """Per candidate: the current fit's residual (mm) against the change in prediction the
+    candidate's fit makes (mm), one dot per point and axis. On the diagonal: the candidate is
+    what the residual holds; a flat cloud: it explains nothing."""
+    fig, axes = _grid(max(len(candidates), 1))
+    for ax, (name, signature) in zip(axes, candidates.items()):
+        effect, residual = signature.effect / MM, signature.residual / MM
+        for k, axis in enumerate(AXES):
+            ax.scatter(effect[:, k], residual[:, k], s=4, alpha=0.6, label=axis)
+        limit = max(np.abs(residual).max(), np.abs(effect).max(), 1e-9)
+        ax.plot([-limit, limit], [-limit, limit], color="k", lw=0.8)
+        ax.set_xlim(-limit, limit)
+        ax.set_ylim(-limit, limit)
+        ax.set_title(f"{name}: explains {100 * signature.explained:.0f} %", fontsize=9)
+        ax.set_xlabel("candidate's effect (mm)", fontsize=8)
+        ax.set_ylabel("residual (mm)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    if candidates:
+        axes[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title: str) -> plt.Figure:
+    """Post-registration errors |E_i| (mm) per set, before (zero-offset model) and after (with
+    the effects added), on a logarithmic axis: the two may differ by orders of magnitude.
+    residuals: {'before'|'after': {set: (n, 3) m}}."""
+    fig, axes = plt.subplots(1, len(SETS), figsize=(4.2 * len(SETS), 3.0), squeeze=False)
+    norms = {when: {s: np.linalg.norm(residuals[when][s], axis=1) / MM for s in SETS} for when in residuals}
+    every = np.concatenate([v for per_set in norms.values() for v in per_set.values()])
+    positive = every[every > 0]
+    low, high = (positive.min(), positive.max()) if positive.size else (1e-3, 1.0)
+    bins = np.geomspace(low, high * 1.0001, 40)
+    for ax, set_name in zip(axes[0], SETS):
+        for when, color in (("before", "tab:red"), ("after", "tab:blue")):
+            values = norms[when][set_name]
+            ax.hist(values, bins=bins, color=color, alpha=0.6,
+                    label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm")
+        ax.set_xscale("log")
+        ax.set_title(set_name, fontsize=9)
+        ax.set_xlabel("post-registration error (mm)", fontsize=8)
+        ax.set_ylabel("configurations", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

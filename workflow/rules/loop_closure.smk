@@ -1,0 +1,78 @@
+# Stage 4: close the loop per campaign and sensor: diagnose the residual against candidate effects,
+# add the supported ones, refit, and report before and after.
+
+LOOP = f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure"
+
+
+rule loop_closure:
+    input:
+        campaign=campaign_files,
+        registration=rules.registration.output.registration,
+        laplace=rules.laplace.output.laplace,
+        cross_check=rules.cross_check.output.table,
+    output:
+        report=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
+        table=f"{LOOP}/before_after.csv",
+        signatures=f"{LOOP}/signatures.parquet",
+        residuals=f"{LOOP}/residuals.parquet",
+        samples=f"{LOOP}/samples.parquet",
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_closure.log",
+    params:
+        folder=lambda wc: f"{RAW}/{wc.campaign}",
+        settings=config["loop_closure"],
+        seed=config["seed"],
+    script:
+        "../scripts/loop_closure.py"
+
+
+rule table_loop_closure:
+    input:
+        tables=per_sensor(f"{LOOP}/before_after.csv"),
+        reports=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
+    output:
+        multiext(f"{TABLES}/loop_closure", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_loop_closure.log",
+    params:
+        sensors=lambda wc: sensors_of(wc.campaign),
+        kind="loop_closure",
+    script:
+        "../scripts/table_loop_closure.py"
+
+
+rule table_loop_candidates:
+    input:
+        tables=per_sensor(f"{LOOP}/before_after.csv"),
+        reports=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
+    output:
+        multiext(f"{TABLES}/loop_candidates", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_loop_candidates.log",
+    params:
+        sensors=lambda wc: sensors_of(wc.campaign),
+        kind="loop_candidates",
+    script:
+        "../scripts/table_loop_closure.py"
+
+
+rule figure_loop_signatures:
+    input:
+        f"{LOOP}/signatures.parquet",
+    output:
+        multiext(f"{FIGURES}/loop_signatures_{{sensor}}", ".png", ".pdf"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figure_loop_signatures.log",
+    script:
+        "../scripts/figure_loop_signatures.py"
+
+
+rule figure_loop_residuals:
+    input:
+        f"{LOOP}/residuals.parquet",
+    output:
+        multiext(f"{FIGURES}/loop_residuals_{{sensor}}", ".png", ".pdf"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figure_loop_residuals.log",
+    script:
+        "../scripts/figure_loop_residuals.py"
