@@ -1,9 +1,11 @@
 """The Snakemake workflow end to end on a tiny simulated campaign: a dry run, a real run, and a
 second run that has nothing to do."""
 
-import shutil
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -15,27 +17,44 @@ from .conftest import REPO
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 SMALL_FIT = {"fit": {"paper": {"chains": 2, "samples": 3000, "burn_in": 2000},
                      "default": {"chains": 2, "samples": 4000, "burn_in": 1000},
-                     "emcee": {"walkers": 32, "steps": 600, "burn_in": 200}}}
+                     "emcee": {"walkers": 32, "steps": 600, "burn_in": 200}},
+             "accuracy": {"draws": 200, "random_configurations": 100},
+             "loop_closure": {"mcmc": {"chains": 2, "samples": 1500, "burn_in": 500}}}
 
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory, iiwa):
-    """A campaign folder with small sets, written by the simulator, and a config for it."""
+    """Two campaign folders with small sets, written by the simulator, and a config for them."""
     root = tmp_path_factory.mktemp("workflow")
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
-    spec["name"] = "tiny"
-    spec["plan"]["sets"] = {"optimization": {"poses": 10, "configurations": 40},
-                            "validation": {"poses": 4, "configurations": 16}}
-    out = scenario.simulate(spec, iiwa)
-    io.write_campaign(root / "raw" / "tiny", out.metadata, out.tables)
+    for name, scenario_file in (("tiny", "kuka-twin.yaml"), ("tiny2", "kuka-compliance.yaml")):
+        spec = io.read_yaml(REPO / "data" / "simulation" / scenario_file)
+        spec["name"] = name
+        spec["plan"]["sets"] = {"optimization": {"poses": 10, "configurations": 40},
+                                "validation": {"poses": 4, "configurations": 16}}
+        out = scenario.simulate(spec, iiwa)
+        io.write_campaign(root / "raw" / name, out.metadata, out.tables)
     io.write_yaml(root / "config.yaml", {"raw_dir": str(root / "raw"), "results_dir": str(root / "results"),
                                           **SMALL_FIT})
     return root
 
 
-def run(root, *extra):
-    return subprocess.run(SNAKEMAKE + ["-j2", "--configfile", str(root / "config.yaml"), *extra],
+def run(root, *extra, config="config.yaml"):
+    return subprocess.run(SNAKEMAKE + ["-j2", "--configfile", str(root / config), *extra],
                           cwd=REPO, capture_output=True, text=True, timeout=600)
+
+
+def with_results(root, name):
+    """A config like the tiny one, writing to another results folder."""
+    config = io.read_yaml(root / "config.yaml")
+    io.write_yaml(root / f"{name}.yaml", {**config, "results_dir": str(root / name)})
+    return f"{name}.yaml"
+
+
+def result_bytes(folder):
+    """Every table, remastering file and cross-campaign table of a run, as bytes."""
+    patterns = ["*/tables/*", "*/*/remastering.json", "*/*/fit/summary.csv", "*/*/fit/samples_*.parquet",
+                "comparison/*.csv", "*/*/metrics/*.csv"]
+    return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
 
 
 def test_dry_run_lists_the_jobs(tiny):
@@ -51,6 +70,7 @@ def test_real_run_builds_everything_then_nothing(tiny):
     result = run(tiny)
     assert result.returncode == 0, result.stderr[-3000:]
     results = tiny / "results" / "tiny"
+    assert (tiny / "results" / "tiny2" / "laser_tracker" / "loop_closure.json").is_file()
     for sensor in ("motion_capture", "laser_tracker"):
         remastering = io.read_json(results / sensor / "remastering.json")
         assert [j["status"] for j in remastering["joints"]][0].startswith("held")
@@ -60,6 +80,60 @@ def test_real_run_builds_everything_then_nothing(tiny):
             assert (results / "tables" / f"{table}{suffix}").is_file()
     again = run(tiny)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
+
+
+def test_same_inputs_and_seed_give_byte_identical_results(tiny):
+    """A second run into another folder: every table and result is the same to the byte."""
+    first = tiny / "results"
+    if not (first / "report.html").exists():
+        assert run(tiny).returncode == 0
+    other = with_results(tiny, "results_again")
+    assert run(tiny, config=other).returncode == 0
+    a, b = result_bytes(first), result_bytes(tiny / "results_again")
+    assert a.keys() == b.keys() and len(a) > 40
+    assert [name for name in a if a[name] != b[name]] == []
+
+
+def test_a_run_killed_half_way_completes_with_identical_results(tiny):
+    """Killed while sampling, started again: it finishes, and its results equal an undisturbed run's."""
+    first = tiny / "results"
+    if not (first / "report.html").exists():
+        assert run(tiny).returncode == 0
+    killed = with_results(tiny, "results_killed")
+    process = subprocess.Popen(SNAKEMAKE + ["-j2", "--configfile", str(tiny / killed)], cwd=REPO,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not list((tiny / "results_killed").glob("tiny/*/fit/samples_*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGKILL)  # the whole job tree, as a power cut or a scheduler would
+    process.wait()
+    assert not (tiny / "results_killed" / "report.html").exists()
+    # what a person does after a kill (README): release the lock the killed run held, run again
+    assert run(tiny, "--unlock", config=killed).returncode == 0
+    again = run(tiny, config=killed)
+    assert again.returncode == 0, again.stderr[-3000:]
+    a, b = result_bytes(first), result_bytes(tiny / "results_killed")
+    assert a.keys() == b.keys() and [name for name in a if a[name] != b[name]] == []
+
+
+def test_changing_one_campaign_reruns_only_its_jobs(tiny):
+    """A new measurement value in one campaign plans only that campaign's jobs and the
+    cross-campaign ones (comparison, audit, report); the other campaign's results stay."""
+    first = tiny / "results"
+    if not (first / "report.html").exists():
+        assert run(tiny).returncode == 0
+    parquet = tiny / "raw" / "tiny2" / "laser_tracker.parquet"
+    table = io.read_parquet(parquet)
+    table.loc[0, "x"] += 1e-6
+    io.write_parquet(parquet, table)
+    summary = run(tiny, "--summary")
+    assert summary.returncode == 0, summary.stderr
+    pending = [line.split("\t")[0] for line in summary.stdout.splitlines() if line.endswith("update pending")]
+    assert any("/tiny2/" in path for path in pending)
+    assert not any("/results/tiny/" in path for path in pending)
+    assert all("/tiny2/" in path or "/comparison/" in path or path.endswith(("audit.json", "report.html"))
+               for path in pending)
+    assert run(tiny).returncode == 0  # and the rerun completes
 
 
 def test_bad_config_is_refused_by_the_schema(tiny):
