@@ -31,6 +31,22 @@ def _grid(count: int):
     return fig, axes.flat
 
 
+def error_histogram_axes(ax, title: str) -> None:
+    """Titles, labels and legend of a histogram of post-registration errors (mm)."""
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("post-registration error (mm)", fontsize=8)
+    ax.set_ylabel("configurations", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7)
+
+
+def finished(fig, title: str):
+    """The figure with its title, laid out."""
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def zero_offset_trace(trace: pd.DataFrame, burn_in: int, title: str) -> plt.Figure:
     """Fig. zero_offset_trace: each free zero-offset (deg) against the step, one line per chain,
     with the burn-in boundary. `trace` has step and chain columns and one column per parameter (SI)."""

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .figures import error_histogram_axes, finished  # noqa: E402
 from .tables import paper_order, sensor_label  # noqa: E402
 
 # fig. accuracy's colours, drawn widest cloud first so that every kind stays visible
@@ -58,14 +59,8 @@ def post_registration_histograms(errors: pd.DataFrame, title: str, registration:
             values = part.loc[part["method"] == method, "error_mm"]
             if len(values):
                 ax.hist(values, bins=bins, color=colour, alpha=0.55, label=f"{method} (mean {values.mean():.2f} mm)")
-        ax.set_title(f"{set_name} set", fontsize=9)
-        ax.set_xlabel("post-registration error (mm)", fontsize=8)
-        ax.set_ylabel("configurations", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return fig
+        error_histogram_axes(ax, f"{set_name} set")
+    return finished(fig, title)
 
 
 def residual_plots(errors: dict[str, pd.DataFrame], title: str, method: str = "Bayesian",

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .figures import _grid  # noqa: E402
+from .figures import _grid, error_histogram_axes, finished  # noqa: E402
 from .loop_closure import SETS, Signature  # noqa: E402
 from .model import MM  # noqa: E402
 
@@ -62,11 +62,5 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
             ax.hist(values, bins=bins, color=color, alpha=0.6,
                     label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm")
         ax.set_xscale("log")
-        ax.set_title(set_name, fontsize=9)
-        ax.set_xlabel("post-registration error (mm)", fontsize=8)
-        ax.set_ylabel("configurations", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return fig
+        error_histogram_axes(ax, set_name)
+    return finished(fig, title)
