@@ -90,6 +90,33 @@ def audit_section(audit: dict) -> Section:
     return Section("Audit trail", notes, [("Campaign content hashes", table)])
 
 
+def overview(campaigns: dict[str, dict]) -> pd.DataFrame:
+    """The run at a glance: per campaign and sensor, the mean post-registration error before
+    (Vernier) and after (Bayesian) zero-offset remastering, and what the loop closure added and
+    left on the validation set. Built from the campaigns' own tables."""
+    from .tables import sensor_label
+
+    rows = []
+    for name, content in campaigns.items():
+        accuracy = content["tables"].get("post_registration_accuracy")
+        loop = content["tables"].get("loop_closure")
+        if accuracy is None:
+            continue
+        for sensor in accuracy["Reference Sensor"].unique():
+            mean = {m: accuracy.loc[(accuracy["Remastering Method"] == m) & (accuracy["Reference Sensor"] == sensor),
+                                    "Mean (mm)"].iloc[0] for m in ("Vernier", "Bayesian")}
+            row = {"Campaign": name, "Sensor": sensor, "Vernier error (mm)": mean["Vernier"],
+                   "Bayesian error (mm)": mean["Bayesian"]}
+            if loop is not None:
+                mine = loop[loop["Sensor"].map(sensor_label) == sensor]
+                rmse = mine[mine["Quantity"] == "validation: post-registration RMSE (mm)"]
+                row["Loop closure added"] = mine["Effects added"].iloc[0] if len(mine) else ""
+                row["Validation RMSE before (mm)"] = rmse["Before (zero-offsets)"].iloc[0] if len(rmse) else None
+                row["Validation RMSE after (mm)"] = rmse["After (with effects)"].iloc[0] if len(rmse) else None
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
 def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report",
           audit: dict | None = None, comparison: dict | None = None) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "tables":
@@ -104,7 +131,12 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
                 return captions[key] + (f" ({suffix.replace('_', ' ')})" if suffix else "")
         return name.replace("_", " ")
 
-    sections = [Section(name, _summary_notes(content["summary"]),
+    glance = overview(campaigns)
+    sections = [Section("Overview", ["Mean post-registration error on the optimization set before (Vernier: the "
+                                     "controller's zero-offsets) and after (Bayesian) remastering, and the loop "
+                                     "closure's effects with the validation error before and after them."],
+                        [("The run at a glance", glance)])] if len(glance) else []
+    sections += [Section(name, _summary_notes(content["summary"]),
                         [(caption(t), table) for t, table in content["tables"].items()],
                         [(caption(f), png) for f, png in content["figures"].items()])
                 for name, content in campaigns.items()]
