@@ -121,7 +121,8 @@ class PosteriorTarget:
 
     @property
     def scale(self) -> np.ndarray:
-        return np.array([display_scale(n) for n in self.names])
+        """Step units: the model's own (extended models have their own units), sigma in mm."""
+        return np.append(self.model.scale, display_scale(SIGMA))
 
     def log_prob(self, theta) -> float:
         theta = np.asarray(theta, dtype=float)
