@@ -85,7 +85,7 @@ def main() -> None:
     laplace = fit.laplace_report(fit.laplace_fit(model), analysis, excluded)
     settings = {"paper": {"chains": 2, "samples": 200_000, "burn_in": 175_000, "half_width": 0.0125},
                 "default": {"chains": 2, "samples": 40_000, "burn_in": 10_000},
-                "emcee": {"walkers": 32, "steps": 3_000, "burn_in": 1_000}}
+                "emcee": {"walkers": 32, "steps": 6_000, "burn_in": 1_000}}
     results = {}
     for method in ("paper", "default", "emcee"):
         rng = np.random.default_rng(7)
