@@ -62,7 +62,7 @@ def write_import(tmp_path, controller=CONTROLLER, tracker=TRACKER, sensor=None, 
 
 def test_import_by_key_gives_si_values(tmp_path):
     config = write_import(tmp_path)
-    folder, report = importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     assert folder == tmp_path / "raw" / "cell3"
     campaign = io.read_campaign(folder, repo_root=tmp_path)
     table = campaign.sensors["laser_tracker"].table
@@ -81,11 +81,11 @@ def test_import_by_key_gives_si_values(tmp_path):
 
 def test_import_is_deterministic_and_refuses_to_overwrite(tmp_path):
     config = write_import(tmp_path)
-    folder, _ = importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, _ = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     before = {p.name: p.read_bytes() for p in folder.iterdir()}
     with pytest.raises(InputError, match="exists already"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
-    importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path, overwrite=True)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path, overwrite=True)
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
 
 
@@ -103,7 +103,7 @@ t;x;y;z
                           sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
                                   "tolerance": 0.5, "delimiter": ";", "decimal": ","},
                           controller_section={"time": "stamp", "key": None})
-    folder, report = importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     table = io.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
     np.testing.assert_allclose(table[["x", "y", "z"]].to_numpy(),
                                [[1.5, 0, 0.02], [1.0, 0.1, 0.2], [1.1, 0.1, 0.2], [np.nan] * 3, [0.9, 0.4, -0.1],
@@ -125,7 +125,7 @@ def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
                           sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
                                   "tolerance": 1.0},
                           controller_section={"time": "stamp", "key": None})
-    folder, report = importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     table = io.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
     assert table["x"].iloc[0] == 2.0
     [unmatched] = report["sensors"]["laser_tracker"]["unmatched"]
@@ -135,7 +135,7 @@ def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
 def test_non_numeric_cell_names_file_line_and_column(tmp_path):
     config = write_import(tmp_path, controller=CONTROLLER.replace("P3,90,0", "P3,90,abc"))
     with pytest.raises(InputError) as error:
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     message = str(error.value)
     assert "controller.csv" in message and "A2" in message and "line 4" in message and "'abc'" in message
     assert not (tmp_path / "raw" / "cell3").exists()
@@ -144,13 +144,13 @@ def test_non_numeric_cell_names_file_line_and_column(tmp_path):
 def test_missing_column_is_named(tmp_path):
     config = write_import(tmp_path, tracker=TRACKER.replace("id,X,Y,Z", "id,X,Y,Zmm"))
     with pytest.raises(InputError, match=r"tracker\.csv: Z: missing column \(named by `sensors/laser_tracker/xyz`"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_duplicate_keys_are_named(tmp_path):
     config = write_import(tmp_path, tracker=TRACKER + "P3,1,2,3\n")
     with pytest.raises(InputError, match=r"tracker\.csv: id: duplicate keys .* on lines 2, 9: 'P3', 'P3'"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_ragged_row_and_bad_time_name_their_line(tmp_path):
@@ -159,19 +159,19 @@ def test_ragged_row_and_bad_time_name_their_line(tmp_path):
     config = write_import(tmp_path, controller=CONTROLLER.replace("10:00:20", "ten past"),
                           controller_section={"time": "stamp"})
     with pytest.raises(InputError, match=r"controller\.csv: stamp: not a time \(time_format iso\) on line 4"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_configuration_errors_name_the_key(tmp_path):
     config = write_import(tmp_path, sensor={"unit": "inch"})
     with pytest.raises(InputError, match="import.yaml: sensors/laser_tracker/unit: must be one of mm, m"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     config = write_import(tmp_path, controller_section={"joints": ["A1", "A2"]})
     with pytest.raises(InputError, match="controller/joints: names 2 joint columns but the robot has 3"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     config = write_import(tmp_path, sensor={"match": "time", "tolerance": 0.5}, controller_section={"time": None})
     with pytest.raises(InputError, match="controller/time: missing"):
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_cli_import(tmp_path, capsys, monkeypatch):
@@ -190,7 +190,7 @@ def test_contract_check_after_import_names_the_exports(tmp_path):
     the controller log's columns and lines, not the staged Parquet file."""
     config = write_import(tmp_path, controller_section={"unit": "rad"})
     with pytest.raises(InputError) as error:
-        importer.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     message = str(error.value)
     assert message.startswith(str(tmp_path / "controller.csv")) and "A1, A2, A3" in message
     assert "lines 2, 3, 4, 6, 7" in message
@@ -213,7 +213,7 @@ def test_urdf_next_to_the_configuration_is_copied_into_the_campaign(tmp_path):
     io.write_yaml(config, meta)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    folder, _ = importer.import_campaign(config, tmp_path / "raw", repo_root=elsewhere)
+    folder, _ = io.import_campaign(config, tmp_path / "raw", repo_root=elsewhere)
     assert (folder / "arm.urdf").read_bytes() == IIWA_URDF.read_bytes()
     campaign = io.read_campaign(folder, repo_root=elsewhere)
     assert campaign.robot["urdf"] == "arm.urdf" and campaign.n_joints == 7

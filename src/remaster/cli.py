@@ -66,7 +66,7 @@ def _plan(args: argparse.Namespace) -> None:
 
 
 def _import(args: argparse.Namespace) -> None:
-    folder, report = importer.import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
+    folder, report = io.import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
     total = report["controller"]["rows"]
     rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
     print(f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "

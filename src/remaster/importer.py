@@ -46,6 +46,9 @@ that match no controller row are listed in import_report.json (file, 1-based lin
 reason) inside the campaign folder, never silently dropped. The `time` column written is the
 controller's time when the log has one, else the sensor's. Anything that cannot be parsed is an
 InputError naming the file, the column and the 1-based line (the header is line 1).
+
+This module works on text and tables only; `remaster.io.import_campaign` reads the files and
+writes the campaign folder.
 """
 
 from __future__ import annotations
@@ -54,18 +57,14 @@ import csv
 import datetime as dt
 import io as _stringio
 import math
-import shutil
-import tempfile
 import zoneinfo
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from . import io
 from .campaign import (
     KEY_COLUMNS,
     MAX_POSITION,
@@ -162,18 +161,6 @@ def parse_csv(text: str, source: str, delimiter: str = ",") -> Export:
     if not rows:
         raise InputError("no data rows after the header", file=source)
     return Export(source, pd.DataFrame(rows, columns=header, dtype=object), np.asarray(lines, dtype=np.int64))
-
-
-def read_export(path: str | Path, delimiter: str = ",") -> Export:
-    """`parse_csv` of a file (UTF-8, with or without a byte-order mark)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text: {exc}", file=str(path)) from None
-    return parse_csv(text, str(path), delimiter)
 
 
 # --------------------------------------------------------------------------- configuration
@@ -595,26 +582,11 @@ def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, E
     return ImportResult(metadata=spec.metadata, tables=tables, report=report, sensor_rows=rows)
 
 
-# --------------------------------------------------------------------------- files
-
-
-def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
-    """The URDF to copy into the campaign folder: one found next to the configuration only
-    (not under the repository root, nor shared in data/robots)."""
-    if "urdf" not in robot:
-        return None
-    urdf = robot["urdf"]
-    if (repo_root / urdf).is_file() or (repo_root / io.SHARED_ROBOTS / Path(urdf).name).is_file():
-        return None
-    return config_dir / urdf if (config_dir / urdf).is_file() else None
-
-
-def _in_exports(exc: InputError, staged: Path, spec: ImportSpec, result: ImportResult, controller: Export,
-                sensors: Mapping[str, Export]) -> InputError:
-    """A problem the campaign reader found in the staged folder, named in the exports' terms: the
-    configuration for campaign.yaml, else the CSV file, its columns and 1-based lines."""
-    path = Path(exc.file) if exc.file else None
-    sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
+def in_exports(exc: InputError, sensor: str | None, spec: ImportSpec, result: ImportResult, controller: Export,
+               sensors: Mapping[str, Export]) -> InputError:
+    """A problem the campaign reader found in the built campaign (in table `sensor`, or None for
+    campaign.yaml), named in the exports' terms: the configuration for campaign.yaml, else the CSV
+    file, its columns and 1-based lines."""
     if sensor not in spec.sensors:
         return type(exc)(exc.reason, file=spec.source, key=exc.key)
     keys = [k.strip() for k in (exc.key or "").split(",") if k.strip()]
@@ -631,55 +603,3 @@ def _in_exports(exc: InputError, staged: Path, spec: ImportSpec, result: ImportR
     where = f" on {_lines(lines)}" if len(lines) else ""
     return InputError(f"{exc.reason} (campaign table {sensor}){where}", file=export.source,
                       key=", ".join(names.get(k, k) for k in keys) or None)
-
-
-def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None,
-                    overwrite: bool = False) -> tuple[Path, dict[str, Any]]:
-    """Read an import configuration and its CSV files, write <raw_dir>/<name>/ (campaign.yaml, one
-    <sensor>.parquet per sensor, the URDF when it lies only next to the configuration, and
-    import_report.json), validated by reading it back with `io.read_campaign`. Returns (folder, report).
-
-    `repo_root` (default: the current directory) is where shared URDFs are looked for. An existing
-    non-empty folder is an error unless `overwrite`, which replaces its campaign.yaml, *.parquet and
-    import report. Nothing is written when anything fails.
-    """
-    config_path = Path(config_path)
-    repo_root = Path.cwd() if repo_root is None else Path(repo_root)
-    source = str(config_path)
-    spec = parse_config(io.read_yaml(config_path), source)
-    config_dir = config_path.parent
-    chain = io.load_chain(spec.metadata["robot"], config_dir, repo_root, source=source, name=spec.metadata["name"])
-    if chain.n_joints != len(spec.controller.joints):
-        raise InputError(f"names {len(spec.controller.joints)} joint columns but the robot has {chain.n_joints} joints",
-                         file=source, key="controller/joints")
-
-    def export(file: FileSpec) -> Export:
-        return read_export(config_dir / file.file, file.delimiter)
-
-    controller, sensors = export(spec.controller.file), {n: export(s.file) for n, s in spec.sensors.items()}
-    result = build_campaign(spec, controller, sensors)
-    metadata = result.metadata
-    urdf = _local_urdf(metadata["robot"], config_dir, repo_root)
-    if urdf is not None:
-        metadata = {**metadata, "robot": {**metadata["robot"], "urdf": urdf.name}}
-
-    folder = Path(raw_dir) / metadata["name"]
-    if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise InputError("the campaign folder exists already (import with overwrite / --force to replace it)",
-                         file=str(folder))
-    with tempfile.TemporaryDirectory() as tmp:
-        staged = Path(tmp) / metadata["name"]
-        io.write_campaign(staged, metadata, result.tables)
-        if urdf is not None:
-            shutil.copyfile(urdf, staged / urdf.name)
-        try:
-            io.read_campaign(staged, repo_root)
-        except InputError as exc:
-            raise _in_exports(exc, staged, spec, result, controller, sensors) from None
-        io.write_json(staged / REPORT_FILE, result.report)
-        folder.mkdir(parents=True, exist_ok=True)
-        for old in [folder / io.METADATA_FILE, folder / REPORT_FILE, *folder.glob("*.parquet")]:
-            old.unlink(missing_ok=True)
-        for path in sorted(staged.iterdir()):
-            shutil.copyfile(path, folder / path.name)
-    return folder, result.report

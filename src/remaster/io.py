@@ -1,4 +1,5 @@
-"""Files: reading and writing campaign folders, YAML and JSON. The only module that touches paths.
+"""Files: reading and writing campaign folders, YAML and JSON, importing exports. The only module
+that touches paths.
 
 A campaign folder is campaign.yaml plus one <sensor>.parquet per sensor (docs/campaign-format.md).
 `read_campaign` checks the folder against that contract and returns a `remaster.campaign.Campaign`.
@@ -12,6 +13,8 @@ import json
 import logging
 import math
 import re
+import shutil
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,6 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import yaml
 
+from . import importer
 from .campaign import (
     OPTIONAL_KEYS,
     REQUIRED_KEYS,
@@ -350,3 +354,85 @@ def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapp
     for sensor, table in tables.items():
         pq.write_table(pa.Table.from_pandas(table, preserve_index=False), folder / f"{sensor}.parquet")
     return folder
+
+
+# --------------------------------------------------------------------------- imports
+
+
+def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
+    """`importer.parse_csv` of a file (UTF-8, with or without a byte-order mark)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text: {exc}", file=str(path)) from None
+    return importer.parse_csv(text, str(path), delimiter)
+
+
+def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
+    """The URDF to copy into the campaign folder: one found next to the configuration only
+    (not under the repository root, nor shared in data/robots)."""
+    if "urdf" not in robot:
+        return None
+    urdf = robot["urdf"]
+    if (repo_root / urdf).is_file() or (repo_root / SHARED_ROBOTS / Path(urdf).name).is_file():
+        return None
+    return config_dir / urdf if (config_dir / urdf).is_file() else None
+
+
+def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None,
+                    overwrite: bool = False) -> tuple[Path, dict[str, Any]]:
+    """`remaster import`: read an import configuration (format: `remaster.importer`) and its CSV
+    files, write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
+    it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
+    with `read_campaign`. Returns (folder, report).
+
+    `repo_root` (default: the current directory) is where shared URDFs are looked for. An existing
+    non-empty folder is an error unless `overwrite`, which replaces its campaign.yaml, *.parquet and
+    import report. Nothing is written when anything fails: the folder is built in a temporary
+    place and copied only once it reads back.
+    """
+    config_path = Path(config_path)
+    repo_root = Path.cwd() if repo_root is None else Path(repo_root)
+    source = str(config_path)
+    spec = importer.parse_config(read_yaml(config_path), source)
+    config_dir = config_path.parent
+    chain = load_chain(spec.metadata["robot"], config_dir, repo_root, source=source, name=spec.metadata["name"])
+    if chain.n_joints != len(spec.controller.joints):
+        raise InputError(f"names {len(spec.controller.joints)} joint columns but the robot has {chain.n_joints} joints",
+                         file=source, key="controller/joints")
+
+    def export(file: importer.FileSpec) -> importer.Export:
+        return read_export(config_dir / file.file, file.delimiter)
+
+    controller, sensors = export(spec.controller.file), {n: export(s.file) for n, s in spec.sensors.items()}
+    result = importer.build_campaign(spec, controller, sensors)
+    metadata = result.metadata
+    urdf = _local_urdf(metadata["robot"], config_dir, repo_root)
+    if urdf is not None:
+        metadata = {**metadata, "robot": {**metadata["robot"], "urdf": urdf.name}}
+
+    folder = Path(raw_dir) / metadata["name"]
+    if folder.exists() and any(folder.iterdir()) and not overwrite:
+        raise InputError("the campaign folder exists already (import with overwrite / --force to replace it)",
+                         file=str(folder))
+    with tempfile.TemporaryDirectory() as tmp:
+        staged = Path(tmp) / metadata["name"]
+        write_campaign(staged, metadata, result.tables)
+        if urdf is not None:
+            shutil.copyfile(urdf, staged / urdf.name)
+        try:
+            read_campaign(staged, repo_root)
+        except InputError as exc:
+            path = Path(exc.file) if exc.file else None
+            sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
+            raise importer.in_exports(exc, sensor, spec, result, controller, sensors) from None
+        write_json(staged / importer.REPORT_FILE, result.report)
+        folder.mkdir(parents=True, exist_ok=True)
+        for old in [folder / METADATA_FILE, folder / importer.REPORT_FILE, *folder.glob("*.parquet")]:
+            old.unlink(missing_ok=True)
+        for path in sorted(staged.iterdir()):
+            shutil.copyfile(path, folder / path.name)
+    return folder, result.report
