@@ -9,11 +9,15 @@ from remaster import report
 PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
 
 
+def _summary(name="c1", date="2020-01-01"):
+    return {"campaign": name, "date": date,
+            "robot": {"name": "arm", "joints": ["j1", "j2"], "base": "b", "flange": "f"},
+            "sensors": {"laser_tracker": {"kind": "laser_tracker", "n_missing": 2, "missing_rows": [4, 9],
+                                          "sets": {"optimization": {"poses": 3, "configurations": 7}}}}}
+
+
 def test_page_embeds_tables_and_figures():
-    summary = {"campaign": "c1", "date": "2020-01-01",
-               "robot": {"name": "arm", "joints": ["j1", "j2"], "base": "b", "flange": "f"},
-               "sensors": {"laser_tracker": {"kind": "laser_tracker", "n_missing": 2, "missing_rows": [4, 9],
-                                             "sets": {"optimization": {"poses": 3, "configurations": 7}}}}}
+    summary = _summary()
     table = pd.DataFrame({"Parameter": ["x (mm)", "<b>"], "MLE": [1.23456, float("nan")]})
     page = report.build({"c1": {"summary": summary, "tables": {"registration_params": table},
                                 "figures": {"zero_offset_trace_laser_tracker": PNG}}},
@@ -25,3 +29,10 @@ def test_page_embeds_tables_and_figures():
     assert "Trace (laser tracker)" in page
     assert "2 rows without a measurement" in page and "[4, 9]" in page
     assert "src=\"http" not in page and "href=\"http" not in page  # nothing fetched from outside
+
+
+def test_campaigns_are_shown_in_date_order():
+    names = {"b-first": "2018-03-01", "a-last": "2021-06-30", "c-middle": "2019-11-05", "a-middle": "2019-11-05"}
+    page = report.build({n: {"summary": _summary(n, d), "tables": {}, "figures": {}} for n, d in names.items()}, {})
+    headings = [page.index(f"<h2 id='{n}'>") for n in ("b-first", "a-middle", "c-middle", "a-last")]
+    assert headings == sorted(headings)

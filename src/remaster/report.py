@@ -120,7 +120,8 @@ def overview(campaigns: dict[str, dict]) -> pd.DataFrame:
 def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report",
           audit: dict | None = None, comparison: dict | None = None) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "tables":
-    {table name: DataFrame}, "figures": {figure name: PNG bytes}}, in the order to show;
+    {table name: DataFrame}, "figures": {figure name: PNG bytes}}, shown in measurement-date order
+    (then by name), so a robot's history reads forward as in the comparison;
     captions: table or figure name (figure names may end in _<sensor>) -> caption; comparison:
     {"tables": ..., "figures": ...} across campaigns; audit: the run's `audit.audit_record`, shown last."""
 
@@ -131,6 +132,7 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
                 return captions[key] + (f" ({suffix.replace('_', ' ')})" if suffix else "")
         return name.replace("_", " ")
 
+    campaigns = dict(sorted(campaigns.items(), key=lambda item: (str(item[1]["summary"]["date"]), item[0])))
     glance = overview(campaigns)
     sections = [Section("Overview", ["Mean post-registration error on the optimization set before (Vernier: the "
                                      "controller's zero-offsets) and after (Bayesian) remastering, and the loop "
