@@ -32,6 +32,6 @@ rule all:
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_signatures_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_residuals_{{sensor}}.png"),
         expand(f"{RESULTS}/comparison/{{table}}.md", table=COMPARISON_TABLES),
-        expand(f"{RESULTS}/comparison/zero_offsets_over_time_{{robot}}.png", robot=ROBOTS),
+        expand(f"{RESULTS}/comparison/{{figure}}_{{robot}}.png", figure=COMPARISON_FIGURES, robot=ROBOTS),
         f"{RESULTS}/report.html",
     default_target: True

@@ -147,3 +147,102 @@ def test_zero_offsets_over_time_figure():
         ENTRIES + [("other", "2019-01-01", "laser_tracker", summary([0.1] * 3, [0.01] * 3), "dh:standard:x")])
     with pytest.raises(ValueError, match="one robot at a time"):
         figures_comparison.zero_offsets_over_time_figure(mixed, "mixed")
+
+
+def loop(compliance=None, marker=None, q2=(0.3, 0.009)):
+    """A loop closure's refit parameter table (display units): registration, zero-offset q2, noise,
+    and optionally joint compliance q2 (mean, std in urad/(N m)) and a marker offset x (mm)."""
+    rows = [("registration", "registration.x", "mm", 1.0, 0.01, "estimated"),
+            ("zero_offsets", "zero_offsets.q2", "deg", *q2, "estimated"),
+            ("noise", "noise.sigma", "mm", 0.01, 0.001, "estimated")]
+    if compliance is not None:
+        rows += [("joint_compliance", "joint_compliance.q2", "urad/(N m)", *compliance, "estimated"),
+                 ("joint_compliance", "joint_compliance.q1", "urad/(N m)", 0.0, None, "invisible: no torque")]
+    if marker is not None:
+        rows.append(("marker_offset", "marker_offset.x", "mm", *marker, "estimated"))
+    return pd.DataFrame(rows, columns=["block", "parameter", "unit", "mean_display", "std_display", "status"])
+
+
+LOOP_ENTRIES = [
+    comparison.Entry("kuka-twin-2019", "2019-06-18", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
+                     loop(compliance=(26.0, 0.5), q2=(0.34, 0.009))),
+    comparison.Entry("kuka-twin", "2018-06-12", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
+                     loop(compliance=(24.0, 0.5), marker=(0.2, 0.01))),
+    comparison.Entry("kuka-twin", "2018-06-12", "motion_capture", summary([0.1], [0.01]), ROBOT, "motion_capture",
+                     loop(marker=(5.0, 0.1))),
+    comparison.Entry("no-loop", "2018-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker"),
+]
+
+
+def test_loop_parameters_over_time_keep_display_units_and_leave_out_setup():
+    table = comparison.loop_parameters_over_time(LOOP_ENTRIES)
+    assert list(table.columns) == comparison.LOOP_OVER_TIME_COLUMNS
+    assert "no-loop" not in set(table["campaign"])  # no loop closure, no rows
+    assert not table["block"].isin(["registration", "noise"]).any()  # the campaign's set-up, not the robot
+    twin_lt = table[(table["campaign"] == "kuka-twin") & (table["sensor"] == "laser_tracker")]
+    assert twin_lt["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1",
+                                             "marker_offset.x"]  # model order
+    compliance = twin_lt.set_index("parameter").loc["joint_compliance.q2"]
+    assert compliance["unit"] == "urad/(N m)" and compliance["mean"] == 24.0 and compliance["std"] == 0.5
+    assert math.isnan(twin_lt.set_index("parameter").loc["joint_compliance.q1", "std"])  # not estimated
+    assert table["campaign"].iloc[0] == "kuka-twin" and table["sensor"].iloc[0] == "motion_capture"  # date, paper order
+
+
+def test_loop_parameter_drift_compares_effects_present_in_both_campaigns():
+    drift = comparison.loop_parameter_drift(LOOP_ENTRIES)
+    assert list(drift.columns) == comparison.LOOP_DRIFT_COLUMNS
+    assert set(drift["campaign_a"]) == {"kuka-twin"} and set(drift["campaign_b"]) == {"kuka-twin-2019"}
+    rows = drift.set_index("parameter")
+    compliance = rows.loc["joint_compliance.q2"]  # 24 -> 26, std 0.5 each: z = 2 / 0.707 = 2.83
+    assert compliance["diff"] == pytest.approx(2.0) and compliance["z"] == pytest.approx(2 / math.hypot(0.5, 0.5))
+    assert compliance["unit"] == "urad/(N m)" and compliance["block"] == "joint_compliance"
+    assert not compliance["flagged"] and compliance["status"] == "compared"
+    q2 = rows.loc["zero_offsets.q2"]  # 0.30 -> 0.34 deg, std 0.009 each: z = 3.14
+    assert q2["flagged"] and q2["z"] == pytest.approx(0.04 / (0.009 * math.sqrt(2)))
+    assert rows.loc["marker_offset.x", "status"] == "not comparable: missing in kuka-twin-2019"
+    assert rows.loc["joint_compliance.q1", "status"].startswith("not comparable: invisible in kuka-twin (no torque)")
+
+
+def test_loop_parameter_agreement_leaves_out_each_sensors_own_blocks():
+    agreement = comparison.loop_parameter_agreement(LOOP_ENTRIES)
+    assert list(agreement.columns) == comparison.LOOP_AGREEMENT_COLUMNS
+    assert set(agreement["campaign"]) == {"kuka-twin"}
+    rows = agreement.set_index("parameter")
+    assert "marker_offset.x" not in rows.index  # each sensor has its own marker
+    assert rows.loc["zero_offsets.q2", "status"] == "compared" and rows.loc["zero_offsets.q2", "diff"] == 0.0
+    assert rows.loc["joint_compliance.q2", "status"] == "not comparable: missing in motion_capture"
+
+
+def test_loop_parameters_in_other_units_are_not_compared():
+    hourly, per_kelvin = (loop().assign(unit=u) for u in ("deg/h", "deg/K"))
+    entries = [("a", "2020-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", hourly),
+               ("b", "2021-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", per_kelvin)]
+    drift = comparison.loop_parameter_drift(entries).set_index("parameter")
+    assert drift.loc["zero_offsets.q2", "status"] == "not comparable: units differ (deg/h, deg/K)"
+
+
+def test_loop_entries_from_loop_closure_reports():
+    metadata = {"c": {"date": "2020-01-01", "robot": {"urdf": "kuka_iiwa14.urdf"},
+                      "sensors": {"laser_tracker": {"kind": "laser_tracker"}}}}
+    report = {"refit": {"parameters": loop(compliance=(24.0, 0.5)).replace({np.nan: None}).to_dict("records")}}
+    entries = comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])},
+                                    {("c", "laser_tracker"): report})
+    table = comparison.table("loop_parameters_over_time", entries)
+    assert table["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1"]
+    assert comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])})[0].loop is None
+    with pytest.raises(InputError, match="c/laser_tracker: status"):
+        comparison.loop_parameters_over_time([entries[0]._replace(loop=loop().drop(columns="status"))])
+
+
+def test_loop_effects_over_time_figure():
+    table = comparison.loop_parameters_over_time(LOOP_ENTRIES)
+    fig = figures_comparison.loop_effects_over_time_figure(table, "KUKA iiwa 14")
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    # joint_compliance.q1 is estimated nowhere: no panel
+    assert [ax.get_title() for ax in panels] == ["joint_compliance.q2", "marker_offset.x"]
+    assert panels[0].get_ylabel() == "urad/(N m)" and panels[1].get_ylabel() == "mm"
+    plt.close(fig)
+    nothing = comparison.loop_parameters_over_time([e._replace(loop=loop()) for e in LOOP_ENTRIES])
+    fig = figures_comparison.loop_effects_over_time_figure(nothing, "KUKA iiwa 14")
+    assert "estimated no effect" in fig.axes[0].texts[0].get_text()
+    plt.close(fig)

@@ -78,6 +78,9 @@ def test_real_run_builds_everything_then_nothing(tiny):
     for table in ("zero_offsets", "registration_params"):
         for suffix in (".csv", ".md", ".tex"):
             assert (results / "tables" / f"{table}{suffix}").is_file()
+    over_time = io.read_csv(tiny / "results" / "comparison" / "loop_parameters_over_time.csv")
+    assert set(over_time["campaign"]) == {"tiny", "tiny2"} and "zero_offsets.q2" in set(over_time["parameter"])
+    assert "Loop closure over time" in (tiny / "results" / "report.html").read_text(encoding="utf-8")
     again = run(tiny)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
 

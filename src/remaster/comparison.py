@@ -1,18 +1,23 @@
-"""Across campaigns: one robot's zero-offsets over time, their drift, and the sensors' agreement.
+"""Across campaigns: one robot's zero-offsets and loop-closure parameters over time, their drift,
+and the sensors' agreement.
 
 Functions only (no files). An *entry* is one sensor's posterior summary in one campaign:
 `Entry(campaign, date, sensor, summary, robot="", kind=None)`, or a plain tuple of the first four
 to six of those. `summary` is the table `fit.posterior_summary` gives (SI; indexed by parameter
 or with a `parameter` column; columns mean, std, status); `robot` is `robot_identity` of the
 campaign ('' everywhere = one robot); `kind` is the sensor's kind from campaign.yaml (default:
-the sensor's name). Tables report degrees (columns ending _deg).
+the sensor's name); `loop` is the loop closure's parameter table (`loop_closure.json` refit
+`parameters`: parameter, block, mean_display, std_display, unit, status) or None. Zero-offset
+tables report degrees (columns ending _deg); loop-closure tables report each parameter in its
+display unit (column `unit`).
 
 Two estimates a and b of one zero-offset, from independent fits, are compared by
 
     diff = b - a (deg),   combined = sqrt(std_a^2 + std_b^2),   z = diff / combined,
 
 flagged where |z| > significance. A parameter held at the controller's value (not identifiable)
-in either fit is reported as not comparable, with no numbers.
+in either fit, or absent from one model (an effect the loop closure added in one campaign only),
+is reported as not comparable, with no numbers.
 """
 
 from __future__ import annotations
@@ -41,6 +46,18 @@ DRIFT_COLUMNS = ["robot", "kind", "parameter", "campaign_a", "date_a", "sensor_a
                  "sensor_b"] + _PAIR_COLUMNS
 AGREEMENT_COLUMNS = ["campaign", "date", "robot", "parameter", "sensor_a", "sensor_b"] + _PAIR_COLUMNS
 
+# The loop closure's registration and noise belong to one campaign's set-up; its marker offset and
+# scale to one sensor: compared over time within a sensor kind, never between two sensors.
+CAMPAIGN_BLOCKS = ("registration", "noise")
+SENSOR_BLOCKS = ("marker_offset", "sensor_scale")
+LOOP_OVER_TIME_COLUMNS = ["campaign", "date", "robot", "sensor", "kind", "block", "parameter", "unit", "mean", "std",
+                          "status"]
+_LOOP_PAIR_COLUMNS = [c.removesuffix("_deg") for c in _PAIR_COLUMNS]
+LOOP_DRIFT_COLUMNS = ["robot", "kind", "block", "parameter", "unit", "campaign_a", "date_a", "sensor_a", "campaign_b",
+                      "date_b", "sensor_b"] + _LOOP_PAIR_COLUMNS
+LOOP_AGREEMENT_COLUMNS = ["campaign", "date", "robot", "block", "parameter", "unit", "sensor_a", "sensor_b"] + \
+    _LOOP_PAIR_COLUMNS
+
 
 class Entry(NamedTuple):
     """One sensor's posterior summary (SI) in one campaign; see the module docstring."""
@@ -51,6 +68,7 @@ class Entry(NamedTuple):
     summary: pd.DataFrame
     robot: str = ""
     kind: str | None = None
+    loop: pd.DataFrame | None = None
 
 
 # --------------------------------------------------------------------------- robot identity
@@ -184,37 +202,86 @@ def zero_offsets_over_time(entries: Iterable) -> pd.DataFrame:
 # --------------------------------------------------------------------------- comparisons
 
 
-def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, significance: float) -> pd.DataFrame:
-    """Per parameter of a or b (rows of `zero_offsets_over_time`): the _PAIR_COLUMNS of b - a."""
+def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, significance: float,
+             unit: str = "_deg") -> pd.DataFrame:
+    """Per parameter of a or b (rows of an over-time table, parameters in a's order then b's): the
+    pair columns of b - a, named with `unit` ('_deg': mean_a_deg, ...; '': mean_a, ...). Where the
+    rows carry a `unit` column, estimates in different units are not comparable."""
     a, b = a.set_index("parameter"), b.set_index("parameter")
-    names = sorted(set(a.index) | set(b.index), key=lambda n: int(n[len(ZERO_OFFSET_PREFIX):]))
+    mean, std = f"mean{unit}", f"std{unit}"
     rows = []
-    for name in names:
+    for name in dict.fromkeys([*a.index, *b.index]):
         row = {"parameter": name}
         why = []
         for side, frame, label in (("a", a, label_a), ("b", b, label_b)):
             present = name in frame.index
-            row[f"mean_{side}_deg"] = frame.at[name, "mean_deg"] if present else np.nan
-            row[f"std_{side}_deg"] = frame.at[name, "std_deg"] if present else np.nan
+            row[f"mean_{side}{unit}"] = frame.at[name, mean] if present else np.nan
+            row[f"std_{side}{unit}"] = frame.at[name, std] if present else np.nan
             if not present:
                 why.append(f"missing in {label}")
             elif frame.at[name, "status"] != ESTIMATED:  # 'held: x' -> 'held in <label> (x)'
                 state, _, detail = str(frame.at[name, "status"]).partition(":")
                 why.append(f"{state.strip()} in {label}" + (f" ({detail.strip()})" if detail.strip() else ""))
-            elif not np.isfinite(frame.at[name, "std_deg"]):
+            elif not np.isfinite(frame.at[name, std]):
                 why.append(f"no std in {label}")
-        combined = float(np.hypot(row["std_a_deg"], row["std_b_deg"]))
+        if "unit" in a.columns and name in a.index and name in b.index and a.at[name, "unit"] != b.at[name, "unit"]:
+            why.append(f"units differ ({a.at[name, 'unit']}, {b.at[name, 'unit']})")
+        combined = float(np.hypot(row[f"std_a{unit}"], row[f"std_b{unit}"]))
         if not why and not combined > 0:
             why.append("zero combined std")
         if why:
-            row.update(diff_deg=np.nan, combined_std_deg=np.nan, z=np.nan, flagged=False,
-                       status="not comparable: " + "; ".join(why))
+            row.update({f"diff{unit}": np.nan, f"combined_std{unit}": np.nan, "z": np.nan, "flagged": False,
+                        "status": "not comparable: " + "; ".join(why)})
         else:
-            diff = row["mean_b_deg"] - row["mean_a_deg"]
-            row.update(diff_deg=diff, combined_std_deg=combined, z=diff / combined,
-                       flagged=bool(abs(diff / combined) > significance), status="compared")
+            diff = row[f"mean_b{unit}"] - row[f"mean_a{unit}"]
+            row.update({f"diff{unit}": diff, f"combined_std{unit}": combined, "z": diff / combined,
+                        "flagged": bool(abs(diff / combined) > significance), "status": "compared"})
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _described(pairs: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
+    """Loop-closure pairs with each parameter's block and unit (from the over-time rows)."""
+    known = rows.drop_duplicates("parameter").set_index("parameter")
+    return pairs.assign(block=pairs["parameter"].map(known["block"]), unit=pairs["parameter"].map(known["unit"]))
+
+
+def _drift_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd.DataFrame]:
+    """`_compare` of consecutive campaigns within each (robot, kind) of an over-time table."""
+    pairs = []
+    for (robot, kind), group in table.groupby(["robot", "kind"], sort=True):
+        campaigns = group[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
+        names = campaigns["campaign"].tolist()
+        for first, second in zip(names, names[1:]):
+            for sensor_a, a in group[group["campaign"] == first].groupby("sensor", sort=False):
+                for sensor_b, b in group[group["campaign"] == second].groupby("sensor", sort=False):
+                    pair = _compare(a, b, first, second, significance, unit)
+                    if not unit:
+                        pair = _described(pair, pd.concat([a, b]))
+                    pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
+                                             sensor_a=sensor_a, campaign_b=second, date_b=b["date"].iloc[0],
+                                             sensor_b=sensor_b))
+    return pairs
+
+
+def _agreement_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd.DataFrame]:
+    """`_compare` of each pair of sensors within each campaign of an over-time table."""
+    pairs = []
+    for campaign, group in table.groupby("campaign", sort=False):
+        sensors = paper_order(group["sensor"].unique())
+        for i, sensor_a in enumerate(sensors):
+            for sensor_b in sensors[i + 1:]:
+                a, b = group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
+                pair = _compare(a, b, sensor_a, sensor_b, significance, unit)
+                if not unit:
+                    pair = _described(pair, pd.concat([a, b]))
+                pairs.append(pair.assign(campaign=campaign, date=a["date"].iloc[0], robot=a["robot"].iloc[0],
+                                         sensor_a=sensor_a, sensor_b=sensor_b))
+    return pairs
+
+
+def _joined(pairs: list[pd.DataFrame], columns: list[str]) -> pd.DataFrame:
+    return pd.concat(pairs, ignore_index=True)[columns] if pairs else pd.DataFrame(columns=columns)
 
 
 def drift_between(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
@@ -225,21 +292,7 @@ def drift_between(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
     has one sensor per kind). Columns DRIFT_COLUMNS: a is the earlier campaign, diff_deg = b - a,
     combined_std_deg, z, flagged (|z| > significance), status ('compared' or 'not comparable: ...').
     """
-    table = zero_offsets_over_time(entries)
-    pairs = []
-    for (robot, kind), group in table.groupby(["robot", "kind"], sort=True):
-        campaigns = group[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
-        names = campaigns["campaign"].tolist()
-        for first, second in zip(names, names[1:]):
-            for sensor_a, a in group[group["campaign"] == first].groupby("sensor", sort=False):
-                for sensor_b, b in group[group["campaign"] == second].groupby("sensor", sort=False):
-                    pair = _compare(a, b, first, second, significance)
-                    pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
-                                             sensor_a=sensor_a, campaign_b=second, date_b=b["date"].iloc[0],
-                                             sensor_b=sensor_b))
-    if not pairs:
-        return pd.DataFrame(columns=DRIFT_COLUMNS)
-    return pd.concat(pairs, ignore_index=True)[DRIFT_COLUMNS]
+    return _joined(_drift_pairs(zero_offsets_over_time(entries), significance, "_deg"), DRIFT_COLUMNS)
 
 
 def sensor_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
@@ -248,31 +301,89 @@ def sensor_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFra
     Sensors in the paper's order (motion capture, laser tracker, then others by name): a is the
     earlier, diff_deg = b - a. Columns AGREEMENT_COLUMNS, as in `drift_between`.
     """
-    table = zero_offsets_over_time(entries)
-    pairs = []
-    for campaign, group in table.groupby("campaign", sort=False):
-        sensors = paper_order(group["sensor"].unique())
-        for i, sensor_a in enumerate(sensors):
-            for sensor_b in sensors[i + 1:]:
-                a, b = group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
-                pair = _compare(a, b, sensor_a, sensor_b, significance)
-                pairs.append(pair.assign(campaign=campaign, date=a["date"].iloc[0], robot=a["robot"].iloc[0],
-                                         sensor_a=sensor_a, sensor_b=sensor_b))
-    if not pairs:
-        return pd.DataFrame(columns=AGREEMENT_COLUMNS)
-    return pd.concat(pairs, ignore_index=True)[AGREEMENT_COLUMNS]
+    return _joined(_agreement_pairs(zero_offsets_over_time(entries), significance, "_deg"), AGREEMENT_COLUMNS)
 
 
-def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame]) -> list[Entry]:
-    """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping) and
-    each sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table)."""
+# --------------------------------------------------------------------------- loop closure
+
+
+def _loop_rows(entry: Entry, label: str) -> pd.DataFrame:
+    """The entry's loop-closure parameters outside CAMPAIGN_BLOCKS, in display units: block,
+    parameter, unit, mean, std (NaN unless estimated), status."""
+    loop = entry.loop
+    if not isinstance(loop, pd.DataFrame):
+        raise InputError(f"loop-closure parameters must be a DataFrame, got {type(loop).__name__}", file=label)
+    missing = [c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status")
+               if c not in loop.columns]
+    if missing:
+        raise InputError("missing column(s) of the loop closure's parameter table", file=label,
+                         key=", ".join(missing))
+    rows = loop[~loop["block"].isin(CAMPAIGN_BLOCKS)]
+    estimated = rows["status"].astype(str) == ESTIMATED
+    return pd.DataFrame({"block": rows["block"].astype(str), "parameter": rows["parameter"].astype(str),
+                         "unit": rows["unit"].astype(str), "mean": rows["mean_display"].astype(float),
+                         "std": rows["std_display"].astype(float).where(estimated),
+                         "status": rows["status"].astype(str)}).reset_index(drop=True)
+
+
+def loop_parameters_over_time(entries: Iterable) -> pd.DataFrame:
+    """Long table of every entry's loop-closure model: the zero-offsets refitted with the effects
+    the loop closure added, and those effects' parameters; one row per (campaign, sensor,
+    parameter). Entries without `loop` are left out.
+
+    Columns LOOP_OVER_TIME_COLUMNS (mean, std in the parameter's display `unit`; std NaN unless
+    estimated). Sorted by robot, date, campaign, sensor in the paper's order, model order.
+    """
+    frames = []
+    for entry in _entries(entries):
+        if entry.loop is None:
+            continue
+        rows = _loop_rows(entry, f"{entry.campaign}/{entry.sensor}")
+        frames.append(rows.assign(campaign=entry.campaign, date=entry.date, robot=entry.robot, sensor=entry.sensor,
+                                  kind=entry.kind, position=np.arange(len(rows))))
+    if not frames:
+        return pd.DataFrame(columns=LOOP_OVER_TIME_COLUMNS)
+    table = pd.concat(frames, ignore_index=True)
+    order = {s: i for i, s in enumerate(paper_order(table["sensor"].unique()))}
+    table["sensor_order"] = table["sensor"].map(order)
+    table = table.sort_values(["robot", "date", "campaign", "sensor_order", "position"], kind="stable")
+    return table[LOOP_OVER_TIME_COLUMNS].reset_index(drop=True)
+
+
+def loop_parameter_drift(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
+    """`drift_between` for the loop-closure parameters (LOOP_DRIFT_COLUMNS, display units): an
+    effect added in one campaign only is 'not comparable: missing in <campaign>'."""
+    return _joined(_drift_pairs(loop_parameters_over_time(entries), significance, ""), LOOP_DRIFT_COLUMNS)
+
+
+def loop_parameter_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
+    """`sensor_agreement` for the loop-closure parameters (LOOP_AGREEMENT_COLUMNS, display units),
+    SENSOR_BLOCKS left out: each sensor has its own marker and scale."""
+    table = loop_parameters_over_time(entries)
+    table = table[~table["block"].isin(SENSOR_BLOCKS)]
+    return _joined(_agreement_pairs(table, significance, ""), LOOP_AGREEMENT_COLUMNS)
+
+
+def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame],
+               loops: Mapping[tuple[str, str], Mapping] | None = None) -> list[Entry]:
+    """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping), each
+    sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table) and, when
+    given, its loop_closure.json content ((campaign, sensor) -> mapping)."""
+    loops = loops or {}
+
+    def loop(pair):
+        return pd.DataFrame(loops[pair]["refit"]["parameters"]) if pair in loops else None
+
     return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
-                  metadata[campaign]["sensors"][sensor]["kind"])
+                  metadata[campaign]["sensors"][sensor]["kind"], loop((campaign, sensor)))
             for (campaign, sensor), summary in summaries.items()]
 
 
 TABLES = {"zero_offsets_over_time": lambda entries, significance: zero_offsets_over_time(entries),
-          "drift_between_campaigns": drift_between, "sensor_agreement": sensor_agreement}
+          "drift_between_campaigns": drift_between, "sensor_agreement": sensor_agreement,
+          "loop_parameters_over_time": lambda entries, significance: loop_parameters_over_time(entries),
+          "loop_parameter_drift": loop_parameter_drift, "loop_parameter_agreement": loop_parameter_agreement}
+LOOP_TABLES = ("loop_parameters_over_time", "loop_parameter_drift", "loop_parameter_agreement")
 
 
 def table(name: str, entries: Iterable, significance: float = 3.0) -> pd.DataFrame:

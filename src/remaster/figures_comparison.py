@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .blocks import EXTENSIONS  # noqa: E402
 from .figures import _grid  # noqa: E402
 from .tables import paper_order, sensor_label  # noqa: E402
 
@@ -22,19 +23,17 @@ def _days(dates) -> np.ndarray:
     return mdates.date2num(pd.to_datetime(pd.Index(dates)).to_numpy())
 
 
-def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
-    """Each zero-offset (deg) against the campaign date, one panel per joint, one series per sensor
-    with +-1 std error bars; a held parameter is an open marker at its held value, without a bar.
-
-    `table`: `comparison.zero_offsets_over_time` rows of one robot (ValueError otherwise). Sensors
-    of one campaign are drawn side by side, a little apart in time, so their bars do not overlap.
-    """
-    if table.empty:
-        raise ValueError("no zero-offsets to draw")
+def _one_robot(table: pd.DataFrame) -> None:
     robots = sorted(table["robot"].unique())
     if len(robots) > 1:
         raise ValueError(f"rows of {len(robots)} robots ({', '.join(map(repr, robots))}): draw one robot at a time")
-    parameters = sorted(table["parameter"].unique(), key=lambda n: int(n.rsplit("q", 1)[1]))
+
+
+def _over_time(table: pd.DataFrame, title: str, parameters: list[str], mean: str, std: str, units: dict[str, str],
+               label) -> plt.Figure:
+    """One panel per parameter: `mean` against the campaign date, one series per sensor with
+    +-`std` bars (open markers, no bar, where not estimated); y label from `units`, panel title
+    `label(parameter)`."""
     sensors = paper_order(table["sensor"].unique())
     campaigns = table[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
     ticks = campaigns.groupby("date", sort=True)["campaign"].agg("\n".join)  # date -> its campaigns
@@ -50,22 +49,63 @@ def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure
             x = _days(rows["date"]) + offsets[sensor]
             estimated = (rows["status"] == "estimated").to_numpy()
             color, marker = f"C{i}", MARKERS[i % len(MARKERS)]
-            ax.errorbar(x[estimated], rows["mean_deg"][estimated], yerr=rows["std_deg"][estimated], fmt=marker,
+            ax.errorbar(x[estimated], rows[mean][estimated], yerr=rows[std][estimated], fmt=marker,
                         color=color, ms=4, capsize=2, lw=0.8, label=sensor_label(sensor))
             if (~estimated).any():
-                ax.plot(x[~estimated], rows["mean_deg"][~estimated], marker, mfc="none", color=color, ms=5,
+                ax.plot(x[~estimated], rows[mean][~estimated], marker, mfc="none", color=color, ms=5,
                         label=f"{sensor_label(sensor)} (held)")
         ax.set_xticks(tick_days, [f"{names}\n{date}" for date, names in ticks.items()], fontsize=6)
         ax.set_xlim(tick_days.min() - 0.1 * span, tick_days.max() + 0.1 * span)
-        ax.set_title(name.replace("zero_offsets.", "zero-offset "), fontsize=9)
-        ax.set_ylabel("deg", fontsize=8)
+        ax.set_title(label(name), fontsize=9)
+        ax.set_ylabel(units[name], fontsize=8)
         ax.tick_params(axis="y", labelsize=7)
     legend = {}
     for ax in axes:
-        for handle, label in zip(*ax.get_legend_handles_labels()):
-            legend.setdefault(label, handle)
+        for handle, text in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(text, handle)
     fig.suptitle(f"{title} (bars: +-1 std)", fontsize=10)
-    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, 1))  # 0.3 in at the bottom for the legend
+    # 0.3 in at the bottom for the legend, 0.3 in at the top for the title
+    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, 1 - 0.3 / fig.get_figheight()))
     fig.legend(list(legend.values()), list(legend), fontsize=7, loc="lower center", ncols=len(legend), frameon=False)
     return fig
 
+
+def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
+    """Each zero-offset (deg) against the campaign date, one panel per joint, one series per sensor
+    with +-1 std error bars; a held parameter is an open marker at its held value, without a bar.
+
+    `table`: `comparison.zero_offsets_over_time` rows of one robot (ValueError otherwise). Sensors
+    of one campaign are drawn side by side, a little apart in time, so their bars do not overlap.
+    """
+    if table.empty:
+        raise ValueError("no zero-offsets to draw")
+    _one_robot(table)
+    parameters = sorted(table["parameter"].unique(), key=lambda n: int(n.rsplit("q", 1)[1]))
+    return _over_time(table, title, parameters, "mean_deg", "std_deg", dict.fromkeys(parameters, "deg"),
+                      lambda name: name.replace("zero_offsets.", "zero-offset "))
+
+
+def loop_effects_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
+    """The parameters of the effects the loop closure added (zero-offsets left out: they have
+    their own figure), each in its display unit against the campaign date, drawn as
+    `zero_offsets_over_time_figure` draws; blocks in `blocks.EXTENSIONS` order, parameters in
+    model order within a block. With no effect added in any
+    campaign, a figure that says so.
+
+    `table`: `comparison.loop_parameters_over_time` rows of one robot (ValueError otherwise).
+    """
+    _one_robot(table)
+    effects = table[table["block"] != "zero_offsets"]
+    estimated = effects.loc[effects["status"] == "estimated", "parameter"]
+    effects = effects[effects["parameter"].isin(estimated)]
+    if effects.empty:
+        fig, ax = plt.subplots(figsize=(6.4, 1.2))
+        ax.axis("off")
+        ax.text(0.5, 0.5, f"{title}: the loop closure estimated no effect in any campaign", ha="center",
+                va="center", fontsize=9)
+        return fig
+    first = effects.drop_duplicates("parameter")
+    rank = first["block"].map({block: i for i, block in enumerate(EXTENSIONS)}).fillna(len(EXTENSIONS))
+    parameters = first.assign(rank=rank).sort_values("rank", kind="stable")["parameter"].tolist()
+    units = first.set_index("parameter")["unit"].to_dict()
+    return _over_time(effects, title, parameters, "mean", "std", units, lambda name: name)

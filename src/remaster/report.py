@@ -147,8 +147,10 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
              "marked 'held' (kept at the controller's value)."]
     if comparison is not None:
         sections.append(Section("Across campaigns and sensors",
-                                ["Campaigns of the same robot (same kinematic model) in date order, and the sensors "
-                                 "of each campaign, compared in units of their combined uncertainty."],
+                                ["Campaigns of the same robot in date order, and the sensors of each campaign, "
+                                 "compared in units of their combined uncertainty: the zero-offsets of the paper's "
+                                 "model, then the loop closure's model (the zero-offsets refitted with the effects "
+                                 "it added, and those effects' parameters)."],
                                 [(caption(t), table) for t, table in comparison["tables"].items()],
                                 [(caption(f), png) for f, png in comparison["figures"].items()]))
     if audit is not None:

@@ -48,6 +48,14 @@ CAPTIONS = {
     "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
                                "sensor kind, in units of their combined uncertainty; flagged where significant.",
     "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty.",
+    "loop_parameters_over_time": "Loop closure over time: the zero-offsets refitted with the effects the loop "
+                                 "closure added, and those effects' parameters, per campaign and sensor (display "
+                                 "units in column unit).",
+    "loop_parameter_drift": "Drift of the loop-closure parameters between consecutive campaigns of the same robot "
+                            "and sensor kind, in units of their combined uncertainty; flagged where significant.",
+    "loop_parameter_agreement": "Agreement of the sensors of each campaign on the loop-closure parameters (each "
+                                "sensor's own marker offset and scale left out).",
+    "loop_effects_over_time": "Parameters of the effects the loop closure added, over time",
 }
 SENSOR_LABELS = {"motion_capture": "Motion Capture", "laser_tracker": "Laser Tracker"}
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value

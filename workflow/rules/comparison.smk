@@ -1,13 +1,18 @@
-# Stage 5: across campaigns and sensors: zero-offsets over time, drift between campaigns of the
-# same robot, and the sensors' agreement, under results/comparison/.
+# Stage 5: across campaigns and sensors: zero-offsets and loop-closure parameters over time, drift
+# between campaigns of the same robot, and the sensors' agreement, under results/comparison/.
+from remaster.comparison import LOOP_TABLES, TABLES as COMPARISON_TABLES
 
 COMPARISON = f"{RESULTS}/comparison"
-COMPARISON_TABLES = ["zero_offsets_over_time", "drift_between_campaigns", "sensor_agreement"]
+COMPARISON_FIGURES = {"zero_offsets_over_time": "zero_offsets_over_time",
+                      "loop_effects_over_time": "loop_parameters_over_time"}  # figure: the table it draws
 
 
-def comparison_inputs():
+def comparison_inputs(table):
+    """campaign.yaml files and fit summaries; loop_closure.json files for the loop-closure tables only."""
     return {"metadata": [f"{RAW}/{c}/campaign.yaml" for c in CAMPAIGNS],
-            "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv")}
+            "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv"),
+            "loops": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json")
+            if table in LOOP_TABLES else []}
 
 
 for _table in COMPARISON_TABLES:
@@ -16,7 +21,7 @@ for _table in COMPARISON_TABLES:
         name:
             f"comparison_{_table}"
         input:
-            **comparison_inputs(),
+            **comparison_inputs(_table),
         output:
             multiext(f"{COMPARISON}/{_table}", ".csv", ".md", ".tex"),
         log:
@@ -41,14 +46,19 @@ def robots():
 ROBOTS = robots()
 
 
-rule comparison_figure:
-    input:
-        f"{COMPARISON}/zero_offsets_over_time.csv",
-    output:
-        multiext(f"{COMPARISON}/zero_offsets_over_time_{{robot}}", ".png", ".pdf"),
-    log:
-        f"{RESULTS}/logs/comparison/figure_{{robot}}.log",
-    params:
-        identity=lambda wc: ROBOTS[wc.robot],
-    script:
-        "../scripts/comparison_figure.py"
+for _figure, _drawn in COMPARISON_FIGURES.items():
+
+    rule:
+        name:
+            f"comparison_figure_{_figure}"
+        input:
+            f"{COMPARISON}/{_drawn}.csv",
+        output:
+            multiext(f"{COMPARISON}/{_figure}_{{robot}}", ".png", ".pdf"),
+        log:
+            f"{RESULTS}/logs/comparison/{_figure}_{{robot}}.log",
+        params:
+            identity=lambda wc: ROBOTS[wc.robot],
+            figure=_figure,
+        script:
+            "../scripts/comparison_figure.py"

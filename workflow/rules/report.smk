@@ -61,7 +61,7 @@ rule audit:
 
 def comparison_layout():
     return {"tables": {t: f"{COMPARISON}/{t}.csv" for t in COMPARISON_TABLES},
-            "figures": {f"zero_offsets_over_time_{r}": f"{COMPARISON}/zero_offsets_over_time_{r}.png" for r in ROBOTS}}
+            "figures": {f"{f}_{r}": f"{COMPARISON}/{f}_{r}.png" for f in COMPARISON_FIGURES for r in ROBOTS}}
 
 
 def report_files(wildcards=None):
