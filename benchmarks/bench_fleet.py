@@ -7,6 +7,7 @@ Each N runs in a temporary folder; the seconds per N and per campaign are printe
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -17,15 +18,20 @@ SCENARIO = "data/simulation/kuka-compliance.yaml"
 
 
 def run(n: int) -> float:
-    with tempfile.TemporaryDirectory() as folder:
-        raw, results = Path(folder, "raw"), Path(folder, "results")
-        subprocess.run([sys.executable, "-m", "remaster.cli", "simulate", SCENARIO, "--copies", str(n),
-                        "--raw-dir", str(raw), "--truth-dir", str(Path(folder, "truth"))],
-                       check=True, stdout=subprocess.DEVNULL)
-        started = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "snakemake", "-j2", "--quiet", "all", "--config",
-                        f"raw_dir={raw}", f"results_dir={results}"], check=True)
-        return time.perf_counter() - started
+    """Seconds of `snakemake -j2` on n fresh campaigns; the folder is kept (and named) if it fails."""
+    folder = tempfile.mkdtemp(prefix=f"fleet{n}-")
+    raw, results = Path(folder, "raw"), Path(folder, "results")
+    subprocess.run([sys.executable, "-m", "remaster.cli", "simulate", SCENARIO, "--copies", str(n),
+                    "--raw-dir", str(raw), "--truth-dir", str(Path(folder, "truth"))],
+                   check=True, stdout=subprocess.DEVNULL)
+    started = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "snakemake", "-j2", "--quiet", "all", "--config",
+                           f"raw_dir={raw}", f"results_dir={results}"])
+    seconds = time.perf_counter() - started
+    if done.returncode != 0:
+        sys.exit(f"{n} campaigns: snakemake failed (exit {done.returncode}); logs in {results}/logs")
+    shutil.rmtree(folder)
+    return seconds
 
 
 def main() -> None:
