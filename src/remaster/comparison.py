@@ -185,18 +185,26 @@ def zero_offsets_over_time(entries: Iterable) -> pd.DataFrame:
     parameter's mean_deg is the value it was held at). Sorted by robot, date, campaign, sensor in
     the paper's order, joint.
     """
+    return _long_table(entries, _zero_offsets, OVER_TIME_COLUMNS)
+
+
+def _long_table(entries: Iterable, rows_of, columns: list[str]) -> pd.DataFrame:
+    """Every entry's rows_of(entry, label) (None: the entry is left out) with its campaign, date,
+    robot, sensor and kind, as `columns`; sorted by robot, date, campaign, sensor in the paper's
+    order, then the rows' own order."""
     frames = []
     for entry in _entries(entries):
-        rows = _zero_offsets(entry, f"{entry.campaign}/{entry.sensor}")
-        frames.append(rows.assign(campaign=entry.campaign, date=entry.date, robot=entry.robot, sensor=entry.sensor,
-                                  kind=entry.kind, joint=np.arange(len(rows))))
+        rows = rows_of(entry, f"{entry.campaign}/{entry.sensor}")
+        if rows is not None:
+            frames.append(rows.assign(campaign=entry.campaign, date=entry.date, robot=entry.robot,
+                                      sensor=entry.sensor, kind=entry.kind, position=np.arange(len(rows))))
     if not frames:
-        return pd.DataFrame(columns=OVER_TIME_COLUMNS)
+        return pd.DataFrame(columns=columns)
     table = pd.concat(frames, ignore_index=True)
     order = {s: i for i, s in enumerate(paper_order(table["sensor"].unique()))}
     table["sensor_order"] = table["sensor"].map(order)
-    table = table.sort_values(["robot", "date", "campaign", "sensor_order", "joint"], kind="stable")
-    return table[OVER_TIME_COLUMNS].reset_index(drop=True)
+    table = table.sort_values(["robot", "date", "campaign", "sensor_order", "position"], kind="stable")
+    return table[columns].reset_index(drop=True)
 
 
 # --------------------------------------------------------------------------- comparisons
@@ -256,7 +264,7 @@ def _drift_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd
             for sensor_a, a in group[group["campaign"] == first].groupby("sensor", sort=False):
                 for sensor_b, b in group[group["campaign"] == second].groupby("sensor", sort=False):
                     pair = _compare(a, b, first, second, significance, unit)
-                    if not unit:
+                    if "block" in table.columns:
                         pair = _described(pair, pd.concat([a, b]))
                     pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
                                              sensor_a=sensor_a, campaign_b=second, date_b=b["date"].iloc[0],
@@ -273,7 +281,7 @@ def _agreement_pairs(table: pd.DataFrame, significance: float, unit: str) -> lis
             for sensor_b in sensors[i + 1:]:
                 a, b = group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
                 pair = _compare(a, b, sensor_a, sensor_b, significance, unit)
-                if not unit:
+                if "block" in table.columns:
                     pair = _described(pair, pd.concat([a, b]))
                 pairs.append(pair.assign(campaign=campaign, date=a["date"].iloc[0], robot=a["robot"].iloc[0],
                                          sensor_a=sensor_a, sensor_b=sensor_b))
@@ -307,10 +315,12 @@ def sensor_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFra
 # --------------------------------------------------------------------------- loop closure
 
 
-def _loop_rows(entry: Entry, label: str) -> pd.DataFrame:
+def _loop_rows(entry: Entry, label: str) -> pd.DataFrame | None:
     """The entry's loop-closure parameters outside CAMPAIGN_BLOCKS, in display units: block,
-    parameter, unit, mean, std (NaN unless estimated), status."""
+    parameter, unit, mean, std (NaN unless estimated), status; None without a loop closure."""
     loop = entry.loop
+    if loop is None:
+        return None
     if not isinstance(loop, pd.DataFrame):
         raise InputError(f"loop-closure parameters must be a DataFrame, got {type(loop).__name__}", file=label)
     missing = [c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status")
@@ -334,20 +344,7 @@ def loop_parameters_over_time(entries: Iterable) -> pd.DataFrame:
     Columns LOOP_OVER_TIME_COLUMNS (mean, std in the parameter's display `unit`; std NaN unless
     estimated). Sorted by robot, date, campaign, sensor in the paper's order, model order.
     """
-    frames = []
-    for entry in _entries(entries):
-        if entry.loop is None:
-            continue
-        rows = _loop_rows(entry, f"{entry.campaign}/{entry.sensor}")
-        frames.append(rows.assign(campaign=entry.campaign, date=entry.date, robot=entry.robot, sensor=entry.sensor,
-                                  kind=entry.kind, position=np.arange(len(rows))))
-    if not frames:
-        return pd.DataFrame(columns=LOOP_OVER_TIME_COLUMNS)
-    table = pd.concat(frames, ignore_index=True)
-    order = {s: i for i, s in enumerate(paper_order(table["sensor"].unique()))}
-    table["sensor_order"] = table["sensor"].map(order)
-    table = table.sort_values(["robot", "date", "campaign", "sensor_order", "position"], kind="stable")
-    return table[LOOP_OVER_TIME_COLUMNS].reset_index(drop=True)
+    return _long_table(entries, _loop_rows, LOOP_OVER_TIME_COLUMNS)
 
 
 def loop_parameter_drift(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
