@@ -230,6 +230,9 @@ def test_loop_entries_from_loop_closure_reports():
     table = comparison.table("loop_parameters_over_time", entries)
     assert table["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1"]
     assert comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])})[0].loop is None
+    with pytest.raises(InputError, match="c/laser_tracker: refit/parameters"):
+        comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])},
+                              {("c", "laser_tracker"): {"refit": {}}})
     with pytest.raises(InputError, match="c/laser_tracker: status"):
         comparison.loop_parameters_over_time([entries[0]._replace(loop=loop().drop(columns="status"))])
 

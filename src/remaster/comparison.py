@@ -369,7 +369,13 @@ def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, st
     loops = loops or {}
 
     def loop(pair):
-        return pd.DataFrame(loops[pair]["refit"]["parameters"]) if pair in loops else None
+        if pair not in loops:
+            return None
+        parameters = loops[pair].get("refit", {}).get("parameters") if isinstance(loops[pair], Mapping) else None
+        if not isinstance(parameters, list):
+            raise InputError("no refit parameters in the loop-closure report", file="/".join(pair),
+                             key="refit/parameters")
+        return pd.DataFrame(parameters)
 
     return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
                   metadata[campaign]["sensors"][sensor]["kind"], loop((campaign, sensor)))
