@@ -149,6 +149,23 @@ def test_zero_offsets_over_time_figure():
         figures_comparison.zero_offsets_over_time_figure(mixed, "mixed")
 
 
+def test_over_time_figure_of_a_fleet_keeps_campaigns_of_one_day_apart(recwarn):
+    """50 campaigns of one robot on one day (a simulated fleet): one slot each, a readable number
+    of labels, and a layout matplotlib could fit (no tight-layout warning)."""
+    entries = [(f"fleet-{i:03d}", "2020-03-02", "laser_tracker", summary([0.1 + 0.001 * i, 0.3], [0.01, 0.01]),
+                ROBOT, "laser_tracker") for i in range(50)]
+    fig = figures_comparison.zero_offsets_over_time_figure(comparison.zero_offsets_over_time(entries), "fleet")
+    fig.canvas.draw()
+    panel = fig.axes[0]
+    x = panel.lines[0].get_xdata()
+    assert len(np.unique(x)) == 50 and np.all(np.diff(x) > 0)  # in campaign order, none on top of another
+    labels = [t.get_text() for t in panel.get_xticklabels()]
+    assert len(labels) <= figures_comparison.MAX_LABELS
+    assert labels[0] == "fleet-000\n2020-03-02" and labels[-1] == "fleet-049\n2020-03-02"
+    assert not [w for w in recwarn if "ight" in str(w.message)], [str(w.message) for w in recwarn]
+    plt.close(fig)
+
+
 def loop(compliance=None, marker=None, q2=(0.3, 0.009)):
     """A loop closure's refit parameter table (display units): registration, zero-offset q2, noise,
     and optionally joint compliance q2 (mean, std in urad/(N m)) and a marker offset x (mm)."""

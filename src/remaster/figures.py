@@ -22,10 +22,12 @@ def _zero_offset_columns(samples: pd.DataFrame) -> list[str]:
     return [c for c in samples.columns if c.startswith("zero_offsets.")]
 
 
-def _grid(count: int):
-    columns = min(4, count)
+def _grid(count: int, panel_width: float = 3.2, panel_height: float = 2.4, max_columns: int = 4):
+    """Up to `max_columns` panels a row, each `panel_width` by `panel_height` inches; the unused
+    ones hidden."""
+    columns = min(max_columns, count)
     rows = int(np.ceil(count / columns))
-    fig, axes = plt.subplots(rows, columns, figsize=(3.2 * columns, 2.4 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, columns, figsize=(panel_width * columns, panel_height * rows), squeeze=False)
     for ax in axes.flat[count:]:
         ax.set_visible(False)
     return fig, axes.flat

@@ -6,7 +6,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
@@ -16,11 +15,7 @@ from .figures import _grid  # noqa: E402
 from .tables import paper_order, sensor_label  # noqa: E402
 
 MARKERS = "osD^v<>"
-
-
-def _days(dates) -> np.ndarray:
-    """Matplotlib date numbers (days) of ISO dates."""
-    return mdates.date2num(pd.to_datetime(pd.Index(dates)).to_numpy())
+MAX_LABELS = 24  # campaign labels on the x axis; beyond that, every k-th campaign is named
 
 
 def _one_robot(table: pd.DataFrame) -> None:
@@ -29,24 +24,38 @@ def _one_robot(table: pd.DataFrame) -> None:
         raise ValueError(f"rows of {len(robots)} robots ({', '.join(map(repr, robots))}): draw one robot at a time")
 
 
+def _campaign_axis(campaigns: pd.DataFrame) -> tuple[list[int], list[str]]:
+    """Tick positions and labels ('<campaign>\\n<date>') of campaigns in date order, one slot each:
+    every campaign when there are at most MAX_LABELS, else every k-th, first and last included."""
+    step = max(1, int(np.ceil(len(campaigns) / MAX_LABELS)))
+    last = len(campaigns) - 1
+    shown = list(range(0, last - step + 1, step)) + [last]  # the last a full step from the one before
+    return shown, [f"{campaigns['campaign'].iloc[i]}\n{campaigns['date'].iloc[i]}" for i in shown]
+
+
 def _over_time(table: pd.DataFrame, title: str, parameters: list[str], mean: str, std: str, units: dict[str, str],
                label) -> plt.Figure:
-    """One panel per parameter: `mean` against the campaign date, one series per sensor with
+    """One panel per parameter: `mean` of each campaign, in date order (one slot per campaign, so
+    campaigns of one day stay apart; the dates are in the labels), one series per sensor with
     +-`std` bars (open markers, no bar, where not estimated); y label from `units`, panel title
     `label(parameter)`."""
     sensors = paper_order(table["sensor"].unique())
-    campaigns = table[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
-    ticks = campaigns.groupby("date", sort=True)["campaign"].agg("\n".join)  # date -> its campaigns
-    tick_days = _days(ticks.index)
-    span = max(tick_days.max() - tick_days.min(), 1.0)
-    offsets = {s: (i - (len(sensors) - 1) / 2) * 0.02 * span for i, s in enumerate(sensors)}
+    campaigns = table[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"], ignore_index=True)
+    slot = pd.Series(np.arange(len(campaigns)), index=campaigns["campaign"])
+    offsets = {s: (i - (len(sensors) - 1) / 2) * 0.5 / len(sensors) for i, s in enumerate(sensors)}
+    ticks, tick_labels = _campaign_axis(campaigns)
+    many = len(campaigns) > 6  # labels turned upright so they do not overlap
 
-    fig, axes = _grid(len(parameters))
+    if many:  # wider panels, two a row, room below each for the upright labels
+        fig, axes = _grid(len(parameters), panel_width=max(3.2, 0.12 * len(campaigns)), panel_height=3.8,
+                          max_columns=2)
+    else:
+        fig, axes = _grid(len(parameters))
     axes = list(axes)[:len(parameters)]
     for ax, name in zip(axes, parameters):
         for i, sensor in enumerate(sensors):
             rows = table[(table["parameter"] == name) & (table["sensor"] == sensor)]
-            x = _days(rows["date"]) + offsets[sensor]
+            x = rows["campaign"].map(slot).to_numpy(dtype=float) + offsets[sensor]
             estimated = (rows["status"] == "estimated").to_numpy()
             color, marker = f"C{i}", MARKERS[i % len(MARKERS)]
             ax.errorbar(x[estimated], rows[mean][estimated], yerr=rows[std][estimated], fmt=marker,
@@ -54,8 +63,8 @@ def _over_time(table: pd.DataFrame, title: str, parameters: list[str], mean: str
             if (~estimated).any():
                 ax.plot(x[~estimated], rows[mean][~estimated], marker, mfc="none", color=color, ms=5,
                         label=f"{sensor_label(sensor)} (held)")
-        ax.set_xticks(tick_days, [f"{names}\n{date}" for date, names in ticks.items()], fontsize=6)
-        ax.set_xlim(tick_days.min() - 0.1 * span, tick_days.max() + 0.1 * span)
+        ax.set_xticks(ticks, tick_labels, fontsize=6, rotation=90 if many else 0)
+        ax.set_xlim(-0.6, len(campaigns) - 0.4)
         ax.set_title(label(name), fontsize=9)
         ax.set_ylabel(units[name], fontsize=8)
         ax.tick_params(axis="y", labelsize=7)
