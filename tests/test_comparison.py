@@ -266,3 +266,23 @@ def test_loop_effects_over_time_figure():
     fig = figures_comparison.loop_effects_over_time_figure(nothing, "KUKA iiwa 14")
     assert "estimated no effect" in fig.axes[0].texts[0].get_text()
     plt.close(fig)
+
+
+def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
+    """Repeat campaigns of one truth: honest stds give z of unit spread and the expected number of
+    flags; stds half the truth give z of spread 2 and many more flags."""
+    rng = np.random.default_rng(7)
+    truth, std = np.array([0.1, 0.3]), np.array([0.01, 0.02])
+
+    def fleet(stated_std):
+        estimates = truth + std * rng.standard_normal((200, 2))
+        return [(f"c{i:03d}", "2020-03-02", "laser_tracker", summary(e, stated_std), ROBOT, "laser_tracker")
+                for i, e in enumerate(estimates)]
+
+    honest = comparison.drift_calibration(comparison.drift_between(fleet(std)))
+    assert honest["parameter"].tolist() == ["zero_offsets.q1", "zero_offsets.q2"]
+    assert (honest["pairs"] == 199).all() and honest["z_mean"].abs().max() < 0.15
+    assert np.allclose(honest["z_std"], 1.0, atol=0.15)
+    assert np.allclose(honest["expected_flagged"], 199 * 0.0026998, rtol=1e-3) and honest["flagged"].max() <= 5
+    overconfident = comparison.drift_calibration(comparison.drift_between(fleet(std / 2)))
+    assert np.allclose(overconfident["z_std"], 2.0, atol=0.3) and overconfident["flagged"].min() > 10

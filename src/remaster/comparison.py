@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
+import scipy.stats
 
 from .errors import InputError
 from .tables import display_value, paper_order
@@ -380,6 +381,21 @@ def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, st
     return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
                   metadata[campaign]["sensors"][sensor]["kind"], loop((campaign, sensor)))
             for (campaign, sensor), summary in summaries.items()]
+
+
+def drift_calibration(drift: pd.DataFrame, significance: float = 3.0) -> pd.DataFrame:
+    """How honest the drift flags are, on campaigns known to share one truth (repeat campaigns of
+    one robot, such as a simulated fleet): there every z should be standard normal.
+
+    `drift`: a `drift_between` or `loop_parameter_drift` table. Per parameter, over its compared
+    pairs: pairs, z_mean, z_std (1 when the stds are honest; above 1, drift is flagged that is
+    not there), flagged, and expected_flagged = pairs * P(|N(0, 1)| > significance).
+    """
+    compared = drift[drift["status"] == "compared"]
+    table = compared.groupby("parameter", sort=False).agg(pairs=("z", "size"), z_mean=("z", "mean"),
+                                                          z_std=("z", "std"), flagged=("flagged", "sum"))
+    table["expected_flagged"] = table["pairs"] * 2.0 * scipy.stats.norm.sf(significance)
+    return table.reset_index()
 
 
 TABLES = {"zero_offsets_over_time": lambda entries, significance: zero_offsets_over_time(entries),
