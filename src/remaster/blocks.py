@@ -22,7 +22,7 @@ Gravity torques come once per dataset from Pinocchio (`remaster.gravity`), with 
 payload m0 that is a setting. A true payload m differs from it by a torque of a different shape
 than the arm's own, which c alone cannot follow (1.5 kg off leaves several um on a laser
 tracker); c' on the payload's part of the torque absorbs it exactly: c'_j = c_j (m / m0 - 1).
-Link geometry is the simulator's parametrisation (`simulation.perturbed_chain`): a length error
+Link geometry is the simulator's parametrisation (`kinematics.perturbed_transforms`): a length error
 along each fixed transform's translation and a twist about the x axis of the frame it leads to.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
@@ -34,8 +34,9 @@ Jacobian columns after projecting out the base parameters' columns.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -45,9 +46,9 @@ from .campaign import SensorData
 from .fit import measured_rows
 from .gravity import gravity_torques
 from .identifiability import JACOBIAN_STEP
-from .kinematics import ForwardKinematics, KinematicChain
+from .kinematics import KernelForm, KinematicChain, perturbed_transforms
 from .model import DEG, MM, REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
-from .simulation import perturbed_chain
+from .priors import Priors
 
 BASE = ("registration", "zero_offsets")
 EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
@@ -60,7 +61,12 @@ SECONDS_PER_HOUR = 3600.0
 INVISIBLE = 1e-6
 # An extension column whose part outside the span of the base and of the extension columns
 # already kept is below this fraction of its length (the sine of its angle to that span) is
-# absorbed by them: its std would be more than 1/COLLINEAR times what it is alone.
+# absorbed EXACTLY by them (the first link's length by the registration's z, the marker's
+# tangential offset by the last zero-offset): held at 0, as the paper's joint 1 is. Any larger
+# sine is kept: its Gaussian prior, not a threshold, decides how far the data may move it.
+ABSORBED = 1e-6
+# Below this sine a kept parameter is weakly determined (its std alone would grow more than a
+# thousandfold): reported, so that a reader knows its prior is doing the work.
 COLLINEAR = 1e-3
 
 
@@ -219,16 +225,16 @@ class BlockModel:
     Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
     """
 
-    # The paper's posterior and the holding of parameters are the same whatever the blocks.
+    # The paper's likelihood and the holding of parameters are the same whatever the blocks.
     full = ZeroOffsetModel.full
     predict = ZeroOffsetModel.predict
     residuals = ZeroOffsetModel.residuals
-    log_posterior = ZeroOffsetModel.log_posterior
+    log_likelihood = ZeroOffsetModel.log_posterior  # the paper's: flat prior on Theta, Jeffreys' on sigma
     jacobian = ZeroOffsetModel.jacobian
     n_points = ZeroOffsetModel.n_points
 
     def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
-                 fixed: Mapping[str, float] | None = None):
+                 fixed: Mapping[str, float] | None = None, priors: Priors | None = None):
         unknown = set(blocks) - set(EXTENSIONS)
         if unknown:
             raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
@@ -261,14 +267,19 @@ class BlockModel:
         self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
         self._links = ([(index[name], row, column) for row, column, name in link_labels(chain)]
                        if "link_geometry" in self.blocks else [])
-        self._nominal = ForwardKinematics(chain, self.q[:1])  # the chain in the compiled kernel's form
+        self._kernel = KernelForm.of(chain)
+        self.priors = priors
+        # (P,) SI prior std of the free parameters: inf for the paper's (flat), finite for the extensions'
+        self.prior_std = np.array([math.inf if priors is None or self.block_of[n] in BASE
+                                   else priors.std_of(n, data.drift_unit) for n in self.names])
+        self._prior_precision = np.where(np.isfinite(self.prior_std), 1.0 / self.prior_std**2, 0.0)
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
         index = {n: i for i, n in enumerate(self.all_names)}
         rows = [(index[n], j, key) for p in parts for n, j, key in zip(p.names, p.joints, p.regressor)]
         self._joint_params = np.array([i for i, _, _ in rows], dtype=int)
-        self._joint_values = np.array([self.data.regressor(key)[:, j] for _, j, key in rows])  # (K, n)
+        self._joint_values_t = np.array([self.data.regressor(key)[:, j] for _, j, key in rows]).T.copy()  # (n, K)
         self._joint_onehot = np.eye(self.chain.n_joints)[[j for _, j, _ in rows]]  # (K, N)
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
@@ -280,36 +291,58 @@ class BlockModel:
         return dict(zip(self.all_names, self.full(theta).tolist()))
 
     def on(self, data: Readings) -> "BlockModel":
-        """The same model (blocks, registration, held parameters) on other readings, e.g. the
-        validation set."""
-        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed)
+        """The same model (blocks, registration, held parameters, priors) on other readings, e.g.
+        the validation set."""
+        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed, self.priors)
+
+    def log_prior(self, theta) -> np.ndarray:
+        """Log of the extension blocks' Gaussian priors, up to their normalisation: scalar or (m,)."""
+        theta = np.asarray(theta, dtype=float)
+        return -0.5 * np.sum(theta**2 * self._prior_precision, axis=-1)
+
+    def log_posterior(self, theta, sigma):
+        """The paper's log-posterior plus the extension priors: scalar or (m,); -inf where sigma <= 0."""
+        return self.log_likelihood(theta, sigma) + self.log_prior(theta)
+
+    def prior_residuals(self, theta) -> np.ndarray:
+        """theta_k / std_k of the parameters with a prior (P_prior,): least squares' pseudo-observations."""
+        finite = np.isfinite(self.prior_std)
+        return np.asarray(theta, dtype=float)[finite] / self.prior_std[finite]
 
     def angles(self, every) -> np.ndarray:
         """Joint angles (n, N) or (m, n, N) the robot had, from every parameter (..., P_all)."""
         theta = np.asarray(every, dtype=float)[..., self._joint_params]
-        return self.q + np.einsum("...k,kn,kj->...nj", theta, self._joint_values, self._joint_onehot)
+        return self.q + self._joint_values_t @ (theta[..., :, None] * self._joint_onehot)
 
     def _robot_points(self, every: np.ndarray, angles: np.ndarray) -> np.ndarray:
         """Marker positions (n, 3) in the robot frame for one parameter vector (P_all,)."""
-        fk = self._nominal
+        kernel = self._kernel
         if self._links:
             errors = np.zeros((self.chain.n_joints + 1, 2))
             for index, row, column in self._links:
                 errors[row, column] = every[index]
-            fk = ForwardKinematics(perturbed_chain(self.chain, errors), self.q[:1])
+            kernel = kernel.with_transforms(*perturbed_transforms(self.chain.joint_transforms,
+                                                                  self.chain.tool_transform, errors))
         marker = self.marker + every[self._marker_index] if self._marker_index else self.marker
         n_joints = self.chain.n_joints
-        return _kernels.points(fk.kernel_rotations, fk.kernel_shifts, fk.flange_point(marker),
+        return _kernels.points(kernel.rotations, kernel.shifts, kernel.start(marker),
                                np.ascontiguousarray(np.cos(angles).T), np.ascontiguousarray(np.sin(angles).T),
                                np.ones((1, n_joints)), np.zeros((1, n_joints)))[0]
+
+    def robot_points(self, every) -> np.ndarray:
+        """Marker positions (n, 3) or (m, n, 3) in the ROBOT frame from every parameter (P_all,)
+        or (m, P_all): what the calibrated robot is, without the sensor's set-up."""
+        every = np.asarray(every, dtype=float)
+        stack = np.atleast_2d(every)
+        points = np.stack([self._robot_points(e, a) for e, a in zip(stack, self.angles(stack))])
+        return points if every.ndim == 2 else points[0]
 
     def predict_full(self, every) -> np.ndarray:
         """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter
         (P_all,) or (m, P_all). A stack is a loop over its m vectors (not over rows)."""
         every = np.asarray(every, dtype=float)
         stack = np.atleast_2d(every)
-        angles = self.angles(stack)
-        points = np.stack([self._robot_points(e, a) for e, a in zip(stack, angles)])
+        points = self.robot_points(stack)
         transform = correction_transforms(stack[:, :6]) @ self.t_nr
         out = points @ np.swapaxes(transform[:, :3, :3], -1, -2) + transform[:, None, :3, 3]
         if self._scale_index:
@@ -326,31 +359,36 @@ class BlockModel:
 
 @dataclass(frozen=True)
 class Reduction:
-    """Which extension parameters the data determine. kept: free extension parameters;
-    dropped: {name: why} held at 0 ('invisible' with its relative size, or 'absorbed' with the
-    sine of its angle to the span of the base and the columns kept before it);
-    condition_number of the whole model's free Jacobian with unit-length columns (so
-    independent of units)."""
+    """Which extension parameters the data can see at all. kept: free extension parameters (each
+    under its prior); dropped: {name: why} held at 0 ('invisible' with its relative size, or
+    'absorbed' exactly by the base and the parameters kept before it, with the sine of its angle
+    to their span); weak: {name: sine} of kept parameters the data barely separate (sine below
+    COLLINEAR: their prior decides them); condition_number of the whole model's free Jacobian with
+    unit-length columns (so independent of units)."""
 
     kept: tuple[str, ...]
     dropped: dict[str, str]
     condition_number: float
+    weak: dict[str, float] = field(default_factory=dict)
 
     def report(self) -> dict:
-        return {"kept": list(self.kept), "dropped": dict(self.dropped), "condition_number_unit_columns":
-                self.condition_number, "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns "
-                "in model order, from the span of the base columns", "invisible_below": INVISIBLE,
-                "collinear_below": COLLINEAR}
+        return {"kept": list(self.kept), "dropped": dict(self.dropped), "weakly_determined_sine": dict(self.weak),
+                "condition_number_unit_columns": self.condition_number,
+                "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
+                          "the span of the base columns; held only where the data cannot see a parameter at all",
+                "invisible_below": INVISIBLE, "absorbed_below": ABSORBED, "weak_below": COLLINEAR}
 
 
 def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
-    """Which of the model's free extension parameters the data determine, at theta (default 0).
+    """Which of the model's free extension parameters the data can see, at theta (default 0).
 
-    From the Jacobian: a column shorter than INVISIBLE x the longest of its block is invisible. The others, scaled to unit length, go through Gram-Schmidt (QR) in the model's
-    order, starting from the span of the base columns: a column is kept when its sine to the
-    span of the base and the columns kept before it exceeds COLLINEAR, else it is absorbed. The
-    order is a priority: a block's main parameters come before its secondary ones (a compliance
-    before its payload correction). Dropped parameters are held at 0.
+    From the Jacobian: a column shorter than INVISIBLE x the longest of its block is invisible.
+    The others, scaled to unit length, go through Gram-Schmidt (QR) in the model's order,
+    starting from the span of the base columns: a column whose sine to the span of the base and
+    the columns kept before it is below ABSORBED is absorbed exactly (held at 0, like joint 1's
+    zero-offset against the registration); every other one is kept, under its prior, and marked
+    weak below COLLINEAR. The order is a priority: a block's main parameters come before its
+    secondary ones (a compliance before its payload correction).
     """
     theta = np.zeros(len(model.names)) if theta is None else np.asarray(theta, dtype=float)
     jacobian = model.jacobian(theta, JACOBIAN_STEP)
@@ -362,7 +400,7 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
     for name, length in zip(ext_names, lengths):
         longest[model.block_of[name]] = max(longest.get(model.block_of[name], 0.0), length)
     span, _ = np.linalg.qr(jacobian[:, is_base])
-    kept, dropped = [], {}
+    kept, dropped, weak = [], {}, {}
     for i, name in enumerate(ext_names):
         relative = lengths[i] / longest[model.block_of[name]] if lengths[i] > 0 else 0.0
         if relative < INVISIBLE:
@@ -370,22 +408,24 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
             continue
         outside = ext[:, i] / lengths[i] - span @ (span.T @ ext[:, i] / lengths[i])
         sine = float(np.linalg.norm(outside))
-        if sine > COLLINEAR:
+        if sine > ABSORBED:
             kept.append(i)
             span = np.column_stack([span, outside / sine])
+            if sine < COLLINEAR:
+                weak[name] = sine
         else:
             dropped[name] = f"absorbed: sine {sine:.1e} to the base and the parameters kept before it"
     keep = is_base.copy()
     keep[np.flatnonzero(~is_base)[kept]] = True
     columns = jacobian[:, keep]
     singular = np.linalg.svd(columns / np.linalg.norm(columns, axis=0), compute_uv=False)
-    return Reduction(tuple(ext_names[i] for i in kept), dropped, float(singular[0] / singular[-1]))
+    return Reduction(tuple(ext_names[i] for i in kept), dropped, float(singular[0] / singular[-1]), weak)
 
 
 def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
-                   base_held: Mapping[str, float]) -> tuple[BlockModel, Reduction]:
-    """The model of base + blocks with the base's held parameters held and the extension
-    parameters the data cannot determine held at 0."""
+                   base_held: Mapping[str, float], priors: Priors | None = None) -> tuple[BlockModel, Reduction]:
+    """The model of base + blocks, under `priors`, with the base's held parameters held and the
+    extension parameters the data cannot see at all held at 0."""
     reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
     held = {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
-    return BlockModel(chain, data, marker, t_nr, blocks, held), reduction
+    return BlockModel(chain, data, marker, t_nr, blocks, held, priors), reduction

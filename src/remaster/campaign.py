@@ -22,13 +22,14 @@ import pandas as pd
 from . import registration
 from .errors import InputError, KinematicsError
 from .kinematics import DH_CONVENTIONS, KinematicChain
+from .priors import check_override
 
 SETS = ("optimization", "validation")
 SENSOR_KINDS = ("motion_capture", "laser_tracker", "other")
 
 REQUIRED_KEYS = ("name", "date", "robot", "sensors")
 OPTIONAL_KEYS = ("description",)
-ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial")
+ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors")
 DH_KEYS = ("convention", "rows", "flange")
 SENSOR_KEYS = ("kind", "marker", "noise")
 
@@ -219,6 +220,9 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
             raise KinematicsError(f"must be a non-empty string, got {robot['serial']!r}", file=source,
                                   key="robot/serial")
         checked["serial"] = robot["serial"]
+    if "priors" in robot:  # optional: this robot's tolerances for the loop closure's extension blocks
+        check_override(robot["priors"], source)
+        checked["priors"] = dict(robot["priors"])
     if "urdf" in robot:
         for key in ("urdf", "base", "flange"):
             value = robot.get(key)

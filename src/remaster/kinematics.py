@@ -15,7 +15,7 @@ Pinocchio is the reference (`pinocchio_model`); the batched NumPy code is the ho
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -362,6 +362,64 @@ def _basis_with_z(axis) -> np.ndarray:
     return np.column_stack([x, np.cross(axis, x), axis])
 
 
+def perturbed_transforms(joint_transforms, tool_transform, link_errors) -> tuple[np.ndarray, np.ndarray]:
+    """(F_1..F_N (N, 4, 4), F_tool (4, 4)) with link-geometry errors (N + 1, 2): for each fixed
+    transform a length error (m) along its translation (none for a link of zero length) and a
+    twist error (rad), a rotation about the x axis of the frame it leads to, which tilts the next
+    joint axis. A rotation about the joint axis itself would be a zero-offset, so it is not a
+    link error."""
+    errors = np.asarray(link_errors, dtype=float)
+    transforms = np.concatenate([np.asarray(joint_transforms, dtype=float), np.asarray(tool_transform)[None]])
+    if errors.shape != (len(transforms), 2):
+        raise ValueError(f"link_errors must have shape ({len(transforms)}, 2), got {errors.shape}")
+    out = transforms.copy()
+    reach = np.linalg.norm(transforms[:, :3, 3], axis=1)
+    stretch = np.divide(errors[:, 0], reach, out=np.zeros(len(reach)), where=reach > 0)
+    out[:, :3, 3] *= (1.0 + stretch)[:, None]
+    out[:, :3, :3] = out[:, :3, :3] @ spatial.rot_x(errors[:, 1])
+    return out[:-1], out[-1]
+
+
+def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
+    """The chain with link-geometry errors (N + 1, 2) (`perturbed_transforms`)."""
+    joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors)
+    return replace(chain, joint_transforms=joints, tool_transform=tool)
+
+
+@dataclass(frozen=True, eq=False)
+class KernelForm:
+    """The compiled kernels' form of a chain's fixed transforms: each joint axis turned onto z by
+    a basis B_j, Rot(a_j, q) = B_j Rz(q) B_j^T, with B_j^T folded into the next fixed transform.
+    rotations (N, 3, 3), shifts (N, 3); `start(point)` a flange-frame point in the last joint's
+    z-aligned frame (3,). Built from the axes once (`of`), then cheaply for new fixed transforms
+    (`with_transforms`), e.g. at each step of a link-geometry fit."""
+
+    rotations: np.ndarray
+    shifts: np.ndarray
+    tool_transform: np.ndarray
+    bases: np.ndarray
+
+    @classmethod
+    def of(cls, chain: KinematicChain) -> "KernelForm":
+        bases = np.array([_basis_with_z(a) for a in chain.joint_axes])
+        return cls.with_bases(bases, chain.joint_transforms, chain.tool_transform)
+
+    @classmethod
+    def with_bases(cls, bases, joint_transforms, tool_transform) -> "KernelForm":
+        before = np.concatenate([np.eye(3)[None], np.swapaxes(bases[:-1], -1, -2)])
+        rotations = np.ascontiguousarray(before @ joint_transforms[:, :3, :3] @ bases)
+        shifts = np.ascontiguousarray((before @ joint_transforms[:, :3, 3, None])[..., 0])
+        return cls(rotations, shifts, np.asarray(tool_transform, dtype=float), bases)
+
+    def with_transforms(self, joint_transforms, tool_transform) -> "KernelForm":
+        """The same axes with other fixed transforms."""
+        return self.with_bases(self.bases, joint_transforms, tool_transform)
+
+    def start(self, point_in_flange) -> np.ndarray:
+        point = spatial.transform_points(self.tool_transform, np.asarray(point_in_flange, dtype=float))
+        return np.ascontiguousarray(self.bases[-1].T @ point)
+
+
 class ForwardKinematics:
     """Batched forward kinematics of one chain at fixed joint readings q (n, N).
 
@@ -387,20 +445,14 @@ class ForwardKinematics:
         self._moved = np.ascontiguousarray(
             np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
         self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
-        # The compiled kernels' form: each axis turned onto z by a basis B_j (a_j its third column),
-        # Rot(a_j, q) = B_j Rz(q) B_j^T, with B_j^T folded into the next fixed transform.
-        bases = np.array([_basis_with_z(a) for a in chain.joint_axes])
-        before = np.concatenate([np.eye(3)[None], np.swapaxes(bases[:-1], -1, -2)])
-        self.kernel_rotations = np.ascontiguousarray(before @ chain.joint_transforms[:, :3, :3] @ bases)
-        self.kernel_shifts = np.ascontiguousarray((before @ chain.joint_transforms[:, :3, 3, None])[..., 0])
-        self._last_basis_t = bases[-1].T
+        self.kernel = KernelForm.of(chain)
+        self.kernel_rotations, self.kernel_shifts = self.kernel.rotations, self.kernel.shifts
         self.kernel_cos_q = np.ascontiguousarray(self.cos_q.T)
         self.kernel_sin_q = np.ascontiguousarray(self.sin_q.T)
 
     def flange_point(self, point_in_flange) -> np.ndarray:
         """A point given in the flange frame, in the last joint's z-aligned frame (3,)."""
-        point = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
-        return self._last_basis_t @ point
+        return self.kernel.start(point_in_flange)
 
     def _axis_rotations(self, cos, sin) -> np.ndarray:
         """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""

@@ -1,24 +1,29 @@
-"""Loop closure (issue 5/7): what the zero-offset model leaves in the residuals, named and removed.
+"""Loop closure: what the zero-offset model leaves in the residuals, named and removed.
 
-Per campaign and sensor, after the zero-offset fit:
+Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only:
 
 1. Diagnose: for each candidate block (`blocks.EXTENSIONS`; drift only when the table has a
-   time or temperature column), fit current + candidate by least squares and score it by
-   - its BIC gain, BIC = k ln(SS / k) + p ln k (k residual components, SS their sum of squares,
-     p free parameters including sigma), gain = BIC(current) - BIC(candidate): the same
-     evidence measure for every candidate (a Laplace log-evidence would need priors on the
-     extension parameters, which a flat prior does not give);
-   - its relative fall of the post-registration RMSE on the held-out VALIDATION set, predicted
-     with the optimization fit's parameters and registration;
-   - its signature: the optimization residual of the current fit against the change in the
-     prediction the candidate's fit makes (points on the diagonal: the effect is what is left).
-2. Decide: greedy forward selection. Among the candidates whose BIC gain exceeds
-   `min_bic_gain` AND whose validation RMSE falls by more than `min_validation_gain`
-   (relative), add the one of largest BIC gain, refit, and repeat with the others.
-3. Refit the final model by least squares (the last round's fit) and, when settings are
-   given, by adaptive Metropolis (`fit.sample`, method 'default'), so that the added
-   parameters carry uncertainty; report before/after accuracy and how far the zero-offsets
-   moved.
+   time or temperature column), fit current + candidate at its posterior mode under the
+   extension priors (`remaster.priors`, `remaster.evidence`) and score it by
+   - its Laplace evidence gain, log Z(with it) - log Z(current): the priors make the extended
+     model proper, so an effect must explain more than its parameters' prior room costs;
+   - its pose-grouped K-fold cross-validation: the paired fall of the held-out mean squared
+     residual over the same folds, in units of its standard error over the folds;
+   - its BIC gain, for reference (BIC counts 3n independent residuals; where residuals are
+     shared by the configurations of a pose it overstates the evidence, which the
+     cross-validation by pose does not);
+   - its signature: the residual of the current fit against the change in the prediction the
+     candidate makes (`explained_fraction`, the share of the current residual it removes).
+2. Decide: greedy forward selection. Among the candidates whose evidence gain exceeds
+   `min_log_evidence_gain` AND whose cross-validated fall exceeds `cv_standard_errors` standard
+   errors, add the one of largest evidence gain, refit, and repeat with the others.
+3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation, run
+   longer until it meets the project's convergence criteria, or reported as not converged) so
+   that every parameter carries uncertainty; say which parameters the data barely moved from
+   their prior.
+4. Only then the VALIDATION set: accuracy before (zero-offset model) and after (the selected
+   model), each with the optimization fit's parameters and registration. Nothing is selected,
+   tuned or stopped on it.
 
 Accuracy measures (per set, in mm): post-registration RMSE sqrt(mean |E_i|^2) over the points,
 the RMS per axis (comparable to sigma and the sensor noise), the paper's mean post-registration
@@ -28,47 +33,53 @@ configurations of each pose (`remaster.metrics`).
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
 
-from . import blocks, fit, metrics, samplers
+from . import blocks, evidence, fit, metrics, samplers
 from .blocks import BlockModel, ModelSettings, Readings, Reduction
 from .campaign import Campaign, SensorData
 from .kinematics import KinematicChain
 from .model import DEG, MM, SIGMA
+from .priors import DEFAULTS as DEFAULT_PRIORS, Priors, priors_from, with_defaults
 
 SETS = ("optimization", "validation")
-MCMC_DEFAULT = {"chains": 2, "samples": 20000, "burn_in": 8000}
-# What the data determine is settled, unit-free, by `blocks.identifiable_extension`; least
-# squares' own test (singular values of J in display units below rcond x the largest) would judge
-# by the units instead (a compliance step of 1 urad/(N m) against a degree), so it is left to
-# catch round-off only.
-ROUND_OFF = 1e-12
+MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
+CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
+# posterior std / prior std above this: the data barely moved the parameter from its prior
+PRIOR_DOMINATED = 0.5
 
 
 @dataclass(frozen=True)
 class LoopSettings:
-    """candidates: extension blocks to try; min_bic_gain: the evidence an effect needs;
-    min_validation_gain: the relative fall of the validation RMSE it needs; model: payload and
-    drift column; mcmc: {'chains', 'samples', 'burn_in'} of the final adaptive-Metropolis refit,
-    None for least squares/Laplace only."""
+    """candidates: extension blocks to try; min_log_evidence_gain: the Laplace evidence (nats) an
+    effect needs; cv_folds, cv_standard_errors: the pose-grouped cross-validation and the number
+    of its standard errors the fall must exceed; model: payload and drift column; priors: the
+    extension blocks' Gaussian priors; mcmc: {'chains', 'samples', 'burn_in'} of the final
+    refit's first attempt, None for Laplace only; priors_config: the config's `priors` section, which
+    a campaign's own `robot.priors` is laid over; convergence: {'max_rhat', 'min_ess',
+    'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times."""
 
     candidates: tuple[str, ...] = blocks.EXTENSIONS
-    min_bic_gain: float = 10.0
-    min_validation_gain: float = 0.02
+    min_log_evidence_gain: float = 5.0
+    cv_folds: int = 5
+    cv_standard_errors: float = 2.0
     model: ModelSettings = ModelSettings()
+    priors: Priors = field(default_factory=lambda: priors_from(DEFAULT_PRIORS))
+    priors_config: dict = field(default_factory=lambda: dict(DEFAULT_PRIORS))
     mcmc: dict | None = field(default_factory=lambda: dict(MCMC_DEFAULT))
+    convergence: dict = field(default_factory=lambda: dict(CONVERGENCE_DEFAULT))
 
     def report(self) -> dict:
-        return {"candidates": list(self.candidates), "min_bic_gain": self.min_bic_gain,
-                "min_validation_gain": self.min_validation_gain,
+        return {"candidates": list(self.candidates), "min_log_evidence_gain": self.min_log_evidence_gain,
+                "cv_folds": self.cv_folds, "cv_standard_errors": self.cv_standard_errors,
                 "payload_mass_kg": self.model.payload_mass, "payload_com_m": list(self.model.payload_com),
-                "drift_column": self.model.drift_column, "mcmc": self.mcmc}
+                "drift_column": self.model.drift_column, "priors": self.priors.report(), "mcmc": self.mcmc,
+                "convergence": self.convergence}
 
 
 # --------------------------------------------------------------------------- accuracy measures
@@ -87,56 +98,48 @@ def accuracy(measured, predicted, poses) -> dict:
             "relative_mean_mm": relative["mean"] / MM if relative["count"] else None}
 
 
-def bic(result: samplers.LaplaceResult) -> float:
-    """k ln(SS / k) + p ln k: the Gaussian likelihood maximised over sigma, p = parameters + sigma."""
-    k = result.n_residuals
-    return k * math.log(2.0 * result.cost / k) + (len(result.theta_map) + 1) * math.log(k)
-
-
-# --------------------------------------------------------------------------- one least-squares fit
+# --------------------------------------------------------------------------- one fit
 
 
 @dataclass(frozen=True, eq=False)
 class Fitted:
-    """One model fitted by least squares on the optimization set, with its validation twin
-    (same parameters and registration) and the identifiability reduction of its extensions."""
+    """One model at its posterior mode on the optimization set, with its pose-grouped
+    cross-validation and the identifiability reduction of its extensions."""
 
-    model: BlockModel
-    validation: BlockModel
-    result: samplers.LaplaceResult
+    mode: evidence.PosteriorMode
     reduction: Reduction
+    cv: evidence.CrossValidation
+
+    @property
+    def model(self) -> BlockModel:
+        return self.mode.model
 
     @property
     def theta(self) -> np.ndarray:
-        return self.result.theta_map
-
-    @property
-    def bic(self) -> float:
-        return bic(self.result)
+        return self.mode.theta
 
     def values(self) -> dict[str, float]:
         return self.model.values(self.theta)
 
-    def residuals(self, set_name: str) -> np.ndarray:
-        """(n, 3) measured - predicted on a set, m."""
-        return (self.model if set_name == "optimization" else self.validation).residuals(self.theta)
+    def residuals(self, data: Readings | None = None) -> np.ndarray:
+        """(n, 3) measured - predicted, m, on the optimization set or other readings, with the
+        optimization fit's parameters and registration."""
+        return (self.model if data is None else self.model.on(data)).residuals(self.theta)
 
-    def accuracy(self, poses: Mapping[str, np.ndarray]) -> dict:
-        """{set: `accuracy`} with the optimization fit's parameters, poses {set: (n,) labels}."""
-        out = {}
-        for set_name, model in zip(SETS, (self.model, self.validation)):
-            out[set_name] = accuracy(model.measured, model.predict(self.theta), poses[set_name])
-        return out
+    def accuracy(self, data: Readings, poses) -> dict:
+        """`accuracy` on some readings (n rows) with the optimization fit's parameters; poses (n,)."""
+        model = self.model.on(data)
+        return accuracy(model.measured, model.predict(self.theta), poses)
 
 
-def fit_blocks(chain: KinematicChain, data: Mapping[str, Readings], marker, t_nr, extensions: Sequence[str],
-               base_held: Mapping[str, float], start: Mapping[str, float] | None = None) -> Fitted:
-    """Least-squares fit (with Laplace covariance) of base + extensions on data['optimization'],
-    from `start` ({name: value}; 0 for the others)."""
-    model, reduction = blocks.extended_model(chain, data["optimization"], marker, t_nr, extensions, base_held)
-    result = samplers.least_squares_laplace(lambda theta: model.residuals(theta).ravel(), model.vector(start or {}),
-                                            model.scale, names=model.names, rcond=ROUND_OFF)
-    return Fitted(model, model.on(data["validation"]), result, reduction)
+def fit_blocks(chain: KinematicChain, data: Readings, marker, t_nr, extensions: Sequence[str],
+               base_held: Mapping[str, float], folds: np.ndarray, priors: Priors,
+               start: Mapping[str, float] | None = None) -> Fitted:
+    """Base + extensions under their priors on the optimization readings, from `start`
+    ({name: value}; 0 for the others), with its cross-validation over `folds` (n,)."""
+    model, reduction = blocks.extended_model(chain, data, marker, t_nr, extensions, base_held, priors)
+    mode = evidence.posterior_mode(model, model.vector(start or {}))
+    return Fitted(mode, reduction, evidence.cross_validate(mode, folds))
 
 
 # --------------------------------------------------------------------------- diagnose and decide
@@ -158,13 +161,17 @@ class Signature:
         return float(1.0 - np.sum((self.residual - self.effect) ** 2) / np.sum(self.residual**2))
 
 
-def score(current: Fitted, candidate: Fitted, validation_rmse_mm: float, poses) -> dict:
-    """A candidate's scores against the current fit, whose validation RMSE is given (JSON-ready)."""
-    after = candidate.accuracy(poses)["validation"]["rmse_mm"]
-    return {"bic_gain": current.bic - candidate.bic, "validation_rmse_mm": after,
-            "validation_gain": 1.0 - after / validation_rmse_mm, "sigma_mm": candidate.result.sigma_map / MM,
-            "parameters": list(candidate.reduction.kept), "dropped": dict(candidate.reduction.dropped),
-            "condition_number": candidate.reduction.condition_number}
+def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
+    """A candidate's scores against the current fit (JSON-ready), and whether it passes."""
+    out = {"log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
+           "bic_gain": current.mode.bic() - candidate.mode.bic(),
+           **evidence.cv_gain(current.cv, candidate.cv),
+           "sigma_mm": candidate.mode.sigma / MM, "parameters": list(candidate.reduction.kept),
+           "dropped": dict(candidate.reduction.dropped), "weak": dict(candidate.reduction.weak),
+           "condition_number": candidate.reduction.condition_number}
+    out["passed"] = bool(out["log_evidence_gain"] > settings.min_log_evidence_gain
+                         and out["cv_mse_fall_in_se"] > settings.cv_standard_errors)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,37 +186,36 @@ class Selection:
     signatures: dict[int, dict[str, Signature]]
 
 
-def select(chain: KinematicChain, data: Mapping[str, Readings], marker, t_nr, base_held: Mapping[str, float],
-           poses, settings: LoopSettings) -> Selection:
-    """Diagnose and decide (module docstring, steps 1 and 2)."""
-    base = current = fit_blocks(chain, data, marker, t_nr, (), base_held)
-    remaining = [c for c in settings.candidates if blocks.available(c, data["optimization"])]
+def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mapping[str, float], poses,
+           settings: LoopSettings) -> Selection:
+    """Diagnose and decide (module docstring, steps 1 and 2) on the optimization readings;
+    poses (n,) their pose labels, which make the cross-validation folds."""
+    folds = evidence.pose_folds(poses, settings.cv_folds)
+    base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
+    remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
     rounds, signatures = [], {}
     while remaining:
         number = len(rounds) + 1
-        reference = current.accuracy(poses)["validation"]["rmse_mm"]
-        residual, prediction = current.residuals("optimization"), current.model.predict(current.theta)
+        residual, prediction = current.residuals(), current.model.predict(current.theta)
         scores, fits, signatures[number] = {}, {}, {}
         for candidate in remaining:
             try:
-                fitted = fit_blocks(chain, data, marker, t_nr, tuple(added) + (candidate,), base_held, current.values())
-            except samplers.NotIdentifiable as exc:
+                fitted = fit_blocks(chain, data, marker, t_nr, tuple(added) + (candidate,), base_held, folds,
+                                    settings.priors, current.values())
+            except np.linalg.LinAlgError as exc:
                 scores[candidate] = {"skipped": f"not identifiable: {exc}"}
                 continue
             if not fitted.reduction.kept:
-                scores[candidate] = {"skipped": "no parameter of this block is identifiable from these data",
+                scores[candidate] = {"skipped": "no parameter of this block is visible in these data",
                                      "dropped": dict(fitted.reduction.dropped)}
                 continue
             fits[candidate] = fitted
             signature = signatures[number][candidate] = Signature(residual,
                                                                   fitted.model.predict(fitted.theta) - prediction)
-            scores[candidate] = {**score(current, fitted, reference, poses),
-                                 "explained_fraction": signature.explained}
-            scores[candidate]["passed"] = bool(scores[candidate]["bic_gain"] > settings.min_bic_gain
-                                               and scores[candidate]["validation_gain"] > settings.min_validation_gain)
+            scores[candidate] = {**score(current, fitted, settings), "explained_fraction": signature.explained}
         passing = [c for c in fits if scores[c]["passed"]]
-        best = max(passing, key=lambda c: scores[c]["bic_gain"]) if passing else None
+        best = max(passing, key=lambda c: scores[c]["log_evidence_gain"]) if passing else None
         rounds.append({"round": number, "model": list(blocks.BASE) + added, "scores": scores, "added": best})
         if best is None:
             break
@@ -219,32 +225,67 @@ def select(chain: KinematicChain, data: Mapping[str, Readings], marker, t_nr, ba
     return Selection(base, current, tuple(added), rounds, signatures)
 
 
-# --------------------------------------------------------------------------- refit and report
+# --------------------------------------------------------------------------- the MCMC refit
+
+
+def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
+          ) -> tuple[list[samplers.Chain], dict]:
+    """Chains of the model's posterior by independence Metropolis from its Laplace approximation
+    (`samplers.metropolis_independence`), run longer (samples and burn-in doubled) until every
+    R-hat <= max_rhat and every ESS >= min_ess, at most max_doublings times. Returns the chains
+    and a JSON-ready report: the last run's diagnostics, every attempt, and `converged`."""
+    target = fit.PosteriorTarget(mode.model)
+    mean = np.append(mode.theta, mode.sigma)
+    covariance = mode.covariance
+    run, criteria = dict(settings.mcmc), settings.convergence
+    attempts = []
+    for attempt in range(int(criteria["max_doublings"]) + 1):
+        started = time.perf_counter()
+        chains = samplers.run_chains(samplers.metropolis_independence, target, rng, int(run["chains"]), mean,
+                                     mean=mean, covariance=covariance, n_samples=int(run["samples"]),
+                                     burn_in=int(run["burn_in"]))
+        report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
+        done = fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
+        attempts.append({"samples": int(run["samples"]), "burn_in": int(run["burn_in"]),
+                         "max_rhat": report["max_rhat"], "min_ess": report["min_ess"],
+                         "acceptance_rate": report["acceptance_rate"], "seconds": report["seconds"],
+                         "converged": done})
+        if done:
+            break
+        run = {**run, "samples": 2 * int(run["samples"]), "burn_in": 2 * int(run["burn_in"])}
+    return chains, {**report, "converged": done, "attempts": attempts,
+                    "criteria": {"max_rhat": criteria["max_rhat"], "min_ess": criteria["min_ess"]}}
 
 
 def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per parameter (held ones included) and sigma: mean, std and 95 % interval in SI and in
-    display units, status. From the MCMC samples when given, else the Laplace approximation
-    (mean = MAP, interval +-1.96 std)."""
+    display units, prior std, the posterior / prior std ratio, status. From the MCMC samples when
+    given, else the Laplace approximation (mean = mode, interval mode +- 1.96 std)."""
     model = fitted.model
     names = list(model.names) + [SIGMA]
     if samples is not None:
         values = samples[names]
         mean, std = values.mean().to_numpy(), values.std(ddof=1).to_numpy()
         low, high = values.quantile(0.025).to_numpy(), values.quantile(0.975).to_numpy()
-        source = "adaptive Metropolis"
+        source = "MCMC (independence Metropolis)"
     else:
-        mean, std = fitted.result.moments()[:2]
-        low, high = mean - 1.959964 * std, mean + 1.959964 * std
-        source = "least squares + Laplace"
+        mean = np.append(fitted.theta, fitted.mode.sigma)
+        std = np.append(fitted.mode.std, fitted.mode.sigma_std)
+        low, high = mean - metrics.Z95 * std, mean + metrics.Z95 * std
+        source = "posterior mode + Laplace"
     free = {n: (m, s, lo, hi) for n, m, s, lo, hi in zip(names, mean, std, low, high)}
+    prior = dict(zip(model.names, model.prior_std))
     reasons = {**{n: "held: not identifiable" for n in model.fixed}, **fitted.reduction.dropped}
     rows = []
     for name, scale, unit in list(zip(model.all_names, model.all_scale, model.all_unit)) + [(SIGMA, MM, "mm")]:
         m, s, lo, hi = free.get(name, (model.fixed.get(name, 0.0), np.nan, np.nan, np.nan))
+        tau = prior.get(name, np.inf)
+        ratio = s / tau if np.isfinite(tau) and np.isfinite(s) else np.nan
         rows.append({"parameter": name, "block": model.block_of.get(name, "noise"), "mean": m, "std": s,
                      "q2.5": lo, "q97.5": hi, "unit": unit, "mean_display": m / scale, "std_display": s / scale,
                      "q2.5_display": lo / scale, "q97.5_display": hi / scale,
+                     "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
+                     "posterior_to_prior_std": ratio, "prior_dominated": bool(ratio > PRIOR_DOMINATED),
                      "status": "estimated" if name in free else reasons.get(name, "held"), "source": source})
     return pd.DataFrame(rows)
 
@@ -292,39 +333,45 @@ class LoopClosure:
     samples: pd.DataFrame | None
 
 
-def _laplace_start(result: samplers.LaplaceResult) -> dict:
-    """What `fit.sample` reads of a Laplace report."""
-    return {"theta_map": result.theta_map.tolist(), "sigma_map": result.sigma_map,
-            "covariance": result.covariance.tolist(), "sigma_std": result.sigma_std}
-
-
 def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mapping[str, float],
                rng: np.random.Generator, settings: LoopSettings = LoopSettings(), exclude=()) -> LoopClosure:
-    """Diagnose, decide and refit for one sensor. t_nr (4, 4): the fit's initial registration;
-    base_held: the zero-offset fit's held parameters (identifiability analysis); exclude: table
-    rows the fit left out as gross errors (left out here too); rng feeds the MCMC refit only."""
+    """Diagnose, decide and refit on the optimization set, then report before and after on both
+    sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
+    parameters (identifiability analysis); exclude: table rows the fit left out as gross errors
+    (left out here too); rng feeds the MCMC refit only."""
     data = {s: blocks.readings(chain, sensor, s, settings.model, exclude) for s in SETS}
     poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
-    selection = select(chain, data, sensor.marker, t_nr, base_held, poses, settings)
+    selection = select(chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings)
     base, final = selection.base, selection.final
 
     samples, mcmc = None, None
     if settings.mcmc is not None:
-        started = time.perf_counter()
-        chains = fit.sample(final.model, _laplace_start(final.result), "default", settings.mcmc, rng)
+        chains, mcmc = refit(final.mode, settings, rng)
         samples = fit.samples_frame(chains)
-        mcmc = fit.sampler_diagnostics(chains, time.perf_counter() - started)
     before_table = parameter_table(base)
     after_table = parameter_table(final, samples)
-    sigma_before = base.result.sigma_mean
+    sigma_before = base.mode.sigma
     sigma_after = float(after_table.set_index("parameter").loc[SIGMA, "mean"])
-    before, after = base.accuracy(poses), final.accuracy(poses)
+    # the validation set is read here, after every choice has been made
+    before = {s: base.accuracy(data[s], poses[s]) for s in SETS}
+    after = {s: final.accuracy(data[s], poses[s]) for s in SETS}
     counts = (len(base.model.names) + 1, len(final.model.names) + 1)
+    dominated = after_table[after_table["prior_dominated"]]
+    explained = {r["added"]: r["scores"][r["added"]]["explained_fraction"] for r in selection.rounds if r["added"]}
+    warnings = []
+    if mcmc is not None and not mcmc["converged"]:
+        warnings.append(f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
+                        f"{mcmc['criteria']['min_ess']} after {len(mcmc['attempts'])} runs (last: R-hat "
+                        f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable")
     report = {
-        "sensor": sensor.name, "evidence": "BIC gain: BIC = k ln(SS/k) + p ln k (k residual components, p free "
-        "parameters + sigma), gain = BIC(current model) - BIC(with the candidate)",
+        "sensor": sensor.name,
+        "evidence": "Laplace log evidence under the extension priors (nats), gain = log Z(with the candidate) - "
+                    "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
+                    "gain for reference. The validation set is not used to select.",
+        "selection_data": "optimization set only",
         "settings": settings.report(),
         "effects_added": list(selection.added),
+        "explained_fraction_when_added": explained,
         "candidates": _per_candidate(selection.rounds),
         "rounds": [{"round": r["round"], "model": r["model"], "added": r["added"]} for r in selection.rounds],
         "validation_rmse_before_mm": before["validation"]["rmse_mm"],
@@ -332,15 +379,18 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
         "sigma_before_mm": sigma_before / MM, "sigma_after_mm": sigma_after / MM,
         "before": before, "after": after,
         "identifiability": final.reduction.report(),
-        "refit": {"least_squares": {"names": list(final.model.names), "theta_map": final.theta.tolist(),
-                                    "std": final.result.std.tolist(), "sigma_map_mm": final.result.sigma_map / MM,
-                                    "sigma_mean_mm": final.result.sigma_mean / MM, "bic": final.bic},
+        "prior_dominated": dominated["parameter"].tolist(),
+        "warnings": warnings,
+        "refit": {"mode": {"names": list(final.model.names), "theta": final.theta.tolist(),
+                           "std": final.mode.std.tolist(), "sigma_mm": final.mode.sigma / MM,
+                           "log_evidence": final.mode.log_evidence, "bic": final.mode.bic()},
                   "mcmc": mcmc,
                   "parameters": after_table.replace({np.nan: None}).to_dict(orient="records")},
         "zero_offset_shifts": zero_offset_shifts(before_table, after_table),
     }
     table = before_after_table(before, after, sigma_before, sigma_after, counts)
-    residuals = {"before": {s: base.residuals(s) for s in SETS}, "after": {s: final.residuals(s) for s in SETS}}
+    residuals = {"before": {s: base.residuals(data[s]) for s in SETS},
+                 "after": {s: final.residuals(data[s]) for s in SETS}}
     return LoopClosure(report, table, selection.signatures, residuals, samples)
 
 
@@ -356,7 +406,10 @@ def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
 def loop_closure_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict,
                        rng: np.random.Generator, settings: LoopSettings = LoopSettings()) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
-    Laplace reports of `fit`)."""
+    Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
+    if campaign.robot.get("priors"):
+        settings = replace(settings, priors=priors_from(settings.priors_config, campaign.robot,
+                                                        f"{campaign.name}/campaign.yaml"))
     result = close_loop(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
                         laplace["identifiability"]["held_at_controller_value"], rng, settings,
                         laplace.get("excluded_rows_outliers", ()))
@@ -417,8 +470,9 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, dict]) ->
 
 
 def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
-    """Every candidate's scores in every round, per sensor: BIC gain, validation RMSE and its fall,
-    the fraction of the residual it explains, and whether it was added."""
+    """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
+    (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
+    whether it was added."""
     rows = []
     for sensor, report in reports.items():
         for name, rounds in report["candidates"].items():
@@ -426,18 +480,29 @@ def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
                 added = (entry["round"] <= len(report["effects_added"])
                          and report["effects_added"][entry["round"] - 1] == name)
                 rows.append({"Sensor": sensor, "Round": entry["round"], "Candidate": name,
-                             "BIC gain": entry["bic_gain"], "Validation RMSE (mm)": entry["validation_rmse_mm"],
-                             "Validation fall (%)": 100.0 * entry["validation_gain"],
-                             "Explained (%)": 100.0 * entry.get("explained_fraction", float("nan")),
+                             "Log evidence gain": entry.get("log_evidence_gain", np.nan),
+                             "CV RMSE (mm)": entry.get("cv_rmse_mm", np.nan),
+                             "CV fall (%)": 100.0 * entry.get("cv_gain", np.nan),
+                             "CV fall / SE": entry.get("cv_mse_fall_in_se", np.nan),
+                             "BIC gain": entry.get("bic_gain", np.nan),
+                             "Explained (%)": 100.0 * entry.get("explained_fraction", np.nan),
                              "Added": "yes" if added else ""})
     return pd.DataFrame(rows)
 
 
-def settings_from(config: Mapping) -> LoopSettings:
-    """LoopSettings from the workflow's `loop_closure` configuration."""
+def settings_from(config: Mapping, priors_config: Mapping | None = None,
+                  convergence: Mapping | None = None) -> LoopSettings:
+    """LoopSettings from the workflow's `loop_closure` configuration, its `priors` section and the
+    convergence criteria of the fit's cross-check (`fit/cross_check`: max_rhat, min_ess)."""
     payload = config.get("payload", {})
-    return LoopSettings(min_bic_gain=float(config["min_bic_gain"]),
-                        min_validation_gain=float(config["min_validation_gain"]),
+    priors_config = with_defaults(priors_config)
+    criteria = dict(CONVERGENCE_DEFAULT)
+    criteria.update({k: v for k, v in (convergence or {}).items() if k in ("max_rhat", "min_ess")})
+    if "max_doublings" in config:
+        criteria["max_doublings"] = int(config["max_doublings"])
+    return LoopSettings(min_log_evidence_gain=float(config["min_log_evidence_gain"]),
+                        cv_folds=int(config["cv_folds"]), cv_standard_errors=float(config["cv_standard_errors"]),
                         model=ModelSettings(payload_mass=float(payload.get("mass", 1.0)),
                                             payload_com=tuple(payload.get("com", (0.0, 0.0, 0.02)))),
-                        mcmc=dict(config["mcmc"]) if config.get("mcmc") else None)
+                        priors=priors_from(priors_config), priors_config=dict(priors_config),
+                        mcmc=dict(config["mcmc"]) if config.get("mcmc") else None, convergence=criteria)

@@ -21,6 +21,7 @@ import numpy as np
 from .kinematics import ForwardKinematics, KinematicChain
 
 QUANTILES = (0.025, 0.975)
+Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval is mean +- Z95 std
 
 
 def relative_errors(p_ref, p_robot, groups) -> np.ndarray:

@@ -14,13 +14,13 @@ The ground truth goes to a separate file that the pipeline never reads.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import spatial
 from .gravity import gravity_torques
-from .kinematics import ForwardKinematics, KinematicChain
+from .kinematics import ForwardKinematics, KinematicChain, perturbed_chain  # noqa: F401 (re-exported)
 
 
 @dataclass(frozen=True)
@@ -66,26 +66,6 @@ def looking_at(position, target) -> np.ndarray:
     x = np.cross([0.0, 0.0, 1.0], z)
     x /= np.linalg.norm(x)
     return spatial.homogeneous(np.column_stack([x, np.cross(z, x), z]), position)
-
-
-def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
-    """The chain with link-geometry errors (N + 1, 2): for each fixed transform F_1..F_N, F_tool,
-    a length error (m) along its translation (none for a link of zero length) and a twist error
-    (rad), a rotation about the x axis of the frame it leads to, which tilts the next joint axis.
-    A rotation about the joint axis itself would be a zero-offset, so it is not a link error."""
-    errors = np.asarray(link_errors, dtype=float)
-    if errors.shape != (chain.n_joints + 1, 2):
-        raise ValueError(f"link_errors must have shape ({chain.n_joints + 1}, 2), got {errors.shape}")
-
-    def perturbed(transform, length, twist):
-        out = transform.copy()
-        reach = np.linalg.norm(transform[:3, 3])
-        if reach > 0:
-            out[:3, 3] *= 1.0 + length / reach
-        return out @ spatial.homogeneous(spatial.rot_x(twist))
-
-    moved = np.array([perturbed(f, *e) for f, e in zip(chain.joint_transforms, errors[:-1])])
-    return replace(chain, joint_transforms=moved, tool_transform=perturbed(chain.tool_transform, *errors[-1]))
 
 
 def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elapsed_s=None) -> np.ndarray:

@@ -39,9 +39,11 @@ CAPTIONS = {
     "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
     "residuals": "Residuals after remastering against configuration and distance from the base",
     "loop_closure": "Loop closure: what zero-offset remastering leaves, and what is left after the effects the "
-                    "data support are added (least-squares fit; validation with the optimization fit's parameters).",
-    "loop_candidates": "Loop closure: every candidate effect's evidence (BIC gain), validation RMSE and fall, and "
-                       "the share of the residual it explains, per round.",
+                    "optimization set supports are added (posterior under the extension priors; the validation "
+                    "set, read only here, with the optimization fit's parameters).",
+    "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
+                       "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
+                       "gain for reference, and the share of the residual it explains, per round.",
     "loop_signatures": "The residual against each candidate effect's signature, first round",
     "loop_residuals": "Post-registration errors before and after the loop closure",
     "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg)",

@@ -21,6 +21,8 @@ rule loop_closure:
     params:
         folder=lambda wc: f"{RAW}/{wc.campaign}",
         settings=config["loop_closure"],
+        priors=config["priors"],
+        convergence=config["fit"]["cross_check"],
         seed=config["seed"],
     script:
         "../scripts/loop_closure.py"
