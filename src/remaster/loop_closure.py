@@ -418,18 +418,22 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, dict]) ->
 
 def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: BIC gain, validation RMSE and its fall,
-    the fraction of the residual it explains, and whether it was added."""
+    the fraction of the residual it explains, and whether it was added. A candidate `select`
+    skipped (nothing of it identifiable) has no scores: NaN, and the reason in the last column."""
     rows = []
+    nan = float("nan")
     for sensor, report in reports.items():
         for name, rounds in report["candidates"].items():
             for entry in rounds:
                 added = (entry["round"] <= len(report["effects_added"])
                          and report["effects_added"][entry["round"] - 1] == name)
+                skipped = "skipped" in entry
                 rows.append({"Sensor": sensor, "Round": entry["round"], "Candidate": name,
-                             "BIC gain": entry["bic_gain"], "Validation RMSE (mm)": entry["validation_rmse_mm"],
-                             "Validation fall (%)": 100.0 * entry["validation_gain"],
-                             "Explained (%)": 100.0 * entry.get("explained_fraction", float("nan")),
-                             "Added": "yes" if added else ""})
+                             "BIC gain": nan if skipped else entry["bic_gain"],
+                             "Validation RMSE (mm)": nan if skipped else entry["validation_rmse_mm"],
+                             "Validation fall (%)": nan if skipped else 100.0 * entry["validation_gain"],
+                             "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
+                             "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else ""})
     return pd.DataFrame(rows)
 
 
