@@ -210,3 +210,21 @@ def test_the_twin_is_explained_by_link_geometry_and_compliance(iiwa):
     assert report["before"]["validation"]["mean_error_mm"] > 1.0
     assert report["after"]["validation"]["mean_error_mm"] < 0.05
     assert report["after"]["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * NOISE
+
+
+def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
+    """A block with nothing identifiable (the marker offset when the tool never turns, kuka-cubes)
+    is listed without scores, not a KeyError."""
+    scored = {"round": 1, "log_evidence_gain": 60.0, "cv_rmse_mm": 0.5, "cv_gain": 0.25,
+              "cv_mse_fall_in_se": 4.0, "bic_gain": 120.0, "explained_fraction": 0.8, "passed": True}
+    report = {"effects_added": ["link_geometry"],
+              "candidates": {"link_geometry": [scored],
+                             "marker_offset": [{"round": 1, "skipped": "no parameter of this block is identifiable"},
+                                               {**scored, "round": 2, "bic_gain": 1.0}]}}
+    table = loop_closure.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
+    assert table.loc[("link_geometry", 1), "Added"] == "yes"
+    assert table.loc[("link_geometry", 1), "CV fall (%)"] == pytest.approx(25.0)
+    skipped = table.loc[("marker_offset", 1)]
+    assert skipped["Added"] == "skipped: no parameter of this block is identifiable"
+    assert np.isnan(skipped[["Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "BIC gain", "Explained (%)"]].to_numpy(float)).all()
+    assert table.loc[("marker_offset", 2), "BIC gain"] == 1.0 and table.loc[("marker_offset", 2), "Added"] == ""

@@ -120,3 +120,44 @@ def test_segment_distances_match_brute_force(rng):
                                axis=-1).min()
         distance = planning.segment_distances(a0, a1, b0, b1)
         assert distance <= brute + 1e-12 and distance >= brute - 1e-3
+
+
+def test_iso9283_points_lie_on_the_diagonal_plane_a_tenth_of_a_diagonal_from_its_corners():
+    centre, edge = np.array([0.3, -0.1, 0.6]), 0.25
+    points = planning.iso9283_points(centre, edge)
+    np.testing.assert_allclose(points[0], centre, atol=1e-15)  # P1
+    corners = centre + edge / 2 * np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1]])
+    normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
+    np.testing.assert_allclose((points - centre) @ normal, 0.0, atol=1e-15)
+    diagonal = edge * np.sqrt(3.0)
+    np.testing.assert_allclose(np.linalg.norm(points[1:] - corners, axis=1), 0.1 * diagonal, atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(points[1:] - centre, axis=1), 0.4 * diagonal, atol=1e-15)
+    # the plane holds the lower -x edge and the upper +x edge: it rises along x, level along y
+    assert normal[1] == 0.0 and normal[0] * normal[2] < 0
+
+
+def test_cube_plan_has_one_flange_orientation_and_the_designed_positions(iiwa):
+    cubes = [(np.array([-0.35, 0.0, 0.7]), 0.2), (np.array([0.0, 0.35, 0.68]), 0.2)]
+    rotation = planning.cube_orientation([c for c, _ in cubes], SENSOR, tool_angle=0.3)
+    direction = SENSOR - np.mean([c for c, _ in cubes], axis=0)
+    np.testing.assert_allclose(rotation[:, 2], direction / np.linalg.norm(direction), atol=1e-12)
+    sights = [planning.SightLine(SENSOR, MARKER)]
+    plan = planning.plan_cubes(iiwa, "validation", cubes, rotation, sights)
+    table = plan.table
+    assert list(table.columns) == ["set", "pose", "solution"] + [f"q{j}" for j in range(1, 8)]
+    assert (table["set"] == "validation").all() and plan.candidates == 10
+    assert table["pose"].nunique() + plan.discarded["unreachable_poses"] == 10
+    assert table["pose"].nunique() >= 6 and len(table) > table["pose"].nunique()
+    q = table[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    flange = kinematics.flange_poses(iiwa, q)
+    np.testing.assert_allclose(flange[:, :3, :3], np.broadcast_to(rotation, (len(q), 3, 3)), atol=1e-9)
+    designed = np.concatenate([planning.iso9283_points(c, e) for c, e in cubes])
+    gaps = np.linalg.norm(flange[:, None, :3, 3] - designed[None], axis=2)
+    assert gaps.min(axis=1).max() < 1e-9  # every configuration reaches a designed point
+    for pose, group in table.groupby("pose"):  # the solutions of one pose reach one point
+        assert len(set(gaps[group.index].argmin(axis=1))) == 1
+    # the same checks as the Latin-hypercube plan, and the same tour
+    assert np.all(iiwa.within_limits(q))
+    above, apart = planning.collision_free(iiwa, q, planning.CollisionModel())
+    assert above.all() and apart.all() and planning.marker_visible(iiwa, q, sights[0], planning.CollisionModel()).all()
+    np.testing.assert_array_equal(planning.nearest_neighbour_tour(q, start=np.zeros(7)), np.arange(len(q)))

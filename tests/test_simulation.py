@@ -3,12 +3,15 @@ deterministic and pass the reader, and the bundled twin is sized like the paper.
 
 import copy
 import hashlib
+import itertools
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from remaster import io, kinematics, scenario, spatial
+from remaster import io, kinematics, planning, scenario, spatial
+from remaster.errors import InputError
 from remaster.gravity import gravity_torques
 from remaster.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
 
@@ -140,3 +143,63 @@ def test_bundled_campaigns_are_what_the_scenarios_generate(iiwa):
                                    rtol=0, atol=1e-12)
         np.testing.assert_allclose(stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
                                    table[[f"q{j}" for j in range(1, 8)]].to_numpy(), rtol=0, atol=1e-12)
+
+
+def _cubes_of(spec, set_name):
+    return [(np.array(c["centre"]), c["edge"]) for c in spec["plan"]["sets"][set_name]["cubes"]]
+
+
+def test_cube_scenario_is_deterministic_and_matches_the_bundled_campaign(iiwa):
+    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    first = scenario.simulate(spec, iiwa)
+    second = scenario.simulate(copy.deepcopy(spec), iiwa)
+    assert first.truth == second.truth
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
+    assert set(campaign.sensors) == set(first.tables) == {"motion_capture", "laser_tracker"}
+    for name, table in first.tables.items():
+        pd.testing.assert_frame_equal(table, second.tables[name])
+        stored = campaign.sensors[name].table
+        columns = [f"q{j}" for j in range(1, 8)] + ["x", "y", "z"]
+        np.testing.assert_allclose(stored[columns].to_numpy(), table[columns].to_numpy(), rtol=0, atol=1e-12)
+        assert stored["set"].tolist() == table["set"].tolist()
+    assert campaign.sensors["laser_tracker"].n_missing == 2
+
+
+def test_bundled_cube_campaign_has_one_orientation_on_the_designed_cubes(iiwa):
+    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    twin = io.read_yaml(SCENARIOS / "kuka-twin.yaml")
+    assert spec["robot"] == twin["robot"] and spec["truth"] == twin["truth"] and spec["sensors"] == twin["sensors"]
+    truth = io.read_json(REPO / "data" / "truth" / "kuka-cubes.json")
+    assert truth["effects"] == io.read_json(REPO / "data" / "truth" / "kuka-twin.json")["effects"]  # the same links
+    rotation = np.array(truth["planning"]["flange_rotation"])
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
+    table = campaign.sensors["laser_tracker"].table
+    centres = {}
+    for set_name in ("optimization", "validation"):
+        rows = table[table["set"] == set_name]
+        assert rows["pose"].nunique() >= 30 and 140 <= len(rows) <= 190
+        q = rows[[f"q{j}" for j in range(1, 8)]].to_numpy()
+        flange = kinematics.flange_poses(iiwa, q)
+        np.testing.assert_allclose(flange[:, :3, :3], np.broadcast_to(rotation, (len(q), 3, 3)), atol=1e-9)
+        cubes = _cubes_of(spec, set_name)
+        designed = np.concatenate([planning.iso9283_points(c, e) for c, e in cubes])
+        gaps = np.linalg.norm(flange[:, None, :3, 3] - designed[None], axis=2)
+        assert gaps.min(axis=1).max() < 1e-9
+        centres[set_name] = {tuple(c) for c, _ in cubes}
+        for centre, edge in cubes:  # every cube wholly inside kuka-twin's workspace
+            corners = centre + edge / 2 * np.array(list(itertools.product([-1, 1], repeat=3)))
+            square = centre[:2] + edge / 2 * np.clip(-centre[:2] / (edge / 2), -1, 1)  # nearest point to the axis
+            assert np.linalg.norm(corners[:, :2], axis=1).max() <= 0.5 and np.linalg.norm(square) >= 0.2
+            assert corners[:, 2].min() >= 0.4 and corners[:, 2].max() <= 0.8
+    assert not centres["optimization"] & centres["validation"]
+
+
+def test_an_unknown_plan_design_is_refused(iiwa):
+    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    spec["plan"]["design"] = "iso9283_cube"
+    with pytest.raises(InputError, match="plan/design: unknown design 'iso9283_cube'"):
+        scenario.simulate(spec, iiwa)
+    spec["plan"]["design"] = "iso9283_cubes"
+    spec["plan"]["sets"]["validation"]["cubes"][1] = {"centre": [0.1, 0.3], "edge": 0.2}
+    with pytest.raises(InputError, match="plan/sets/validation/cubes/1"):
+        scenario.simulate(spec, iiwa)

@@ -472,21 +472,24 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, dict]) ->
 def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
-    whether it was added."""
+    whether it was added. A candidate `select` skipped (nothing of it identifiable) has no scores:
+    NaN, and the reason in the last column."""
     rows = []
+    nan = float("nan")
     for sensor, report in reports.items():
         for name, rounds in report["candidates"].items():
             for entry in rounds:
                 added = (entry["round"] <= len(report["effects_added"])
                          and report["effects_added"][entry["round"] - 1] == name)
+                skipped = "skipped" in entry
                 rows.append({"Sensor": sensor, "Round": entry["round"], "Candidate": name,
-                             "Log evidence gain": entry.get("log_evidence_gain", np.nan),
-                             "CV RMSE (mm)": entry.get("cv_rmse_mm", np.nan),
-                             "CV fall (%)": 100.0 * entry.get("cv_gain", np.nan),
-                             "CV fall / SE": entry.get("cv_mse_fall_in_se", np.nan),
-                             "BIC gain": entry.get("bic_gain", np.nan),
-                             "Explained (%)": 100.0 * entry.get("explained_fraction", np.nan),
-                             "Added": "yes" if added else ""})
+                             "Log evidence gain": entry.get("log_evidence_gain", nan),
+                             "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
+                             "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
+                             "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
+                             "BIC gain": entry.get("bic_gain", nan),
+                             "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
+                             "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else ""})
     return pd.DataFrame(rows)
 
 

@@ -6,6 +6,10 @@ xaxis, yaxis, rotation_new). Every inverse-kinematics solution of every pose is 
 configuration; those outside joint limits, below the floor, self-colliding (a capsule model of
 the links) or whose marker a link hides from a sensor are discarded, and the rest are ordered
 by a nearest-neighbour tour in joint space.
+
+A second design, ISO 9283 cube poses (`plan_cubes`), keeps the positions of the standard's cube
+test and one flange orientation for every pose, so the tool axis never changes direction; it
+goes through the same checks and tour and gives a table of the same format.
 """
 
 from __future__ import annotations
@@ -225,6 +229,20 @@ def usable_solutions(chain: KinematicChain, pose, sights, model: CollisionModel,
     return every[keep], reasons
 
 
+def _usable_poses(chain: KinematicChain, poses, sights, model: CollisionModel, q3: float,
+                  solver: SRSInverseKinematics, poses_out: list, discarded: dict) -> None:
+    """Append the usable solutions (k, N) of each flange pose (4, 4) that has any to `poses_out`,
+    and add what was discarded, and why, to `discarded`."""
+    for pose in poses:
+        solutions, reasons = usable_solutions(chain, pose, sights, model, q3, solver)
+        for reason, count in reasons.items():
+            discarded[reason] = discarded.get(reason, 0) + count
+        if len(solutions):
+            poses_out.append(solutions)
+        else:
+            discarded["unreachable_poses"] += 1
+
+
 def plan_set(chain: KinematicChain, set_name: str, target, sights, rng: np.random.Generator, *,
              candidates: int = 60, n_poses: int | None = None, n_configurations: int | None = None,
              workspace: Workspace = Workspace(), model: CollisionModel = CollisionModel(), q3: float = 0.0,
@@ -239,15 +257,9 @@ def plan_set(chain: KinematicChain, set_name: str, target, sights, rng: np.rando
     poses, discarded = [], {"unreachable_poses": 0}
     drawn = 0
     for _ in range(max_batches):
-        for pose in candidate_poses(candidates, target, rng, workspace):
-            drawn += 1
-            solutions, reasons = usable_solutions(chain, pose, sights, model, q3, solver)
-            for reason, count in reasons.items():
-                discarded[reason] = discarded.get(reason, 0) + count
-            if len(solutions):
-                poses.append(solutions)
-            else:
-                discarded["unreachable_poses"] += 1
+        batch = candidate_poses(candidates, target, rng, workspace)
+        drawn += len(batch)
+        _usable_poses(chain, batch, sights, model, q3, solver, poses, discarded)
         if n_poses is None:
             break
         counts = [len(s) for s in poses]
@@ -261,6 +273,50 @@ def plan_set(chain: KinematicChain, set_name: str, target, sights, rng: np.rando
         raise InputError(f"{set_name}: {max_batches} batches of {candidates} candidates did not give "
                          f"{n_poses} poses with {n_configurations} configurations", key="plan")
     return Plan(_toured_table(chain, set_name, poses), discarded, drawn)
+
+
+# Corners of the cube's diagonal plane, in units of half an edge from its centre along the base
+# axes: the lower edge at -x and the upper edge at +x, both parallel to y. Each corner's
+# opposite corner on the plane is two places on.
+ISO9283_PLANE_CORNERS = np.array([[-1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [1.0, 1.0, 1.0], [1.0, -1.0, 1.0]])
+ISO9283_CORNER_FRACTION = 0.1  # P2..P5 lie this fraction of a diagonal in from its ends
+
+
+def iso9283_points(centre, edge: float) -> np.ndarray:
+    """The five ISO 9283 measuring points (5, 3) m of a cube of `edge` m centred at `centre` (3,) m
+    with its edges parallel to the base axes: P1 the centre, then P2..P5 on the diagonals of the
+    diagonal plane through the cube's lower -x edge and upper +x edge, each 10 % of that
+    diagonal (edge * sqrt(3)) in from the corners (-x,-y), (-x,+y), (+x,+y), (+x,-y) in turn."""
+    centre = np.asarray(centre, dtype=float)
+    corners = centre + 0.5 * float(edge) * ISO9283_PLANE_CORNERS
+    opposite = np.roll(corners, 2, axis=0)
+    return np.vstack([centre, corners + ISO9283_CORNER_FRACTION * (opposite - corners)])
+
+
+def cube_orientation(centres, target, tool_angle: float = 0.0) -> np.ndarray:
+    """The one flange rotation (3, 3) of a cube campaign: tool Z from the mean of the cube
+    centres (k, 3) m towards `target` (3,) m, turned by `tool_angle` rad about it (as
+    `pointing_pose`)."""
+    return pointing_pose(np.mean(np.atleast_2d(centres), axis=0), target, tool_angle)[:3, :3]
+
+
+def plan_cubes(chain: KinematicChain, set_name: str, cubes, rotation, sights, *,
+               model: CollisionModel = CollisionModel(), q3: float = 0.0) -> Plan:
+    """Plan one set from ISO 9283 cube poses.
+
+    `cubes` is a sequence of (centre (3,) m, edge m); each cube gives its five ISO 9283 points
+    (`iso9283_points`), so a set of c cubes has 5 c candidate poses. Every pose has the flange
+    rotation `rotation` (3, 3), the same for the whole campaign (`cube_orientation`), so the data
+    never turn the tool axis: the design of a cube test, and what a calibration fitted on it
+    lacks. Every usable inverse-kinematics solution of each pose is kept, after the checks of
+    `plan_set`; a pose with none is counted as unreachable. The design is fixed: no randomness.
+    """
+    rotation = np.asarray(rotation, dtype=float)
+    points = np.concatenate([iso9283_points(centre, edge) for centre, edge in cubes]) if len(cubes) else np.zeros((0, 3))
+    poses, discarded = [], {"unreachable_poses": 0}
+    _usable_poses(chain, [spatial.homogeneous(rotation, p) for p in points], sights, model, q3,
+                  SRSInverseKinematics(chain), poses, discarded)
+    return Plan(_toured_table(chain, set_name, poses), discarded, len(points))
 
 
 def _toured_table(chain: KinematicChain, set_name: str, poses) -> pd.DataFrame:

@@ -93,6 +93,28 @@ def estimated_sensor_origin(chain: KinematicChain, robot: TrueRobot, sensor: Sen
     return np.linalg.inv(t_nr)[:3, 3]
 
 
+LATIN_HYPERCUBE = "latin_hypercube"  # the paper's design, the default
+ISO9283_CUBES = "iso9283_cubes"
+
+
+def _cubes(size: dict, where: str) -> list[tuple[np.ndarray, float]]:
+    """The (centre (3,) m, edge m) pairs of one set of a cube design."""
+    cubes = size.get("cubes")
+    if not cubes or not isinstance(cubes, list):
+        raise InputError("a set of the iso9283_cubes design needs a list of cubes", key=f"{where}/cubes")
+    out = []
+    for i, cube in enumerate(cubes):
+        key = f"{where}/cubes/{i}"
+        if not isinstance(cube, dict):
+            raise InputError("a cube is a mapping {centre: [x, y, z], edge: e} (m)", key=key)
+        centre = _vector(cube, "centre", 3, where=key)
+        edge = cube.get("edge")
+        if centre is None or not isinstance(edge, (int, float)) or not edge > 0:
+            raise InputError("a cube needs a centre (3 numbers, m) and an edge > 0 (m)", key=key)
+        out.append((centre, float(edge)))
+    return out
+
+
 def copies(spec: dict, count: int | None, seed: int | None = None):
     """(scenario, seed) pairs: the scenario itself, or `count` copies named <name>-001, ... with
     consecutive seeds from `seed` (default the scenario's), for a simulated fleet."""
@@ -112,12 +134,23 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
     target = estimated_sensor_origin(chain, robot, reference, rng)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
+    design = plan_spec.get("design", LATIN_HYPERCUBE)
+    if design not in (LATIN_HYPERCUBE, ISO9283_CUBES):
+        raise InputError(f"unknown design {design!r} (known: {LATIN_HYPERCUBE}, {ISO9283_CUBES})", key="plan/design")
+    q3 = float(plan_spec.get("q3", 0.0))
+    if design == ISO9283_CUBES:
+        cubes = {set_name: _cubes(size, f"plan/sets/{set_name}") for set_name, size in plan_spec["sets"].items()}
+        rotation = planning.cube_orientation([centre for each in cubes.values() for centre, _ in each], target,
+                                             float(plan_spec.get("tool_angle", 0.0)))
     tables = []
     discarded = {}
     for set_name, size in plan_spec["sets"].items():
-        plan = planning.plan_set(chain, set_name, target, sights, rng, candidates=int(plan_spec["candidates"]),
-                                 n_poses=size.get("poses"), n_configurations=size.get("configurations"),
-                                 model=collision, q3=float(plan_spec.get("q3", 0.0)))
+        if design == ISO9283_CUBES:
+            plan = planning.plan_cubes(chain, set_name, cubes[set_name], rotation, sights, model=collision, q3=q3)
+        else:
+            plan = planning.plan_set(chain, set_name, target, sights, rng, candidates=int(plan_spec["candidates"]),
+                                     n_poses=size.get("poses"), n_configurations=size.get("configurations"),
+                                     model=collision, q3=q3)
         tables.append(plan.table)
         discarded[set_name] = {"candidate_poses": plan.candidates, **plan.discarded}
     readings = pd.concat(tables, ignore_index=True)
@@ -153,6 +186,9 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         "sensors": truth_sensors,
         "planning": {"estimated_reference_sensor_origin_m": target.tolist(), "discarded": discarded},
     }
+    if design == ISO9283_CUBES:
+        # the Latin-hypercube truth files stay as they were; a cube campaign records its one orientation
+        truth["planning"].update(design=design, flange_rotation=rotation.tolist())
     return SimulatedCampaign(metadata, out_tables, truth)
 
 
