@@ -33,5 +33,7 @@ rule all:
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_residuals_{{sensor}}.png"),
         expand(f"{RESULTS}/comparison/{{table}}.md", table=COMPARISON_TABLES),
         expand(f"{RESULTS}/comparison/{{figure}}_{{robot}}.png", figure=COMPARISON_FIGURES, robot=ROBOTS),
+        expand(f"{RESULTS}/comparison/{{table}}.md", table=PREDICTION_COMPARISON_TABLES),
+        expand(f"{RESULTS}/comparison/transfer_{{model}}_{{robot}}.png", model=TRANSFER_MODELS, robot=ROBOTS),
         f"{RESULTS}/report.html",
     default_target: True

@@ -182,11 +182,11 @@ def loop(compliance=None, marker=None, q2=(0.3, 0.009)):
 
 LOOP_ENTRIES = [
     comparison.Entry("kuka-twin-2019", "2019-06-18", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
-                     loop(compliance=(26.0, 0.5), q2=(0.34, 0.009))),
+                     loop(compliance=(26.0, 0.5), marker=(0.3, 0.01), q2=(0.34, 0.009))),
     comparison.Entry("kuka-twin", "2018-06-12", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
                      loop(compliance=(24.0, 0.5), marker=(0.2, 0.01))),
     comparison.Entry("kuka-twin", "2018-06-12", "motion_capture", summary([0.1], [0.01]), ROBOT, "motion_capture",
-                     loop(marker=(5.0, 0.1))),
+                     loop(compliance=(24.0, 0.5), marker=(5.0, 0.1))),
     comparison.Entry("no-loop", "2018-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker"),
 ]
 
@@ -205,7 +205,7 @@ def test_loop_parameters_over_time_keep_display_units_and_leave_out_setup():
     assert table["campaign"].iloc[0] == "kuka-twin" and table["sensor"].iloc[0] == "motion_capture"  # date, paper order
 
 
-def test_loop_parameter_drift_compares_effects_present_in_both_campaigns():
+def test_loop_parameter_drift_compares_models_of_the_same_effects():
     drift = comparison.loop_parameter_drift(LOOP_ENTRIES)
     assert list(drift.columns) == comparison.LOOP_DRIFT_COLUMNS
     assert set(drift["campaign_a"]) == {"kuka-twin"} and set(drift["campaign_b"]) == {"kuka-twin-2019"}
@@ -216,7 +216,7 @@ def test_loop_parameter_drift_compares_effects_present_in_both_campaigns():
     assert not compliance["flagged"] and compliance["status"] == "compared"
     q2 = rows.loc["zero_offsets.q2"]  # 0.30 -> 0.34 deg, std 0.009 each: z = 3.14
     assert q2["flagged"] and q2["z"] == pytest.approx(0.04 / (0.009 * math.sqrt(2)))
-    assert rows.loc["marker_offset.x", "status"] == "not comparable: missing in kuka-twin-2019"
+    assert rows.loc["marker_offset.x", "status"] == "compared"
     assert rows.loc["joint_compliance.q1", "status"].startswith("not comparable: invisible in kuka-twin (no torque)")
 
 
@@ -227,7 +227,23 @@ def test_loop_parameter_agreement_leaves_out_each_sensors_own_blocks():
     rows = agreement.set_index("parameter")
     assert "marker_offset.x" not in rows.index  # each sensor has its own marker
     assert rows.loc["zero_offsets.q2", "status"] == "compared" and rows.loc["zero_offsets.q2", "diff"] == 0.0
-    assert rows.loc["joint_compliance.q2", "status"] == "not comparable: missing in motion_capture"
+    assert rows.loc["joint_compliance.q2", "status"] == "compared" and rows.loc["joint_compliance.q2", "diff"] == 0.0
+
+
+def test_loop_parameters_of_models_with_different_effects_are_not_compared():
+    """A zero-offset fitted beside other effects is another quantity: no z between such models,
+    over time and between sensors (marker offsets count, though agreement leaves them out)."""
+    differ = [LOOP_ENTRIES[0]._replace(loop=loop(q2=(0.34, 0.009))), *LOOP_ENTRIES[1:3]]
+    drift = comparison.loop_parameter_drift(differ)
+    expected = "not comparable: models differ (joint_compliance + marker_offset vs none)"
+    assert len(drift) == 4 and (drift["status"] == expected).all()
+    assert drift["z"].isna().all() and not drift["flagged"].any()
+    sensors = [LOOP_ENTRIES[1], LOOP_ENTRIES[2]._replace(loop=loop(compliance=(24.0, 0.5)))]
+    agreement = comparison.loop_parameter_agreement(sensors)
+    assert (agreement["status"] == "not comparable: models differ (joint_compliance vs joint_compliance + "
+                                   "marker_offset)").all() and agreement["z"].isna().all()  # motion capture first
+    over_time = comparison.loop_parameters_over_time(differ)
+    assert set(over_time["effects"]) == {"joint_compliance + marker_offset", "none"}
 
 
 def test_loop_parameters_in_other_units_are_not_compared():

@@ -52,7 +52,8 @@ AGREEMENT_COLUMNS = ["campaign", "date", "robot", "parameter", "sensor_a", "sens
 CAMPAIGN_BLOCKS = ("registration", "noise")
 SENSOR_BLOCKS = ("marker_offset", "sensor_scale")
 LOOP_OVER_TIME_COLUMNS = ["campaign", "date", "robot", "sensor", "kind", "block", "parameter", "unit", "mean", "std",
-                          "status"]
+                          "status", "effects"]
+NO_EFFECTS = "none"  # the effects of a loop-closure model that added none (the paper's blocks only)
 _LOOP_PAIR_COLUMNS = [c.removesuffix("_deg") for c in _PAIR_COLUMNS]
 LOOP_DRIFT_COLUMNS = ["robot", "kind", "block", "parameter", "unit", "campaign_a", "date_a", "sensor_a", "campaign_b",
                       "date_b", "sensor_b"] + _LOOP_PAIR_COLUMNS
@@ -215,7 +216,15 @@ def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, signi
              unit: str = "_deg") -> pd.DataFrame:
     """Per parameter of a or b (rows of an over-time table, parameters in a's order then b's): the
     pair columns of b - a, named with `unit` ('_deg': mean_a_deg, ...; '': mean_a, ...). Where the
-    rows carry a `unit` column, estimates in different units are not comparable."""
+    rows carry a `unit` column, estimates in different units are not comparable. Where they carry
+    an `effects` column (loop-closure models) and the two models' effects differ, no parameter is:
+    a zero-offset fitted beside other effects is another quantity (compare such models by what
+    they predict, `remaster.prediction`)."""
+    differ = None
+    if "effects" in a.columns and "effects" in b.columns and len(a) and len(b):
+        effects_a, effects_b = str(a["effects"].iloc[0]), str(b["effects"].iloc[0])
+        if effects_a != effects_b:
+            differ = f"models differ ({effects_a} vs {effects_b})"
     a, b = a.set_index("parameter"), b.set_index("parameter")
     mean, std = f"mean{unit}", f"std{unit}"
     rows = []
@@ -238,6 +247,8 @@ def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, signi
         combined = float(np.hypot(row[f"std_a{unit}"], row[f"std_b{unit}"]))
         if not why and not combined > 0:
             why.append("zero combined std")
+        if differ:
+            why = [differ]
         if why:
             row.update({f"diff{unit}": np.nan, f"combined_std{unit}": np.nan, "z": np.nan, "flagged": False,
                         "status": "not comparable: " + "; ".join(why)})
@@ -255,37 +266,53 @@ def _described(pairs: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     return pairs.assign(block=pairs["parameter"].map(known["block"]), unit=pairs["parameter"].map(known["unit"]))
 
 
-def _drift_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd.DataFrame]:
-    """`_compare` of consecutive campaigns within each (robot, kind) of an over-time table."""
-    pairs = []
+def consecutive_pairs(table: pd.DataFrame):
+    """(robot, kind, rows of a, rows of b) for consecutive campaigns a, b within each (robot,
+    kind) of an over-time table (campaigns ordered by date, then name), every sensor of that kind
+    in a with every one in b."""
     for (robot, kind), group in table.groupby(["robot", "kind"], sort=True):
         campaigns = group[["date", "campaign"]].drop_duplicates().sort_values(["date", "campaign"])
         names = campaigns["campaign"].tolist()
         for first, second in zip(names, names[1:]):
-            for sensor_a, a in group[group["campaign"] == first].groupby("sensor", sort=False):
-                for sensor_b, b in group[group["campaign"] == second].groupby("sensor", sort=False):
-                    pair = _compare(a, b, first, second, significance, unit)
-                    if "block" in table.columns:
-                        pair = _described(pair, pd.concat([a, b]))
-                    pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
-                                             sensor_a=sensor_a, campaign_b=second, date_b=b["date"].iloc[0],
-                                             sensor_b=sensor_b))
+            for _, a in group[group["campaign"] == first].groupby("sensor", sort=False):
+                for _, b in group[group["campaign"] == second].groupby("sensor", sort=False):
+                    yield robot, kind, a, b
+
+
+def sensor_pairs(table: pd.DataFrame):
+    """(rows of sensor a, rows of sensor b) for each pair of sensors within each campaign of an
+    over-time table, sensors in the paper's order (a the earlier)."""
+    for _, group in table.groupby("campaign", sort=False):
+        sensors = paper_order(group["sensor"].unique())
+        for i, sensor_a in enumerate(sensors):
+            for sensor_b in sensors[i + 1:]:
+                yield group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
+
+
+def _drift_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd.DataFrame]:
+    """`_compare` of consecutive campaigns within each (robot, kind) of an over-time table."""
+    pairs = []
+    for robot, kind, a, b in consecutive_pairs(table):
+        first, second = a["campaign"].iloc[0], b["campaign"].iloc[0]
+        pair = _compare(a, b, first, second, significance, unit)
+        if "block" in table.columns:
+            pair = _described(pair, pd.concat([a, b]))
+        pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
+                                 sensor_a=a["sensor"].iloc[0], campaign_b=second, date_b=b["date"].iloc[0],
+                                 sensor_b=b["sensor"].iloc[0]))
     return pairs
 
 
 def _agreement_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd.DataFrame]:
     """`_compare` of each pair of sensors within each campaign of an over-time table."""
     pairs = []
-    for campaign, group in table.groupby("campaign", sort=False):
-        sensors = paper_order(group["sensor"].unique())
-        for i, sensor_a in enumerate(sensors):
-            for sensor_b in sensors[i + 1:]:
-                a, b = group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
-                pair = _compare(a, b, sensor_a, sensor_b, significance, unit)
-                if "block" in table.columns:
-                    pair = _described(pair, pd.concat([a, b]))
-                pairs.append(pair.assign(campaign=campaign, date=a["date"].iloc[0], robot=a["robot"].iloc[0],
-                                         sensor_a=sensor_a, sensor_b=sensor_b))
+    for a, b in sensor_pairs(table):
+        sensor_a, sensor_b = a["sensor"].iloc[0], b["sensor"].iloc[0]
+        pair = _compare(a, b, sensor_a, sensor_b, significance, unit)
+        if "block" in table.columns:
+            pair = _described(pair, pd.concat([a, b]))
+        pairs.append(pair.assign(campaign=a["campaign"].iloc[0], date=a["date"].iloc[0], robot=a["robot"].iloc[0],
+                                 sensor_a=sensor_a, sensor_b=sensor_b))
     return pairs
 
 
@@ -334,7 +361,16 @@ def _loop_rows(entry: Entry, label: str) -> pd.DataFrame | None:
     return pd.DataFrame({"block": rows["block"].astype(str), "parameter": rows["parameter"].astype(str),
                          "unit": rows["unit"].astype(str), "mean": rows["mean_display"].astype(float),
                          "std": rows["std_display"].astype(float).where(estimated),
-                         "status": rows["status"].astype(str)}).reset_index(drop=True)
+                         "status": rows["status"].astype(str), "effects": loop_effects(loop)}).reset_index(drop=True)
+
+
+def loop_effects(loop: pd.DataFrame) -> str:
+    """The effects of a loop-closure model from its whole parameter table (every block's
+    parameters are listed, held ones too), in model order: 'link_geometry + joint_compliance',
+    NO_EFFECTS for the paper's blocks only."""
+    base = {"zero_offsets", *CAMPAIGN_BLOCKS}
+    effects = [b for b in dict.fromkeys(loop["block"].astype(str)) if b not in base]
+    return " + ".join(effects) or NO_EFFECTS
 
 
 def loop_parameters_over_time(entries: Iterable) -> pd.DataFrame:
@@ -349,14 +385,16 @@ def loop_parameters_over_time(entries: Iterable) -> pd.DataFrame:
 
 
 def loop_parameter_drift(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
-    """`drift_between` for the loop-closure parameters (LOOP_DRIFT_COLUMNS, display units): an
-    effect added in one campaign only is 'not comparable: missing in <campaign>'."""
+    """`drift_between` for the loop-closure parameters (LOOP_DRIFT_COLUMNS, display units), between
+    models of the same effects only: where the two campaigns' loop closures added different effects,
+    every row is 'not comparable: models differ (<effects a> vs <effects b>)', without z."""
     return _joined(_drift_pairs(loop_parameters_over_time(entries), significance, ""), LOOP_DRIFT_COLUMNS)
 
 
 def loop_parameter_agreement(entries: Iterable, significance: float = 3.0) -> pd.DataFrame:
     """`sensor_agreement` for the loop-closure parameters (LOOP_AGREEMENT_COLUMNS, display units),
-    SENSOR_BLOCKS left out: each sensor has its own marker and scale."""
+    SENSOR_BLOCKS left out: each sensor has its own marker and scale. Models of different effects
+    (those blocks included) are not comparable, as in `loop_parameter_drift`."""
     table = loop_parameters_over_time(entries)
     table = table[~table["block"].isin(SENSOR_BLOCKS)]
     return _joined(_agreement_pairs(table, significance, ""), LOOP_AGREEMENT_COLUMNS)

@@ -118,3 +118,43 @@ def loop_effects_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure
     parameters = first.assign(rank=rank).sort_values("rank", kind="stable")["parameter"].tolist()
     units = first.set_index("parameter")["unit"].to_dict()
     return _over_time(effects, title, parameters, "mean", "std", units, lambda name: name)
+
+
+def transfer_figure(table: pd.DataFrame, title: str) -> plt.Figure:
+    """Heat-map of one robot's transfer table for one model: one panel per sensor, rows the
+    campaign calibrated on, columns the campaign evaluated on (both in the table's order, date
+    order from `transfer.transfer_table`), colour and number the validation RMSE (mm); the
+    diagonal is each campaign's own validation.
+
+    `table`: `transfer.transfer_table` rows of one robot and one model (ValueError otherwise).
+    """
+    if table.empty:
+        raise ValueError("no transfer rows to draw")
+    _one_robot(table)
+    if table["model"].nunique() > 1:
+        raise ValueError(f"rows of models {sorted(table['model'].unique())}: draw one model at a time")
+    sensors = paper_order(table["sensor"].unique())
+    campaigns = list(dict.fromkeys([*table["calibrated_on"], *table["evaluated_on"]]))
+    side = max(2.6, 0.55 * len(campaigns) + 1.6)
+    fig, axes = _grid(len(sensors), panel_width=side + 0.8, panel_height=side, max_columns=2)
+    finite = table["rmse_mm"].to_numpy(dtype=float)
+    finite = finite[np.isfinite(finite)]
+    top = float(finite.max()) if finite.size else 1.0
+    for ax, sensor in zip(axes, sensors):
+        rows = table[table["sensor"] == sensor]
+        grid = (rows.pivot(index="calibrated_on", columns="evaluated_on", values="rmse_mm")
+                .reindex(index=campaigns, columns=campaigns).to_numpy(dtype=float))
+        image = ax.imshow(grid, cmap="viridis", vmin=0.0, vmax=top if top > 0 else 1.0)
+        for (i, j), value in np.ndenumerate(grid):
+            if np.isfinite(value):  # dark text on the light end of the scale
+                ax.text(j, i, f"{value:.3g}", ha="center", va="center", fontsize=7,
+                        color="black" if value > 0.6 * top else "white")
+        ax.set_xticks(range(len(campaigns)), campaigns, fontsize=6, rotation=90 if len(campaigns) > 3 else 0)
+        ax.set_yticks(range(len(campaigns)), campaigns, fontsize=6)
+        ax.set_xlabel("evaluated on", fontsize=8)
+        ax.set_ylabel("calibrated on", fontsize=8)
+        ax.set_title(sensor_label(sensor), fontsize=9)
+        fig.colorbar(image, ax=ax, fraction=0.046, pad=0.04).set_label("validation RMSE (mm)", fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

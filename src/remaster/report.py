@@ -24,6 +24,19 @@ figure { margin: 1em 0 2em; } figure img { max-width: 100%; } figcaption, captio
 """
 
 
+PREDICTION_NOTES = (
+    "Transfer: each campaign's calibration (rows, calibrated on) applied to each campaign of the same robot "
+    "and sensor (columns, evaluated on), the registration refitted there with the calibration's kinematics "
+    "frozen. The diagonal is each campaign's own validation; off the diagonal is what the calibration is worth "
+    "on another campaign of the robot: close to the diagonal, the robot has not changed; larger, it has (or "
+    "the calibration fitted that campaign's set-up). The nominal rows are the robot as the controller knows it.",
+    "Drift and agreement by prediction: the change of predicted marker position (robot frame) over one fixed "
+    "set of random configurations of the robot, at the posterior means (mean_mm, p95_mm). It is flagged when "
+    "its mean exceeds null_p95_of_mean_mm, the 95th percentile of the same mean under posterior uncertainty "
+    "alone: unlike the parameter tables, it stays meaningful between models of different effects.",
+)
+
+
 @dataclass
 class Section:
     """A part of the report: a title, notes (plain text paragraphs), tables and figures."""
@@ -118,12 +131,14 @@ def overview(campaigns: dict[str, dict]) -> pd.DataFrame:
 
 
 def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "remaster report",
-          audit: dict | None = None, comparison: dict | None = None) -> str:
+          audit: dict | None = None, comparison: dict | None = None, prediction: dict | None = None) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "tables":
     {table name: DataFrame}, "figures": {figure name: PNG bytes}}, shown in measurement-date order
     (then by name), so a robot's history reads forward as in the comparison;
     captions: table or figure name (figure names may end in _<sensor>) -> caption; comparison:
-    {"tables": ..., "figures": ...} across campaigns; audit: the run's `audit.audit_record`, shown last."""
+    {"tables": ..., "figures": ...} across campaigns; prediction: the same for the transfer table,
+    its heat-maps and the comparisons by prediction (`PREDICTION_NOTES`); audit: the run's
+    `audit.audit_record`, shown last."""
 
     def caption(name: str) -> str:
         for key in sorted(captions, key=len, reverse=True):
@@ -153,6 +168,10 @@ def build(campaigns: dict[str, dict], captions: dict[str, str], title: str = "re
                                  "it added, and those effects' parameters)."],
                                 [(caption(t), table) for t, table in comparison["tables"].items()],
                                 [(caption(f), png) for f, png in comparison["figures"].items()]))
+    if prediction is not None:
+        sections.append(Section("Transfer and comparison by prediction", list(PREDICTION_NOTES),
+                                [(caption(t), table) for t, table in prediction["tables"].items()],
+                                [(caption(f), png) for f, png in prediction["figures"].items()]))
     if audit is not None:
         sections.append(audit_section(audit))
     return render(title, intro, sections)

@@ -62,3 +62,79 @@ for _figure, _drawn in COMPARISON_FIGURES.items():
             figure=_figure,
         script:
             "../scripts/comparison_figure.py"
+
+
+# Comparison by prediction: each campaign's calibration on the other campaigns of its robot
+# (transfer), and drift and agreement as the change of predicted marker positions.
+from types import SimpleNamespace
+
+from remaster.prediction import MODELS as TRANSFER_MODELS, PREDICTION_TABLES
+
+PREDICTION_COMPARISON_TABLES = ["transfer", *PREDICTION_TABLES]
+
+
+def calibration_inputs(samples):
+    """Campaign folders' files, fit summaries, Laplace and loop-closure reports of every (campaign,
+    sensor); with `samples`, the posterior samples of both models too."""
+    inputs = {"campaigns": [f for c in CAMPAIGNS for f in campaign_files(SimpleNamespace(campaign=c))],
+              "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv"),
+              "laplaces": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
+              "loops": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json")}
+    if samples:
+        inputs["paper_samples"] = every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/samples_default.parquet")
+        inputs["loop_samples"] = every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure/samples.parquet")
+    return inputs
+
+
+rule comparison_transfer:
+    input:
+        **calibration_inputs(samples=False),
+    output:
+        multiext(f"{COMPARISON}/transfer", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/comparison/transfer.log",
+    params:
+        folders={c: f"{RAW}/{c}" for c in CAMPAIGNS},
+        pairs=[(c, s) for c in CAMPAIGNS for s in sensors_of(c)],
+    script:
+        "../scripts/comparison_transfer.py"
+
+
+for _table in PREDICTION_TABLES:
+
+    rule:
+        name:
+            f"comparison_{_table}"
+        input:
+            **calibration_inputs(samples=True),
+        output:
+            multiext(f"{COMPARISON}/{_table}", ".csv", ".md", ".tex"),
+        log:
+            f"{RESULTS}/logs/comparison/{_table}.log",
+        params:
+            folders={c: f"{RAW}/{c}" for c in CAMPAIGNS},
+            pairs=[(c, s) for c in CAMPAIGNS for s in sensors_of(c)],
+            table=_table,
+            seed=config["seed"],
+            random_configurations=config["comparison"]["random_configurations"],
+            draw_pairs=config["comparison"]["draw_pairs"],
+        script:
+            "../scripts/comparison_prediction.py"
+
+
+for _model in TRANSFER_MODELS:
+
+    rule:
+        name:
+            f"comparison_figure_transfer_{_model}"
+        input:
+            f"{COMPARISON}/transfer.csv",
+        output:
+            multiext(f"{COMPARISON}/transfer_{_model}_{{robot}}", ".png", ".pdf"),
+        log:
+            f"{RESULTS}/logs/comparison/transfer_{_model}_{{robot}}.log",
+        params:
+            identity=lambda wc: ROBOTS[wc.robot],
+            model=_model,
+        script:
+            "../scripts/comparison_transfer_figure.py"

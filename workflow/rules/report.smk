@@ -64,9 +64,16 @@ def comparison_layout():
             "figures": {f"{f}_{r}": f"{COMPARISON}/{f}_{r}.png" for f in COMPARISON_FIGURES for r in ROBOTS}}
 
 
+def prediction_layout():
+    """The transfer table and the comparisons by prediction, with the transfer heat-maps."""
+    return {"tables": {t: f"{COMPARISON}/{t}.csv" for t in PREDICTION_COMPARISON_TABLES},
+            "figures": {f"transfer_{m}_{r}": f"{COMPARISON}/transfer_{m}_{r}.png" for m in TRANSFER_MODELS
+                        for r in ROBOTS}}
+
+
 def report_files(wildcards=None):
     files = []
-    for part in [*report_layout().values(), comparison_layout()]:
+    for part in [*report_layout().values(), comparison_layout(), prediction_layout()]:
         files += [*([part["summary"]] if "summary" in part else []), *part["tables"].values(), *part["figures"].values()]
     return files
 
@@ -82,5 +89,6 @@ rule report:
     params:
         layout=report_layout(),
         comparison=comparison_layout(),
+        prediction=prediction_layout(),
     script:
         "../scripts/report.py"

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from remaster import io, report, tables
+from remaster import io, prediction, report, tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     campaigns = {
@@ -14,6 +14,10 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     layout = snakemake.params.comparison  # noqa: F821
     comparison = {"tables": {t: io.read_csv(p) for t, p in layout["tables"].items()},
                   "figures": {f: Path(p).read_bytes() for f, p in layout["figures"].items()}}
-    page = report.build(campaigns, tables.CAPTIONS, audit=io.read_json(snakemake.input.audit),  # noqa: F821
-                        comparison=comparison)
+    layout = snakemake.params.prediction  # noqa: F821
+    predicted = {"tables": {t: io.read_csv(p) for t, p in layout["tables"].items()},
+                 "figures": {f: Path(p).read_bytes() for f, p in layout["figures"].items()}}
+    page = report.build(campaigns, {**tables.CAPTIONS, **prediction.CAPTIONS},
+                        audit=io.read_json(snakemake.input.audit), comparison=comparison,  # noqa: F821
+                        prediction=predicted)
     Path(snakemake.output.html).write_text(page, encoding="utf-8")  # noqa: F821

@@ -1,0 +1,185 @@
+"""Transfer between campaigns of one robot and the comparison of calibrations by prediction, on
+small synthetic campaigns with known answers."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+
+from remaster import figures_comparison, prediction, registration, spatial, transfer
+from remaster.blocks import ModelSettings, link_labels
+from remaster.campaign import SensorData
+from remaster.kinematics import ForwardKinematics
+from remaster.metrics import random_configurations
+from remaster.model import MM
+
+MARKER = np.array([-0.1, 0.0, 0.02])
+ROBOT = "serial:test-arm"
+OFFSETS = np.array([0.0, 0.004, -0.003, 0.002, 0.005, -0.002, 0.006])  # rad
+NOISE = 1e-5  # m per axis
+
+
+def sensor_table(q: np.ndarray, xyz: np.ndarray, n_optimization: int) -> SensorData:
+    """A laser tracker's table of readings q (n, N) and positions xyz (n, 3): the first
+    n_optimization rows the optimization set, the others the validation set."""
+    table = pd.DataFrame(q, columns=[f"q{j + 1}" for j in range(q.shape[1])])
+    table.insert(0, "set", ["optimization"] * n_optimization + ["validation"] * (len(q) - n_optimization))
+    table["pose"] = np.arange(len(q)) // 2
+    table["solution"] = np.arange(len(q)) % 2
+    table[["x", "y", "z"]] = xyz
+    return SensorData("laser_tracker", "laser_tracker", MARKER, NOISE, table)
+
+
+def sensor_from_robot() -> np.ndarray:
+    """A sensor standing somewhere: rotated about an oblique axis and 2 m away."""
+    transform = np.eye(4)
+    transform[:3, :3] = spatial.euler_zyx_to_matrix(0.7, -0.2, 0.3)
+    transform[:3, 3] = [2.0, -0.5, 0.3]
+    return transform
+
+
+def entry(chain, name: str, date: str, sensor: SensorData, models: dict, excluded=()) -> prediction.Calibrated:
+    return prediction.Calibrated(name, date, ROBOT, sensor, chain, models, tuple(excluded))
+
+
+def paper(offsets, draws=None) -> prediction.Calibration:
+    return prediction.Calibration("paper", {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(offsets)},
+                                  draws=draws)
+
+
+@pytest.fixture(scope="module")
+def noisy(iiwa):
+    """A campaign of the paper's model with noise, one unseen and one flagged optimization row."""
+    rng = np.random.default_rng(5)
+    q = random_configurations(iiwa, 40, rng) * 0.6
+    robot = ForwardKinematics(iiwa, q).points(MARKER, OFFSETS)
+    xyz = spatial.transform_points(sensor_from_robot(), robot) + NOISE * rng.standard_normal(robot.shape)
+    xyz[3] = np.nan  # marker not seen
+    xyz[7] += 0.01  # a gross error the fit flagged
+    return sensor_table(q, xyz, 24)
+
+
+def test_own_paper_model_on_itself_is_a_direct_validation(iiwa, noisy):
+    """(a) X = Y, paper model: FK with the zero-offsets, Kabsch on the optimization rows used,
+    errors on the validation rows, computed directly."""
+    estimate = OFFSETS + 1e-4  # a posterior mean a little off the truth
+    errors = transfer.transfer_errors(paper(estimate), entry(iiwa, "x", "2020-01-01", noisy, {}, excluded=[7]))
+    opt = np.setdiff1d(np.arange(24), [3, 7])
+    val = np.arange(24, 40)
+    q, xyz = noisy.q(), noisy.positions()
+    fk = ForwardKinematics(iiwa, q).points(MARKER, estimate)
+    direct = np.linalg.norm(xyz[val] - spatial.transform_points(registration.kabsch(fk[opt], xyz[opt]), fk[val]),
+                            axis=1)
+    np.testing.assert_allclose(errors, direct, rtol=1e-9, atol=1e-12)
+    table = transfer.transfer_table([entry(iiwa, "x", "2020-01-01", noisy, {"paper": paper(estimate)}, [7])])
+    assert list(table.columns) == transfer.TRANSFER_COLUMNS
+    row = table.iloc[0]
+    assert row["points"] == 16 and row["rmse_mm"] == pytest.approx(np.sqrt(np.mean(direct**2)) / MM)
+    assert row["p95_mm"] == pytest.approx(np.quantile(direct, 0.95) / MM)
+
+
+def loop_values(chain) -> dict[str, float]:
+    """A loop model's values: zero-offsets, link geometry, joint compliance and a marker offset, plus
+    set-up parameters that must not be transferred."""
+    values = {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(OFFSETS)}
+    for i, (_, column, name) in enumerate(link_labels(chain)):
+        values[name] = (3e-4 if column == 0 else 2e-4) * (-1) ** i
+    values.update({"joint_compliance.q2": 3e-5, "joint_compliance.q4": 2e-5, "marker_offset.x": 4e-4,
+                   "marker_offset.z": -3e-4, "sensor_scale.s": 0.5, "registration.x": 1.0, "drift.q2": 1.0})
+    return values
+
+
+def test_transfer_of_exact_predictions_is_zero(iiwa):
+    """(b) Y's measurements are X's loop model's exact predictions (no noise), seen from another
+    sensor position: the transfer RMSE is ~0, the nominal's is not."""
+    rng = np.random.default_rng(6)
+    loop = prediction.Calibration("loop", loop_values(iiwa), ("link_geometry", "joint_compliance", "marker_offset"),
+                                  ModelSettings(payload_mass=2.0, payload_com=(0.0, 0.0, 0.03)))
+    q = random_configurations(iiwa, 30, rng) * 0.6
+    robot = prediction.robot_points(iiwa, q, MARKER, loop.values, loop.blocks, loop.settings)
+    target = sensor_table(q, spatial.transform_points(sensor_from_robot(), robot), 18)
+    x = entry(iiwa, "x", "2020-01-01", sensor_table(q, np.zeros((30, 3)), 18),
+              {"nominal": prediction.Calibration("nominal"), "loop": loop})
+    y = entry(iiwa, "y", "2021-01-01", target, {"nominal": prediction.Calibration("nominal")})
+    table = transfer.transfer_table([y, x]).set_index(["model", "calibrated_on", "evaluated_on"])
+    assert table.loc[("loop", "x", "y"), "rmse_mm"] < 1e-6
+    assert table.loc[("nominal", "x", "y"), "rmse_mm"] > 0.5  # 0.1-0.4 deg off: millimetres
+    assert table.loc[("nominal", "x", "y"), "points"] == 12
+    assert ("loop", "y", "x") not in table.index  # y has no loop model
+    assert table.reset_index()["calibrated_on"].iloc[0] == "x"  # date order
+
+
+def draws_around(calibration: prediction.Calibration, std: float, count: int, rng) -> pd.DataFrame:
+    names = [n for n in calibration.values if n.startswith("zero_offsets.") and n != "zero_offsets.q1"]
+    return pd.DataFrame({n: calibration.values[n] + std * rng.standard_normal(count) for n in names})
+
+
+def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
+    """(c) The same model: no change, not flagged. Joint 2's zero-offset shifted by d: each point
+    moves by r d, r its distance from joint 2's axis."""
+    rng = np.random.default_rng(7)
+    q = random_configurations(iiwa, 300, rng)
+    a = paper(OFFSETS)
+    a = prediction.Calibration("paper", a.values, draws=draws_around(a, 1e-6, 400, rng))
+    same = prediction.compare_predictions(iiwa, q, MARKER, a, a, 50, np.random.default_rng(1))
+    assert same["mean_mm"] == 0.0 and same["p95_mm"] == 0.0 and not same["flagged"]
+    assert same["status"] == "compared" and same["draw_pairs"] == 50 and same["null_p95_of_mean_mm"] > 0
+
+    d = 2e-4  # rad
+    b = prediction.Calibration("paper", {**a.values, "zero_offsets.q2": a.values["zero_offsets.q2"] + d},
+                               draws=a.draws.assign(**{"zero_offsets.q2": a.draws["zero_offsets.q2"] + d}))
+    moved = prediction.compare_predictions(iiwa, q, MARKER, a, b, 50, np.random.default_rng(1))
+    fk = ForwardKinematics(iiwa, q)
+    frames = fk.joint_frames(OFFSETS)[:, 1]
+    axis = np.einsum("nij,j->ni", frames[:, :3, :3], iiwa.joint_axes[1])
+    r = np.linalg.norm(np.cross(axis, fk.points(MARKER, OFFSETS) - frames[:, :3, 3]), axis=1)
+    assert moved["mean_mm"] == pytest.approx(d * r.mean() / MM, rel=1e-3)
+    assert moved["p95_mm"] == pytest.approx(d * np.quantile(r, 0.95) / MM, rel=1e-3)
+    assert moved["flagged"] and moved["null_p95_of_mean_mm"] < 0.1 * moved["mean_mm"]
+    # the null does not see the shift: draws are deviations from each model's own mean
+    assert moved["null_p95_of_mean_mm"] == pytest.approx(same["null_p95_of_mean_mm"], rel=0.5)
+    unsampled = prediction.compare_predictions(iiwa, q, MARKER, paper(OFFSETS), b, 50, np.random.default_rng(1))
+    assert not unsampled["flagged"] and np.isnan(unsampled["null_p95_of_mean_mm"])
+    assert unsampled["status"] == "no null: no posterior samples of A"
+
+
+def test_prediction_drift_and_agreement_tables(iiwa, noisy):
+    """Consecutive campaigns of one sensor kind, and the sensors of one campaign, with models of
+    different effects still compared (by prediction)."""
+    loop = prediction.Calibration("loop", loop_values(iiwa), ("link_geometry", "marker_offset"))
+    models = {"nominal": prediction.Calibration("nominal"), "paper": paper(OFFSETS), "loop": loop}
+    other = SensorData("motion_capture", "motion_capture", np.array([0.1, 0.0, 0.02]), 3e-5, noisy.table)
+    entries = [entry(iiwa, "b", "2021-01-01", noisy, {**models, "paper": paper(OFFSETS + 1e-3)}),
+               entry(iiwa, "a", "2020-01-01", noisy, models), entry(iiwa, "a", "2020-01-01", other, models)]
+    drift = prediction.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
+    assert list(drift.columns) == prediction.DRIFT_COLUMNS
+    assert drift[["campaign_a", "campaign_b", "model"]].values.tolist() == [["a", "b", "paper"], ["a", "b", "loop"]]
+    rows = drift.set_index("model")
+    assert rows.loc["loop", "mean_mm"] == 0.0 and rows.loc["paper", "mean_mm"] > 0.1
+    assert rows.loc["loop", "effects_a"] == "link_geometry + marker_offset"
+    again = prediction.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
+    pd.testing.assert_frame_equal(drift, again)  # one fixed set of configurations per robot and seed
+    agreement = prediction.prediction_agreement(entries, n_configurations=50, seed=3, draw_pairs=10)
+    assert list(agreement.columns) == prediction.AGREEMENT_COLUMNS
+    assert agreement[["sensor_a", "sensor_b"]].drop_duplicates().values.tolist() == [["motion_capture",
+                                                                                      "laser_tracker"]]
+    # the marker offset is each sensor's own: left out between sensors
+    assert set(agreement["effects_a"]) == {"none", "link_geometry"} and (agreement["mean_mm"] == 0.0).all()
+
+
+def test_transfer_heat_map(iiwa, noisy):
+    models = {"paper": paper(OFFSETS)}
+    other = SensorData("motion_capture", "motion_capture", MARKER, 3e-5, noisy.table)
+    entries = [entry(iiwa, c, d, s, models) for c, d in (("a", "2020-01-01"), ("b", "2021-01-01"))
+               for s in (noisy, other)]
+    table = transfer.transfer_table(entries)
+    assert len(table) == 8  # 2 sensors x 2 x 2 campaigns
+    fig = figures_comparison.transfer_figure(table, "Transfer, paper model")
+    panels = [ax for ax in fig.axes if ax.get_visible() and ax.get_title()]
+    assert [ax.get_title() for ax in panels] == ["Motion Capture", "Laser Tracker"]
+    assert len(panels[0].texts) == 4
+    plt.close(fig)
+    with pytest.raises(ValueError, match="one model"):
+        figures_comparison.transfer_figure(pd.concat([table, table.assign(model="loop")]), "mixed")

@@ -1,0 +1,15 @@
+"""Each campaign's calibration applied to every campaign of the same robot and sensor (transfer table)."""
+
+from pathlib import Path
+
+from remaster import io, prediction, transfer
+
+with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
+    p, i = snakemake.params, snakemake.input  # noqa: F821
+    pairs = [tuple(pair) for pair in p.pairs]
+    table = transfer.transfer_stage({c: io.read_campaign(f) for c, f in p.folders.items()},
+                                    {pair: io.read_csv(f) for pair, f in zip(pairs, i.summaries)},
+                                    {pair: io.read_json(f) for pair, f in zip(pairs, i.laplaces)},
+                                    {pair: io.read_json(f) for pair, f in zip(pairs, i.loops)})
+    io.write_table(Path(snakemake.output[0]).with_suffix(""), table, prediction.CAPTIONS["transfer"],  # noqa: F821
+                   "transfer")
