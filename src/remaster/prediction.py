@@ -109,7 +109,7 @@ class Predictor:
     def points(self, values: Mapping[str, float]) -> np.ndarray:
         """Marker positions (n, 3) m in the robot frame; parameters not in `values` are 0 (nominal)."""
         every = np.array([float(values.get(name, 0.0)) for name in self.model.all_names])
-        return self.model._robot_points(every, self.model.angles(every))
+        return self.model.robot_points(every)
 
 
 def robot_points(chain: KinematicChain, q, marker, values: Mapping[str, float], blocks: Sequence[str] = (),
