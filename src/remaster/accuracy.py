@@ -49,6 +49,7 @@ from .model import SIGMA, correction_transforms, display_scale, parameter_names
 from .tables import paper_order, sensor_label
 
 METHODS = ("Vernier", "Bayesian")
+TABLE_METHODS = METHODS + ("Loop-closed",)  # the loop-closed model's rows (`workspace`) follow the paper's
 TO_MM = 1e3  # m -> mm, for the returned tables only
 MIN_REGISTRATION_POINTS = 3
 
@@ -389,7 +390,8 @@ def format_interval(low: float, high: float, count: int) -> str:
 
 
 def paper_table(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """One metric for every sensor in the paper's layout: rows Vernier then Bayesian, sensors in
+    """One metric for every sensor in the paper's layout: rows Vernier, Bayesian (then Loop-closed
+    where given, theoretical tables), sensors in
     the paper's order; columns Remastering Method, Reference Sensor, Mean (mm), 95% Interval (mm).
     A validation table (rows with a metric column) gets a leading Metric column, metrics in the
     order relative, post-registration, post-registration with the registration refit."""
@@ -399,7 +401,7 @@ def paper_table(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
     validation = "metric" in rows.columns
     metric_order = list(VALIDATION_METRICS)
     rows["_order"] = [((metric_order.index(r["metric"]),) if validation else ()) +
-                      (METHODS.index(r["method"]), sensors.index(r["sensor"])) for _, r in rows.iterrows()]
+                      (TABLE_METHODS.index(r["method"]), sensors.index(r["sensor"])) for _, r in rows.iterrows()]
     rows = rows.sort_values("_order", kind="stable")
     table = pd.DataFrame({"Remastering Method": rows["method"].to_numpy(),
                           "Reference Sensor": [sensor_label(s) for s in rows["sensor"]],

@@ -360,9 +360,9 @@ class BlockModel:
 @dataclass(frozen=True)
 class Reduction:
     """Which extension parameters the data can see at all. kept: free extension parameters (each
-    under its prior); dropped: {name: why} held at 0 ('invisible' with its relative size, or
-    'absorbed' exactly by the base and the parameters kept before it, with the sine of its angle
-    to their span); weak: {name: sine} of kept parameters the data barely separate (sine below
+    under its prior); dropped: {name: why} the data cannot see ('invisible' with its relative size,
+    or 'absorbed' exactly by the base and the parameters kept before it, with the sine of its angle
+    to their span): held at 0 without priors, carried by their prior with them (`extended_model`); weak: {name: sine} of kept parameters the data barely separate (sine below
     COLLINEAR: their prior decides them); condition_number of the whole model's free Jacobian with
     unit-length columns (so independent of units)."""
 
@@ -375,7 +375,8 @@ class Reduction:
         return {"kept": list(self.kept), "dropped": dict(self.dropped), "weakly_determined_sine": dict(self.weak),
                 "condition_number_unit_columns": self.condition_number,
                 "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
-                          "the span of the base columns; held only where the data cannot see a parameter at all",
+                          "the span of the base columns; 'dropped' = the data cannot see it (held at 0 without a prior, "
+                          "left to its prior with one)",
                 "invisible_below": INVISIBLE, "absorbed_below": ABSORBED, "weak_below": COLLINEAR}
 
 
@@ -424,8 +425,11 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
 
 def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
                    base_held: Mapping[str, float], priors: Priors | None = None) -> tuple[BlockModel, Reduction]:
-    """The model of base + blocks, under `priors`, with the base's held parameters held and the
-    extension parameters the data cannot see at all held at 0."""
+    """The model of base + blocks, under `priors`, with the base's held parameters held. Under
+    priors every extension parameter is kept, those the data cannot see included: their prior
+    carries them, so what they do away from the measured configurations (a joint that never moved,
+    a tool that never turned) stays in the posterior. Without priors (flat), the parameters the
+    data cannot see at all are held at 0. The reduction reports which are which."""
     reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
-    held = {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
+    held = dict(base_held) if priors is not None else {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
     return BlockModel(chain, data, marker, t_nr, blocks, held, priors), reduction

@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
 
 from .figures import _grid, error_histogram_axes, finished  # noqa: E402
 from .loop_closure import SETS, Signature  # noqa: E402
@@ -63,4 +64,30 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
                     label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm")
         ax.set_xscale("log")
         error_histogram_axes(ax, set_name)
+    return finished(fig, title)
+
+
+def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
+    """Claimed error (mm, log axis) of each model, mean with its 95 % interval, at the measured and
+    at random configurations, registration fitted (filled) and in the robot frame with the held
+    zero-offsets at the controller's tolerance (open). claims: `workspace.CLAIM_COLUMNS` rows."""
+    fig, ax = plt.subplots(figsize=(6.0, 3.0))
+    chosen = claims[claims["noise"] == "with noise"]
+    labels = []
+    for k, (model, where) in enumerate([(m, w) for m in ("paper", "loop") for w in ("optimization", "random")]):
+        labels.append(f"{model}\n{'measured' if where == 'optimization' else 'random'}")
+        for offset, frame, fill in ((-0.12, "registered", True), (0.12, "robot", False)):
+            row = chosen[(chosen["model"] == model) & (chosen["configurations"] == where) & (chosen["frame"] == frame)]
+            if row.empty:
+                continue
+            r = row.iloc[0]
+            color = "tab:red" if model == "paper" else "tab:blue"
+            ax.errorbar(k + offset, r["mean_mm"], yerr=[[r["mean_mm"] - r["q2.5_mm"]], [r["q97.5_mm"] - r["mean_mm"]]],
+                        fmt="o", color=color, mfc=color if fill else "white", capsize=3,
+                        label=("registration fitted" if fill else "robot frame, held joints at tolerance") if k == 0 else None)
+    ax.set_xticks(range(len(labels)), labels, fontsize=8)
+    ax.set_yscale("log")
+    ax.set_ylabel("claimed error (mm)", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7)
     return finished(fig, title)

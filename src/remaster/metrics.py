@@ -115,3 +115,19 @@ def random_configurations(chain: KinematicChain, n: int, rng: np.random.Generato
     unlimited joint): the paper's random configurations across the full joint space."""
     lower, upper = joint_space_bounds(chain)
     return rng.uniform(lower, upper, (n, chain.n_joints))
+
+
+def registered_distances(model_points, reference_points) -> np.ndarray:
+    """Distances (m, n) m between model points (n, 3) or (m, n, 3) and m sets of reference points
+    (m, n, 3) after the least-squares rigid motion of the model's points onto each set (Kabsch,
+    batched): the error a sensor registered over these n points would see."""
+    reference = np.asarray(reference_points, dtype=float)
+    model = np.broadcast_to(np.asarray(model_points, dtype=float), reference.shape)
+    centre_m, centre_r = model.mean(axis=1, keepdims=True), reference.mean(axis=1, keepdims=True)
+    a, b = model - centre_m, reference - centre_r
+    u, _, vt = np.linalg.svd(np.einsum("mni,mnj->mij", a, b))
+    v, ut = np.swapaxes(vt, 1, 2), np.swapaxes(u, 1, 2)
+    flip = np.ones((len(reference), 3))
+    flip[:, 2] = np.sign(np.linalg.det(v @ ut))  # a rotation, never a reflection
+    rotation = v @ (flip[:, :, None] * ut)
+    return np.linalg.norm(np.einsum("mij,mnj->mni", rotation, a) - b, axis=-1)

@@ -108,8 +108,14 @@ class Predictor:
 
     def points(self, values: Mapping[str, float]) -> np.ndarray:
         """Marker positions (n, 3) m in the robot frame; parameters not in `values` are 0 (nominal)."""
-        every = np.array([float(values.get(name, 0.0)) for name in self.model.all_names])
-        return self.model.robot_points(every)
+        return self.model.robot_points(self._vector(values))
+
+    def points_of_draws(self, draws: Sequence[Mapping[str, float]]) -> np.ndarray:
+        """Marker positions (m, n, 3) m in the robot frame for m parameter sets (`points` each)."""
+        return self.model.robot_points(np.array([self._vector(values) for values in draws]))
+
+    def _vector(self, values: Mapping[str, float]) -> np.ndarray:
+        return np.array([float(values.get(name, 0.0)) for name in self.model.all_names])
 
 
 def robot_points(chain: KinematicChain, q, marker, values: Mapping[str, float], blocks: Sequence[str] = (),

@@ -2,6 +2,7 @@
 # validation), the paper's accuracy tables, the sensor comparison and the accuracy figures.
 
 from remaster.accuracy import METRIC_TABLES, TABLE_NAMES
+from remaster.workspace import THEORETICAL_TABLES
 
 ACC = f"{RESULTS}/{{campaign}}/{{sensor}}/metrics"
 ACCURACY_FILES = list(TABLE_NAMES) + ["configuration_errors", "tcp_scatter", "remastering_parameters"]
@@ -35,7 +36,10 @@ for _table in TABLE_NAMES:
         name:
             f"table_{_table}"
         input:
-            per_sensor(f"{ACC}/{_table}.csv"),
+            metrics=per_sensor(f"{ACC}/{_table}.csv"),
+            # the loop-closed model's rows (stage 4) beside the paper's, theoretical tables only
+            loop=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure/theoretical_accuracy.csv")
+            if _table in THEORETICAL_TABLES else [],
         output:
             multiext(f"{TABLES}/{_table}", ".csv", ".md", ".tex"),
         log:

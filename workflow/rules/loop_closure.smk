@@ -78,3 +78,51 @@ rule figure_loop_residuals:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figure_loop_residuals.log",
     script:
         "../scripts/figure_loop_residuals.py"
+
+
+rule loop_workspace:
+    input:
+        campaign=campaign_files,
+        summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv",
+        laplace=rules.laplace.output.laplace,
+        report=rules.loop_closure.output.report,
+        samples=rules.loop_closure.output.samples,
+    output:
+        theoretical=f"{LOOP}/theoretical_accuracy.csv",
+        claims=f"{LOOP}/workspace_accuracy.csv",
+        report=f"{LOOP}/workspace.json",
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_workspace.log",
+    params:
+        folder=lambda wc: f"{RAW}/{wc.campaign}",
+        seed=config["seed"],
+        draws=config["accuracy"]["draws"],
+        random_configurations=config["accuracy"]["random_configurations"],
+    script:
+        "../scripts/loop_workspace.py"
+
+
+rule table_workspace:
+    input:
+        claims=per_sensor(f"{LOOP}/workspace_accuracy.csv"),
+        reports=per_sensor(f"{LOOP}/workspace.json"),
+    output:
+        accuracy=multiext(f"{TABLES}/workspace_accuracy", ".csv", ".md", ".tex"),
+        warnings=multiext(f"{TABLES}/workspace_warnings", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_workspace.log",
+    params:
+        sensors=lambda wc: sensors_of(wc.campaign),
+    script:
+        "../scripts/table_workspace.py"
+
+
+rule figure_workspace:
+    input:
+        f"{LOOP}/workspace_accuracy.csv",
+    output:
+        multiext(f"{FIGURES}/workspace_accuracy_{{sensor}}", ".png", ".pdf"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figure_workspace.log",
+    script:
+        "../scripts/figure_workspace.py"
