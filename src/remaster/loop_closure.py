@@ -259,7 +259,8 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
 
 def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per parameter (held ones included) and sigma: mean, std and 95 % interval in SI and in
-    display units, prior std, the posterior / prior std ratio, status. From the MCMC samples when
+    display units, prior std, the posterior / prior std ratio, status, and why the data cannot see
+    it (`unseen_by_data`: kept under its prior, or held without one). From the MCMC samples when
     given, else the Laplace approximation (mean = mode, interval mode +- 1.96 std)."""
     model = fitted.model
     names = list(model.names) + [SIGMA]
@@ -275,7 +276,8 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
         source = "posterior mode + Laplace"
     free = {n: (m, s, lo, hi) for n, m, s, lo, hi in zip(names, mean, std, low, high)}
     prior = dict(zip(model.names, model.prior_std))
-    reasons = {**{n: "held: not identifiable" for n in model.fixed}, **fitted.reduction.dropped}
+    reasons = {**{n: "held: not identifiable" for n in model.fixed},
+               **{n: f"held: {why}" for n, why in fitted.reduction.dropped.items() if n in model.fixed}}
     rows = []
     for name, scale, unit in list(zip(model.all_names, model.all_scale, model.all_unit)) + [(SIGMA, MM, "mm")]:
         m, s, lo, hi = free.get(name, (model.fixed.get(name, 0.0), np.nan, np.nan, np.nan))
@@ -286,7 +288,8 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
                      "q2.5_display": lo / scale, "q97.5_display": hi / scale,
                      "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
                      "posterior_to_prior_std": ratio, "prior_dominated": bool(ratio > PRIOR_DOMINATED),
-                     "status": "estimated" if name in free else reasons.get(name, "held"), "source": source})
+                     "status": "estimated" if name in free else reasons.get(name, "held"),
+                     "unseen_by_data": fitted.reduction.dropped.get(name, ""), "source": source})
     return pd.DataFrame(rows)
 
 

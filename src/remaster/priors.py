@@ -105,10 +105,17 @@ def check_override(override, source: str) -> None:
 def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: str = "campaign.yaml") -> Priors:
     """The priors of one campaign: the config's class (or the campaign's `robot.priors.arm_class`),
     then the campaign's own values over it. config: the workflow's `priors` section."""
-    override = dict((campaign_robot or {}).get("priors") or {})
-    if override:
+    override = (campaign_robot or {}).get("priors")
+    if override is not None:
         check_override(override, source)
-    arm_class = override.get(CLASS_KEY) or config[CLASS_KEY]
+    override = dict(override or {})
+    arm_class = override.get(CLASS_KEY) or config.get(CLASS_KEY)
+    if arm_class not in CLASSES:  # a campaign's class is checked above: this one is the config's
+        raise InputError(f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file="config",
+                         key=f"priors/{CLASS_KEY}")
+    if not isinstance(config.get(arm_class), Mapping):
+        raise InputError(f"must be a mapping of priors, got {config.get(arm_class)!r}", file="config",
+                         key=f"priors/{arm_class}")
     values = _checked_values(config[arm_class], f"priors/{arm_class}", "config")
     missing = [k for k in KEYS if k not in values]
     if missing:
