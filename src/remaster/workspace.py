@@ -22,7 +22,10 @@ Two kinds of claim:
 - **Registration fitted** (the workspace-wide claim): the error a sensor registered over those
   configurations would see. For each posterior draw d of the loop-closed model, the model under
   test is moved onto the draw's points by least squares (`metrics.registered_distances`) and
-  |T_d p_model(q) - (p_d(q) + n_d)| is its error at q. The loop-closed posterior is the reference
+  |T_d p_model(q) - (p_d(q) + n_d)| is its error at q. Held zero-offsets are drawn at the
+  controller marks' tolerance here too: the registration removes joint 1's, but one held only
+  because these data never turned it (the last joint when the tool keeps one orientation) moves
+  the marker at other poses. The loop-closed posterior is the reference
   because it is the model with the most evidence the loop found: for the loop-closed model itself
   this is its own posterior spread; for the paper's model (its posterior means) it adds what the
   loop closure found the paper's model lacks. What no candidate effect explains is in the
@@ -32,7 +35,9 @@ The report warns when the workspace-wide mean error exceeds `WORKSPACE_RATIO` ti
 the measured configurations ("holds near the measured poses only") and says what the next
 campaign should add: the joints whose measured range covers less than `MIN_RANGE_FRACTION` of their
 limits, more tool orientations when every measured flange axis lies within `MIN_TOOL_SPREAD_DEG` of
-one direction, and the parameters the data barely moved from their prior.
+one direction, and the parameters the data barely moved from their prior but random configurations
+would show (`blocks.identifiable_extension` there); those no external measurement sees anywhere (a
+base height absorbed by the registration) are listed apart.
 
 SI inside (m, rad); the returned tables are in mm.
 """
@@ -46,6 +51,7 @@ import numpy as np
 import pandas as pd
 
 from . import metrics
+from .blocks import identifiable_extension
 from .campaign import SensorData
 from .errors import InputError
 from .kinematics import ForwardKinematics, KinematicChain
@@ -153,11 +159,13 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     for where, q in q_sets.items():
         predictor = loop.predictor(chain, q, sensor.marker)
         loop_mean = predictor.points(loop.values)
-        points = predictor.points_of_draws(draws)
+        # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
+        # (a registration removes joint 1's; one held only because the tool never turned stays)
+        points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng))
         noisy = _with_noise(points, sigma, rng)
-        seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) if unseen else points
-        seen_noisy = _with_noise(seen, sigma, rng) if unseen else noisy
-        held_points = _with_noise(predictor.points_of_draws(_held_draws(draws, held, tolerance, rng)), sigma, rng)
+        # the paper's tables' convention: what the data cannot see, held
+        seen = predictor.points_of_draws([{**d, **unseen} for d in draws])
+        seen_noisy = _with_noise(seen, sigma, rng)
         paper_points = paper.predictor(chain, q, sensor.marker).points(paper.values)
         for table, (table_where, noise) in THEORETICAL_TABLES.items():
             if table_where == where:
@@ -168,11 +176,14 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
             for noise, reference in (("with noise", noisy), ("without noise", points)):
                 claims.append(_summary(metrics.registered_distances(mean, reference), model=model,
                                        configurations=where, frame="registered", noise=noise))
-            claims.append(_summary(np.linalg.norm(held_points - mean, axis=-1), model=model,
+            claims.append(_summary(np.linalg.norm(noisy - mean, axis=-1), model=model,
                                    configurations=where, frame="robot", noise="with noise"))
     claims = pd.DataFrame(claims, columns=CLAIM_COLUMNS)
+    # what no campaign can see (absorbed by a registration, or without effect) anywhere in the joint space
+    nowhere = sorted(identifiable_extension(loop.predictor(chain, q_sets["random"], sensor.marker).model).dropped)
     return WorkspaceAccuracy(pd.DataFrame(theoretical), claims,
-                             _report(chain, sensor, claims, loop, loop_report, held, tolerance, n_draws, n_random))
+                             _report(chain, sensor, claims, loop, loop_report, held, tolerance, n_draws, n_random,
+                                     nowhere))
 
 
 def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
@@ -181,8 +192,9 @@ def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
     return float(chosen["mean_mm"].iloc[0])
 
 
-def _report(chain, sensor, claims, loop: Calibration, loop_report, held, tolerance, n_draws, n_random) -> dict:
-    dominated = list(loop_report.get("prior_dominated", []))
+def _report(chain, sensor, claims, loop: Calibration, loop_report, held, tolerance, n_draws, n_random,
+            nowhere) -> dict:
+    dominated = [n for n in loop_report.get("prior_dominated", []) if n not in nowhere]
     coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
     suggestions = _suggestions(coverage, dominated)
     warnings, holds = [], {}
@@ -198,8 +210,12 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report, held, toleran
                             f"({measured:.3f} mm): the calibration holds near the measured poses only"
                             + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else ""))
     if dominated:
-        warnings.append(f"parameters the data barely moved from their prior (posterior std / prior std > 0.5): "
-                        f"{', '.join(dominated)}")
+        warnings.append(f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
+                        f"though other poses would: {', '.join(dominated)}")
+    unseeable = [n for n in loop_report.get("prior_dominated", []) if n in nowhere]
+    if unseeable:
+        warnings.append(f"parameters no external measurement can see anywhere in the joint space (absorbed by the "
+                        f"registration or without effect), left to their prior: {', '.join(unseeable)}")
     return {
         "campaign": loop_report.get("campaign"), "sensor": sensor.name,
         "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
@@ -207,7 +223,7 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report, held, toleran
         "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
-        "holds": holds, "coverage": coverage, "prior_dominated": dominated,
+        "holds": holds, "coverage": coverage, "prior_dominated": dominated, "unseen_anywhere": list(nowhere),
         "next_campaign_should_add": suggestions, "warnings": warnings,
     }
 
