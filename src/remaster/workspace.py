@@ -219,7 +219,7 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report, held, toleran
     return {
         "campaign": loop_report.get("campaign"), "sensor": sensor.name,
         "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
-        "configurations": {k: v for k, v in CONFIGURATIONS.items()}, "frames": dict(FRAMES),
+        "configurations": dict(CONFIGURATIONS), "frames": dict(FRAMES),
         "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
