@@ -155,8 +155,10 @@ def test_nothing_is_added_when_nothing_is_missing(iiwa):
     result = closed(iiwa, simulated(iiwa, "none"))
     report = json.loads(json.dumps(result.report, allow_nan=False))
     assert report["effects_added"] == []
-    assert set(report["candidates"]) == set(blocks.EXTENSIONS)  # drift too: the table has a time column
+    # drift too (the table has a time column), and the residual GP last
+    assert set(report["candidates"]) == set(blocks.EXTENSIONS) | {"residual_gp"}
     assert all(not scores[0]["passed"] for scores in report["candidates"].values())
+    assert report["closure"]["closed"] is True and report["residual_gp"]["structure_found"] is False
     assert report["validation_rmse_after_mm"] == report["validation_rmse_before_mm"]
     assert all(shift["shift_deg"] == 0.0 for shift in report["zero_offset_shifts"])
 

@@ -349,6 +349,11 @@ class BlockModel:
             out = out * (1.0 + stack[:, self._scale_index])[:, :, None]
         return out if every.ndim == 2 else out[0]
 
+    def sensor_rotation(self, theta) -> np.ndarray:
+        """(3, 3) rotation of the registration at free parameters theta (P,): robot -> sensor frame."""
+        every = np.atleast_2d(self.full(theta))
+        return (correction_transforms(every[:, :6]) @ self.t_nr)[0, :3, :3]
+
     def sum_squares(self, theta) -> np.ndarray:
         """Sum of squared residuals E(theta): scalar or (m,)."""
         return np.sum(self.residuals(theta) ** 2, axis=(-2, -1))

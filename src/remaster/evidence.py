@@ -159,10 +159,12 @@ def pose_folds(poses, n_folds: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """Held-out mean squared residual per point (m^2), one per fold (K,), and points per fold."""
+    """Held-out mean squared residual per point (m^2), one per fold (K,), points per fold, and
+    held_out (n, 3) m: each point's residual under the fit without its fold."""
 
     mse: np.ndarray
     points: np.ndarray
+    held_out: np.ndarray | None = None
 
     @property
     def rmse(self) -> float:
@@ -176,17 +178,17 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
     r = mode.residuals
     precision = model._prior_precision * sigma**2
-    mse, points = [], []
+    mse, points, held = [], [], np.empty_like(r)
     for fold in np.unique(folds):
         train = folds != fold
         j_train = jacobian[train].reshape(-1, len(theta))
         lhs = j_train.T @ j_train + np.diag(precision)
         rhs = j_train.T @ r[train].ravel() - precision * theta
         step = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-        held_out = model.residuals(theta + step)[~train]
+        held[~train] = held_out = model.residuals(theta + step)[~train]
         mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
         points.append(int((~train).sum()))
-    return CrossValidation(np.array(mse), np.array(points))
+    return CrossValidation(np.array(mse), np.array(points), held)
 
 
 def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:

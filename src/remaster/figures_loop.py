@@ -91,3 +91,30 @@ def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7)
     return finished(fig, title)
+
+
+def residual_by_joint(rows: pd.DataFrame, gp: Mapping | None, title: str) -> plt.Figure:
+    """The residual the parametric effects leave (robot frame, mm) against the joint the residual
+    GP finds most relevant (deg), per axis, with its median in 30 bins; rows: the GP's training
+    rows (`residual_gp.training_frame`), gp: loop_closure.json's `residual_gp` section."""
+    fig, ax = plt.subplots(figsize=(6.0, 3.0))
+    if rows.empty or gp is None:
+        ax.text(0.5, 0.5, "residual GP not tried", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return finished(fig, title)
+    joint = gp["most_relevant_joint"] or max(gp["relevance"], key=gp["relevance"].get)
+    angle = np.degrees(rows[joint].to_numpy(float))
+    edges = np.linspace(angle.min(), angle.max() + 1e-9, 31)
+    which = np.digitize(angle, edges) - 1
+    for axis in AXES:
+        values = rows[f"r{axis}"].to_numpy(float) / MM
+        points = ax.scatter(angle, values, s=3, alpha=0.35, label=axis)
+        medians = [np.median(values[which == b]) if np.any(which == b) else np.nan for b in range(30)]
+        ax.plot(0.5 * (edges[:-1] + edges[1:]), medians, color=points.get_facecolor()[0], alpha=1.0, lw=1.5)
+    found = "depends on " + ", ".join(gp["depends_on"]) if gp["structure_found"] else "no structure the GP can predict"
+    ax.set_title(f"{found}; structured {100 * gp['structured_fraction']:.0f} %", fontsize=9)
+    ax.set_xlabel(f"{joint} (deg)", fontsize=8)
+    ax.set_ylabel("residual, robot frame (mm)", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, markerscale=3)
+    return finished(fig, title)

@@ -16,7 +16,11 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
      candidate makes (`explained_fraction`, the share of the current residual it removes).
 2. Decide: greedy forward selection. Among the candidates whose evidence gain exceeds
    `min_log_evidence_gain` AND whose cross-validated fall exceeds `cv_standard_errors` standard
-   errors, add the one of largest evidence gain, refit, and repeat with the others.
+   errors, add the one of largest evidence gain, refit, and repeat with the others. When no
+   parametric effect passes, the residual Gaussian process over the joints (`remaster.residual_gp`)
+   is tried last by the same two tests; fitted or not, it says which joints what is left depends on.
+   After every step the closure test (`remaster.closure`) compares the cross-validated residual
+   with the sensor's noise and says what share of the structured residual the step removed.
 3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation, run
    longer until it meets the project's convergence criteria, or reported as not converged) so
    that every parameter carries uncertainty; say which parameters the data barely moved from
@@ -33,6 +37,7 @@ configurations of each pose (`remaster.metrics`).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -40,7 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from . import blocks, evidence, fit, metrics, samplers
+from . import blocks, closure, evidence, fit, metrics, residual_gp, samplers
 from .blocks import BlockModel, ModelSettings, Readings, Reduction
 from .campaign import Campaign, SensorData
 from .kinematics import KinematicChain
@@ -50,6 +55,9 @@ from .priors import DEFAULTS as DEFAULT_PRIORS, Priors, priors_from, with_defaul
 SETS = ("optimization", "validation")
 MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
 CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
+GP_DEFAULT = {"subset": residual_gp.SUBSET, "inducing": residual_gp.INDUCING}
+GP = "residual_gp"
+MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
 # posterior std / prior std above this: the data barely moved the parameter from its prior
 PRIOR_DOMINATED = 0.5
 
@@ -62,7 +70,10 @@ class LoopSettings:
     extension blocks' Gaussian priors; mcmc: {'chains', 'samples', 'burn_in'} of the final
     refit's first attempt, None for Laplace only; priors_config: the config's `priors` section, which
     a campaign's own `robot.priors` is laid over; convergence: {'max_rhat', 'min_ess',
-    'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times."""
+    'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
+    residual_gp: {'subset', 'inducing'} of the Gaussian-process candidate tried last
+    (`remaster.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the noise
+    floor at which the loop counts as closed (`remaster.closure`)."""
 
     candidates: tuple[str, ...] = blocks.EXTENSIONS
     min_log_evidence_gain: float = 5.0
@@ -73,13 +84,15 @@ class LoopSettings:
     priors_config: dict = field(default_factory=lambda: dict(DEFAULT_PRIORS))
     mcmc: dict | None = field(default_factory=lambda: dict(MCMC_DEFAULT))
     convergence: dict = field(default_factory=lambda: dict(CONVERGENCE_DEFAULT))
+    residual_gp: dict | None = field(default_factory=lambda: dict(GP_DEFAULT))
+    closure_ratio: float = closure.CLOSURE_RATIO
 
     def report(self) -> dict:
         return {"candidates": list(self.candidates), "min_log_evidence_gain": self.min_log_evidence_gain,
                 "cv_folds": self.cv_folds, "cv_standard_errors": self.cv_standard_errors,
                 "payload_mass_kg": self.model.payload_mass, "payload_com_m": list(self.model.payload_com),
                 "drift_column": self.model.drift_column, "priors": self.priors.report(), "mcmc": self.mcmc,
-                "convergence": self.convergence}
+                "convergence": self.convergence, "residual_gp": self.residual_gp, "closure_ratio": self.closure_ratio}
 
 
 # --------------------------------------------------------------------------- accuracy measures
@@ -176,14 +189,29 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
 
 @dataclass(frozen=True, eq=False)
 class Selection:
-    """The greedy forward selection: final fit, the base fit, the rounds (JSON-ready) and the
-    signatures {round: {candidate: Signature}}."""
+    """The greedy forward selection: final fit (parametric), the base fit, the rounds (JSON-ready)
+    and the signatures {round: {candidate: Signature}}; gp: the Gaussian process fitted to what the
+    parametric effects left (added or not: it also says where the residual lives), None when not
+    tried; rotation (3, 3): the final fit's registration (robot -> sensor), which the GP's robot-frame
+    correction goes through."""
 
     base: Fitted
     final: Fitted
     added: tuple[str, ...]
     rounds: list[dict]
     signatures: dict[int, dict[str, Signature]]
+    gp: residual_gp.Candidate | None = None
+    rotation: np.ndarray | None = None
+
+    @property
+    def gp_added(self) -> bool:
+        return GP in self.added
+
+    def prediction(self, data: Readings) -> np.ndarray:
+        """(n, 3) m predicted sensor-frame positions of the selected model (parametric fit at its
+        mode, plus the GP's mean when it was added) at some readings."""
+        predicted = self.final.model.on(data).predict(self.final.theta)
+        return predicted + self.gp.gp.mean(data.q) @ self.rotation.T if self.gp_added else predicted
 
 
 def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mapping[str, float], poses,
@@ -222,7 +250,37 @@ def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mappi
         current = fits[best]
         added.append(best)
         remaining.remove(best)
-    return Selection(base, current, tuple(added), rounds, signatures)
+    rotation = current.model.sensor_rotation(current.theta)
+    if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
+        return Selection(base, current, tuple(added), rounds, signatures, None, rotation)
+    gp, scores = _score_gp(current, data, rotation, folds, settings)
+    if rounds and rounds[-1]["added"] is None:  # tried in the round where no parametric effect passed
+        last = rounds[-1]
+    else:
+        last = {"round": len(rounds) + 1, "model": list(blocks.BASE) + added, "scores": {}, "added": None}
+        rounds.append(last)
+    last["scores"][GP] = scores
+    if scores["passed"]:
+        last["added"] = GP
+        added.append(GP)
+    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation)
+
+
+def _score_gp(current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
+              ) -> tuple[residual_gp.Candidate, dict]:
+    """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
+    parametric candidates' rule: evidence gain and pose-grouped cross-validated fall."""
+    residual = current.residuals()
+    gp = residual_gp.candidate(data.q, residual @ rotation, current.cv.held_out @ rotation, folds,
+                               int(settings.residual_gp["subset"]), int(settings.residual_gp["inducing"]))
+    signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
+    scores = {"log_evidence_gain": gp.log_evidence_gain,
+              **evidence.cv_gain(current.cv, evidence.CrossValidation(gp.mse, gp.points)),
+              "sigma_mm": gp.gp.hyper.noise_std / MM, "parameters": ["lengthscales", "signal_std", "noise_std"],
+              "explained_fraction": signature.explained}
+    scores["passed"] = bool(scores["log_evidence_gain"] > settings.min_log_evidence_gain
+                            and scores["cv_mse_fall_in_se"] > settings.cv_standard_errors)
+    return gp, scores
 
 
 # --------------------------------------------------------------------------- the MCMC refit
@@ -327,13 +385,16 @@ def before_after_table(before: dict, after: dict, sigma_before: float, sigma_aft
 @dataclass(frozen=True, eq=False)
 class LoopClosure:
     """report: JSON-ready; table: before/after; signatures: {round: {candidate: Signature}};
-    residuals: {'before'|'after': {set: (n, 3) m}}; samples: the MCMC refit (SI) or None."""
+    residuals: {'before'|'after': {set: (n, 3) m}}; samples: the MCMC refit (SI) or None;
+    gp: the residual GP's training rows when it was tried (`residual_gp.training_frame`), else an
+    empty frame."""
 
     report: dict
     table: pd.DataFrame
     signatures: dict[int, dict[str, Signature]]
     residuals: dict[str, dict[str, np.ndarray]]
     samples: pd.DataFrame | None
+    gp: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mapping[str, float],
@@ -357,11 +418,18 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
     sigma_after = float(after_table.set_index("parameter").loc[SIGMA, "mean"])
     # the validation set is read here, after every choice has been made
     before = {s: base.accuracy(data[s], poses[s]) for s in SETS}
-    after = {s: final.accuracy(data[s], poses[s]) for s in SETS}
+    predicted = {s: selection.prediction(data[s]) for s in SETS}
+    after = {s: accuracy(data[s].measured, predicted[s], poses[s]) for s in SETS}
     counts = (len(base.model.names) + 1, len(final.model.names) + 1)
     dominated = after_table[after_table["prior_dominated"]]
     explained = {r["added"]: r["scores"][r["added"]]["explained_fraction"] for r in selection.rounds if r["added"]}
-    warnings = []
+    closed = closure_report(selection, data["optimization"], sensor.noise, settings.closure_ratio)
+    gp_section = gp_report(selection, settings.cv_standard_errors)
+    warnings = list(closed["warnings"])
+    if closed["closed"] is False and not selection.gp_added:
+        where = gp_section["depends_on"] if gp_section else []
+        warnings.append("no candidate effect explains what is left" + (
+            f"; it depends on {', '.join(where)} (residual GP relevance)" if where else ""))
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
                         f"{mcmc['criteria']['min_ess']} after {len(mcmc['attempts'])} runs (last: R-hat "
@@ -390,11 +458,68 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
                   "mcmc": mcmc,
                   "parameters": after_table.replace({np.nan: None}).to_dict(orient="records")},
         "zero_offset_shifts": zero_offset_shifts(before_table, after_table),
+        "closure": {k: v for k, v in closed.items() if k != "warnings"},
+        "residual_gp": gp_section,
     }
     table = before_after_table(before, after, sigma_before, sigma_after, counts)
     residuals = {"before": {s: base.residuals(data[s]) for s in SETS},
-                 "after": {s: final.residuals(data[s]) for s in SETS}}
-    return LoopClosure(report, table, selection.signatures, residuals, samples)
+                 "after": {s: data[s].measured - predicted[s] for s in SETS}}
+    gp = residual_gp.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
+    return LoopClosure(report, table, selection.signatures, residuals, samples, gp)
+
+
+def closure_report(selection: Selection, data: Readings, stated_noise: float | None, ratio: float) -> dict:
+    """The closure test after every round (`remaster.closure`) on the optimization readings: the
+    noise floor, each round's cross-validated RMS per axis and verdict, each added step's share of
+    the structured residual, the final verdict, and the warnings it calls for."""
+    repeats, repeated = closure.repeatability(data.q, data.measured)
+    floor = closure.noise_floor(stated_noise, repeats)
+    steps = [("zero-offsets (paper)", selection.base.cv.rmse / math.sqrt(3.0))]
+    for r in selection.rounds:
+        if r["added"]:
+            steps.append((r["added"], r["scores"][r["added"]]["cv_rmse_mm"] * MM / math.sqrt(3.0)))
+    rounds = [{"after": name, **closure.verdict(rms, floor, ratio)} for name, rms in steps]
+    shares = {name: closure.share(before, after, floor) for (_, before), (name, after) in zip(steps, steps[1:])}
+    final = rounds[-1]
+    warnings = []
+    if final["closed"] is False:
+        minor = [f"{name} ({100 * value:.0f} %)" for name, value in shares.items() if value < closure.MAIN_CAUSE_SHARE]
+        warnings.append(f"loop {final['text']}"
+                        + (f"; effects added that explain only a small share of what was left, not its cause: "
+                           f"{', '.join(minor)}" if minor else ""))
+    return {"stated_noise_mm": None if stated_noise is None else stated_noise / MM,
+            "repeatability_mm": None if repeats is None else repeats / MM, "repeated_configurations": repeated,
+            "noise_floor_mm": None if floor is None else floor / MM, "ratio": ratio,
+            "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
+            "rounds": rounds, "share_of_structured_residual": shares,
+            "main_causes": [n for n, v in shares.items() if v >= closure.MAIN_CAUSE_SHARE],
+            "closed": final["closed"], "verdict": final["text"], "warnings": warnings}
+
+
+def gp_report(selection: Selection, standard_errors: float) -> dict | None:
+    """Where the residual the parametric effects left lives: the GP's hyperparameters, each joint's
+    relevance (measured range / lengthscale), the joints it depends on, and the share of that
+    residual which is structured (cross-validated fall of its mean square) vs noise. The joints
+    are named only when there is structure to trace: the GP's cross-validated fall exceeds
+    `standard_errors` standard errors. None when the GP was not tried."""
+    if selection.gp is None:
+        return None
+    candidate = selection.gp
+    relevance = candidate.relevance()
+    columns = [f"q{j + 1}" for j in range(len(relevance))]
+    order = np.argsort(-relevance)
+    fall = evidence.cv_gain(selection.final.cv, evidence.CrossValidation(candidate.mse, candidate.points))
+    structured = fall["cv_mse_fall_in_se"] > standard_errors
+    before = float(np.sum(selection.final.cv.mse * selection.final.cv.points))
+    after = float(np.sum(candidate.mse * candidate.points))
+    return {"added": selection.gp_added, "hyperparameters": candidate.gp.hyper.report(),
+            "relevance": dict(zip(columns, relevance.tolist())), "structure_found": bool(structured),
+            "depends_on": [columns[j] for j in order if structured and relevance[j] >= residual_gp.RELEVANT_RANGE],
+            "most_relevant_joint": columns[int(order[0])] if structured else None,
+            "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
+            "frame": "robot (the residual rotated back by the final fit's registration)",
+            "rows": int(len(candidate.q)), "inducing": int(len(candidate.gp.inducing)),
+            "rotation_robot_to_sensor": selection.rotation.tolist()}
 
 
 def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
@@ -472,6 +597,25 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, dict]) ->
     return out[first + [c for c in out.columns if c not in first]]
 
 
+def closure_table(reports: dict[str, dict]) -> pd.DataFrame:
+    """The closure test of every sensor: after each step, the cross-validated RMS per axis, the
+    noise floor, their ratio, the share of the structured residual the step removed, the verdict;
+    the last row of a sensor says where what is left lives (the residual GP's joints)."""
+    rows = []
+    for sensor, report in reports.items():
+        test, gp = report["closure"], report.get("residual_gp")
+        shares = test["share_of_structured_residual"]
+        where = ("GP not tried" if gp is None else ", ".join(gp["depends_on"]) if gp["structure_found"]
+                 else "no structure the GP can predict")
+        for k, step in enumerate(test["rounds"]):
+            last = k == len(test["rounds"]) - 1
+            rows.append({"Sensor": sensor, "After": step["after"], "CV RMS per axis (mm)": step["rms_per_axis_mm"],
+                         "Noise floor (mm)": test["noise_floor_mm"], "Ratio": step.get("ratio_to_floor"),
+                         "Share removed (%)": 100.0 * shares[step["after"]] if step["after"] in shares else None,
+                         "Verdict": step["text"], "Residual depends on": where if last else ""})
+    return pd.DataFrame(rows)
+
+
 def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
@@ -511,4 +655,12 @@ def settings_from(config: Mapping, priors_config: Mapping | None = None,
                         model=ModelSettings(payload_mass=float(payload.get("mass", 1.0)),
                                             payload_com=tuple(payload.get("com", (0.0, 0.0, 0.02)))),
                         priors=priors_from(priors_config), priors_config=dict(priors_config),
-                        mcmc=dict(config["mcmc"]) if config.get("mcmc") else None, convergence=criteria)
+                        mcmc=dict(config["mcmc"]) if config.get("mcmc") else None, convergence=criteria,
+                        residual_gp=_gp_settings(config.get("residual_gp")),
+                        closure_ratio=float(config.get("closure_ratio", closure.CLOSURE_RATIO)))
+
+
+def _gp_settings(section: Mapping | None) -> dict | None:
+    """The residual GP's settings from its config section ({'enabled', 'subset', 'inducing'})."""
+    section = {**GP_DEFAULT, "enabled": True, **(section or {})}
+    return {k: int(section[k]) for k in GP_DEFAULT} if section["enabled"] else None

@@ -54,10 +54,18 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
                                        draw.normal(0.0, float(sizes["twist_std"]), n_joints + 1)])
     payload = truth.get("payload") or {}
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
+    cyclic = None
+    if truth.get("cyclic_error"):
+        spec_c = truth["cyclic_error"]
+        where = "truth/cyclic_error"
+        cyclic = np.column_stack([_vector(spec_c, "amplitude_deg", n_joints, np.pi / 180.0, where),
+                                  _vector(spec_c, "cycles_per_turn", n_joints, 1.0, where),
+                                  _vector(spec_c, "phase_deg", n_joints, np.pi / 180.0, where)])
     return TrueRobot(
         zero_offsets=offsets, joint_compliance=_vector(truth, "joint_compliance", n_joints),
         payload_mass=float(payload.get("mass", 0.0)), payload_com=np.asarray(payload.get("com", [0, 0, 0]), float),
-        link_errors=link_errors, joint_scale=_vector(truth, "joint_scale", n_joints), drift_rate=drift)
+        link_errors=link_errors, joint_scale=_vector(truth, "joint_scale", n_joints), drift_rate=drift,
+        cyclic_error=cyclic)
 
 
 def sensors_of(spec: dict) -> dict[str, Sensor]:
@@ -207,4 +215,8 @@ def _effects_record(robot: TrueRobot) -> dict:
         effects["joint_scale"] = {"scale": robot.joint_scale.tolist()}
     if robot.drift_rate is not None:
         effects["drift"] = {"zero_offset_rate_deg_per_hour": np.degrees(robot.drift_rate * SECONDS_PER_HOUR).tolist()}
+    if robot.cyclic_error is not None:
+        effects["cyclic_error"] = {"amplitude_deg": np.degrees(robot.cyclic_error[:, 0]).tolist(),
+                                   "cycles_per_turn": robot.cyclic_error[:, 1].tolist(),
+                                   "phase_deg": np.degrees(robot.cyclic_error[:, 2]).tolist()}
     return effects

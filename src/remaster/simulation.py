@@ -35,6 +35,7 @@ class TrueRobot:
     link_errors: np.ndarray | None = None  # (N + 1, 2): length (m) and twist (rad) errors of F_1..F_N, F_tool
     joint_scale: np.ndarray | None = None
     drift_rate: np.ndarray | None = None
+    cyclic_error: np.ndarray | None = None  # (N, 3): amplitude (rad), cycles per turn, phase (rad) of a gear's error
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,10 @@ def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elaps
     q = np.asarray(q_readings, dtype=float)
     true = q * (1.0 + robot.joint_scale) if robot.joint_scale is not None else q.copy()
     true = true + robot.zero_offsets
+    if robot.cyclic_error is not None:
+        # a transmission's kinematic error, periodic in the joint's own angle: in no candidate's family
+        amplitude, cycles, phase = robot.cyclic_error.T
+        true = true + amplitude * np.sin(cycles * q + phase)
     if robot.drift_rate is not None:
         if elapsed_s is None:
             raise ValueError("a drifting robot needs the time of each reading")

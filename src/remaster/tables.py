@@ -58,12 +58,21 @@ CAPTIONS = {
     "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
                        "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
                        "gain for reference, and the share of the residual it explains, per round.",
+    "loop_closure_test": "Is the loop closed? After each step, the pose-grouped cross-validated RMS per axis on the "
+                         "optimization set against the noise floor (the sensor's stated noise, or the spread of "
+                         "repeated configurations), the share of the structured residual (above the floor) the step "
+                         "removed, and the joints what is left depends on (residual GP relevance).",
+    "loop_residual_joints": "What the parametric effects leave, in the robot frame, against the joint the residual "
+                            "GP finds most relevant",
     "loop_signatures": "The residual against each candidate effect's signature, first round",
     "loop_residuals": "Post-registration errors before and after the loop closure",
-    "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg)",
+    "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg; std from the "
+                              "pose-clustered sandwich, which includes what the model lacks)",
     "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
-                               "sensor kind, in units of their combined uncertainty; flagged where significant.",
-    "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty.",
+                               "sensor kind, in units of their combined uncertainty (pose-clustered sandwich "
+                               "stds, which include what the model lacks); flagged where significant.",
+    "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty "
+                        "(pose-clustered sandwich stds).",
     "loop_parameters_over_time": "Loop closure over time: the zero-offsets refitted with the effects the loop "
                                  "closure added, and those effects' parameters, per campaign and sensor (display "
                                  "units in column unit).",

@@ -29,7 +29,9 @@ Two kinds of claim:
   because it is the model with the most evidence the loop found: for the loop-closed model itself
   this is its own posterior spread; for the paper's model (its posterior means) it adds what the
   loop closure found the paper's model lacks. What no candidate effect explains is in the
-  loop-closed model's sigma only, as noise.
+  loop-closed model's sigma as noise or, when the loop added its residual GP, in the GP: its mean
+  corrects the loop-closed model and its variance (its prior's far from the measured
+  configurations) is drawn at every configuration, with the GP's noise as the noise.
 
 The report warns when the workspace-wide mean error exceeds `WORKSPACE_RATIO` times the error at
 the measured configurations ("holds near the measured poses only") and says what the next
@@ -50,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from . import metrics
+from . import metrics, residual_gp
 from .blocks import identifiable_extension
 from .campaign import SensorData
 from .errors import InputError
@@ -98,6 +100,16 @@ def _with_noise(points, sigma, rng: np.random.Generator):
     return points + np.asarray(sigma)[:, None, None] * rng.standard_normal(points.shape)
 
 
+def _gp_draws(gp: residual_gp.ResidualGP | None, q, count: int, rng: np.random.Generator):
+    """The residual GP's mean (n, 3) m at readings q (n, N) and `count` draws (count, n, 3) of it
+    (marginal at each configuration); zeros without a GP (and no random draw)."""
+    if gp is None:
+        return 0.0, 0.0
+    mean = gp.mean(q)
+    std = np.sqrt(gp.variance(q))
+    return mean, mean + std[None, :, None] * rng.standard_normal((count, len(q), 3))
+
+
 def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, rng: np.random.Generator):
     """The draws with every held zero-offset drawn from N(held value, tolerance^2)."""
     names = sorted(held)
@@ -134,12 +146,16 @@ def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
 def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, paper_summary: pd.DataFrame,
                        laplace: Mapping, loop_report: Mapping, loop_samples: pd.DataFrame,
                        rng: np.random.Generator, n_draws: int = 2000, n_random: int = 1000, seed: int = 0,
-                       label: str = "") -> WorkspaceAccuracy:
+                       label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
     module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
     parameters); loop_report, loop_samples: loop_closure.json and its MCMC samples (SI); robot:
     the robot's identity (its random configurations come from seed and it); rng draws the
-    posterior rows, the noise and the held zero-offsets."""
+    posterior rows, the noise and the held zero-offsets; loop_gp_rows: the loop's residual GP
+    training rows (residual_gp.parquet), empty or None when it added none. With a residual GP the
+    loop-closed model's mean includes its correction, each draw a draw of it (mean + its marginal
+    std at each configuration, independently per configuration), and the noise is the GP's white
+    part: far from the data its variance, back to its prior, is what the claim carries."""
     if loop_samples is None or loop_samples.empty or SIGMA not in loop_samples.columns:
         raise InputError("the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
                          file=label, key="samples")
@@ -154,17 +170,21 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     unseen = {n: loop.values[n] for n in loop_report.get("identifiability", {}).get("dropped", {}) if n in loop.values}
     tolerance = float(loop_report["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
     q_sets = {"optimization": sensor.q("optimization"), "random": robot_configurations(chain, robot, n_random, seed)}
+    gp = residual_gp.from_results(loop_gp_rows, loop_report.get("residual_gp"))
+    if gp is not None:
+        sigma = np.full(n_draws, gp.hyper.noise_std)
 
     theoretical, claims = [], []
     for where, q in q_sets.items():
         predictor = loop.predictor(chain, q, sensor.marker)
-        loop_mean = predictor.points(loop.values)
+        correction, corrections = _gp_draws(gp, q, n_draws, rng)
+        loop_mean = predictor.points(loop.values) + correction
         # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
         # (a registration removes joint 1's; one held only because the tool never turned stays)
-        points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng))
+        points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng)) + corrections
         noisy = _with_noise(points, sigma, rng)
         # the paper's tables' convention: what the data cannot see, held
-        seen = predictor.points_of_draws([{**d, **unseen} for d in draws])
+        seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) + corrections
         seen_noisy = _with_noise(seen, sigma, rng)
         paper_points = paper.predictor(chain, q, sensor.marker).points(paper.values)
         for table, (table_where, noise) in THEORETICAL_TABLES.items():

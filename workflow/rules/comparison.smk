@@ -8,9 +8,10 @@ COMPARISON_FIGURES = {"zero_offsets_over_time": "zero_offsets_over_time",
 
 
 def comparison_inputs(table):
-    """campaign.yaml files and fit summaries; loop_closure.json files for the loop-closure tables only."""
+    """campaign.yaml files and fit summaries with the stds of model discrepancy (`remaster.discrepancy`);
+    loop_closure.json files for the loop-closure tables only."""
     return {"metadata": [f"{RAW}/{c}/campaign.yaml" for c in CAMPAIGNS],
-            "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv"),
+            "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary_discrepancy.csv"),
             "loops": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json")
             if table in LOOP_TABLES else []}
 

@@ -82,6 +82,23 @@ rule posterior_summary:
         "../scripts/posterior_summary.py"
 
 
+rule discrepancy:
+    input:
+        campaign=campaign_files,
+        registration=rules.registration.output.registration,
+        laplace=rules.laplace.output.laplace,
+        summary=rules.posterior_summary.output.summary,
+    output:
+        summary=f"{FIT}/summary_discrepancy.csv",
+        report=f"{FIT}/discrepancy.json",
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/discrepancy.log",
+    params:
+        folder=lambda wc: f"{RAW}/{wc.campaign}",
+    script:
+        "../scripts/discrepancy.py"
+
+
 rule remastering:
     input:
         campaign=campaign_files,

@@ -16,6 +16,7 @@ rule loop_closure:
         signatures=f"{LOOP}/signatures.parquet",
         residuals=f"{LOOP}/residuals.parquet",
         samples=f"{LOOP}/samples.parquet",
+        gp=f"{LOOP}/residual_gp.parquet",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_closure.log",
     params:
@@ -41,6 +42,33 @@ rule table_loop_closure:
         kind="loop_closure",
     script:
         "../scripts/table_loop_closure.py"
+
+
+rule table_loop_closure_test:
+    input:
+        tables=per_sensor(f"{LOOP}/before_after.csv"),
+        reports=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
+    output:
+        multiext(f"{TABLES}/loop_closure_test", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_loop_closure_test.log",
+    params:
+        sensors=lambda wc: sensors_of(wc.campaign),
+        kind="loop_closure_test",
+    script:
+        "../scripts/table_loop_closure.py"
+
+
+rule figure_loop_residual_joints:
+    input:
+        gp=rules.loop_closure.output.gp,
+        report=rules.loop_closure.output.report,
+    output:
+        multiext(f"{FIGURES}/loop_residual_joints_{{sensor}}", ".png", ".pdf"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figure_loop_residual_joints.log",
+    script:
+        "../scripts/figure_loop_residual_joints.py"
 
 
 rule table_loop_candidates:
@@ -87,6 +115,7 @@ rule loop_workspace:
         laplace=rules.laplace.output.laplace,
         report=rules.loop_closure.output.report,
         samples=rules.loop_closure.output.samples,
+        gp=rules.loop_closure.output.gp,
     output:
         theoretical=f"{LOOP}/theoretical_accuracy.csv",
         claims=f"{LOOP}/workspace_accuracy.csv",

@@ -3,9 +3,9 @@
 from types import SimpleNamespace
 
 REPORT_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison", "loop_closure",
-                 "loop_candidates", "workspace_warnings", "workspace_accuracy"]
+                 "loop_closure_test", "loop_candidates", "workspace_warnings", "workspace_accuracy"]
 REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", "post_registration_histograms",
-                  "loop_signatures", "loop_residuals", "workspace_accuracy"]
+                  "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy"]
 
 
 def report_layout():
@@ -37,6 +37,8 @@ def audited_results(campaign):
         base = f"{RESULTS}/{campaign}/{s}"
         files += [f"{base}/remastering.json", f"{base}/registration.json", f"{base}/fit/summary.csv",
                   f"{base}/loop_closure.json", f"{base}/loop_closure/workspace.json",
+                  f"{base}/loop_closure/residual_gp.parquet", f"{base}/fit/summary_discrepancy.csv",
+                  f"{base}/fit/discrepancy.json",
                   f"{base}/loop_closure/workspace_accuracy.csv", f"{base}/loop_closure/theoretical_accuracy.csv",
                   f"{base}/fit/laplace.json", f"{base}/fit/cross_check.csv",
                   *[f"{base}/fit/samples_{m}.parquet" for m in FIT_METHODS],

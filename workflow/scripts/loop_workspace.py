@@ -10,7 +10,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821
         campaign.chain, campaign.sensors[w.sensor], comparison.robot_identity(campaign), io.read_csv(i.summary),
         io.read_json(i.laplace), io.read_json(i.report), io.read_parquet(i.samples),
         seeding.generator(p.seed, w.campaign, w.sensor, "workspace"), n_draws=p.draws,
-        n_random=p.random_configurations, seed=p.seed, label=i.samples)
+        n_random=p.random_configurations, seed=p.seed, label=i.samples, loop_gp_rows=io.read_parquet(i.gp))
     io.write_csv(out.theoretical, result.theoretical)
     io.write_csv(out.claims, result.claims)
     io.write_json(out.report, result.report)
