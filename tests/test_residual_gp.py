@@ -131,6 +131,7 @@ def test_the_verdict_and_the_shares():
     assert closure.noise_floor(1e-5, 3e-5) == 3e-5 and closure.noise_floor(None, None) is None
     # from 5 to 4 (x 1e-5) over a floor of 1: (25 - 16) / (25 - 1)
     assert closure.share(5e-5, 4e-5, 1e-5) == pytest.approx(9 / 24)
+    assert closure.share(1.1e-5, 0.9e-5, 1e-5) is None  # already closed: nothing structured to share
 
 
 # --------------------------------------------------------------------------- an effect outside the candidates
@@ -176,7 +177,7 @@ def test_an_effect_outside_the_candidates_is_explained_by_the_gp_and_traced_to_i
     # a parametric effect added on the way explains a small share and is not named as the cause
     assert report["closure"]["main_causes"] == ["residual_gp"]
     for name, value in report["closure"]["share_of_structured_residual"].items():
-        assert (value >= closure.MAIN_CAUSE_SHARE) == (name == "residual_gp")
+        assert (value is not None and value >= closure.MAIN_CAUSE_SHARE) == (name == "residual_gp")
 
 
 def test_without_the_gp_the_loop_says_it_is_not_closed_and_where_the_residual_lives(iiwa, cyclic):
@@ -186,3 +187,16 @@ def test_without_the_gp_the_loop_says_it_is_not_closed_and_where_the_residual_li
     assert report["closure"]["main_causes"] == []
     assert any(w.startswith("loop not closed") and "not its cause" in w for w in report["warnings"])
     assert any(w.startswith("no candidate effect explains what is left") for w in report["warnings"])
+
+
+def test_the_gp_written_with_the_loop_results_is_the_gp_the_loop_fitted():
+    rng = np.random.default_rng(12)
+    q = readings(rng, 300)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    candidate = residual_gp.candidate(q, y, y, np.arange(len(q)) % 5, subset=200, inducing=100)
+    section = {"added": True, "hyperparameters": candidate.gp.hyper.report(), "inducing": len(candidate.gp.inducing)}
+    rebuilt = residual_gp.from_results(residual_gp.training_frame(candidate), section)
+    new = readings(rng, 40)
+    np.testing.assert_allclose(rebuilt.mean(new), candidate.gp.mean(new), rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(rebuilt.variance(new), candidate.gp.variance(new), rtol=1e-9, atol=1e-18)
+    assert residual_gp.from_results(residual_gp.training_frame(candidate), {**section, "added": False}) is None

@@ -85,20 +85,10 @@ def test_real_run_builds_everything_then_nothing(tiny):
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
 
 
-def test_same_inputs_and_seed_give_byte_identical_results(tiny):
-    """A second run into another folder: every table and result is the same to the byte."""
-    first = tiny / "results"
-    if not (first / "report.html").exists():
-        assert run(tiny).returncode == 0
-    other = with_results(tiny, "results_again")
-    assert run(tiny, config=other).returncode == 0
-    a, b = result_bytes(first), result_bytes(tiny / "results_again")
-    assert a.keys() == b.keys() and len(a) > 40
-    assert [name for name in a if a[name] != b[name]] == []
-
-
 def test_a_run_killed_half_way_completes_with_identical_results(tiny):
-    """Killed while sampling, started again: it finishes, and its results equal an undisturbed run's."""
+    """A second run into another folder, killed while sampling and started again: it finishes, and
+    every table and result equals the first, undisturbed run's to the byte (so the same inputs and
+    seed give the same results, whether or not a run was interrupted)."""
     first = tiny / "results"
     if not (first / "report.html").exists():
         assert run(tiny).returncode == 0
@@ -116,7 +106,8 @@ def test_a_run_killed_half_way_completes_with_identical_results(tiny):
     again = run(tiny, config=killed)
     assert again.returncode == 0, again.stderr[-3000:]
     a, b = result_bytes(first), result_bytes(tiny / "results_killed")
-    assert a.keys() == b.keys() and [name for name in a if a[name] != b[name]] == []
+    assert a.keys() == b.keys() and len(a) > 40
+    assert [name for name in a if a[name] != b[name]] == []
 
 
 def test_changing_one_campaign_reruns_only_its_jobs(tiny):

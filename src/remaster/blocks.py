@@ -424,8 +424,12 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
     keep = is_base.copy()
     keep[np.flatnonzero(~is_base)[kept]] = True
     columns = jacobian[:, keep]
-    singular = np.linalg.svd(columns / np.linalg.norm(columns, axis=0), compute_uv=False)
-    return Reduction(tuple(ext_names[i] for i in kept), dropped, float(singular[0] / singular[-1]), weak)
+    norms = np.linalg.norm(columns, axis=0)
+    # a base column without any effect (a zero-offset of a joint the marker sits on, not held here)
+    # makes the kept set singular; the others are scaled to unit length
+    singular = np.linalg.svd(columns[:, norms > 0] / norms[norms > 0], compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if np.all(norms > 0) else np.inf
+    return Reduction(tuple(ext_names[i] for i in kept), dropped, condition, weak)
 
 
 def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],

@@ -65,8 +65,11 @@ def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RAT
             "ratio_to_floor": rms_per_axis / floor, "text": text}
 
 
-def share(before: float, after: float, floor: float | None) -> float:
+def share(before: float, after: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> float | None:
     """The share of the structured residual (mean square per axis above the floor) a step removed;
-    before and after are RMS per axis (m)."""
+    before and after are RMS per axis (m). None when the loop was already closed before the step
+    (no structured residual was left to share)."""
+    if floor is not None and before <= ratio * floor:
+        return None
     excess = before**2 - (floor or 0.0) ** 2
-    return float((before**2 - after**2) / excess) if excess > 0 else 0.0
+    return float((before**2 - after**2) / excess)

@@ -479,11 +479,12 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
         if r["added"]:
             steps.append((r["added"], r["scores"][r["added"]]["cv_rmse_mm"] * MM / math.sqrt(3.0)))
     rounds = [{"after": name, **closure.verdict(rms, floor, ratio)} for name, rms in steps]
-    shares = {name: closure.share(before, after, floor) for (_, before), (name, after) in zip(steps, steps[1:])}
+    shares = {name: closure.share(before, after, floor, ratio) for (_, before), (name, after) in zip(steps, steps[1:])}
     final = rounds[-1]
     warnings = []
     if final["closed"] is False:
-        minor = [f"{name} ({100 * value:.0f} %)" for name, value in shares.items() if value < closure.MAIN_CAUSE_SHARE]
+        minor = [f"{name} ({100 * value:.0f} %)" for name, value in shares.items()
+                 if value is not None and value < closure.MAIN_CAUSE_SHARE]
         warnings.append(f"loop {final['text']}"
                         + (f"; effects added that explain only a small share of what was left, not its cause: "
                            f"{', '.join(minor)}" if minor else ""))
@@ -492,7 +493,7 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
             "noise_floor_mm": None if floor is None else floor / MM, "ratio": ratio,
             "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
             "rounds": rounds, "share_of_structured_residual": shares,
-            "main_causes": [n for n, v in shares.items() if v >= closure.MAIN_CAUSE_SHARE],
+            "main_causes": [n for n, v in shares.items() if v is not None and v >= closure.MAIN_CAUSE_SHARE],
             "closed": final["closed"], "verdict": final["text"], "warnings": warnings}
 
 
@@ -611,7 +612,8 @@ def closure_table(reports: dict[str, dict]) -> pd.DataFrame:
             last = k == len(test["rounds"]) - 1
             rows.append({"Sensor": sensor, "After": step["after"], "CV RMS per axis (mm)": step["rms_per_axis_mm"],
                          "Noise floor (mm)": test["noise_floor_mm"], "Ratio": step.get("ratio_to_floor"),
-                         "Share removed (%)": 100.0 * shares[step["after"]] if step["after"] in shares else None,
+                         "Share removed (%)": (100.0 * shares[step["after"]]
+                                               if shares.get(step["after"]) is not None else None),
                          "Verdict": step["text"], "Residual depends on": where if last else ""})
     return pd.DataFrame(rows)
 
