@@ -9,6 +9,7 @@ include: "workflow/rules/tables_fit.smk"
 include: "workflow/rules/accuracy.smk"
 include: "workflow/rules/loop_closure.smk"
 include: "workflow/rules/comparison.smk"
+include: "workflow/rules/calibrated.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -29,7 +30,7 @@ rule all:
         expand(f"{RESULTS}/{{campaign}}/figures/residuals.png", campaign=CAMPAIGNS),
         expand(f"{RESULTS}/{{campaign}}/tables/{{table}}.md", campaign=CAMPAIGNS,
                table=["loop_closure", "loop_closure_test", "loop_candidates", "workspace_accuracy",
-                      "workspace_warnings"]),
+                      "workspace_warnings", "controller_offsets", "calibrated_files"]),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_signatures_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_residuals_{{sensor}}.png"),
         every_campaign_sensor(f"{RESULTS}/{{campaign}}/figures/loop_residual_joints_{{sensor}}.png"),

@@ -36,3 +36,11 @@ def test_campaigns_are_shown_in_date_order():
     page = report.build({n: {"summary": _summary(n, d), "tables": {}, "figures": {}} for n, d in names.items()}, {})
     headings = [page.index(f"<h2 id='{n}'>") for n in ("b-first", "a-middle", "c-middle", "a-last")]
     assert headings == sorted(headings)
+
+
+def test_a_file_column_is_a_column_of_links_beside_the_page():
+    table = pd.DataFrame({"Sensor": ["laser_tracker"], "File": ["demo/laser_tracker/calibrated/loop.urdf"],
+                          "What": ["a <calibrated> URDF"]})
+    page = report.table_html("files", table)
+    assert '<a href="demo/laser_tracker/calibrated/loop.urdf">demo/laser_tracker/calibrated/loop.urdf</a>' in page
+    assert "a &lt;calibrated&gt; URDF" in page and page.count("<a href") == 1  # only the File column links

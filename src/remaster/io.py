@@ -85,6 +85,14 @@ def read_yaml(path: str | Path) -> Any:
         raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
 
 
+def write_text(path: str | Path, text: str) -> Path:
+    """Write text (UTF-8, newlines as given) to `path`, creating its folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8", newline="\n")
+    return path
+
+
 def write_yaml(path: str | Path, data: Any) -> Path:
     """Write `data` as block YAML, keys in the given order, leaf lists inline; same data, same bytes."""
     path = Path(path)

@@ -51,9 +51,17 @@ class Section:
         return "".join(c if c.isalnum() else "-" for c in self.title.lower())
 
 
+LINK_COLUMN = "File"  # a column of paths from the results folder (where the page is): shown as links
+
+
+def _td(column: str, value, digits: int) -> str:
+    text = html.escape(_cell(value, digits))
+    return f'<td><a href="{text}">{text}</a></td>' if column == LINK_COLUMN else f"<td>{text}</td>"
+
+
 def table_html(caption: str, table: pd.DataFrame, digits: int = 3) -> str:
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in table.columns)
-    rows = "".join("<tr>" + "".join(f"<td>{html.escape(_cell(v, digits))}</td>" for v in row) + "</tr>"
+    rows = "".join("<tr>" + "".join(_td(str(c), v, digits) for c, v in zip(table.columns, row)) + "</tr>"
                    for row in table.itertuples(index=False))
     return f"<table><caption>{html.escape(caption)}</caption><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>"
 

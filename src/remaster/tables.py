@@ -58,6 +58,11 @@ CAPTIONS = {
     "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
                        "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
                        "gain for reference, and the share of the residual it explains, per round.",
+    "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
+                          "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
+                          "and the loop-closed model; held joints get none.",
+    "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
+                        "joints as the input), the effects a URDF cannot hold, and the controller offsets.",
     "loop_closure_test": "Is the loop closed? After each step, the pose-grouped cross-validated RMS per axis on the "
                          "optimization set against the noise floor (the sensor's stated noise, or the spread of "
                          "repeated configurations), the share of the structured residual (above the floor) the step "

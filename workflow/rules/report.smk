@@ -3,7 +3,8 @@
 from types import SimpleNamespace
 
 REPORT_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison", "loop_closure",
-                 "loop_closure_test", "loop_candidates", "workspace_warnings", "workspace_accuracy"]
+                 "loop_closure_test", "loop_candidates", "workspace_warnings", "workspace_accuracy",
+                 "controller_offsets", "calibrated_files"]
 REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", "post_registration_histograms",
                   "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy"]
 
@@ -38,6 +39,7 @@ def audited_results(campaign):
         files += [f"{base}/remastering.json", f"{base}/registration.json", f"{base}/fit/summary.csv",
                   f"{base}/loop_closure.json", f"{base}/loop_closure/workspace.json",
                   f"{base}/loop_closure/residual_gp.parquet", f"{base}/fit/summary_discrepancy.csv",
+                  *[f"{base}/calibrated/{name}" for name in CALIBRATED_FILES],
                   f"{base}/fit/discrepancy.json",
                   f"{base}/loop_closure/workspace_accuracy.csv", f"{base}/loop_closure/theoretical_accuracy.csv",
                   f"{base}/fit/laplace.json", f"{base}/fit/cross_check.csv",
