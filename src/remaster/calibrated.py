@@ -33,7 +33,7 @@ import pandas as pd
 
 from . import spatial
 from .campaign import Campaign
-from .kinematics import KinematicChain, perturbed_transforms
+from .kinematics import KinematicChain, origin_transform, perturbed_transforms
 from .model import DEG
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 
@@ -61,13 +61,6 @@ def _path(root: ET.Element, base: str, flange: str) -> list[ET.Element]:
         path.append(joint)
         link = joint.find("parent").get("link")
     return path[::-1]
-
-
-def _origin(joint: ET.Element) -> np.ndarray:
-    origin = joint.find("origin")
-    xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-    rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-    return spatial.homogeneous(spatial.rpy_to_matrix(*rpy), xyz)
 
 
 def _set_origin(joint: ET.Element, transform: np.ndarray) -> None:
@@ -115,13 +108,15 @@ def calibrated_urdf(chain: KinematicChain, values: Mapping[str, float]) -> tuple
     joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, errors)
     for j, element in enumerate(movable):
         turn = spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
-        _set_origin(element, _origin(element) @ np.linalg.inv(chain.joint_transforms[j]) @ joints[j] @ turn)
+        origin = origin_transform(element, f"joint {element.get('name')}")
+        _set_origin(element, origin @ np.linalg.inv(chain.joint_transforms[j]) @ joints[j] @ turn)
     left = []
     after = path[path.index(movable[-1]) + 1:]
     if np.any(errors[-1] != 0.0):
         if after:
             last = after[-1]
-            _set_origin(last, _origin(last) @ np.linalg.inv(chain.tool_transform) @ tool)
+            origin = origin_transform(last, f"joint {last.get('name')}")
+            _set_origin(last, origin @ np.linalg.inv(chain.tool_transform) @ tool)
         else:
             left.append("link_geometry.tool: the chain ends on its last joint, no fixed joint to hold it")
     root.set("name", root.get("name", "robot"))

@@ -96,7 +96,8 @@ def _number(text: str | None, default: float, where: str) -> float:
     return value
 
 
-def _origin(element: ET.Element, where: str) -> np.ndarray:
+def origin_transform(element: ET.Element, where: str) -> np.ndarray:
+    """(4, 4) transform of a URDF element's <origin> (identity without one); `where` names it in errors."""
     origin = element.find("origin")
     if origin is None:
         return np.eye(4)
@@ -112,7 +113,7 @@ def _link_inertia(link: ET.Element) -> LinkInertia | None:
     where = f"link {link.get('name')}/inertial"
     mass_el = inertial.find("mass")
     mass = _number(mass_el.get("value"), 0.0, f"{where}/mass") if mass_el is not None else 0.0
-    pose = _origin(inertial, where)
+    pose = origin_transform(inertial, where)
     inertia_el = inertial.find("inertia")
     inertia = np.zeros((3, 3))
     if inertia_el is not None:
@@ -231,7 +232,7 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             if id(joint) in path_joints or joint.get("type") != "fixed":
                 continue
             child_inertia = subtree_inertia(joint.find("child").get("link"))
-            total = _combine(total, _moved(child_inertia, _origin(joint, f"joint {joint.get('name')}")))
+            total = _combine(total, _moved(child_inertia, origin_transform(joint, f"joint {joint.get('name')}")))
         return total
 
     names, transforms, axes, lower, upper, inertias = [], [], [], [], [], []
@@ -240,7 +241,7 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
     for joint in path:
         name, kind = joint.get("name"), joint.get("type")
         where = f"joint {name}"
-        origin = _origin(joint, where)
+        origin = origin_transform(joint, where)
         child = joint.find("child").get("link")
         if kind == "fixed":
             pending = pending @ origin
