@@ -178,6 +178,15 @@ def link_labels(chain: KinematicChain) -> list[tuple[int, int, str]]:
     return out
 
 
+def link_errors(chain: KinematicChain, values: Mapping[str, float]) -> np.ndarray:
+    """(N + 1, 2) length (m) and twist (rad) errors of F_1..F_N, F_tool from parameter values
+    {name: SI} (absent ones 0): the `kinematics.perturbed_transforms` form of the block."""
+    errors = np.zeros((chain.n_joints + 1, 2))
+    for row, column, name in link_labels(chain):
+        errors[row, column] = values.get(name, 0.0)
+    return errors
+
+
 def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
     """The parameters a block owns on this chain, in model order."""
     if block == "registration":  # the paper's parameters, named and scaled as `remaster.model` does

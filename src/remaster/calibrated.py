@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from . import spatial
+from .blocks import link_errors
 from .campaign import Campaign
 from .kinematics import KinematicChain, origin_transform, perturbed_transforms
 from .model import DEG
@@ -41,15 +42,6 @@ URDF_BLOCKS = ("zero_offsets", "link_geometry")  # what the joint origins hold
 SIGN = "true joint angle = controller reading + correction: add the correction to the controller's zero"
 OFFSET_COLUMNS = ["joint", "model", "correction_deg", "std_deg", "q2.5_deg", "q97.5_deg", "correction_rad", "std_rad",
                   "status"]
-
-
-def link_errors(chain: KinematicChain, values: Mapping[str, float]) -> np.ndarray:
-    """(N + 1, 2) length (m) and twist (rad) errors of F_1..F_N, F_tool from parameter values."""
-    errors = np.zeros((chain.n_joints + 1, 2))
-    for row in range(chain.n_joints + 1):
-        label = "tool" if row == chain.n_joints else f"F{row + 1}"
-        errors[row] = [values.get(f"link_geometry.{label}.length", 0.0), values.get(f"link_geometry.{label}.twist", 0.0)]
-    return errors
 
 
 def _path(root: ET.Element, base: str, flange: str) -> list[ET.Element]:

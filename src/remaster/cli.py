@@ -1,7 +1,10 @@
-"""Command line: `remaster plan`, `remaster simulate` and `remaster import`.
+"""Command line: `remaster plan`, `remaster simulate`, `remaster import`, `remaster predict` and
+`remaster compensate`.
 
 Each subcommand reads its inputs, calls the library and writes its outputs; errors in the input
-end with a message naming the file, key or column and rows, and exit status 2.
+end with a message naming the file, key or column and rows, and exit status 2 (nothing written).
+`remaster compensate` exits with status 3 when it wrote its table but some targets were not
+reached (each such row says why).
 """
 
 from __future__ import annotations
@@ -12,11 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import importer, io, planning, registration, scenario
+from . import compensation, importer, io, planning, registration, scenario
 from .errors import RemasterError
 from .kinematics import ForwardKinematics
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
+NOT_REACHED_STATUS = 3
 
 
 def _simulate(args: argparse.Namespace) -> None:
@@ -73,6 +77,73 @@ def _import(args: argparse.Namespace) -> None:
           f"{folder / importer.REPORT_FILE}")
 
 
+def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
+    campaign = io.read_campaign(args.campaign, Path.cwd())
+    results = io.read_sensor_results(args.results, Path(args.campaign).name, args.sensor)
+    label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
+    robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
+    for note in robot.notes:
+        print(f"note: {note}", file=sys.stderr)
+    return campaign, robot
+
+
+def _predict(args: argparse.Namespace) -> None:
+    _, robot = _calibrated(args)
+    q = compensation.joint_commands(io.read_csv(args.commands), robot.chain, args.commands)
+    table = compensation.predict(robot, q, args.frame, args.draws, np.random.default_rng(args.seed))
+    io.write_csv(args.out, table)
+    print(f"{args.out}: {len(table)} predicted positions ({args.model} model, {args.frame} frame); largest "
+          f"95 % bound {table['bound95_mm'].max():.4g} mm")
+
+
+def _compensate(args: argparse.Namespace) -> int:
+    campaign, robot = _calibrated(args)
+    table = io.read_csv(args.targets)
+    q = compensation.joint_commands(table, robot.chain, args.targets, required=False)
+    has_targets = {"x", "y", "z"} <= set(table.columns)
+    if q is None and not has_targets:
+        raise RemasterError(f"{args.targets}: x, y, z or q1..q{robot.chain.n_joints}: neither target positions nor "
+                            f"joint commands (got: {', '.join(map(str, table.columns))})")
+    rng = np.random.default_rng(args.seed)
+    if has_targets:
+        out = compensation.compensate(robot, args.frame, args.draws, rng,
+                                      targets=compensation.target_positions(table, args.targets), seeds=q,
+                                      candidates=campaign.sensors[args.sensor].q("optimization"))
+    else:
+        out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)
+    io.write_csv(args.out, out)
+    reached = out["status"] == compensation.REACHED
+    print(f"{args.out}: {int(reached.sum())} of {len(out)} targets reached ({args.model} model, {args.frame} frame); "
+          f"largest 95 % bound {out['bound95_mm'].max():.4g} mm")
+    left = compensation.not_reached_summary(out)
+    if left:
+        print(f"remaster compensate: {left}", file=sys.stderr)
+        return NOT_REACHED_STATUS
+    return 0
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _calibration_arguments(command: argparse.ArgumentParser) -> None:
+    command.add_argument("--campaign", required=True, metavar="FOLDER", help="the campaign folder (data/raw/<name>)")
+    command.add_argument("--sensor", required=True, help="the sensor whose calibration to use")
+    command.add_argument("--results", default="results", metavar="FOLDER",
+                         help="the results folder `snakemake -j2` wrote (its results_dir)")
+    command.add_argument("--model", default="loop", choices=compensation.MODELS,
+                         help="the paper's model (zero-offsets) or the loop-closed model (default)")
+    command.add_argument("--frame", default="robot", choices=compensation.FRAMES,
+                         help="positions in the robot's base frame, or in the sensor's frame of this campaign's set-up")
+    command.add_argument("--tcp", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                         help="a tool centre point in the flange frame (m); default: the sensor's marker")
+    command.add_argument("--draws", type=_positive, default=2000, help="posterior draws for the 95 %% bounds")
+    command.add_argument("--seed", type=int, default=0, help="seed of the posterior draws")
+
+
 def parser() -> argparse.ArgumentParser:
     main = argparse.ArgumentParser(prog="remaster", description=__doc__.splitlines()[0])
     commands = main.add_subparsers(dest="command", required=True)
@@ -116,6 +187,20 @@ def parser() -> argparse.ArgumentParser:
     imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
     imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
     imp.set_defaults(run=_import)
+
+    predict = commands.add_parser("predict", help="where the calibrated robot puts the marker or TCP at joint commands")
+    _calibration_arguments(predict)
+    predict.add_argument("--commands", required=True, metavar="CSV", help="joint commands q1..qN (rad), one per row")
+    predict.add_argument("--out", default="predicted.csv")
+    predict.set_defaults(run=_predict)
+
+    compensate = commands.add_parser("compensate", help="joint commands that reach targets under the calibrated model")
+    _calibration_arguments(compensate)
+    compensate.add_argument("--targets", required=True, metavar="CSV",
+                            help="target positions x, y, z (m, in --frame), optionally with seed commands q1..qN "
+                                 "(rad); or nominal joint commands q1..qN alone")
+    compensate.add_argument("--out", default="compensated.csv")
+    compensate.set_defaults(run=_compensate)
     return main
 
 
@@ -124,11 +209,11 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "poses", None) is not None and getattr(args, "configurations", None) is None:
         parser().error("--poses needs --configurations")
     try:
-        args.run(args)
+        status = args.run(args)
     except RemasterError as exc:
         print(f"remaster {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    return 0
+    return status or 0
 
 
 if __name__ == "__main__":

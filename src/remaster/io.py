@@ -444,3 +444,22 @@ def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str
         for path in sorted(staged.iterdir()):
             shutil.copyfile(path, folder / path.name)
     return folder, result.report
+
+
+# --------------------------------------------------------------------------- one sensor's results
+
+SENSOR_RESULTS = {  # what `remaster predict` and `remaster compensate` read of `snakemake -j2`'s results
+    "registration": "registration.json", "laplace": "fit/laplace.json", "summary": "fit/summary.csv",
+    "paper_samples": "fit/samples_default.parquet", "loop": "loop_closure.json",
+    "loop_samples": "loop_closure/samples.parquet", "gp": "loop_closure/residual_gp.parquet"}
+
+
+def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> dict[str, Any]:
+    """The results of one campaign's sensor (`SENSOR_RESULTS`, under results_dir/campaign/sensor)
+    by key; InputError naming the folder or file when the workflow has not written them."""
+    folder = Path(results_dir) / campaign / sensor
+    if not folder.is_dir():
+        raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
+                         "folder it wrote", file=str(folder))
+    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet}
+    return {key: readers[Path(name).suffix](folder / name) for key, name in SENSOR_RESULTS.items()}

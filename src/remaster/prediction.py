@@ -37,11 +37,11 @@ import numpy as np
 import pandas as pd
 
 from . import comparison, metrics, seeding
-from .blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters
+from .blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters, link_errors
 from .campaign import Campaign, SensorData
 from .errors import InputError
 from .gravity import gravity_torques
-from .kinematics import KinematicChain
+from .kinematics import ForwardKinematics, KinematicChain, perturbed_chain
 from .model import MM
 
 MODELS = ("nominal", "paper", "loop")
@@ -113,6 +113,14 @@ class Predictor:
     def points_of_draws(self, draws: Sequence[Mapping[str, float]]) -> np.ndarray:
         """Marker positions (m, n, 3) m in the robot frame for m parameter sets (`points` each)."""
         return self.model.robot_points(np.array([self._vector(values) for values in draws]))
+
+    def flange_poses(self, values: Mapping[str, float]) -> np.ndarray:
+        """Flange poses (n, 4, 4) in the robot frame: the joint angles the joint-space effects give
+        and the links the link geometry gives (the marker offset is not the flange's)."""
+        model = self.model
+        chain = (perturbed_chain(model.chain, link_errors(model.chain, values))
+                 if "link_geometry" in model.blocks else model.chain)
+        return ForwardKinematics(chain, model.angles(self._vector(values))).flange_poses()
 
     def _vector(self, values: Mapping[str, float]) -> np.ndarray:
         return np.array([float(values.get(name, 0.0)) for name in self.model.all_names])

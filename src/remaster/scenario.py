@@ -200,6 +200,31 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
     return SimulatedCampaign(metadata, out_tables, truth)
 
 
+def robot_from_truth(truth: dict) -> TrueRobot:
+    """The true robot of a ground-truth record (data/truth/<campaign>.json, as `simulate` writes
+    it): the inverse of its `zero_offsets_deg` and `effects`."""
+    effects = truth.get("effects", {})
+    compliance, links = effects.get("joint_compliance"), effects.get("link_geometry")
+    cyclic, drift = effects.get("cyclic_error"), effects.get("drift")
+    return TrueRobot(
+        zero_offsets=np.radians(truth["zero_offsets_deg"]),
+        joint_compliance=np.array(compliance["compliance_rad_per_Nm"]) if compliance else None,
+        payload_mass=float(compliance["payload_mass_kg"]) if compliance else 0.0,
+        payload_com=np.array(compliance["payload_com_m"]) if compliance else np.zeros(3),
+        link_errors=np.column_stack([links["length_errors_m"], links["twist_errors_rad"]]) if links else None,
+        joint_scale=np.array(effects["joint_scale"]["scale"]) if "joint_scale" in effects else None,
+        drift_rate=np.radians(drift["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR if drift else None,
+        cyclic_error=np.column_stack([np.radians(cyclic["amplitude_deg"]), cyclic["cycles_per_turn"],
+                                      np.radians(cyclic["phase_deg"])]) if cyclic else None)
+
+
+def sensor_from_truth(truth: dict, name: str, marker) -> Sensor:
+    """The true sensor `name` of a ground-truth record, with the campaign's nominal marker (3,) m."""
+    record = truth["sensors"][name]
+    return Sensor(name, record["kind"], np.array(record["pose_in_robot"]), float(record["noise_m"]),
+                  np.asarray(marker, dtype=float), np.array(record["marker_error_m"]), float(record["scale_error"]))
+
+
 def _effects_record(robot: TrueRobot) -> dict:
     """Every effect beyond zero-offsets that the true robot has, with its parameters."""
     effects = {}

@@ -100,6 +100,12 @@ def true_marker_positions(chain: KinematicChain, robot: TrueRobot, sensor: Senso
 def measure(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, rng: np.random.Generator,
             elapsed_s=None) -> np.ndarray:
     """The sensor's readings (n, 3) in its own frame, noise included."""
-    p_robot = true_marker_positions(chain, robot, sensor, q_readings, elapsed_s)
-    p_sensor = (1.0 + sensor.scale_error) * spatial.transform_points(sensor.robot_to_sensor, p_robot)
+    p_sensor = true_sensor_positions(chain, robot, sensor, q_readings, elapsed_s)
     return p_sensor + rng.normal(0.0, sensor.noise, p_sensor.shape)
+
+
+def true_sensor_positions(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
+                          elapsed_s=None) -> np.ndarray:
+    """Where the sensor's marker really is, in the sensor's frame as a noiseless sensor reads it (n, 3)."""
+    p_robot = true_marker_positions(chain, robot, sensor, q_readings, elapsed_s)
+    return (1.0 + sensor.scale_error) * spatial.transform_points(sensor.robot_to_sensor, p_robot)
