@@ -82,7 +82,7 @@ def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.Calibrat
     results = io.read_sensor_results(args.results, Path(args.campaign).name, args.sensor)
     label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
     robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
-    for note in robot.notes:
+    for note in robot.notes(args.frame):
         print(f"note: {note}", file=sys.stderr)
     return campaign, robot
 

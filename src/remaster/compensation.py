@@ -12,7 +12,8 @@ A `CalibratedRobot` is one campaign's sensor under one model, 'paper' or 'loop'
   their tolerance (priors: held_zero_offset_deg) is drawn in every bound. 'sensor' is the
   campaign's sensor frame, p_N = (1 + s) T*(Theta1) T_NR p_R with the fitted registration and
   sensor scale: targets measured by the same sensor in the same set-up (a fixture, a workpiece).
-  There the held zero-offsets are part of the registration, whose posterior is drawn instead.
+  There the held zero-offsets a registration absorbs are part of it, whose posterior is drawn
+  instead; one held because the marker never sees it (the marker on its axis) is drawn in both.
 
 **predict**: positions (n, 3) at commands q at the posterior mean (residual GP mean added), the
 nominal model's positions (in the sensor frame through the campaign's initial registration T_NR, as
@@ -78,7 +79,9 @@ class CalibratedRobot:
     and sensor_scale.s posterior means (SI); t_nr (4, 4) the initial registration (robot ->
     sensor); samples: posterior rows (every free parameter, registration and noise.sigma
     included; empty without MCMC); held: {zero-offset: value} the data cannot see, held_tolerance
-    (rad) of the controller's marks; gp: the loop's residual GP (robot frame, at the marker)."""
+    (rad) of the controller's marks; gp: the loop's residual GP (robot frame, at the marker);
+    absorbed: the held zero-offsets a registration absorbs (the others, e.g. a joint whose axis
+    the marker lies on, are unseen in the sensor frame too)."""
 
     chain: KinematicChain
     calibration: Calibration
@@ -90,15 +93,23 @@ class CalibratedRobot:
     held: Mapping[str, float]
     held_tolerance: float
     gp: residual_gp.ResidualGP | None = None
+    absorbed: frozenset[str] = frozenset()
 
     @property
     def blocks(self) -> tuple[str, ...]:
         return tuple(b for b in self.calibration.blocks if self.at_marker or b != "marker_offset")
 
-    @property
-    def notes(self) -> list[str]:
-        """What the user should know about this model and point."""
+    def notes(self, frame: str) -> list[str]:
+        """What the user should know about this model, point and frame."""
         out = []
+        drawn = sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+        if drawn:
+            joints = ", ".join(n.split(".")[-1] for n in drawn)
+            out.append(f"{frame} frame: the zero-offset of {joints}, which these data do not see, is at the controller's "
+                       f"mark and drawn at its tolerance ({np.degrees(self.held_tolerance):.3g} deg) in the bounds")
+        if frame == "robot" and self.absorbed:
+            out.append("--frame sensor gives positions in this campaign's sensor set-up, where the registration holds "
+                       f"the zero-offset of {', '.join(n.split('.')[-1] for n in sorted(self.absorbed))}")
         if not self.at_marker and ("marker_offset" in self.calibration.blocks or self.gp is not None):
             left = [n for n, has in (("marker offset", "marker_offset" in self.calibration.blocks),
                                      ("residual GP", self.gp is not None)) if has]
@@ -138,16 +149,16 @@ class CalibratedRobot:
 
     def draws(self, count: int, frame: str, rng: np.random.Generator) -> tuple[list[dict], np.ndarray]:
         """`count` posterior draws ({name: SI}, every parameter) and their noise sigmas (count,):
-        whole sample rows chosen by rng; in the robot frame each held zero-offset is drawn at the
-        controller marks' tolerance."""
+        whole sample rows chosen by rng; each held zero-offset is drawn at the controller marks'
+        tolerance, in the sensor frame only those no registration absorbs."""
         if self.samples.empty:
             return [], np.zeros(0)
         rows = rng.choice(len(self.samples), count, replace=len(self.samples) < count)
         chosen = self.samples.iloc[rows]
         base = {**self.calibration.values, **self.setup}
         draws = [{**base, **row} for row in chosen.drop(columns=[SIGMA]).to_dict(orient="records")]
-        if frame == "robot" and self.held:
-            names = sorted(self.held)
+        names = sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+        if names:
             shifts = self.held_tolerance * rng.standard_normal((count, len(names)))
             draws = [{**d, **{n: self.held[n] + s for n, s in zip(names, row)}} for d, row in zip(draws, shifts)]
         sigma = np.full(count, self.gp.hyper.noise_std) if self._gp_applies() else chosen[SIGMA].to_numpy(float)
@@ -208,14 +219,16 @@ def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mappi
         calibration = loop_calibration(loop, results["loop_samples"], label)
         setup = _setup_values(pd.DataFrame(loop["refit"]["parameters"]))
         samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.get("residual_gp"))
-    held = {n: float(v) for n, v in results["laplace"]["identifiability"]["held_at_controller_value"].items()
-            if n.startswith("zero_offsets.")}
+    identifiability = results["laplace"]["identifiability"]
+    held = {n: float(v) for n, v in identifiability["held_at_controller_value"].items() if n.startswith("zero_offsets.")}
+    absorbed = frozenset(n for direction in identifiability.get("null_directions", [])
+                         if any(k.startswith("registration.") for k in direction) for n in direction if n in held)
     tolerance = float(loop["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)
     return CalibratedRobot(campaign.chain, calibration, np.asarray(point, dtype=float), tcp is None, setup,
                            np.asarray(results["registration"]["T_NR"], dtype=float),
-                           _posterior_rows(samples, calibration, setup, label), held, tolerance, gp)
+                           _posterior_rows(samples, calibration, setup, label), held, tolerance, gp, absorbed)
 
 
 # --------------------------------------------------------------------------- inputs
