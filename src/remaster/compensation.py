@@ -99,10 +99,15 @@ class CalibratedRobot:
     def blocks(self) -> tuple[str, ...]:
         return tuple(b for b in self.calibration.blocks if self.at_marker or b != "marker_offset")
 
+    def held_drawn(self, frame: str) -> list[str]:
+        """The held zero-offsets drawn at the marks' tolerance in `frame`: in the sensor frame,
+        those no registration absorbs."""
+        return sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+
     def notes(self, frame: str) -> list[str]:
         """What the user should know about this model, point and frame."""
         out = []
-        drawn = sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+        drawn = self.held_drawn(frame)
         if drawn:
             joints = ", ".join(n.split(".")[-1] for n in drawn)
             out.append(f"{frame} frame: the zero-offset of {joints}, which these data do not see, is at the controller's "
@@ -157,7 +162,7 @@ class CalibratedRobot:
         chosen = self.samples.iloc[rows]
         base = {**self.calibration.values, **self.setup}
         draws = [{**base, **row} for row in chosen.drop(columns=[SIGMA]).to_dict(orient="records")]
-        names = sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+        names = self.held_drawn(frame)
         if names:
             shifts = self.held_tolerance * rng.standard_normal((count, len(names)))
             draws = [{**d, **{n: self.held[n] + s for n, s in zip(names, row)}} for d, row in zip(draws, shifts)]
