@@ -2,8 +2,6 @@
 the warnings, and the claims held against the simulator's truth (the twin; kuka-cubes, whose one
 tool orientation leaves most of the joint space unseen)."""
 
-import json
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -13,7 +11,8 @@ from remaster import accuracy, blocks, comparison, evidence, fit, io, loop_closu
 from remaster import registration, spatial, transfer, workspace
 from remaster.model import SIGMA
 from remaster.priors import priors_from
-from remaster.simulation import Sensor, TrueRobot, true_marker_positions
+from remaster.scenario import robot_from_truth, sensor_from_truth
+from remaster.simulation import true_marker_positions
 
 from .conftest import REPO
 
@@ -71,26 +70,11 @@ def test_a_calibration_that_holds_near_its_poses_only_says_what_to_add(iiwa, rng
 # --------------------------------------------------------------------------- against the truth
 
 
-def true_robot(campaign: str) -> TrueRobot:
-    """The simulator's robot of a bundled campaign, from data/truth/<campaign>.json."""
-    truth = json.loads((REPO / "data" / "truth" / f"{campaign}.json").read_text())
-    effects = truth["effects"]
-    compliance, links = effects.get("joint_compliance"), effects.get("link_geometry")
-    return TrueRobot(
-        zero_offsets=np.radians(truth["zero_offsets_deg"]),
-        joint_compliance=np.array(compliance["compliance_rad_per_Nm"]) if compliance else None,
-        payload_mass=compliance["payload_mass_kg"] if compliance else 0.0,
-        payload_com=np.array(compliance["payload_com_m"]) if compliance else np.zeros(3),
-        link_errors=np.column_stack([links["length_errors_m"], links["twist_errors_rad"]]) if links else None)
-
-
 def true_points(campaign, sensor: str, q) -> np.ndarray:
     """Where the sensor's marker really is (robot frame) at readings q."""
-    truth = json.loads((REPO / "data" / "truth" / f"{campaign.name}.json").read_text())["sensors"][sensor]
-    data = campaign.sensors[sensor]
-    device = Sensor(sensor, data.kind, np.array(truth["pose_in_robot"]), truth["noise_m"], data.marker,
-                    np.array(truth["marker_error_m"]), truth["scale_error"])
-    return true_marker_positions(campaign.chain, true_robot(campaign.name), device, q)
+    truth = io.read_json(REPO / "data" / "truth" / f"{campaign.name}.json")
+    device = sensor_from_truth(truth, sensor, campaign.sensors[sensor].marker)
+    return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q)
 
 
 def paper_summary(laplace: dict) -> pd.DataFrame:

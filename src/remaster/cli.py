@@ -98,16 +98,10 @@ def _predict(args: argparse.Namespace) -> None:
 
 def _compensate(args: argparse.Namespace) -> int:
     campaign, robot = _calibrated(args)
-    table = io.read_csv(args.targets)
-    q = compensation.joint_commands(table, robot.chain, args.targets, required=False)
-    has_targets = {"x", "y", "z"} <= set(table.columns)
-    if q is None and not has_targets:
-        raise RemasterError(f"{args.targets}: x, y, z or q1..q{robot.chain.n_joints}: neither target positions nor "
-                            f"joint commands (got: {', '.join(map(str, table.columns))})")
+    targets, q = compensation.targets_or_commands(io.read_csv(args.targets), robot.chain, args.targets)
     rng = np.random.default_rng(args.seed)
-    if has_targets:
-        out = compensation.compensate(robot, args.frame, args.draws, rng,
-                                      targets=compensation.target_positions(table, args.targets), seeds=q,
+    if targets is not None:
+        out = compensation.compensate(robot, args.frame, args.draws, rng, targets=targets, seeds=q,
                                       candidates=campaign.sensors[args.sensor].q("optimization"))
     else:
         out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)

@@ -259,9 +259,17 @@ def joint_commands(table: pd.DataFrame, chain: KinematicChain, label: str, requi
     return q
 
 
-def target_positions(table: pd.DataFrame, label: str) -> np.ndarray:
-    """Targets (n, 3) m from columns x, y, z."""
-    return _numbers(table, ["x", "y", "z"], label)
+def targets_or_commands(table: pd.DataFrame, chain: KinematicChain, label: str) -> tuple[np.ndarray | None,
+                                                                                        np.ndarray | None]:
+    """(targets (n, 3) m from x, y, z or None, commands (n, N) rad from q1..qN or None) of a
+    targets file: target positions with optional seed commands, or nominal commands alone."""
+    q = joint_commands(table, chain, label, required=False)
+    if {"x", "y", "z"} <= set(table.columns):
+        return _numbers(table, ["x", "y", "z"], label), q
+    if q is None:
+        raise InputError(f"neither target positions nor joint commands (got: {', '.join(map(str, table.columns))})",
+                         file=label, key=f"x, y, z or q1..q{chain.n_joints}")
+    return None, q
 
 
 def _numbers(table: pd.DataFrame, names: list[str], label: str) -> np.ndarray:
@@ -388,8 +396,9 @@ def _why_not(solution: Solution, rows, chain: KinematicChain, what: str) -> dict
     for i in rows:
         if not solution.converged[i]:
             cause = "at a singular configuration" if solution.singular[i] else "out of reach"
-            reasons[i] = (f"{what}: {cause}: no convergence, closest {solution.position_error[i] / MM:.3g} mm, "
-                          f"{np.degrees(solution.orientation_error[i]):.3g} deg away")
+            turned = solution.orientation_error[i]
+            reasons[i] = (f"{what}: {cause}: no convergence, closest {solution.position_error[i] / MM:.3g} mm"
+                          + (f", {np.degrees(turned):.3g} deg" if turned > 0 else "") + " away")
             continue
         below, above = chain.lower - solution.q[i], solution.q[i] - chain.upper
         beyond = np.maximum(below, above)
@@ -415,10 +424,11 @@ def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Ge
     error_mm, bound95_mm, bound95_with_noise_mm, nominal_error_mm."""
     chain, point = robot.chain, robot.point
     nominal = _nominal_evaluate(chain, point)
-    reasons: dict[int, str] = {}
+    reasons: dict[int, str] = {}  # rows not reached
     if commands is not None:
         q0 = np.atleast_2d(np.asarray(commands, dtype=float))
         t_nominal, r0 = nominal(q0)
+        no_nominal = np.zeros(len(q0), bool)
     else:
         t = np.atleast_2d(np.asarray(targets, dtype=float))
         t_nominal = t if frame == "robot" else spatial.transform_points(spatial.invert(robot.t_nr), t)
@@ -426,6 +436,7 @@ def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Ge
         found = nearest_solution(lambda q: (nominal(q)[0], None), t_nominal, start)
         reasons.update(_why_not(found, range(len(t)), chain, "nominal model"))
         q0 = found.q
+        no_nominal = np.isin(np.arange(len(q0)), list(reasons))
         r0 = nominal(q0)[1]
     n = len(q0)
     # the nominal intent (robot frame of the nominal cell) in the calibrated robot frame
@@ -450,9 +461,8 @@ def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Ge
         table[f"target_{axis}"] = t_frame[:, k]
     for j in range(chain.n_joints):
         table[f"q{j + 1}"] = np.where(reached, q[:, j], np.nan)
-    has_nominal = np.array([not reasons.get(i, "").startswith("nominal") for i in range(n)])
     for j in range(chain.n_joints):
-        table[f"nominal_q{j + 1}"] = np.where(has_nominal, q0[:, j], np.nan)
+        table[f"nominal_q{j + 1}"] = np.where(no_nominal, np.nan, q0[:, j])
     table["largest_change_deg"] = np.nan
     for column in ("error_mm", "bound95_mm", "bound95_with_noise_mm", "nominal_error_mm"):
         table[column] = np.nan
