@@ -6,10 +6,11 @@ import pandas as pd
 import pinocchio as pin
 import pytest
 
-from remaster import blocks, calibrated, kinematics, prediction
+from remaster import blocks, calibrated, dh_table, io, kinematics, prediction, spatial
+from remaster.errors import InputError
 from remaster.model import DEG
 
-from .conftest import UR5_URDF
+from .conftest import REPO, UR5_DH, UR5_URDF
 
 MARKER = np.array([0.03, -0.02, 0.05])
 
@@ -93,3 +94,78 @@ def test_a_dh_robot_gets_a_urdf_of_its_own_that_pinocchio_reads_as_calibrated(ur
     q = rng.uniform(-2.5, 2.5, (20, ur5_dh.n_joints))
     expected = prediction.robot_points(ur5_dh, q, MARKER, values, ("link_geometry",))
     np.testing.assert_allclose(pinocchio_points(xml, ur5_dh, q), expected, rtol=0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- calibrated DH table
+
+FLANGE = spatial.homogeneous(spatial.rot_z(0.4) @ spatial.rot_x(0.2), np.array([0.01, -0.02, 0.03]))
+
+
+def dh_points(table, q):
+    """Marker positions (n, 3) of the DH table written by `calibrated_dh`, read back as a chain."""
+    chain = kinematics.chain_from_dh(table["rows"], table["convention"], table["flange"])
+    return prediction.robot_points(chain, q, MARKER, {})
+
+
+def without_first_twist(values):
+    """A standard table has no base transform: joint 1's tilt is the one link error it cannot hold."""
+    return {k: v for k, v in values.items() if k != "link_geometry.F1.twist"}
+
+
+@pytest.mark.parametrize("source", ["standard", "modified", "standard with a flange", "urdf with a dh table"])
+def test_the_calibrated_dh_table_is_the_calibrated_model(source, rng):
+    """Zero-offsets and link geometry in DH rows of the campaign's convention: read back as a chain,
+    the table gives remaster's calibrated predictions to 1e-9 m, and says it is exact."""
+    convention = "modified" if source == "modified" else "standard"
+    flange = FLANGE if source == "standard with a flange" else None
+    dh = {"convention": convention, "rows": UR5_DH, **({"flange": flange.tolist()} if flange is not None else {})}
+    chain = ur5_urdf_chain() if source.startswith("urdf") else kinematics.chain_from_dh(UR5_DH, convention, flange)
+    values = random_values(chain, rng)
+    if convention == "standard":
+        values = without_first_twist(values)
+    q = rng.uniform(-2.5, 2.5, (30, 6))
+    table = dh_table.calibrated_dh(chain, dh, values, q)
+    assert table["exact"] and table["not_dh_form"] == []
+    expected = prediction.robot_points(chain, q, MARKER, values, ("link_geometry",))
+    np.testing.assert_allclose(dh_points(table, q), expected, rtol=0, atol=1e-9)
+    assert table["max_position_difference_m"] < 1e-12 and table["max_orientation_difference_rad"] < 1e-12
+    assert table["convention"] == convention and np.shape(table["rows"]) == (6, 4)
+
+
+def test_zero_offsets_alone_land_in_theta_and_nothing_else_moves(ur5_dh, rng):
+    offsets = rng.normal(0.0, 0.5 * DEG, 6)
+    values = {f"zero_offsets.q{j + 1}": v for j, v in enumerate(offsets)}
+    table = dh_table.calibrated_dh(ur5_dh, {"convention": "standard", "rows": UR5_DH}, values, np.zeros((1, 6)))
+    rows = np.array(table["rows"])
+    np.testing.assert_allclose(rows[:, 3], offsets, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rows[:, :3], np.array(UR5_DH)[:, :3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose([c["theta_deg"] for c in table["change_from_nominal"]], offsets / DEG, atol=1e-12)
+    assert table["flange"] == np.eye(4).tolist()
+
+
+def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng):
+    """A twist after a theta offset that is neither 0 nor pi (and joint 1's tilt in a standard table)
+    is not of DH form: the table is flagged, names the transform, and its stated difference is the
+    one its forward kinematics has from the calibrated model's."""
+    rows = np.array(UR5_DH)
+    rows[2, 3] = 0.3  # joint 3 with a theta offset
+    chain = kinematics.chain_from_dh(rows, "standard")
+    values = {"link_geometry.F3.twist": 0.2 * DEG, "link_geometry.F1.twist": 0.1 * DEG, "zero_offsets.q2": 0.01}
+    q = rng.uniform(-2.5, 2.5, (40, 6))
+    table = dh_table.calibrated_dh(chain, {"convention": "standard", "rows": rows.tolist()}, values, q)
+    assert not table["exact"]
+    assert [m.split(":")[0] for m in table["not_dh_form"]] == ["F1", "F3"]
+    assert "base" in table["not_dh_form"][0] and "17.19 deg" in table["not_dh_form"][1]
+    expected = kinematics.flange_poses(kinematics.perturbed_chain(chain, blocks.link_errors(chain, values)), q,
+                                       zero_offsets=[0.0, 0.01, 0, 0, 0, 0])
+    written = kinematics.flange_poses(kinematics.chain_from_dh(table["rows"], "standard", table["flange"]), q)
+    miss = np.max(np.linalg.norm(written[:, :3, 3] - expected[:, :3, 3], axis=1))
+    assert table["max_position_difference_m"] == pytest.approx(miss, rel=1e-9)
+    assert 1e-6 < miss < 0.3 * DEG * 1.2  # there, and of the size of the twists times the reach (< 1.2 m)
+
+
+def test_a_campaign_without_a_dh_table_gets_none_and_a_clear_refusal():
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin")
+    with pytest.raises(InputError, match="no DH table") as refusal:
+        calibrated.calibrated_dh_tables(campaign, "laser_tracker", pd.DataFrame(), {})
+    assert refusal.value.key == "robot/dh"

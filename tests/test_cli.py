@@ -4,7 +4,7 @@ ends with a named error and exit status 2."""
 import numpy as np
 import pandas as pd
 
-from remaster import cli, io, kinematics, planning
+from remaster import cli, io, kinematics
 
 from .conftest import IIWA_URDF, REPO
 

@@ -3,7 +3,6 @@ copies of one robot whose model lacks an effect."""
 
 import numpy as np
 import pandas as pd
-import pytest
 
 from remaster import discrepancy, fit, io, scenario
 from remaster.campaign import sensor_data

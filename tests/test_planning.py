@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from remaster import kinematics, planning, spatial
+from remaster import kinematics, planning
 from remaster.errors import InputError
 
 SENSOR = np.array([1.6, 0.5, 1.0])

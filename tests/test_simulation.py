@@ -4,7 +4,6 @@ deterministic and pass the reader, and the bundled twin is sized like the paper.
 import copy
 import hashlib
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -87,7 +86,7 @@ def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_pat
     second = scenario.simulate(copy.deepcopy(spec), iiwa)
     digests = []
     for run, out in enumerate((first, second)):
-        folder = io.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
+        io.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
         io.write_json(tmp_path / str(run) / "truth.json", out.truth)
         digests.append({p.name: hashlib.sha256(p.read_bytes()).hexdigest()
                         for p in sorted((tmp_path / str(run)).rglob("*")) if p.is_file()})

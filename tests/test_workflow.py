@@ -2,11 +2,12 @@
 second run that has nothing to do."""
 
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -135,3 +136,20 @@ def test_bad_config_is_refused_by_the_schema(tiny):
     result = subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(tiny / "bad.yaml")], cwd=REPO,
                             capture_output=True, text=True, timeout=300)
     assert result.returncode != 0 and "seed" in result.stdout + result.stderr
+
+
+def test_only_a_campaign_given_as_a_dh_table_gets_calibrated_dh_tables(tiny, tmp_path):
+    """The plan: a copy of the tiny campaigns where one also gives its chain as a DH table gets
+    paper_dh.yaml and loop_dh.yaml per sensor, listed in its calibrated-files table; the other none."""
+    shutil.copytree(tiny / "raw", tmp_path / "raw")
+    metadata = io.read_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml")
+    metadata["robot"]["dh"] = {"convention": "standard", "rows": [[0.0, 0.0, 0.1, 0.0]] * 7}  # only planned here
+    io.write_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml", metadata)
+    io.write_yaml(tmp_path / "config.yaml", {**io.read_yaml(tiny / "config.yaml"), "raw_dir": str(tmp_path / "raw"),
+                                             "results_dir": str(tmp_path / "results")})
+    tables = [str(tmp_path / "results" / name / "tables" / "calibrated_files.md") for name in ("tiny", "tiny2")]
+    result = run(tmp_path, "-n", "--quiet", "rules", "--", *tables)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", result.stdout, flags=re.M))
+    assert counts.get("calibrated") == "3"  # tiny: two sensors, tiny2: one
+    assert counts.get("calibrated_dh") == "1"

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from . import _kernels
+from . import _kernels, spatial
 from .campaign import SensorData
 from .fit import measured_rows
 from .gravity import gravity_torques
@@ -185,6 +185,16 @@ def link_errors(chain: KinematicChain, values: Mapping[str, float]) -> np.ndarra
     for row, column, name in link_labels(chain):
         errors[row, column] = values.get(name, 0.0)
     return errors
+
+
+def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(F'_j Rot(a_j, d_j) (N, 4, 4), F'_tool (4, 4)): the chain's fixed transforms with the link
+    geometry and zero-offsets of `values` {parameter: SI} (absent ones 0), so that a robot
+    commanded to q is where the calibrated model says."""
+    joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors(chain, values))
+    turns = [spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
+             for j in range(chain.n_joints)]
+    return joints @ np.array(turns), tool
 
 
 def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:

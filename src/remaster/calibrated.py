@@ -12,7 +12,8 @@ and zero-offset d_j (true angle = reading + d_j):
 so a robot commanded to q is where the calibrated model says. The tool's link errors go into the
 last fixed joint before the flange (a chain that ends on a joint has none: then they stay in the
 YAML). What a URDF cannot hold (joint compliance, joint scale, drift, the marker offset, the residual
-GP, the sensor's set-up) is listed in `loop_effects.yaml` with values, stds and units.
+GP, the sensor's set-up) is listed in `loop_effects.yaml` with values, stds and units. A campaign
+given as a DH table gets the calibrated DH table too (`dh_table`), exact or saying how far it is.
 
 **Controller offsets.** Per joint: the correction to add to the controller's zero (true angle =
 reading + correction), in degrees (KUKA and most industrial controllers) and radians (UR), with its
@@ -31,10 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from . import spatial
-from .blocks import link_errors
+from . import dh_table, spatial
+from .blocks import calibrated_transforms
 from .campaign import Campaign
-from .kinematics import KinematicChain, origin_transform, perturbed_transforms
+from .errors import InputError
+from .kinematics import KinematicChain, origin_transform
 from .model import DEG
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 
@@ -96,15 +98,13 @@ def calibrated_urdf(chain: KinematicChain, values: Mapping[str, float]) -> tuple
     root = ET.fromstring(chain.urdf_xml if chain.urdf_xml is not None else nominal_urdf(chain))
     path = _path(root, chain.base_frame, chain.flange_frame)
     movable = [j for j in path if j.get("type") in ("revolute", "continuous")]
-    errors = link_errors(chain, values)
-    joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, errors)
+    joints, tool = calibrated_transforms(chain, values)
     for j, element in enumerate(movable):
-        turn = spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
         origin = origin_transform(element, f"joint {element.get('name')}")
-        _set_origin(element, origin @ np.linalg.inv(chain.joint_transforms[j]) @ joints[j] @ turn)
+        _set_origin(element, origin @ np.linalg.inv(chain.joint_transforms[j]) @ joints[j])
     left = []
     after = path[path.index(movable[-1]) + 1:]
-    if np.any(errors[-1] != 0.0):
+    if np.any(tool != chain.tool_transform):
         if after:
             last = after[-1]
             origin = origin_transform(last, f"joint {last.get('name')}")
@@ -185,10 +185,31 @@ def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loo
     return CalibratedFiles(paper_urdf, loop_urdf, effects_yaml(loop, table, left, extra), offsets)
 
 
+def calibrated_dh_tables(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: Mapping,
+                         label: str = "") -> dict[str, dict]:
+    """{'paper', 'loop': calibrated DH table} of a campaign given as a DH table
+    (`dh_table.calibrated_dh`, checked at every configuration of the sensor's rows), each in the form
+    of campaign.yaml's robot/dh with what it holds and how exactly."""
+    if "dh" not in campaign.robot:
+        raise InputError("the campaign gives no DH table (robot/dh): no calibrated DH table to write",
+                         file=f"{campaign.name}/campaign.yaml", key="robot/dh")
+    out = {}
+    for calibration in (paper_calibration(summary, label=label), loop_calibration(loop_report, label=label)):
+        table = dh_table.calibrated_dh(campaign.chain, campaign.robot["dh"], calibration.values,
+                                       campaign.sensors[sensor].q())
+        out[calibration.model] = {"campaign": campaign.name, "sensor": sensor, "model": calibration.model,
+                                  "convention_note": SIGN + "; here it is already in theta", **table,
+                                  "holds": "zero-offsets (theta) and link geometry (a, alpha, d, flange); the "
+                                           "loop-closed model's other effects are in loop_effects.yaml"}
+    return out
+
+
 FILES = {"paper.urdf": "the paper's model: zero-offsets in the joint origins",
          "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins",
          "loop_effects.yaml": "the loop-closed model's effects a URDF cannot hold",
          "controller_offsets.csv": "zero-offset corrections for the controller, both models"}
+DH_FILES = {"paper_dh.yaml": "the paper's model as the campaign's DH table (robot/dh form)",
+            "loop_dh.yaml": "the loop-closed model as the campaign's DH table (robot/dh form), exact or not"}
 
 
 def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
@@ -203,7 +224,9 @@ def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def files_table(campaign: str, sensors) -> pd.DataFrame:
-    """Sensor, File (path from the results folder, where report.html is), What: the calibrated files."""
+def files_table(campaign: str, sensors, dh: bool = False) -> pd.DataFrame:
+    """Sensor, File (path from the results folder, where report.html is), What: the calibrated files
+    (with the DH tables when the campaign gives one)."""
+    files = {**FILES, **(DH_FILES if dh else {})}
     return pd.DataFrame([{"Sensor": s, "File": f"{campaign}/{s}/calibrated/{name}", "What": what}
-                         for s in sensors for name, what in FILES.items()])
+                         for s in sensors for name, what in files.items()])

@@ -260,7 +260,7 @@ class SRSInverseKinematics:
         if within_limits and not (chain.lower[2] - 1e-12 <= q3 <= chain.upper[2] + 1e-12):
             return empty if return_branches else empty[0]
 
-        w, tol_len, tol_dir = self.axes, self._tol_len, self._tol_dir
+        w, tol_len = self.axes, self._tol_len
         S, W = self.shoulder, self.wrist
         gm = g @ self.home_inverse  # e1 ... e7
         p_wrist = gm[:3, :3] @ W + gm[:3, 3]

@@ -62,7 +62,8 @@ CAPTIONS = {
                           "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
                           "and the loop-closed model; held joints get none.",
     "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
-                        "joints as the input), the effects a URDF cannot hold, and the controller offsets.",
+                        "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "
+                        "campaign given as a DH table, the calibrated DH tables.",
     "loop_closure_test": "Is the loop closed? After each step, the pose-grouped cross-validated RMS per axis on the "
                          "optimization set against the noise floor (the sensor's stated noise, or the spread of "
                          "repeated configurations), the share of the structured residual (above the floor) the step "

@@ -2,6 +2,7 @@
 # (paths, burn-in shorter than the run) and lists the campaigns to process. Every refusal names the
 # config file(s) and the key (docs/bad-input.md).
 import os
+import yaml
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -78,6 +79,16 @@ def campaign_files(wildcards):
 def sensors_of(campaign):
     """The sensors of a campaign: its Parquet files (the reader checks they match campaign.yaml)."""
     return sorted(p.stem for p in Path(RAW, campaign).glob("*.parquet"))
+
+
+def gives_dh(campaign):
+    """Whether campaign.yaml gives a DH table (robot/dh); a file that does not parse is the campaign
+    check's to report, with its file and key."""
+    try:
+        robot = yaml.safe_load(Path(RAW, campaign, "campaign.yaml").read_text()).get("robot") or {}
+        return isinstance(robot, dict) and "dh" in robot
+    except (OSError, yaml.YAMLError, AttributeError):
+        return False
 
 
 def per_sensor(pattern):

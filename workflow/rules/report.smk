@@ -40,6 +40,7 @@ def audited_results(campaign):
                   f"{base}/loop_closure.json", f"{base}/loop_closure/workspace.json",
                   f"{base}/loop_closure/residual_gp.parquet", f"{base}/fit/summary_discrepancy.csv",
                   *[f"{base}/calibrated/{name}" for name in CALIBRATED_FILES],
+                  *[f"{base}/calibrated/{name}" for name in (CALIBRATED_DH_FILES if gives_dh(campaign) else ())],
                   f"{base}/fit/discrepancy.json",
                   f"{base}/loop_closure/workspace_accuracy.csv", f"{base}/loop_closure/theoretical_accuracy.csv",
                   f"{base}/fit/laplace.json", f"{base}/fit/cross_check.csv",

@@ -10,5 +10,5 @@ with io.log_to(snakemake.log[0]):  # noqa: F821
     if p.kind == "controller_offsets":
         table = calibrated.offsets_table({s: io.read_csv(f) for s, f in zip(p.sensors, snakemake.input)})  # noqa: F821
     else:
-        table = calibrated.files_table(w.campaign, p.sensors)
+        table = calibrated.files_table(w.campaign, p.sensors, p.dh)
     io.write_table(Path(snakemake.output[0]).with_suffix(""), table, tables.CAPTIONS[p.kind], p.kind)  # noqa: F821
