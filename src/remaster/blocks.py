@@ -48,6 +48,7 @@ from .gravity import gravity_torques
 from .identifiability import JACOBIAN_STEP
 from .kinematics import KernelForm, KinematicChain, perturbed_transforms
 from .model import DEG, MM, REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from .noise import RangeTransverse
 from .priors import Priors
 
 BASE = ("registration", "zero_offsets")
@@ -253,7 +254,8 @@ class BlockModel:
     n_points = ZeroOffsetModel.n_points
 
     def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
-                 fixed: Mapping[str, float] | None = None, priors: Priors | None = None):
+                 fixed: Mapping[str, float] | None = None, priors: Priors | None = None,
+                 noise: RangeTransverse | None = None):
         unknown = set(blocks) - set(EXTENSIONS)
         if unknown:
             raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
@@ -292,6 +294,10 @@ class BlockModel:
         self.prior_std = np.array([math.inf if priors is None or self.block_of[n] in BASE
                                    else priors.std_of(n, data.drift_unit) for n in self.names])
         self._prior_precision = np.where(np.isfinite(self.prior_std), 1.0 / self.prior_std**2, 0.0)
+        # the sensor's noise shape (`remaster.noise`): None is the paper's isotropic noise
+        self.noise = noise
+        self._whitening = None if noise is None else noise.whitening(self.measured)
+        self.noise_log_det = 0.0 if noise is None else noise.log_det_term(self.measured)
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
@@ -312,7 +318,32 @@ class BlockModel:
     def on(self, data: Readings) -> "BlockModel":
         """The same model (blocks, registration, held parameters, priors) on other readings, e.g.
         the validation set."""
-        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed, self.priors)
+        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed, self.priors,
+                          self.noise)
+
+    def with_noise(self, noise: RangeTransverse | None) -> "BlockModel":
+        """The same model on the same readings with another noise shape."""
+        return BlockModel(self.chain, self.data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed,
+                          self.priors, noise)
+
+    def whitened(self, residuals) -> np.ndarray:
+        """Residuals (n, 3) or (m, n, 3) in units of the noise's range std: W_i e_i (`remaster.noise`);
+        unchanged for isotropic noise."""
+        if self._whitening is None:
+            return np.asarray(residuals)
+        return np.einsum("nij,...nj->...ni", self._whitening, residuals)
+
+    def weighted_residuals(self, theta) -> np.ndarray:
+        """Whitened residuals (n, 3) or (m, n, 3): what the likelihood sums the squares of."""
+        return self.whitened(self.residuals(theta))
+
+    def weighted_jacobian(self, theta, step: float) -> np.ndarray:
+        """d whitened residuals / d free parameters, (3n, P)."""
+        jacobian = self.jacobian(theta, step)
+        if self._whitening is None:
+            return jacobian
+        return np.einsum("nij,njp->nip", self._whitening, jacobian.reshape(self.n_points, 3, -1)).reshape(
+            jacobian.shape)
 
     def log_prior(self, theta) -> np.ndarray:
         """Log of the extension blocks' Gaussian priors, up to their normalisation: scalar or (m,)."""
@@ -374,8 +405,8 @@ class BlockModel:
         return (correction_transforms(every[:, :6]) @ self.t_nr)[0, :3, :3]
 
     def sum_squares(self, theta) -> np.ndarray:
-        """Sum of squared residuals E(theta): scalar or (m,)."""
-        return np.sum(self.residuals(theta) ** 2, axis=(-2, -1))
+        """Sum of squared (whitened) residuals E(theta): scalar or (m,)."""
+        return np.sum(self.weighted_residuals(theta) ** 2, axis=(-2, -1))
 
 
 # --------------------------------------------------------------------------- identifiability of extensions
@@ -452,7 +483,8 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
 
 
 def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
-                   base_held: Mapping[str, float], priors: Priors | None = None) -> tuple[BlockModel, Reduction]:
+                   base_held: Mapping[str, float], priors: Priors | None = None,
+                   noise: RangeTransverse | None = None) -> tuple[BlockModel, Reduction]:
     """The model of base + blocks, under `priors`, with the base's held parameters held. Under
     priors every extension parameter is kept, those the data cannot see included: their prior
     carries them, so what they do away from the measured configurations (a joint that never moved,
@@ -460,4 +492,4 @@ def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: 
     data cannot see at all are held at 0. The reduction reports which are which."""
     reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
     held = dict(base_held) if priors is not None else {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
-    return BlockModel(chain, data, marker, t_nr, blocks, held, priors), reduction
+    return BlockModel(chain, data, marker, t_nr, blocks, held, priors, noise), reduction

@@ -53,8 +53,9 @@ class PosteriorMode:
     """MAP of a block model under its priors and the Laplace approximation around it.
 
     theta (P,) SI free parameters; sigma (m); covariance (P + 1, P + 1) of (theta, sigma);
-    jacobian (3n, P) of the predictions at theta; residuals (n, 3) m; log_evidence (nats, up
-    to the constant common to models of the same data and base); sum_squares (m^2)."""
+    jacobian (3n, P) of the (whitened, `remaster.noise`) predictions at theta; residuals (n, 3) m,
+    not whitened; log_evidence (nats, up to the constant common to models of the same data and
+    base); sum_squares (m^2) of the whitened residuals."""
 
     model: BlockModel
     theta: np.ndarray
@@ -98,15 +99,15 @@ def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
     theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
     k = 3 * model.n_points
-    sigma = math.sqrt(float(np.sum(model.residuals(theta) ** 2)) / (k + 1))
+    sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
     for _ in range(MAX_SIGMA_ROUNDS):
         def stacked(t, s=sigma):
-            return np.concatenate([model.residuals(t).ravel(), s * model.prior_residuals(t)])
+            return np.concatenate([model.weighted_residuals(t).ravel(), s * model.prior_residuals(t)])
 
         # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
         theta = scipy.optimize.least_squares(stacked, theta, x_scale=model.scale, method="lm",
                                              xtol=1e-12, ftol=1e-12, gtol=1e-12).x
-        previous, sigma = sigma, math.sqrt(float(np.sum(model.residuals(theta) ** 2)) / (k + 1))
+        previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
         if abs(sigma - previous) <= SIGMA_TOLERANCE * sigma:
             break
     return laplace_at(model, theta, sigma)
@@ -116,9 +117,9 @@ def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
     """The Laplace approximation and evidence at (theta, sigma), taken as the mode."""
     theta = np.asarray(theta, dtype=float)
     residuals = model.residuals(theta)
-    r = residuals.ravel()
+    r = model.whitened(residuals).ravel()
     sum_squares = float(r @ r)
-    jacobian = -model.jacobian(theta, JACOBIAN_STEP)  # d predicted / d theta
+    jacobian = -model.weighted_jacobian(theta, JACOBIAN_STEP)  # d (whitened) predicted / d theta
     precision = model._prior_precision
     p = len(theta)
     hessian = np.empty((p + 1, p + 1))
@@ -136,7 +137,8 @@ def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
     covariance = covariance_u * np.outer(jac, jac)
     k = r.size
     has_prior = np.isfinite(model.prior_std)
-    log_likelihood = -0.5 * k * LOG_2PI - k * math.log(sigma) - sum_squares / (2.0 * sigma**2)
+    log_likelihood = (-0.5 * k * LOG_2PI - k * math.log(sigma) - sum_squares / (2.0 * sigma**2)
+                      + model.noise_log_det)
     log_prior = float(np.sum(-0.5 * LOG_2PI - np.log(model.prior_std[has_prior])
                              - 0.5 * theta[has_prior] ** 2 * precision[has_prior])) - math.log(sigma)
     log_evidence = log_likelihood + log_prior + 0.5 * (p + 1) * LOG_2PI - 0.5 * log_det
@@ -176,7 +178,7 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     """Pose-grouped K-fold cross-validation of a model at its mode (module docstring); folds (n,)."""
     model, theta, sigma = mode.model, mode.theta, mode.sigma
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
-    r = mode.residuals
+    r = model.whitened(mode.residuals)
     precision = model._prior_precision * sigma**2
     mse, points, held = [], [], np.empty_like(r)
     for fold in np.unique(folds):

@@ -17,7 +17,9 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
 2. Decide: greedy forward selection. Among the candidates whose evidence gain exceeds
    `min_log_evidence_gain` AND whose cross-validated fall exceeds `cv_standard_errors` standard
    errors, add the one of largest evidence gain, refit, and repeat with the others. When no
-   parametric effect passes, the residual Gaussian process over the joints (`remaster.residual_gp`)
+   parametric effect passes, a laser tracker's noise is offered as it is, range and transverse
+   growing with distance (`remaster.noise`), against the isotropic noise by the same evidence
+   threshold; then the residual Gaussian process over the joints (`remaster.residual_gp`)
    is tried last by the same two tests; fitted or not, it says which joints what is left depends on.
    After every step the closure test (`remaster.closure`) compares the cross-validated residual
    with the sensor's noise and says what share of the structured residual the step removed.
@@ -44,8 +46,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
+import scipy.optimize
 
-from . import blocks, closure, evidence, fit, metrics, residual_gp, samplers
+from . import blocks, closure, evidence, fit, metrics, noise, residual_gp, samplers
 from .blocks import BlockModel, ModelSettings, Readings, Reduction
 from .campaign import Campaign, SensorData
 from .kinematics import KinematicChain
@@ -57,6 +60,8 @@ MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
 CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
 GP_DEFAULT = {"subset": residual_gp.SUBSET, "inducing": residual_gp.INDUCING}
 GP = "residual_gp"
+TRACKER_NOISE_DEFAULT = {"growth_per_m": noise.GROWTH_PRIOR_PER_M, "growth_factor": math.exp(noise.GROWTH_PRIOR_LOG_STD)}
+NOISE_SEARCH_WIDTH = 3.0  # prior stds of log g either side of its median searched for the mode
 MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
 # posterior std / prior std above this: the data barely moved the parameter from its prior
 PRIOR_DOMINATED = 0.5
@@ -73,7 +78,9 @@ class LoopSettings:
     'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
     residual_gp: {'subset', 'inducing'} of the Gaussian-process candidate tried last
     (`remaster.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the noise
-    floor at which the loop counts as closed (`remaster.closure`)."""
+    floor at which the loop counts as closed (`remaster.closure`); tracker_noise: {'growth_per_m',
+    'growth_factor'}, the log-normal prior of a laser tracker's range/transverse noise model
+    (`remaster.noise`), None not to offer it."""
 
     candidates: tuple[str, ...] = blocks.EXTENSIONS
     min_log_evidence_gain: float = 5.0
@@ -86,13 +93,15 @@ class LoopSettings:
     convergence: dict = field(default_factory=lambda: dict(CONVERGENCE_DEFAULT))
     residual_gp: dict | None = field(default_factory=lambda: dict(GP_DEFAULT))
     closure_ratio: float = closure.CLOSURE_RATIO
+    tracker_noise: dict | None = field(default_factory=lambda: dict(TRACKER_NOISE_DEFAULT))
 
     def report(self) -> dict:
         return {"candidates": list(self.candidates), "min_log_evidence_gain": self.min_log_evidence_gain,
                 "cv_folds": self.cv_folds, "cv_standard_errors": self.cv_standard_errors,
                 "payload_mass_kg": self.model.payload_mass, "payload_com_m": list(self.model.payload_com),
                 "drift_column": self.model.drift_column, "priors": self.priors.report(), "mcmc": self.mcmc,
-                "convergence": self.convergence, "residual_gp": self.residual_gp, "closure_ratio": self.closure_ratio}
+                "convergence": self.convergence, "residual_gp": self.residual_gp, "closure_ratio": self.closure_ratio,
+                "tracker_noise": self.tracker_noise}
 
 
 # --------------------------------------------------------------------------- accuracy measures
@@ -202,6 +211,7 @@ class Selection:
     signatures: dict[int, dict[str, Signature]]
     gp: residual_gp.Candidate | None = None
     rotation: np.ndarray | None = None
+    noise: dict | None = None
 
     @property
     def gp_added(self) -> bool:
@@ -215,9 +225,10 @@ class Selection:
 
 
 def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mapping[str, float], poses,
-           settings: LoopSettings) -> Selection:
+           settings: LoopSettings, tracker: bool = False) -> Selection:
     """Diagnose and decide (module docstring, steps 1 and 2) on the optimization readings;
-    poses (n,) their pose labels, which make the cross-validation folds."""
+    poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
+    sensor is a laser tracker, whose range/transverse noise is then offered."""
     folds = evidence.pose_folds(poses, settings.cv_folds)
     base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
@@ -250,9 +261,12 @@ def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mappi
         current = fits[best]
         added.append(best)
         remaining.remove(best)
+    noise_choice = None
+    if tracker and settings.tracker_noise is not None:
+        current, noise_choice = choose_noise(current, folds, settings)
     rotation = current.model.sensor_rotation(current.theta)
     if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
-        return Selection(base, current, tuple(added), rounds, signatures, None, rotation)
+        return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice)
     gp, scores = _score_gp(current, data, rotation, folds, settings)
     if rounds and rounds[-1]["added"] is None:  # tried in the round where no parametric effect passed
         last = rounds[-1]
@@ -263,7 +277,50 @@ def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mappi
     if scores["passed"]:
         last["added"] = GP
         added.append(GP)
-    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation)
+    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice)
+
+
+def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> tuple[Fitted, dict]:
+    """The current model with a laser tracker's range/transverse noise (`remaster.noise`) against
+    its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
+    integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. Returns
+    the chosen fit and a JSON-ready report."""
+    prior = settings.tracker_noise
+    median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
+
+    def mode_at(log_growth: float) -> evidence.PosteriorMode:
+        return evidence.posterior_mode(current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))),
+                                       current.theta)
+
+    def objective(log_growth: float) -> float:
+        return -(mode_at(log_growth).log_evidence + noise.log_growth_prior(log_growth, median, log_std))
+
+    centre, width = math.log(median), NOISE_SEARCH_WIDTH * log_std
+    best = scipy.optimize.minimize_scalar(objective, bounds=(centre - width, centre + width), method="bounded",
+                                          options={"xatol": 0.05})
+    step = 0.1  # in log g: the posterior of log g is wider than this wherever the data leave g free
+    curvature = (objective(best.x + step) - 2.0 * best.fun + objective(best.x - step)) / step**2
+    curvature = max(curvature, 1.0 / log_std**2)  # the prior alone curves this much; a noisy difference may not
+    log_evidence = -best.fun + 0.5 * math.log(2.0 * math.pi) - 0.5 * math.log(curvature)
+    gain = log_evidence - current.mode.log_evidence
+    mode = mode_at(best.x)
+    growth = math.exp(best.x)
+    distance = np.linalg.norm(current.model.measured, axis=1)
+    chosen = bool(gain > settings.min_log_evidence_gain)
+    report = {"offered": True, "compared": "range/transverse (laser tracker) against isotropic",
+              **noise.RangeTransverse(growth).report(),
+              "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
+              "growth_std_log": 1.0 / math.sqrt(curvature), "log_evidence_isotropic": current.mode.log_evidence,
+              "log_evidence_range_transverse": float(log_evidence), "log_evidence_gain": float(gain),
+              "sigma_isotropic_mm": current.mode.sigma / MM, "sigma_range_mm": mode.sigma / MM,
+              "sigma_transverse_at_median_distance_mm": mode.sigma * math.sqrt(1.0 + (growth * float(
+                  np.median(distance))) ** 2) / MM, "median_distance_m": float(np.median(distance)),
+              "chosen": "range_transverse" if chosen else "isotropic",
+              "note": "sigma of the chosen range/transverse model is the range std; the transverse std grows with "
+                      "the distance from the sensor frame's origin, which must be the tracker head"}
+    if not chosen:
+        return current, report
+    return Fitted(mode, current.reduction, evidence.cross_validate(mode, folds)), report
 
 
 def _score_gp(current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
@@ -405,7 +462,10 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
     (left out here too); rng feeds the MCMC refit only."""
     data = {s: blocks.readings(chain, sensor, s, settings.model, exclude) for s in SETS}
     poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
-    selection = select(chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings)
+    frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
+    tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
+    selection = select(chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings,
+                       tracker=tracker)
     base, final = selection.base, selection.final
 
     samples, mcmc = None, None
@@ -460,6 +520,9 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
         "zero_offset_shifts": zero_offset_shifts(before_table, after_table),
         "closure": {k: v for k, v in closed.items() if k != "warnings"},
         "residual_gp": gp_section,
+        "noise_model": selection.noise or {"offered": False, "chosen": "isotropic", "why": (
+            "not a laser tracker" if sensor.kind != "laser_tracker" else "tracker_noise disabled in the config"
+            if settings.tracker_noise is None else frame_problem)},
     }
     table = before_after_table(before, after, sigma_before, sigma_after, counts)
     residuals = {"before": {s: base.residuals(data[s]) for s in SETS},
@@ -622,7 +685,9 @@ def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
     whether it was added. A candidate `select` skipped (nothing of it identifiable) has no scores:
-    NaN, and the reason in the last column."""
+    NaN, and the reason in the last column. A laser tracker's range/transverse noise model
+    (`remaster.noise`) gets a row of its own, after the rounds: its evidence gain, or why it was
+    not offered."""
     rows = []
     nan = float("nan")
     for sensor, report in reports.items():
@@ -639,6 +704,17 @@ def candidates_table(reports: dict[str, dict]) -> pd.DataFrame:
                              "BIC gain": entry.get("bic_gain", nan),
                              "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
                              "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else ""})
+        noise_model = report.get("noise_model") or {}
+        if noise_model.get("offered"):
+            rows.append({"Sensor": sensor, "Round": nan, "Candidate": "noise: range/transverse",
+                         "Log evidence gain": noise_model["log_evidence_gain"], "CV RMSE (mm)": nan, "CV fall (%)": nan,
+                         "CV fall / SE": nan, "BIC gain": nan, "Explained (%)": nan,
+                         "Added": "yes" if noise_model["chosen"] == "range_transverse" else ""})
+        elif noise_model.get("why") and noise_model["why"] != "not a laser tracker":
+            rows.append({"Sensor": sensor, "Round": nan, "Candidate": "noise: range/transverse",
+                         **{k: nan for k in ("Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "CV fall / SE",
+                                             "BIC gain", "Explained (%)")},
+                         "Added": f"not offered: {noise_model['why']}"})
     return pd.DataFrame(rows)
 
 
@@ -659,10 +735,17 @@ def settings_from(config: Mapping, priors_config: Mapping | None = None,
                         priors=priors_from(priors_config), priors_config=dict(priors_config),
                         mcmc=dict(config["mcmc"]) if config.get("mcmc") else None, convergence=criteria,
                         residual_gp=_gp_settings(config.get("residual_gp")),
-                        closure_ratio=float(config.get("closure_ratio", closure.CLOSURE_RATIO)))
+                        closure_ratio=float(config.get("closure_ratio", closure.CLOSURE_RATIO)),
+                        tracker_noise=_tracker_noise_settings(config.get("tracker_noise")))
 
 
 def _gp_settings(section: Mapping | None) -> dict | None:
     """The residual GP's settings from its config section ({'enabled', 'subset', 'inducing'})."""
     section = {**GP_DEFAULT, "enabled": True, **(section or {})}
     return {k: int(section[k]) for k in GP_DEFAULT} if section["enabled"] else None
+
+
+def _tracker_noise_settings(section: Mapping | None) -> dict | None:
+    """The tracker noise model's prior from its config section ({'enabled', 'growth_per_m', 'growth_factor'})."""
+    section = {**TRACKER_NOISE_DEFAULT, "enabled": True, **(section or {})}
+    return {k: float(section[k]) for k in TRACKER_NOISE_DEFAULT} if section["enabled"] else None

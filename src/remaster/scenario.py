@@ -76,7 +76,8 @@ def sensors_of(spec: dict) -> dict[str, Sensor]:
             name=name, kind=s["kind"], pose_in_robot=looking_at(s["position"], s["look_at"]),
             noise=float(s["noise"]), marker=np.asarray(s["marker"], dtype=float),
             marker_error=np.asarray(s.get("marker_error", [0.0, 0.0, 0.0]), dtype=float),
-            scale_error=float(s.get("scale_error", 0.0)))
+            scale_error=float(s.get("scale_error", 0.0)),
+            transverse_growth_per_m=float(s.get("transverse_growth_per_m", 0.0)))
     return out
 
 
@@ -178,6 +179,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         out_tables[name] = table
         truth_sensors[name] = {
             "kind": sensor.kind, "noise_m": sensor.noise, "scale_error": sensor.scale_error,
+            **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
             "marker_error_m": sensor.marker_error.tolist(),
             "T_NR": sensor.robot_to_sensor.tolist(), "pose_in_robot": sensor.pose_in_robot.tolist(),
             "unseen_rows": sorted(int(i) for i in unseen),
@@ -222,7 +224,8 @@ def sensor_from_truth(truth: dict, name: str, marker) -> Sensor:
     """The true sensor `name` of a ground-truth record, with the campaign's nominal marker (3,) m."""
     record = truth["sensors"][name]
     return Sensor(name, record["kind"], np.array(record["pose_in_robot"]), float(record["noise_m"]),
-                  np.asarray(marker, dtype=float), np.array(record["marker_error_m"]), float(record["scale_error"]))
+                  np.asarray(marker, dtype=float), np.array(record["marker_error_m"]), float(record["scale_error"]),
+                  float(record.get("transverse_growth_per_m", 0.0)))
 
 
 def _effects_record(robot: TrueRobot) -> dict:

@@ -42,7 +42,9 @@ class TrueRobot:
 class Sensor:
     """A 3D sensor in the room: its pose in the robot frame (robot <- sensor, 4x4), per-axis
     noise (m), scale error (dimensionless), the nominal marker (3,) in the flange frame and the
-    error of that marker's true position (3,)."""
+    error of that marker's true position (3,). transverse_growth_per_m: 0 for isotropic noise;
+    otherwise `noise` is a tracker's range std and its transverse std is noise sqrt(1 + (g d)^2)
+    at distance d from the sensor (`remaster.noise`)."""
 
     name: str
     kind: str
@@ -51,6 +53,7 @@ class Sensor:
     marker: np.ndarray
     marker_error: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale_error: float = 0.0
+    transverse_growth_per_m: float = 0.0
 
     @property
     def robot_to_sensor(self) -> np.ndarray:
@@ -101,7 +104,13 @@ def measure(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
             elapsed_s=None) -> np.ndarray:
     """The sensor's readings (n, 3) in its own frame, noise included."""
     p_sensor = true_sensor_positions(chain, robot, sensor, q_readings, elapsed_s)
-    return p_sensor + rng.normal(0.0, sensor.noise, p_sensor.shape)
+    draw = rng.normal(0.0, sensor.noise, p_sensor.shape)
+    if sensor.transverse_growth_per_m == 0.0:
+        return p_sensor + draw
+    u = p_sensor / np.linalg.norm(p_sensor, axis=1, keepdims=True)
+    along = np.sum(draw * u, axis=1, keepdims=True) * u
+    ratio = np.sqrt(1.0 + (sensor.transverse_growth_per_m * np.linalg.norm(p_sensor, axis=1, keepdims=True)) ** 2)
+    return p_sensor + along + ratio * (draw - along)
 
 
 def true_sensor_positions(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
