@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from remaster import io, scenario
+from remaster import audit, io, scenario
 
 from .conftest import REPO
 
@@ -153,3 +153,29 @@ def test_only_a_campaign_given_as_a_dh_table_gets_calibrated_dh_tables(tiny, tmp
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", result.stdout, flags=re.M))
     assert counts.get("calibrated") == "3"  # tiny: two sensors, tiny2: one
     assert counts.get("calibrated_dh") == "1"
+
+
+def test_editing_the_robot_description_reruns_its_campaign_and_changes_its_audit_hash(tiny, tmp_path):
+    """A URDF outside the campaign folder (campaign.yaml `robot/urdf`) is a declared input of the
+    campaign's jobs and hashed with the campaign: editing it reruns them and changes the digest."""
+    shutil.copytree(tiny / "raw" / "tiny", tmp_path / "raw" / "tiny")
+    urdf = tmp_path / "robots" / "iiwa.urdf"
+    urdf.parent.mkdir()
+    shutil.copy(REPO / "data" / "robots" / "kuka_iiwa14.urdf", urdf)
+    metadata = io.read_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml")
+    metadata["robot"]["urdf"] = "../../robots/iiwa.urdf"
+    io.write_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml", metadata)
+    io.write_yaml(tmp_path / "config.yaml", {**io.read_yaml(tiny / "config.yaml"), "raw_dir": str(tmp_path / "raw"),
+                                             "results_dir": str(tmp_path / "results")})
+    target = str(tmp_path / "results" / "tiny" / "campaign" / "summary.json")
+    assert run(tmp_path, "--", target).returncode == 0
+    unchanged = run(tmp_path, "-n", "--", target)
+    assert "Nothing to be done" in unchanged.stdout + unchanged.stderr
+    folder_files = sorted((tmp_path / "raw" / "tiny").iterdir())
+    assert io.robot_files(tmp_path / "raw" / "tiny") == [tmp_path / "raw" / "tiny" / "../../robots/iiwa.urdf"]
+    before = audit.folder_digest(io.file_digests(folder_files + io.robot_files(tmp_path / "raw" / "tiny"), True))
+    urdf.write_text(urdf.read_text() + "\n<!-- edited -->\n")
+    after = audit.folder_digest(io.file_digests(folder_files + io.robot_files(tmp_path / "raw" / "tiny"), True))
+    dry = run(tmp_path, "-n", "--", target)
+    assert dry.returncode == 0 and "campaign_summary" in dry.stdout and "iiwa.urdf" in dry.stdout
+    assert before != after

@@ -1,8 +1,10 @@
 """The audit trail: what every result of a run was made from.
 
-For each campaign, the SHA-256 of each of its files and of the whole folder (over the sorted
-file names and their digests, so renaming or editing any file changes it), the configuration as
-used (and its digest), the package version and the seed, and the SHA-256 of every result file.
+For each campaign, the SHA-256 of each of its files, of the robot description it refers to (a
+URDF outside the folder), and of the whole (over the sorted file names and their digests, so
+renaming or editing any file changes it), the configuration as used (and its digest), the code by
+content (a digest of the package's source files, and the git commit when there is one), the seed,
+and the SHA-256 of every result file.
 A result can so be traced to exactly the data, settings and code that made it.
 """
 
@@ -30,11 +32,16 @@ def config_digest(config: dict) -> str:
     return sha256(json.dumps(config, sort_keys=True, separators=(",", ":")).encode("utf-8"))
 
 
-def audit_record(campaigns: dict[str, dict[str, str]], results: dict[str, dict[str, str]], config: dict) -> dict:
-    """campaigns: campaign -> {file name: SHA-256}; results: campaign -> {result path: SHA-256};
-    config: the workflow configuration as used. JSON-ready."""
+def audit_record(campaigns: dict[str, dict[str, str]], results: dict[str, dict[str, str]], config: dict,
+                 code: dict[str, str] | None = None, git: dict | None = None) -> dict:
+    """campaigns: campaign -> {file name: SHA-256} (its folder's files and the robot description
+    it refers to); results: campaign -> {result path: SHA-256}; config: the workflow configuration
+    as used; code: {package file: SHA-256} of the remaster package that ran; git: {'commit',
+    'dirty'} of the checkout, if any. JSON-ready."""
     return {
         "remaster_version": __version__,
+        "code": {"package_sha256": folder_digest(code or {}), "package_files": len(code or {}),
+                 "git": git},
         "python": platform.python_version(),
         "seed": config.get("seed"),
         "config_sha256": config_digest(config),

@@ -236,6 +236,46 @@ def _urdf_candidates(urdf: str, folder: Path, repo_root: Path) -> list[Path]:
     return list(dict.fromkeys(candidates))
 
 
+def robot_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path]:
+    """The robot description files a campaign folder's campaign.yaml refers to outside the folder
+    (its URDF, found as `load_chain` finds it), so that a workflow can declare and hash them; []
+    when there are none or campaign.yaml does not parse (reading the campaign says why)."""
+    folder = Path(folder)
+    try:
+        robot = yaml.safe_load((folder / "campaign.yaml").read_text(encoding="utf-8")).get("robot") or {}
+        urdf = robot.get("urdf") if isinstance(robot, Mapping) else None
+    except (OSError, yaml.YAMLError, AttributeError):
+        return []
+    if not isinstance(urdf, str):
+        return []
+    found = next((p for p in _urdf_candidates(urdf, folder, Path(repo_root)) if p.is_file()), None)
+    return [] if found is None or found.resolve().parent == folder.resolve() else [found]
+
+
+def package_digests() -> dict[str, str]:
+    """SHA-256 of every source file of the installed remaster package, keyed by its path in it:
+    the code that made a result, identified by content."""
+    root = Path(__file__).resolve().parent
+    files = sorted(p for p in root.rglob("*.py") if "__pycache__" not in p.parts)
+    return {str(p.relative_to(root)): digest for p, digest in zip(files, file_digests(files).values())}
+
+
+def git_commit(repo_root: str | Path = ".") -> dict | None:
+    """{'commit', 'dirty'} of the git checkout at repo_root, None outside one (or without git)."""
+    import subprocess
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo_root, capture_output=True, text=True,
+                                timeout=30)
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=repo_root,
+                                capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if commit.returncode != 0:
+        return None
+    return {"commit": commit.stdout.strip(), "dirty": bool(status.stdout.strip())}
+
+
 def _in_robot_section(exc: KinematicsError, source: str, note: str = "") -> KinematicsError:
     """The same problem, reported against campaign.yaml's robot/<key>."""
     key = f"robot/{exc.key}" if exc.key else "robot"

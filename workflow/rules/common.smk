@@ -7,6 +7,8 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
+from remaster.io import robot_files
+
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
 
@@ -71,9 +73,10 @@ CAMPAIGNS = list_campaigns()
 
 
 def campaign_files(wildcards):
-    """Every file of a campaign folder, so that changing one reruns that campaign's jobs only."""
+    """Every file of a campaign folder and the robot description it refers to outside it (a
+    shared URDF), so that changing one reruns that campaign's jobs only."""
     folder = Path(RAW, wildcards.campaign)
-    return sorted(str(p) for p in folder.iterdir() if p.is_file())
+    return sorted(str(p) for p in folder.iterdir() if p.is_file()) + [str(p) for p in robot_files(folder)]
 
 
 def sensors_of(campaign):
