@@ -1,5 +1,6 @@
 """The library keeps file access in one place: only remaster.io (and the command line, which
-parses path arguments) may touch the filesystem."""
+parses path arguments) may touch the filesystem; and its modules import along the pipeline's
+direction only (a layer map)."""
 
 from __future__ import annotations
 
@@ -38,3 +39,55 @@ def test_only_io_and_cli_touch_files():
     offenders = {p.name: hits for p in sorted(package.glob("*.py")) if p.name not in ALLOWED
                  and (hits := _file_access(p.read_text(encoding="utf-8")))}
     assert offenders == {}
+
+
+# --------------------------------------------------------------------------- layering
+
+# The pipeline's direction, bottom to top: a module may import its own layer and those below,
+# never a later stage (a new module must be placed here, or the test says so).
+LAYERS = {
+    "foundation": {"__init__", "errors", "spatial", "units", "labels", "_kernels", "seeding", "diagnostics", "noise",
+                   "audit"},
+    "robot": {"kinematics", "gravity", "ik", "registration", "priors", "planning"},
+    "campaigns": {"campaign", "importer", "simulation", "scenario"},
+    "inference": {"model", "identifiability", "samplers", "metrics", "fit", "blocks", "evidence", "residual_gp",
+                  "discrepancy"},
+    "loop": {"closure", "loop_closure"},
+    "analysis": {"prediction", "workspace", "accuracy", "transfer", "comparison", "calibrated", "dh_table",
+                 "compensation"},
+    "reporting": {"tables", "figures", "figures_accuracy", "figures_comparison", "figures_loop", "report"},
+    "interface": {"io", "cli"},  # the edges: files (read and written for every stage) and the command line
+}
+LAYER_OF = {module: rank for rank, modules in enumerate(LAYERS.values()) for module in modules}
+LAYER_NAMES = list(LAYERS)
+
+
+def _imported_modules(source: str, modules: set[str]) -> set[str]:
+    """The package modules `source` imports (relative or absolute, anywhere in the file)."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            module = node.module or ""
+            if node.level == 1 or module == "remaster" or module.startswith("remaster."):
+                name = module.removeprefix("remaster").lstrip(".").split(".")[0]
+                found |= {name} if name else {a.name for a in node.names if a.name in modules}
+        elif isinstance(node, ast.Import):
+            found |= {a.name.split(".")[1] for a in node.names if a.name.startswith("remaster.")}
+    return found & modules
+
+
+def test_the_import_detector_sees_relative_absolute_and_late_imports():
+    modules = {"fit", "tables", "model"}
+    source = "from . import fit\nfrom .tables import x\ndef f():\n    from remaster.model import y\nimport numpy\n"
+    assert _imported_modules(source, modules) == {"fit", "tables", "model"}
+
+
+def test_no_module_imports_a_later_stage():
+    package = Path(remaster.__file__).parent
+    modules = {p.stem for p in package.glob("*.py")}
+    assert modules - set(LAYER_OF) == set(), "place new modules in LAYERS"
+    upward = {f"{m} ({layer}) imports {d} ({LAYER_NAMES[LAYER_OF[d]]})"
+              for m in sorted(modules) for layer in [LAYER_NAMES[LAYER_OF[m]]]
+              for d in _imported_modules((package / f"{m}.py").read_text(encoding="utf-8"), modules)
+              if LAYER_OF[d] > LAYER_OF[m]}
+    assert upward == set()

@@ -8,7 +8,7 @@ import pytest
 
 from remaster import blocks, calibrated, dh_table, io, kinematics, prediction, spatial
 from remaster.errors import InputError
-from remaster.model import DEG
+from remaster.units import DEG
 
 from .conftest import REPO, UR5_DH, UR5_URDF
 

@@ -11,7 +11,8 @@ import pytest
 
 from remaster import comparison, figures_comparison, io
 from remaster.errors import InputError
-from remaster.model import DEG, SIGMA
+from remaster.model import SIGMA
+from remaster.units import DEG
 
 from .conftest import REPO
 

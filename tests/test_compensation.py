@@ -12,9 +12,10 @@ from scipy import stats
 from remaster import blocks, compensation, fit, io, kinematics, prediction, spatial
 from remaster.cli import main as cli
 from remaster.errors import InputError
-from remaster.model import DEG, MM, SIGMA
+from remaster.model import SIGMA
 from remaster.scenario import robot_from_truth, sensor_from_truth
 from remaster.simulation import true_marker_positions, true_sensor_positions
+from remaster.units import DEG, MM
 
 from .conftest import REPO
 from .test_workspace import fitted, paper_summary

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from remaster import fit, io
 from remaster.campaign import sensor_data
@@ -50,7 +51,7 @@ def fitted(chain, sensor, methods=("default",), seed=0):
 
 def test_intervals_cover_the_truth_about_95_percent(iiwa):
     """Simulation-based calibration of the 95 % intervals: 24 campaigns x 6 identifiable offsets."""
-    covered, total = 0, 0
+    covered, total, z2 = 0, 0, 0.0
     for seed in range(24):
         rng = np.random.default_rng(1000 + seed)
         sensor, truth = simulated_sensor(iiwa, rng)
@@ -59,9 +60,13 @@ def test_intervals_cover_the_truth_about_95_percent(iiwa):
         for j in range(1, 7):
             row = summary.loc[f"zero_offsets.q{j + 1}"]
             covered += bool(row["q2.5"] <= truth[j] <= row["q97.5"])
+            z2 += ((row["mean"] - truth[j]) / row["std"]) ** 2
             total += 1
-    # binomial(144, 0.95): mean 136.8, sd 2.6; MCMC quantiles add a little noise
-    assert 0.89 <= covered / total <= 1.0, f"{covered} of {total} intervals cover the truth"
+    # binomial(144, 0.95): mean 136.8, sd 2.6; MCMC quantiles add a little noise. Intervals too
+    # narrow fail the first bound; too wide, the chi-square of the standardised errors (which
+    # would fall far below its 144 degrees of freedom)
+    assert 0.89 <= covered / total, f"{covered} of {total} intervals cover the truth"
+    assert stats.chi2(total).ppf(0.005) < z2 < stats.chi2(total).ppf(0.995), f"chi-square {z2:.1f} of {total}"
 
 
 def test_samplers_agree_and_unseen_points_are_excluded(iiwa):

@@ -5,7 +5,6 @@ nothing to add, finds two effects, and on the bundled twin explains what the pap
 import dataclasses
 import json
 
-import matplotlib.figure
 import numpy as np
 import pytest
 
@@ -201,9 +200,21 @@ def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiw
         assert abs(shifts[f"zero_offsets.q{j + 1}"]["after_deg"] - OFFSETS_DEG[j]) < 0.01
     assert list(result.table.columns) == ["Quantity", "Before (zero-offsets)", "After (with effects)"]
     assert len(result.table) == 10
-    figures = [figures_loop.signatures(result.signatures[1], "signatures"),
-               figures_loop.residual_histograms(result.residuals, "before/after")]
-    assert all(isinstance(f, matplotlib.figure.Figure) for f in figures)
+    # the figures draw these results: each candidate's residual against its effect (mm), and the
+    # before/after errors labelled with their RMSE
+    candidates = result.signatures[1]
+    drawn = [ax for ax in figures_loop.signatures(candidates, "signatures").axes if ax.collections]
+    assert [ax.get_title().split(":")[0] for ax in drawn] == list(candidates)
+    for ax, signature in zip(drawn, candidates.values()):
+        for k, dots in enumerate(ax.collections):
+            np.testing.assert_allclose(dots.get_offsets(),
+                                       np.column_stack([signature.effect[:, k], signature.residual[:, k]]) / 1e-3)
+    histograms = figures_loop.residual_histograms(result.residuals, "before/after")
+    for ax, set_name in zip(histograms.axes, loop_closure.SETS):
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        for when in ("before", "after"):
+            rmse = np.sqrt(np.mean(np.sum(result.residuals[when][set_name] ** 2, axis=1))) / 1e-3
+            assert f"{when}: RMSE {rmse:.3g} mm" in labels
 
 
 def test_the_twin_is_explained_by_link_geometry_and_compliance(iiwa):

@@ -13,7 +13,7 @@ from remaster.blocks import ModelSettings, link_labels
 from remaster.campaign import SensorData
 from remaster.kinematics import ForwardKinematics
 from remaster.metrics import random_configurations
-from remaster.model import MM
+from remaster.units import MM
 
 MARKER = np.array([-0.1, 0.0, 0.02])
 ROBOT = "serial:test-arm"

@@ -12,11 +12,41 @@ and cos and sin of q + offset come from the angle-sum formulas.
 
 from __future__ import annotations
 
-import numba
+import functools
+
 import numpy as np
 
+_KERNELS: list = []  # (function, njit options) in definition order: callees before callers
 
-@numba.njit(cache=True, fastmath={"contract"})
+
+def _compiled(**options):
+    """numba.njit(cache=True, **options), compiled at the first call of any kernel: importing
+    numba costs a few tenths of a second, which every workflow job that only reads results (tables,
+    figures) would otherwise pay."""
+
+    def mark(function):
+        _KERNELS.append((function, options))
+
+        @functools.wraps(function)
+        def first_call(*args):
+            _compile_all()
+            return globals()[function.__name__](*args)
+
+        return first_call
+
+    return mark
+
+
+def _compile_all() -> None:
+    """Replace every kernel by its Numba dispatcher (callees first, so callers compile against them)."""
+    import numba
+
+    for function, options in _KERNELS:
+        if not isinstance(globals()[function.__name__], numba.core.registry.CPUDispatcher):
+            globals()[function.__name__] = numba.njit(cache=True, **options)(function)
+
+
+@_compiled(fastmath={"contract"})
 def _points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d, x0, x1, x2):
     """Positions of `start` (a point in the last joint's frame) for every configuration, into
     x0, x1, x2 (n,). cos_q, sin_q are (N, n): joints outer, configurations inner, so that the
@@ -38,7 +68,7 @@ def _points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d, x0, x1, x2):
             x2[i] = r[2, 0] * r0 + r[2, 1] * r1 + r[2, 2] * z + shifts[j, 2]
 
 
-@numba.njit(cache=True)
+@_compiled()
 def points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d):
     """Positions (m, n, 3) for m offset vectors given by cos_d, sin_d (m, N)."""
     m, n = cos_d.shape[0], cos_q.shape[1]
@@ -52,7 +82,7 @@ def points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d):
     return out
 
 
-@numba.njit(cache=True)
+@_compiled()
 def _euler_zyx(yaw, pitch, roll, out):
     """Rz(yaw) Ry(pitch) Rx(roll) into out (3, 3)."""
     cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
@@ -61,7 +91,7 @@ def _euler_zyx(yaw, pitch, roll, out):
     out[2, 0], out[2, 1], out[2, 2] = -sp, cp * sr, cp * cr
 
 
-@numba.njit(cache=True)
+@_compiled()
 def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured):
     """Sum over configurations of |measured_i - T*(theta1) T_NR p_i(theta2)|^2 for m parameter
     vectors every (m, 6 + N) = (x, y, z, alpha, beta, gamma, offsets...): (m,). measured (3, n)."""

@@ -46,7 +46,7 @@ from . import metrics, registration, spatial
 from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
 from .model import SIGMA, correction_transforms, display_scale, parameter_names
-from .tables import paper_order, sensor_label
+from .labels import paper_order, sensor_label
 
 METHODS = ("Vernier", "Bayesian")
 TABLE_METHODS = METHODS + ("Loop-closed",)  # the loop-closed model's rows (`workspace`) follow the paper's

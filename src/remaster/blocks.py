@@ -43,13 +43,13 @@ import pandas as pd
 
 from . import _kernels, spatial
 from .campaign import SensorData
-from .fit import measured_rows
 from .gravity import gravity_torques
 from .identifiability import JACOBIAN_STEP
 from .kinematics import KernelForm, KinematicChain, perturbed_transforms
-from .model import DEG, MM, REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from .model import REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
 from .noise import RangeTransverse
 from .priors import Priors
+from .units import DEG, MM
 
 BASE = ("registration", "zero_offsets")
 EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
@@ -140,7 +140,7 @@ def readings(chain: KinematicChain, sensor: SensorData, set_name: str, settings:
     """The measured rows of one set but the table rows in `exclude` (flagged gross errors).
     Gravity torques are taken at the readings: zero-offsets of a fraction of a degree change
     them by well under 1 %, a compliance deflection of a few microradians."""
-    rows = np.setdiff1d(measured_rows(sensor, set_name), np.asarray(exclude, dtype=int))
+    rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table.loc[rows, list(sensor.joint_columns)].to_numpy(dtype=float)
     measured = sensor.table.loc[rows, ["x", "y", "z"]].to_numpy(dtype=float)
     torques = gravity_torques(chain, q, settings.payload_mass, settings.payload_com)

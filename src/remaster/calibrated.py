@@ -37,8 +37,8 @@ from .blocks import calibrated_transforms
 from .campaign import Campaign
 from .errors import InputError
 from .kinematics import KinematicChain, origin_transform
-from .model import DEG
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
+from .units import DEG
 
 URDF_BLOCKS = ("zero_offsets", "link_geometry")  # what the joint origins hold
 SIGN = "true joint angle = controller reading + correction: add the correction to the controller's zero"

@@ -109,6 +109,10 @@ class SensorData:
         """Boolean (n_rows,): rows with a finite measured position."""
         return np.all(np.isfinite(self.positions()), axis=1)
 
+    def measured_rows(self, set_name: str | None = None) -> np.ndarray:
+        """0-based table rows of a set (all rows for None) whose marker was seen."""
+        return np.flatnonzero(self.set_mask(set_name) & self.measured_mask)
+
     @property
     def missing_rows(self) -> np.ndarray:
         """Row numbers (0-based, stored order) where the marker was not seen (x, y, z NaN)."""

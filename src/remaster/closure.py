@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from .model import MM
+from .units import MM
 
 CLOSURE_RATIO = 1.2
 MAIN_CAUSE_SHARE = 0.5  # an effect that removes less than this share of the structured residual is not "the cause"

@@ -34,7 +34,8 @@ import pandas as pd
 import scipy.stats
 
 from .errors import InputError
-from .tables import display_value, paper_order
+from .labels import paper_order
+from .model import display_value
 
 ZERO_OFFSET_PREFIX = "zero_offsets.q"
 ESTIMATED = "estimated"

@@ -54,8 +54,9 @@ from . import residual_gp, spatial
 from .campaign import Campaign
 from .errors import InputError, format_rows
 from .kinematics import ForwardKinematics, KinematicChain
-from .model import DEG, MM, REGISTRATION, SIGMA, correction_transforms
+from .model import REGISTRATION, SIGMA, correction_transforms
 from .prediction import Calibration, Predictor, loop_calibration, paper_calibration
+from .units import DEG, MM
 
 MODELS = ("paper", "loop")
 FRAMES = ("robot", "sensor")

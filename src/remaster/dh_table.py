@@ -36,7 +36,7 @@ from . import spatial
 from .blocks import calibrated_transforms
 from .errors import KinematicsError
 from .kinematics import KinematicChain, chain_from_dh, flange_poses
-from .model import DEG, MM
+from .units import DEG, MM
 
 EXACT = 1e-10  # m and rad: below this a transform is of DH form (products of 4x4 matrices, not a fit)
 

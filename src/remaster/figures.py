@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .model import DEG  # noqa: E402
-from .tables import sensor_label  # noqa: E402
+from .labels import sensor_label  # noqa: E402
+from .units import DEG  # noqa: E402
 
 
 def _zero_offset_columns(samples: pd.DataFrame) -> list[str]:

@@ -15,7 +15,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from .figures import error_histogram_axes, finished  # noqa: E402
-from .tables import paper_order, sensor_label  # noqa: E402
+from .labels import paper_order, sensor_label  # noqa: E402
 
 # fig. accuracy's colours, drawn widest cloud first so that every kind stays visible
 TCP_STYLE = {"probable + noise": ("tab:blue", 4, 0.35), "probable": ("gold", 4, 0.6),

@@ -12,7 +12,7 @@ import pandas as pd  # noqa: E402
 
 from .blocks import EXTENSIONS  # noqa: E402
 from .figures import _grid  # noqa: E402
-from .tables import paper_order, sensor_label  # noqa: E402
+from .labels import paper_order, sensor_label  # noqa: E402
 
 MARKERS = "osD^v<>"
 MAX_LABELS = 24  # campaign labels on the x axis; beyond that, every k-th campaign is named

@@ -18,7 +18,7 @@ import pandas as pd  # noqa: E402
 
 from .figures import _grid, error_histogram_axes, finished  # noqa: E402
 from .loop_closure import SETS, Signature  # noqa: E402
-from .model import MM  # noqa: E402
+from .units import MM  # noqa: E402
 
 AXES = ("x", "y", "z")
 

@@ -53,15 +53,10 @@ class Registration:
                     "rotation_deg": float(angle)}}
 
 
-def measured_rows(sensor: SensorData, set_name: str) -> np.ndarray:
-    """0-based table rows of a set whose marker was seen."""
-    return np.flatnonzero(sensor.set_mask(set_name) & sensor.measured_mask)
-
-
 def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimization") -> Registration:
     """The paper's three-point registration from three far-apart measured configurations of the
     set, with a Kabsch registration over all of them for comparison."""
-    rows = measured_rows(sensor, set_name)
+    rows = sensor.measured_rows(set_name)
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
     robot = ForwardKinematics(chain, q).points(sensor.marker)
@@ -79,7 +74,7 @@ def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str =
     """(model with undetermined parameters held, identifiability analysis, rows without a
     measurement). `exclude`: further table rows left out (flagged outliers). The model's
     `table_rows` (n,) says which table row each of its points is."""
-    rows = np.setdiff1d(measured_rows(sensor, set_name), np.asarray(exclude, dtype=int))
+    rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
     analysis = identifiability.analyse(ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr))

@@ -81,7 +81,7 @@ from .campaign import (
     validate_metadata,
 )
 from .errors import MAX_ROWS_SHOWN, InputError
-from .model import DEG
+from .units import DEG
 
 REPORT_FILE = "import_report.json"
 ANGLE_UNITS = {"deg": DEG, "rad": 1.0}  # SI (rad) per unit

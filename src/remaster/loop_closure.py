@@ -52,8 +52,9 @@ from . import blocks, closure, evidence, fit, metrics, noise, residual_gp, sampl
 from .blocks import BlockModel, ModelSettings, Readings, Reduction
 from .campaign import Campaign, SensorData
 from .kinematics import KinematicChain
-from .model import DEG, MM, SIGMA
+from .model import SIGMA
 from .priors import DEFAULTS as DEFAULT_PRIORS, Priors, priors_from, with_defaults
+from .units import DEG, MM
 
 SETS = ("optimization", "validation")
 MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}

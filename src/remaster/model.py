@@ -25,11 +25,10 @@ import numpy as np
 
 from . import _kernels, spatial
 from .kinematics import ForwardKinematics, KinematicChain
+from .units import DEG, MM
 
 REGISTRATION = ("x", "y", "z", "alpha", "beta", "gamma")
 SIGMA = "noise.sigma"
-MM = 1e-3
-DEG = np.pi / 180.0
 
 
 def parameter_names(n_joints: int) -> tuple[str, ...]:
@@ -40,6 +39,11 @@ def parameter_names(n_joints: int) -> tuple[str, ...]:
 def display_scale(name: str) -> float:
     """SI size of one display unit of a parameter: 1 mm for lengths, 1 deg for angles."""
     return MM if name in ("registration.x", "registration.y", "registration.z", SIGMA) else DEG
+
+
+def display_value(name: str, value: float) -> float:
+    """A parameter value in its display unit (mm or deg)."""
+    return float(value) / display_scale(name)
 
 
 def correction_transforms(registration) -> np.ndarray:

@@ -42,7 +42,7 @@ from .campaign import Campaign, SensorData
 from .errors import InputError
 from .gravity import gravity_torques
 from .kinematics import ForwardKinematics, KinematicChain, perturbed_chain
-from .model import MM
+from .units import MM
 
 MODELS = ("nominal", "paper", "loop")
 SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise")  # one campaign's set-up: never transferred

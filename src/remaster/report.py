@@ -115,7 +115,7 @@ def overview(campaigns: dict[str, dict]) -> pd.DataFrame:
     """The run at a glance: per campaign and sensor, the mean post-registration error before
     (Vernier) and after (Bayesian) zero-offset remastering, and what the loop closure added and
     left on the validation set. Built from the campaigns' own tables."""
-    from .tables import sensor_label
+    from .labels import sensor_label
 
     rows = []
     for name, content in campaigns.items():

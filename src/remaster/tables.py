@@ -12,7 +12,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from .model import SIGMA, display_scale
+from .labels import paper_order, sensor_label
+from .model import SIGMA, display_value
 
 CAPTIONS = {
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
@@ -88,12 +89,7 @@ CAPTIONS = {
                                 "sensor's own marker offset and scale left out).",
     "loop_effects_over_time": "Parameters of the effects the loop closure added, over time",
 }
-SENSOR_LABELS = {"motion_capture": "Motion Capture", "laser_tracker": "Laser Tracker"}
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
-
-
-def sensor_label(name: str) -> str:
-    return SENSOR_LABELS.get(name, name.replace("_", " ").title())
 
 
 def _cell(value, digits: int) -> str:
@@ -132,19 +128,8 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, digits: int = 3) -> 
     return "\n".join(lines) + "\n"
 
 
-def display_value(name: str, value: float) -> float:
-    """A parameter value in its display unit (mm or deg)."""
-    return float(value) / display_scale(name)
-
-
 def _indexed(summary: pd.DataFrame) -> pd.DataFrame:
     return summary.set_index("parameter") if "parameter" in summary.columns else summary
-
-
-def paper_order(sensors) -> list[str]:
-    """Sensors in the paper's column order (motion capture, laser tracker), then the others by name."""
-    known = list(SENSOR_LABELS)
-    return sorted(sensors, key=lambda s: (known.index(s) if s in known else len(known), s))
 
 
 def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:

@@ -26,9 +26,8 @@ import pandas as pd
 
 from . import registration, spatial
 from .errors import InputError
-from .fit import measured_rows
-from .model import MM
 from .prediction import MODELS, Calibrated, Calibration, calibrated_entries
+from .units import MM
 
 TRANSFER_COLUMNS = ["robot", "sensor", "model", "calibrated_on", "evaluated_on", "points", "rmse_mm", "mean_mm",
                     "p95_mm"]
@@ -41,7 +40,7 @@ def transfer_errors(calibration: Calibration, target: Calibrated) -> np.ndarray:
     Empty when the target has fewer than MIN_REGISTRATION_POINTS optimization rows or no
     validation row."""
     sensor, excluded = target.sensor, np.asarray(target.excluded, dtype=int)
-    rows = {s: np.setdiff1d(measured_rows(sensor, s), excluded) for s in ("optimization", "validation")}
+    rows = {s: np.setdiff1d(sensor.measured_rows(s), excluded) for s in ("optimization", "validation")}
     if len(rows["optimization"]) < MIN_REGISTRATION_POINTS or len(rows["validation"]) == 0:
         return np.empty(0)
     joints, xyz = list(sensor.joint_columns), ["x", "y", "z"]

@@ -57,8 +57,9 @@ from .blocks import identifiable_extension
 from .campaign import SensorData
 from .errors import InputError
 from .kinematics import ForwardKinematics, KinematicChain
-from .model import DEG, MM, SIGMA
+from .model import SIGMA
 from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
+from .units import DEG, MM
 
 LOOP_METHOD = "Loop-closed"
 THEORETICAL_TABLES = {  # paper table: (configurations, with noise)
