@@ -45,7 +45,7 @@ import pandas as pd
 from . import metrics, registration, spatial
 from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
-from .model import SIGMA, correction_transforms, display_scale, parameter_names
+from .model import SIGMA, by_parameter, correction_transforms, display_scale, display_unit, parameter_names
 from .labels import paper_order, sensor_label
 
 METHODS = ("Vernier", "Bayesian")
@@ -343,7 +343,7 @@ def _parameters_used(robots: dict[str, Remastered], mle: pd.Series, t_nr, laplac
                                     [np.sqrt(np.mean(np.square(vernier_errors)) / 3.0)]])
     names = list(mle.index)
     scale = np.array([display_scale(n) for n in names])
-    return pd.DataFrame({"parameter": names, "unit": ["mm" if s == 1e-3 else "deg" for s in scale],
+    return pd.DataFrame({"parameter": names, "unit": [display_unit(n) for n in names],
                          "Vernier": vernier_every / scale, "Bayesian": mle.to_numpy(float) / scale,
                          "status": ["held" if n in held else "estimated" for n in names]})
 
@@ -444,10 +444,6 @@ def paper_comparison(table_name: str, table: pd.DataFrame) -> pd.DataFrame:
 # --------------------------------------------------------------------------- sensor comparison
 
 
-def _indexed(summary: pd.DataFrame) -> pd.DataFrame:
-    return summary.set_index("parameter") if "parameter" in summary.columns else summary
-
-
 def _accuracy_rows(accuracy) -> pd.DataFrame:
     """Metric rows with a 'quantity' label, from {table name: rows} or a frame with a 'table' column."""
     if isinstance(accuracy, dict):
@@ -475,14 +471,14 @@ def sensor_comparison(summaries: dict[str, pd.DataFrame], accuracy: dict) -> pd.
     """
     sensors = paper_order(summaries)
     labels = [sensor_label(s) for s in sensors]
-    summaries = {s: _indexed(summaries[s]) for s in sensors}
+    summaries = {s: by_parameter(summaries[s]) for s in sensors}
     accuracy_rows = {s: _accuracy_rows(accuracy[s]) for s in sensors if s in accuracy}
     compared = len(sensors) >= 2
     single_note = f"only one sensor ({labels[0]}): nothing to compare"
     rows = []
     for name in summaries[sensors[0]].index:
         scale = display_scale(name)
-        row = {"kind": "parameter", "quantity": name, "unit": "mm" if scale == 1e-3 else "deg"}
+        row = {"kind": "parameter", "quantity": name, "unit": display_unit(name)}
         for sensor, label in zip(sensors, labels):
             entry = summaries[sensor].loc[name] if name in summaries[sensor].index else None
             row[f"{label} estimate"] = np.nan if entry is None else float(entry["mean"]) / scale

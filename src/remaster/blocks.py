@@ -46,7 +46,7 @@ from .campaign import SensorData
 from .gravity import gravity_torques
 from .identifiability import JACOBIAN_STEP
 from .kinematics import KernelForm, KinematicChain, perturbed_transforms
-from .model import REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from .model import REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, display_unit, parameter_names
 from .noise import RangeTransverse
 from .priors import Priors
 from .units import DEG, MM
@@ -203,7 +203,7 @@ def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None =
     if block == "registration":  # the paper's parameters, named and scaled as `remaster.model` does
         names = parameter_names(chain.n_joints)[:len(REGISTRATION)]
         scale = np.array([display_scale(n) for n in names])
-        return Parameters(names, scale, tuple("mm" if s == MM else "deg" for s in scale))
+        return Parameters(names, scale, tuple(display_unit(n) for n in names))
     if block == "marker_offset":
         return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
     if block == "sensor_scale":

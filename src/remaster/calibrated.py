@@ -37,6 +37,7 @@ from .blocks import calibrated_transforms
 from .campaign import Campaign
 from .errors import InputError
 from .kinematics import KinematicChain, origin_transform
+from .model import by_parameter
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 from .units import DEG
 
@@ -138,7 +139,7 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
 def controller_offsets(joint_names, table: pd.DataFrame, model: str) -> pd.DataFrame:
     """`OFFSET_COLUMNS` per joint of one model from its parameter table (parameter, mean, std,
     q2.5, q97.5 SI, status)."""
-    table = table.set_index("parameter") if "parameter" in table.columns else table
+    table = by_parameter(table)
     rows = []
     for j, joint in enumerate(joint_names):
         r = table.loc[f"zero_offsets.q{j + 1}"]

@@ -34,7 +34,7 @@ import pandas as pd
 from . import metrics
 from .campaign import Campaign
 from .fit import build_model
-from .model import ZeroOffsetModel, display_scale
+from .model import ZeroOffsetModel, by_parameter, display_scale
 
 SOURCE = "paper posterior mean; std from the pose-clustered sandwich covariance"
 
@@ -60,7 +60,7 @@ def discrepancy_summary(model: ZeroOffsetModel, theta, poses, summary: pd.DataFr
     the paper posterior's."""
     theta = np.asarray(theta, dtype=float)
     std = np.sqrt(np.diag(sandwich_covariance(-model.jacobian(theta), model.residuals(theta), poses)))
-    out = (summary.set_index("parameter") if "parameter" in summary.columns else summary).copy()
+    out = by_parameter(summary).copy()
     names = list(model.names)
     paper_std = out.loc[names, "std"].astype(float).to_numpy()
     mean = out.loc[names, "mean"].astype(float).to_numpy()

@@ -7,13 +7,13 @@ from collections.abc import Iterable
 MAX_ROWS_SHOWN = 10
 
 
-def format_rows(rows: Iterable[int]) -> str:
-    """'rows 3, 7, 9' or 'rows 0, 1, ... (250 in all)' for long lists."""
+def format_rows(rows: Iterable[int], noun: str = "row") -> str:
+    """'rows 3, 7, 9' or 'rows 0, 1, ... (250 in all)' for long lists ('line 4' with noun='line')."""
     rows = [int(r) for r in rows]
     shown = ", ".join(str(r) for r in rows[:MAX_ROWS_SHOWN])
     if len(rows) > MAX_ROWS_SHOWN:
         shown += f", ... ({len(rows)} in all)"
-    return ("row " if len(rows) == 1 else "rows ") + shown
+    return f"{noun} {shown}" if len(rows) == 1 else f"{noun}s {shown}"
 
 
 class RemasterError(Exception):

@@ -25,7 +25,7 @@ import scipy.stats
 from . import diagnostics, identifiability, registration, samplers
 from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
-from .model import SIGMA, ZeroOffsetModel, display_scale
+from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
 from .spatial import transform_points
 
 log = logging.getLogger(__name__)
@@ -313,7 +313,7 @@ def posterior_summary(frame: pd.DataFrame, laplace: dict) -> pd.DataFrame:
     scale = np.array([display_scale(n) for n in summary.index])
     for column in ("mean", "std", "q2.5", "q97.5"):
         summary[f"{column}_display"] = summary[column].astype(float) / scale
-    summary["display_unit"] = ["mm" if s == 1e-3 else "deg" for s in scale]
+    summary["display_unit"] = [display_unit(n) for n in summary.index]
     summary.index.name = "parameter"
     return summary
 

@@ -80,7 +80,7 @@ from .campaign import (
     joint_columns,
     validate_metadata,
 )
-from .errors import MAX_ROWS_SHOWN, InputError
+from .errors import MAX_ROWS_SHOWN, InputError, format_rows
 from .units import DEG
 
 REPORT_FILE = "import_report.json"
@@ -96,11 +96,7 @@ _RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + (TIME_COLUMN,))
 
 def _lines(lines) -> str:
     """'line 4' or 'lines 3, 7, ... (25 in all)'."""
-    lines = [int(n) for n in lines]
-    shown = ", ".join(str(n) for n in lines[:MAX_ROWS_SHOWN])
-    if len(lines) > MAX_ROWS_SHOWN:
-        shown += f", ... ({len(lines)} in all)"
-    return ("line " if len(lines) == 1 else "lines ") + shown
+    return format_rows(lines, "line")
 
 
 # --------------------------------------------------------------------------- CSV text

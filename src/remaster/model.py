@@ -46,6 +46,16 @@ def display_value(name: str, value: float) -> float:
     return float(value) / display_scale(name)
 
 
+def display_unit(name: str) -> str:
+    """'mm' or 'deg': the display unit of a parameter (`display_scale`)."""
+    return "mm" if display_scale(name) == MM else "deg"
+
+
+def by_parameter(table):
+    """A parameter table (a `parameter` column, or already indexed by it) indexed by parameter name."""
+    return table.set_index("parameter") if "parameter" in table.columns else table
+
+
 def correction_transforms(registration) -> np.ndarray:
     """T*(Theta1) (..., 4, 4) for registration parameters (..., 6): Trans(x,y,z) Rz Ry Rx."""
     r = np.asarray(registration, dtype=float)

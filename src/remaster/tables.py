@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .labels import paper_order, sensor_label
-from .model import SIGMA, display_value
+from .model import SIGMA, by_parameter, display_value
 
 CAPTIONS = {
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
@@ -128,17 +128,13 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, digits: int = 3) -> 
     return "\n".join(lines) + "\n"
 
 
-def _indexed(summary: pd.DataFrame) -> pd.DataFrame:
-    return summary.set_index("parameter") if "parameter" in summary.columns else summary
-
-
 def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Table MLE_zero_offsets: per joint, each sensor's MLE (posterior mean) and std in deg.
 
     summaries: sensor -> `fit.posterior_summary` table (SI). A parameter held because the data
     cannot determine it is marked 'held' instead of given a number.
     """
-    summaries = {sensor: _indexed(summaries[sensor]) for sensor in paper_order(summaries)}
+    summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
     names = [n for n in next(iter(summaries.values())).index if n.startswith("zero_offsets.")]
     rows = []
     for name in sorted(names, key=lambda n: int(n.rsplit("q", 1)[1])):
@@ -161,7 +157,7 @@ def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
     the paper's row order; with `fits` (sensor -> `fit.laplace_report`), three more rows: points
     fitted, points without a measurement and points flagged as gross errors (both left out)."""
-    summaries = {sensor: _indexed(summaries[sensor]) for sensor in paper_order(summaries)}
+    summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
     for name, label in REGISTRATION_ROWS:
         row = {"Parameter": label}
