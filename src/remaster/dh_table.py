@@ -52,7 +52,8 @@ def _body_frames(joint_transforms) -> np.ndarray:
 def _rotation_angle(rotation) -> float:
     """Angle (rad) of a rotation matrix, accurate near 0."""
     skew = rotation - rotation.T
-    return float(np.arctan2(np.linalg.norm([skew[2, 1], skew[0, 2], skew[1, 0]]) / 2.0, (np.trace(rotation) - 1.0) / 2.0))
+    sine = np.linalg.norm([skew[2, 1], skew[0, 2], skew[1, 0]]) / 2.0
+    return float(np.arctan2(sine, (np.trace(rotation) - 1.0) / 2.0))
 
 
 def _dh_transform(d, a, alpha, theta) -> np.ndarray:
@@ -105,7 +106,8 @@ def calibrated_dh(chain: KinematicChain, dh: Mapping, values: Mapping[str, float
     misses = []
     for j in range(n):
         standard = convention == "standard"
-        free = ("theta" if j == 0 else "d a alpha theta") if standard else ("a alpha theta" if j == 0 else "d a alpha theta")
+        first = "theta" if standard else "a alpha theta"  # a standard table has no base transform
+        free = first if j == 0 else "d a alpha theta"
         part, miss = _factor(transforms[j], free)
         if miss > EXACT:
             why = ("joint 1's axis tilted from the base's z, which a standard table without a base transform cannot "

@@ -61,7 +61,8 @@ MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
 CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
 GP_DEFAULT = {"subset": residual_gp.SUBSET, "inducing": residual_gp.INDUCING}
 GP = "residual_gp"
-TRACKER_NOISE_DEFAULT = {"growth_per_m": noise.GROWTH_PRIOR_PER_M, "growth_factor": math.exp(noise.GROWTH_PRIOR_LOG_STD)}
+TRACKER_NOISE_DEFAULT = {"growth_per_m": noise.GROWTH_PRIOR_PER_M,
+                         "growth_factor": math.exp(noise.GROWTH_PRIOR_LOG_STD)}
 NOISE_SEARCH_WIDTH = 3.0  # prior stds of log g either side of its median searched for the mode
 MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
 # posterior std / prior std above this: the data barely moved the parameter from its prior
