@@ -241,7 +241,9 @@ class BlockModel:
     chain: the nominal chain; data: `Readings`; marker (3,) m nominal, flange frame; t_nr (4, 4)
     the initial registration; blocks: extension block names (any order; the model orders them
     as EXTENSIONS); fixed: {parameter name: value} held (e.g. the zero-offset a free
-    registration absorbs, the extension parameters the data cannot see).
+    registration absorbs, the extension parameters the data cannot see); noise: the sensor's noise
+    shape (`remaster.noise`), None for the paper's isotropic noise: the likelihood then sums the
+    squares of whitened residuals (`weighted_residuals`), while `residuals` stay in metres.
     Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
     """
 
