@@ -225,3 +225,10 @@ def test_compiled_points_equal_numpy_and_pinocchio_for_any_axes(rng):
     for qi, p in zip(q + offsets[1], fk.points(marker, offsets[1])):
         pin.framesForwardKinematics(model, data, qi)
         np.testing.assert_allclose(p, data.oMf[model.getFrameId("flange")].act(np.array(marker)), atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("angle", [1e-9, 1e-4, 0.7, 2.5, np.pi - 1e-6])
+def test_rotation_angle_is_the_angle_turned_even_near_zero(angle, rng):
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    assert spatial.rotation_angle(spatial.rot_axis(axis, angle)) == pytest.approx(angle, rel=1e-9)

@@ -49,13 +49,6 @@ def _body_frames(joint_transforms) -> np.ndarray:
     return np.array(frames)
 
 
-def _rotation_angle(rotation) -> float:
-    """Angle (rad) of a rotation matrix, accurate near 0."""
-    skew = rotation - rotation.T
-    sine = np.linalg.norm([skew[2, 1], skew[0, 2], skew[1, 0]]) / 2.0
-    return float(np.arctan2(sine, (np.trace(rotation) - 1.0) / 2.0))
-
-
 def _dh_transform(d, a, alpha, theta) -> np.ndarray:
     """Tz(d) Tx(a) Rx(alpha) Rz(theta)."""
     return spatial.homogeneous(spatial.rot_x(alpha) @ spatial.rot_z(theta), np.array([a, 0.0, d]))
@@ -72,7 +65,7 @@ def _factor(transform, free: str = "d a alpha theta") -> tuple[dict[str, float],
     out["theta"] = float(np.arctan2(rest[1, 0], rest[0, 0])) if "theta" in free else 0.0
     out = {k: float(v) for k, v in out.items()}
     nearest = _dh_transform(**out)
-    miss = np.linalg.norm(nearest[:3, 3] - t) + abs(_rotation_angle(nearest[:3, :3].T @ rotation))
+    miss = np.linalg.norm(nearest[:3, 3] - t) + abs(spatial.rotation_angle(nearest[:3, :3].T @ rotation))
     return out, float(miss)
 
 
@@ -136,7 +129,7 @@ def calibrated_dh(chain: KinematicChain, dh: Mapping, values: Mapping[str, float
     expected = flange_poses(replace(chain, joint_transforms=joints, tool_transform=tool), configurations)
     got = flange_poses(chain_from_dh(rows, convention, flange), configurations)
     position = float(np.max(np.linalg.norm(got[:, :3, 3] - expected[:, :3, 3], axis=1)))
-    orientation = max(_rotation_angle(g[:3, :3].T @ e[:3, :3]) for g, e in zip(got, expected))
+    orientation = max(spatial.rotation_angle(g[:3, :3].T @ e[:3, :3]) for g, e in zip(got, expected))
     delta = rows - nominal
     delta[:, 3] = np.angle(np.exp(1j * delta[:, 3]))
     return {"convention": convention, "rows": rows.tolist(), "flange": flange.tolist(),

@@ -22,7 +22,7 @@ import pandas as pd
 import scipy.optimize
 import scipy.stats
 
-from . import diagnostics, identifiability, registration, samplers
+from . import diagnostics, identifiability, registration, samplers, spatial
 from .campaign import Campaign, SensorData
 from .kinematics import ForwardKinematics, KinematicChain
 from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
@@ -44,7 +44,7 @@ class Registration:
 
     def report(self) -> dict:
         rotation_difference = self.t_nr[:3, :3].T @ self.kabsch_t_nr[:3, :3]
-        angle = np.degrees(np.arccos(np.clip((np.trace(rotation_difference) - 1) / 2, -1, 1)))
+        angle = np.degrees(spatial.rotation_angle(rotation_difference))
         return {"method": "three-point (paper)", "rows": list(self.rows), "T_NR": self.t_nr.tolist(),
                 "kabsch_T_NR": self.kabsch_t_nr.tolist(),
                 "three_point_rms_mm": self.three_point_rms * 1e3, "kabsch_rms_mm": self.kabsch_rms * 1e3,

@@ -236,16 +236,22 @@ def _urdf_candidates(urdf: str, folder: Path, repo_root: Path) -> list[Path]:
     return list(dict.fromkeys(candidates))
 
 
+def robot_section(folder: str | Path) -> Mapping:
+    """campaign.yaml's `robot` section as written, for planning a workflow before the campaign is
+    read; {} when it does not parse (reading the campaign says why, with file and key)."""
+    try:
+        robot = yaml.safe_load((Path(folder) / "campaign.yaml").read_text(encoding="utf-8")).get("robot")
+    except (OSError, yaml.YAMLError, AttributeError):
+        return {}
+    return robot if isinstance(robot, Mapping) else {}
+
+
 def robot_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path]:
     """The robot description files a campaign folder's campaign.yaml refers to outside the folder
     (its URDF, found as `load_chain` finds it), so that a workflow can declare and hash them; []
     when there are none or campaign.yaml does not parse (reading the campaign says why)."""
     folder = Path(folder)
-    try:
-        robot = yaml.safe_load((folder / "campaign.yaml").read_text(encoding="utf-8")).get("robot") or {}
-        urdf = robot.get("urdf") if isinstance(robot, Mapping) else None
-    except (OSError, yaml.YAMLError, AttributeError):
-        return []
+    urdf = robot_section(folder).get("urdf")
     if not isinstance(urdf, str):
         return []
     found = next((p for p in _urdf_candidates(urdf, folder, Path(repo_root)) if p.is_file()), None)

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import spatial
+
 BASE_CLEARANCE_M = 0.25  # a tracker head stands at least this far from the robot's base origin
 GROWTH_PRIOR_PER_M = 1.0  # median of g (1/m): the datasheet ratio in the module docstring
 GROWTH_PRIOR_LOG_STD = math.log(3.0)  # g uncertain by a factor of 3 either way
@@ -71,7 +73,7 @@ def frame_problem(t_nr, measured) -> str | None:
     """Why the sensor frame cannot be the tracker's own, or None: its origin (the head) would be
     at the robot's base (positions already moved into the robot frame) or among the measured
     points. t_nr (4, 4) robot -> sensor; measured (n, 3) m in the sensor frame."""
-    head = -np.asarray(t_nr, dtype=float)[:3, :3].T @ np.asarray(t_nr, dtype=float)[:3, 3]  # origin, robot frame
+    head = spatial.invert(t_nr)[:3, 3]  # the sensor frame's origin in the robot frame
     if np.linalg.norm(head) < BASE_CLEARANCE_M:
         return (f"the sensor frame's origin is {np.linalg.norm(head):.3f} m from the robot's base origin: the "
                 "positions are not in the tracker's own frame (already in the robot frame?), so the directions "

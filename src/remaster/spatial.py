@@ -88,6 +88,14 @@ def homogeneous(rotation=None, translation=None) -> np.ndarray:
     return t
 
 
+def rotation_angle(rotation) -> float:
+    """Angle (rad) of a rotation matrix (3, 3), accurate near 0 (unlike arccos of the trace)."""
+    rotation = np.asarray(rotation, dtype=float)
+    skew = rotation - rotation.T
+    sine = np.linalg.norm([skew[2, 1], skew[0, 2], skew[1, 0]]) / 2.0
+    return float(np.arctan2(sine, (np.trace(rotation) - 1.0) / 2.0))
+
+
 def invert(transform) -> np.ndarray:
     """Inverse of rigid homogeneous transform(s), (..., 4, 4)."""
     t = np.asarray(transform, dtype=float)

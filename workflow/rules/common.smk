@@ -2,12 +2,11 @@
 # (paths, burn-in shorter than the run) and lists the campaigns to process. Every refusal names the
 # config file(s) and the key (docs/bad-input.md).
 import os
-import yaml
 from pathlib import Path
 
 from snakemake.utils import validate
 
-from remaster.io import robot_files
+from remaster.io import robot_files, robot_section
 
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
@@ -87,11 +86,7 @@ def sensors_of(campaign):
 def gives_dh(campaign):
     """Whether campaign.yaml gives a DH table (robot/dh); a file that does not parse is the campaign
     check's to report, with its file and key."""
-    try:
-        robot = yaml.safe_load(Path(RAW, campaign, "campaign.yaml").read_text()).get("robot") or {}
-        return isinstance(robot, dict) and "dh" in robot
-    except (OSError, yaml.YAMLError, AttributeError):
-        return False
+    return "dh" in robot_section(Path(RAW, campaign))
 
 
 def per_sensor(pattern):
