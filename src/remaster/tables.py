@@ -58,7 +58,9 @@ CAPTIONS = {
                     "set, read only here, with the optimization fit's parameters).",
     "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
                        "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
-                       "gain for reference, and the share of the residual it explains, per round.",
+                       "gain for reference, and the share of the residual it explains, per round; for a laser "
+                       "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
+                       "noise, or why it was not offered).",
     "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
                           "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
                           "and the loop-closed model; held joints get none.",
