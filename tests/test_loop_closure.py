@@ -73,6 +73,22 @@ def test_base_blocks_are_the_papers_model(iiwa):
     np.testing.assert_allclose(model.log_posterior(theta, sigma), paper.log_posterior(theta, sigma))
 
 
+def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng):
+    """The batched evaluation the samplers use (chunks of vectors, one compiled call each) gives
+    bit for bit what each vector gives alone, with every block on and across a chunk boundary."""
+    sensor = simulated(iiwa, "none")
+    registration = fit.register(iiwa, sensor)
+    _, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
+    model = blocks.BlockModel(iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker,
+                              registration.t_nr, blocks.EXTENSIONS, analysis.held)
+    theta = rng.normal(0.0, 1e-4, (model._CHUNK + 3, len(model.names)))
+    stacked = model.predict(theta)
+    assert stacked.shape == (len(theta), model.n_points, 3)
+    for k in (0, 1, model._CHUNK - 1, model._CHUNK, len(theta) - 1):
+        assert np.array_equal(stacked[k], model.predict(theta[k]))
+    assert not np.array_equal(stacked[0], stacked[1])
+
+
 @pytest.mark.parametrize("effect", list(EFFECTS))
 def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, effect):
     """Noise-free measurements of a robot with one effect are the block's prediction at the true

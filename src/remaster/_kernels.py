@@ -83,6 +83,28 @@ def points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d):
 
 
 @_compiled()
+def points_each(rotations, shifts, starts, cos_q, sin_q):
+    """Positions (m, n, 3) for m chains of one axis layout, each at its own joint angles:
+    rotations (m, N, 3, 3), shifts (m, N, 3), starts (m, 3), cos_q and sin_q (m, N, n). A
+    leading dimension of 1 is shared by every k (one chain at many angle sets)."""
+    m = max(rotations.shape[0], starts.shape[0], cos_q.shape[0])
+    joints, n = cos_q.shape[1], cos_q.shape[2]
+    out = np.empty((m, n, 3))
+    x0, x1, x2 = np.empty(n), np.empty(n), np.empty(n)
+    cos_d, sin_d = np.ones(joints), np.zeros(joints)
+    for k in range(m):
+        chain = k if rotations.shape[0] > 1 else 0
+        start = k if starts.shape[0] > 1 else 0
+        angles = k if cos_q.shape[0] > 1 else 0
+        _points(rotations[chain], shifts[chain], starts[start], cos_q[angles], sin_q[angles], cos_d, sin_d,
+                x0, x1, x2)
+        out[k, :, 0] = x0
+        out[k, :, 1] = x1
+        out[k, :, 2] = x2
+    return out
+
+
+@_compiled()
 def _euler_zyx(yaw, pitch, roll, out):
     """Rz(yaw) Ry(pitch) Rx(roll) into out (3, 3)."""
     cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)

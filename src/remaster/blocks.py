@@ -366,28 +366,35 @@ class BlockModel:
         theta = np.asarray(every, dtype=float)[..., self._joint_params]
         return self.q + self._joint_values_t @ (theta[..., :, None] * self._joint_onehot)
 
-    def _robot_points(self, every: np.ndarray, angles: np.ndarray) -> np.ndarray:
-        """Marker positions (n, 3) in the robot frame for one parameter vector (P_all,)."""
-        kernel = self._kernel
-        if self._links:
-            errors = np.zeros((self.chain.n_joints + 1, 2))
-            for index, row, column in self._links:
-                errors[row, column] = every[index]
-            kernel = kernel.with_transforms(*perturbed_transforms(self.chain.joint_transforms,
-                                                                  self.chain.tool_transform, errors))
-        marker = self.marker + every[self._marker_index] if self._marker_index else self.marker
-        n_joints = self.chain.n_joints
-        return _kernels.points(kernel.rotations, kernel.shifts, kernel.start(marker),
-                               np.ascontiguousarray(np.cos(angles).T), np.ascontiguousarray(np.sin(angles).T),
-                               np.ones((1, n_joints)), np.zeros((1, n_joints)))[0]
-
     def robot_points(self, every) -> np.ndarray:
         """Marker positions (n, 3) or (m, n, 3) in the ROBOT frame from every parameter (P_all,)
-        or (m, P_all): what the calibrated robot is, without the sensor's set-up."""
+        or (m, P_all): what the calibrated robot is, without the sensor's set-up. A stack is
+        evaluated a chunk of vectors at a time, each chunk by one compiled call."""
         every = np.asarray(every, dtype=float)
         stack = np.atleast_2d(every)
-        points = np.stack([self._robot_points(e, a) for e, a in zip(stack, self.angles(stack))])
+        points = np.concatenate([self._robot_points(stack[begin:begin + self._CHUNK])
+                                 for begin in range(0, len(stack), self._CHUNK)])
         return points if every.ndim == 2 else points[0]
+
+    # vectors per compiled call: bounds the (chunk, N, n) cosines and sines in memory
+    _CHUNK = 512
+
+    def _robot_points(self, stack: np.ndarray) -> np.ndarray:
+        """Marker positions (m, n, 3) in the robot frame for parameter vectors (m, P_all)."""
+        kernel = self._kernel
+        if self._links:
+            errors = np.zeros((len(stack), self.chain.n_joints + 1, 2))
+            for index, row, column in self._links:
+                errors[:, row, column] = stack[:, index]
+            kernel = kernel.with_transforms(*perturbed_transforms(self.chain.joint_transforms,
+                                                                  self.chain.tool_transform, errors))
+        marker = self.marker + stack[:, self._marker_index] if self._marker_index else self.marker
+        rotations, shifts = kernel.rotations, kernel.shifts
+        starts = np.atleast_2d(kernel.start(marker))
+        angles = np.swapaxes(self.angles(stack), -1, -2)  # (m, N, n): joints outer, as the kernel wants
+        return _kernels.points_each(rotations.reshape((-1,) + rotations.shape[-3:]),
+                                    shifts.reshape((-1,) + shifts.shape[-2:]), starts,
+                                    np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles)))
 
     def predict_full(self, every) -> np.ndarray:
         """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter

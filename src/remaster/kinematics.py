@@ -364,21 +364,21 @@ def _basis_with_z(axis) -> np.ndarray:
 
 
 def perturbed_transforms(joint_transforms, tool_transform, link_errors) -> tuple[np.ndarray, np.ndarray]:
-    """(F_1..F_N (N, 4, 4), F_tool (4, 4)) with link-geometry errors (N + 1, 2): for each fixed
-    transform a length error (m) along its translation (none for a link of zero length) and a
-    twist error (rad), a rotation about the x axis of the frame it leads to, which tilts the next
-    joint axis. A rotation about the joint axis itself would be a zero-offset, so it is not a
-    link error."""
+    """(F_1..F_N (..., N, 4, 4), F_tool (..., 4, 4)) with link-geometry errors (..., N + 1, 2), one
+    set or a stack: for each fixed transform a length error (m) along its translation (none for a
+    link of zero length) and a twist error (rad), a rotation about the x axis of the frame it leads
+    to, which tilts the next joint axis. A rotation about the joint axis itself would be a
+    zero-offset, so it is not a link error."""
     errors = np.asarray(link_errors, dtype=float)
     transforms = np.concatenate([np.asarray(joint_transforms, dtype=float), np.asarray(tool_transform)[None]])
-    if errors.shape != (len(transforms), 2):
-        raise ValueError(f"link_errors must have shape ({len(transforms)}, 2), got {errors.shape}")
-    out = transforms.copy()
+    if errors.shape[-2:] != (len(transforms), 2):
+        raise ValueError(f"link_errors must have shape (..., {len(transforms)}, 2), got {errors.shape}")
+    out = np.broadcast_to(transforms, errors.shape[:-1] + (4, 4)).copy()
     reach = np.linalg.norm(transforms[:, :3, 3], axis=1)
-    stretch = np.divide(errors[:, 0], reach, out=np.zeros(len(reach)), where=reach > 0)
-    out[:, :3, 3] *= (1.0 + stretch)[:, None]
-    out[:, :3, :3] = out[:, :3, :3] @ spatial.rot_x(errors[:, 1])
-    return out[:-1], out[-1]
+    stretch = np.divide(errors[..., 0], reach, out=np.zeros(errors.shape[:-1]), where=reach > 0)
+    out[..., :3, 3] *= (1.0 + stretch)[..., None]
+    out[..., :3, :3] = out[..., :3, :3] @ spatial.rot_x(errors[..., 1])
+    return out[..., :-1, :, :], out[..., -1, :, :]
 
 
 def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
@@ -408,17 +408,20 @@ class KernelForm:
     @classmethod
     def with_bases(cls, bases, joint_transforms, tool_transform) -> "KernelForm":
         before = np.concatenate([np.eye(3)[None], np.swapaxes(bases[:-1], -1, -2)])
-        rotations = np.ascontiguousarray(before @ joint_transforms[:, :3, :3] @ bases)
-        shifts = np.ascontiguousarray((before @ joint_transforms[:, :3, 3, None])[..., 0])
+        rotations = np.ascontiguousarray(before @ joint_transforms[..., :3, :3] @ bases)
+        shifts = np.ascontiguousarray((before @ joint_transforms[..., :3, 3, None])[..., 0])
         return cls(rotations, shifts, np.asarray(tool_transform, dtype=float), bases)
 
     def with_transforms(self, joint_transforms, tool_transform) -> "KernelForm":
-        """The same axes with other fixed transforms."""
+        """The same axes with other fixed transforms (N, 4, 4) and (4, 4), or stacks of them
+        (m, N, 4, 4) and (m, 4, 4): rotations (m, N, 3, 3), shifts (m, N, 3)."""
         return self.with_bases(self.bases, joint_transforms, tool_transform)
 
     def start(self, point_in_flange) -> np.ndarray:
+        """The flange point (3,) in the last joint's z-aligned frame: (3,), or (m, 3) for a stack of
+        forms (`with_transforms` of stacked transforms) or of points (m, 3)."""
         point = spatial.transform_points(self.tool_transform, np.asarray(point_in_flange, dtype=float))
-        return np.ascontiguousarray(self.bases[-1].T @ point)
+        return np.ascontiguousarray((self.bases[-1].T @ point[..., None])[..., 0])
 
 
 class ForwardKinematics:
