@@ -91,3 +91,37 @@ def test_no_module_imports_a_later_stage():
               for d in _imported_modules((package / f"{m}.py").read_text(encoding="utf-8"), modules)
               if LAYER_OF[d] > LAYER_OF[m]}
     assert upward == set()
+
+
+# --------------------------------------------------------------------------- light readers
+
+# What a workflow job that only reads results (a table, a figure, the report) must not import:
+# each costs tenths of a second in every one of some 200 jobs of the main job. The modules that
+# compute keep these imports inside the functions that use them.
+SOLVERS = ("scipy.optimize", "scipy.linalg", "scipy.stats", "emcee", "numba", "pinocchio")
+READERS = ("table_", "figure_", "comparison_figure", "comparison_table", "comparison_transfer_figure", "report",
+           "posterior_summary", "remastering", "campaign_summary", "audit")
+
+
+def _library_imports(script: Path) -> list[str]:
+    return sorted(_imported_modules(script.read_text(encoding="utf-8"),
+                                    {p.stem for p in Path(remaster.__file__).parent.glob("*.py")}))
+
+
+def test_jobs_that_only_read_results_import_no_solver():
+    import subprocess
+    import sys
+
+    scripts = [p for p in sorted((Path(__file__).parents[1] / "workflow" / "scripts").glob("*.py"))
+               if p.stem.startswith(READERS)]
+    assert len(scripts) >= 15
+    imports = sorted({m for p in scripts for m in _library_imports(p)})
+    code = ("import sys\n" + "".join(f"import remaster.{m}\n" for m in imports)
+            + f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert loaded == "", f"importing {imports} loads {loaded}"
+    # the check itself sees a solver when one is imported
+    seen = subprocess.run([sys.executable, "-c", "import sys, remaster.evidence, scipy.optimize\n"
+                           f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    assert "scipy.optimize" in seen

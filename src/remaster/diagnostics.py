@@ -12,8 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import emcee
-import numpy as np
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
 
 from .errors import RemasterError
@@ -72,6 +71,8 @@ def autocorrelation(samples, tol: float = TAU_RELIABLE) -> Autocorrelation:
     n, w, p = x.shape
     if n < 4:
         return Autocorrelation(np.full(p, float(n)), np.zeros(p, bool), n, w)
+    import emcee
+
     with np.errstate(invalid="ignore", divide="ignore"):
         # tol=0: emcee's own short-chain check (a warning) is replaced by the flag below.
         tau = np.atleast_1d(emcee.autocorr.integrated_time(x, c=5, tol=0, quiet=True)).astype(float)

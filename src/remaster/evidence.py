@@ -37,8 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-import scipy.optimize
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
 from .blocks import BlockModel
 from .identifiability import JACOBIAN_STEP
@@ -97,6 +96,7 @@ class PosteriorMode:
 
 def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
+    import scipy.optimize
     theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
     k = 3 * model.n_points
     sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))

@@ -17,10 +17,8 @@ import math
 import time
 from dataclasses import dataclass
 
-import numpy as np
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
-import scipy.optimize
-import scipy.stats
 
 from . import diagnostics, identifiability, registration, samplers, spatial
 from .campaign import Campaign, SensorData
@@ -91,6 +89,8 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
     residual components) allows for any of the n points at family-wise level `alpha`:
     |E_i| > sigma_r sqrt(chi2_3 quantile at 1 - alpha / n) (Bonferroni). The robust loss keeps one
     glitch of several mm from dragging the fit towards it."""
+    import scipy.optimize
+    import scipy.special
     scale = np.array([display_scale(n) for n in model.names])
     start = np.zeros(len(model.names))
     first = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), start, x_scale=scale)
@@ -99,7 +99,7 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
                                           loss="cauchy", f_scale=max(spread, 1e-9))
     residual = np.abs(model.residuals(robust.x))
     sigma_r = 1.4826 * np.median(residual)
-    threshold = math.sqrt(scipy.stats.chi2.isf(alpha / model.n_points, df=3))
+    threshold = math.sqrt(scipy.special.chdtri(3, alpha / model.n_points))  # chi2(3).isf, without scipy.stats' import
     far = np.linalg.norm(residual, axis=1) > threshold * sigma_r
     return model.table_rows[far]
 

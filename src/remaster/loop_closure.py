@@ -44,9 +44,8 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
-import numpy as np
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
-import scipy.optimize
 
 from . import blocks, closure, evidence, fit, metrics, noise, residual_gp, samplers
 from .blocks import BlockModel, ModelSettings, Readings, Reduction
@@ -287,6 +286,7 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
     its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
     integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. Returns
     the chosen fit and a JSON-ready report."""
+    import scipy.optimize
     prior = settings.tracker_noise
     median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
 

@@ -30,10 +30,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
-import scipy.linalg
-import scipy.optimize
 
 SUBSET = 600          # rows for the hyperparameters (exact marginal likelihood)
 INDUCING = 400        # inducing inputs for prediction and the evidence
@@ -87,6 +85,7 @@ def evenly_spaced(n: int, count: int) -> np.ndarray:
 def _negative_log_ml(log_params: np.ndarray, distances: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
     """-log p(y) of the exact GP and its gradient in (log l_j..., log s, log noise); distances
     (J, n, n) the per-joint 1 - cos differences, y (n, 3)."""
+    import scipy.linalg
     n_len = len(distances)
     weights = np.exp(-2.0 * log_params[:n_len])
     signal2, noise2 = math.exp(2.0 * log_params[n_len]), math.exp(2.0 * log_params[n_len + 1])
@@ -115,6 +114,7 @@ def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparamete
     """Type-II maximum likelihood of (l_j, s, noise) on at most `subset` evenly spaced rows of q
     (n, N) rad and residuals (n, 3) m; from `start` when given (one start), else from a smooth
     and a wiggly start."""
+    import scipy.optimize
     q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
     rows = evenly_spaced(len(q), subset)
     q_s, y_s = q[rows], y[rows]
@@ -152,6 +152,7 @@ class ResidualGP:
     of the training residuals."""
 
     def __init__(self, q, residuals, hyper: Hyperparameters, inducing: int = INDUCING):
+        import scipy.linalg
         q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
         self.hyper = hyper
         self.inducing = q[evenly_spaced(len(q), inducing)]
@@ -182,6 +183,7 @@ class ResidualGP:
     def variance(self, q) -> np.ndarray:
         """Posterior variance of each component of g (n*,) m^2 at readings q (n*, N), without the
         noise: s^2 far from the data."""
+        import scipy.linalg
         k_sm = kernel(np.asarray(q, dtype=float), self.inducing, self.hyper)
         explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
         left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)

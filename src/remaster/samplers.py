@@ -32,10 +32,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
-import emcee
-import numpy as np
-import scipy.optimize
-from scipy.special import gammaln
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
 from .errors import RemasterError
 
@@ -532,6 +529,8 @@ def run_emcee(target: Target, rng: np.random.Generator, start, spread, n_walkers
     burn_in. emcee's own generator is a RandomState seeded from `rng`, so runs are reproducible
     and the global NumPy state is neither used nor changed.
     """
+    import emcee
+
     p = len(target.names)
     if n_walkers < 2 * p:
         raise ValueError(f"emcee needs at least 2P = {2 * p} walkers, got {n_walkers}")
@@ -605,6 +604,8 @@ def least_squares_laplace(residuals: Callable[[np.ndarray], np.ndarray], theta0,
     below rcond * the largest: their variance would be (near) infinite, and a pseudo-inverse would
     silently report a finite one. See `LaplaceResult` for the sigma formulas.
     """
+    import scipy.optimize
+    from scipy.special import gammaln
     theta0 = np.asarray(theta0, dtype=float)
     scale = np.broadcast_to(np.asarray(scale, dtype=float), theta0.shape)
     names = tuple(names) if names is not None else tuple(f"theta[{i}]" for i in range(len(theta0)))
