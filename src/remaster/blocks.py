@@ -26,10 +26,10 @@ Link geometry is the simulator's parametrisation (`kinematics.perturbed_transfor
 along each fixed transform's translation and a twist about the x axis of the frame it leads to.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
-vector, a predict function and the paper's log-posterior (the same functions as
-`ZeroOffsetModel`'s, shared, not copied). Which extension parameters the data determine is
-decided in one place, `identifiable_extension`: QR with column pivoting of the extension's
-Jacobian columns after projecting out the base parameters' columns.
+vector, a predict function and the paper's log-posterior (both it and `ZeroOffsetModel` are a
+`model.MeasurementModel`). Which extension parameters the data determine is decided in one
+place, `identifiable_extension`: QR with column pivoting of the extension's Jacobian columns
+after projecting out the base parameters' columns.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from .campaign import SensorData
 from .gravity import gravity_torques
 from .identifiability import JACOBIAN_STEP
 from .kinematics import KernelForm, KinematicChain, perturbed_transforms
-from .model import REGISTRATION, ZeroOffsetModel, correction_transforms, display_scale, display_unit, parameter_names
+from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
 from .noise import RangeTransverse
 from .priors import Priors
 from .units import DEG, MM
@@ -235,7 +235,7 @@ def available(block: str, data: Readings) -> bool:
 # --------------------------------------------------------------------------- the model
 
 
-class BlockModel:
+class BlockModel(MeasurementModel):
     """Predicted marker positions (sensor frame) of one set's readings for base + extension blocks.
 
     chain: the nominal chain; data: `Readings`; marker (3,) m nominal, flange frame; t_nr (4, 4)
@@ -246,14 +246,6 @@ class BlockModel:
     squares of whitened residuals (`weighted_residuals`), while `residuals` stay in metres.
     Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
     """
-
-    # The paper's likelihood and the holding of parameters are the same whatever the blocks.
-    full = ZeroOffsetModel.full
-    predict = ZeroOffsetModel.predict
-    residuals = ZeroOffsetModel.residuals
-    log_likelihood = ZeroOffsetModel.log_posterior  # the paper's: flat prior on Theta, Jeffreys' on sigma
-    jacobian = ZeroOffsetModel.jacobian
-    n_points = ZeroOffsetModel.n_points
 
     def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
                  fixed: Mapping[str, float] | None = None, priors: Priors | None = None,
@@ -354,12 +346,13 @@ class BlockModel:
 
     def log_posterior(self, theta, sigma):
         """The paper's log-posterior plus the extension priors: scalar or (m,); -inf where sigma <= 0."""
-        return self.log_likelihood(theta, sigma) + self.log_prior(theta)
+        return super().log_posterior(theta, sigma) + self.log_prior(theta)
 
     def prior_residuals(self, theta) -> np.ndarray:
-        """theta_k / std_k of the parameters with a prior (P_prior,): least squares' pseudo-observations."""
+        """theta_k / std_k of the parameters with a prior (P_prior,) or (m, P_prior): least squares'
+        pseudo-observations."""
         finite = np.isfinite(self.prior_std)
-        return np.asarray(theta, dtype=float)[finite] / self.prior_std[finite]
+        return np.asarray(theta, dtype=float)[..., finite] / self.prior_std[finite]
 
     def angles(self, every) -> np.ndarray:
         """Joint angles (n, N) or (m, n, N) the robot had, from every parameter (..., P_all)."""

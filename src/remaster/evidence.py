@@ -102,15 +102,30 @@ def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
     for _ in range(MAX_SIGMA_ROUNDS):
         def stacked(t, s=sigma):
-            return np.concatenate([model.weighted_residuals(t).ravel(), s * model.prior_residuals(t)])
+            """Residuals (K,) at t (P,), or (m, K) at a stack (m, P)."""
+            weighted = model.weighted_residuals(t)
+            return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), s * model.prior_residuals(t)], axis=-1)
 
         # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
-        theta = scipy.optimize.least_squares(stacked, theta, x_scale=model.scale, method="lm",
-                                             xtol=1e-12, ftol=1e-12, gtol=1e-12).x
+        theta = scipy.optimize.least_squares(stacked, theta, jac=lambda t: forward_differences(stacked, t),
+                                             x_scale=model.scale, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12).x
         previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
         if abs(sigma - previous) <= SIGMA_TOLERANCE * sigma:
             break
     return laplace_at(model, theta, sigma)
+
+
+def forward_differences(function, x) -> np.ndarray:
+    """Jacobian (K, P) of function (P,) -> (K,) at x by scipy's default forward differences (step
+    sqrt(eps) max(1, |x_i|), signed as x_i, the exactly representable difference as the divisor),
+    its P + 1 points evaluated in one call of `function` on a stack (P + 1, P) -> (P + 1, K):
+    the block model evaluates a stack a chunk at a time instead of one vector at a time."""
+    x = np.asarray(x, dtype=float)
+    step = math.sqrt(np.finfo(float).eps) * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+    points = np.tile(x, (len(x) + 1, 1))
+    points[np.arange(len(x)), np.arange(len(x))] = x + step
+    values = function(points)
+    return ((values[:-1] - values[-1]) / ((x + step) - x)[:, None]).T
 
 
 def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:

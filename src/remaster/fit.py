@@ -70,14 +70,12 @@ def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimiz
 
 def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str = "optimization", exclude=()):
     """(model with undetermined parameters held, identifiability analysis, rows without a
-    measurement). `exclude`: further table rows left out (flagged outliers). The model's
-    `table_rows` (n,) says which table row each of its points is."""
+    measurement). `exclude`: further table rows left out (flagged outliers)."""
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
     analysis = identifiability.analyse(ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr))
-    model = ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held)
-    model.table_rows = rows
+    model = ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows)
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
 
