@@ -18,7 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from remaster import comparison, io
+from remaster import io
+from remaster.analysis import comparison
 
 SCENARIO = "data/simulation/kuka-compliance.yaml"
 

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from remaster import residual_gp
+from remaster.inference import residual_gp
 
 NOISE = 2e-5
 

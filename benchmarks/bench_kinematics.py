@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from remaster import kinematics
+from remaster.robot import kinematics
 
 URDF = Path(__file__).resolve().parents[1] / "data" / "robots" / "kuka_iiwa14.urdf"
 N_CONFIGURATIONS = 173

@@ -16,8 +16,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from remaster import diagnostics, fit, io, kinematics, spatial
-from remaster.model import correction_transforms
+from remaster import diagnostics, io, spatial
+from remaster.inference import fit
+from remaster.inference.model import correction_transforms
+from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
 

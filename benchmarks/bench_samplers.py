@@ -25,7 +25,8 @@ import time
 
 import numpy as np
 
-from remaster import diagnostics, samplers
+from remaster import diagnostics
+from remaster.inference import samplers
 
 MM, DEG = 1e-3, math.pi / 180
 N_POINTS = 173

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from remaster import kinematics
+from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"

@@ -34,63 +34,78 @@ def test_file_access_detector_sees_imports_and_open():
     assert _file_access("from pathlib import PurePosixPath\nimport io as _s\n") == []
 
 
-def test_only_io_and_cli_touch_files():
+def _modules() -> dict[str, Path]:
+    """{dotted name below remaster (e.g. 'inference.fit'): file} of every module of the package."""
     package = Path(remaster.__file__).parent
-    offenders = {p.name: hits for p in sorted(package.glob("*.py")) if p.name not in ALLOWED
-                 and (hits := _file_access(p.read_text(encoding="utf-8")))}
+    return {".".join(p.relative_to(package).with_suffix("").parts): p for p in sorted(package.rglob("*.py"))
+            if "__pycache__" not in p.parts}
+
+
+def test_only_io_and_cli_touch_files():
+    offenders = {name: hits for name, path in _modules().items() if path.name not in ALLOWED
+                 and (hits := _file_access(path.read_text(encoding="utf-8")))}
     assert offenders == {}
 
 
 # --------------------------------------------------------------------------- layering
 
-# The pipeline's direction, bottom to top: a module may import its own layer and those below,
-# never a later stage (a new module must be placed here, or the test says so).
-LAYERS = {
-    "foundation": {"__init__", "errors", "spatial", "units", "labels", "_kernels", "seeding", "diagnostics", "noise",
-                   "audit"},
-    "robot": {"kinematics", "gravity", "ik", "registration", "priors", "planning"},
-    "campaigns": {"campaign", "importer", "simulation", "scenario"},
-    "inference": {"model", "identifiability", "samplers", "metrics", "fit", "blocks", "evidence", "residual_gp",
-                  "discrepancy"},
-    "loop": {"closure", "loop_closure"},
-    "analysis": {"prediction", "workspace", "accuracy", "transfer", "comparison", "calibrated", "dh_table",
-                 "compensation"},
-    "reporting": {"tables", "figures", "figures_accuracy", "figures_comparison", "figures_loop", "report"},
-    "interface": {"io", "cli"},  # the edges: files (read and written for every stage) and the command line
-}
-LAYER_OF = {module: rank for rank, modules in enumerate(LAYERS.values()) for module in modules}
-LAYER_NAMES = list(LAYERS)
+# The pipeline's direction, bottom to top: the foundation (modules beside the packages that any
+# stage may use), the sub-packages in the workflow's order, and the edges (io: the files every
+# stage reads and writes; cli: the command line). A module may import its own layer and those
+# below, never a later stage; a new top-level module must be placed here, or the test says so.
+FOUNDATION = {"__init__", "errors", "spatial", "units", "labels", "_kernels", "seeding", "diagnostics", "noise",
+              "audit"}
+STAGES = ("robot", "campaigns", "inference", "loop", "analysis", "reporting")
+INTERFACE = {"io", "cli"}
+LAYER_NAMES = ["foundation", *STAGES, "interface"]
 
 
-def _imported_modules(source: str, modules: set[str]) -> set[str]:
-    """The package modules `source` imports (relative or absolute, anywhere in the file)."""
+def _layer(module: str) -> int:
+    top = module.split(".")[0]
+    if top in STAGES:
+        return 1 + STAGES.index(top)
+    return 0 if top in FOUNDATION else len(LAYER_NAMES) - 1 if top in INTERFACE else -1
+
+
+def _imported_modules(source: str, here: str, modules) -> set[str]:
+    """The package modules (dotted below remaster) that `source`, the module `here` ('' for a
+    script outside the package), imports: relative or absolute, anywhere in the file."""
+    package = here.split(".")[:-1]
     found = set()
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom):
             module = node.module or ""
-            if node.level == 1 or module == "remaster" or module.startswith("remaster."):
-                name = module.removeprefix("remaster").lstrip(".").split(".")[0]
-                found |= {name} if name else {a.name for a in node.names if a.name in modules}
+            if node.level:
+                base = package[: len(package) - (node.level - 1)] + ([module] if module else [])
+            elif module == "remaster" or module.startswith("remaster."):
+                base = module.split(".")[1:]
+            else:
+                continue
+            name = ".".join(base)
+            found |= {name} if name in modules else {f"{name}.{a.name}".lstrip(".") for a in node.names}
         elif isinstance(node, ast.Import):
-            found |= {a.name.split(".")[1] for a in node.names if a.name.startswith("remaster.")}
-    return found & modules
+            found |= {a.name.removeprefix("remaster.") for a in node.names if a.name.startswith("remaster.")}
+    return found & set(modules)
 
 
 def test_the_import_detector_sees_relative_absolute_and_late_imports():
-    modules = {"fit", "tables", "model"}
-    source = "from . import fit\nfrom .tables import x\ndef f():\n    from remaster.model import y\nimport numpy\n"
-    assert _imported_modules(source, modules) == {"fit", "tables", "model"}
+    modules = {"inference.fit", "reporting.tables", "inference.model", "units"}
+    source = ("from . import fit\nfrom ..reporting.tables import x\nfrom .. import units\ndef f():\n"
+              "    from remaster.inference.model import y\nimport numpy\n")
+    assert _imported_modules(source, "inference.evidence", modules) == modules
 
 
 def test_no_module_imports_a_later_stage():
-    package = Path(remaster.__file__).parent
-    modules = {p.stem for p in package.glob("*.py")}
-    assert modules - set(LAYER_OF) == set(), "place new modules in LAYERS"
-    upward = {f"{m} ({layer}) imports {d} ({LAYER_NAMES[LAYER_OF[d]]})"
-              for m in sorted(modules) for layer in [LAYER_NAMES[LAYER_OF[m]]]
-              for d in _imported_modules((package / f"{m}.py").read_text(encoding="utf-8"), modules)
-              if LAYER_OF[d] > LAYER_OF[m]}
+    modules = _modules()
+    unplaced = {m for m in modules if _layer(m) < 0}
+    assert unplaced == set(), "place new top-level modules in FOUNDATION or INTERFACE"
+    upward = {f"{m} ({LAYER_NAMES[_layer(m)]}) imports {d} ({LAYER_NAMES[_layer(d)]})"
+              for m, path in modules.items()
+              for d in _imported_modules(path.read_text(encoding="utf-8"), m, modules) if _layer(d) > _layer(m)}
     assert upward == set()
+    # the check sees an upward import when there is one
+    assert _layer("reporting.tables") > _layer("inference.fit") and _imported_modules(
+        "from ..reporting import tables\n", "inference.fit", modules) == {"reporting.tables"}
 
 
 # --------------------------------------------------------------------------- light readers
@@ -104,8 +119,7 @@ READERS = ("table_", "figure_", "comparison_figure", "comparison_table", "compar
 
 
 def _library_imports(script: Path) -> list[str]:
-    return sorted(_imported_modules(script.read_text(encoding="utf-8"),
-                                    {p.stem for p in Path(remaster.__file__).parent.glob("*.py")}))
+    return sorted(_imported_modules(script.read_text(encoding="utf-8"), "", _modules()))
 
 
 def test_jobs_that_only_read_results_import_no_solver():
@@ -121,7 +135,7 @@ def test_jobs_that_only_read_results_import_no_solver():
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert loaded == "", f"importing {imports} loads {loaded}"
     # the check itself sees a solver when one is imported
-    seen = subprocess.run([sys.executable, "-c", "import sys, remaster.evidence, scipy.optimize\n"
+    seen = subprocess.run([sys.executable, "-c", "import sys, remaster.inference.evidence, scipy.optimize\n"
                            f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))"],
                           capture_output=True, text=True, check=True).stdout.strip()
     assert "scipy.optimize" in seen

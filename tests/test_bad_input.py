@@ -15,9 +15,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import io, kinematics, metrics, registration, scenario
-from remaster.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
+from remaster import io
+from remaster.campaigns import scenario
+from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError
+from remaster.inference import metrics
+from remaster.robot import kinematics, registration
 
 from .conftest import REPO
 from .test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table

@@ -6,8 +6,11 @@ import pandas as pd
 import pinocchio as pin
 import pytest
 
-from remaster import blocks, calibrated, dh_table, io, kinematics, prediction, spatial
+from remaster import io, spatial
+from remaster.analysis import calibrated, dh_table, prediction
 from remaster.errors import InputError
+from remaster.inference import blocks
+from remaster.robot import kinematics
 from remaster.units import DEG
 
 from .conftest import REPO, UR5_DH, UR5_URDF

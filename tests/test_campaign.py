@@ -12,10 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster.campaign import SETS, validate_metadata, validate_sensor_table
+from remaster.campaigns.campaign import SETS, validate_metadata, validate_sensor_table
 from remaster.errors import InputError, KinematicsError
 from remaster.io import load_chain, read_campaign, write_campaign, write_json
-from remaster.kinematics import max_chain_difference
+from remaster.robot.kinematics import max_chain_difference
 
 REPO = Path(__file__).resolve().parents[1]
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"

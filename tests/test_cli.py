@@ -4,7 +4,8 @@ ends with a named error and exit status 2."""
 import numpy as np
 import pandas as pd
 
-from remaster import cli, io, kinematics
+from remaster import cli, io
+from remaster.robot import kinematics
 
 from .conftest import IIWA_URDF, REPO
 

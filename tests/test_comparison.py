@@ -9,9 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import comparison, figures_comparison, io
+from remaster import io
+from remaster.analysis import comparison
 from remaster.errors import InputError
-from remaster.model import SIGMA
+from remaster.inference.model import SIGMA
+from remaster.reporting import figures_comparison
 from remaster.units import DEG
 
 from .conftest import REPO

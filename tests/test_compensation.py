@@ -9,12 +9,15 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import blocks, compensation, fit, io, kinematics, prediction, spatial
+from remaster import io, spatial
+from remaster.analysis import compensation, prediction
+from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
+from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.cli import main as cli
 from remaster.errors import InputError
-from remaster.model import SIGMA
-from remaster.scenario import robot_from_truth, sensor_from_truth
-from remaster.simulation import true_marker_positions, true_sensor_positions
+from remaster.inference import blocks, fit
+from remaster.inference.model import SIGMA
+from remaster.robot import kinematics
 from remaster.units import DEG, MM
 
 from .conftest import REPO

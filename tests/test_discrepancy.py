@@ -4,8 +4,10 @@ copies of one robot whose model lacks an effect."""
 import numpy as np
 import pandas as pd
 
-from remaster import discrepancy, fit, io, scenario
-from remaster.campaign import sensor_data
+from remaster import io
+from remaster.campaigns import scenario
+from remaster.campaigns.campaign import sensor_data
+from remaster.inference import discrepancy, fit
 
 from .conftest import REPO
 

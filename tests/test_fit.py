@@ -8,10 +8,11 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import fit, io
-from remaster.campaign import sensor_data
+from remaster import io
+from remaster.campaigns.campaign import sensor_data
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.diagnostics import SamplerDisagreement
-from remaster.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.inference import fit
 
 from .conftest import REPO
 
@@ -112,7 +113,7 @@ def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
 
 
 def test_remastering_file_and_tables(iiwa):
-    from remaster import tables
+    from remaster.reporting import tables
 
     rng = np.random.default_rng(2)
     sensor, truth = simulated_sensor(iiwa, rng)
@@ -144,7 +145,7 @@ def test_same_seed_same_samples(iiwa):
 
 def test_gross_error_is_flagged_listed_and_left_out(iiwa):
     """A laser tracker re-acquisition glitch of 4 mm on one point of a clean campaign."""
-    from remaster.campaign import sensor_data as rebuild
+    from remaster.campaigns.campaign import sensor_data as rebuild
 
     sensor, truth = simulated_sensor(iiwa, np.random.default_rng(21), noise=2e-4)
     registration = fit.register(iiwa, sensor)

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from remaster import kinematics
-from remaster.gravity import STANDARD_GRAVITY, gravity_torques
+from remaster.robot import kinematics
+from remaster.robot.gravity import STANDARD_GRAVITY, gravity_torques
 
 
 def test_point_mass_on_horizontal_arm():

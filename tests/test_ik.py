@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from remaster import ik, kinematics, spatial
+from remaster import spatial
+from remaster.robot import ik, kinematics
 
 TOLERANCE = 1e-9  # m and rotation-matrix entries
 ANGLE_TOLERANCE = 1e-6  # rad, recovering the original configuration

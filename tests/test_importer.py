@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import cli, importer, io
+from remaster import cli, io
+from remaster.campaigns import importer
 from remaster.errors import InputError
 
 from .conftest import IIWA_URDF

@@ -4,8 +4,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from remaster import kinematics, spatial
+from remaster import spatial
 from remaster.errors import KinematicsError
+from remaster.robot import kinematics
 
 from .conftest import IIWA_URDF, UR5_DH, UR5_URDF
 

@@ -8,10 +8,14 @@ import json
 import numpy as np
 import pytest
 
-from remaster import blocks, figures_loop, fit, io, loop_closure, scenario
-from remaster.campaign import sensor_data
-from remaster.gravity import gravity_torques
-from remaster.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster import io
+from remaster.campaigns import scenario
+from remaster.campaigns.campaign import sensor_data
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.inference import blocks, fit
+from remaster.loop import loop_closure
+from remaster.reporting import figures_loop
+from remaster.robot.gravity import gravity_torques
 
 from .conftest import REPO
 

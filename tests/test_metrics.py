@@ -8,10 +8,13 @@ import pandas as pd
 import pytest
 from scipy import optimize, stats
 
-from remaster import accuracy, figures_accuracy, fit, metrics, spatial
-from remaster.campaign import Campaign, sensor_data
-from remaster.model import ZeroOffsetModel, parameter_names
-from remaster.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster import spatial
+from remaster.analysis import accuracy
+from remaster.campaigns.campaign import Campaign, sensor_data
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.inference import fit, metrics
+from remaster.inference.model import ZeroOffsetModel, parameter_names
+from remaster.reporting import figures_accuracy
 
 SMALL_FIT = {"chains": 2, "samples": 2000, "burn_in": 1000}
 

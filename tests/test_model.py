@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from remaster import identifiability, kinematics, spatial
-from remaster.model import SIGMA, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from remaster import spatial
+from remaster.inference import identifiability
+from remaster.inference.model import SIGMA, ZeroOffsetModel, correction_transforms, display_scale, parameter_names
+from remaster.robot import kinematics
 
 from .conftest import UR5_DH
 

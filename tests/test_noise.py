@@ -7,8 +7,11 @@ from scipy import stats
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from remaster import blocks, evidence, fit, io, loop_closure, noise, scenario, simulation
-from remaster.loop_closure import LoopSettings
+from remaster import io, noise
+from remaster.campaigns import scenario, simulation
+from remaster.inference import blocks, evidence, fit
+from remaster.loop import loop_closure
+from remaster.loop.loop_closure import LoopSettings
 
 from .conftest import REPO
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from remaster import kinematics, planning
 from remaster.errors import InputError
+from remaster.robot import kinematics, planning
 
 SENSOR = np.array([1.6, 0.5, 1.0])
 MARKER = np.array([-0.1, 0.0, 0.02])

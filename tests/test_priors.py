@@ -1,4 +1,4 @@
-"""Priors of the loop closure's extension blocks (remaster.priors): SI standard deviations from
+"""Priors of the loop closure's extension blocks (remaster.robot.priors): SI standard deviations from
 config.yaml's `priors:` section, the class of arm, a campaign's own `robot.priors`, and every bad
 prior refused with its file and key (docs/bad-input.md)."""
 
@@ -14,7 +14,7 @@ from snakemake.utils import validate
 
 from remaster import io
 from remaster.errors import InputError
-from remaster.priors import CLASSES, DEFAULTS, KEYS, priors_from, with_defaults
+from remaster.robot.priors import CLASSES, DEFAULTS, KEYS, priors_from, with_defaults
 
 from .conftest import REPO
 

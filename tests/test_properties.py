@@ -10,7 +10,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from remaster import ik, kinematics, metrics, registration, spatial
+from remaster import spatial
+from remaster.inference import metrics
+from remaster.robot import ik, kinematics, registration
 
 SETTINGS = settings(max_examples=100, deadline=None, derandomize=True)
 

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from remaster import registration, spatial
+from remaster import spatial
 from remaster.errors import InputError
+from remaster.robot import registration
 
 
 def random_transform(rng):

@@ -4,7 +4,7 @@ import base64
 
 import pandas as pd
 
-from remaster import report
+from remaster.reporting import report
 
 PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
 

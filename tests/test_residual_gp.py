@@ -7,8 +7,11 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from remaster import closure, evidence, fit, io, loop_closure, residual_gp, scenario
-from remaster.campaign import sensor_data
+from remaster import io
+from remaster.campaigns import scenario
+from remaster.campaigns.campaign import sensor_data
+from remaster.inference import evidence, fit, residual_gp
+from remaster.loop import closure, loop_closure
 
 from .conftest import REPO
 

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from remaster import cli, io, kinematics
+from remaster import cli, io
 from remaster.errors import InputError, KinematicsError
+from remaster.robot import kinematics
 
 from .conftest import REPO
 from .test_campaign import make_campaign

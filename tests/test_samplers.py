@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from scipy import signal, stats
 
-from remaster import diagnostics, samplers
+from remaster import diagnostics
 from remaster.diagnostics import SamplerDisagreement
-from remaster.samplers import CallableTarget, NotIdentifiable, SamplingError
+from remaster.inference import samplers
+from remaster.inference.samplers import CallableTarget, NotIdentifiable, SamplingError
 
 MM = 1e-3
 DEG = math.pi / 180

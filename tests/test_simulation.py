@@ -9,10 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import io, kinematics, planning, scenario, spatial
+from remaster import io, spatial
+from remaster.campaigns import scenario
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
 from remaster.errors import InputError
-from remaster.gravity import gravity_torques
-from remaster.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
+from remaster.robot import kinematics, planning
+from remaster.robot.gravity import gravity_torques
 
 from .conftest import REPO
 

@@ -8,11 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import figures_comparison, prediction, registration, spatial, transfer
-from remaster.blocks import ModelSettings, link_labels
-from remaster.campaign import SensorData
-from remaster.kinematics import ForwardKinematics
-from remaster.metrics import random_configurations
+from remaster import spatial
+from remaster.analysis import prediction, transfer
+from remaster.campaigns.campaign import SensorData
+from remaster.inference.blocks import ModelSettings, link_labels
+from remaster.inference.metrics import random_configurations
+from remaster.reporting import figures_comparison
+from remaster.robot import registration
+from remaster.robot.kinematics import ForwardKinematics
 from remaster.units import MM
 
 MARKER = np.array([-0.1, 0.0, 0.02])

@@ -11,7 +11,8 @@ import time
 
 import pytest
 
-from remaster import audit, io, scenario
+from remaster import audit, io
+from remaster.campaigns import scenario
 
 from .conftest import REPO
 

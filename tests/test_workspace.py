@@ -7,12 +7,17 @@ import pandas as pd
 import pytest
 import scipy.optimize
 
-from remaster import accuracy, blocks, comparison, evidence, fit, io, loop_closure, metrics, prediction
-from remaster import registration, spatial, transfer, workspace
-from remaster.model import SIGMA
-from remaster.priors import priors_from
-from remaster.scenario import robot_from_truth, sensor_from_truth
-from remaster.simulation import true_marker_positions
+from remaster import io
+from remaster import spatial
+from remaster.analysis import accuracy, comparison, prediction
+from remaster.analysis import transfer, workspace
+from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
+from remaster.campaigns.simulation import true_marker_positions
+from remaster.inference import blocks, evidence, fit, metrics
+from remaster.inference.model import SIGMA
+from remaster.loop import loop_closure
+from remaster.robot import registration
+from remaster.robot.priors import priors_from
 
 from .conftest import REPO
 

@@ -3,7 +3,7 @@
 A sampler evaluates the posterior one parameter vector at a time hundreds of thousands of
 times; in NumPy each evaluation costs tens of array operations of Python overhead (about
 50 us for 173 configurations), compiled it costs a few microseconds. The NumPy implementation
-in `remaster.kinematics` stays the reference the tests compare these kernels against.
+in `remaster.robot.kinematics` stays the reference the tests compare these kernels against.
 
 The kernels take the chain with every joint axis turned onto its frame's z axis (see
 `ForwardKinematics`): joint j maps a point x of its frame to rotations[j] Rz(angle) x + shifts[j],

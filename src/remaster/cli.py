@@ -15,9 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import compensation, importer, io, planning, registration, scenario
+from . import io
+from .analysis import compensation
+from .campaigns import importer, scenario
 from .errors import RemasterError
-from .kinematics import ForwardKinematics
+from .robot import planning, registration
+from .robot.kinematics import ForwardKinematics
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
 NOT_REACHED_STATUS = 3
@@ -177,7 +180,7 @@ def parser() -> argparse.ArgumentParser:
     imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
     imp.add_argument("--config", required=True, metavar="IMPORT.yaml",
                      help="campaign metadata, the controller log and sensor files with their columns, units and "
-                          "matching (format: remaster.importer)")
+                          "matching (format: remaster.campaigns.importer)")
     imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
     imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
     imp.set_defaults(run=_import)

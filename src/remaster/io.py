@@ -2,7 +2,7 @@
 that touches paths.
 
 A campaign folder is campaign.yaml plus one <sensor>.parquet per sensor (docs/campaign-format.md).
-`read_campaign` checks the folder against that contract and returns a `remaster.campaign.Campaign`.
+`read_campaign` checks the folder against that contract and returns a `remaster.campaigns.campaign.Campaign`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import yaml
 
-from . import importer
-from .campaign import (
+from .campaigns import importer
+from .campaigns.campaign import (
     OPTIONAL_KEYS,
     REQUIRED_KEYS,
     SENSOR_NAME_PATTERN,
@@ -36,7 +36,7 @@ from .campaign import (
     validate_robot,
 )
 from .errors import InputError, KinematicsError, format_rows
-from .kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
+from .robot.kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
 
 log = logging.getLogger(__name__)
 
@@ -149,8 +149,8 @@ def read_json(path: str | Path) -> Any:
 
 
 def write_table(stem: str | Path, table: pd.DataFrame, caption: str, label: str) -> list[Path]:
-    """Write a table as <stem>.csv, <stem>.md and <stem>.tex (see `remaster.tables`)."""
-    from . import tables
+    """Write a table as <stem>.csv, <stem>.md and <stem>.tex (see `remaster.reporting.tables`)."""
+    from .reporting import tables
 
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
@@ -438,7 +438,7 @@ def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> 
 
 def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None,
                     overwrite: bool = False) -> tuple[Path, dict[str, Any]]:
-    """`remaster import`: read an import configuration (format: `remaster.importer`) and its CSV
+    """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
     files, write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
     it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
     with `read_campaign`. Returns (folder, report).

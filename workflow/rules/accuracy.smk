@@ -1,8 +1,8 @@
 # Stage 3: accuracy metrics per campaign and sensor (relative, post-registration, theoretical,
 # validation), the paper's accuracy tables, the sensor comparison and the accuracy figures.
 
-from remaster.accuracy import METRIC_TABLES, TABLE_NAMES
-from remaster.workspace import THEORETICAL_TABLES
+from remaster.analysis.accuracy import METRIC_TABLES, TABLE_NAMES
+from remaster.analysis.workspace import THEORETICAL_TABLES
 
 ACC = f"{RESULTS}/{{campaign}}/{{sensor}}/metrics"
 ACCURACY_FILES = list(TABLE_NAMES) + ["configuration_errors", "tcp_scatter", "remastering_parameters"]

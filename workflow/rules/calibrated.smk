@@ -1,8 +1,8 @@
 # Stage 6: the calibration in the robot's own terms: calibrated URDFs, the effects a URDF cannot hold,
 # the controller offsets and, for a campaign given as a DH table, the calibrated DH tables, per
 # campaign and sensor; two tables per campaign for the report.
-from remaster.calibrated import DH_FILES as CALIBRATED_DH_FILES
-from remaster.calibrated import FILES as CALIBRATED_FILES
+from remaster.analysis.calibrated import DH_FILES as CALIBRATED_DH_FILES
+from remaster.analysis.calibrated import FILES as CALIBRATED_FILES
 
 CALIBRATED = f"{RESULTS}/{{campaign}}/{{sensor}}/calibrated"
 

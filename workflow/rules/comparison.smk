@@ -1,6 +1,6 @@
 # Stage 5: across campaigns and sensors: zero-offsets and loop-closure parameters over time, drift
 # between campaigns of the same robot, and the sensors' agreement, under results/comparison/.
-from remaster.comparison import LOOP_TABLES, TABLES as COMPARISON_TABLES
+from remaster.analysis.comparison import LOOP_TABLES, TABLES as COMPARISON_TABLES
 
 COMPARISON = f"{RESULTS}/comparison"
 COMPARISON_FIGURES = {"zero_offsets_over_time": "zero_offsets_over_time",
@@ -8,7 +8,7 @@ COMPARISON_FIGURES = {"zero_offsets_over_time": "zero_offsets_over_time",
 
 
 def comparison_inputs(table):
-    """campaign.yaml files and fit summaries with the stds of model discrepancy (`remaster.discrepancy`);
+    """campaign.yaml files and fit summaries with the stds of model discrepancy (`remaster.inference.discrepancy`);
     loop_closure.json files for the loop-closure tables only."""
     return {"metadata": [f"{RAW}/{c}/campaign.yaml" for c in CAMPAIGNS],
             "summaries": every_campaign_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary_discrepancy.csv"),
@@ -38,7 +38,8 @@ for _table in COMPARISON_TABLES:
 
 def robots():
     """robot slug -> robot identity, for every robot of the run."""
-    from remaster import comparison, io
+    from remaster import io
+    from remaster.analysis import comparison
 
     keys = {comparison.robot_identity(io.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
     return {comparison.robot_slug(k): k for k in sorted(keys)}
@@ -69,7 +70,7 @@ for _figure, _drawn in COMPARISON_FIGURES.items():
 # (transfer), and drift and agreement as the change of predicted marker positions.
 from types import SimpleNamespace
 
-from remaster.prediction import MODELS as TRANSFER_MODELS, PREDICTION_TABLES
+from remaster.analysis.prediction import MODELS as TRANSFER_MODELS, PREDICTION_TABLES
 
 PREDICTION_COMPARISON_TABLES = ["transfer", *PREDICTION_TABLES]
 

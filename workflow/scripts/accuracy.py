@@ -1,6 +1,7 @@
 """Every accuracy metric of one sensor: Vernier and Bayesian, optimization and validation sets."""
 
-from remaster import accuracy, fit, io, seeding
+from remaster import io, seeding
+from remaster.analysis import accuracy
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

@@ -1,6 +1,7 @@
 """The calibration of one sensor in the robot's own terms: calibrated URDFs, the effects a URDF cannot hold, controller offsets."""
 
-from remaster import calibrated, io
+from remaster import io
+from remaster.analysis import calibrated
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

@@ -1,6 +1,7 @@
 """The calibrated DH tables (paper's and loop-closed model) of one sensor of a campaign given as a DH table."""
 
-from remaster import calibrated, io
+from remaster import io
+from remaster.analysis import calibrated
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

@@ -1,6 +1,7 @@
 """Read and validate one campaign folder; write its summary."""
 
-from remaster import campaign, io
+from remaster import io
+from remaster.campaigns import campaign
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     data = io.read_campaign(snakemake.params.folder)  # noqa: F821

@@ -3,7 +3,8 @@ of the effects the loop closure added."""
 
 from pathlib import Path
 
-from remaster import figures_comparison, io
+from remaster import io
+from remaster.reporting import figures_comparison
 
 DRAW = {"zero_offsets_over_time": (figures_comparison.zero_offsets_over_time_figure, "Zero-offsets over time"),
         "loop_effects_over_time": (figures_comparison.loop_effects_over_time_figure, "Loop-closure effects over time")}

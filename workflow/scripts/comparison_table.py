@@ -1,9 +1,11 @@
-"""One cross-campaign table (`remaster.comparison.TABLES`): zero-offsets or loop-closure parameters over
+"""One cross-campaign table (`remaster.analysis.comparison.TABLES`): zero-offsets or loop-closure parameters over
 time, their drift between campaigns, or the sensors' agreement."""
 
 from pathlib import Path
 
-from remaster import comparison, io, tables
+from remaster import io
+from remaster.analysis import comparison
+from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p = snakemake.params  # noqa: F821

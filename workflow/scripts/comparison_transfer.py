@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from remaster import io, prediction, transfer
+from remaster import io
+from remaster.analysis import prediction, transfer
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p, i = snakemake.params, snakemake.input  # noqa: F821

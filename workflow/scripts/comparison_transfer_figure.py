@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from remaster import figures_comparison, io
+from remaster import io
+from remaster.reporting import figures_comparison
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p = snakemake.params  # noqa: F821

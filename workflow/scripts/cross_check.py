@@ -1,6 +1,7 @@
 """Every method's posterior mean and std side by side; fails if converged methods disagree."""
 
-from remaster import fit, io
+from remaster import io
+from remaster.inference import fit
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     methods = snakemake.params.methods  # noqa: F821

@@ -1,6 +1,7 @@
 """The paper's fit of one sensor with stds that include what the model lacks, for the comparison across campaigns."""
 
-from remaster import discrepancy, io
+from remaster import io
+from remaster.inference import discrepancy
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

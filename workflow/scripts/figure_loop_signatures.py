@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import figures, figures_loop, io, loop_closure
+from remaster import io
+from remaster.loop import loop_closure
+from remaster.reporting import figures, figures_loop
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

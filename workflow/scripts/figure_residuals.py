@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from remaster import figures_accuracy, io
+from remaster import io
+from remaster.reporting import figures_accuracy
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     errors = {s: io.read_csv(p) for s, p in zip(snakemake.params.sensors, snakemake.input)}  # noqa: F821

@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from remaster import figures, io
+from remaster import io
+from remaster.reporting import figures
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

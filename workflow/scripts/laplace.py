@@ -1,6 +1,7 @@
 """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor."""
 
-from remaster import fit, io
+from remaster import io
+from remaster.inference import fit
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     campaign = io.read_campaign(snakemake.params.folder)  # noqa: F821

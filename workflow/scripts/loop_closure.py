@@ -2,7 +2,8 @@
 
 import pandas as pd
 
-from remaster import io, loop_closure, seeding
+from remaster import io, seeding
+from remaster.loop import loop_closure
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

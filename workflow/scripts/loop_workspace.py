@@ -1,6 +1,7 @@
 """The loop-closed model's theoretical accuracy and where each calibration holds, one sensor."""
 
-from remaster import comparison, io, seeding, workspace
+from remaster import io, seeding
+from remaster.analysis import comparison, workspace
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

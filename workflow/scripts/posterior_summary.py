@@ -1,6 +1,7 @@
 """MLE (posterior mean), std and 95 % interval of every parameter of one sensor."""
 
-from remaster import fit, io
+from remaster import io
+from remaster.inference import fit
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     summary = fit.posterior_summary(io.read_parquet(snakemake.input.samples), io.read_json(snakemake.input.laplace))  # noqa: F821

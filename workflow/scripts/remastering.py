@@ -1,6 +1,7 @@
 """The new zero-offsets (deg) with their uncertainty, ready to type into the controller."""
 
-from remaster import fit, io
+from remaster import io
+from remaster.inference import fit
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import io, prediction, report, tables
+from remaster import io
+from remaster.analysis import prediction
+from remaster.reporting import report, tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     campaigns = {

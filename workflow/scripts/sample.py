@@ -1,6 +1,7 @@
 """Posterior samples of one sampling method for one sensor (expensive: plotting reads the file)."""
 
-from remaster import fit, io, seeding
+from remaster import io, seeding
+from remaster.inference import fit
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]) as log:  # noqa: F821

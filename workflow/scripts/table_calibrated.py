@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import calibrated, io, tables
+from remaster import io
+from remaster.analysis import calibrated
+from remaster.reporting import tables
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

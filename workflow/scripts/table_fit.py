@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from remaster import io, tables
+from remaster import io
+from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     kind = snakemake.params.kind  # noqa: F821

@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import io, loop_closure, tables
+from remaster import io
+from remaster.loop import loop_closure
+from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p = snakemake.params  # noqa: F821

@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import accuracy, io, tables
+from remaster import io
+from remaster.analysis import accuracy
+from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     sensors, names = snakemake.params.sensors, snakemake.params.tables  # noqa: F821

@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import accuracy, io, tables
+from remaster import io
+from remaster.analysis import accuracy
+from remaster.reporting import tables
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821

@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
-from remaster import io, tables, workspace
+from remaster import io
+from remaster.analysis import workspace
+from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p, i, out = snakemake.params, snakemake.input, snakemake.output  # noqa: F821

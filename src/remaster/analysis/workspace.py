@@ -1,0 +1,285 @@
+"""Where a calibration holds: the loop-closed model's theoretical accuracy and the workspace-wide
+error of the paper's and the loop-closed model (issue: calibrations that hold beyond the measured
+poses).
+
+Configurations: the optimization set's (every row, the marker seen or not: the joint readings are
+valid either way) and the robot's one fixed set of random configurations across the joint limits
+(`prediction.robot_configurations`, shared with the comparison by prediction).
+
+Two kinds of claim:
+
+- **Robot frame, the paper's propagation** (rows "Loop-closed" of the paper's theoretical tables):
+  the distance between the loop-closed model's TCP at its posterior mean and the TCP of each of its
+  posterior draws (whole MCMC rows: every parameter of its effects, and sigma), with each draw's
+  N(0, sigma^2 I3) added ("with noise") or not ("without noise", the row of the zero-offsets-only
+  table). Held zero-offsets stay held, as in the paper's rows, so these numbers hold up to a
+  rotation about base Z (joint 1 of the iiwa: no registration-free data fixes it); so do, by the
+  same convention, the extension parameters the data cannot see (a base height absorbed by the
+  registration, a compliance of a joint that never carries a torque), which the workspace-wide
+  claim below keeps under their priors. The variant
+  "robot frame, held joints at the controller's marks" draws every held zero-offset from
+  N(held value, tolerance^2) (`priors`: held_zero_offset_deg) and is the robot-frame claim.
+- **Registration fitted** (the workspace-wide claim): the error a sensor registered over those
+  configurations would see. For each posterior draw d of the loop-closed model, the model under
+  test is moved onto the draw's points by least squares (`metrics.registered_distances`) and
+  |T_d p_model(q) - (p_d(q) + n_d)| is its error at q. Held zero-offsets are drawn at the
+  controller marks' tolerance here too: the registration removes joint 1's, but one held only
+  because these data never turned it (the last joint when the tool keeps one orientation) moves
+  the marker at other poses. The loop-closed posterior is the reference
+  because it is the model with the most evidence the loop found: for the loop-closed model itself
+  this is its own posterior spread; for the paper's model (its posterior means) it adds what the
+  loop closure found the paper's model lacks. What no candidate effect explains is in the
+  loop-closed model's sigma as noise or, when the loop added its residual GP, in the GP: its mean
+  corrects the loop-closed model and its variance (its prior's far from the measured
+  configurations) is drawn at every configuration, with the GP's noise as the noise.
+
+The report warns when the workspace-wide mean error exceeds `WORKSPACE_RATIO` times the error at
+the measured configurations ("holds near the measured poses only") and says what the next
+campaign should add: the joints whose measured range covers less than `MIN_RANGE_FRACTION` of their
+limits, more tool orientations when every measured flange axis lies within `MIN_TOOL_SPREAD_DEG` of
+one direction, and the parameters the data barely moved from their prior but random configurations
+would show (`blocks.identifiable_extension` there); those no external measurement sees anywhere (a
+base height absorbed by the registration) are listed apart.
+
+SI inside (m, rad); the returned tables are in mm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..campaigns.campaign import SensorData
+from ..errors import InputError
+from ..inference import metrics, residual_gp
+from ..inference.blocks import identifiable_extension
+from ..inference.model import SIGMA
+from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..units import DEG, MM
+from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
+
+LOOP_METHOD = "Loop-closed"
+THEORETICAL_TABLES = {  # paper table: (configurations, with noise)
+    "theoretical_accuracy_optimization_configs": ("optimization", True),
+    "theoretical_accuracy_random_configs": ("random", True),
+    "theoretical_accuracy_zero_offsets_only": ("random", False),
+}
+CONFIGURATIONS = {"optimization": "measured (optimization set)", "random": "random across the joint limits"}
+FRAMES = {"registered": "registration fitted", "robot": "robot frame, held joints at the controller's marks"}
+CLAIM_COLUMNS = ["model", "configurations", "frame", "noise", "mean_mm", "q2.5_mm", "q97.5_mm", "p95_mm", "count"]
+WORKSPACE_RATIO = 2.0
+MIN_RANGE_FRACTION = 0.5
+MIN_TOOL_SPREAD_DEG = 30.0
+HELD_NOTE = ("held zero-offsets ({held}) are held in the draws, as in the paper's rows: these robot-frame numbers "
+             "hold up to a rotation about base Z that only a registration fixes")
+
+
+@dataclass(frozen=True, eq=False)
+class WorkspaceAccuracy:
+    """theoretical: rows (table, method, mean_mm, q2.5_mm, q97.5_mm, count) for the paper's
+    theoretical tables; claims: `CLAIM_COLUMNS`, one row per model, configurations, frame and
+    noise; report: JSON-ready (warnings, suggestions, notes)."""
+
+    theoretical: pd.DataFrame
+    claims: pd.DataFrame
+    report: dict
+
+
+def _summary(distances_m, **labels) -> dict:
+    values = np.asarray(distances_m, dtype=float).ravel()
+    summary = metrics.interval_summary(values)
+    p95 = float(np.quantile(values, 0.95)) if values.size else np.nan
+    return {**labels, "mean_mm": summary["mean"] / MM, "q2.5_mm": summary["q2.5"] / MM,
+            "q97.5_mm": summary["q97.5"] / MM, "p95_mm": p95 / MM, "count": summary["count"]}
+
+
+def _with_noise(points, sigma, rng: np.random.Generator):
+    """points (m, n, 3) with each draw's N(0, sigma_d^2 I3) added."""
+    return points + np.asarray(sigma)[:, None, None] * rng.standard_normal(points.shape)
+
+
+def _gp_draws(gp: residual_gp.ResidualGP | None, q, count: int, rng: np.random.Generator):
+    """The residual GP's mean (n, 3) m at readings q (n, N) and `count` draws (count, n, 3) of it
+    (marginal at each configuration); zeros without a GP (and no random draw)."""
+    if gp is None:
+        return 0.0, 0.0
+    mean = gp.mean(q)
+    std = np.sqrt(gp.variance(q))
+    return mean, mean + std[None, :, None] * rng.standard_normal((count, len(q), 3))
+
+
+def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, rng: np.random.Generator):
+    """The draws with every held zero-offset drawn from N(held value, tolerance^2)."""
+    names = sorted(held)
+    shifts = tolerance * rng.standard_normal((len(draws), len(names)))
+    return [{**d, **{n: float(held[n]) + s for n, s in zip(names, row)}} for d, row in zip(draws, shifts)]
+
+
+def measured_coverage(chain: KinematicChain, q, marker) -> dict:
+    """How much of the joint space configurations q (n, N) rad cover: per joint the fraction of
+    its range (limits, +-pi where unlimited) between the lowest and highest reading, and the
+    largest angle (deg) between a flange z axis and their mean direction."""
+    lower, upper = metrics.joint_space_bounds(chain)
+    q = np.asarray(q, dtype=float)
+    fraction = (q.max(axis=0) - q.min(axis=0)) / (upper - lower)
+    axes = ForwardKinematics(chain, q).flange_poses()[:, :3, 2]
+    mean = axes.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    spread = np.degrees(np.arccos(np.clip(axes @ mean, -1.0, 1.0))).max()
+    return {"joint_range_fraction": [float(f) for f in fraction], "tool_axis_spread_deg": float(spread)}
+
+
+def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
+    """What the next campaign should add, from the measured coverage and the prior-dominated parameters."""
+    out = [f"joint {j + 1} over more of its range (measured: {100 * f:.0f} % of it)"
+           for j, f in enumerate(coverage["joint_range_fraction"]) if f < MIN_RANGE_FRACTION]
+    if coverage["tool_axis_spread_deg"] < MIN_TOOL_SPREAD_DEG:
+        out.append(f"tool orientations (every measured flange axis lies within "
+                   f"{coverage['tool_axis_spread_deg']:.0f} deg of one direction)")
+    if dominated:
+        out.append("poses that move " + ", ".join(dominated) + " (the data barely moved them from their prior)")
+    return out
+
+
+def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, paper_summary: pd.DataFrame,
+                       laplace: Mapping, loop_report: Mapping, loop_samples: pd.DataFrame,
+                       rng: np.random.Generator, n_draws: int = 2000, n_random: int = 1000, seed: int = 0,
+                       label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
+    """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
+    module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
+    parameters); loop_report, loop_samples: loop_closure.json and its MCMC samples (SI); robot:
+    the robot's identity (its random configurations come from seed and it); rng draws the
+    posterior rows, the noise and the held zero-offsets; loop_gp_rows: the loop's residual GP
+    training rows (residual_gp.parquet), empty or None when it added none. With a residual GP the
+    loop-closed model's mean includes its correction, each draw a draw of it (mean + its marginal
+    std at each configuration, independently per configuration), and the noise is the GP's white
+    part: far from the data its variance, back to its prior, is what the claim carries."""
+    if loop_samples is None or loop_samples.empty or SIGMA not in loop_samples.columns:
+        raise InputError("the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
+                         file=label, key="samples")
+    loop = loop_calibration(loop_report, loop_samples, label)
+    paper = paper_calibration(paper_summary, None, label)
+    rows = rng.choice(len(loop_samples), n_draws, replace=len(loop_samples) < n_draws)
+    draws = [{**loop.values, **d} for d in loop.draws.iloc[rows].to_dict(orient="records")]
+    sigma = loop_samples[SIGMA].to_numpy(float)[rows]
+    held = {n: float(v) for n, v in laplace["identifiability"]["held_at_controller_value"].items()
+            if n.startswith("zero_offsets.")}
+    # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
+    unseen = {n: loop.values[n] for n in loop_report.get("identifiability", {}).get("dropped", {}) if n in loop.values}
+    tolerance = float(loop_report["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
+    q_sets = {"optimization": sensor.q("optimization"), "random": robot_configurations(chain, robot, n_random, seed)}
+    gp = residual_gp.from_results(loop_gp_rows, loop_report.get("residual_gp"))
+    if gp is not None:
+        sigma = np.full(n_draws, gp.hyper.noise_std)
+
+    theoretical, claims = [], []
+    for where, q in q_sets.items():
+        predictor = loop.predictor(chain, q, sensor.marker)
+        correction, corrections = _gp_draws(gp, q, n_draws, rng)
+        loop_mean = predictor.points(loop.values) + correction
+        # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
+        # (a registration removes joint 1's; one held only because the tool never turned stays)
+        points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng)) + corrections
+        noisy = _with_noise(points, sigma, rng)
+        # the paper's tables' convention: what the data cannot see, held
+        seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) + corrections
+        seen_noisy = _with_noise(seen, sigma, rng)
+        paper_points = paper.predictor(chain, q, sensor.marker).points(paper.values)
+        for table, (table_where, noise) in THEORETICAL_TABLES.items():
+            if table_where == where:
+                distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
+                theoretical.append({"table": table, "method": LOOP_METHOD,
+                                    **{k: v for k, v in _summary(distances).items() if k != "p95_mm"}})
+        for model, mean in (("paper", paper_points), ("loop", loop_mean)):
+            for noise, reference in (("with noise", noisy), ("without noise", points)):
+                claims.append(_summary(metrics.registered_distances(mean, reference), model=model,
+                                       configurations=where, frame="registered", noise=noise))
+            claims.append(_summary(np.linalg.norm(noisy - mean, axis=-1), model=model,
+                                   configurations=where, frame="robot", noise="with noise"))
+    claims = pd.DataFrame(claims, columns=CLAIM_COLUMNS)
+    # what no campaign can see (absorbed by a registration, or without effect) anywhere in the joint space
+    nowhere = sorted(identifiable_extension(loop.predictor(chain, q_sets["random"], sensor.marker).model).dropped)
+    return WorkspaceAccuracy(pd.DataFrame(theoretical), claims,
+                             _report(chain, sensor, claims, loop, loop_report, held, tolerance, n_draws, n_random,
+                                     nowhere))
+
+
+def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
+    chosen = claims[(claims["model"] == model) & (claims["configurations"] == where)
+                    & (claims["frame"] == "registered") & (claims["noise"] == "with noise")]
+    return float(chosen["mean_mm"].iloc[0])
+
+
+def _report(chain, sensor, claims, loop: Calibration, loop_report, held, tolerance, n_draws, n_random,
+            nowhere) -> dict:
+    dominated = [n for n in loop_report.get("prior_dominated", []) if n not in nowhere]
+    coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
+    suggestions = _suggestions(coverage, dominated)
+    warnings, holds = [], {}
+    for model in ("paper", "loop"):
+        measured, workspace = _claim(claims, model, "optimization"), _claim(claims, model, "random")
+        near_only = workspace > WORKSPACE_RATIO * measured
+        holds[model] = {"measured_mean_mm": measured, "workspace_mean_mm": workspace,
+                        "ratio": workspace / measured if measured > 0 else np.inf,
+                        "holds": "near the measured poses only" if near_only else "across the joint space"}
+        if near_only:
+            warnings.append(f"{model} model: the workspace-wide error ({workspace:.3f} mm mean, registration fitted) "
+                            f"is {workspace / measured:.1f} x the error at the measured configurations "
+                            f"({measured:.3f} mm): the calibration holds near the measured poses only"
+                            + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else ""))
+    if dominated:
+        warnings.append(f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
+                        f"though other poses would: {', '.join(dominated)}")
+    unseeable = [n for n in loop_report.get("prior_dominated", []) if n in nowhere]
+    if unseeable:
+        warnings.append(f"parameters no external measurement can see anywhere in the joint space (absorbed by the "
+                        f"registration or without effect), left to their prior: {', '.join(unseeable)}")
+    return {
+        "campaign": loop_report.get("campaign"), "sensor": sensor.name,
+        "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
+        "configurations": dict(CONFIGURATIONS), "frames": dict(FRAMES),
+        "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,
+        "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
+        "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
+        "holds": holds, "coverage": coverage, "prior_dominated": dominated, "unseen_anywhere": list(nowhere),
+        "next_campaign_should_add": suggestions, "warnings": warnings,
+    }
+
+
+# --------------------------------------------------------------------------- tables of a campaign
+
+
+def workspace_table(claims: Mapping[str, pd.DataFrame], reports: Mapping[str, dict]) -> pd.DataFrame:
+    """One campaign's claims, every sensor: Sensor, Model, Configurations, Frame, Noise, Mean (mm),
+    2.5 % / 97.5 % / 95 % quantiles (mm), Count, and where the model holds (its report's verdict)."""
+    frames = []
+    for sensor, frame in claims.items():
+        holds = {m: h["holds"] for m, h in reports[sensor]["holds"].items()}
+        frames.append(pd.DataFrame({
+            "Sensor": sensor, "Model": frame["model"], "Configurations": frame["configurations"].map(CONFIGURATIONS),
+            "Frame": frame["frame"].map(FRAMES), "Noise": frame["noise"], "Mean (mm)": frame["mean_mm"],
+            "2.5% (mm)": frame["q2.5_mm"], "97.5% (mm)": frame["q97.5_mm"], "95% (mm)": frame["p95_mm"],
+            "Count": frame["count"].astype(int), "Holds": frame["model"].map(holds)}))
+    return pd.concat(frames, ignore_index=True)
+
+
+def warnings_table(reports: Mapping[str, dict]) -> pd.DataFrame:
+    """Sensor, Warning: every warning of every sensor's report, 'none' for a sensor without one;
+    the held-joint note last."""
+    rows = []
+    for sensor, report in reports.items():
+        texts = list(report["warnings"]) or ["none"]
+        if report.get("held_note"):
+            texts.append(report["held_note"])
+        rows += [{"Sensor": sensor, "Warning": text} for text in texts]
+    return pd.DataFrame(rows, columns=["Sensor", "Warning"])
+
+
+def with_loop_rows(paper_rows: pd.DataFrame, loop_rows: pd.DataFrame, table: str) -> pd.DataFrame:
+    """One sensor's rows of a paper theoretical table with the loop-closed model's row appended
+    (`WorkspaceAccuracy.theoretical`, the rows of that table)."""
+    mine = loop_rows[loop_rows["table"] == table].drop(columns="table")
+    return pd.concat([paper_rows, mine[paper_rows.columns]], ignore_index=True)

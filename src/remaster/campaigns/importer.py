@@ -1,0 +1,601 @@
+"""`remaster import`: build a campaign folder from the exports people have.
+
+Input: a controller log of joint positions (CSV, deg or rad) and one CSV export per sensor
+(marker centre x, y, z in mm or m), matched row by row either by a key column (a point id in
+both files) or by time (the controller row nearest in time, within a tolerance). An import
+configuration (YAML or JSON) is campaign.yaml (docs/campaign-format.md) plus where the data
+comes from:
+
+```yaml
+name: cell3-2024                    # campaign.yaml keys: name, date, description, robot, sensors
+date: 2024-05-02
+description: free text
+robot: {urdf: data/robots/kuka_iiwa14.urdf, base: iiwa_link_0, flange: iiwa_link_ee}
+controller:
+  file: controller.csv              # relative to this configuration file
+  joints: [A1, A2, A3, A4, A5, A6, A7]   # columns of q1..qN, in joint order
+  unit: deg                         # deg | rad (required: no silent default)
+  set: phase                        # optional column of optimization|validation (default: all optimization)
+  pose: pose_id                     # optional column (default: each row its own pose, numbered within its set)
+  solution: ik_solution             # optional column (default: 0)
+  key: point_id                     # key column, needed when a sensor has match: key
+  time: timestamp                   # time column, needed when a sensor has match: time
+  time_format: iso                  # iso (default) | unix_s | unix_ms | a strptime pattern ("%d.%m.%Y %H:%M:%S")
+  timezone: UTC                     # zone of times written without one (default UTC)
+  delimiter: ","                    # default ","
+  decimal: "."                      # "." (default) or ","
+  carry: [temperature]              # optional numeric columns copied into every sensor table
+sensors:
+  laser_tracker:
+    kind: laser_tracker             # kind, marker, noise: as in campaign.yaml
+    marker: [-0.1, 0.0, 0.02]
+    noise: 1.0e-5
+    file: tracker.csv
+    xyz: [X, Y, Z]                  # columns of x, y, z (default [x, y, z]); all three empty = marker not seen
+    unit: mm                        # mm | m (required)
+    match: key                      # key | time (required)
+    key: point_id                   # this file's key column (default: the controller's key column name)
+    time: t                         # this file's time column (default: the controller's time column name)
+    tolerance: 0.5                  # s, match: time only (required there)
+    time_format: iso                # and timezone, delimiter, decimal, carry: as for the controller
+```
+
+Every controller row becomes one row of every sensor table (SI: rad, m), in the log's order; a
+row no sensor row matched keeps x, y, z NaN (marker not seen, as the contract says). Sensor rows
+that match no controller row are listed in import_report.json (file, 1-based line, key or time,
+reason) inside the campaign folder, never silently dropped. The `time` column written is the
+controller's time when the log has one, else the sensor's. Anything that cannot be parsed is an
+InputError naming the file, the column and the 1-based line (the header is line 1).
+
+This module works on text and tables only; `remaster.io.import_campaign` reads the files and
+writes the campaign folder.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io as _stringio
+import math
+import zoneinfo
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .campaign import (
+    KEY_COLUMNS,
+    MAX_POSITION,
+    OPTIONAL_KEYS,
+    POSITION_COLUMNS,
+    REQUIRED_KEYS,
+    SENSOR_KEYS,
+    SETS,
+    TIME_COLUMN,
+    _check_keys,
+    _JOINT_COLUMN,
+    _mapping,
+    joint_columns,
+    validate_metadata,
+)
+from ..errors import MAX_ROWS_SHOWN, InputError, format_rows
+from ..units import DEG
+
+REPORT_FILE = "import_report.json"
+ANGLE_UNITS = {"deg": DEG, "rad": 1.0}  # SI (rad) per unit
+LENGTH_UNITS = {"mm": 1e-3, "m": 1.0}  # SI (m) per unit
+MATCHES = ("key", "time")
+TIME_FORMATS = ("iso", "unix_s", "unix_ms")  # or a strptime pattern (contains '%')
+FILE_KEYS = ("file", "time_format", "timezone", "delimiter", "decimal", "carry")
+CONTROLLER_KEYS = FILE_KEYS + ("joints", "unit", "set", "pose", "solution", "key", "time")
+SENSOR_IMPORT_KEYS = FILE_KEYS + ("xyz", "unit", "match", "key", "time", "tolerance")
+_RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + (TIME_COLUMN,))
+
+
+def _lines(lines) -> str:
+    """'line 4' or 'lines 3, 7, ... (25 in all)'."""
+    return format_rows(lines, "line")
+
+
+# --------------------------------------------------------------------------- CSV text
+
+
+@dataclass(frozen=True, eq=False)
+class Export:
+    """One CSV export as text. cells: (n_rows, n_columns) str, header as column names, cells
+    stripped; lines: (n_rows,) 1-based line of each row in the file (the header is line 1)."""
+
+    source: str
+    cells: pd.DataFrame
+    lines: np.ndarray
+
+    def column(self, name: str, config_key: str) -> pd.Series:
+        """Cells of column `name`; InputError naming the file and the column if it is missing."""
+        if name not in self.cells.columns:
+            raise InputError(f"missing column (named by `{config_key}` of the import configuration); the file has: "
+                             f"{', '.join(map(str, self.cells.columns))}", file=self.source, key=name)
+        return self.cells[name]
+
+    def fail(self, column: str, what: str, positions) -> InputError:
+        """InputError naming the file, the column, the lines of `positions` (0-based rows) and their cells."""
+        positions = list(positions)
+        cells = ", ".join(repr(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
+        return InputError(f"{what} on {_lines(self.lines[positions])}: {cells}", file=self.source, key=column)
+
+
+def parse_csv(text: str, source: str, delimiter: str = ",") -> Export:
+    """An Export of CSV `text` (first non-blank line = header; blank lines skipped).
+
+    Raises InputError naming `source` for duplicate column names and rows whose number of
+    fields differs from the header's (with their line)."""
+    reader = csv.reader(_stringio.StringIO(text), delimiter=delimiter)
+    header, rows, lines, previous = None, [], [], 0
+    try:
+        for record in reader:
+            start, previous = previous + 1, reader.line_num
+            if not record or all(not cell.strip() for cell in record):
+                continue
+            record = [cell.strip() for cell in record]
+            if header is None:
+                header = record
+                duplicated = sorted({c for c in header if header.count(c) > 1})
+                if duplicated:
+                    raise InputError(f"duplicate column name(s) in the header ({_lines([start])})", file=source,
+                                     key=", ".join(duplicated))
+                continue
+            if len(record) != len(header):
+                raise InputError(f"{_lines([start])} has {len(record)} fields, the header has {len(header)} "
+                                 f"(delimiter {delimiter!r})", file=source)
+            rows.append(record)
+            lines.append(start)
+    except csv.Error as exc:
+        raise InputError(f"cannot read CSV on {_lines([reader.line_num])}: {exc}", file=source) from None
+    if header is None:
+        raise InputError("empty file (no header line)", file=source)
+    if not rows:
+        raise InputError("no data rows after the header", file=source)
+    return Export(source, pd.DataFrame(rows, columns=header, dtype=object), np.asarray(lines, dtype=np.int64))
+
+
+# --------------------------------------------------------------------------- configuration
+
+
+@dataclass(frozen=True)
+class FileSpec:
+    """How to read one export: file (as written, relative to the configuration), CSV dialect,
+    time format and zone of its time column, numeric columns to carry through."""
+
+    file: str
+    delimiter: str = ","
+    decimal: str = "."
+    time_format: str = "iso"
+    timezone: str = "UTC"
+    carry: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """The controller log: joint columns (q1..qN order), their unit, optional set/pose/solution
+    columns, and the key and time columns used for matching."""
+
+    file: FileSpec
+    joints: tuple[str, ...]
+    unit: str
+    set: str | None = None
+    pose: str | None = None
+    solution: str | None = None
+    key: str | None = None
+    time: str | None = None
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor export: x, y, z columns and unit, matched by `key` column or `time` column
+    (nearest controller time within `tolerance` s)."""
+
+    name: str
+    file: FileSpec
+    xyz: tuple[str, str, str]
+    unit: str
+    match: str
+    key: str | None = None
+    time: str | None = None
+    tolerance: float | None = None
+
+
+@dataclass(frozen=True)
+class ImportSpec:
+    """A checked import configuration: metadata is campaign.yaml's content (plain, dates ISO)."""
+
+    source: str
+    metadata: dict[str, Any]
+    controller: ControllerSpec
+    sensors: dict[str, SensorSpec]
+
+
+def _text(section: Mapping, key: str, where: str, source: str, default: str | None = None) -> str | None:
+    """A non-empty string at `key`, or `default` when the key is absent or null."""
+    value = section.get(key)
+    value = default if value is None else value
+    if value is not None and not (isinstance(value, str) and value.strip()):
+        raise InputError(f"must be a non-empty string, got {value!r}", file=source, key=f"{where}/{key}")
+    return value
+
+
+def _choice(section: Mapping, key: str, choices, where: str, source: str, default: str | None = None) -> str:
+    value = section.get(key, default)
+    if value not in choices:
+        got = "missing" if value is None else f"got {value!r}"
+        raise InputError(f"must be one of {', '.join(choices)} ({got})", file=source, key=f"{where}/{key}")
+    return value
+
+
+def _columns(section: Mapping, key: str, where: str, source: str, default=None, length: int | None = None):
+    value = section.get(key, default)
+    if (not isinstance(value, (list, tuple)) or not value or not all(isinstance(v, str) and v for v in value)
+            or (length is not None and len(value) != length) or len(set(value)) != len(value)):
+        wanted = f"{length} distinct column names" if length else "a list of distinct column names"
+        raise InputError(f"must be {wanted}, got {value!r}", file=source, key=f"{where}/{key}")
+    return tuple(value)
+
+
+def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
+    file = _text(section, "file", where, source)
+    if file is None:
+        raise InputError("missing (the CSV file, relative to the configuration)", file=source, key=f"{where}/file")
+    delimiter = _text(section, "delimiter", where, source, ",")
+    decimal = _choice(section, "decimal", (".", ","), where, source, ".")
+    if len(delimiter) != 1 or delimiter == decimal:
+        raise InputError(f"must be one character other than the decimal mark {decimal!r}, got {delimiter!r}",
+                         file=source, key=f"{where}/delimiter")
+    time_format = _text(section, "time_format", where, source, "iso")
+    if time_format not in TIME_FORMATS and "%" not in time_format:
+        raise InputError(f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', "
+                         f"got {time_format!r}", file=source, key=f"{where}/time_format")
+    timezone = _text(section, "timezone", where, source, "UTC")
+    try:
+        _zone(timezone)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise InputError(f"unknown time zone {timezone!r} (an IANA name such as Europe/Berlin)", file=source,
+                         key=f"{where}/timezone") from None
+    carry = _columns(section, "carry", where, source) if section.get("carry") is not None else ()
+    clash = sorted(c for c in carry if c in _RESERVED or _JOINT_COLUMN.fullmatch(c))
+    if clash:
+        raise InputError(f"cannot carry column(s) {', '.join(clash)}: the contract uses these names",
+                         file=source, key=f"{where}/carry")
+    return FileSpec(file, delimiter, decimal, time_format, timezone, carry)
+
+
+def _zone(name: str) -> dt.tzinfo:
+    return dt.timezone.utc if name.upper() == "UTC" else zoneinfo.ZoneInfo(name)
+
+
+def parse_config(config: Any, source: str) -> ImportSpec:
+    """Check an import configuration (as loaded from YAML/JSON); errors name `source` and the key."""
+    config = _mapping(config, "", source)
+    _check_keys(config, REQUIRED_KEYS + OPTIONAL_KEYS + ("controller",), "", source)
+    sensors = _mapping(config.get("sensors", {}), "sensors", source)
+    for name, section in sensors.items():
+        _check_keys(_mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS,
+                    f"sensors/{name}", source)
+    campaign_yaml = {k: v for k, v in config.items() if k != "controller"}
+    if sensors:  # campaign.yaml's part of each sensor section; validate_metadata names what is missing
+        campaign_yaml["sensors"] = {n: {k: v for k, v in s.items() if k in SENSOR_KEYS} for n, s in sensors.items()}
+    meta = validate_metadata(campaign_yaml, source)
+    metadata = {"name": meta["name"], "date": meta["date"].isoformat(), "description": meta["description"],
+                "robot": meta["robot"],
+                "sensors": {n: {"kind": s["kind"], "marker": s["marker"].tolist(),
+                                **({} if s["noise"] is None else {"noise": s["noise"]})}
+                            for n, s in meta["sensors"].items()}}
+
+    if "controller" not in config:
+        raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
+    section = _mapping(config["controller"], "controller", source)
+    _check_keys(section, CONTROLLER_KEYS, "controller", source)
+    controller = ControllerSpec(
+        file=_file_spec(section, "controller", source), joints=_columns(section, "joints", "controller", source),
+        unit=_choice(section, "unit", tuple(ANGLE_UNITS), "controller", source),
+        **{k: _text(section, k, "controller", source) for k in ("set", "pose", "solution", "key", "time")})
+    controller_carry = set(controller.file.carry)
+
+    specs = {}
+    for name, section in sensors.items():
+        where = f"sensors/{name}"
+        match = _choice(section, "match", MATCHES, where, source)
+        spec = SensorSpec(name=name, file=_file_spec(section, where, source),
+                          xyz=_columns(section, "xyz", where, source, list(POSITION_COLUMNS), 3),
+                          unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source), match=match,
+                          key=_text(section, "key", where, source, controller.key),
+                          time=_text(section, "time", where, source, controller.time),
+                          tolerance=section.get("tolerance"))
+        needed = getattr(controller, match)
+        if needed is None:
+            raise InputError(f"missing: sensor {name!r} is matched by {match}, so the controller log needs a "
+                             f"{match} column", file=source, key=f"controller/{match}")
+        if match == "time":
+            tolerance = spec.tolerance
+            if not (isinstance(tolerance, (int, float)) and not isinstance(tolerance, bool)
+                    and math.isfinite(tolerance) and tolerance > 0):
+                raise InputError(f"must be a positive number of seconds for match: time, got {tolerance!r}",
+                                 file=source, key=f"{where}/tolerance")
+        elif spec.tolerance is not None:
+            raise InputError("only applies to match: time", file=source, key=f"{where}/tolerance")
+        clash = sorted(controller_carry & set(spec.file.carry))
+        if clash:
+            raise InputError(f"column(s) {', '.join(clash)} carried from the controller log too", file=source,
+                             key=f"{where}/carry")
+        specs[name] = spec
+    return ImportSpec(source=source, metadata=metadata, controller=controller, sensors=specs)
+
+
+# --------------------------------------------------------------------------- cells -> values
+
+
+def _numbers(export: Export, column: str, config_key: str, decimal: str, allow_missing: bool) -> np.ndarray:
+    """Floats (n_rows,) of a column; empty or 'nan' cells are NaN where allowed, else an error."""
+    cells = export.column(column, config_key)
+    values = np.full(len(cells), np.nan)
+    bad, missing = [], []
+    for i, cell in enumerate(cells):
+        if cell == "" or cell.lower() == "nan":
+            missing.append(i)
+            continue
+        try:
+            values[i] = float(cell.replace(decimal, ".") if decimal != "." else cell)
+        except ValueError:
+            bad.append(i)
+            continue
+        if not math.isfinite(values[i]):
+            bad.append(i)
+    if bad:
+        raise export.fail(column, "not a finite number", bad)
+    if missing and not allow_missing:
+        raise export.fail(column, "missing value", missing)
+    return values
+
+
+def _indices(export: Export, column: str, config_key: str) -> np.ndarray:
+    """Non-negative integers (n_rows,) int64 of a column."""
+    values = _numbers(export, column, config_key, ".", allow_missing=False)
+    bad = np.flatnonzero((values < 0) | (values != np.round(values)))
+    if bad.size:
+        raise export.fail(column, "not a non-negative integer", bad)
+    return values.astype(np.int64)
+
+
+def _keys(export: Export, column: str, config_key: str) -> np.ndarray:
+    """Key cells (n_rows,) as text: none empty, none repeated."""
+    keys = export.column(column, config_key).to_numpy(dtype=object)
+    empty = np.flatnonzero(keys == "")
+    if empty.size:
+        raise export.fail(column, "missing key", empty)
+    duplicated = np.flatnonzero(pd.Series(keys).duplicated(keep=False).to_numpy())
+    if duplicated.size:
+        raise export.fail(column, "duplicate keys (each key may appear once)", duplicated)
+    return keys
+
+
+def _parse_time(cell: str, spec: FileSpec) -> pd.Timestamp:
+    if spec.time_format in ("unix_s", "unix_ms"):
+        number = float(cell.replace(spec.decimal, "."))
+        if not math.isfinite(number):
+            raise ValueError(cell)
+        return pd.Timestamp(number, unit="s" if spec.time_format == "unix_s" else "ms", tz="UTC")
+    moment = dt.datetime.fromisoformat(cell) if spec.time_format == "iso" else dt.datetime.strptime(
+        cell, spec.time_format)
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=_zone(spec.timezone))
+    return pd.Timestamp(moment).tz_convert("UTC")
+
+
+def _times(export: Export, column: str, config_key: str, spec: FileSpec) -> pd.DatetimeIndex:
+    """UTC timestamps (n_rows,) of a column; times without a zone are in spec.timezone."""
+    cells = export.column(column, config_key)
+    values, bad = [], []
+    for i, cell in enumerate(cells):
+        try:
+            values.append(_parse_time(cell, spec))
+        except (ValueError, OverflowError):
+            bad.append(i)
+    if bad:
+        raise export.fail(column, f"not a time (time_format {spec.time_format})", bad)
+    return pd.DatetimeIndex(values).as_unit("ns")
+
+
+# --------------------------------------------------------------------------- matching
+
+
+def _match_keys(controller_keys: np.ndarray, sensor_keys: np.ndarray) -> tuple[np.ndarray, list[str | None]]:
+    """Controller row (or -1) of each sensor row, and why each unmatched one is."""
+    index = {key: i for i, key in enumerate(controller_keys)}
+    rows = np.array([index.get(key, -1) for key in sensor_keys], dtype=np.int64)
+    return rows, [None if r >= 0 else "key not in the controller log" for r in rows]
+
+
+def _match_times(controller_times: pd.DatetimeIndex, sensor_times: pd.DatetimeIndex, tolerance: float,
+                 controller_lines: np.ndarray, sensor_lines: np.ndarray) -> tuple[np.ndarray, list[str | None]]:
+    """Controller row (or -1) of each sensor row: the nearest controller time (earlier one on a tie)
+    within `tolerance` s; when several sensor rows pick one controller row the nearest keeps it."""
+    ct = controller_times.asi8
+    order = np.argsort(ct, kind="stable")
+    sorted_ct = ct[order]
+    st = sensor_times.asi8
+    right = np.clip(np.searchsorted(sorted_ct, st), 0, len(ct) - 1)
+    left = np.clip(right - 1, 0, len(ct) - 1)
+    nearest = np.where(np.abs(st - sorted_ct[left]) <= np.abs(sorted_ct[right] - st), left, right)
+    gap = np.abs(st - sorted_ct[nearest]) / 1e9  # s
+    rows = np.where(gap <= tolerance, order[nearest], -1)
+    reasons: list[str | None] = [None if r >= 0 else f"no controller time within {tolerance:g} s "
+                                 f"(nearest {gap[i]:.6g} s away)" for i, r in enumerate(rows)]
+    for row in np.unique(rows[rows >= 0]):
+        claims = np.flatnonzero(rows == row)
+        if claims.size > 1:
+            winner = claims[np.lexsort((claims, gap[claims]))[0]]
+            for loser in claims[claims != winner]:
+                rows[loser] = -1
+                reasons[loser] = (f"controller line {controller_lines[row]} already matched by line "
+                                  f"{sensor_lines[winner]}, {gap[winner]:.6g} s from it (this row: {gap[loser]:.6g} s)")
+    return rows, reasons
+
+
+# --------------------------------------------------------------------------- building
+
+
+@dataclass(frozen=True, eq=False)
+class ImportResult:
+    """metadata: campaign.yaml content; tables: sensor -> contract table (SI), one row per controller
+    row in log order; report: what was matched and what was not (lines 1-based)."""
+
+    metadata: dict[str, Any]
+    tables: dict[str, pd.DataFrame]
+    report: dict[str, Any]
+    sensor_rows: dict[str, np.ndarray]  # sensor -> (n_controller_rows,) row of its export per table row, -1 if none
+
+
+def _carried(export: Export, spec: FileSpec, where: str) -> dict[str, np.ndarray]:
+    return {c: _numbers(export, c, f"{where}/carry", spec.decimal, allow_missing=True) for c in spec.carry}
+
+
+def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
+    """set, pose, solution, q1..qN (rad), carried columns, and key/time for matching."""
+    c = spec.controller
+    n = len(export.cells)
+    if c.set is not None:
+        sets = export.column(c.set, "controller/set").to_numpy(dtype=object)
+        unknown = np.flatnonzero([s not in SETS for s in sets])
+        if unknown.size:
+            raise export.fail(c.set, f"unknown set (use {' or '.join(SETS)})", unknown)
+    else:
+        sets = np.full(n, SETS[0], dtype=object)
+    if c.pose is not None:
+        pose = _indices(export, c.pose, "controller/pose")
+    else:  # each row its own pose, numbered within its set
+        pose = pd.Series(sets).groupby(sets).cumcount().to_numpy(dtype=np.int64)
+    solution = _indices(export, c.solution, "controller/solution") if c.solution is not None else np.zeros(n, np.int64)
+    keys = pd.DataFrame({"set": sets, "pose": pose, "solution": solution})
+    duplicated = np.flatnonzero(keys.duplicated(keep=False).to_numpy())
+    if duplicated.size:
+        named = ", ".join(x for x in (c.set, c.pose, c.solution) if x) or "row order"
+        raise InputError(f"repeated (set, pose, solution) on {_lines(export.lines[duplicated])}: each may appear once",
+                         file=export.source, key=named)
+    columns: dict[str, Any] = {"set": sets, "pose": pose, "solution": solution}
+    scale = ANGLE_UNITS[c.unit]
+    for name, column in zip(joint_columns(len(c.joints)), c.joints):
+        columns[name] = _numbers(export, column, "controller/joints", c.file.decimal, allow_missing=False) * scale
+    matches = {s.match for s in spec.sensors.values()}
+    key = _keys(export, c.key, "controller/key") if "key" in matches else None
+    time = _times(export, c.time, "controller/time", c.file) if c.time is not None else None
+    if time is not None and "time" in matches:
+        repeated = np.flatnonzero(pd.Series(time).duplicated(keep=False).to_numpy())
+        if repeated.size:
+            raise export.fail(c.time, "repeated times (matching by time needs distinct times)", repeated)
+    return {"columns": columns, "carry": _carried(export, c.file, "controller"), "key": key, "time": time}
+
+
+def _sensor_table(spec: SensorSpec, export: Export, controller: dict[str, Any], controller_export: Export,
+                  controller_spec: ControllerSpec) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+    """One sensor's contract table, its section of the report, and the export row of each table row."""
+    where = f"sensors/{spec.name}"
+    xyz = np.column_stack([_numbers(export, c, f"{where}/xyz", spec.file.decimal, allow_missing=True)
+                           for c in spec.xyz]) * LENGTH_UNITS[spec.unit]
+    nan = np.isnan(xyz)
+    partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
+    if partial.size:
+        raise InputError(f"some but not all of x, y, z empty on {_lines(export.lines[partial])} "
+                         "(all three empty marks an unseen marker)", file=export.source, key=", ".join(spec.xyz))
+    too_far = np.flatnonzero(np.nan_to_num(np.abs(xyz)).max(axis=1) > MAX_POSITION)
+    if too_far.size:
+        raise InputError(f"marker positions beyond {MAX_POSITION:g} m on {_lines(export.lines[too_far])} with "
+                         f"unit {spec.unit}: is the unit right?", file=export.source, key=", ".join(spec.xyz))
+    sensor_time = _times(export, spec.time, f"{where}/time", spec.file) if spec.time is not None and (
+        spec.match == "time" or controller["time"] is None) else None
+    if spec.match == "key":
+        matched_key = _keys(export, spec.key, f"{where}/key")
+        rows, reasons = _match_keys(controller["key"], matched_key)
+        label = "key"
+        shown = matched_key
+    else:
+        rows, reasons = _match_times(controller["time"], sensor_time, spec.tolerance, controller_export.lines,
+                                     export.lines)
+        label = "time"
+        shown = export.cells[spec.time].to_numpy(dtype=object)
+
+    n = len(controller_export.cells)
+    source_row = np.full(n, -1, dtype=np.int64)
+    source_row[rows[rows >= 0]] = np.flatnonzero(rows >= 0)
+    measured = source_row >= 0
+    table = pd.DataFrame(controller["columns"])
+    table["pose"] = table["pose"].astype(np.int64)
+    table["solution"] = table["solution"].astype(np.int64)
+    for axis, column in enumerate(POSITION_COLUMNS):
+        values = np.full(n, np.nan)
+        values[measured] = xyz[source_row[measured], axis]
+        table[column] = values
+    if controller["time"] is not None:
+        table[TIME_COLUMN] = controller["time"]
+    elif sensor_time is not None:
+        times = pd.Series(pd.NaT, index=range(n), dtype="datetime64[ns, UTC]")
+        times[measured] = sensor_time[source_row[measured]]
+        table[TIME_COLUMN] = times
+    for name, values in controller["carry"].items():
+        table[name] = values
+    for name, values in _carried(export, spec.file, where).items():
+        column = np.full(n, np.nan)
+        column[measured] = values[source_row[measured]]
+        table[name] = column
+
+    controller_label = controller_spec.key if spec.match == "key" else controller_spec.time
+    controller_shown = controller_export.cells[controller_label].to_numpy(dtype=object)
+    unseen = measured & np.isnan(table["x"].to_numpy())
+    report = {
+        "file": export.source, "match": spec.match, "rows": int(len(export.cells)), "matched": int(measured.sum()),
+        **({"tolerance_s": spec.tolerance} if spec.match == "time" else {}),
+        "unmatched": [{"file": export.source, "line": int(export.lines[i]), label: str(shown[i]), "reason": reasons[i]}
+                      for i in np.flatnonzero(rows < 0)],
+        "not_measured": [{"file": controller_export.source, "line": int(controller_export.lines[i]),
+                          label: str(controller_shown[i])} for i in np.flatnonzero(~measured)],
+        "marker_not_seen": [{"file": export.source, "line": int(export.lines[source_row[i]]),
+                             label: str(shown[source_row[i]])} for i in np.flatnonzero(unseen)],
+    }
+    return table, report, source_row
+
+
+def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, Export]) -> ImportResult:
+    """The campaign (metadata and SI tables) and the import report from a checked configuration and
+    the exports it names (sensor name -> Export). Raises InputError naming file, column and line."""
+    columns = _controller_columns(spec, controller)
+    tables, sections, rows = {}, {}, {}
+    for name, sensor in spec.sensors.items():
+        tables[name], sections[name], rows[name] = _sensor_table(sensor, sensors[name], columns, controller,
+                                                                 spec.controller)
+    report = {"campaign": spec.metadata["name"], "config": spec.source,
+              "controller": {"file": controller.source, "rows": int(len(controller.cells)),
+                             "joint_unit": spec.controller.unit},
+              "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
+              "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values())}
+    return ImportResult(metadata=spec.metadata, tables=tables, report=report, sensor_rows=rows)
+
+
+def in_exports(exc: InputError, sensor: str | None, spec: ImportSpec, result: ImportResult, controller: Export,
+               sensors: Mapping[str, Export]) -> InputError:
+    """A problem the campaign reader found in the built campaign (in table `sensor`, or None for
+    campaign.yaml), named in the exports' terms: the configuration for campaign.yaml, else the CSV
+    file, its columns and 1-based lines."""
+    if sensor not in spec.sensors:
+        return type(exc)(exc.reason, file=spec.source, key=exc.key)
+    keys = [k.strip() for k in (exc.key or "").split(",") if k.strip()]
+    rows = np.asarray(exc.rows or [], dtype=np.int64)
+    c = spec.controller
+    if keys and all(k in POSITION_COLUMNS for k in keys):  # positions: lines of the sensor's export
+        export, names = sensors[sensor], dict(zip(POSITION_COLUMNS, spec.sensors[sensor].xyz))
+        source_rows = result.sensor_rows[sensor][rows]
+        lines = export.lines[source_rows[source_rows >= 0]]
+    else:  # everything else comes from the controller log, row for row
+        export, lines = controller, controller.lines[rows]
+        names = {**dict(zip(joint_columns(len(c.joints)), c.joints)),
+                 **{k: getattr(c, k) or f"{k} (not a column: default)" for k in KEY_COLUMNS}}
+    where = f" on {_lines(lines)}" if len(lines) else ""
+    return InputError(f"{exc.reason} (campaign table {sensor}){where}", file=export.source,
+                      key=", ".join(names.get(k, k) for k in keys) or None)

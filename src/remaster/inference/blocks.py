@@ -1,0 +1,497 @@
+"""The measurement model as parameter blocks: the paper's zero-offsets and registration, plus
+optional blocks for the effects the paper's model leaves out (design.md, "parameter blocks").
+
+    angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i         (joint space)
+    p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)
+
+| block              | parameters (SI)                                        | display unit |
+|--------------------|--------------------------------------------------------|--------------|
+| `registration`     | x, y, z (m), alpha, beta, gamma (rad)                  | mm, deg      |
+| `zero_offsets`     | q1..qN (rad)                                           | deg          |
+| `joint_compliance` | q1..qN (rad/(N m)) times tau_j, gravity's torque;      | urad/(N m)   |
+|                    | payload_q1..qN (rad/(N m)) times the payload's part    |              |
+| `joint_scale`      | q1..qN (1), times the reading q_j                      | ppm          |
+| `marker_offset`    | x, y, z (m) added to the marker, flange frame          | mm           |
+| `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
+| `link_geometry`    | F<j>.length (m), F<j>.twist (rad), tool.*              | mm, deg      |
+| `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
+
+Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
+joint's angle, with v_k (n,) fixed per dataset (ones, gravity torques, readings, elapsed time).
+Gravity torques come once per dataset from Pinocchio (`remaster.robot.gravity`), with a tool-plate
+payload m0 that is a setting. A true payload m differs from it by a torque of a different shape
+than the arm's own, which c alone cannot follow (1.5 kg off leaves several um on a laser
+tracker); c' on the payload's part of the torque absorbs it exactly: c'_j = c_j (m / m0 - 1).
+Link geometry is the simulator's parametrisation (`kinematics.perturbed_transforms`): a length error
+along each fixed transform's translation and a twist about the x axis of the frame it leads to.
+
+A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
+vector, a predict function and the paper's log-posterior (both it and `ZeroOffsetModel` are a
+`model.MeasurementModel`). Which extension parameters the data determine is decided in one
+place, `identifiable_extension`: QR with column pivoting of the extension's Jacobian columns
+after projecting out the base parameters' columns.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .. import _kernels, spatial
+from ..campaigns.campaign import SensorData
+from ..noise import RangeTransverse
+from ..robot.gravity import gravity_torques
+from ..robot.kinematics import KernelForm, KinematicChain, perturbed_transforms
+from ..robot.priors import Priors
+from ..units import DEG, MM
+from .identifiability import JACOBIAN_STEP
+from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
+
+BASE = ("registration", "zero_offsets")
+EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
+PPM = 1e-6
+MICRORAD_PER_NM = 1e-6
+SECONDS_PER_HOUR = 3600.0
+# An extension column of the Jacobian below this fraction of the longest of its own block is
+# invisible in the data: e.g. the compliance of joint 1 about the vertical (zero torque), the
+# scale of a joint that never moves. Within a block, so that the choice of units does not matter.
+INVISIBLE = 1e-6
+# An extension column whose part outside the span of the base and of the extension columns
+# already kept is below this fraction of its length (the sine of its angle to that span) is
+# absorbed EXACTLY by them (the first link's length by the registration's z, the marker's
+# tangential offset by the last zero-offset): held at 0, as the paper's joint 1 is. Any larger
+# sine is kept: its Gaussian prior, not a threshold, decides how far the data may move it.
+ABSORBED = 1e-6
+# Below this sine a kept parameter is weakly determined (its std alone would grow more than a
+# thousandfold): reported, so that a reader knows its prior is doing the work.
+COLLINEAR = 1e-3
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """Settings of the extension blocks. payload_mass (kg) at payload_com (m, flange frame): the
+    tool plate for the gravity torques (an error in the mass is absorbed by the compliance
+    block's payload terms); drift_column: the table column the drift is a rate of
+    (None: `time` if the table has one, else the first column whose name contains
+    'temperature')."""
+
+    payload_mass: float = 1.0
+    payload_com: tuple[float, float, float] = (0.0, 0.0, 0.02)
+    drift_column: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Readings:
+    """What one set of one sensor gives the model, computed once.
+
+    rows (n,): 0-based table rows (measured ones only); q (n, N) rad; measured (n, 3) m, sensor
+    frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
+    readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
+    table's first time (or K since the first temperature), None without such a column;
+    drift_unit 's' or 'K'.
+    """
+
+    rows: np.ndarray
+    q: np.ndarray
+    measured: np.ndarray
+    torques: np.ndarray
+    payload_torques: np.ndarray
+    drift: np.ndarray | None = None
+    drift_unit: str | None = None
+
+    def regressor(self, key: str) -> np.ndarray:
+        """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
+        'payload_torques' or 'drift' (the same for every joint)."""
+        if key == "ones":
+            return np.ones_like(self.q)
+        if key == "drift":
+            return np.broadcast_to(self.drift[:, None], self.q.shape)
+        return getattr(self, key)
+
+
+def drift_variable(table: pd.DataFrame, column: str | None = None) -> tuple[np.ndarray, str, str] | None:
+    """(values (n_rows,) in s or K from the first measurement, column, unit 's' or 'K') of the
+    column a drift is a rate of, or None when the table has none (or it is not finite)."""
+    if column is None:
+        if "time" in table.columns:
+            column = "time"
+        else:
+            column = next((c for c in table.columns if "temperature" in c.lower()
+                           and pd.api.types.is_numeric_dtype(table[c].dtype)), None)
+            if column is None:
+                return None
+    series = table[column]
+    if pd.api.types.is_datetime64_any_dtype(series.dtype):
+        values = (series - series.min()).dt.total_seconds().to_numpy(dtype=float)
+        unit = "s"
+    else:
+        values = series.to_numpy(dtype=float)
+        values = values - values[0]
+        unit = "K"
+    return (values, column, unit) if np.all(np.isfinite(values)) else None
+
+
+def readings(chain: KinematicChain, sensor: SensorData, set_name: str, settings: ModelSettings = ModelSettings(),
+             exclude=()) -> Readings:
+    """The measured rows of one set but the table rows in `exclude` (flagged gross errors).
+    Gravity torques are taken at the readings: zero-offsets of a fraction of a degree change
+    them by well under 1 %, a compliance deflection of a few microradians."""
+    rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
+    q = sensor.table.loc[rows, list(sensor.joint_columns)].to_numpy(dtype=float)
+    measured = sensor.table.loc[rows, ["x", "y", "z"]].to_numpy(dtype=float)
+    torques = gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
+    payload = torques - gravity_torques(chain, q)
+    drift = drift_variable(sensor.table, settings.drift_column)
+    return Readings(rows, q, measured, torques, payload, None if drift is None else drift[0][rows],
+                    None if drift is None else drift[2])
+
+
+# --------------------------------------------------------------------------- parameters of each block
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """names (P,), scale (P,) SI size of one display unit, unit (P,) its label; for a joint-space
+    block, joints (P,) the joint each parameter moves and regressor (P,) the `Readings.regressor`
+    it multiplies."""
+
+    names: tuple[str, ...]
+    scale: np.ndarray
+    unit: tuple[str, ...]
+    joints: tuple[int, ...] = ()
+    regressor: tuple[str, ...] = ()
+
+
+def link_labels(chain: KinematicChain) -> list[tuple[int, int, str]]:
+    """(link row 0..N, column 0 length / 1 twist, parameter name) of the link-geometry block;
+    no length parameter for a fixed transform without translation."""
+    out = []
+    transforms = list(chain.joint_transforms) + [chain.tool_transform]
+    for i, transform in enumerate(transforms):
+        label = "tool" if i == chain.n_joints else f"F{i + 1}"
+        if np.linalg.norm(transform[:3, 3]) > 0:
+            out.append((i, 0, f"link_geometry.{label}.length"))
+        out.append((i, 1, f"link_geometry.{label}.twist"))
+    return out
+
+
+def link_errors(chain: KinematicChain, values: Mapping[str, float]) -> np.ndarray:
+    """(N + 1, 2) length (m) and twist (rad) errors of F_1..F_N, F_tool from parameter values
+    {name: SI} (absent ones 0): the `kinematics.perturbed_transforms` form of the block."""
+    errors = np.zeros((chain.n_joints + 1, 2))
+    for row, column, name in link_labels(chain):
+        errors[row, column] = values.get(name, 0.0)
+    return errors
+
+
+def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(F'_j Rot(a_j, d_j) (N, 4, 4), F'_tool (4, 4)): the chain's fixed transforms with the link
+    geometry and zero-offsets of `values` {parameter: SI} (absent ones 0), so that a robot
+    commanded to q is where the calibrated model says."""
+    joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors(chain, values))
+    turns = [spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
+             for j in range(chain.n_joints)]
+    return joints @ np.array(turns), tool
+
+
+def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
+    """The parameters a block owns on this chain, in model order."""
+    if block == "registration":  # the paper's parameters, named and scaled as `remaster.inference.model` does
+        names = parameter_names(chain.n_joints)[:len(REGISTRATION)]
+        scale = np.array([display_scale(n) for n in names])
+        return Parameters(names, scale, tuple(display_unit(n) for n in names))
+    if block == "marker_offset":
+        return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
+    if block == "sensor_scale":
+        return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
+    if block == "link_geometry":
+        labels = link_labels(chain)
+        return Parameters(tuple(name for _, _, name in labels), np.array([MM if c == 0 else DEG for _, c, _ in labels]),
+                          tuple("mm" if c == 0 else "deg" for _, c, _ in labels))
+    rate = (DEG / SECONDS_PER_HOUR, "deg/h") if drift_unit != "K" else (DEG, "deg/K")
+    joint_space = {  # block: ((name prefix, regressor), ...), scale, unit
+        "zero_offsets": ((("q", "ones"),), DEG, "deg"),
+        "joint_compliance": ((("q", "torques"), ("payload_q", "payload_torques")), MICRORAD_PER_NM, "urad/(N m)"),
+        "joint_scale": ((("q", "q"),), PPM, "ppm"),
+        "drift": ((("q", "drift"),), *rate)}
+    if block not in joint_space:
+        raise ValueError(f"unknown block {block!r}; blocks are {BASE + EXTENSIONS}")
+    kinds, scale, unit = joint_space[block]
+    parts = [(f"{block}.{prefix}{j + 1}", j, regressor) for prefix, regressor in kinds for j in range(chain.n_joints)]
+    return Parameters(tuple(p[0] for p in parts), np.full(len(parts), scale), (unit,) * len(parts),
+                      tuple(p[1] for p in parts), tuple(p[2] for p in parts))
+
+
+def available(block: str, data: Readings) -> bool:
+    """Whether the data can carry a block at all (a drift needs a time or temperature column
+    that varies)."""
+    return block != "drift" or (data.drift is not None and np.ptp(data.drift) > 0)
+
+
+# --------------------------------------------------------------------------- the model
+
+
+class BlockModel(MeasurementModel):
+    """Predicted marker positions (sensor frame) of one set's readings for base + extension blocks.
+
+    chain: the nominal chain; data: `Readings`; marker (3,) m nominal, flange frame; t_nr (4, 4)
+    the initial registration; blocks: extension block names (any order; the model orders them
+    as EXTENSIONS); fixed: {parameter name: value} held (e.g. the zero-offset a free
+    registration absorbs, the extension parameters the data cannot see); noise: the sensor's noise
+    shape (`remaster.noise`), None for the paper's isotropic noise: the likelihood then sums the
+    squares of whitened residuals (`weighted_residuals`), while `residuals` stay in metres.
+    Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
+    """
+
+    def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
+                 fixed: Mapping[str, float] | None = None, priors: Priors | None = None,
+                 noise: RangeTransverse | None = None):
+        unknown = set(blocks) - set(EXTENSIONS)
+        if unknown:
+            raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
+        if "drift" in blocks and data.drift is None:
+            raise ValueError("a drift block needs a time or temperature column")
+        self.chain, self.data = chain, data
+        self.q, self.measured = data.q, data.measured
+        self.marker = np.asarray(marker, dtype=float)
+        self.t_nr = np.asarray(t_nr, dtype=float)
+        self.blocks = BASE + tuple(b for b in EXTENSIONS if b in blocks)
+        parts = [block_parameters(b, chain, data.drift_unit) for b in self.blocks]
+        self.all_names = tuple(n for p in parts for n in p.names)
+        self.all_scale = np.concatenate([p.scale for p in parts])
+        self.all_unit = tuple(u for p in parts for u in p.unit)
+        self.block_of = {n: b for b, p in zip(self.blocks, parts) for n in p.names}
+        fixed = dict(fixed or {})
+        unknown = set(fixed) - set(self.all_names)
+        if unknown:
+            raise ValueError(f"cannot hold parameters {sorted(unknown)} the model does not have")
+        self.fixed = fixed
+        self.free = np.array([n not in fixed for n in self.all_names])
+        self.fixed_values = np.array([fixed.get(n, 0.0) for n in self.all_names])
+        self._free_index = np.flatnonzero(self.free)
+        self.names = tuple(n for n, f in zip(self.all_names, self.free) if f)
+        self.scale = self.all_scale[self.free]
+        self.unit = tuple(u for u, f in zip(self.all_unit, self.free) if f)
+        self._setup_joint_space(parts)
+        index = {n: i for i, n in enumerate(self.all_names)}
+        self._marker_index = [index[n] for n in self.all_names if self.block_of[n] == "marker_offset"]
+        self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
+        self._links = ([(index[name], row, column) for row, column, name in link_labels(chain)]
+                       if "link_geometry" in self.blocks else [])
+        self._kernel = KernelForm.of(chain)
+        self.priors = priors
+        # (P,) SI prior std of the free parameters: inf for the paper's (flat), finite for the extensions'
+        self.prior_std = np.array([math.inf if priors is None or self.block_of[n] in BASE
+                                   else priors.std_of(n, data.drift_unit) for n in self.names])
+        self._prior_precision = np.where(np.isfinite(self.prior_std), 1.0 / self.prior_std**2, 0.0)
+        # the sensor's noise shape (`remaster.noise`): None is the paper's isotropic noise
+        self.noise = noise
+        self._whitening = None if noise is None else noise.whitening(self.measured)
+        self.noise_log_det = 0.0 if noise is None else noise.log_det_term(self.measured)
+
+    def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
+        """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
+        index = {n: i for i, n in enumerate(self.all_names)}
+        rows = [(index[n], j, key) for p in parts for n, j, key in zip(p.names, p.joints, p.regressor)]
+        self._joint_params = np.array([i for i, _, _ in rows], dtype=int)
+        self._joint_values_t = np.array([self.data.regressor(key)[:, j] for _, j, key in rows]).T.copy()  # (n, K)
+        self._joint_onehot = np.eye(self.chain.n_joints)[[j for _, j, _ in rows]]  # (K, N)
+
+    def vector(self, values: Mapping[str, float]) -> np.ndarray:
+        """Free-parameter vector (P,) from {name: value}; parameters not given are 0."""
+        return np.array([float(values.get(n, 0.0)) for n in self.names])
+
+    def values(self, theta) -> dict[str, float]:
+        """{name: value} of every parameter (held ones included) from free parameters (P,)."""
+        return dict(zip(self.all_names, self.full(theta).tolist()))
+
+    def on(self, data: Readings) -> "BlockModel":
+        """The same model (blocks, registration, held parameters, priors) on other readings, e.g.
+        the validation set."""
+        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed, self.priors,
+                          self.noise)
+
+    def with_noise(self, noise: RangeTransverse | None) -> "BlockModel":
+        """The same model on the same readings with another noise shape."""
+        return BlockModel(self.chain, self.data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed,
+                          self.priors, noise)
+
+    def whitened(self, residuals) -> np.ndarray:
+        """Residuals (n, 3) or (m, n, 3) in units of the noise's range std: W_i e_i (`remaster.noise`);
+        unchanged for isotropic noise."""
+        if self._whitening is None:
+            return np.asarray(residuals)
+        return np.einsum("nij,...nj->...ni", self._whitening, residuals)
+
+    def weighted_residuals(self, theta) -> np.ndarray:
+        """Whitened residuals (n, 3) or (m, n, 3): what the likelihood sums the squares of."""
+        return self.whitened(self.residuals(theta))
+
+    def weighted_jacobian(self, theta, step: float) -> np.ndarray:
+        """d whitened residuals / d free parameters, (3n, P)."""
+        jacobian = self.jacobian(theta, step)
+        if self._whitening is None:
+            return jacobian
+        return np.einsum("nij,njp->nip", self._whitening, jacobian.reshape(self.n_points, 3, -1)).reshape(
+            jacobian.shape)
+
+    def log_prior(self, theta) -> np.ndarray:
+        """Log of the extension blocks' Gaussian priors, up to their normalisation: scalar or (m,)."""
+        theta = np.asarray(theta, dtype=float)
+        return -0.5 * np.sum(theta**2 * self._prior_precision, axis=-1)
+
+    def log_posterior(self, theta, sigma):
+        """The paper's log-posterior plus the extension priors: scalar or (m,); -inf where sigma <= 0."""
+        return super().log_posterior(theta, sigma) + self.log_prior(theta)
+
+    def prior_residuals(self, theta) -> np.ndarray:
+        """theta_k / std_k of the parameters with a prior (P_prior,) or (m, P_prior): least squares'
+        pseudo-observations."""
+        finite = np.isfinite(self.prior_std)
+        return np.asarray(theta, dtype=float)[..., finite] / self.prior_std[finite]
+
+    def angles(self, every) -> np.ndarray:
+        """Joint angles (n, N) or (m, n, N) the robot had, from every parameter (..., P_all)."""
+        theta = np.asarray(every, dtype=float)[..., self._joint_params]
+        return self.q + self._joint_values_t @ (theta[..., :, None] * self._joint_onehot)
+
+    def robot_points(self, every) -> np.ndarray:
+        """Marker positions (n, 3) or (m, n, 3) in the ROBOT frame from every parameter (P_all,)
+        or (m, P_all): what the calibrated robot is, without the sensor's set-up. A stack is
+        evaluated a chunk of vectors at a time, each chunk by one compiled call."""
+        every = np.asarray(every, dtype=float)
+        stack = np.atleast_2d(every)
+        points = np.concatenate([self._robot_points(stack[begin:begin + self._CHUNK])
+                                 for begin in range(0, len(stack), self._CHUNK)])
+        return points if every.ndim == 2 else points[0]
+
+    # vectors per compiled call: bounds the (chunk, N, n) cosines and sines in memory
+    _CHUNK = 512
+
+    def _robot_points(self, stack: np.ndarray) -> np.ndarray:
+        """Marker positions (m, n, 3) in the robot frame for parameter vectors (m, P_all)."""
+        kernel = self._kernel
+        if self._links:
+            errors = np.zeros((len(stack), self.chain.n_joints + 1, 2))
+            for index, row, column in self._links:
+                errors[:, row, column] = stack[:, index]
+            kernel = kernel.with_transforms(*perturbed_transforms(self.chain.joint_transforms,
+                                                                  self.chain.tool_transform, errors))
+        marker = self.marker + stack[:, self._marker_index] if self._marker_index else self.marker
+        rotations, shifts = kernel.rotations, kernel.shifts
+        starts = np.atleast_2d(kernel.start(marker))
+        angles = np.swapaxes(self.angles(stack), -1, -2)  # (m, N, n): joints outer, as the kernel wants
+        return _kernels.points_each(rotations.reshape((-1,) + rotations.shape[-3:]),
+                                    shifts.reshape((-1,) + shifts.shape[-2:]), starts,
+                                    np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles)))
+
+    def predict_full(self, every) -> np.ndarray:
+        """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter
+        (P_all,) or (m, P_all). A stack is a loop over its m vectors (not over rows)."""
+        every = np.asarray(every, dtype=float)
+        stack = np.atleast_2d(every)
+        points = self.robot_points(stack)
+        transform = correction_transforms(stack[:, :6]) @ self.t_nr
+        out = points @ np.swapaxes(transform[:, :3, :3], -1, -2) + transform[:, None, :3, 3]
+        if self._scale_index:
+            out = out * (1.0 + stack[:, self._scale_index])[:, :, None]
+        return out if every.ndim == 2 else out[0]
+
+    def sensor_rotation(self, theta) -> np.ndarray:
+        """(3, 3) rotation of the registration at free parameters theta (P,): robot -> sensor frame."""
+        every = np.atleast_2d(self.full(theta))
+        return (correction_transforms(every[:, :6]) @ self.t_nr)[0, :3, :3]
+
+    def sum_squares(self, theta) -> np.ndarray:
+        """Sum of squared (whitened) residuals E(theta): scalar or (m,)."""
+        return np.sum(self.weighted_residuals(theta) ** 2, axis=(-2, -1))
+
+
+# --------------------------------------------------------------------------- identifiability of extensions
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """Which extension parameters the data can see at all. kept: free extension parameters (each
+    under its prior); dropped: {name: why} the data cannot see ('invisible' with its relative size,
+    or 'absorbed' exactly by the base and the parameters kept before it, with the sine of its angle
+    to their span): held at 0 without priors, carried by their prior with them (`extended_model`); weak: {name: sine} of kept parameters the data barely separate (sine below
+    COLLINEAR: their prior decides them); condition_number of the whole model's free Jacobian with
+    unit-length columns (so independent of units)."""
+
+    kept: tuple[str, ...]
+    dropped: dict[str, str]
+    condition_number: float
+    weak: dict[str, float] = field(default_factory=dict)
+
+    def report(self) -> dict:
+        return {"kept": list(self.kept), "dropped": dict(self.dropped), "weakly_determined_sine": dict(self.weak),
+                "condition_number_unit_columns": self.condition_number,
+                "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
+                          "the span of the base columns; 'dropped' = the data cannot see it (held at 0 without a prior, "
+                          "left to its prior with one)",
+                "invisible_below": INVISIBLE, "absorbed_below": ABSORBED, "weak_below": COLLINEAR}
+
+
+def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
+    """Which of the model's free extension parameters the data can see, at theta (default 0).
+
+    From the Jacobian: a column shorter than INVISIBLE x the longest of its block is invisible.
+    The others, scaled to unit length, go through Gram-Schmidt (QR) in the model's order,
+    starting from the span of the base columns: a column whose sine to the span of the base and
+    the columns kept before it is below ABSORBED is absorbed exactly (held at 0, like joint 1's
+    zero-offset against the registration); every other one is kept, under its prior, and marked
+    weak below COLLINEAR. The order is a priority: a block's main parameters come before its
+    secondary ones (a compliance before its payload correction).
+    """
+    theta = np.zeros(len(model.names)) if theta is None else np.asarray(theta, dtype=float)
+    jacobian = model.jacobian(theta, JACOBIAN_STEP)
+    is_base = np.array([model.block_of[n] in BASE for n in model.names])
+    ext_names = [n for n, b in zip(model.names, is_base) if not b]
+    ext = jacobian[:, ~is_base]
+    lengths = np.linalg.norm(ext, axis=0)
+    longest = {}
+    for name, length in zip(ext_names, lengths):
+        longest[model.block_of[name]] = max(longest.get(model.block_of[name], 0.0), length)
+    span, _ = np.linalg.qr(jacobian[:, is_base])
+    kept, dropped, weak = [], {}, {}
+    for i, name in enumerate(ext_names):
+        relative = lengths[i] / longest[model.block_of[name]] if lengths[i] > 0 else 0.0
+        if relative < INVISIBLE:
+            dropped[name] = f"invisible: effect {relative:.1e} of the block's largest"
+            continue
+        outside = ext[:, i] / lengths[i] - span @ (span.T @ ext[:, i] / lengths[i])
+        sine = float(np.linalg.norm(outside))
+        if sine > ABSORBED:
+            kept.append(i)
+            span = np.column_stack([span, outside / sine])
+            if sine < COLLINEAR:
+                weak[name] = sine
+        else:
+            dropped[name] = f"absorbed: sine {sine:.1e} to the base and the parameters kept before it"
+    keep = is_base.copy()
+    keep[np.flatnonzero(~is_base)[kept]] = True
+    columns = jacobian[:, keep]
+    norms = np.linalg.norm(columns, axis=0)
+    # a base column without any effect (a zero-offset of a joint the marker sits on, not held here)
+    # makes the kept set singular; the others are scaled to unit length
+    singular = np.linalg.svd(columns[:, norms > 0] / norms[norms > 0], compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if np.all(norms > 0) else np.inf
+    return Reduction(tuple(ext_names[i] for i in kept), dropped, condition, weak)
+
+
+def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
+                   base_held: Mapping[str, float], priors: Priors | None = None,
+                   noise: RangeTransverse | None = None) -> tuple[BlockModel, Reduction]:
+    """The model of base + blocks, under `priors`, with the base's held parameters held. Under
+    priors every extension parameter is kept, those the data cannot see included: their prior
+    carries them, so what they do away from the measured configurations (a joint that never moved,
+    a tool that never turned) stays in the posterior. Without priors (flat), the parameters the
+    data cannot see at all are held at 0. The reduction reports which are which."""
+    reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
+    held = dict(base_held) if priors is not None else {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
+    return BlockModel(chain, data, marker, t_nr, blocks, held, priors, noise), reduction

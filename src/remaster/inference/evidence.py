@@ -1,0 +1,221 @@
+"""A block model under its priors: MAP, Laplace covariance, Laplace evidence and pose-grouped
+cross-validation. The loop closure decides with these, never with the validation set.
+
+The log-posterior is the paper's plus the extension blocks' Gaussian priors N(0, tau_k^2)
+(`remaster.robot.priors`); sigma keeps Jeffreys' prior (the paper's sigma^-2, so sigma^-(3n+2) in all):
+
+    log p(theta, sigma | y) = -(3n + 2) log sigma - SS(theta) / (2 sigma^2) - sum_k theta_k^2 / (2 tau_k^2)
+
+In u = log sigma the density gains a factor sigma, and the MAP in (theta, u) is found by
+alternating least squares in the stacked residuals [r(theta); sigma theta_k / tau_k] (their sum
+of squares is SS + sigma^2 sum (theta_k / tau_k)^2, the posterior's theta-part times 2 sigma^2)
+with sigma^2 = SS / (3n + 1), until sigma settles.
+
+Laplace evidence, up to a constant common to every model of the same data and base blocks
+(the flat priors of the registration and zero-offsets and Jeffreys' on sigma are improper: their
+constants cancel in a difference between two candidates):
+
+    log Z = log L(theta*, sigma*) + sum_k log N(theta*_k; 0, tau_k^2) + log sigma*^-1
+            + (d / 2) log 2 pi - 1/2 log det H,
+
+d = P + 1 and H the negative Hessian of the log-posterior in (theta, u), Gauss-Newton in theta:
+H_tt = J^T J / sigma^2 + diag(1 / tau^2), H_tu = 2 J^T r / sigma^2 (J = d predicted / d theta),
+H_uu = 2 SS / sigma^2. An added parameter pays its Occam factor (prior width over posterior width)
+unless the fit gains more; a prior much wider than the effect costs evidence, so priors of physical
+size matter.
+
+Cross-validation by pose: K folds of whole poses (the configurations of one Cartesian pose share
+much of their residual, so folds of single rows would flatter a model). Each fold's fit is one
+Gauss-Newton step from the full MAP on the other folds' rows, registration included (the
+registration is refitted in each fold), and its error is the held-out rows' mean squared
+residual evaluated with the full model: an approximation of refitting from scratch that is exact
+for a linear model and close for these near-linear ones, at the cost of one solve per fold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
+
+from .blocks import BlockModel
+from .identifiability import JACOBIAN_STEP
+
+MAX_SIGMA_ROUNDS = 20
+SIGMA_TOLERANCE = 1e-4  # relative change of sigma at which the MAP has settled (sigma only weighs the priors)
+LOG_2PI = math.log(2.0 * math.pi)
+
+
+@dataclass(frozen=True, eq=False)
+class PosteriorMode:
+    """MAP of a block model under its priors and the Laplace approximation around it.
+
+    theta (P,) SI free parameters; sigma (m); covariance (P + 1, P + 1) of (theta, sigma);
+    jacobian (3n, P) of the (whitened, `remaster.noise`) predictions at theta; residuals (n, 3) m,
+    not whitened; log_evidence (nats, up to the constant common to models of the same data and
+    base); sum_squares (m^2) of the whitened residuals."""
+
+    model: BlockModel
+    theta: np.ndarray
+    sigma: float
+    covariance: np.ndarray
+    jacobian: np.ndarray
+    residuals: np.ndarray
+    log_evidence: float
+    sum_squares: float
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.model.names
+
+    @property
+    def n_residuals(self) -> int:
+        return self.residuals.size
+
+    @property
+    def std(self) -> np.ndarray:
+        """(P,) Laplace standard deviations of the free parameters, SI."""
+        return np.sqrt(np.diag(self.covariance)[:-1])
+
+    @property
+    def sigma_std(self) -> float:
+        return float(math.sqrt(self.covariance[-1, -1]))
+
+    def sampler_start(self) -> dict:
+        """What `fit.sample` reads: MAP, covariance of theta and sigma's std."""
+        return {"theta_map": self.theta.tolist(), "sigma_map": self.sigma,
+                "covariance": self.covariance[:-1, :-1].tolist(), "sigma_std": self.sigma_std}
+
+    def bic(self) -> float:
+        """k ln(SS / k) + p ln k, p = free parameters + sigma: the Gaussian likelihood maximised
+        over sigma, for reference beside the evidence."""
+        k = self.n_residuals
+        return k * math.log(self.sum_squares / k) + (len(self.theta) + 1) * math.log(k)
+
+
+def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
+    """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
+    import scipy.optimize
+    theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
+    k = 3 * model.n_points
+    sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
+    for _ in range(MAX_SIGMA_ROUNDS):
+        def stacked(t, s=sigma):
+            """Residuals (K,) at t (P,), or (m, K) at a stack (m, P)."""
+            weighted = model.weighted_residuals(t)
+            return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), s * model.prior_residuals(t)], axis=-1)
+
+        # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
+        theta = scipy.optimize.least_squares(stacked, theta, jac=lambda t: forward_differences(stacked, t),
+                                             x_scale=model.scale, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12).x
+        previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
+        if abs(sigma - previous) <= SIGMA_TOLERANCE * sigma:
+            break
+    return laplace_at(model, theta, sigma)
+
+
+def forward_differences(function, x) -> np.ndarray:
+    """Jacobian (K, P) of function (P,) -> (K,) at x by scipy's default forward differences (step
+    sqrt(eps) max(1, |x_i|), signed as x_i, the exactly representable difference as the divisor),
+    its P + 1 points evaluated in one call of `function` on a stack (P + 1, P) -> (P + 1, K):
+    the block model evaluates a stack a chunk at a time instead of one vector at a time."""
+    x = np.asarray(x, dtype=float)
+    step = math.sqrt(np.finfo(float).eps) * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+    points = np.tile(x, (len(x) + 1, 1))
+    points[np.arange(len(x)), np.arange(len(x))] = x + step
+    values = function(points)
+    return ((values[:-1] - values[-1]) / ((x + step) - x)[:, None]).T
+
+
+def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
+    """The Laplace approximation and evidence at (theta, sigma), taken as the mode."""
+    theta = np.asarray(theta, dtype=float)
+    residuals = model.residuals(theta)
+    r = model.whitened(residuals).ravel()
+    sum_squares = float(r @ r)
+    jacobian = -model.weighted_jacobian(theta, JACOBIAN_STEP)  # d (whitened) predicted / d theta
+    precision = model._prior_precision
+    p = len(theta)
+    hessian = np.empty((p + 1, p + 1))
+    hessian[:p, :p] = jacobian.T @ jacobian / sigma**2 + np.diag(precision)
+    hessian[:p, p] = hessian[p, :p] = 2.0 * jacobian.T @ r / sigma**2
+    hessian[p, p] = 2.0 * sum_squares / sigma**2
+    sign, log_det = np.linalg.slogdet(hessian)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("the posterior's Hessian is not positive definite at the mode: "
+                                    "a parameter without prior is not determined by the data")
+    covariance_u = np.linalg.inv(hessian)
+    # (theta, u) -> (theta, sigma): d sigma = sigma du
+    jac = np.ones(p + 1)
+    jac[p] = sigma
+    covariance = covariance_u * np.outer(jac, jac)
+    k = r.size
+    has_prior = np.isfinite(model.prior_std)
+    log_likelihood = (-0.5 * k * LOG_2PI - k * math.log(sigma) - sum_squares / (2.0 * sigma**2)
+                      + model.noise_log_det)
+    log_prior = float(np.sum(-0.5 * LOG_2PI - np.log(model.prior_std[has_prior])
+                             - 0.5 * theta[has_prior] ** 2 * precision[has_prior])) - math.log(sigma)
+    log_evidence = log_likelihood + log_prior + 0.5 * (p + 1) * LOG_2PI - 0.5 * log_det
+    return PosteriorMode(model, theta, float(sigma), covariance, jacobian, residuals, float(log_evidence),
+                         sum_squares)
+
+
+# --------------------------------------------------------------------------- cross-validation by pose
+
+
+def pose_folds(poses, n_folds: int) -> np.ndarray:
+    """(n,) fold of each point: whole poses in turn (pose labels sorted, the i-th to fold i mod K),
+    so that no pose is split and the folds do not depend on a random draw."""
+    labels = np.unique(poses)
+    if len(labels) < n_folds:
+        raise ValueError(f"{len(labels)} poses cannot make {n_folds} folds of whole poses")
+    fold_of = {label: i % n_folds for i, label in enumerate(labels)}
+    return np.array([fold_of[p] for p in poses])
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Held-out mean squared residual per point (m^2), one per fold (K,), points per fold, and
+    held_out (n, 3) m: each point's residual under the fit without its fold."""
+
+    mse: np.ndarray
+    points: np.ndarray
+    held_out: np.ndarray | None = None
+
+    @property
+    def rmse(self) -> float:
+        """Root of the pooled held-out mean squared residual per point (m)."""
+        return float(math.sqrt(np.sum(self.mse * self.points) / np.sum(self.points)))
+
+
+def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
+    """Pose-grouped K-fold cross-validation of a model at its mode (module docstring); folds (n,)."""
+    model, theta, sigma = mode.model, mode.theta, mode.sigma
+    jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
+    r = model.whitened(mode.residuals)
+    precision = model._prior_precision * sigma**2
+    mse, points, held = [], [], np.empty_like(r)
+    for fold in np.unique(folds):
+        train = folds != fold
+        j_train = jacobian[train].reshape(-1, len(theta))
+        lhs = j_train.T @ j_train + np.diag(precision)
+        rhs = j_train.T @ r[train].ravel() - precision * theta
+        step = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+        held[~train] = held_out = model.residuals(theta + step)[~train]
+        mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
+        points.append(int((~train).sum()))
+    return CrossValidation(np.array(mse), np.array(points), held)
+
+
+def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
+    """Paired comparison over the same folds: the fall of the held-out mean squared residual,
+    its standard error over folds, their ratio, and both pooled RMSEs (mm)."""
+    difference = current.mse - candidate.mse
+    k = len(difference)
+    standard_error = float(np.std(difference, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
+    mean = float(np.mean(difference))
+    return {"cv_rmse_before_mm": current.rmse * 1e3, "cv_rmse_mm": candidate.rmse * 1e3,
+            "cv_gain": 1.0 - candidate.rmse / current.rmse,
+            "cv_mse_fall_mm2": mean * 1e6, "cv_mse_fall_se_mm2": standard_error * 1e6,
+            "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf}

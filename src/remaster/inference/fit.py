@@ -1,0 +1,373 @@
+"""From one sensor's campaign data to a posterior ready for sampling (paper, section Optimization).
+
+1. Initial registration T_NR: the paper's three-point method on three measured configurations
+   of the optimization set chosen far apart (nominal forward kinematics gives their robot-frame
+   positions); a least-squares (Kabsch) registration over every point is reported beside it.
+2. Identifiability: the Jacobian of the full model at zero corrections; each undetermined
+   combination gets one parameter held at the controller's value (`remaster.inference.identifiability`).
+3. The posterior over the free parameters and sigma, as a `PosteriorTarget` that every sampler
+   takes.
+Points whose marker was not seen are excluded from the fit and listed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
+import pandas as pd
+
+from .. import diagnostics, spatial
+from ..campaigns.campaign import Campaign, SensorData
+from ..robot import registration
+from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..spatial import transform_points
+from . import identifiability, samplers
+from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Initial sensor <- robot transform and how it was obtained. Rows are 0-based rows of the
+    sensor table; RMS values are per-axis residuals (m) over the set's measured points."""
+
+    t_nr: np.ndarray
+    rows: tuple[int, int, int]
+    kabsch_t_nr: np.ndarray
+    three_point_rms: float
+    kabsch_rms: float
+
+    def report(self) -> dict:
+        rotation_difference = self.t_nr[:3, :3].T @ self.kabsch_t_nr[:3, :3]
+        angle = np.degrees(spatial.rotation_angle(rotation_difference))
+        return {"method": "three-point (paper)", "rows": list(self.rows), "T_NR": self.t_nr.tolist(),
+                "kabsch_T_NR": self.kabsch_t_nr.tolist(),
+                "three_point_rms_mm": self.three_point_rms * 1e3, "kabsch_rms_mm": self.kabsch_rms * 1e3,
+                "three_point_vs_kabsch": {
+                    "translation_mm": float(np.linalg.norm(self.t_nr[:3, 3] - self.kabsch_t_nr[:3, 3]) * 1e3),
+                    "rotation_deg": float(angle)}}
+
+
+def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimization") -> Registration:
+    """The paper's three-point registration from three far-apart measured configurations of the
+    set, with a Kabsch registration over all of them for comparison."""
+    rows = sensor.measured_rows(set_name)
+    q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
+    measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
+    robot = ForwardKinematics(chain, q).points(sensor.marker)
+    triple = registration.spread_out_triple(measured)
+    three = registration.three_point(robot[triple], measured[triple])
+    kabsch = registration.kabsch(robot, measured)
+
+    def rms(t_nr):
+        return float(np.sqrt(np.mean((transform_points(t_nr, robot) - measured) ** 2)))
+
+    return Registration(three, tuple(int(r) for r in rows[triple]), kabsch, rms(three), rms(kabsch))
+
+
+def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str = "optimization", exclude=()):
+    """(model with undetermined parameters held, identifiability analysis, rows without a
+    measurement). `exclude`: further table rows left out (flagged outliers)."""
+    rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
+    q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
+    measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
+    analysis = identifiability.analyse(ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr))
+    model = ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows)
+    excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
+    return model, analysis, excluded
+
+
+def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
+    """Table rows of gross measurement errors (a laser tracker's re-acquisition glitch, a swapped
+    marker): points whose residual after a robust (Cauchy-loss) least-squares fit is farther
+    from the model than an isotropic Gaussian of the robust scale sigma_r (1.4826 MAD of the
+    residual components) allows for any of the n points at family-wise level `alpha`:
+    |E_i| > sigma_r sqrt(chi2_3 quantile at 1 - alpha / n) (Bonferroni). The robust loss keeps one
+    glitch of several mm from dragging the fit towards it."""
+    import scipy.optimize
+    import scipy.special
+    scale = np.array([display_scale(n) for n in model.names])
+    start = np.zeros(len(model.names))
+    first = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), start, x_scale=scale)
+    spread = 1.4826 * np.median(np.abs(first.fun))
+    robust = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), first.x, x_scale=scale,
+                                          loss="cauchy", f_scale=max(spread, 1e-9))
+    residual = np.abs(model.residuals(robust.x))
+    sigma_r = 1.4826 * np.median(residual)
+    threshold = math.sqrt(scipy.special.chdtri(3, alpha / model.n_points))  # chi2(3).isf, without scipy.stats' import
+    far = np.linalg.norm(residual, axis=1) > threshold * sigma_r
+    return model.table_rows[far]
+
+
+@dataclass(frozen=True)
+class PosteriorTarget:
+    """The log-posterior of a model over (free parameters..., noise.sigma), for the samplers."""
+
+    model: ZeroOffsetModel
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.model.names + (SIGMA,)
+
+    @property
+    def scale(self) -> np.ndarray:
+        """Step units: the model's own (extended models have their own units), sigma in mm."""
+        return np.append(self.model.scale, display_scale(SIGMA))
+
+    def log_prob(self, theta) -> float:
+        theta = np.asarray(theta, dtype=float)
+        return float(self.model.log_posterior(theta[:-1], theta[-1]))
+
+    def log_prob_many(self, thetas) -> np.ndarray:
+        thetas = np.asarray(thetas, dtype=float)
+        return self.model.log_posterior(thetas[:, :-1], thetas[:, -1])
+
+    def residuals(self, theta_model) -> np.ndarray:
+        """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
+        return self.model.residuals(theta_model).ravel()
+
+
+# --------------------------------------------------------------------------- fitting
+
+METHODS = ("paper", "default", "emcee")
+METHOD_LABELS = {"paper": "Metropolis (paper)", "default": "adaptive Metropolis", "emcee": "emcee",
+                 "laplace": "least squares + Laplace"}
+
+
+def laplace_fit(model: ZeroOffsetModel) -> samplers.LaplaceResult:
+    """Least-squares MAP of the model parameters from zero corrections, with its Laplace covariance."""
+    target = PosteriorTarget(model)
+    return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale,
+                                          names=model.names)
+
+
+def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Identifiability,
+                   excluded_rows, outlier_rows=(), model: ZeroOffsetModel | None = None) -> dict:
+    """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, the rows
+    left out (marker not seen; flagged as outliers) and the number of points fitted."""
+    return {"names": list(result.names), "theta_map": result.theta_map.tolist(),
+            "covariance": result.covariance.tolist(), "std": result.std.tolist(),
+            "sigma_map": result.sigma_map, "sigma_mean": result.sigma_mean, "sigma_std": result.sigma_std,
+            "sum_squares": 2.0 * result.cost, "n_residuals": result.n_residuals,
+            "jacobian_singular_values_step_units": result.jacobian_singular_values.tolist(),
+            "identifiability": analysis.report(),
+            "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows],
+            "excluded_rows_outliers": [int(r) for r in outlier_rows],
+            "points_fitted": None if model is None else int(model.n_points)}
+
+
+def _laplace_start(report: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(start (P,), full covariance (P, P)) of the Laplace fit, sigma last."""
+    theta = np.append(report["theta_map"], report["sigma_map"])
+    p = len(theta)
+    covariance = np.zeros((p, p))
+    covariance[:-1, :-1] = report["covariance"]
+    covariance[-1, -1] = report["sigma_std"] ** 2
+    return theta, covariance
+
+
+def sample(model: ZeroOffsetModel, laplace: dict, method: str, settings: dict, rng: np.random.Generator,
+           progress=None) -> list[samplers.Chain]:
+    """Chains of one method on the model's posterior.
+
+    paper: the paper's Metropolis from Theta = 0, sigma = 1 mm; default: adaptive Metropolis from
+    overdispersed starts around the least-squares MAP, proposal seeded by the Laplace covariance;
+    emcee: walkers in a Laplace-sized ball around the MAP (one ensemble, its walkers split in
+    two halves for R-hat).
+    """
+    target = PosteriorTarget(model)
+    start, covariance = _laplace_start(laplace)
+    if method == "paper":
+        paper_start = np.append(np.zeros(len(model.names)), 1e-3)
+        return samplers.run_chains(samplers.metropolis_paper, target, rng, settings["chains"], paper_start,
+                                   n_samples=settings["samples"], burn_in=settings["burn_in"],
+                                   half_width=settings["half_width"], progress=progress)
+    if method == "default":
+        spread = np.sqrt(np.diag(covariance))
+        starts = start + 3.0 * spread * rng.standard_normal((settings["chains"], len(start)))
+        starts[:, -1] = np.abs(starts[:, -1])
+        return samplers.run_chains(samplers.metropolis_adaptive, target, rng, settings["chains"], starts,
+                                   covariance=covariance, n_samples=settings["samples"],
+                                   burn_in=settings["burn_in"], progress=progress)
+    if method == "emcee":
+        return [samplers.run_emcee(target, rng, start, np.sqrt(np.diag(covariance)), n_walkers=settings["walkers"],
+                                   n_steps=settings["steps"], burn_in=settings["burn_in"])]
+    raise ValueError(f"unknown sampling method {method!r}; use one of {METHODS}")
+
+
+def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
+    """Posterior samples (SI), one row per kept state: parameters, log_prob, chain, walker, step."""
+    frames = []
+    for number, chain in enumerate(chains):
+        steps = np.repeat(np.arange(chain.n_steps), chain.n_walkers)
+        walkers = np.tile(np.arange(chain.n_walkers), chain.n_steps)
+        frame = pd.DataFrame(chain.samples, columns=list(chain.names))
+        frame["log_prob"] = chain.log_prob
+        frame["chain"] = np.int64(number)
+        frame["walker"] = walkers.astype(np.int64)
+        frame["step"] = steps.astype(np.int64)
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
+def trace_frame(chains: list[samplers.Chain], every: int = 100) -> pd.DataFrame:
+    """The whole run of each chain, every `every`-th step, burn-in included where the sampler
+    kept it (the paper's); step counts from the first step. For an ensemble, walker 0."""
+    frames = []
+    for number, chain in enumerate(chains):
+        burn_in = chain.settings.get("burn_in", 0)
+        kept = chain.per_walker()[::every, 0]
+        parts, steps = [kept], [burn_in + every * np.arange(len(kept))]
+        if "burn_in_trace" in chain.settings:
+            early = chain.settings["burn_in_trace"]
+            parts.insert(0, early)
+            steps.insert(0, chain.settings["trace_every"] * np.arange(len(early)))
+        frame = pd.DataFrame(np.concatenate(parts), columns=list(chain.names))
+        frame["step"] = np.concatenate(steps).astype(np.int64)
+        frame["chain"] = np.int64(number)
+        frames.append(frame)
+    return pd.concat(frames, ignore_index=True)
+
+
+def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
+    """Samples back into per-chain (n, W, P) arrays, the layout the diagnostics take."""
+    out = []
+    for _, part in frame.groupby("chain", sort=True):
+        walkers = int(part["walker"].max()) + 1
+        values = part.sort_values(["step", "walker"])[list(names)].to_numpy()
+        out.append(values.reshape(-1, walkers, len(names)))
+    if len(out) == 1 and out[0].shape[1] >= 4:  # one ensemble: its two halves of walkers as two chains
+        half = out[0].shape[1] // 2
+        out = [out[0][:, :half], out[0][:, half:]]
+    return out
+
+
+def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
+    """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second."""
+    frame = samples_frame(chains)
+    names = list(chains[0].names)
+    report = diagnostics.chain_report(chains_of(frame, names), names)
+    return {"method": chains[0].method, "chains": len(chains), "walkers": chains[0].n_walkers,
+            "kept_per_chain": chains[0].n_steps, "acceptance_rate": [c.acceptance_rate for c in chains],
+            "seconds": seconds, "min_ess": float(report["ess"].min()),
+            "min_ess_per_second": float(report["ess"].min() / seconds) if seconds > 0 else None,
+            "max_rhat": float(report["rhat"].max()),
+            "parameters": report.reset_index().to_dict(orient="records")}
+
+
+def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool:
+    """A sampler's own verdict: every R-hat below max_rhat and every ESS above min_ess."""
+    return diagnostics_report["max_rhat"] <= max_rhat and diagnostics_report["min_ess"] >= min_ess
+
+
+def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dict], laplace: dict,
+                tolerance: float, max_rhat: float, min_ess: float, floor: float = 0.1) -> pd.DataFrame:
+    """Every method's posterior mean and std per parameter and its disagreement with the default
+    sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
+    parameter, then mean_<method>, std_<method>, z_<method>, checked_<method> (SI).
+
+    The agreement is enforced (SamplerDisagreement) among the methods that converged by their
+    own diagnostics and the least-squares/Laplace solution; a method that did not converge (the
+    paper's sampler usually: its chain does not travel far enough in 2e5 small steps) is shown
+    with its disagreement and marked, since its means carry a bias its MCSE does not measure.
+    `floor`: the combined error is at least this fraction of the posterior std, because
+    autocorrelation times from chains of a few dozen tau underestimate the Monte Carlo error
+    (seen: 1 false alarm in a 50-campaign fleet at 0.05); a difference of 0.1 std in a posterior
+    mean is far below what the posterior itself leaves uncertain.
+    """
+    names = list(laplace["names"]) + [SIGMA]
+    results = {}
+    for method in ("default",) + tuple(m for m in samples if m != "default"):
+        results[method] = diagnostics.moments(chains_of(samples[method], names))
+    lap_mean = np.append(laplace["theta_map"], laplace["sigma_mean"])
+    lap_std = np.append(laplace["std"], laplace["sigma_std"])
+    results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
+    table = diagnostics.cross_check(results, names, tolerance=None, reference="default", floor=floor)
+    enforced = ["default", "laplace"] + [m for m in samples if m != "default" and
+                                         converged(sampler_reports[m], max_rhat, min_ess)]
+    diagnostics.check_agreement(table.loc[:, [c for c in table.columns if c[1] in enforced]], tolerance)
+    flat = pd.DataFrame(index=table.index)
+    for method in results:
+        for quantity in ("mean", "std", "z"):
+            flat[f"{quantity}_{method}"] = table[(quantity, method)]
+        flat[f"checked_{method}"] = method in enforced
+    return flat.reset_index()
+
+
+def posterior_summary(frame: pd.DataFrame, laplace: dict) -> pd.DataFrame:
+    """Per parameter: MLE (the posterior mean, as in the paper), std and 95 % interval in SI and
+    in display units (mm, deg), and its status; held parameters appear with status 'held'."""
+    names = list(laplace["names"]) + [SIGMA]
+    values = frame[names]
+    summary = pd.DataFrame({"mean": values.mean(), "std": values.std(ddof=1),
+                            "q2.5": values.quantile(0.025), "q97.5": values.quantile(0.975)})
+    summary["status"] = "estimated"
+    for name, value in laplace["identifiability"]["held_at_controller_value"].items():
+        summary.loc[name] = [value, np.nan, np.nan, np.nan, "held: not identifiable"]
+    summary = summary.loc[list(laplace["identifiability"]["parameters"]) + [SIGMA]]
+    scale = np.array([display_scale(n) for n in summary.index])
+    for column in ("mean", "std", "q2.5", "q97.5"):
+        summary[f"{column}_display"] = summary[column].astype(float) / scale
+    summary["display_unit"] = [display_unit(n) for n in summary.index]
+    summary.index.name = "parameter"
+    return summary
+
+
+def remastering(summary: pd.DataFrame, joint_names, campaign: str, sensor: str) -> dict:
+    """The new zero-offset corrections (deg) with their uncertainty, ready to type into a controller:
+    new zero = old zero + correction. Held joints get no correction and say why. `summary` as
+    `posterior_summary` gives it, indexed by parameter or with a parameter column."""
+    if "parameter" in summary.columns:
+        summary = summary.set_index("parameter")
+    joints = []
+    for j, joint in enumerate(joint_names):
+        row = summary.loc[f"zero_offsets.q{j + 1}"]
+        held = row["status"] != "estimated"
+        joints.append({"joint": joint, "correction_deg": float(row["mean_display"]),
+                       "std_deg": None if held else float(row["std_display"]),
+                       "interval_95_deg": None if held else [float(row["q2.5_display"]), float(row["q97.5_display"])],
+                       "status": row["status"]})
+    return {"campaign": campaign, "sensor": sensor, "convention": "controller zero += correction (deg)",
+            "joints": joints}
+
+
+# --------------------------------------------------------------------------- workflow stages
+
+
+def registration_stage(campaign: Campaign, sensor: str) -> dict:
+    """The initial registration of one sensor, JSON-ready."""
+    return register(campaign.chain, campaign.sensors[sensor]).report()
+
+
+def _model(campaign: Campaign, sensor: str, registration_report: dict, exclude=()):
+    return build_model(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
+                       exclude=exclude)
+
+
+def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict, outlier_alpha: float) -> dict:
+    """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor,
+    JSON-ready. Flagged outliers are left out of this and every later fit, and listed."""
+    model, _, _ = _model(campaign, sensor, registration_report)
+    outliers = flag_outliers(model, outlier_alpha)
+    if len(outliers):
+        log.warning("%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers),
+                    outliers.tolist())
+    model, analysis, excluded = _model(campaign, sensor, registration_report, exclude=outliers)
+    return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
+
+
+def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict, method: str,
+                   settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
+    model, _, _ = _model(campaign, sensor, registration_report, exclude=laplace["excluded_rows_outliers"])
+    if list(model.names) != list(laplace["names"]):
+        raise ValueError(f"the Laplace fit's parameters {laplace['names']} are not the model's {model.names}")
+    started = time.perf_counter()
+    chains = sample(model, laplace, method, settings, rng, progress)
+    seconds = time.perf_counter() - started
+    return samples_frame(chains), trace_frame(chains), sampler_diagnostics(chains, seconds)

@@ -1,0 +1,133 @@
+"""The paper's accuracy metrics (section Quantifying Positional Accuracy) as array functions.
+
+Arrays in, arrays out, SI throughout (m, rad); the stage that turns them into tables in mm is
+`remaster.analysis.accuracy`.
+
+- relative accuracy (eq. dist_equation): within each group of configurations that reached the
+  same Cartesian pose, how much the distance between two measured marker positions differs from
+  the distance the robot's model gives. Distances do not depend on the frame, so the measured
+  points stay in the sensor frame and the robot's in the robot frame: no registration is involved.
+- post-registration accuracy (eq. post_reg_accuracy): ||E_i|| = ||p_ref,i - p_robot,i||, both in
+  the sensor frame, per configuration.
+- theoretical accuracy (section theor_acc): distances between the TCP (marker) given by one set
+  of zero-offsets (the MLE, or the controller's for Vernier) and the TCPs given by posterior
+  draws, with or without the draw's isotropic Gaussian error added.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..robot.kinematics import ForwardKinematics, KinematicChain
+
+QUANTILES = (0.025, 0.975)
+Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval is mean +- Z95 std
+
+
+def relative_errors(p_ref, p_robot, groups) -> np.ndarray:
+    """d_ij = | ||p_ref,i - p_ref,j|| - ||p_robot,i - p_robot,j|| | for every pair i < j of rows in
+    the same group (eq. dist_equation), in m, shape (k,) with k = sum over groups of c (c - 1) / 2
+    for c usable rows in the group.
+
+    p_ref (n, 3) measured positions (any frame, e.g. the sensor's); p_robot (n, 3) the model's
+    positions (any frame, e.g. the robot's); groups (n,) integer labels, e.g. one per (set, pose).
+    Rows with a NaN in either position are skipped (the caller counts them). Pairs are ordered by
+    group label, then by row.
+    """
+    p_ref = np.asarray(p_ref, dtype=float)
+    p_robot = np.asarray(p_robot, dtype=float)
+    groups = np.asarray(groups)
+    if p_ref.shape != p_robot.shape or p_ref.ndim != 2 or p_ref.shape[1] != 3 or groups.shape != p_ref.shape[:1]:
+        raise ValueError(f"p_ref {p_ref.shape} and p_robot {p_robot.shape} must be (n, 3) and groups (n,), "
+                         f"got groups {groups.shape}")
+    usable = np.all(np.isfinite(p_ref), axis=1) & np.all(np.isfinite(p_robot), axis=1)
+    parts = [np.empty(0)]
+    for label in np.unique(groups[usable]):
+        rows = np.flatnonzero(usable & (groups == label))
+        i, j = np.triu_indices(len(rows), k=1)
+        measured = np.linalg.norm(p_ref[rows[i]] - p_ref[rows[j]], axis=1)
+        modelled = np.linalg.norm(p_robot[rows[i]] - p_robot[rows[j]], axis=1)
+        parts.append(np.abs(measured - modelled))
+    return np.concatenate(parts)
+
+
+def post_registration_errors(p_ref, p_pred) -> np.ndarray:
+    """||E_i|| = ||p_ref,i - p_pred,i|| (m), shape (n,), for positions (n, 3) in the same frame
+    (eq. post_reg_accuracy per configuration). NaN where either position is NaN."""
+    p_ref = np.asarray(p_ref, dtype=float)
+    p_pred = np.asarray(p_pred, dtype=float)
+    if p_ref.shape != p_pred.shape or p_ref.shape[-1] != 3:
+        raise ValueError(f"p_ref {p_ref.shape} and p_pred {p_pred.shape} must both be (n, 3)")
+    return np.linalg.norm(p_ref - p_pred, axis=-1)
+
+
+def interval_summary(values) -> dict[str, float | int]:
+    """Mean, 2.5 % and 97.5 % quantiles (the paper's 95 % interval) and count of the finite
+    values, in the values' unit. No finite value: count 0 and NaN statistics (never an error)."""
+    values = np.asarray(values, dtype=float).ravel()
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return {"mean": np.nan, "q2.5": np.nan, "q97.5": np.nan, "count": 0}
+    low, high = np.quantile(values, QUANTILES)
+    return {"mean": float(values.mean()), "q2.5": float(low), "q97.5": float(high), "count": int(values.size)}
+
+
+def probable_tcps(chain: KinematicChain, q, marker, draws_offsets, draws_sigma, rng: np.random.Generator) -> np.ndarray:
+    """TCPs (m, n, 3) in the robot frame (m) for m zero-offset draws (m, N) at configurations
+    q (n, N) rad, marker (3,) m in the flange frame; with draws_sigma (m,) m, each draw's
+    isotropic Gaussian error N(0, sigma^2 I3) is added (it is isotropic, so it may be added in
+    any frame); with None, the zero-offsets alone."""
+    draws_offsets = np.atleast_2d(np.asarray(draws_offsets, dtype=float))
+    tcps = ForwardKinematics(chain, q).points(marker, draws_offsets)
+    if draws_sigma is not None:
+        sigma = np.asarray(draws_sigma, dtype=float)
+        if sigma.shape != (len(draws_offsets),):
+            raise ValueError(f"draws_sigma must have shape ({len(draws_offsets)},), got {sigma.shape}")
+        tcps = tcps + sigma[:, None, None] * rng.standard_normal(tcps.shape)
+    return tcps
+
+
+def theoretical_errors(chain: KinematicChain, q, marker, reference_offsets, draws_offsets, draws_sigma,
+                       rng: np.random.Generator) -> np.ndarray:
+    """Theoretical positioning errors (m), shape (m * n,), draw-major: the distance between the
+    TCP given by reference_offsets (N,) (the MLE, or zeros for Vernier) and the TCP of each of m
+    posterior draws (m, N), at each configuration q (n, N), all in the robot frame (the
+    registration does not move TCPs relative to each other, so it plays no part).
+
+    draws_sigma (m,) m adds each draw's isotropic Gaussian error (table
+    theor_accuracy_measure_all); None gives the error of the zero-offsets alone (table
+    theor_accuracy_measure). rng draws the Gaussian error.
+    """
+    reference = ForwardKinematics(chain, q).points(marker, np.asarray(reference_offsets, dtype=float))
+    tcps = probable_tcps(chain, q, marker, draws_offsets, draws_sigma, rng)
+    return np.linalg.norm(tcps - reference, axis=-1).ravel()
+
+
+def joint_space_bounds(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) joint limits (N,) rad, with -pi / +pi where a limit is infinite."""
+    lower = np.where(np.isfinite(chain.lower), chain.lower, -np.pi)
+    upper = np.where(np.isfinite(chain.upper), chain.upper, np.pi)
+    return lower, upper
+
+
+def random_configurations(chain: KinematicChain, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n configurations (n, N) rad drawn uniformly within the joint limits (+-pi for an
+    unlimited joint): the paper's random configurations across the full joint space."""
+    lower, upper = joint_space_bounds(chain)
+    return rng.uniform(lower, upper, (n, chain.n_joints))
+
+
+def registered_distances(model_points, reference_points) -> np.ndarray:
+    """Distances (m, n) m between model points (n, 3) or (m, n, 3) and m sets of reference points
+    (m, n, 3) after the least-squares rigid motion of the model's points onto each set (Kabsch,
+    batched): the error a sensor registered over these n points would see."""
+    reference = np.asarray(reference_points, dtype=float)
+    model = np.broadcast_to(np.asarray(model_points, dtype=float), reference.shape)
+    centre_m, centre_r = model.mean(axis=1, keepdims=True), reference.mean(axis=1, keepdims=True)
+    a, b = model - centre_m, reference - centre_r
+    u, _, vt = np.linalg.svd(np.einsum("mni,mnj->mij", a, b))
+    v, ut = np.swapaxes(vt, 1, 2), np.swapaxes(u, 1, 2)
+    flip = np.ones((len(reference), 3))
+    flip[:, 2] = np.sign(np.linalg.det(v @ ut))  # a rotation, never a reflection
+    rotation = v @ (flip[:, :, None] * ut)
+    return np.linalg.norm(np.einsum("mij,mnj->mni", rotation, a) - b, axis=-1)

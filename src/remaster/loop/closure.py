@@ -1,0 +1,75 @@
+"""Is the loop closed? What is left against what the sensor's noise and the robot's repeatability explain.
+
+The noise floor (m, per axis) is what no model of the robot can remove: the sensor's stated noise
+(campaign.yaml `noise`) and, where the campaign measures one configuration more than once, the
+spread of those repeats (sensor noise and the robot's repeatability together; pooled within-
+configuration standard deviation per axis). It is the larger of the two that are known.
+
+After each round of the loop the residual is measured by its pose-grouped cross-validated RMS per
+axis on the optimization set (held-out poses: an in-sample residual would flatter a larger
+model). The loop is closed when that RMS is at most `ratio` times the floor; otherwise
+sqrt(RMS^2 - floor^2) per axis is the structured residual left. Each step's share is the part
+of the structured residual (mean square above the floor) it removed: an effect that removes a
+small share is not what the residual was.
+
+SI inside (m); the report's numbers are in mm.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..units import MM
+
+CLOSURE_RATIO = 1.2
+MAIN_CAUSE_SHARE = 0.5  # an effect that removes less than this share of the structured residual is not "the cause"
+SAME_READING = 1e-9     # rad: rows whose readings agree to this are one configuration measured again
+
+
+def repeatability(q, measured) -> tuple[float | None, int]:
+    """Pooled within-configuration std per axis (m) of measured positions (n, 3) at readings
+    q (n, N), and how many configurations were repeated; (None, 0) without repeats."""
+    q, measured = np.asarray(q, dtype=float), np.asarray(measured, dtype=float)
+    _, group, counts = np.unique(np.round(q / SAME_READING), axis=0, return_inverse=True, return_counts=True)
+    group = group.ravel()
+    repeated = counts[group] > 1
+    if not repeated.any():
+        return None, 0
+    g, x = group[repeated], measured[repeated]
+    sums = np.zeros((counts.size, 3))
+    np.add.at(sums, g, x)
+    centred = x - (sums / counts[:, None])[g]
+    dof = 3 * (int(repeated.sum()) - int(np.sum(counts > 1)))
+    return math.sqrt(float(np.sum(centred**2)) / dof), int(np.sum(counts > 1))
+
+
+def noise_floor(stated: float | None, repeats: float | None) -> float | None:
+    """The larger of the stated noise and the repeats' spread that are known (m), else None."""
+    known = [v for v in (stated, repeats) if v is not None]
+    return max(known) if known else None
+
+
+def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> dict:
+    """Closed or not, the structured residual left per axis (mm) and the sentence the report shows."""
+    if floor is None:
+        return {"closed": None, "structured_mm": None, "rms_per_axis_mm": rms_per_axis / MM,
+                "text": "unknown: the campaign states no sensor noise and repeats no configuration"}
+    structured = math.sqrt(max(rms_per_axis**2 - floor**2, 0.0))
+    closed = rms_per_axis <= ratio * floor
+    text = ("closed: the residual is at the sensor's noise" if closed else
+            f"not closed: {structured / MM:.3g} mm of structured residual left per axis "
+            f"({rms_per_axis / floor:.1f} x the noise floor)")
+    return {"closed": bool(closed), "structured_mm": structured / MM, "rms_per_axis_mm": rms_per_axis / MM,
+            "ratio_to_floor": rms_per_axis / floor, "text": text}
+
+
+def share(before: float, after: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> float | None:
+    """The share of the structured residual (mean square per axis above the floor) a step removed;
+    before and after are RMS per axis (m). None when the loop was already closed before the step
+    (no structured residual was left to share)."""
+    if floor is not None and before <= ratio * floor:
+        return None
+    excess = before**2 - (floor or 0.0) ** 2
+    return float((before**2 - after**2) / excess)

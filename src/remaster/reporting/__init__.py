@@ -1,0 +1,2 @@
+"""Reporting: tables (Markdown, LaTeX, CSV), figures and the self-contained HTML report, from
+result files only."""

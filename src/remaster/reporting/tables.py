@@ -1,0 +1,180 @@
+"""The paper's tables, built from results (never typed by hand), and their text forms.
+
+Each table is a DataFrame whose first column labels the rows; numbers are in the units a
+person reads (mm, deg), with the unit in the column or row label. `to_markdown` and `to_latex`
+render any such table; `remaster.io.write_table` writes CSV, Markdown and LaTeX side by side.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from ..inference.model import SIGMA, by_parameter, display_value
+from ..labels import paper_order, sensor_label
+
+CAPTIONS = {
+    "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
+    "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
+    "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
+    "zero_offset_histograms": "Posterior of the zero-offsets (default sampler)",
+    "relative_accuracy": "Relative Cartesian accuracy (eq. dist_equation) before (Vernier) and after (Bayesian) "
+                         "remastering, optimization set.",
+    "post_registration_accuracy": "Post-registration absolute position error (eq. post_reg_accuracy) before and "
+                                  "after remastering, optimization set.",
+    "theoretical_accuracy_optimization_configs": "Theoretical absolute position error from the uncertainty of the "
+                                                 "zero-offsets, unmodeled effects and noise, at the optimization "
+                                                 "configurations. Loop-closed: the loop-closed model's posterior (all its parameters and sigma) "
+                                                 "propagated the same way.",
+    "theoretical_accuracy_random_configs": "Theoretical absolute position error from the uncertainty of the "
+                                           "zero-offsets, unmodeled effects and noise, at random configurations "
+                                           "across the joint space. Loop-closed: its posterior propagated the same way. In every row the "
+                                           "parameters no data can see (joint 1's zero-offset, link lengths the "
+                                           "registration absorbs) are held: robot-frame errors up to a rotation "
+                                           "about base Z; see the workspace table for the claims with them.",
+    "theoretical_accuracy_zero_offsets_only": "Theoretical absolute position error from the uncertainty of the "
+                                              "zero-offsets alone, at random configurations (Loop-closed: every "
+                                              "parameter of its effects, without the noise term).",
+    "workspace_accuracy": "Where each calibration holds: claimed error (mm) of the paper's and the loop-closed model "
+                          "at the measured configurations and at random configurations across the joint limits, "
+                          "propagated from the loop-closed posterior (every draw of its parameters under their "
+                          "priors, with its noise); registration fitted over the configurations, or in the robot "
+                          "frame with held zero-offsets drawn from the controller marks' tolerance. Holds: "
+                          "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
+    "workspace_warnings": "What the report warns about each calibration: workspace-wide error against the measured "
+                          "configurations, parameters the data barely moved from their prior, and what the next "
+                          "campaign should add.",
+    "validation_accuracy": "Accuracy on the validation set with the optimization set's parameters.",
+    "sensor_comparison": "The sensors side by side: estimates, differences in units of their combined "
+                         "uncertainty, and accuracy.",
+    "tcp_scatter": "TCPs of one configuration: Vernier (red), MLE (green), probable (yellow), probable with the "
+                   "Gaussian error (blue), X-Y, mm from the MLE TCP",
+    "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
+    "residuals": "Residuals after remastering against configuration and distance from the base",
+    "loop_closure": "Loop closure: what zero-offset remastering leaves, and what is left after the effects the "
+                    "optimization set supports are added (posterior under the extension priors; the validation "
+                    "set, read only here, with the optimization fit's parameters).",
+    "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
+                       "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
+                       "gain for reference, and the share of the residual it explains, per round; for a laser "
+                       "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
+                       "noise, or why it was not offered).",
+    "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
+                          "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
+                          "and the loop-closed model; held joints get none.",
+    "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
+                        "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "
+                        "campaign given as a DH table, the calibrated DH tables.",
+    "loop_closure_test": "Is the loop closed? After each step, the pose-grouped cross-validated RMS per axis on the "
+                         "optimization set against the noise floor (the sensor's stated noise, or the spread of "
+                         "repeated configurations), the share of the structured residual (above the floor) the step "
+                         "removed, and the joints what is left depends on (residual GP relevance).",
+    "loop_residual_joints": "What the parametric effects leave, in the robot frame, against the joint the residual "
+                            "GP finds most relevant",
+    "loop_signatures": "The residual against each candidate effect's signature, first round",
+    "loop_residuals": "Post-registration errors before and after the loop closure",
+    "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg; std from the "
+                              "pose-clustered sandwich, which includes what the model lacks)",
+    "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
+                               "sensor kind, in units of their combined uncertainty (pose-clustered sandwich "
+                               "stds, which include what the model lacks); flagged where significant.",
+    "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty "
+                        "(pose-clustered sandwich stds).",
+    "loop_parameters_over_time": "Loop closure over time: the zero-offsets refitted with the effects the loop "
+                                 "closure added, and those effects' parameters, per campaign and sensor (display "
+                                 "units in column unit).",
+    "loop_parameter_drift": "Drift of the loop-closure parameters between consecutive campaigns of the same robot "
+                            "and sensor kind, in units of their combined uncertainty; flagged where significant.",
+    "loop_parameter_agreement": "Agreement of the sensors of each campaign on the loop-closure parameters (each "
+                                "sensor's own marker offset and scale left out).",
+    "loop_effects_over_time": "Parameters of the effects the loop closure added, over time",
+}
+HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
+
+
+def _cell(value, digits: int) -> str:
+    if isinstance(value, str):
+        return value
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if isinstance(value, (int, np.integer)):
+        return str(value)
+    return f"{value:.{digits}f}"
+
+
+def to_markdown(table: pd.DataFrame, digits: int = 3) -> str:
+    """A GitHub-style Markdown table."""
+    header = "| " + " | ".join(str(c) for c in table.columns) + " |"
+    rule = "|" + "|".join("---" for _ in table.columns) + "|"
+    rows = ["| " + " | ".join(_cell(v, digits) for v in row) + " |" for row in table.itertuples(index=False)]
+    return "\n".join([header, rule, *rows]) + "\n"
+
+
+def _latex_escape(text: str) -> str:
+    for plain, escaped in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#")):
+        text = text.replace(plain, escaped)
+    return text
+
+
+def to_latex(table: pd.DataFrame, caption: str, label: str, digits: int = 3) -> str:
+    """A LaTeX table environment with a tabular of every column."""
+    columns = "|" + "|".join("c" for _ in table.columns) + "|"
+    lines = [r"\begin{table}", r"\centering", rf"\caption{{{_latex_escape(caption)}}}", rf"\label{{tab:{label}}}",
+             rf"\begin{{tabular}}{{{columns}}}", r"\hline",
+             " & ".join(_latex_escape(str(c)) for c in table.columns) + r" \\", r"\hline"]
+    for row in table.itertuples(index=False):
+        lines.append(" & ".join(_latex_escape(_cell(v, digits)) for v in row) + r" \\")
+    lines += [r"\hline", r"\end{tabular}", r"\end{table}"]
+    return "\n".join(lines) + "\n"
+
+
+def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Table MLE_zero_offsets: per joint, each sensor's MLE (posterior mean) and std in deg.
+
+    summaries: sensor -> `fit.posterior_summary` table (SI). A parameter held because the data
+    cannot determine it is marked 'held' instead of given a number.
+    """
+    summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
+    names = [n for n in next(iter(summaries.values())).index if n.startswith("zero_offsets.")]
+    rows = []
+    for name in sorted(names, key=lambda n: int(n.rsplit("q", 1)[1])):
+        row = {"Zero-Offset": "dtheta" + name.rsplit("q", 1)[1]}
+        for sensor, summary in summaries.items():
+            label = sensor_label(sensor)
+            held = summary.loc[name, "status"] != "estimated"
+            row[f"{label} MLE (deg)"] = HELD if held else display_value(name, summary.loc[name, "mean"])
+            row[f"{label} Std (deg)"] = HELD if held else display_value(name, summary.loc[name, "std"])
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+REGISTRATION_ROWS = (("registration.x", "x (mm)"), ("registration.y", "y (mm)"), ("registration.z", "z (mm)"),
+                     (SIGMA, "sigma (mm)"), ("registration.alpha", "alpha (deg)"),
+                     ("registration.beta", "beta (deg)"), ("registration.gamma", "gamma (deg)"))
+
+
+def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
+    """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
+    the paper's row order; with `fits` (sensor -> `fit.laplace_report`), three more rows: points
+    fitted, points without a measurement and points flagged as gross errors (both left out)."""
+    summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
+    rows = []
+    for name, label in REGISTRATION_ROWS:
+        row = {"Parameter": label}
+        for sensor, summary in summaries.items():
+            sensor_name = sensor_label(sensor)
+            row[f"{sensor_name} MLE"] = display_value(name, summary.loc[name, "mean"])
+            row[f"{sensor_name} Std"] = display_value(name, summary.loc[name, "std"])
+        rows.append(row)
+    counts = (("points fitted", lambda f: f["points_fitted"]),
+              ("points not seen (left out)", lambda f: len(f["excluded_rows_marker_not_seen"])),
+              ("points flagged as outliers (left out)", lambda f: len(f["excluded_rows_outliers"])))
+    for label, count in counts if fits else ():
+        row = {"Parameter": label}
+        for sensor in summaries:
+            row[f"{sensor_label(sensor)} MLE"] = str(int(count(fits[sensor])))  # a count, not a measurement
+            row[f"{sensor_label(sensor)} Std"] = ""
+        rows.append(row)
+    return pd.DataFrame(rows)

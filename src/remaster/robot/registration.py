@@ -1,0 +1,111 @@
+"""Rigid registration of a sensor frame N to the robot frame R from corresponding points.
+
+Two methods: the paper's three-point construction (a frame built on three non-collinear
+points measured in both frames, after Marvel et al. 2016) and a least-squares fit over all
+points (Kabsch/Horn). Both return T_NR (4, 4), mapping robot-frame points into the sensor frame:
+p_N = T_NR p_R.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import spatial
+from ..errors import InputError
+
+# Below this triangle height (m) three points are treated as collinear: the frame they span
+# would amplify millimetre noise into degrees.
+MIN_SPREAD = 1e-3
+
+
+def _checked(points, name: str, minimum: int) -> np.ndarray:
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"expected an (n, 3) array of points, got shape {p.shape}", key=name)
+    bad = np.flatnonzero(~np.all(np.isfinite(p), axis=1))
+    if bad.size:
+        raise InputError("non-finite point coordinates", key=name, rows=bad)
+    if len(p) < minimum:
+        raise InputError(f"registration needs at least {minimum} points, got {len(p)}", key=name)
+    return p
+
+
+def _frame_on(points: np.ndarray) -> np.ndarray:
+    """Right-handed frame with origin at points[0], x towards points[1], z normal to the plane."""
+    x = points[1] - points[0]
+    x /= np.linalg.norm(x)
+    z = np.cross(x, points[2] - points[0])
+    z /= np.linalg.norm(z)
+    return spatial.homogeneous(np.column_stack([x, np.cross(z, x), z]), points[0])
+
+
+def triangle_height(points) -> float:
+    """Smallest height (m) of the triangle of three points: 0 when collinear."""
+    p = np.asarray(points, dtype=float)
+    area2 = np.linalg.norm(np.cross(p[1] - p[0], p[2] - p[0]))
+    longest = max(np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[2] - p[0]), np.linalg.norm(p[2] - p[1]))
+    return 0.0 if longest == 0 else float(area2 / longest)
+
+
+def three_point(points_robot, points_sensor) -> np.ndarray:
+    """T_NR from exactly three non-collinear corresponding points (3, 3) in R and in N.
+
+    More than three points are refused rather than silently cut to the first three (use
+    `spread_out_triple` to choose three, or `kabsch` to use them all)."""
+    robot = _checked(points_robot, "points_robot", 3)
+    sensor = _checked(points_sensor, "points_sensor", 3)
+    for name, p in (("points_robot", robot), ("points_sensor", sensor)):
+        if len(p) != 3:
+            raise InputError(f"the three-point registration takes exactly 3 points, got {len(p)} (choose three with "
+                             f"spread_out_triple, or use kabsch for all of them)", key=name)
+    for name, p in (("points_robot", robot), ("points_sensor", sensor)):
+        if triangle_height(p) < MIN_SPREAD:
+            raise InputError(f"the three registration points are (nearly) collinear: triangle height "
+                             f"{triangle_height(p) * 1e3:.3f} mm < {MIN_SPREAD * 1e3:.1f} mm", key=name)
+    return _frame_on(sensor) @ spatial.invert(_frame_on(robot))
+
+
+def kabsch(points_robot, points_sensor, weights=None) -> np.ndarray:
+    """Least-squares T_NR over n >= 3 corresponding points (n, 3), optionally weighted (n,)."""
+    robot = _checked(points_robot, "points_robot", 3)
+    sensor = _checked(points_sensor, "points_sensor", 3)
+    if robot.shape != sensor.shape:
+        raise InputError(f"{len(robot)} robot points but {len(sensor)} sensor points", key="points_sensor")
+    w = np.ones(len(robot)) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (len(robot),):
+        raise InputError(f"expected {len(robot)} weights, one per point, got shape {w.shape}", key="weights")
+    bad = np.flatnonzero(~np.isfinite(w) | (w < 0))
+    if bad.size:
+        raise InputError("weights must be finite and not negative", key="weights", rows=bad)
+    if not w.sum() > 0:
+        raise InputError("every weight is zero", key="weights")
+    w = w / w.sum()
+    centre_r, centre_s = w @ robot, w @ sensor
+    a, b = robot - centre_r, sensor - centre_s
+    _, singular, _ = np.linalg.svd(a, full_matrices=False)
+    if singular[1] < MIN_SPREAD * np.sqrt(len(robot)) * 1e-3:
+        raise InputError("the registration points are (nearly) collinear", key="points_robot")
+    u, _, vt = np.linalg.svd((a * w[:, None]).T @ b)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return spatial.homogeneous(rotation, centre_s - rotation @ centre_r)
+
+
+def spread_out_triple(points) -> np.ndarray:
+    """Indices (3,) of three points far apart: the two farthest apart, then the point farthest
+    from the line through them. Deterministic; rows with non-finite coordinates are skipped."""
+    p = np.asarray(points, dtype=float)
+    usable = np.flatnonzero(np.all(np.isfinite(p), axis=1))
+    if usable.size < 3:
+        raise InputError(f"registration needs three measured points, found {usable.size}", key="x, y, z")
+    q = p[usable]
+    distances = np.linalg.norm(q[:, None] - q[None], axis=-1)
+    i, j = np.unravel_index(np.argmax(distances), distances.shape)
+    direction = (q[j] - q[i]) / max(distances[i, j], 1e-300)
+    offsets = q - q[i]
+    from_line = np.linalg.norm(offsets - (offsets @ direction)[:, None] * direction, axis=1)
+    k = int(np.argmax(from_line))
+    triple = usable[[min(i, j), max(i, j), k]]
+    if triangle_height(p[triple]) < MIN_SPREAD:
+        raise InputError("every measured point lies on one line: no frame can be registered", key="x, y, z")
+    return triple
