@@ -299,13 +299,18 @@ def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dic
     return flat.reset_index()
 
 
+def moments(samples: pd.DataFrame) -> pd.DataFrame:
+    """Per column of posterior samples (draws, parameters): mean, std (ddof 1) and the 95 %
+    interval q2.5, q97.5, in the samples' units; one row per parameter. The one summary of
+    samples that the paper's fit and the loop closure's refit share."""
+    return pd.DataFrame({"mean": samples.mean(), "std": samples.std(ddof=1),
+                         "q2.5": samples.quantile(0.025), "q97.5": samples.quantile(0.975)})
+
+
 def posterior_summary(frame: pd.DataFrame, laplace: dict) -> pd.DataFrame:
     """Per parameter: MLE (the posterior mean, as in the paper), std and 95 % interval in SI and
     in display units (mm, deg), and its status; held parameters appear with status 'held'."""
-    names = list(laplace["names"]) + [SIGMA]
-    values = frame[names]
-    summary = pd.DataFrame({"mean": values.mean(), "std": values.std(ddof=1),
-                            "q2.5": values.quantile(0.025), "q97.5": values.quantile(0.975)})
+    summary = moments(frame[list(laplace["names"]) + [SIGMA]])
     summary["status"] = "estimated"
     for name, value in laplace["identifiability"]["held_at_controller_value"].items():
         summary.loc[name] = [value, np.nan, np.nan, np.nan, "held: not identifiable"]

@@ -384,9 +384,8 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
     model = fitted.model
     names = list(model.names) + [SIGMA]
     if samples is not None:
-        values = samples[names]
-        mean, std = values.mean().to_numpy(), values.std(ddof=1).to_numpy()
-        low, high = values.quantile(0.025).to_numpy(), values.quantile(0.975).to_numpy()
+        summary = fit.moments(samples[names])
+        mean, std, low, high = (summary[c].to_numpy() for c in ("mean", "std", "q2.5", "q97.5"))
         source = "MCMC (independence Metropolis)"
     else:
         mean = np.append(fitted.theta, fitted.mode.sigma)
