@@ -21,7 +21,7 @@ from remaster.robot import kinematics
 from remaster.units import DEG, MM
 
 from .conftest import REPO
-from .test_workspace import fitted, paper_summary
+from .test_workspace import fitted, laplace_content, paper_summary
 
 MARKER = np.array([0.0, 0.0, 0.08])
 EFFECTS = ("joint_compliance", "marker_offset", "link_geometry")
@@ -295,7 +295,7 @@ def twin_results(tmp_path_factory):
     root = tmp_path_factory.mktemp("results")
     folder = root / "kuka-twin" / "laser_tracker"
     io.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker"))
-    io.write_json(folder / "fit" / "laplace.json", laplace)
+    io.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
     io.write_csv(folder / "fit" / "summary.csv", paper_summary(laplace))
     io.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
     io.write_json(folder / "loop_closure.json", report)

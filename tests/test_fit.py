@@ -12,6 +12,7 @@ from remaster import io
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.diagnostics import SamplerDisagreement
+from remaster.errors import InputError
 from remaster.inference import fit
 
 from .conftest import REPO
@@ -41,7 +42,7 @@ def simulated_sensor(chain, rng, n=80, noise=5e-5, missing=()):
 def fitted(chain, sensor, methods=("default",), seed=0):
     registration = fit.register(chain, sensor)
     model, analysis, excluded = fit.build_model(chain, sensor, registration.t_nr)
-    laplace = fit.laplace_report(fit.laplace_fit(model), analysis, excluded)
+    laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
     samples, reports = {}, {}
     for method in methods:
         chains = fit.sample(model, laplace, method, FAST[method], np.random.default_rng(seed))
@@ -74,8 +75,8 @@ def test_samplers_agree_and_unseen_points_are_excluded(iiwa):
     rng = np.random.default_rng(5)
     sensor, _ = simulated_sensor(iiwa, rng, missing=(3, 17))
     laplace, samples, reports = fitted(iiwa, sensor, methods=("default", "emcee", "paper"))
-    assert laplace["excluded_rows_marker_not_seen"] == [3, 17]
-    assert laplace["identifiability"]["held_at_controller_value"] == {"zero_offsets.q1": 0.0}
+    assert laplace.marker_not_seen_rows == (3, 17)
+    assert laplace.held == {"zero_offsets.q1": 0.0}
     table = fit.cross_check(samples, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100)
     assert {"z_default", "z_emcee", "z_laplace", "z_paper"} <= set(table.columns)
     assert table["checked_emcee"].all() and table["checked_laplace"].all()
@@ -93,8 +94,8 @@ def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):
     laplace, samples, _ = fitted(iiwa, sensor)
     sigma = samples["default"]["noise.sigma"]
     assert sigma.mean() == pytest.approx(3e-5, rel=0.15)
-    assert laplace["sigma_mean"] == pytest.approx(sigma.mean(), rel=0.03)
-    assert laplace["sigma_std"] == pytest.approx(sigma.std(), rel=0.25)
+    assert laplace.sigma_mean == pytest.approx(sigma.mean(), rel=0.03)
+    assert laplace.sigma_std == pytest.approx(sigma.std(), rel=0.25)
 
 
 def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
@@ -166,3 +167,25 @@ def test_gross_error_is_flagged_listed_and_left_out(iiwa):
     std = np.array(report["std"][6:])
     assert np.all(np.abs(offsets - truth[1:]) < 4 * std)  # the fit without the glitch is unbiased
     assert report["sigma_map"] < 3e-4
+
+
+def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tmp_path):
+    """The later stages read laplace.json as a typed `LaplaceReport`: a complete report comes back
+    exactly, and a key that is not there is named with its file."""
+    sensor, _ = simulated_sensor(iiwa, rng, missing=(4,))
+    model, analysis, excluded = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
+    content = fit.laplace_report(fit.laplace_fit(model), analysis, excluded, (7, 2), model)
+    path = tmp_path / "laplace.json"
+    io.write_json(path, content)
+    report = io.read_laplace(path)
+    assert report.names == model.names and report.parameters == model.all_names
+    assert np.array_equal(report.covariance, content["covariance"]) and report.sigma_map == content["sigma_map"]
+    assert report.held == {"zero_offsets.q1": 0.0} and report.null_directions
+    assert report.outlier_rows == (7, 2) and report.marker_not_seen_rows == (4,)
+    assert report.points_fitted == model.n_points
+    start, covariance = report.start()
+    assert np.array_equal(start[:-1], content["theta_map"]) and covariance[-1, -1] == content["sigma_std"] ** 2
+    del content["identifiability"]["held_at_controller_value"]
+    io.write_json(path, content)
+    with pytest.raises(InputError, match=r"laplace.json: identifiability/held_at_controller_value: missing"):
+        io.read_laplace(path)

@@ -25,6 +25,7 @@ SEED = 20181113
 DRAWS, RANDOM = 400, 300  # fewer than the pipeline's 2000 x 1000: the quantiles are stable to ~1 %
 CONFIG = io.read_yaml(REPO / "config.yaml")
 _fitted = {}
+_laplace_content = {}
 
 
 # --------------------------------------------------------------------------- pieces
@@ -82,12 +83,12 @@ def true_points(campaign, sensor: str, q) -> np.ndarray:
     return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q)
 
 
-def paper_summary(laplace: dict) -> pd.DataFrame:
+def paper_summary(laplace: fit.LaplaceReport) -> pd.DataFrame:
     """The paper's model at its Laplace mode (its posterior mean up to the MCMC's error)."""
-    held = laplace["identifiability"]["held_at_controller_value"]
-    return pd.DataFrame({"parameter": list(laplace["names"]) + list(held),
-                         "mean": list(laplace["theta_map"]) + list(held.values()),
-                         "status": ["estimated"] * len(laplace["names"]) + ["held: not identifiable"] * len(held)})
+    held = laplace.held
+    return pd.DataFrame({"parameter": list(laplace.names) + list(held),
+                         "mean": list(laplace.theta_map) + list(held.values()),
+                         "status": ["estimated"] * len(laplace.names) + ["held: not identifiable"] * len(held)})
 
 
 def fitted(name: str, sensor: str, tmp_path_factory):
@@ -97,7 +98,8 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         campaign = io.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
         config = CONFIG
         registration_report = fit.registration_stage(campaign, sensor)
-        laplace = fit.laplace_stage(campaign, sensor, registration_report, config["outliers"]["alpha"])
+        _laplace_content[key] = fit.laplace_stage(campaign, sensor, registration_report, config["outliers"]["alpha"])
+        laplace = fit.LaplaceReport.of(_laplace_content[key])
         settings = loop_closure.settings_from(config["loop_closure"], config["priors"],
                                                           config["fit"]["cross_check"])
         result = loop_closure.loop_closure_stage(campaign, sensor, registration_report, laplace,
@@ -106,6 +108,11 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         io.write_json(path, result.report)
         _fitted[key] = (campaign, laplace, io.read_json(path), result.samples)
     return _fitted[key]
+
+
+def laplace_content(name: str, sensor: str) -> dict:
+    """The Laplace report of `fitted(name, sensor, ...)` as laplace.json holds it."""
+    return _laplace_content[(name, sensor)]
 
 
 def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.WorkspaceAccuracy, object, dict]:
@@ -171,10 +178,10 @@ def cubes_calibration(priors) -> prediction.Calibration:
     campaign, laplace, report, _ = fitted("kuka-cubes", "laser_tracker", None)
     effects = tuple(report["effects_added"])
     sensor, settings = campaign.sensors["laser_tracker"], loop_closure.LoopSettings()
-    data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace["excluded_rows_outliers"])
+    data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registration_report = fit.registration_stage(campaign, "laser_tracker")
     model, _ = blocks.extended_model(campaign.chain, data, sensor.marker, np.array(registration_report["T_NR"]),
-                                     effects, laplace["identifiability"]["held_at_controller_value"], priors)
+                                     effects, laplace.held, priors)
     theta = evidence.posterior_mode(model).theta if priors is not None else flat_fit(model)
     return prediction.Calibration("loop", {**model.fixed, **model.values(theta)}, effects, settings.model)
 

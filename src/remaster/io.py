@@ -148,6 +148,14 @@ def read_json(path: str | Path) -> Any:
         raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
 
 
+def read_laplace(path: str | Path):
+    """The Laplace report of a fit (`inference.fit.LaplaceReport`); InputError naming the file and
+    the key when one is missing."""
+    from .inference.fit import LaplaceReport
+
+    return LaplaceReport.of(read_json(path), source=str(path))
+
+
 def write_table(stem: str | Path, table: pd.DataFrame, caption: str, label: str) -> list[Path]:
     """Write a table as <stem>.csv, <stem>.md and <stem>.tex (see `remaster.reporting.tables`)."""
     from .reporting import tables
@@ -507,5 +515,5 @@ def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> 
     if not folder.is_dir():
         raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
                          "folder it wrote", file=str(folder))
-    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet}
-    return {key: readers[Path(name).suffix](folder / name) for key, name in SENSOR_RESULTS.items()}
+    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": read_laplace}
+    return {key: readers.get(key, readers[Path(name).suffix])(folder / name) for key, name in SENSOR_RESULTS.items()}

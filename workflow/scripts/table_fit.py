@@ -9,7 +9,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     kind = snakemake.params.kind  # noqa: F821
     summaries = {s: io.read_csv(p) for s, p in zip(snakemake.params.sensors, snakemake.input.summaries)}  # noqa: F821
     if kind == "registration_params":  # it also says how many points each fit used and left out
-        fits = {s: io.read_json(p) for s, p in zip(snakemake.params.sensors, snakemake.input.laplace)}  # noqa: F821
+        fits = {s: io.read_laplace(p) for s, p in zip(snakemake.params.sensors, snakemake.input.laplace)}  # noqa: F821
         table = tables.registration_params_table(summaries, fits)
     else:
         table = tables.zero_offsets_table(summaries)

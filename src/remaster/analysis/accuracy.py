@@ -28,7 +28,7 @@ validation points with the zero-offsets fixed (Kabsch again): a moved sensor wou
 removes any registration error from the validation number. Relative accuracy needs no registration.
 
 Rows whose marker was not seen, and optimization rows the fit flagged as gross errors (the
-Laplace report's "excluded_rows_outliers", when present), are left out of the measured metrics
+Laplace report's outlier rows), are left out of the measured metrics
 (the Vernier registration included), counted and listed. The theoretical metrics use every
 optimization configuration: the joint readings are valid either way.
 Everything inside is SI; the returned tables are in mm (columns say _mm).
@@ -45,6 +45,7 @@ import pandas as pd
 from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..inference import metrics
+from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA, by_parameter, correction_transforms, display_scale, display_unit, parameter_names
 from ..labels import paper_order, sensor_label
 from ..robot import registration
@@ -107,13 +108,13 @@ def vernier(chain: KinematicChain, q, measured, marker) -> Remastered:
     return controller.registered_to(chain, q, measured, marker)
 
 
-def parameter_table(samples: pd.DataFrame, laplace: dict, n_joints: int) -> pd.DataFrame:
+def parameter_table(samples: pd.DataFrame, laplace: LaplaceReport, n_joints: int) -> pd.DataFrame:
     """Every model parameter (6 registration + N zero-offsets) and noise.sigma per posterior
     sample, SI: free ones from the samples, held ones at their held value."""
-    names = list(laplace["identifiability"]["parameters"])
+    names = list(laplace.parameters)
     if names != list(parameter_names(n_joints)):
         raise ValueError(f"the fit's parameters {names} are not those of a {n_joints}-joint robot")
-    held = laplace["identifiability"]["held_at_controller_value"]
+    held = laplace.held
     columns = {name: (np.full(len(samples), float(held[name])) if name in held else samples[name].to_numpy(float))
                for name in names + [SIGMA]}
     return pd.DataFrame(columns)
@@ -213,7 +214,7 @@ def _configuration_errors(chain: KinematicChain, data: SetData, robot: Remastere
 # --------------------------------------------------------------------------- the stage
 
 
-def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: dict, laplace: dict,
+def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: dict, laplace: LaplaceReport,
                     samples: pd.DataFrame, rng: np.random.Generator, n_draws: int = 2000,
                     n_random: int = 1000) -> dict:
     """Every accuracy metric of one sensor, Vernier and Bayesian (see the module docstring).
@@ -241,7 +242,7 @@ def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: d
     t_nr = np.asarray(registration_report["T_NR"], dtype=float)
     parameters = parameter_table(samples, laplace, chain.n_joints)
     mle = parameters.mean()
-    optimization = SetData.of(sensor, "optimization", laplace.get("excluded_rows_outliers", ()))
+    optimization = SetData.of(sensor, "optimization", laplace.outlier_rows)
     validation = SetData.of(sensor, "validation")
     used = optimization.usable
     robots = {"Vernier": vernier(chain, optimization.q[used], optimization.positions[used], marker),
@@ -283,7 +284,7 @@ def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: d
         "posterior_samples": int(len(parameters)), "draws": int(n_draws), "draws_with_replacement": replace_draws,
         "random_configurations": int(n_random),
         "random_configuration_bounds_rad": [b.tolist() for b in metrics.joint_space_bounds(chain)],
-        "held_parameters": dict(laplace["identifiability"]["held_at_controller_value"]),
+        "held_parameters": dict(laplace.held),
         "vernier": "controller zero-offsets; registration refit by least squares (Kabsch) with zero-offsets 0 "
                    "on the optimization set's used points (seen, not flagged)",
         "bayesian": "posterior means of the free parameters, held parameters at their held value, with the "
@@ -335,11 +336,11 @@ def tcp_scatter(chain: KinematicChain, data: SetData, marker, robots: dict[str, 
     return pd.concat(frames, ignore_index=True)[["kind", "x_mm", "y_mm", "z_mm"]]
 
 
-def _parameters_used(robots: dict[str, Remastered], mle: pd.Series, t_nr, laplace: dict,
+def _parameters_used(robots: dict[str, Remastered], mle: pd.Series, t_nr, laplace: LaplaceReport,
                      vernier_errors) -> pd.DataFrame:
     """Per parameter the value each method used, display units (mm, deg). Vernier's sigma is the
     ML estimate sqrt(sum ||E_i||^2 / 3n) of its residuals."""
-    held = laplace["identifiability"]["held_at_controller_value"]
+    held = laplace.held
     vernier_every = np.concatenate([registration_parameters(robots["Vernier"].sensor_from_robot, t_nr),
                                     robots["Vernier"].zero_offsets,
                                     [np.sqrt(np.mean(np.square(vernier_errors)) / 3.0)]])

@@ -226,9 +226,9 @@ def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mappi
         calibration = loop_calibration(loop, results["loop_samples"], label)
         setup = _setup_values(pd.DataFrame(loop["refit"]["parameters"]))
         samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.get("residual_gp"))
-    identifiability = results["laplace"]["identifiability"]
-    held = {n: float(v) for n, v in identifiability["held_at_controller_value"].items() if n.startswith("zero_offsets.")}
-    absorbed = frozenset(n for direction in identifiability.get("null_directions", [])
+    laplace = results["laplace"]
+    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
+    absorbed = frozenset(n for direction in laplace.null_directions
                          if any(k.startswith("registration.") for k in direction) for n in direction if n in held)
     tolerance = float(loop["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
     marker = campaign.sensors[sensor].marker

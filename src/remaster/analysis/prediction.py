@@ -41,6 +41,7 @@ from ..campaigns.campaign import Campaign, SensorData
 from ..errors import InputError
 from ..inference import metrics
 from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters, link_errors
+from ..inference.fit import LaplaceReport
 from ..robot.gravity import gravity_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
 from ..units import MM
@@ -203,18 +204,18 @@ class Calibrated(NamedTuple):
         return self.sensor.kind
 
 
-def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: Mapping,
+def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: LaplaceReport,
                loop: Mapping | None = None, paper_samples: pd.DataFrame | None = None,
                loop_samples: pd.DataFrame | None = None) -> Calibrated:
     """A campaign's sensor with its three calibrations, from its fit summary (summary.csv), Laplace
-    report (its excluded_rows_outliers) and loop_closure.json content (no loop model without it)."""
+    report (its outlier rows) and loop_closure.json content (no loop model without it)."""
     label = f"{campaign.name}/{sensor}"
     if sensor not in campaign.sensors:
         raise InputError(f"no sensor {sensor!r} in the campaign", file=campaign.name, key="sensors")
     models = {"nominal": Calibration("nominal"), "paper": paper_calibration(summary, paper_samples, label)}
     if loop is not None:
         models["loop"] = loop_calibration(loop, loop_samples, label)
-    excluded = tuple(int(r) for r in laplace.get("excluded_rows_outliers", ()))
+    excluded = laplace.outlier_rows
     return Calibrated(campaign.name, campaign.date.isoformat(), comparison.robot_identity(campaign),
                       campaign.sensors[sensor], campaign.chain, models, excluded)
 
@@ -342,12 +343,12 @@ def _without_marker_offset(entry: Calibrated) -> Calibrated:
 
 
 def calibrated_entries(campaigns: Mapping[str, Campaign], summaries: Mapping[tuple[str, str], pd.DataFrame],
-                       laplaces: Mapping[tuple[str, str], Mapping],
+                       laplaces: Mapping[tuple[str, str], LaplaceReport],
                        loops: Mapping[tuple[str, str], Mapping] | None = None,
                        paper_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
                        loop_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None) -> list[Calibrated]:
     """`calibrated` for every (campaign, sensor) of `summaries`: campaigns {name: Campaign}, the
-    others {(campaign, sensor): content of its summary.csv, laplace.json, loop_closure.json,
+    others {(campaign, sensor): its summary.csv, Laplace report (`io.read_laplace`), loop_closure.json,
     samples_default.parquet, loop_closure/samples.parquet} (loops and samples optional)."""
     loops, paper_samples, loop_samples = loops or {}, paper_samples or {}, loop_samples or {}
     out = []

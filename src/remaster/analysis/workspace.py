@@ -56,6 +56,7 @@ from ..campaigns.campaign import SensorData
 from ..errors import InputError
 from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
+from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import DEG, MM
@@ -145,7 +146,7 @@ def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
 
 
 def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, paper_summary: pd.DataFrame,
-                       laplace: Mapping, loop_report: Mapping, loop_samples: pd.DataFrame,
+                       laplace: LaplaceReport, loop_report: Mapping, loop_samples: pd.DataFrame,
                        rng: np.random.Generator, n_draws: int = 2000, n_random: int = 1000, seed: int = 0,
                        label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
@@ -165,8 +166,7 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     rows = rng.choice(len(loop_samples), n_draws, replace=len(loop_samples) < n_draws)
     draws = [{**loop.values, **d} for d in loop.draws.iloc[rows].to_dict(orient="records")]
     sigma = loop_samples[SIGMA].to_numpy(float)[rows]
-    held = {n: float(v) for n, v in laplace["identifiability"]["held_at_controller_value"].items()
-            if n.startswith("zero_offsets.")}
+    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
     # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
     unseen = {n: loop.values[n] for n in loop_report.get("identifiability", {}).get("dropped", {}) if n in loop.values}
     tolerance = float(loop_report["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
@@ -22,6 +23,7 @@ import pandas as pd
 
 from .. import diagnostics, spatial
 from ..campaigns.campaign import Campaign, SensorData
+from ..errors import InputError
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
@@ -161,17 +163,68 @@ def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Ide
             "points_fitted": None if model is None else int(model.n_points)}
 
 
-def _laplace_start(report: dict) -> tuple[np.ndarray, np.ndarray]:
-    """(start (P,), full covariance (P, P)) of the Laplace fit, sigma last."""
-    theta = np.append(report["theta_map"], report["sigma_map"])
-    p = len(theta)
-    covariance = np.zeros((p, p))
-    covariance[:-1, :-1] = report["covariance"]
-    covariance[-1, -1] = report["sigma_std"] ** 2
-    return theta, covariance
+@dataclass(frozen=True, eq=False)
+class LaplaceReport:
+    """The paper model's Laplace fit of one sensor as the later stages read it (`laplace.json`,
+    written by `laplace_report`; read by `io.read_laplace`). names (P,) free parameters;
+    theta_map, std (P,) and covariance (P, P) SI; sigma_map, sigma_mean, sigma_std (m);
+    parameters: every parameter in order, held ones included; held: {name: value} held at the
+    controller's value; null_directions: the data's blind combinations ({name: weight} each);
+    outlier_rows and marker_not_seen_rows: table rows left out of the fit;
+    points_fitted (None when not recorded)."""
+
+    names: tuple[str, ...]
+    theta_map: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    sigma_map: float
+    sigma_mean: float
+    sigma_std: float
+    parameters: tuple[str, ...]
+    held: dict[str, float]
+    null_directions: tuple[dict[str, float], ...]
+    outlier_rows: tuple[int, ...]
+    marker_not_seen_rows: tuple[int, ...]
+    points_fitted: int | None
+
+    @classmethod
+    def of(cls, content: Mapping, source: str = "laplace.json") -> "LaplaceReport":
+        """From the JSON content; a missing key is an InputError naming the file and the key."""
+        def get(*keys):
+            value = content
+            for depth, key in enumerate(keys):
+                if not isinstance(value, Mapping) or key not in value:
+                    raise InputError("missing in the Laplace report", file=source, key="/".join(keys[: depth + 1]))
+                value = value[key]
+            return value
+
+        return cls(names=tuple(get("names")), theta_map=np.asarray(get("theta_map"), dtype=float),
+                   std=np.asarray(get("std"), dtype=float), covariance=np.asarray(get("covariance"), dtype=float),
+                   sigma_map=float(get("sigma_map")), sigma_mean=float(get("sigma_mean")),
+                   sigma_std=float(get("sigma_std")), parameters=tuple(get("identifiability", "parameters")),
+                   held={n: float(v) for n, v in get("identifiability", "held_at_controller_value").items()},
+                   null_directions=tuple(dict(d) for d in get("identifiability", "null_directions")),
+                   outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
+                   marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
+                   points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]))
+
+    def check_names(self, names) -> None:
+        """The fitted model's free parameters must be the report's: else the report belongs to
+        another model (another campaign, or the fit has changed since)."""
+        if tuple(names) != self.names:
+            raise ValueError(f"the Laplace fit's parameters {list(self.names)} are not the model's {list(names)}")
+
+    def start(self) -> tuple[np.ndarray, np.ndarray]:
+        """(start (P + 1,), covariance (P + 1, P + 1)) of the samplers: the MAP and its Laplace
+        covariance, sigma last (its std on the diagonal)."""
+        theta = np.append(self.theta_map, self.sigma_map)
+        covariance = np.zeros((len(theta), len(theta)))
+        covariance[:-1, :-1] = self.covariance
+        covariance[-1, -1] = self.sigma_std**2
+        return theta, covariance
 
 
-def sample(model: ZeroOffsetModel, laplace: dict, method: str, settings: dict, rng: np.random.Generator,
+def sample(model: ZeroOffsetModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator,
            progress=None) -> list[samplers.Chain]:
     """Chains of one method on the model's posterior.
 
@@ -181,7 +234,7 @@ def sample(model: ZeroOffsetModel, laplace: dict, method: str, settings: dict, r
     two halves for R-hat).
     """
     target = PosteriorTarget(model)
-    start, covariance = _laplace_start(laplace)
+    start, covariance = laplace.start()
     if method == "paper":
         paper_start = np.append(np.zeros(len(model.names)), 1e-3)
         return samplers.run_chains(samplers.metropolis_paper, target, rng, settings["chains"], paper_start,
@@ -265,7 +318,7 @@ def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool
     return diagnostics_report["max_rhat"] <= max_rhat and diagnostics_report["min_ess"] >= min_ess
 
 
-def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dict], laplace: dict,
+def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dict], laplace: LaplaceReport,
                 tolerance: float, max_rhat: float, min_ess: float, floor: float = 0.1) -> pd.DataFrame:
     """Every method's posterior mean and std per parameter and its disagreement with the default
     sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
@@ -280,12 +333,12 @@ def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dic
     (seen: 1 false alarm in a 50-campaign fleet at 0.05); a difference of 0.1 std in a posterior
     mean is far below what the posterior itself leaves uncertain.
     """
-    names = list(laplace["names"]) + [SIGMA]
+    names = list(laplace.names) + [SIGMA]
     results = {}
     for method in ("default",) + tuple(m for m in samples if m != "default"):
         results[method] = diagnostics.moments(chains_of(samples[method], names))
-    lap_mean = np.append(laplace["theta_map"], laplace["sigma_mean"])
-    lap_std = np.append(laplace["std"], laplace["sigma_std"])
+    lap_mean = np.append(laplace.theta_map, laplace.sigma_mean)
+    lap_std = np.append(laplace.std, laplace.sigma_std)
     results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
     table = diagnostics.cross_check(results, names, tolerance=None, reference="default", floor=floor)
     enforced = ["default", "laplace"] + [m for m in samples if m != "default" and
@@ -307,14 +360,14 @@ def moments(samples: pd.DataFrame) -> pd.DataFrame:
                          "q2.5": samples.quantile(0.025), "q97.5": samples.quantile(0.975)})
 
 
-def posterior_summary(frame: pd.DataFrame, laplace: dict) -> pd.DataFrame:
+def posterior_summary(frame: pd.DataFrame, laplace: LaplaceReport) -> pd.DataFrame:
     """Per parameter: MLE (the posterior mean, as in the paper), std and 95 % interval in SI and
     in display units (mm, deg), and its status; held parameters appear with status 'held'."""
-    summary = moments(frame[list(laplace["names"]) + [SIGMA]])
+    summary = moments(frame[list(laplace.names) + [SIGMA]])
     summary["status"] = "estimated"
-    for name, value in laplace["identifiability"]["held_at_controller_value"].items():
+    for name, value in laplace.held.items():
         summary.loc[name] = [value, np.nan, np.nan, np.nan, "held: not identifiable"]
-    summary = summary.loc[list(laplace["identifiability"]["parameters"]) + [SIGMA]]
+    summary = summary.loc[list(laplace.parameters) + [SIGMA]]
     scale = np.array([display_scale(n) for n in summary.index])
     for column in ("mean", "std", "q2.5", "q97.5"):
         summary[f"{column}_display"] = summary[column].astype(float) / scale
@@ -366,12 +419,11 @@ def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict, ou
     return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
 
 
-def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict, method: str,
+def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: LaplaceReport, method: str,
                    settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
-    model, _, _ = _model(campaign, sensor, registration_report, exclude=laplace["excluded_rows_outliers"])
-    if list(model.names) != list(laplace["names"]):
-        raise ValueError(f"the Laplace fit's parameters {laplace['names']} are not the model's {model.names}")
+    model, _, _ = _model(campaign, sensor, registration_report, exclude=laplace.outlier_rows)
+    laplace.check_names(model.names)
     started = time.perf_counter()
     chains = sample(model, laplace, method, settings, rng, progress)
     seconds = time.perf_counter() - started

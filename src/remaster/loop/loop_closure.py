@@ -598,7 +598,7 @@ def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
     return out
 
 
-def loop_closure_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: dict,
+def loop_closure_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: fit.LaplaceReport,
                        rng: np.random.Generator, settings: LoopSettings = LoopSettings()) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
     Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
@@ -606,8 +606,8 @@ def loop_closure_stage(campaign: Campaign, sensor: str, registration_report: dic
         settings = replace(settings, priors=priors_from(settings.priors_config, campaign.robot,
                                                         f"{campaign.name}/campaign.yaml"))
     result = close_loop(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
-                        laplace["identifiability"]["held_at_controller_value"], rng, settings,
-                        laplace.get("excluded_rows_outliers", ()))
+                        laplace.held, rng, settings,
+                        laplace.outlier_rows)
     result.report["campaign"] = campaign.name
     return result
 

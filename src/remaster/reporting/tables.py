@@ -157,7 +157,7 @@ REGISTRATION_ROWS = (("registration.x", "x (mm)"), ("registration.y", "y (mm)"),
 
 def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
-    the paper's row order; with `fits` (sensor -> `fit.laplace_report`), three more rows: points
+    the paper's row order; with `fits` (sensor -> `fit.LaplaceReport`), three more rows: points
     fitted, points without a measurement and points flagged as gross errors (both left out)."""
     summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
@@ -168,9 +168,9 @@ def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str
             row[f"{sensor_name} MLE"] = display_value(name, summary.loc[name, "mean"])
             row[f"{sensor_name} Std"] = display_value(name, summary.loc[name, "std"])
         rows.append(row)
-    counts = (("points fitted", lambda f: f["points_fitted"]),
-              ("points not seen (left out)", lambda f: len(f["excluded_rows_marker_not_seen"])),
-              ("points flagged as outliers (left out)", lambda f: len(f["excluded_rows_outliers"])))
+    counts = (("points fitted", lambda f: f.points_fitted),
+              ("points not seen (left out)", lambda f: len(f.marker_not_seen_rows)),
+              ("points flagged as outliers (left out)", lambda f: len(f.outlier_rows)))
     for label, count in counts if fits else ():
         row = {"Parameter": label}
         for sensor in summaries:
