@@ -294,7 +294,7 @@ def twin_results(tmp_path_factory):
     campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
     root = tmp_path_factory.mktemp("results")
     folder = root / "kuka-twin" / "laser_tracker"
-    io.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker"))
+    io.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker").report())
     io.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
     io.write_csv(folder / "fit" / "summary.csv", paper_summary(laplace))
     io.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())

@@ -189,3 +189,20 @@ def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tm
     io.write_json(path, content)
     with pytest.raises(InputError, match=r"laplace.json: identifiability/held_at_controller_value: missing"):
         io.read_laplace(path)
+
+
+def test_a_registration_report_comes_back_typed_and_a_missing_key_is_named(iiwa, rng, tmp_path):
+    """registration.json is read back as the `Registration` that wrote it (every later stage
+    takes its t_nr); a key that is not there is named with its file."""
+    sensor, _ = simulated_sensor(iiwa, rng)
+    registered = fit.register(iiwa, sensor)
+    path = tmp_path / "registration.json"
+    io.write_json(path, registered.report())
+    read = io.read_registration(path)
+    assert np.array_equal(read.t_nr, registered.t_nr) and np.array_equal(read.kabsch_t_nr, registered.kabsch_t_nr)
+    assert read.rows == registered.rows and read.three_point_rms == pytest.approx(registered.three_point_rms, rel=1e-12)
+    content = registered.report()
+    del content["T_NR"]
+    io.write_json(path, content)
+    with pytest.raises(InputError, match=r"registration.json: T_NR: missing in the registration report"):
+        io.read_registration(path)

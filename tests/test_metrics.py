@@ -140,7 +140,7 @@ def fitted_stage(campaign, seed=0, **sizes):
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
     laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
     samples = fit.samples_frame(fit.sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
-    out = accuracy.accuracy_tables(campaign, "laser_tracker", registration.report(), laplace, samples,
+    out = accuracy.accuracy_tables(campaign, "laser_tracker", registration, laplace, samples,
                                    np.random.default_rng(seed), **{"n_draws": 300, "n_random": 60, **sizes})
     return out, model, laplace, samples
 
@@ -192,7 +192,7 @@ def test_validation_rows_and_excluded_rows(stage):
 
 def test_rows_flagged_by_the_fit_are_left_out_and_listed(stage):
     campaign, _, model, laplace, samples = stage
-    flagged = accuracy.accuracy_tables(campaign, "laser_tracker", {"T_NR": model.t_nr.tolist()},
+    flagged = accuracy.accuracy_tables(campaign, "laser_tracker", fit.register(campaign.chain, campaign.sensors["laser_tracker"]),
                                        dataclasses.replace(laplace, outlier_rows=(9, 5)), samples,
                                        np.random.default_rng(0), n_draws=50, n_random=10)
     assert flagged["report"]["excluded_rows_outliers"] == {"optimization": [9], "validation": []}  # 5 is unseen

@@ -68,7 +68,7 @@ def noise_choice(campaign):
     registration = fit.registration_stage(campaign, "laser_tracker")
     data = blocks.readings(campaign.chain, sensor, "optimization")
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
-    selection = loop_closure.select(campaign.chain, data, sensor.marker, np.array(registration["T_NR"]),
+    selection = loop_closure.select(campaign.chain, data, sensor.marker, registration.t_nr,
                                     {"zero_offsets.q1": 0.0}, poses, LoopSettings(candidates=(), residual_gp=None),
                                     tracker=True)
     return selection
@@ -108,7 +108,7 @@ def test_a_frame_that_cannot_be_the_trackers_is_said_so(tmp_path, iiwa):
     measured = campaign.sensors["laser_tracker"].positions()
     measured = measured[np.all(np.isfinite(measured), axis=1)]
     registration = fit.registration_stage(campaign, "laser_tracker")
-    assert noise.frame_problem(np.array(registration["T_NR"]), measured) is None
+    assert noise.frame_problem(registration.t_nr, measured) is None
     why = noise.frame_problem(np.eye(4), measured)
     assert "robot's base origin" in why and "not in the tracker's own frame" in why
 

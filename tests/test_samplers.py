@@ -346,6 +346,17 @@ def test_autocorrelation_time_of_ar1_and_ess():
     np.testing.assert_allclose(diagnostics.effective_sample_size(ensemble), 25_000 * 8 / 9.0, rtol=0.15)
 
 
+def test_autocorrelation_time_is_emcees_estimator_to_the_bit():
+    """remaster's own Sokal estimator (so that reading chains does not import emcee) gives
+    emcee's integrated_time exactly, for one chain and for an ensemble."""
+    import emcee
+
+    rng = np.random.default_rng(4)
+    for x in (ar1(rng, 0.9, 3_000, (1, 3)), ar1(rng, 0.5, 777, (16, 4)), ar1(rng, 0.0, 5, (2, 2))):
+        expected = emcee.autocorr.integrated_time(x, c=5, tol=0, quiet=True)
+        assert np.array_equal(diagnostics.autocorrelation(x, tol=0).tau, expected)
+
+
 def test_short_or_stuck_chains_are_flagged_not_raised():
     rng = np.random.default_rng(1)
     with warnings.catch_warnings():

@@ -97,12 +97,12 @@ def fitted(name: str, sensor: str, tmp_path_factory):
     if key not in _fitted:
         campaign = io.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
         config = CONFIG
-        registration_report = fit.registration_stage(campaign, sensor)
-        _laplace_content[key] = fit.laplace_stage(campaign, sensor, registration_report, config["outliers"]["alpha"])
+        registered = fit.registration_stage(campaign, sensor)
+        _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
         laplace = fit.LaplaceReport.of(_laplace_content[key])
         settings = loop_closure.settings_from(config["loop_closure"], config["priors"],
                                                           config["fit"]["cross_check"])
-        result = loop_closure.loop_closure_stage(campaign, sensor, registration_report, laplace,
+        result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace,
                                                  np.random.default_rng(SEED), settings)
         path = tmp_path_factory.mktemp("loop") / "loop_closure.json"
         io.write_json(path, result.report)
@@ -179,8 +179,8 @@ def cubes_calibration(priors) -> prediction.Calibration:
     effects = tuple(report["effects_added"])
     sensor, settings = campaign.sensors["laser_tracker"], loop_closure.LoopSettings()
     data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
-    registration_report = fit.registration_stage(campaign, "laser_tracker")
-    model, _ = blocks.extended_model(campaign.chain, data, sensor.marker, np.array(registration_report["T_NR"]),
+    registered = fit.registration_stage(campaign, "laser_tracker")
+    model, _ = blocks.extended_model(campaign.chain, data, sensor.marker, registered.t_nr,
                                      effects, laplace.held, priors)
     theta = evidence.posterior_mode(model).theta if priors is not None else flat_fit(model)
     return prediction.Calibration("loop", {**model.fixed, **model.values(theta)}, effects, settings.model)

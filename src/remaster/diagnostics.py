@@ -71,14 +71,34 @@ def autocorrelation(samples, tol: float = TAU_RELIABLE) -> Autocorrelation:
     n, w, p = x.shape
     if n < 4:
         return Autocorrelation(np.full(p, float(n)), np.zeros(p, bool), n, w)
-    import emcee
-
     with np.errstate(invalid="ignore", divide="ignore"):
-        # tol=0: emcee's own short-chain check (a warning) is replaced by the flag below.
-        tau = np.atleast_1d(emcee.autocorr.integrated_time(x, c=5, tol=0, quiet=True)).astype(float)
+        tau = _integrated_time(x, window_factor=5.0)
     stuck = ~np.isfinite(tau)
     tau[stuck] = n
     return Autocorrelation(tau, (tol * tau <= n) & ~stuck, n, w)
+
+
+def _integrated_time(x: np.ndarray, window_factor: float) -> np.ndarray:
+    """(P,) Sokal's windowed estimate of tau for x (n, W, P): the walkers' normalised
+    autocorrelation functions (by FFT, zero-padded past twice the next power of two) averaged,
+    tau(M) = 1 + 2 sum_{t=1..M} rho(t), at the smallest window M >= window_factor tau(M) (the
+    last lag when none is). The same estimator as emcee.autocorr.integrated_time, written here
+    so that a job reading chains does not import emcee (and with it scipy.stats)."""
+    n, w, p = x.shape
+    size = 1 << max(n - 1, 0).bit_length()  # the next power of two >= n
+    tau = np.empty(p)
+    for d in range(p):
+        rho = np.zeros(n)
+        for k in range(w):  # summed walker by walker, in order: the same floating-point sums as emcee
+            series = x[:, k, d]
+            f = np.fft.fft(series - np.mean(series), n=2 * size)
+            acf = np.fft.ifft(f * np.conjugate(f))[:n].real
+            rho += acf / acf[0]
+        rho /= w
+        taus = 2.0 * np.cumsum(rho) - 1.0
+        short = np.arange(n) < window_factor * taus
+        tau[d] = taus[np.argmin(short) if short.any() else n - 1]
+    return tau
 
 
 def integrated_autocorr_time(samples) -> np.ndarray:

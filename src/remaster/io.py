@@ -156,6 +156,14 @@ def read_laplace(path: str | Path):
     return LaplaceReport.of(read_json(path), source=str(path))
 
 
+def read_registration(path: str | Path):
+    """The initial registration of a sensor (`inference.fit.Registration`); InputError naming the
+    file and the key when one is missing."""
+    from .inference.fit import Registration
+
+    return Registration.of(read_json(path), source=str(path))
+
+
 def write_table(stem: str | Path, table: pd.DataFrame, caption: str, label: str) -> list[Path]:
     """Write a table as <stem>.csv, <stem>.md and <stem>.tex (see `remaster.reporting.tables`)."""
     from .reporting import tables
@@ -515,5 +523,6 @@ def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> 
     if not folder.is_dir():
         raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
                          "folder it wrote", file=str(folder))
-    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": read_laplace}
+    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": read_laplace,
+               "registration": read_registration}
     return {key: readers.get(key, readers[Path(name).suffix])(folder / name) for key, name in SENSOR_RESULTS.items()}

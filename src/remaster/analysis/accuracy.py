@@ -45,7 +45,7 @@ import pandas as pd
 from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..inference import metrics
-from ..inference.fit import LaplaceReport
+from ..inference.fit import LaplaceReport, Registration
 from ..inference.model import SIGMA, by_parameter, correction_transforms, display_scale, display_unit, parameter_names
 from ..labels import paper_order, sensor_label
 from ..robot import registration
@@ -214,12 +214,12 @@ def _configuration_errors(chain: KinematicChain, data: SetData, robot: Remastere
 # --------------------------------------------------------------------------- the stage
 
 
-def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: dict, laplace: LaplaceReport,
+def accuracy_tables(campaign: Campaign, sensor_name: str, registration: Registration, laplace: LaplaceReport,
                     samples: pd.DataFrame, rng: np.random.Generator, n_draws: int = 2000,
                     n_random: int = 1000) -> dict:
     """Every accuracy metric of one sensor, Vernier and Bayesian (see the module docstring).
 
-    registration_report: `fit.Registration.report()` (its "T_NR"); laplace: `fit.laplace_report`;
+    registration: `fit.Registration` (its t_nr); laplace: `fit.LaplaceReport`;
     samples: `fit.samples_frame` (SI). rng draws the posterior rows, the random configurations and
     the Gaussian errors, in that order. Returns:
 
@@ -239,7 +239,7 @@ def accuracy_tables(campaign: Campaign, sensor_name: str, registration_report: d
     """
     chain, sensor = campaign.chain, campaign.sensors[sensor_name]
     marker = sensor.marker
-    t_nr = np.asarray(registration_report["T_NR"], dtype=float)
+    t_nr = registration.t_nr
     parameters = parameter_table(samples, laplace, chain.n_joints)
     mle = parameters.mean()
     optimization = SetData.of(sensor, "optimization", laplace.outlier_rows)

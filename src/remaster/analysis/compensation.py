@@ -234,7 +234,7 @@ def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mappi
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)
     return CalibratedRobot(campaign.chain, calibration, np.asarray(point, dtype=float), tcp is None, setup,
-                           np.asarray(results["registration"]["T_NR"], dtype=float),
+                           results["registration"].t_nr,
                            _posterior_rows(samples, calibration, setup, label), held, tolerance, gp, absorbed)
 
 

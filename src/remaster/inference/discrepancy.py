@@ -33,7 +33,7 @@ import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from . import metrics
-from .fit import LaplaceReport, build_model
+from .fit import LaplaceReport, Registration, build_model
 from .model import ZeroOffsetModel, by_parameter, display_scale
 
 SOURCE = "paper posterior mean; std from the pose-clustered sandwich covariance"
@@ -77,12 +77,12 @@ def discrepancy_summary(model: ZeroOffsetModel, theta, poses, summary: pd.DataFr
     return out.reset_index(), report
 
 
-def discrepancy_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: LaplaceReport,
+def discrepancy_stage(campaign: Campaign, sensor: str, registration: Registration, laplace: LaplaceReport,
                       summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
     """`discrepancy_summary` of one sensor of a campaign after its fit, at the Laplace fit's MAP
     (the model the fit had: its outliers left out)."""
     data = campaign.sensors[sensor]
-    model, _, _ = build_model(campaign.chain, data, np.array(registration_report["T_NR"]),
+    model, _, _ = build_model(campaign.chain, data, registration.t_nr,
                               exclude=laplace.outlier_rows)
     laplace.check_names(model.names)
     poses = data.table.loc[model.table_rows, "pose"].to_numpy()

@@ -33,6 +33,20 @@ from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
 log = logging.getLogger(__name__)
 
 
+def _reader(content: Mapping, source: str, message: str):
+    """get(*keys): the value at a path of nested keys of a stage's JSON report; InputError naming
+    the file and the path when a key is missing."""
+    def get(*keys):
+        value = content
+        for depth, key in enumerate(keys):
+            if not isinstance(value, Mapping) or key not in value:
+                raise InputError(message, file=source, key="/".join(keys[: depth + 1]))
+            value = value[key]
+        return value
+
+    return get
+
+
 @dataclass(frozen=True)
 class Registration:
     """Initial sensor <- robot transform and how it was obtained. Rows are 0-based rows of the
@@ -43,6 +57,15 @@ class Registration:
     kabsch_t_nr: np.ndarray
     three_point_rms: float
     kabsch_rms: float
+
+    @classmethod
+    def of(cls, content: Mapping, source: str = "registration.json") -> "Registration":
+        """From the JSON content of `report()`; a missing key is an InputError naming the file and the key."""
+        get = _reader(content, source, "missing in the registration report")
+        return cls(t_nr=np.asarray(get("T_NR"), dtype=float), rows=tuple(int(r) for r in get("rows")),
+                   kabsch_t_nr=np.asarray(get("kabsch_T_NR"), dtype=float),
+                   three_point_rms=float(get("three_point_rms_mm")) * 1e-3,
+                   kabsch_rms=float(get("kabsch_rms_mm")) * 1e-3)
 
     def report(self) -> dict:
         rotation_difference = self.t_nr[:3, :3].T @ self.kabsch_t_nr[:3, :3]
@@ -190,14 +213,7 @@ class LaplaceReport:
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> "LaplaceReport":
         """From the JSON content; a missing key is an InputError naming the file and the key."""
-        def get(*keys):
-            value = content
-            for depth, key in enumerate(keys):
-                if not isinstance(value, Mapping) or key not in value:
-                    raise InputError("missing in the Laplace report", file=source, key="/".join(keys[: depth + 1]))
-                value = value[key]
-            return value
-
+        get = _reader(content, source, "missing in the Laplace report")
         return cls(names=tuple(get("names")), theta_map=np.asarray(get("theta_map"), dtype=float),
                    std=np.asarray(get("std"), dtype=float), covariance=np.asarray(get("covariance"), dtype=float),
                    sigma_map=float(get("sigma_map")), sigma_mean=float(get("sigma_mean")),
@@ -397,32 +413,31 @@ def remastering(summary: pd.DataFrame, joint_names, campaign: str, sensor: str) 
 # --------------------------------------------------------------------------- workflow stages
 
 
-def registration_stage(campaign: Campaign, sensor: str) -> dict:
-    """The initial registration of one sensor, JSON-ready."""
-    return register(campaign.chain, campaign.sensors[sensor]).report()
+def registration_stage(campaign: Campaign, sensor: str) -> Registration:
+    """The initial registration of one sensor (`report()` is what registration.json holds)."""
+    return register(campaign.chain, campaign.sensors[sensor])
 
 
-def _model(campaign: Campaign, sensor: str, registration_report: dict, exclude=()):
-    return build_model(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
-                       exclude=exclude)
+def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=()):
+    return build_model(campaign.chain, campaign.sensors[sensor], registration.t_nr, exclude=exclude)
 
 
-def laplace_stage(campaign: Campaign, sensor: str, registration_report: dict, outlier_alpha: float) -> dict:
+def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outlier_alpha: float) -> dict:
     """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor,
     JSON-ready. Flagged outliers are left out of this and every later fit, and listed."""
-    model, _, _ = _model(campaign, sensor, registration_report)
+    model, _, _ = _model(campaign, sensor, registration)
     outliers = flag_outliers(model, outlier_alpha)
     if len(outliers):
         log.warning("%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers),
                     outliers.tolist())
-    model, analysis, excluded = _model(campaign, sensor, registration_report, exclude=outliers)
+    model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
     return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
 
 
-def sampling_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: LaplaceReport, method: str,
+def sampling_stage(campaign: Campaign, sensor: str, registration: Registration, laplace: LaplaceReport, method: str,
                    settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
-    model, _, _ = _model(campaign, sensor, registration_report, exclude=laplace.outlier_rows)
+    model, _, _ = _model(campaign, sensor, registration, exclude=laplace.outlier_rows)
     laplace.check_names(model.names)
     started = time.perf_counter()
     chains = sample(model, laplace, method, settings, rng, progress)

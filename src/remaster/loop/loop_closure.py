@@ -598,16 +598,15 @@ def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
     return out
 
 
-def loop_closure_stage(campaign: Campaign, sensor: str, registration_report: dict, laplace: fit.LaplaceReport,
+def loop_closure_stage(campaign: Campaign, sensor: str, registration: fit.Registration, laplace: fit.LaplaceReport,
                        rng: np.random.Generator, settings: LoopSettings = LoopSettings()) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
     Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
     if campaign.robot.get("priors"):
         settings = replace(settings, priors=priors_from(settings.priors_config, campaign.robot,
                                                         f"{campaign.name}/campaign.yaml"))
-    result = close_loop(campaign.chain, campaign.sensors[sensor], np.array(registration_report["T_NR"]),
-                        laplace.held, rng, settings,
-                        laplace.outlier_rows)
+    result = close_loop(campaign.chain, campaign.sensors[sensor], registration.t_nr, laplace.held, rng,
+                        settings, laplace.outlier_rows)
     result.report["campaign"] = campaign.name
     return result
 
