@@ -16,6 +16,7 @@ from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit, metrics
 from remaster.inference.model import ZeroOffsetModel, parameter_names
 from remaster.reporting import figures_accuracy
+from remaster.units import shown
 
 SMALL_FIT = {"chains": 2, "samples": 2000, "burn_in": 1000}
 
@@ -233,11 +234,11 @@ def test_tcp_scatter_and_paper_layout(stage):
     assert list(table["Remastering Method"]) == ["Vernier", "Vernier", "Bayesian", "Bayesian"]
     assert list(table["Reference Sensor"]) == ["Motion Capture", "Laser Tracker"] * 2
     low, high = out["relative_accuracy"].loc[0, ["q2.5_mm", "q97.5_mm"]]
-    assert table.loc[0, "95% Interval (mm)"] == f"[{low:.3f}, {high:.3f}]"
+    assert table.loc[0, "95% Interval (mm)"] == f"[{shown(low)}, {shown(high)}]"
     comparison = accuracy.paper_comparison("relative_accuracy", table)
     assert comparison.loc[0, "Paper Mean (mm)"] == 3.384  # tab:dist_accuracy_measure, Vernier, motion capture
     assert comparison.loc[0, "Mean difference (mm)"] == pytest.approx(table.loc[0, "Mean (mm)"] - 3.384)
-    assert comparison.loc[0, "97.5% difference (mm)"] == pytest.approx(round(high, 3) - 6.513)
+    assert comparison.loc[0, "97.5% difference (mm)"] == pytest.approx(float(shown(high)) - 6.513)
     validation = accuracy.paper_table({"laser_tracker": out["validation_accuracy"]})
     assert validation.columns[0] == "Metric" and len(validation) == 6
     compared = accuracy.paper_comparison("validation_accuracy", validation)

@@ -23,7 +23,7 @@ def test_page_embeds_tables_and_figures():
                                 "figures": {"zero_offset_trace_laser_tracker": PNG}}},
                         {"registration_params": "Registration", "zero_offset_trace": "Trace"})
     assert page.startswith("<!DOCTYPE html>") and "</html>" in page
-    assert "<caption>Registration</caption>" in page and "1.235" in page
+    assert "<caption>Registration</caption>" in page and "<td>1.23</td>" in page  # three significant digits: no std beside it
     assert "&lt;b&gt;" in page  # text is escaped, never injected
     assert "data:image/png;base64," + base64.b64encode(PNG).decode() in page
     assert "Trace (laser tracker)" in page
@@ -44,3 +44,45 @@ def test_a_file_column_is_a_column_of_links_beside_the_page():
     page = report.table_html("files", table)
     assert '<a href="demo/laser_tracker/calibrated/loop.urdf">demo/laser_tracker/calibrated/loop.urdf</a>' in page
     assert "a &lt;calibrated&gt; URDF" in page and page.count("<a href") == 1  # only the File column links
+
+
+def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):
+    """Two significant digits of a std, its value (and the quantiles beside it) to the same
+    decimal; counts as integers; numbers written as text (a column mixing numbers and 'held', as
+    read back from CSV) rounded the same way; the CSV keeps every digit."""
+    import math
+
+    from remaster import io
+    from remaster.reporting import tables
+
+    table = pd.DataFrame({
+        "Joint": ["j1", "j2", "j3"],
+        "Correction (deg)": [0.0, -0.18938243654688053, 12.3456],
+        "Std (deg)": [float("nan"), 0.008883956444893744, 1.04],
+        "2.5% (deg)": [float("nan"), -0.2068123, 10.2791],
+        "Laser Tracker MLE (deg)": ["held", "-0.1920376699042468", "0.5"],
+        "Laser Tracker Std (deg)": ["held", "0.008960076849942784", "0.25"],
+        "points": [173.0, 12.0, 3.0],
+        "z": [3.21234, -0.000123456, 1234.5678],
+    })
+    cells = tables.formatted(table)
+    assert cells[0] == ["j1", "0", "", "", "held", "held", "173", "3.21"]
+    assert cells[1] == ["j2", "-0.1894", "0.0089", "-0.2068", "-0.1920", "0.0090", "12", "-0.000123"]
+    assert cells[2] == ["j3", "12.3", "1.0", "10.3", "0.50", "0.25", "3", "1235"]
+    # every text form says the same
+    io.write_table(tmp_path / "t", table, "caption", "t")
+    markdown = (tmp_path / "t.md").read_text()
+    assert "| j2 | -0.1894 | 0.0089 | -0.2068 | -0.1920 | 0.0090 | 12 | -0.000123 |" in markdown
+    assert r"j2 & -0.1894 & 0.0089 & -0.2068 & -0.1920 & 0.0090 & 12 & -0.000123 \\" in (tmp_path / "t.tex").read_text()
+    assert "<td>-0.1894</td><td>0.0089</td>" in report.table_html("t", table)
+    back = io.read_csv(tmp_path / "t.csv")
+    assert back.loc[1, "Correction (deg)"] == -0.18938243654688053 and back.loc[2, "z"] == 1234.5678
+    assert math.isnan(back.loc[0, "Std (deg)"])
+
+
+def test_a_number_without_uncertainty_shows_three_significant_digits():
+    from remaster.units import shown
+
+    assert [shown(v) for v in (6.3138, 0.0102345, -1234.56, 173.0, 0.0, 2.5)] == [
+        "6.31", "0.0102", "-1235", "173", "0", "2.50"]
+    assert shown(float("nan")) == "nan"

@@ -171,7 +171,7 @@ def write_table(stem: str | Path, table: pd.DataFrame, caption: str, label: str)
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".csv"), stem.with_suffix(".md"), stem.with_suffix(".tex")]
-    table.to_csv(paths[0], index=False, float_format="%.6g", lineterminator="\n")
+    write_csv(paths[0], table)  # full precision: only the text forms are rounded
     paths[1].write_text(f"**{caption}**\n\n" + tables.to_markdown(table), encoding="utf-8", newline="\n")
     paths[2].write_text(tables.to_latex(table, caption, label), encoding="utf-8", newline="\n")
     return paths

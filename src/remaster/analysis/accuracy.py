@@ -48,6 +48,7 @@ from ..inference import metrics
 from ..inference.fit import LaplaceReport, Registration
 from ..inference.model import SIGMA, by_parameter, correction_transforms, display_scale, display_unit, parameter_names
 from ..labels import paper_order, sensor_label
+from ..units import shown
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 
@@ -388,8 +389,8 @@ _INTERVAL = re.compile(r"\[\s*([-+0-9.eE]+|nan),\s*([-+0-9.eE]+|nan)\s*\]")
 
 
 def format_interval(low: float, high: float, count: int) -> str:
-    """'[a, b]' with 3 decimals (mm), or EMPTY_INTERVAL when there is no value."""
-    return EMPTY_INTERVAL if count == 0 else f"[{low:.3f}, {high:.3f}]"
+    """'[a, b]' (mm, `units.shown`), or EMPTY_INTERVAL when there is no value."""
+    return EMPTY_INTERVAL if count == 0 else f"[{shown(low)}, {shown(high)}]"
 
 
 def paper_table(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:

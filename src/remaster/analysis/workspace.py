@@ -59,7 +59,7 @@ from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
 from ..robot.kinematics import ForwardKinematics, KinematicChain
-from ..units import DEG, MM
+from ..units import DEG, MM, shown
 from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
 
 LOOP_METHOD = "Loop-closed"
@@ -226,9 +226,9 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report, held, toleran
                         "ratio": workspace / measured if measured > 0 else np.inf,
                         "holds": "near the measured poses only" if near_only else "across the joint space"}
         if near_only:
-            warnings.append(f"{model} model: the workspace-wide error ({workspace:.3f} mm mean, registration fitted) "
+            warnings.append(f"{model} model: the workspace-wide error ({shown(workspace)} mm mean, registration fitted) "
                             f"is {workspace / measured:.1f} x the error at the measured configurations "
-                            f"({measured:.3f} mm): the calibration holds near the measured poses only"
+                            f"({shown(measured)} mm): the calibration holds near the measured poses only"
                             + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else ""))
     if dominated:
         warnings.append(f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "

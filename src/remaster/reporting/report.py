@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from .. import __version__
-from .tables import _cell
+from .tables import formatted
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
@@ -54,15 +54,16 @@ class Section:
 LINK_COLUMN = "File"  # a column of paths from the results folder (where the page is): shown as links
 
 
-def _td(column: str, value, digits: int) -> str:
-    text = html.escape(_cell(value, digits))
+def _td(column: str, cell: str) -> str:
+    text = html.escape(cell)
     return f'<td><a href="{text}">{text}</a></td>' if column == LINK_COLUMN else f"<td>{text}</td>"
 
 
-def table_html(caption: str, table: pd.DataFrame, digits: int = 3) -> str:
+def table_html(caption: str, table: pd.DataFrame) -> str:
+    """An HTML table, numbers rounded to their uncertainty (`tables.formatted`)."""
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in table.columns)
-    rows = "".join("<tr>" + "".join(_td(str(c), v, digits) for c, v in zip(table.columns, row)) + "</tr>"
-                   for row in table.itertuples(index=False))
+    rows = "".join("<tr>" + "".join(_td(str(c), cell) for c, cell in zip(table.columns, cells)) + "</tr>"
+                   for cells in formatted(table))
     return f"<table><caption>{html.escape(caption)}</caption><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>"
 
 

@@ -8,12 +8,14 @@ render any such table; `remaster.io.write_table` writes CSV, Markdown and LaTeX 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
 
 from ..inference.model import SIGMA, by_parameter, display_value
 from ..labels import paper_order, sensor_label
+from ..units import shown
 
 CAPTIONS = {
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
@@ -94,21 +96,93 @@ CAPTIONS = {
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
 
 
-def _cell(value, digits: int) -> str:
-    if isinstance(value, str):
-        return value
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return ""
-    if isinstance(value, (int, np.integer)):
-        return str(value)
-    return f"{value:.{digits}f}"
+# --------------------------------------------------------------------------- numbers as a person reads them
+
+_STD = re.compile(r"(?i)(?<![a-z])std(?![a-z])")
+# what a std column is the uncertainty of: its name with "std" replaced by one of these
+_VALUE_WORDS = ("MLE", "mean", "estimate", "Correction", "value")
+_QUANTILE = re.compile(r"^(q?\d+(\.\d+)?%?)(?=[ _(]|$)")
 
 
-def to_markdown(table: pd.DataFrame, digits: int = 3) -> str:
-    """A GitHub-style Markdown table."""
+def _missing(value) -> bool:
+    return value is None or (isinstance(value, (float, np.floating)) and math.isnan(value))
+
+
+def _decimals_of_std(std) -> int | None:
+    """Decimals that show two significant digits of an uncertainty; None when there is none."""
+    if isinstance(std, str) or _missing(std) or not np.isfinite(std) or std <= 0:
+        return None
+    return max(0, 1 - math.floor(math.log10(float(std))))
+
+
+def _uncertainty_columns(columns) -> dict[str, str]:
+    """{value or quantile column: its std column} by name: "X Std (deg)" holds the uncertainty of
+    "X MLE (deg)", "std_a_deg" of "mean_a_deg", "Std (deg)" of "Correction (deg)" and of the
+    quantiles "2.5% (deg)" beside it; a ratio ("difference / combined std") is no std."""
+    names = [str(c) for c in columns]
+    lowered = {n.lower(): n for n in names}
+    out = {}
+    for std in names:
+        if not _STD.search(std) or "/" in std:
+            continue
+        partners = [std.replace("combined_std", "diff").replace("combined std", "difference")]
+        partners += [_STD.sub(word, std) for word in _VALUE_WORDS]
+        for partner in partners:
+            if partner.lower() in lowered and lowered[partner.lower()] != std:
+                out[lowered[partner.lower()]] = std
+        unit = std[_STD.search(std).end():]  # e.g. " (deg)" or "_deg"
+        for name in names:
+            match = _QUANTILE.match(name)
+            if match and name[match.end():] == unit:
+                out.setdefault(name, std)
+    return out
+
+
+def _number(value):
+    """value as a float when it is one (a number, or a number written as text in a column that
+    mixes numbers and words, e.g. read back from CSV); else None."""
+    if isinstance(value, (bool, np.bool_)) or value is None:
+        return None
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value)
+    if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
+        return float(value)
+    return None
+
+
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def formatted(table: pd.DataFrame) -> list[list[str]]:
+    """Every cell of a table as text, rounded to what its uncertainty supports (the one
+    formatting rule of the Markdown, LaTeX and HTML tables; CSV and Parquet keep full precision):
+    an uncertainty (a std column) to two significant digits, the value it belongs to (and the
+    quantiles beside it) to the same decimal; a whole number as an integer; any other number as
+    `units.shown` (three significant digits); text as it is, a missing value as an empty cell."""
+    columns = [str(c) for c in table.columns]
+    partners = _uncertainty_columns(columns)
+    position = {c: i for i, c in enumerate(columns)}
+    rows = []
+    for row in table.itertuples(index=False):
+        cells = []
+        for column, value in zip(columns, row):
+            number = _number(value)
+            if number is None or math.isnan(number):
+                cells.append("" if _missing(value) or number is not None else str(value))
+                continue
+            std = number if _STD.search(column) and "/" not in column else (
+                _number(row[position[partners[column]]]) if column in partners else None)
+            decimals = _decimals_of_std(std)
+            cells.append(shown(number) if decimals is None else f"{number:.{decimals}f}")
+        rows.append(cells)
+    return rows
+
+
+def to_markdown(table: pd.DataFrame) -> str:
+    """A GitHub-style Markdown table (numbers as `formatted` gives them)."""
     header = "| " + " | ".join(str(c) for c in table.columns) + " |"
     rule = "|" + "|".join("---" for _ in table.columns) + "|"
-    rows = ["| " + " | ".join(_cell(v, digits) for v in row) + " |" for row in table.itertuples(index=False)]
+    rows = ["| " + " | ".join(cells) + " |" for cells in formatted(table)]
     return "\n".join([header, rule, *rows]) + "\n"
 
 
@@ -118,14 +192,13 @@ def _latex_escape(text: str) -> str:
     return text
 
 
-def to_latex(table: pd.DataFrame, caption: str, label: str, digits: int = 3) -> str:
-    """A LaTeX table environment with a tabular of every column."""
+def to_latex(table: pd.DataFrame, caption: str, label: str) -> str:
+    """A LaTeX table environment with a tabular of every column (numbers as `formatted` gives them)."""
     columns = "|" + "|".join("c" for _ in table.columns) + "|"
     lines = [r"\begin{table}", r"\centering", rf"\caption{{{_latex_escape(caption)}}}", rf"\label{{tab:{label}}}",
              rf"\begin{{tabular}}{{{columns}}}", r"\hline",
              " & ".join(_latex_escape(str(c)) for c in table.columns) + r" \\", r"\hline"]
-    for row in table.itertuples(index=False):
-        lines.append(" & ".join(_latex_escape(_cell(v, digits)) for v in row) + r" \\")
+    lines += [" & ".join(_latex_escape(cell) for cell in cells) + r" \\" for cells in formatted(table)]
     lines += [r"\hline", r"\end{tabular}", r"\end{table}"]
     return "\n".join(lines) + "\n"
 
