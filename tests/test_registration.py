@@ -51,3 +51,37 @@ def test_spread_out_triple_picks_far_apart_points(rng):
     points[[7, 21, 40]] = [[1, 0, 0], [-1, 0, 0], [0, 1, 0]]
     points[3] = np.nan  # an unseen marker is skipped, not chosen
     assert sorted(registration.spread_out_triple(points)) == [7, 21, 40]
+
+
+def _all_pairs_farthest(q):
+    distances = np.linalg.norm(q[:, None] - q[None], axis=-1)
+    return tuple(int(k) for k in np.unravel_index(np.argmax(distances), distances.shape))
+
+
+@pytest.mark.parametrize("shape", ["cloud", "grid with ties and duplicates", "plane", "line", "one point"])
+def test_the_farthest_pair_from_the_hull_is_the_all_pairs_answer(rng, shape):
+    """Above ALL_PAIRS_UP_TO points the farthest pair is sought among the hull's vertices: the
+    same pair as among all pairs, the first one on ties, in every degenerate shape."""
+    n = registration.ALL_PAIRS_UP_TO + 500
+    q = {"cloud": lambda: rng.normal(size=(n, 3)),
+         "grid with ties and duplicates": lambda: np.round(rng.uniform(0, 4, (n, 3))),
+         "plane": lambda: np.column_stack([rng.normal(size=(n, 2)), np.full(n, 0.3)]) @ spatial.rot_z(0.4).T,
+         "line": lambda: np.outer(rng.normal(size=n), [1.0, 2.0, 3.0]),
+         "one point": lambda: np.ones((n, 3))}[shape]()
+    assert registration.farthest_pair(q) == _all_pairs_farthest(q)
+
+
+def test_the_spread_out_triple_of_100k_points_needs_no_pairwise_table(rng):
+    """100,000 points (an all-pairs table would take 240 GB): a few MB."""
+    import tracemalloc
+
+    points = rng.normal(size=(100_000, 3))
+    tracemalloc.start()
+    triple = registration.spread_out_triple(points)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 100e6
+    i, j = registration.farthest_pair(points)
+    hull_distance = np.linalg.norm(points[i] - points[j])
+    assert np.all(np.linalg.norm(points - points[i], axis=1) <= hull_distance)  # nothing is farther from i
+    assert tuple(triple[:2]) == (i, j)

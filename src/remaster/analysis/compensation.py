@@ -413,8 +413,10 @@ def _why_not(solution: Solution, rows, chain: KinematicChain, what: str) -> dict
 def _seeds(targets_nominal, candidates, chain: KinematicChain, point) -> np.ndarray:
     """Per target, the candidate configuration (rows of candidates) whose nominal point is nearest."""
     points = ForwardKinematics(chain, candidates).points(point)
-    distance = np.linalg.norm(targets_nominal[:, None, :] - points[None, :, :], axis=-1)
-    return candidates[np.argmin(distance, axis=1)]
+    block = max(1, 2**20 // len(points))  # targets per block: memory bounded whatever the campaign's size
+    nearest = [np.argmin(np.linalg.norm(targets_nominal[start:start + block, None, :] - points[None], axis=-1), axis=1)
+               for start in range(0, len(targets_nominal), block)]
+    return candidates[np.concatenate(nearest)] if nearest else candidates[:0]
 
 
 def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Generator, *, commands=None,

@@ -91,6 +91,59 @@ def kabsch(points_robot, points_sensor, weights=None) -> np.ndarray:
     return spatial.homogeneous(rotation, centre_s - rotation @ centre_r)
 
 
+# Up to this many points the farthest pair is found among all pairs (n^2 / 2 distances, 25 MB at
+# this size); beyond, among the convex hull's vertices only, with the same answer.
+ALL_PAIRS_UP_TO = 1024
+_PAIRS_PER_BLOCK = 2**20  # distances held at once by the blocked search
+
+
+def _first_farthest(q: np.ndarray, candidates: np.ndarray) -> tuple[int, int]:
+    """(i, j), i < j, of the candidates (sorted indices of q) farthest apart, the first such pair
+    in (i, j) order on ties; blocked so memory stays at _PAIRS_PER_BLOCK distances."""
+    points = q[candidates]
+    best, pair = -1.0, (0, 0)
+    block = max(1, _PAIRS_PER_BLOCK // max(len(points), 1))
+    for start in range(0, len(points), block):
+        distances = np.linalg.norm(points[start:start + block, None] - points[None], axis=-1)
+        a, b = np.unravel_index(np.argmax(distances), distances.shape)
+        if distances[a, b] > best:  # strictly: an earlier block keeps a tie
+            best, pair = float(distances[a, b]), (start + int(a), int(b))
+    a, b = sorted(pair)
+    return int(candidates[a]), int(candidates[b])
+
+
+def _extreme_points(q: np.ndarray) -> np.ndarray:
+    """Sorted indices of q that include every extreme point of its convex hull (the vertices, by
+    qhull; points in a plane or on a line by their hull in that plane or line), and every point
+    at the same coordinates as one of them."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    centred = q - q.mean(axis=0)
+    _, singular, axes = np.linalg.svd(centred, full_matrices=False)
+    rank = int(np.sum(singular > singular[0] * 1e-12)) if singular[0] > 0 else 0
+    if rank == 0:  # every point at one place: all pairs are equally far, the first is (0, 0)
+        return np.arange(1)
+    if rank >= 2:
+        try:
+            vertices = ConvexHull(q if rank == 3 else centred @ axes[:2].T).vertices
+        except QhullError:  # nearly flat in a way the rank missed: the hull in the main plane
+            vertices = ConvexHull(centred @ axes[:2].T).vertices
+    else:
+        along = centred @ axes[0]
+        vertices = np.array([np.argmin(along), np.argmax(along)])
+    rows = np.ascontiguousarray(q).view(np.dtype((np.void, q.dtype.itemsize * 3))).ravel()
+    return np.flatnonzero(np.isin(rows, rows[vertices]))
+
+
+def farthest_pair(points) -> tuple[int, int]:
+    """(i, j), i < j: the two rows of points (n, 3) farthest apart, the first such pair in
+    (i, j) order when several are equally far. Memory and time grow as n (plus the hull's
+    vertices squared): the ends of a diameter are extreme points of the convex hull."""
+    q = np.asarray(points, dtype=float)
+    candidates = np.arange(len(q)) if len(q) <= ALL_PAIRS_UP_TO else _extreme_points(q)
+    return _first_farthest(q, candidates)
+
+
 def spread_out_triple(points) -> np.ndarray:
     """Indices (3,) of three points far apart: the two farthest apart, then the point farthest
     from the line through them. Deterministic; rows with non-finite coordinates are skipped."""
@@ -99,9 +152,8 @@ def spread_out_triple(points) -> np.ndarray:
     if usable.size < 3:
         raise InputError(f"registration needs three measured points, found {usable.size}", key="x, y, z")
     q = p[usable]
-    distances = np.linalg.norm(q[:, None] - q[None], axis=-1)
-    i, j = np.unravel_index(np.argmax(distances), distances.shape)
-    direction = (q[j] - q[i]) / max(distances[i, j], 1e-300)
+    i, j = farthest_pair(q)
+    direction = (q[j] - q[i]) / max(float(np.linalg.norm(q[j] - q[i])), 1e-300)
     offsets = q - q[i]
     from_line = np.linalg.norm(offsets - (offsets @ direction)[:, None] * direction, axis=1)
     k = int(np.argmax(from_line))
