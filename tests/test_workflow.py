@@ -180,3 +180,82 @@ def test_editing_the_robot_description_reruns_its_campaign_and_changes_its_audit
     dry = run(tmp_path, "-n", "--", target)
     assert dry.returncode == 0 and "campaign_summary" in dry.stdout and "iiwa.urdf" in dry.stdout
     assert before != after
+
+
+CHECK_SCRIPT = """<script>
+window.addEventListener('load', () => {
+  const broken = [...document.images].filter(i => !i.complete || i.naturalWidth === 0).length;
+  const empty = [...document.querySelectorAll('h2')].filter(h => {
+    let n = h.nextElementSibling, content = 0;
+    while (n && n.tagName !== 'H2') { if (n.matches('table, figure, details, p, ul')) content++; n = n.nextElementSibling; }
+    return content === 0;
+  }).length;
+  document.body.setAttribute('data-checked', `images=${document.images.length};broken=${broken};empty=${empty}`);
+});
+</script>"""
+
+
+def _report_structure(page: str):
+    """(section titles in order, PNG sizes (width, height) of every embedded image, sections with
+    nothing under their title), read with the standard library's HTML parser."""
+    import base64
+    import struct
+    from html.parser import HTMLParser
+
+    class Reader(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.titles, self.sizes, self.content, self._in_h2 = [], [], [], False
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "h2":
+                self._in_h2 = True
+                self.titles.append("")
+                self.content.append(0)
+            elif tag in ("table", "figure", "details", "p", "ul") and self.content:
+                self.content[-1] += 1
+            if tag == "img":
+                data = base64.b64decode(dict(attrs)["src"].split(",", 1)[1])
+                assert data[:8] == b"\x89PNG\r\n\x1a\n", "an embedded image is not a PNG"
+                self.sizes.append(struct.unpack(">II", data[16:24]))
+
+        def handle_endtag(self, tag):
+            self._in_h2 = self._in_h2 and tag != "h2"
+
+        def handle_data(self, data):
+            if self._in_h2:
+                self.titles[-1] += data
+
+    reader = Reader()
+    reader.feed(page)
+    return reader.titles, reader.sizes, [t for t, n in zip(reader.titles, reader.content) if n == 0]
+
+
+def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tmp_path):
+    """The page a metrologist opens: the overview of every campaign's verdict first, each campaign
+    then opens with its certificate (the long tables fold away), every image is a real PNG and no
+    section is empty; in headless Chromium (when the machine has it) every image renders."""
+    if not (tiny / "results" / "report.html").exists():
+        assert run(tiny).returncode == 0
+    page = (tiny / "results" / "report.html").read_text(encoding="utf-8")
+    titles, sizes, empty = _report_structure(page)
+    assert titles[:3] == ["Overview", "tiny", "tiny2"] and not empty
+    assert sizes and all(w > 100 and h > 100 for w, h in sizes)
+    overview = page[page.index("<h2 id='overview'>"):page.index("<h2 id='tiny'>")]
+    assert overview.count("<tr>") == 1 + 2 + 1  # header, tiny's two sensors, tiny2's one
+    tiny_section = page[page.index("<h2 id='tiny'>"):page.index("<h2 id='tiny2'>")]
+    assert tiny_section.index("Verdict per sensor") < tiny_section.index("<details>")
+    assert "serial" in tiny_section and "U(Correction) (deg)" in tiny_section
+    for name in ("tiny", "tiny2"):
+        certificate = (tiny / "results" / name / "certificate.md").read_text(encoding="utf-8")
+        assert certificate.startswith(f"# Calibration certificate: {name}") and "## Valid for, and warnings" in certificate
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("no Chromium on this machine: the page was checked without a browser")
+    checked = tmp_path / "report.html"
+    checked.write_text(page.replace("</body>", CHECK_SCRIPT + "</body>"), encoding="utf-8")
+    dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                          "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                          f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000", "--dump-dom",
+                          checked.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    assert f'data-checked="images={len(sizes)};broken=0;empty=0"' in dom

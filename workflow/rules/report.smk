@@ -9,13 +9,45 @@ REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", 
                   "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy"]
 
 
+CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections"]
+
+
+rule certificate:
+    input:
+        summary=rules.campaign_summary.output.summary,
+        laplace=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
+        errors=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/metrics/configuration_errors.csv"),
+        residuals=per_sensor(f"{LOOP}/residuals.parquet"),
+        claims=per_sensor(f"{LOOP}/workspace_accuracy.csv"),
+        workspace=per_sensor(f"{LOOP}/workspace.json"),
+        loop=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
+        offsets=per_sensor(f"{CALIBRATED}/controller_offsets.csv"),
+    output:
+        markdown=f"{RESULTS}/{{campaign}}/certificate.md",
+        record=f"{RESULTS}/{{campaign}}/certificate.json",
+        verdict=f"{TABLES}/certificate_verdict.csv",
+        accuracy=f"{TABLES}/certificate_accuracy.csv",
+        corrections=f"{TABLES}/certificate_corrections.csv",
+        text=multiext(f"{TABLES}/certificate_verdict", ".md", ".tex")
+        + multiext(f"{TABLES}/certificate_accuracy", ".md", ".tex")
+        + multiext(f"{TABLES}/certificate_corrections", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/certificate.log",
+    params:
+        sensors=lambda wc: sensors_of(wc.campaign),
+    script:
+        "../scripts/certificate.py"
+
+
 def report_layout():
     """campaign -> summary, table and figure files, in the order the report shows them."""
     layout = {}
     for c in CAMPAIGNS:
         layout[c] = {
             "summary": f"{RESULTS}/{c}/campaign/summary.json",
+            "certificate": f"{RESULTS}/{c}/certificate.json",
             "tables": {
+                **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in CERTIFICATE_TABLES},
                 **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in REPORT_TABLES},
                 **{f"{t}_vs_paper": f"{RESULTS}/{c}/tables/{t}_vs_paper.csv" for t in TABLE_NAMES
                    if c in config["paper_twins"]},
@@ -31,7 +63,8 @@ def report_layout():
 def audited_results(campaign):
     """Every final result of a campaign: its tables, figures, fits, metrics and remastering files."""
     part = report_layout()[campaign]
-    files = [part["summary"], *part["tables"].values(), *part["figures"].values()]
+    files = [part["summary"], part["certificate"], f"{RESULTS}/{campaign}/certificate.md", *part["tables"].values(),
+             *part["figures"].values()]
     files += [str(Path(t).with_suffix(e)) for t in part["tables"].values() for e in (".md", ".tex")]
     files += [str(Path(f).with_suffix(".pdf")) for f in part["figures"].values()]
     for s in sensors_of(campaign):
@@ -80,7 +113,8 @@ def prediction_layout():
 def report_files(wildcards=None):
     files = []
     for part in [*report_layout().values(), comparison_layout(), prediction_layout()]:
-        files += [*([part["summary"]] if "summary" in part else []), *part["tables"].values(), *part["figures"].values()]
+        files += [*(part[k] for k in ("summary", "certificate") if k in part), *part["tables"].values(),
+                  *part["figures"].values()]
     return files
 
 

@@ -8,7 +8,7 @@ from remaster.reporting import report, tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     campaigns = {
-        name: {"summary": io.read_json(part["summary"]),
+        name: {"summary": io.read_json(part["summary"]), "certificate": io.read_json(part["certificate"]),
                "tables": {t: io.read_csv(p) for t, p in part["tables"].items()},
                "figures": {f: Path(p).read_bytes() for f, p in part["figures"].items()}}
         for name, part in snakemake.params.layout.items()  # noqa: F821

@@ -521,6 +521,6 @@ def summarize(campaign: Campaign) -> dict[str, Any]:
                          "n_missing": sensor.n_missing, "extra_columns": extra}
     chain = campaign.chain
     return {"campaign": campaign.name, "date": campaign.date.isoformat(),
-            "robot": {"name": chain.name, "joints": list(chain.joint_names), "base": chain.base_frame,
-                      "flange": chain.flange_frame},
+            "robot": {"name": chain.name, "serial": campaign.robot.get("serial"), "joints": list(chain.joint_names),
+                      "base": chain.base_frame, "flange": chain.flange_frame},
             "sensors": sensors}

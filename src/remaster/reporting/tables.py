@@ -18,6 +18,16 @@ from ..labels import paper_order, sensor_label
 from ..units import shown
 
 CAPTIONS = {
+    "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
+                           "controller's zero-offsets) and after (the best model), its 95th percentile, what the "
+                           "loop-closed model claims across the joint space, whether the loop is closed against the "
+                           "sensor's noise, and where the calibration holds.",
+    "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
+                            "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
+                            "and as the posteriors claim it at the measured configurations and across the joint "
+                            "space (registration fitted, with the sensor's noise).",
+    "certificate_corrections": "Zero-offset corrections to add to the controller's zero (the paper's model), with "
+                               "their expanded uncertainty U (k = 2); held joints get none.",
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
     "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
     "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
@@ -102,6 +112,13 @@ _STD = re.compile(r"(?i)(?<![a-z])std(?![a-z])")
 # what a std column is the uncertainty of: its name with "std" replaced by one of these
 _VALUE_WORDS = ("MLE", "mean", "estimate", "Correction", "value")
 _QUANTILE = re.compile(r"^(q?\d+(\.\d+)?%?)(?=[ _(]|$)")
+# GUM notation: "u(mean) (mm)" is the standard, "U(mean) (mm)" the expanded uncertainty of "mean (mm)"
+_GUM = re.compile(r"^[uU]\((?P<of>[^)]+)\)(?P<rest>.*)$")
+
+
+def is_uncertainty(column: str) -> bool:
+    """Whether a column holds uncertainties (a std, or u(...) / U(...)), not a ratio to one."""
+    return bool(_GUM.match(column)) or (bool(_STD.search(column)) and "/" not in column)
 
 
 def _missing(value) -> bool:
@@ -118,11 +135,15 @@ def _decimals_of_std(std) -> int | None:
 def _uncertainty_columns(columns) -> dict[str, str]:
     """{value or quantile column: its std column} by name: "X Std (deg)" holds the uncertainty of
     "X MLE (deg)", "std_a_deg" of "mean_a_deg", "Std (deg)" of "Correction (deg)" and of the
-    quantiles "2.5% (deg)" beside it; a ratio ("difference / combined std") is no std."""
+    quantiles "2.5% (deg)" beside it, "U(mean) (mm)" of "mean (mm)"; a ratio ("difference /
+    combined std") is no std."""
     names = [str(c) for c in columns]
     lowered = {n.lower(): n for n in names}
     out = {}
     for std in names:
+        gum = _GUM.match(std)
+        if gum and gum["of"] + gum["rest"] in names:
+            out[gum["of"] + gum["rest"]] = std
         if not _STD.search(std) or "/" in std:
             continue
         partners = [std.replace("combined_std", "diff").replace("combined std", "difference")]
@@ -170,7 +191,7 @@ def formatted(table: pd.DataFrame) -> list[list[str]]:
             if number is None or math.isnan(number):
                 cells.append("" if _missing(value) or number is not None else str(value))
                 continue
-            std = number if _STD.search(column) and "/" not in column else (
+            std = number if is_uncertainty(column) else (
                 _number(row[position[partners[column]]]) if column in partners else None)
             decimals = _decimals_of_std(std)
             cells.append(shown(number) if decimals is None else f"{number:.{decimals}f}")

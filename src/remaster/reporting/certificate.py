@@ -1,0 +1,183 @@
+"""A calibration certificate per campaign: what a metrologist reads first.
+
+Per sensor: the points used, flagged and not seen; the error before and after, on the validation
+set (read only for this final before/after, never for a choice) and as the loop-closed model
+claims it across the joint space; the zero-offset corrections to type into the controller with
+their expanded uncertainty (k = 2); what the calibration is valid for and the warnings. Every
+number comes from the run's result files (`CertificateInputs`); nothing is typed.
+
+The uncertainty of a mean error is pose-clustered: configurations of one pose (the IK solutions
+of one target) share most of their error, so the standard uncertainty is the spread of the pose
+means over the square root of the number of poses, and U = 2 u.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..inference.fit import LaplaceReport
+from ..labels import sensor_label
+from ..units import MM
+
+COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
+BEFORE, AFTER = "Vernier", "Bayesian"  # the controller's zero-offsets; the remastered ones
+AS_IS = "optimization set's, as is (sensor not moved)"  # validation errors with the optimization registration
+
+
+@dataclass(frozen=True)
+class CertificateInputs:
+    """One sensor's results the certificate reads. laplace: fit/laplace.json; configuration_errors:
+    metrics/configuration_errors.csv; loop_residuals: loop_closure/residuals.parquet (m);
+    workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
+    loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv."""
+
+    laplace: LaplaceReport
+    configuration_errors: pd.DataFrame
+    loop_residuals: pd.DataFrame
+    workspace_accuracy: pd.DataFrame
+    workspace: dict
+    loop: dict
+    controller_offsets: pd.DataFrame
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """heading: lines naming the campaign, robot, date and sensors; accuracy: one row per sensor
+    and model (mm); corrections: per sensor and joint, the paper model's correction with U (k = 2)
+    (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
+
+    campaign: str
+    heading: list[str]
+    accuracy: pd.DataFrame
+    corrections: pd.DataFrame
+    verdicts: pd.DataFrame
+    warnings: list[str]
+
+
+def mean_with_uncertainty(errors, poses) -> tuple[float, float, int]:
+    """(mean, standard uncertainty of the mean, count) of errors (n,) clustered by pose (n,): u is
+    the std of the pose means over sqrt(number of poses); NaN when fewer than two poses."""
+    frame = pd.DataFrame({"error": np.asarray(errors, dtype=float), "pose": np.asarray(poses)}).dropna()
+    means = frame.groupby("pose")["error"].mean()
+    u = float(means.std(ddof=1) / np.sqrt(len(means))) if len(means) > 1 else np.nan
+    return float(frame["error"].mean()), u, int(len(frame))
+
+
+def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
+    errors_mm = np.asarray(errors_mm, dtype=float)
+    errors_mm = errors_mm[np.isfinite(errors_mm)]
+    if poses is not None:
+        mean, u, count = mean_with_uncertainty(errors_mm, poses)
+    else:
+        mean, u, count = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm)
+    return {"Sensor": sensor_label(sensor), "Where": where, "Model": model, "mean (mm)": mean,
+            "U(mean) (mm)": COVERAGE_FACTOR * u, "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
+            "points": count}
+
+
+def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
+    """Before -> after on the validation set (registration from the optimization set), then what
+    the loop-closed posterior claims at the measured configurations and across the joint space."""
+    errors = inputs.configuration_errors
+    validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
+    where = "validation set (measured)"
+    rows = [_row(sensor, where, label, validation.loc[validation["method"] == method, "error_mm"],
+                 validation.loc[validation["method"] == method, "pose"])
+            for method, label in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets"))]
+    residuals = inputs.loop_residuals
+    after = residuals[(residuals["set"] == "validation") & (residuals["when"] == "after")]
+    if len(after):
+        norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
+        rows.append(_row(sensor, where, "loop-closed (" + ", ".join(inputs.loop.get("effects_added", [])) + ")"
+                         if inputs.loop.get("effects_added") else "loop-closed (no effect added)", norms))
+    claims = inputs.workspace_accuracy
+    for configurations, label in (("optimization", "claimed at the measured configurations"),
+                                  ("random", "claimed across the joint space")):
+        for model, name in (("paper", "remastered zero-offsets"), ("loop", "loop-closed")):
+            claim = claims[(claims["model"] == model) & (claims["configurations"] == configurations)
+                           & (claims["frame"] == "registered") & (claims["noise"] == "with noise")]
+            if len(claim):
+                rows.append({"Sensor": sensor_label(sensor), "Where": label, "Model": name,
+                             "mean (mm)": float(claim["mean_mm"].iloc[0]), "U(mean) (mm)": np.nan,
+                             "p95 (mm)": float(claim["p95_mm"].iloc[0]), "points": int(claim["count"].iloc[0])})
+    return rows
+
+
+def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
+    """The paper model's zero-offset corrections (what a controller takes) with U = k std."""
+    offsets = inputs.controller_offsets[inputs.controller_offsets["model"] == "paper"]
+    return [{"Sensor": sensor_label(sensor), "Joint": r["joint"],
+             "Correction (deg)": r["correction_deg"] if r["status"] == "estimated" else np.nan,
+             "U(Correction) (deg)": COVERAGE_FACTOR * r["std_deg"] if r["status"] == "estimated" else np.nan,
+             "Status": r["status"]} for _, r in offsets.iterrows()]
+
+
+def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
+    by = {(r["Where"], r["Model"]): r for r in rows}
+    before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
+    after = [r for (where, model), r in by.items() if where == "validation set (measured)"][-1]
+    workspace = by.get(("claimed across the joint space", "loop-closed"), {})
+    holds = inputs.workspace.get("holds", {}).get("loop", {}).get("holds", "")
+    return {"Sensor": sensor_label(sensor), "Before: mean (mm)": before.get("mean (mm)", np.nan),
+            "After: mean (mm)": after["mean (mm)"], "After: p95 (mm)": after["p95 (mm)"], "After: model": after["Model"],
+            "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
+            "Loop": inputs.loop.get("closure", {}).get("verdict", ""), "Holds": holds}
+
+
+def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
+    """What the user must know before relying on the calibration: flagged points, a loop not closed
+    against the sensor's noise, the workspace warnings (near the measured poses only, prior-dominated
+    parameters, what the next campaign should add) and the held joints."""
+    label = sensor_label(sensor)
+    out = []
+    if inputs.laplace.outlier_rows:
+        out.append(f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
+                   f"(rows {list(inputs.laplace.outlier_rows)})")
+    closure = inputs.loop.get("closure", {})
+    if closure and not closure.get("closed", False):
+        out.append(f"{label}: loop not closed against the sensor's noise: {closure.get('verdict', '')}")
+    out += [f"{label}: {w}" for w in inputs.workspace.get("warnings", [])]
+    if inputs.workspace.get("held_note"):
+        out.append(f"{label}: {inputs.workspace['held_note']}")
+    return out
+
+
+def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Certificate:
+    """The certificate of one campaign from its summary (`campaigns.campaign.summarize`) and each
+    sensor's results."""
+    robot = summary["robot"]
+    serial = robot.get("serial")
+    heading = [f"Robot {robot['name']}" + (f", serial {serial}" if serial else ", no serial given")
+               + f" ({len(robot['joints'])} joints); measured {summary['date']}; sensors: "
+               + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items()) + "."]
+    accuracy, corrections, verdicts, warnings = [], [], [], []
+    for sensor, inputs in per_sensor.items():
+        laplace = inputs.laplace
+        heading.append(f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the fit, "
+                       f"{len(laplace.outlier_rows)} flagged as gross errors, {len(laplace.marker_not_seen_rows)} "
+                       f"not seen by the sensor (both left out and listed in fit/laplace.json).")
+        rows = accuracy_rows(sensor, inputs)
+        accuracy += rows
+        corrections += correction_rows(sensor, inputs)
+        verdicts.append({"Campaign": summary["campaign"], **_verdict(sensor, inputs, rows)})
+        warnings += warnings_of(sensor, inputs)
+    heading.append("Errors are post-registration distances (mm). The validation set was read only for this "
+                   f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
+                   "pose; the claims are the loop-closed posterior propagated with the sensor's noise. Corrections: "
+                   "add to the controller's zero (true angle = reading + correction).")
+    return Certificate(summary["campaign"], heading, pd.DataFrame(accuracy), pd.DataFrame(corrections),
+                       pd.DataFrame(verdicts), warnings)
+
+
+def to_markdown(cert: Certificate) -> str:
+    """The certificate as a Markdown page (numbers rounded as every table is)."""
+    from .tables import to_markdown as table
+
+    parts = [f"# Calibration certificate: {cert.campaign}", "", *cert.heading, "", "## Verdict", "",
+             table(cert.verdicts), "## Accuracy before and after", "", table(cert.accuracy),
+             "## Zero-offset corrections to apply", "", table(cert.corrections), "## Valid for, and warnings", ""]
+    parts += [f"- {w}" for w in cert.warnings] or ["- none"]
+    return "\n".join(parts) + "\n"

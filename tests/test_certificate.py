@@ -1,0 +1,80 @@
+"""The calibration certificate: numbers from the result files, an honest uncertainty of a mean
+error, corrections with U (k = 2), and the warnings a user must read."""
+
+import numpy as np
+import pandas as pd
+
+from remaster.inference.fit import LaplaceReport
+from remaster.reporting import certificate
+
+
+def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
+    """Configurations of one pose share most of their error: a naive std / sqrt(n) would be too
+    small by sqrt(configurations per pose); the clustered u gives U = 2u about 95 % coverage."""
+    rng = np.random.default_rng(5)
+    covered, naive_covered = [], []
+    poses = np.repeat(np.arange(30), 4)
+    for _ in range(2000):
+        errors = 2.0 + rng.normal(0, 1.0, 30)[poses] + rng.normal(0, 0.3, len(poses))
+        mean, u, count = certificate.mean_with_uncertainty(errors, poses)
+        covered.append(abs(mean - 2.0) <= 2 * u)
+        naive_covered.append(abs(mean - 2.0) <= 2 * errors.std(ddof=1) / np.sqrt(count))
+    assert 0.925 <= np.mean(covered) <= 0.97  # binomial sd 0.5 %, and t(29) vs 2: about 94.5 %
+    assert np.mean(naive_covered) < 0.8
+    assert np.isnan(certificate.mean_with_uncertainty([1.0, 2.0], [0, 0])[1])  # one pose: no u
+
+
+def _inputs(outliers=(), closed=True):
+    laplace = LaplaceReport(("zero_offsets.q2",), np.zeros(1), np.ones(1), np.eye(1), 1e-3, 1e-3, 1e-4,
+                            ("zero_offsets.q1", "zero_offsets.q2"), {"zero_offsets.q1": 0.0}, (), tuple(outliers),
+                            (4,), 40)
+    rows = []
+    for method, level in (("Vernier", 3.0), ("Bayesian", 1.0)):
+        for k in range(20):
+            rows.append({"set": "validation", "registration": certificate.AS_IS, "method": method,
+                         "pose": k // 2, "error_mm": level + 0.1 * (k % 2) + 0.01 * k})
+    errors = pd.DataFrame(rows)
+    residuals = pd.DataFrame({"when": "after", "set": "validation", "point": np.arange(20),
+                              "x_m": np.full(20, 2e-5), "y_m": 0.0, "z_m": 0.0})
+    claims = pd.DataFrame([{"model": m, "configurations": c, "frame": "registered", "noise": "with noise",
+                            "mean_mm": v, "p95_mm": 2 * v, "count": 100}
+                           for m, c, v in (("paper", "optimization", 1.0), ("loop", "optimization", 0.02),
+                                           ("paper", "random", 1.1), ("loop", "random", 0.5))])
+    workspace = {"holds": {"loop": {"holds": "near the measured poses only"}},
+                 "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"]}
+    loop = {"effects_added": ["joint_compliance"],
+            "closure": {"closed": closed, "verdict": "closed" if closed else "not closed: 0.1 mm left per axis"}}
+    offsets = pd.DataFrame([{"joint": "j1", "model": "paper", "correction_deg": 0.0, "std_deg": np.nan,
+                             "status": "held: not identifiable"},
+                            {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009,
+                             "status": "estimated"},
+                            {"joint": "j2", "model": "loop", "correction_deg": 0.2, "std_deg": 0.0001,
+                             "status": "estimated"}])
+    return certificate.CertificateInputs(laplace, errors, residuals, claims, workspace, loop, offsets)
+
+
+SUMMARY = {"campaign": "c", "date": "2020-01-01",
+           "robot": {"name": "arm", "serial": "S-1", "joints": ["j1", "j2"]},
+           "sensors": {"laser_tracker": {"kind": "laser_tracker"}}}
+
+
+def test_a_certificate_says_before_after_corrections_and_warnings():
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": _inputs(outliers=(7,), closed=False)})
+    assert "serial S-1" in cert.heading[0] and "40 points used" in cert.heading[1] and "1 not seen" in cert.heading[1]
+    accuracy = cert.accuracy.set_index(["Where", "Model"])
+    before = accuracy.loc[("validation set (measured)", "controller's zero-offsets")]
+    assert before["mean (mm)"] == np.mean([3.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])
+    assert before["points"] == 20 and before["U(mean) (mm)"] > 0
+    loop = accuracy.loc[("validation set (measured)", "loop-closed (joint_compliance)")]
+    assert np.isclose(loop["mean (mm)"], 0.02) and np.isnan(loop["U(mean) (mm)"])
+    assert accuracy.loc[("claimed across the joint space", "loop-closed"), "p95 (mm)"] == 1.0
+    corrections = cert.corrections.set_index("Joint")
+    assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model
+    assert np.isnan(corrections.loc["j1", "Correction (deg)"]) and corrections.loc["j1", "Status"].startswith("held")
+    verdict = cert.verdicts.iloc[0]
+    assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
+    assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
+    assert any("loop not closed" in w for w in cert.warnings)
+    assert any("25 x" in w for w in cert.warnings)
+    text = certificate.to_markdown(cert)
+    assert text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
