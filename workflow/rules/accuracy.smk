@@ -80,6 +80,21 @@ rule table_sensor_comparison:
         "../scripts/table_sensor_comparison.py"
 
 
+rule table_iso9283:
+    input:
+        campaign=campaign_files,
+        errors=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/metrics/configuration_errors.csv"),
+    output:
+        multiext(f"{TABLES}/iso9283", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_iso9283.log",
+    params:
+        folder=lambda wc: f"{RAW}/{wc.campaign}",
+        sensors=lambda wc: sensors_of(wc.campaign),
+    script:
+        "../scripts/table_iso9283.py"
+
+
 rule figure_tcp_scatter:
     input:
         f"{ACC}/tcp_scatter.csv",

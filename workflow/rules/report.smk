@@ -2,7 +2,7 @@
 # audit trail of the run.
 from types import SimpleNamespace
 
-REPORT_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison", "loop_closure",
+REPORT_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "iso9283", "sensor_comparison", "loop_closure",
                  "loop_closure_test", "loop_candidates", "workspace_warnings", "workspace_accuracy",
                  "controller_offsets", "calibrated_files"]
 REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", "post_registration_histograms",

@@ -28,12 +28,19 @@ MAIN_CAUSE_SHARE = 0.5  # an effect that removes less than this share of the str
 SAME_READING = 1e-9     # rad: rows whose readings agree to this are one configuration measured again
 
 
+def configuration_groups(q) -> tuple[np.ndarray, np.ndarray]:
+    """(group (n,), counts (G,)): rows of readings q (n, N) that agree to SAME_READING share a
+    group, one configuration measured counts[group] times."""
+    _, group, counts = np.unique(np.round(np.asarray(q, dtype=float) / SAME_READING), axis=0, return_inverse=True,
+                                 return_counts=True)
+    return group.ravel(), counts
+
+
 def repeatability(q, measured) -> tuple[float | None, int]:
     """Pooled within-configuration std per axis (m) of measured positions (n, 3) at readings
     q (n, N), and how many configurations were repeated; (None, 0) without repeats."""
-    q, measured = np.asarray(q, dtype=float), np.asarray(measured, dtype=float)
-    _, group, counts = np.unique(np.round(q / SAME_READING), axis=0, return_inverse=True, return_counts=True)
-    group = group.ravel()
+    measured = np.asarray(measured, dtype=float)
+    group, counts = configuration_groups(q)
     repeated = counts[group] > 1
     if not repeated.any():
         return None, 0

@@ -18,13 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..inference.fit import LaplaceReport
 from ..labels import sensor_label
 from ..units import MM
 
 COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
 BEFORE, AFTER = "Vernier", "Bayesian"  # the controller's zero-offsets; the remastered ones
-AS_IS = "optimization set's, as is (sensor not moved)"  # validation errors with the optimization registration
 
 
 @dataclass(frozen=True)

@@ -13,11 +13,17 @@ import re
 import numpy as np
 import pandas as pd
 
+from ..analysis import iso9283
 from ..inference.model import SIGMA, by_parameter, display_value
 from ..labels import paper_order, sensor_label
 from ..units import shown
 
 CAPTIONS = {
+    "iso9283": "ISO 9283 pose characteristics on the validation set (registration from the optimization set): "
+               "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
+               "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
+               f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
+               f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
                            "controller's zero-offsets) and after (the best model), its 95th percentile, what the "
                            "loop-closed model claims across the joint space, whether the loop is closed against the "

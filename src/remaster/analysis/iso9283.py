@@ -1,0 +1,76 @@
+"""ISO 9283 pose characteristics where a campaign's design allows them.
+
+ISO 9283 (manipulating industrial robots: performance criteria and test methods) characterises a
+pose by n cycles to the same command: with e_j the attained minus the commanded position of cycle
+j (here measured minus predicted, in the sensor frame through the registration),
+
+- position accuracy AP = || mean_j e_j ||, the distance from the command to the cycles' barycentre;
+- position repeatability RP = l_bar + 3 S_l, l_j = || e_j - mean e ||, S_l their std (n - 1).
+
+RP needs a configuration commanded more than once (ISO asks for 30 cycles); AP is given over each
+measured configuration's cycles (one cycle when nothing repeats, which makes it that
+configuration's post-registration error). What a campaign of static single-point measurements
+cannot give is said, not left out: orientation accuracy and repeatability (one marker point, no
+tool orientation), path, distance and stabilisation characteristics (static poses only).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..labels import sensor_label
+from .accuracy import REGISTRATION_AS_FITTED
+from ..loop.closure import configuration_groups
+from ..units import MM
+
+CANNOT_GIVE = ("orientation accuracy and repeatability (AP_a,b,c, RP_a,b,c): one marker point, not the tool's "
+               "orientation, is measured; path, distance, cornering and stabilisation characteristics (AT, RT, AD, "
+               "RD, ...): static poses only")
+MODELS = (("Vernier", "controller's zero-offsets"), ("Bayesian", "remastered zero-offsets"))
+
+
+def pose_characteristics(residuals, groups) -> pd.DataFrame:
+    """Per configuration group: cycles, AP (m) and RP (m; NaN with one cycle). residuals (n, 3) m
+    attained minus commanded; groups (n,) integer labels of the configuration each row commands."""
+    residuals, groups = np.asarray(residuals, dtype=float), np.asarray(groups)
+    rows = []
+    for label in np.unique(groups):
+        e = residuals[groups == label]
+        centre = e.mean(axis=0)
+        spread = np.linalg.norm(e - centre, axis=1)
+        rp = spread.mean() + 3.0 * spread.std(ddof=1) if len(e) > 1 else np.nan
+        rows.append({"group": label, "cycles": len(e), "AP": float(np.linalg.norm(centre)), "RP": float(rp)})
+    return pd.DataFrame(rows, columns=["group", "cycles", "AP", "RP"])
+
+
+def iso9283_table(readings: dict[str, pd.DataFrame], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Per sensor and model (controller's and remastered zero-offsets): AP and RP (mm) over the
+    validation set's configurations with the optimization set's registration, the mean and the
+    worst over configurations, and what the design cannot give.
+
+    readings: sensor -> its campaign table (row order; joint columns q1..qN); errors: sensor ->
+    `metrics/configuration_errors.csv` (row, set, registration, method, residual_{x,y,z}_mm)."""
+    out = []
+    for sensor, table in readings.items():
+        joints = [c for c in table.columns if c.startswith("q") and c[1:].isdigit()]
+        group, counts = configuration_groups(table[joints].to_numpy(float))
+        frame = errors[sensor]
+        for method, label in MODELS:
+            part = frame[(frame["set"] == "validation") & (frame["method"] == method)
+                         & (frame["registration"] == REGISTRATION_AS_FITTED)]
+            rows = part["row"].to_numpy(int)
+            residuals = part[["residual_x_mm", "residual_y_mm", "residual_z_mm"]].to_numpy(float) * MM
+            poses = pose_characteristics(residuals, group[rows])
+            repeated = poses[poses["cycles"] > 1]
+            note = (f"RP from {len(repeated)} configurations measured {int(repeated['cycles'].min())} to "
+                    f"{int(repeated['cycles'].max())} times (ISO 9283 asks for 30 cycles)" if len(repeated) else
+                    "RP not available: no configuration is measured more than once (ISO 9283 asks for 30 cycles "
+                    "to one command)")
+            out.append({"Sensor": sensor_label(sensor), "Model": label, "configurations": len(poses),
+                        "cycles": int(poses["cycles"].sum()), "AP mean (mm)": poses["AP"].mean() / MM,
+                        "AP max (mm)": poses["AP"].max() / MM,
+                        "RP mean (mm)": repeated["RP"].mean() / MM if len(repeated) else np.nan,
+                        "RP max (mm)": repeated["RP"].max() / MM if len(repeated) else np.nan,
+                        "note": note})
+    return pd.DataFrame(out)

@@ -1,0 +1,48 @@
+"""ISO 9283 position accuracy and repeatability against known answers."""
+
+import numpy as np
+import pandas as pd
+
+from remaster.analysis import iso9283
+from remaster.analysis.accuracy import REGISTRATION_AS_FITTED
+
+
+def test_rp_of_isotropic_noise_is_l_bar_plus_three_s_and_ap_is_the_offset():
+    """30 cycles to each of 200 commands, attained = command + b + N(0, s^2 I3): AP = |b| up to
+    the barycentre's noise, and l = |e - mean e| is Maxwell-like, so RP -> s (2 sqrt(2 / pi) + 3
+    sqrt((3 pi - 8) / pi)) = 3.617 s."""
+    rng = np.random.default_rng(11)
+    s, bias, cycles = 1e-5, np.array([3e-5, -4e-5, 0.0]), 30
+    groups = np.repeat(np.arange(200), cycles)
+    residuals = bias + s * rng.standard_normal((len(groups), 3))
+    poses = iso9283.pose_characteristics(residuals, groups)
+    assert (poses["cycles"] == cycles).all()
+    np.testing.assert_allclose(poses["AP"].mean(), 5e-5, rtol=0.02)
+    # l from a 30-cycle barycentre is shrunk by sqrt(29 / 30) (the barycentre is estimated)
+    expected = s * np.sqrt(29 / 30) * (2 * np.sqrt(2 / np.pi) + 3 * np.sqrt((3 * np.pi - 8) / np.pi))
+    np.testing.assert_allclose(poses["RP"].mean(), expected, rtol=0.03)
+    single = iso9283.pose_characteristics(residuals[:3], [0, 1, 2])  # one cycle: AP is the error, no RP
+    np.testing.assert_allclose(single["AP"], np.linalg.norm(residuals[:3], axis=1))
+    assert single["RP"].isna().all()
+
+
+def _errors(rows, residuals_mm):
+    frame = []
+    for method in ("Vernier", "Bayesian"):
+        for row, e in zip(rows, residuals_mm):
+            frame.append({"set": "validation", "registration": REGISTRATION_AS_FITTED, "method": method, "row": row,
+                          "residual_x_mm": e[0], "residual_y_mm": e[1], "residual_z_mm": e[2]})
+    return pd.DataFrame(frame)
+
+
+def test_the_table_finds_repeated_configurations_by_their_readings_or_says_rp_is_not_available():
+    readings = pd.DataFrame({"q1": [0.1, 0.2, 0.1, 0.3, 0.1], "q2": [0.5, 0.5, 0.5, 0.0, 0.5]})
+    residuals = np.array([[1.0, 0, 0], [2, 0, 0], [1.2, 0, 0], [0, 3, 0], [0.8, 0, 0]])
+    table = iso9283.iso9283_table({"laser_tracker": readings}, {"laser_tracker": _errors(range(5), residuals)})
+    row = table.iloc[1]
+    assert row["Model"] == "remastered zero-offsets" and row["configurations"] == 3 and row["cycles"] == 5
+    assert row["AP max (mm)"] == 3.0 and np.isclose(row["AP mean (mm)"], (1.0 + 2.0 + 3.0) / 3)
+    l = np.abs([0.0, 0.2, -0.2])  # the three cycles of (0.1, 0.5) about their barycentre
+    assert np.isclose(row["RP max (mm)"], l.mean() + 3 * l.std(ddof=1)) and "1 configurations measured 3 to 3" in row["note"]
+    once = iso9283.iso9283_table({"laser_tracker": readings.iloc[:2]}, {"laser_tracker": _errors(range(2), residuals)})
+    assert once["RP mean (mm)"].isna().all() and once["note"].str.startswith("RP not available").all()
