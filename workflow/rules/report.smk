@@ -9,7 +9,24 @@ REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", 
                   "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy"]
 
 
-CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections"]
+CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections", "uncertainty_budget"]
+
+
+rule table_uncertainty_budget:
+    input:
+        campaign=campaign_files,
+        registration=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json"),
+        laplace=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
+        loop=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
+    output:
+        multiext(f"{TABLES}/uncertainty_budget", ".csv", ".md", ".tex"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/table_uncertainty_budget.log",
+    params:
+        folder=lambda wc: f"{RAW}/{wc.campaign}",
+        sensors=lambda wc: sensors_of(wc.campaign),
+    script:
+        "../scripts/table_uncertainty_budget.py"
 
 
 rule certificate:

@@ -123,6 +123,7 @@ def audit_section(audit: dict) -> Section:
     return Section("Audit trail", notes, [("Campaign content hashes", table)])
 
 
+CERTIFICATE_TABLES = ("certificate_", "uncertainty_budget")  # a campaign's certificate, shown open
 CERTIFICATE_FIGURES = ("post_registration_histograms", "loop_residuals")  # errors before/after, shown open
 
 
@@ -162,7 +163,7 @@ def _campaign_section(name: str, content: dict, caption) -> Section:
     """A campaign's section: its certificate (heading, warnings, tables, the before/after figures)
     open, then every other table and figure folded under its caption."""
     cert = content.get("certificate") or {}
-    lead = [t for t in content["tables"] if t.startswith("certificate_")]
+    lead = [t for t in content["tables"] if t.startswith(CERTIFICATE_TABLES)]
     lead_figures = [f for f in content["figures"] if f.startswith(CERTIFICATE_FIGURES)] if cert else []
     return Section(name, [*cert.get("heading", []), *_summary_notes(content["summary"])],
                    [(caption(t), table) for t, table in content["tables"].items() if t not in lead],

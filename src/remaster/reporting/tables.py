@@ -19,6 +19,11 @@ from ..labels import paper_order, sensor_label
 from ..units import shown
 
 CAPTIONS = {
+    "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position against its measurement, per axis: "
+                          "the stated sensor noise, the registration's and the zero-offsets' posterior uncertainty "
+                          "(Laplace covariance through the Jacobian; two blocks of equal size contribute equally by "
+                          "construction) and their correlation, what the paper's model lacks (its sigma beyond the "
+                          "noise), combined in quadrature and expanded (k = 2); and what is left after the loop closure.",
     "iso9283": "ISO 9283 pose characteristics on the validation set (registration from the optimization set): "
                "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
                "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
