@@ -29,7 +29,7 @@ def _inputs(outliers=(), closed=True):
                             ("zero_offsets.q1", "zero_offsets.q2"), {"zero_offsets.q1": 0.0}, (), tuple(outliers),
                             (4,), 40)
     rows = []
-    for method, level in (("Vernier", 3.0), ("Bayesian", 1.0)):
+    for method, level in ((certificate.BEFORE, 3.0), (certificate.AFTER, 1.0)):
         for k in range(20):
             rows.append({"set": "validation", "registration": certificate.AS_IS, "method": method,
                          "pose": k // 2, "error_mm": level + 0.1 * (k % 2) + 0.01 * k})

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 
 from remaster.analysis import iso9283
-from remaster.analysis.accuracy import REGISTRATION_AS_FITTED
+from remaster.analysis.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 
 
 def test_rp_of_isotropic_noise_is_l_bar_plus_three_s_and_ap_is_the_offset():
@@ -28,7 +28,7 @@ def test_rp_of_isotropic_noise_is_l_bar_plus_three_s_and_ap_is_the_offset():
 
 def _errors(rows, residuals_mm):
     frame = []
-    for method in ("Vernier", "Bayesian"):
+    for method in (VERNIER_LEAST_SQUARES, "Bayesian"):
         for row, e in zip(rows, residuals_mm):
             frame.append({"set": "validation", "registration": REGISTRATION_AS_FITTED, "method": method, "row": row,
                           "residual_x_mm": e[0], "residual_y_mm": e[1], "residual_z_mm": e[2]})

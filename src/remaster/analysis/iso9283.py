@@ -20,14 +20,14 @@ import numpy as np
 import pandas as pd
 
 from ..labels import sensor_label
-from .accuracy import REGISTRATION_AS_FITTED
+from .accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 from ..loop.closure import configuration_groups
 from ..units import MM
 
 CANNOT_GIVE = ("orientation accuracy and repeatability (AP_a,b,c, RP_a,b,c): one marker point, not the tool's "
                "orientation, is measured; path, distance, cornering and stabilisation characteristics (AT, RT, AD, "
                "RD, ...): static poses only")
-MODELS = (("Vernier", "controller's zero-offsets"), ("Bayesian", "remastered zero-offsets"))
+MODELS = ((VERNIER_LEAST_SQUARES, "controller's zero-offsets"), ("Bayesian", "remastered zero-offsets"))
 
 
 def pose_characteristics(residuals, groups) -> pd.DataFrame:

@@ -19,12 +19,14 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
+from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..inference.fit import LaplaceReport
 from ..labels import sensor_label
 from ..units import MM
 
 COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
-BEFORE, AFTER = "Vernier", "Bayesian"  # the controller's zero-offsets; the remastered ones
+# the controller's zero-offsets with the registration that fits them best; the remastered ones
+BEFORE, AFTER = VERNIER_LEAST_SQUARES, "Bayesian"
 
 
 @dataclass(frozen=True)

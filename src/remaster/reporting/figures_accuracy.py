@@ -20,7 +20,7 @@ from .figures import error_histogram_axes, finished  # noqa: E402
 # fig. accuracy's colours, drawn widest cloud first so that every kind stays visible
 TCP_STYLE = {"probable + noise": ("tab:blue", 4, 0.35), "probable": ("gold", 4, 0.6),
              "MLE": ("tab:green", 60, 1.0), "Vernier": ("tab:red", 60, 1.0)}
-METHOD_COLOURS = {"Vernier": "tab:red", "Bayesian": "tab:green"}
+METHOD_COLOURS = {"Vernier": "tab:red", "Bayesian": "tab:green"}  # a registration variant of Vernier is not drawn
 COMPONENT_COLOURS = {"x": "tab:blue", "y": "tab:orange", "z": "tab:purple"}
 
 
