@@ -77,7 +77,7 @@ def test_base_blocks_are_the_papers_model(iiwa):
     np.testing.assert_allclose(model.log_posterior(theta, sigma), paper.log_posterior(theta, sigma))
 
 
-def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng):
+def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng, monkeypatch):
     """The batched evaluation the samplers use (chunks of vectors, one compiled call each) gives
     bit for bit what each vector gives alone, with every block on and across a chunk boundary."""
     sensor = simulated(iiwa, "none")
@@ -91,6 +91,9 @@ def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng):
     for k in (0, 1, model._CHUNK - 1, model._CHUNK, len(theta) - 1):
         assert np.array_equal(stacked[k], model.predict(theta[k]))
     assert not np.array_equal(stacked[0], stacked[1])
+    # a large campaign gets fewer vectors per call (memory bounded): the same numbers
+    monkeypatch.setattr(blocks.BlockModel, "_ANGLES_PER_CALL", 5 * model.q.size)
+    assert np.array_equal(model.predict(theta), stacked)
 
 
 @pytest.mark.parametrize("effect", list(EFFECTS))

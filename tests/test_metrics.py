@@ -292,3 +292,17 @@ def test_figures_draw_from_the_stage_tables(stage):
     assert [len([a for a in f.axes if a.get_visible()]) for f in figures] == [1, 2, 2]
     for figure in figures:
         plt.close(figure)
+
+
+def test_theoretical_errors_in_blocks_of_draws_are_the_same_numbers(iiwa, rng, monkeypatch):
+    """Blocks of draws bound the memory; the Gaussian errors come from the generator in the same
+    order, so the errors are identical to one block."""
+    q = metrics.random_configurations(iiwa, 40, rng)
+    draws = rng.normal(0.0, np.radians(0.05), (30, 7))
+    sigma = np.full(30, 1e-4)
+    whole = metrics.theoretical_errors(iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma,
+                                       np.random.default_rng(3))
+    monkeypatch.setattr(metrics, "TCPS_PER_BLOCK", 7 * 40)  # 7 draws a block: 5 blocks, the last one short
+    blocked = metrics.theoretical_errors(iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma,
+                                         np.random.default_rng(3))
+    assert whole.shape == (30 * 40,) and np.array_equal(whole, blocked)

@@ -365,12 +365,15 @@ class BlockModel(MeasurementModel):
         evaluated a chunk of vectors at a time, each chunk by one compiled call."""
         every = np.asarray(every, dtype=float)
         stack = np.atleast_2d(every)
-        points = np.concatenate([self._robot_points(stack[begin:begin + self._CHUNK])
-                                 for begin in range(0, len(stack), self._CHUNK)])
+        chunk = max(1, min(self._CHUNK, self._ANGLES_PER_CALL // max(self.q.size, 1)))
+        points = np.concatenate([self._robot_points(stack[begin:begin + chunk])
+                                 for begin in range(0, len(stack), chunk)])
         return points if every.ndim == 2 else points[0]
 
-    # vectors per compiled call: bounds the (chunk, N, n) cosines and sines in memory
+    # vectors per compiled call: at most _CHUNK, and at most _ANGLES_PER_CALL joint angles in all,
+    # which bounds the (chunk, N, n) angles, cosines and sines in memory whatever the campaign's size
     _CHUNK = 512
+    _ANGLES_PER_CALL = 2**22  # 32 MB per array
 
     def _robot_points(self, stack: np.ndarray) -> np.ndarray:
         """Marker positions (m, n, 3) in the robot frame for parameter vectors (m, P_all)."""

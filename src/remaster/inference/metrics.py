@@ -99,8 +99,23 @@ def theoretical_errors(chain: KinematicChain, q, marker, reference_offsets, draw
     theor_accuracy_measure). rng draws the Gaussian error.
     """
     reference = ForwardKinematics(chain, q).points(marker, np.asarray(reference_offsets, dtype=float))
-    tcps = probable_tcps(chain, q, marker, draws_offsets, draws_sigma, rng)
-    return np.linalg.norm(tcps - reference, axis=-1).ravel()
+    draws_offsets = np.atleast_2d(np.asarray(draws_offsets, dtype=float))
+    sigma = None if draws_sigma is None else np.asarray(draws_sigma, dtype=float)
+    if sigma is not None and sigma.shape != (len(draws_offsets),):
+        raise ValueError(f"draws_sigma must have shape ({len(draws_offsets)},), got {sigma.shape}")
+    # a block of draws at a time: the TCPs of all draws at all configurations would take m n 3
+    # doubles (3.4 GB for 2000 draws at 70,000 configurations); the Gaussian errors come from rng
+    # in the same order either way (draw-major), so the numbers are the same
+    block = max(1, TCPS_PER_BLOCK // max(len(reference), 1))
+    out = np.empty((len(draws_offsets), len(reference)))
+    for start in range(0, len(draws_offsets), block):
+        part = slice(start, start + block)
+        tcps = probable_tcps(chain, q, marker, draws_offsets[part], None if sigma is None else sigma[part], rng)
+        out[part] = np.linalg.norm(tcps - reference, axis=-1)
+    return out.ravel()
+
+
+TCPS_PER_BLOCK = 2**20  # TCPs held at once by theoretical_errors (24 MB)
 
 
 def joint_space_bounds(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
