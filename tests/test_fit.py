@@ -206,3 +206,16 @@ def test_a_registration_report_comes_back_typed_and_a_missing_key_is_named(iiwa,
     io.write_json(path, content)
     with pytest.raises(InputError, match=r"registration.json: T_NR: missing in the registration report"):
         io.read_registration(path)
+
+
+def test_many_log_posteriors_are_the_same_a_slice_at_a_time(iiwa, rng, monkeypatch):
+    """A sampler's batch is evaluated a slice of vectors at a time so that memory does not grow
+    with the campaign: the same numbers as one stacked call and as one vector at a time."""
+    sensor, _ = simulated_sensor(iiwa, rng)
+    model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
+    target = fit.PosteriorTarget(model)
+    thetas = np.column_stack([rng.normal(0.0, 1e-4, (25, len(model.names))), rng.uniform(1e-4, 1e-3, 25)])
+    whole = target.log_prob_many(thetas)
+    monkeypatch.setattr(fit, "POINTS_PER_CALL", 4 * model.n_points)  # 4 vectors a slice, the last one short
+    assert np.array_equal(target.log_prob_many(thetas), whole)
+    assert whole[3] == target.log_prob(thetas[3]) and target.log_prob_many(thetas[:0]).shape == (0,)

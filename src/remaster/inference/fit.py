@@ -129,6 +129,9 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
     return model.table_rows[far]
 
 
+POINTS_PER_CALL = 2**20  # predicted points held at once by a stacked evaluation (24 MB per array)
+
+
 @dataclass(frozen=True)
 class PosteriorTarget:
     """The log-posterior of a model over (free parameters..., noise.sigma), for the samplers."""
@@ -149,8 +152,14 @@ class PosteriorTarget:
         return float(self.model.log_posterior(theta[:-1], theta[-1]))
 
     def log_prob_many(self, thetas) -> np.ndarray:
+        """Log-posterior (m,) of m vectors (m, P + 1), a slice of at most POINTS_PER_CALL / n
+        vectors at a time: each vector's predictions (n, 3) are held at once, so a sampler's
+        batch of thousands of proposals stays within memory on a campaign of any size."""
         thetas = np.asarray(thetas, dtype=float)
-        return self.model.log_posterior(thetas[:, :-1], thetas[:, -1])
+        size = max(1, POINTS_PER_CALL // max(self.model.n_points, 1))
+        return np.concatenate([self.model.log_posterior(part[:, :-1], part[:, -1])
+                               for part in (thetas[k:k + size] for k in range(0, len(thetas), size))]
+                              or [np.empty(0)])
 
     def residuals(self, theta_model) -> np.ndarray:
         """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
