@@ -89,6 +89,14 @@ def test_joints_in_degrees_beyond_one_turn_are_refused(tmp_path):
     assert "looks like degrees stored as radians" in str(problem) and "up to 95" in str(problem)
 
 
+def test_one_broken_row_of_100k_is_named(tmp_path):
+    """At scale the checks still name the row: one NaN joint value in a 100,000-row campaign."""
+    table = sensor_table(n_optimization=70_000, n_validation=30_000, seed=4)
+    table.loc[73_456, "q3"] = np.nan
+    problem = read_error(make_campaign(tmp_path, tables={SENSOR: table}))
+    assert problem.key == "q3" and problem.rows == [73_456] and "non-finite joint values (row 73456)" in str(problem)
+
+
 def test_a_whole_table_in_degrees_is_refused(tmp_path):
     table = sensor_table()
     columns = [f"q{j}" for j in range(1, 8)]
