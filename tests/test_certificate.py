@@ -31,11 +31,11 @@ def _inputs(outliers=(), closed=True):
     rows = []
     for method, level in ((certificate.BEFORE, 3.0), (certificate.AFTER, 1.0)):
         for k in range(20):
-            rows.append({"set": "validation", "registration": certificate.AS_IS, "method": method,
+            rows.append({"set": "validation", "registration": certificate.AS_IS, "method": method, "row": 100 + k,
                          "pose": k // 2, "error_mm": level + 0.1 * (k % 2) + 0.01 * k})
     errors = pd.DataFrame(rows)
-    residuals = pd.DataFrame({"when": "after", "set": "validation", "point": np.arange(20),
-                              "x_m": np.full(20, 2e-5), "y_m": 0.0, "z_m": 0.0})
+    residuals = pd.DataFrame({"when": "after", "set": "validation", "point": np.arange(20), "row": 100 + np.arange(20),
+                              "x_m": 2e-5 + 1e-6 * (np.arange(20) // 2), "y_m": 0.0, "z_m": 0.0})  # rows of 10 poses
     claims = pd.DataFrame([{"model": m, "configurations": c, "frame": "registered", "noise": "with noise",
                             "mean_mm": v, "p95_mm": 2 * v, "count": 100}
                            for m, c, v in (("paper", "optimization", 1.0), ("loop", "optimization", 0.02),
@@ -66,7 +66,9 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert before["mean (mm)"] == np.mean([3.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])
     assert before["points"] == 20 and before["U(mean) (mm)"] > 0
     loop = accuracy.loc[("validation set (measured)", "loop-closed (joint_compliance)")]
-    assert np.isclose(loop["mean (mm)"], 0.02) and np.isnan(loop["U(mean) (mm)"])
+    pose_means = 0.02 + 0.001 * np.arange(10)  # the loop's rows found their poses through the table's rows
+    assert np.isclose(loop["mean (mm)"], pose_means.mean())
+    assert np.isclose(loop["U(mean) (mm)"], 2 * pose_means.std(ddof=1) / np.sqrt(10))
     assert accuracy.loc[("claimed across the joint space", "loop-closed"), "p95 (mm)"] == 1.0
     corrections = cert.corrections.set_index("Joint")
     assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model

@@ -15,6 +15,6 @@ with io.log_to(snakemake.log[0]):  # noqa: F821
     io.write_json(out.report, result.report)
     io.write_csv(out.table, result.table)
     io.write_parquet(out.signatures, loop_closure.signatures_frame(result.signatures))
-    io.write_parquet(out.residuals, loop_closure.residuals_frame(result.residuals))
+    io.write_parquet(out.residuals, loop_closure.residuals_frame(result.residuals, result.rows))
     io.write_parquet(out.samples, result.samples if result.samples is not None else pd.DataFrame())
     io.write_parquet(out.gp, result.gp)

@@ -447,7 +447,7 @@ class LoopClosure:
     """report: JSON-ready; table: before/after; signatures: {round: {candidate: Signature}};
     residuals: {'before'|'after': {set: (n, 3) m}}; samples: the MCMC refit (SI) or None;
     gp: the residual GP's training rows when it was tried (`residual_gp.training_frame`), else an
-    empty frame."""
+    empty frame; rows: {set: (n,) the sensor table's row of each residual}."""
 
     report: dict
     table: pd.DataFrame
@@ -455,6 +455,7 @@ class LoopClosure:
     residuals: dict[str, dict[str, np.ndarray]]
     samples: pd.DataFrame | None
     gp: pd.DataFrame = field(default_factory=pd.DataFrame)
+    rows: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mapping[str, float],
@@ -531,7 +532,7 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
     residuals = {"before": {s: base.residuals(data[s]) for s in SETS},
                  "after": {s: data[s].measured - predicted[s] for s in SETS}}
     gp = residual_gp.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
-    return LoopClosure(report, table, selection.signatures, residuals, samples, gp)
+    return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
 
 
 def closure_report(selection: Selection, data: Readings, stated_noise: float | None, ratio: float) -> dict:
@@ -637,10 +638,13 @@ def signatures_of_round(frame: pd.DataFrame, round_number: int = 1) -> dict[str,
     return out
 
 
-def residuals_frame(residuals: dict[str, dict[str, np.ndarray]]) -> pd.DataFrame:
-    """Long table of the residuals before and after: when, set, point, x_m, y_m, z_m."""
+def residuals_frame(residuals: dict[str, dict[str, np.ndarray]], rows: dict[str, np.ndarray] | None = None
+                    ) -> pd.DataFrame:
+    """Long table of the residuals before and after: when, set, point, x_m, y_m, z_m, and with
+    rows ({set: (n,)}) the sensor table's row of each point (so a pose can be found for it)."""
     frames = [pd.DataFrame({"when": when, "set": set_name, "point": np.arange(len(r), dtype=np.int64),
-                            "x_m": r[:, 0], "y_m": r[:, 1], "z_m": r[:, 2]})
+                            "x_m": r[:, 0], "y_m": r[:, 1], "z_m": r[:, 2],
+                            **({"row": np.asarray(rows[set_name], dtype=np.int64)} if rows else {})})
               for when, per_set in residuals.items() for set_name, r in per_set.items()]
     return pd.concat(frames, ignore_index=True)
 

@@ -70,8 +70,10 @@ def mean_with_uncertainty(errors, poses) -> tuple[float, float, int]:
 
 def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
     errors_mm = np.asarray(errors_mm, dtype=float)
-    errors_mm = errors_mm[np.isfinite(errors_mm)]
+    seen = np.isfinite(errors_mm)
+    errors_mm = errors_mm[seen]
     if poses is not None:
+        poses = np.asarray(poses)[seen]
         mean, u, count = mean_with_uncertainty(errors_mm, poses)
     else:
         mean, u, count = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm)
@@ -93,8 +95,10 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     after = residuals[(residuals["set"] == "validation") & (residuals["when"] == "after")]
     if len(after):
         norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
+        pose_of_row = dict(zip(validation["row"], validation["pose"]))
+        poses = after["row"].map(pose_of_row).to_numpy() if "row" in after else None  # older results: no rows
         rows.append(_row(sensor, where, "loop-closed (" + ", ".join(inputs.loop.get("effects_added", [])) + ")"
-                         if inputs.loop.get("effects_added") else "loop-closed (no effect added)", norms))
+                         if inputs.loop.get("effects_added") else "loop-closed (no effect added)", norms, poses))
     claims = inputs.workspace_accuracy
     for configurations, label in (("optimization", "claimed at the measured configurations"),
                                   ("random", "claimed across the joint space")):
