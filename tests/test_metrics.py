@@ -306,3 +306,12 @@ def test_theoretical_errors_in_blocks_of_draws_are_the_same_numbers(iiwa, rng, m
     blocked = metrics.theoretical_errors(iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma,
                                          np.random.default_rng(3))
     assert whole.shape == (30 * 40,) and np.array_equal(whole, blocked)
+
+
+def test_interval_summary_leaves_the_callers_values_as_they_were(rng):
+    """The quantiles partition a copy in place (memory): the caller's array keeps its order."""
+    values = rng.gamma(2.0, 1.0, 1001)
+    kept = values.copy()
+    summary = metrics.interval_summary(values)
+    assert np.array_equal(values, kept)
+    assert summary["mean"] == kept.mean() and summary["q97.5"] == np.quantile(kept, 0.975)

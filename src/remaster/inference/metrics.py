@@ -65,11 +65,13 @@ def interval_summary(values) -> dict[str, float | int]:
     """Mean, 2.5 % and 97.5 % quantiles (the paper's 95 % interval) and count of the finite
     values, in the values' unit. No finite value: count 0 and NaN statistics (never an error)."""
     values = np.asarray(values, dtype=float).ravel()
-    values = values[np.isfinite(values)]
+    values = values[np.isfinite(values)]  # a copy of the caller's values: partitioned in place below
     if values.size == 0:
         return {"mean": np.nan, "q2.5": np.nan, "q97.5": np.nan, "count": 0}
-    low, high = np.quantile(values, QUANTILES)
-    return {"mean": float(values.mean()), "q2.5": float(low), "q97.5": float(high), "count": int(values.size)}
+    mean = float(values.mean())  # before the partition reorders them
+    # in place: a second copy of 140 million errors (2000 draws at 70,000 configurations) is 1.1 GB
+    low, high = np.quantile(values, QUANTILES, overwrite_input=True)
+    return {"mean": mean, "q2.5": float(low), "q97.5": float(high), "count": int(values.size)}
 
 
 def probable_tcps(chain: KinematicChain, q, marker, draws_offsets, draws_sigma, rng: np.random.Generator) -> np.ndarray:
