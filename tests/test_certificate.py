@@ -41,6 +41,7 @@ def _inputs(outliers=(), closed=True):
                            for m, c, v in (("paper", "optimization", 1.0), ("loop", "optimization", 0.02),
                                            ("paper", "random", 1.1), ("loop", "random", 0.5))])
     workspace = {"holds": {"loop": {"holds": "near the measured poses only"}},
+                 "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
                  "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"]}
     loop = {"effects_added": ["joint_compliance"],
             "closure": {"closed": closed, "verdict": "closed" if closed else "not closed: 0.1 mm left per axis"}}
@@ -78,5 +79,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
     assert any("loop not closed" in w for w in cert.warnings)
     assert any("25 x" in w for w in cert.warnings)
+    assert cert.warnings[0].endswith("over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis "
+                                     "within 18 deg of one direction")
     text = certificate.to_markdown(cert)
     assert text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text

@@ -133,6 +133,19 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
             "Loop": inputs.loop.get("closure", {}).get("verdict", ""), "Holds": holds}
 
 
+def valid_for(sensor: str, inputs: CertificateInputs) -> str:
+    """What the calibration was measured over: each joint's share of its range the measured
+    configurations cover, and how far the tool axis turned (`workspace.json` coverage)."""
+    coverage = inputs.workspace.get("coverage", {})
+    fractions = coverage.get("joint_range_fraction", [])
+    parts = [", ".join(f"q{j + 1} {100 * f:.0f} %" for j, f in enumerate(fractions))] if fractions else []
+    if coverage.get("tool_axis_spread_deg") is not None:
+        parts.append(f"every measured tool axis within {coverage['tool_axis_spread_deg']:.0f} deg of one direction")
+    where = "; ".join(parts) if parts else "coverage not recorded"
+    return (f"{sensor_label(sensor)}: valid with this tool plate and marker, in this sensor set-up (registration), "
+            f"over the joint ranges measured: {where}")
+
+
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, a loop not closed
     against the sensor's noise, the workspace warnings (near the measured poses only, prior-dominated
@@ -169,7 +182,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         accuracy += rows
         corrections += correction_rows(sensor, inputs)
         verdicts.append({"Campaign": summary["campaign"], **_verdict(sensor, inputs, rows)})
-        warnings += warnings_of(sensor, inputs)
+        warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append("Errors are post-registration distances (mm). The validation set was read only for this "
                    f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
                    "pose; the claims are the loop-closed posterior propagated with the sensor's noise. Corrections: "
