@@ -75,6 +75,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model
     assert np.isnan(corrections.loc["j1", "Correction (deg)"]) and corrections.loc["j1", "Status"].startswith("held")
     verdict = cert.verdicts.iloc[0]
+    assert verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"] and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
     assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
     assert any("loop not closed" in w for w in cert.warnings)

@@ -127,8 +127,11 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     after = [r for (where, model), r in by.items() if where == "validation set (measured)"][-1]
     workspace = by.get(("claimed across the joint space", "loop-closed"), {})
     holds = inputs.workspace.get("holds", {}).get("loop", {}).get("holds", "")
+    # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {"Sensor": sensor_label(sensor), "Before: mean (mm)": before.get("mean (mm)", np.nan),
-            "After: mean (mm)": after["mean (mm)"], "After: p95 (mm)": after["p95 (mm)"], "After: model": after["Model"],
+            "U(Before: mean) (mm)": before.get("U(mean) (mm)", np.nan),
+            "After: mean (mm)": after["mean (mm)"], "U(After: mean) (mm)": after["U(mean) (mm)"],
+            "After: p95 (mm)": after["p95 (mm)"], "After: model": after["Model"],
             "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
             "Loop": inputs.loop.get("closure", {}).get("verdict", ""), "Holds": holds}
 
