@@ -1,5 +1,7 @@
 """ISO 9283 position accuracy and repeatability against known answers."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 
@@ -38,11 +40,13 @@ def _errors(rows, residuals_mm):
 def test_the_table_finds_repeated_configurations_by_their_readings_or_says_rp_is_not_available():
     readings = pd.DataFrame({"q1": [0.1, 0.2, 0.1, 0.3, 0.1], "q2": [0.5, 0.5, 0.5, 0.0, 0.5]})
     residuals = np.array([[1.0, 0, 0], [2, 0, 0], [1.2, 0, 0], [0, 3, 0], [0.8, 0, 0]])
-    table = iso9283.iso9283_table({"laser_tracker": readings}, {"laser_tracker": _errors(range(5), residuals)})
+    sensor = SimpleNamespace(table=readings, joint_columns=("q1", "q2"))  # what the table reads of a SensorData
+    table = iso9283.iso9283_table({"laser_tracker": sensor}, {"laser_tracker": _errors(range(5), residuals)})
     row = table.iloc[1]
     assert row["Model"] == "remastered zero-offsets" and row["configurations"] == 3 and row["cycles"] == 5
     assert row["AP max (mm)"] == 3.0 and np.isclose(row["AP mean (mm)"], (1.0 + 2.0 + 3.0) / 3)
     l = np.abs([0.0, 0.2, -0.2])  # the three cycles of (0.1, 0.5) about their barycentre
     assert np.isclose(row["RP max (mm)"], l.mean() + 3 * l.std(ddof=1)) and "1 configurations measured 3 to 3" in row["note"]
-    once = iso9283.iso9283_table({"laser_tracker": readings.iloc[:2]}, {"laser_tracker": _errors(range(2), residuals)})
+    first_two = SimpleNamespace(table=readings.iloc[:2], joint_columns=("q1", "q2"))
+    once = iso9283.iso9283_table({"laser_tracker": first_two}, {"laser_tracker": _errors(range(2), residuals)})
     assert once["RP mean (mm)"].isna().all() and once["note"].str.startswith("RP not available").all()

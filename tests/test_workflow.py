@@ -245,7 +245,8 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
     assert overview.count("<tr>") == 1 + 2 + 1  # header, tiny's two sensors, tiny2's one
     tiny_section = page[page.index("<h2 id='tiny'>"):page.index("<h2 id='tiny2'>")]
     assert tiny_section.index("Verdict per sensor") < tiny_section.index("<details>")
-    assert "serial" in tiny_section and "U(Correction) (deg)" in tiny_section
+    serial = io.read_yaml(tiny / "raw" / "tiny" / "campaign.yaml")["robot"]["serial"]
+    assert f"serial {serial}," in tiny_section and "U(Correction) (deg)" in tiny_section
     for name in ("tiny", "tiny2"):
         certificate = (tiny / "results" / name / "certificate.md").read_text(encoding="utf-8")
         assert certificate.startswith(f"# Calibration certificate: {name}") and "## Valid for, and warnings" in certificate

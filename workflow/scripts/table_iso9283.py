@@ -9,6 +9,6 @@ from remaster.reporting import tables
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     campaign = io.read_campaign(snakemake.params.folder)  # noqa: F821
     sensors = snakemake.params.sensors  # noqa: F821
-    table = iso9283.iso9283_table({s: campaign.sensors[s].table for s in sensors},
+    table = iso9283.iso9283_table({s: campaign.sensors[s] for s in sensors},
                                   {s: io.read_csv(p) for s, p in zip(sensors, snakemake.input.errors)})  # noqa: F821
     io.write_table(Path(snakemake.output[0]).with_suffix(""), table, tables.CAPTIONS["iso9283"], "iso9283")  # noqa: F821

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..campaigns.campaign import SensorData
 from ..labels import sensor_label
 from .accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 from ..loop.closure import configuration_groups
@@ -44,17 +45,16 @@ def pose_characteristics(residuals, groups) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["group", "cycles", "AP", "RP"])
 
 
-def iso9283_table(readings: dict[str, pd.DataFrame], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
+def iso9283_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Per sensor and model (controller's and remastered zero-offsets): AP and RP (mm) over the
     validation set's configurations with the optimization set's registration, the mean and the
     worst over configurations, and what the design cannot give.
 
-    readings: sensor -> its campaign table (row order; joint columns q1..qN); errors: sensor ->
-    `metrics/configuration_errors.csv` (row, set, registration, method, residual_{x,y,z}_mm)."""
+    sensors: name -> the campaign's sensor data (its table's rows are the errors' rows); errors:
+    name -> `metrics/configuration_errors.csv` (row, set, registration, method, residual_{x,y,z}_mm)."""
     out = []
-    for sensor, table in readings.items():
-        joints = [c for c in table.columns if c.startswith("q") and c[1:].isdigit()]
-        group, counts = configuration_groups(table[joints].to_numpy(float))
+    for sensor, data in sensors.items():
+        group, _ = configuration_groups(data.table[list(data.joint_columns)].to_numpy(float))
         frame = errors[sensor]
         for method, label in MODELS:
             part = frame[(frame["set"] == "validation") & (frame["method"] == method)

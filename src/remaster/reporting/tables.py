@@ -30,7 +30,8 @@ CAPTIONS = {
                f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
                f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
-                           "controller's zero-offsets) and after (the best model), its 95th percentile, what the "
+                           "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
+                           "optimization set; never picked by these validation numbers), its 95th percentile, what the "
                            "loop-closed model claims across the joint space, whether the loop is closed against the "
                            "sensor's noise, and where the calibration holds.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
@@ -136,9 +137,9 @@ def _missing(value) -> bool:
     return value is None or (isinstance(value, (float, np.floating)) and math.isnan(value))
 
 
-def _decimals_of_std(std) -> int | None:
+def _decimals_of_std(std: float | None) -> int | None:
     """Decimals that show two significant digits of an uncertainty; None when there is none."""
-    if isinstance(std, str) or _missing(std) or not np.isfinite(std) or std <= 0:
+    if std is None or not np.isfinite(std) or std <= 0:
         return None
     return max(0, 1 - math.floor(math.log10(float(std))))
 
@@ -155,7 +156,7 @@ def _uncertainty_columns(columns) -> dict[str, str]:
         gum = _GUM.match(std)
         if gum and gum["of"] + gum["rest"] in names:
             out[gum["of"] + gum["rest"]] = std
-        if not _STD.search(std) or "/" in std:
+        if not (_STD.search(std) and is_uncertainty(std)):
             continue
         partners = [std.replace("combined_std", "diff").replace("combined std", "difference")]
         partners += [_STD.sub(word, std) for word in _VALUE_WORDS]
@@ -170,6 +171,9 @@ def _uncertainty_columns(columns) -> dict[str, str]:
     return out
 
 
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
 def _number(value):
     """value as a float when it is one (a number, or a number written as text in a column that
     mixes numbers and words, e.g. read back from CSV); else None."""
@@ -180,9 +184,6 @@ def _number(value):
     if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
         return float(value)
     return None
-
-
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
 def formatted(table: pd.DataFrame) -> list[list[str]]:

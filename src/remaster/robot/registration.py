@@ -115,7 +115,7 @@ def _first_farthest(q: np.ndarray, candidates: np.ndarray) -> tuple[int, int]:
 def _extreme_points(q: np.ndarray) -> np.ndarray:
     """Sorted indices of q that include every extreme point of its convex hull (the vertices, by
     qhull; points in a plane or on a line by their hull in that plane or line), and every point
-    at the same coordinates as one of them."""
+    at the same coordinates as one of them; every index where qhull cannot say (exact, slower)."""
     from scipy.spatial import ConvexHull, QhullError
 
     centred = q - q.mean(axis=0)
@@ -126,8 +126,8 @@ def _extreme_points(q: np.ndarray) -> np.ndarray:
     if rank >= 2:
         try:
             vertices = ConvexHull(q if rank == 3 else centred @ axes[:2].T).vertices
-        except QhullError:  # nearly flat in a way the rank missed: the hull in the main plane
-            vertices = ConvexHull(centred @ axes[:2].T).vertices
+        except QhullError:  # degenerate in a way the rank missed: every point stays a candidate
+            return np.arange(len(q))
     else:
         along = centred @ axes[0]
         vertices = np.array([np.argmin(along), np.argmax(along)])
