@@ -246,7 +246,7 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
     tiny_section = page[page.index("<h2 id='tiny'>"):page.index("<h2 id='tiny2'>")]
     assert tiny_section.index("Verdict per sensor") < tiny_section.index("<details>")
     serial = io.read_yaml(tiny / "raw" / "tiny" / "campaign.yaml")["robot"]["serial"]
-    assert f"serial {serial}," in tiny_section and "U(Correction) (deg)" in tiny_section
+    assert f"serial {serial} (7 joints)" in tiny_section and "U(Correction) (deg)" in tiny_section
     for name in ("tiny", "tiny2"):
         certificate = (tiny / "results" / name / "certificate.md").read_text(encoding="utf-8")
         assert certificate.startswith(f"# Calibration certificate: {name}") and "## Valid for, and warnings" in certificate
