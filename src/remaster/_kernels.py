@@ -146,3 +146,41 @@ def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, 
                 total += e * e
         out[k] = total
     return out
+
+
+@_compiled()
+def metropolis_walk(rotations, shifts, start, cos_q, sin_q, t_nr, measured, fixed_values, free_index, theta,
+                    log_prob, steps, log_u, states, log_probs):
+    """Random-walk Metropolis on the paper's log-posterior (eq. posterior), the loop of
+    `samplers._walk` compiled: from (theta (P,) = free parameters and sigma, its log_prob), step i
+    proposes theta + steps[i] and accepts when log_u[i] < the log-posterior ratio. Every state
+    goes to states (m, P) and log_probs (m,). Returns (accepted, i) with i the first step whose
+    log-posterior is NaN (-1 when none): the caller raises. The same arithmetic, in the same
+    order, as `ZeroOffsetModel.log_posterior`, so the chain is the Python loop's to the bit."""
+    m, p = steps.shape
+    power = -(3 * cos_q.shape[1] + 2)
+    every = fixed_values.copy().reshape(1, -1)
+    current = theta.copy()
+    proposal = np.empty(p)
+    lp = log_prob
+    accepted = 0
+    for i in range(m):
+        for k in range(p):
+            proposal[k] = current[k] + steps[i, k]
+        sigma = proposal[p - 1]
+        if sigma <= 0.0:
+            lp_proposal = -np.inf
+        else:
+            for k in range(p - 1):
+                every[0, free_index[k]] = proposal[k]
+            energy = registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured)[0]
+            lp_proposal = power * np.log(sigma) - energy / (2.0 * sigma * sigma)
+        if lp_proposal != lp_proposal:
+            return accepted, i
+        if log_u[i] < lp_proposal - lp:
+            current[:] = proposal
+            lp = lp_proposal
+            accepted += 1
+        states[i] = current
+        log_probs[i] = lp
+    return accepted, -1

@@ -151,6 +151,12 @@ class PosteriorTarget:
         theta = np.asarray(theta, dtype=float)
         return float(self.model.log_posterior(theta[:-1], theta[-1]))
 
+    @property
+    def walk_block(self):
+        """The model's compiled random-walk block (`ZeroOffsetModel.metropolis_block`) when it has
+        one (the paper's model), else None: the samplers then step in Python."""
+        return getattr(self.model, "metropolis_block", None)
+
     def log_prob_many(self, thetas) -> np.ndarray:
         """Log-posterior (m,) of m vectors (m, P + 1), a slice of at most POINTS_PER_CALL / n
         vectors at a time: each vector's predictions (n, 3) are held at once, so a sampler's

@@ -163,3 +163,17 @@ class ZeroOffsetModel(MeasurementModel):
                                                  fk.kernel_sin_q, every.reshape(-1, every.shape[-1]), self.t_nr,
                                                  self._measured_t)
         return energy if every.ndim == 2 else energy[0]
+
+    def metropolis_block(self, theta, log_prob: float, steps, log_u):
+        """Random-walk Metropolis steps on `log_posterior` over (free parameters, sigma), compiled
+        (`_kernels.metropolis_walk`): from theta (P + 1,) with its log_prob, proposals theta + steps[i]
+        (m, P + 1) accepted when log_u[i] (m,) < the log-ratio. Returns (states (m, P + 1), their
+        log-posteriors (m,), accepted count, index of the first NaN log-posterior or -1)."""
+        fk = self._fk
+        steps = np.ascontiguousarray(steps, dtype=float)
+        states, log_probs = np.empty_like(steps), np.empty(len(steps))
+        accepted, nan_at = _kernels.metropolis_walk(
+            fk.kernel_rotations, fk.kernel_shifts, self._start, fk.kernel_cos_q, fk.kernel_sin_q, self.t_nr,
+            self._measured_t, self.fixed_values, self._free_index, np.asarray(theta, dtype=float), float(log_prob),
+            steps, np.asarray(log_u, dtype=float), states, log_probs)
+        return states, log_probs, int(accepted), int(nan_at)

@@ -256,12 +256,15 @@ def _walk(target: Target, rng: np.random.Generator, walker: _Walker, n_steps: in
     under/overflow of sigma^-(3n+2). Returns (samples (n_steps, P), log_probs (n_steps,)) when
     `store`, else (None, None), and the number of accepted proposals. With thin > 1 only every
     thin-th state is stored (the random draws, hence the chain, are the same whatever thin is).
+    A target with a `walk_block` (the paper's model: `ZeroOffsetModel.metropolis_block`) runs each
+    block's accept/reject loop compiled, on the same draws: the same chain to the bit.
     """
     p = len(walker.theta)
     stored = -(-n_steps // thin)
     samples = np.empty((stored, p)) if store else None
     log_probs = np.empty(stored) if store else None
     log_prob = target.log_prob
+    walk_block = getattr(target, "walk_block", None)
     theta, lp = walker.theta, walker.log_prob
     accepted_total = 0
     for begin in range(0, n_steps, BLOCK):
@@ -269,24 +272,39 @@ def _walk(target: Target, rng: np.random.Generator, walker: _Walker, n_steps: in
         steps = draw_steps(rng, m)
         # log(0) = -inf accepts any finite proposal; rng.random is in [0, 1), fine either way.
         with np.errstate(divide="ignore"):
-            log_u = np.log(rng.random(m)).tolist()
-        accepted = 0
-        for i in range(m):
-            proposal = theta + steps[i]
-            lp_proposal = log_prob(proposal)
-            if lp_proposal != lp_proposal:  # NaN: a model bug, not a rejection
-                values = ", ".join(f"{v:.6g}" for v in proposal)
-                raise SamplingError(f"log_prob returned NaN at theta = [{values}]")
-            if log_u[i] < lp_proposal - lp:
-                theta, lp = proposal, lp_proposal
-                accepted += 1
-            if store and (begin + i) % thin == 0:
-                samples[(begin + i) // thin] = theta
-                log_probs[(begin + i) // thin] = lp
+            log_u = np.log(rng.random(m))
+        if walk_block is not None:
+            states, lps, accepted, nan_at = walk_block(theta, lp, steps, log_u)
+            if nan_at >= 0:
+                _nan_error((states[nan_at - 1] if nan_at else theta) + steps[nan_at])
+            if store:
+                kept = np.flatnonzero((begin + np.arange(m)) % thin == 0)
+                samples[(begin + kept) // thin] = states[kept]
+                log_probs[(begin + kept) // thin] = lps[kept]
+            theta, lp = states[-1].copy(), float(lps[-1])
+        else:
+            accepted = 0
+            log_u = log_u.tolist()
+            for i in range(m):
+                proposal = theta + steps[i]
+                lp_proposal = log_prob(proposal)
+                if lp_proposal != lp_proposal:  # NaN: a model bug, not a rejection
+                    _nan_error(proposal)
+                if log_u[i] < lp_proposal - lp:
+                    theta, lp = proposal, lp_proposal
+                    accepted += 1
+                if store and (begin + i) % thin == 0:
+                    samples[(begin + i) // thin] = theta
+                    log_probs[(begin + i) // thin] = lp
         accepted_total += accepted
         progress.add(m, accepted)
     walker.theta, walker.log_prob = theta, float(lp)
     return samples, log_probs, accepted_total
+
+
+def _nan_error(proposal: np.ndarray):
+    values = ", ".join(f"{v:.6g}" for v in proposal)
+    raise SamplingError(f"log_prob returned NaN at theta = [{values}]")
 
 
 def _check_counts(n_samples: int, burn_in: int) -> int:
