@@ -82,22 +82,40 @@ def points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d):
     return out
 
 
+@_compiled(fastmath={"contract"})
+def _points_at(rotations, shifts, start, angles, x0, x1, x2):
+    """`_points` at joint angles (n, N) given as such: their cosines and sines are taken here, one
+    configuration at a time, so no (N, n) arrays of them are made."""
+    x0[:] = start[0]
+    x1[:] = start[1]
+    x2[:] = start[2]
+    for j in range(rotations.shape[0] - 1, -1, -1):
+        r = rotations[j]
+        for i in range(x0.shape[0]):
+            c = np.cos(angles[i, j])
+            s = np.sin(angles[i, j])
+            r0 = c * x0[i] - s * x1[i]
+            r1 = s * x0[i] + c * x1[i]
+            z = x2[i]
+            x0[i] = r[0, 0] * r0 + r[0, 1] * r1 + r[0, 2] * z + shifts[j, 0]
+            x1[i] = r[1, 0] * r0 + r[1, 1] * r1 + r[1, 2] * z + shifts[j, 1]
+            x2[i] = r[2, 0] * r0 + r[2, 1] * r1 + r[2, 2] * z + shifts[j, 2]
+
+
 @_compiled()
-def points_each(rotations, shifts, starts, cos_q, sin_q):
+def points_each(rotations, shifts, starts, angles):
     """Positions (m, n, 3) for m chains of one axis layout, each at its own joint angles:
-    rotations (m, N, 3, 3), shifts (m, N, 3), starts (m, 3), cos_q and sin_q (m, N, n). A
-    leading dimension of 1 is shared by every k (one chain at many angle sets)."""
-    m = max(rotations.shape[0], starts.shape[0], cos_q.shape[0])
-    joints, n = cos_q.shape[1], cos_q.shape[2]
+    rotations (m, N, 3, 3), shifts (m, N, 3), starts (m, 3), angles (m, n, N). A leading
+    dimension of 1 is shared by every k (one chain at many angle sets)."""
+    m = max(rotations.shape[0], starts.shape[0], angles.shape[0])
+    n = angles.shape[1]
     out = np.empty((m, n, 3))
     x0, x1, x2 = np.empty(n), np.empty(n), np.empty(n)
-    cos_d, sin_d = np.ones(joints), np.zeros(joints)
     for k in range(m):
         chain = k if rotations.shape[0] > 1 else 0
         start = k if starts.shape[0] > 1 else 0
-        angles = k if cos_q.shape[0] > 1 else 0
-        _points(rotations[chain], shifts[chain], starts[start], cos_q[angles], sin_q[angles], cos_d, sin_d,
-                x0, x1, x2)
+        at = k if angles.shape[0] > 1 else 0
+        _points_at(rotations[chain], shifts[chain], starts[start], angles[at], x0, x1, x2)
         out[k, :, 0] = x0
         out[k, :, 1] = x1
         out[k, :, 2] = x2

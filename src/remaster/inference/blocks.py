@@ -387,10 +387,8 @@ class BlockModel(MeasurementModel):
         marker = self.marker + stack[:, self._marker_index] if self._marker_index else self.marker
         rotations, shifts = kernel.rotations, kernel.shifts
         starts = np.atleast_2d(kernel.start(marker))
-        angles = np.swapaxes(self.angles(stack), -1, -2)  # (m, N, n): joints outer, as the kernel wants
         return _kernels.points_each(rotations.reshape((-1,) + rotations.shape[-3:]),
-                                    shifts.reshape((-1,) + shifts.shape[-2:]), starts,
-                                    np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles)))
+                                    shifts.reshape((-1,) + shifts.shape[-2:]), starts, self.angles(stack))
 
     def predict_full(self, every) -> np.ndarray:
         """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter
