@@ -11,6 +11,13 @@ from remaster.io import robot_files, robot_section
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
 
+# Each job is single-threaded and -j sets how many run at once. A BLAS that starts a thread per
+# core in every job makes two jobs fight for two cores (measured: the loop closure spent 24.6 s of
+# CPU for 13.3 s of work). Set before any job starts, so every job inherits it; a value the user
+# exported wins.
+for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(variable, "1")
+
 CONFIG_FILES = " + ".join(str(f) for f in workflow.configfiles) or "config"
 
 
