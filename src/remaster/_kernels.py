@@ -46,6 +46,18 @@ def _compile_all() -> None:
             globals()[function.__name__] = numba.njit(cache=True, **options)(function)
 
 
+@_compiled(fastmath={"contract"}, inline="always")
+def _through_joint(r, shift, c, s, x0, x1, x2, i):
+    """Point i of x0, x1, x2 through one joint: Rz by the angle whose cosine and sine are c and s,
+    then the joint's fixed rotation r (3, 3) and shift (3,)."""
+    r0 = c * x0[i] - s * x1[i]
+    r1 = s * x0[i] + c * x1[i]
+    z = x2[i]
+    x0[i] = r[0, 0] * r0 + r[0, 1] * r1 + r[0, 2] * z + shift[0]
+    x1[i] = r[1, 0] * r0 + r[1, 1] * r1 + r[1, 2] * z + shift[1]
+    x2[i] = r[2, 0] * r0 + r[2, 1] * r1 + r[2, 2] * z + shift[2]
+
+
 @_compiled(fastmath={"contract"})
 def _points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d, x0, x1, x2):
     """Positions of `start` (a point in the last joint's frame) for every configuration, into
@@ -60,12 +72,7 @@ def _points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d, x0, x1, x2):
         for i in range(x0.shape[0]):
             c = cos_q[j, i] * cd - sin_q[j, i] * sd
             s = sin_q[j, i] * cd + cos_q[j, i] * sd
-            r0 = c * x0[i] - s * x1[i]
-            r1 = s * x0[i] + c * x1[i]
-            z = x2[i]
-            x0[i] = r[0, 0] * r0 + r[0, 1] * r1 + r[0, 2] * z + shifts[j, 0]
-            x1[i] = r[1, 0] * r0 + r[1, 1] * r1 + r[1, 2] * z + shifts[j, 1]
-            x2[i] = r[2, 0] * r0 + r[2, 1] * r1 + r[2, 2] * z + shifts[j, 2]
+            _through_joint(r, shifts[j], c, s, x0, x1, x2, i)
 
 
 @_compiled()
@@ -94,12 +101,7 @@ def _points_at(rotations, shifts, start, angles, x0, x1, x2):
         for i in range(x0.shape[0]):
             c = np.cos(angles[i, j])
             s = np.sin(angles[i, j])
-            r0 = c * x0[i] - s * x1[i]
-            r1 = s * x0[i] + c * x1[i]
-            z = x2[i]
-            x0[i] = r[0, 0] * r0 + r[0, 1] * r1 + r[0, 2] * z + shifts[j, 0]
-            x1[i] = r[1, 0] * r0 + r[1, 1] * r1 + r[1, 2] * z + shifts[j, 1]
-            x2[i] = r[2, 0] * r0 + r[2, 1] * r1 + r[2, 2] * z + shifts[j, 2]
+            _through_joint(r, shifts[j], c, s, x0, x1, x2, i)
 
 
 @_compiled()
