@@ -34,3 +34,17 @@ def ur5_dh():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20181113)
+
+
+def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
+    """A loop closure's report (`remaster.loop.report.LoopReport`) with what the later stages read:
+    the refit's parameter rows, the effects added, the closure test, and neutral values for the rest
+    (1 kg tool plate, 0.5 deg marks' tolerance); `fields` overrides any top-level key."""
+    from remaster.loop.report import LoopReport
+
+    content = {"effects_added": list(effects), "refit": {"parameters": list(parameters)},
+               "settings": {"payload_mass_kg": 1.0, "payload_com_m": [0.0, 0.0, 0.02],
+                            "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}}},
+               "sigma_after_mm": 0.01, "prior_dominated": [], "identifiability": {"dropped": {}},
+               "closure": dict(closure or {}), "residual_gp": None, "warnings": [], **fields}
+    return LoopReport.of(content, source)

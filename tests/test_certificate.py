@@ -7,6 +7,8 @@ import pandas as pd
 from remaster.inference.fit import LaplaceReport
 from remaster.reporting import certificate
 
+from .conftest import loop_report
+
 
 def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
     """Configurations of one pose share most of their error: a naive std / sqrt(n) would be too
@@ -43,8 +45,8 @@ def _inputs(outliers=(), closed=True):
     workspace = {"holds": {"loop": {"holds": "near the measured poses only"}},
                  "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
                  "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"]}
-    loop = {"effects_added": ["joint_compliance"],
-            "closure": {"closed": closed, "verdict": "closed" if closed else "not closed: 0.1 mm left per axis"}}
+    loop = loop_report(effects=["joint_compliance"],
+                       closure={"closed": closed, "verdict": "closed" if closed else "not closed: 0.1 mm left per axis"})
     offsets = pd.DataFrame([{"joint": "j1", "model": "paper", "correction_deg": 0.0, "std_deg": np.nan,
                              "status": "held: not identifiable"},
                             {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009,

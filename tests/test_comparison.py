@@ -16,7 +16,7 @@ from remaster.inference.model import SIGMA
 from remaster.reporting import figures_comparison
 from remaster.units import DEG
 
-from .conftest import REPO
+from .conftest import REPO, loop_report
 
 HELD = "held: not identifiable"
 
@@ -260,15 +260,15 @@ def test_loop_parameters_in_other_units_are_not_compared():
 def test_loop_entries_from_loop_closure_reports():
     metadata = {"c": {"date": "2020-01-01", "robot": {"urdf": "kuka_iiwa14.urdf"},
                       "sensors": {"laser_tracker": {"kind": "laser_tracker"}}}}
-    report = {"refit": {"parameters": loop(compliance=(24.0, 0.5)).replace({np.nan: None}).to_dict("records")}}
+    report = loop_report(loop(compliance=(24.0, 0.5)).replace({np.nan: None}).to_dict("records"))
     entries = comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])},
                                     {("c", "laser_tracker"): report})
     table = comparison.table("loop_parameters_over_time", entries)
     assert table["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1"]
     assert comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])})[0].loop is None
-    with pytest.raises(InputError, match="c/laser_tracker: refit/parameters"):
-        comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])},
-                              {("c", "laser_tracker"): {"refit": {}}})
+    # a report without its refit parameters is refused where it is read, naming the file and the key
+    with pytest.raises(InputError, match="c/laser_tracker/loop_closure.json: refit/parameters: missing"):
+        loop_report(source="c/laser_tracker/loop_closure.json", refit={})
     with pytest.raises(InputError, match="c/laser_tracker: status"):
         comparison.loop_parameters_over_time([entries[0]._replace(loop=loop().drop(columns="status"))])
 
@@ -305,3 +305,18 @@ def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
     assert np.allclose(honest["expected_flagged"], 199 * 0.0026998, rtol=1e-3) and honest["flagged"].max() <= 5
     overconfident = comparison.drift_calibration(comparison.drift_between(fleet(std / 2)))
     assert np.allclose(overconfident["z_std"], 2.0, atol=0.3) and overconfident["flagged"].min() > 10
+
+
+def test_a_loop_report_missing_a_key_names_the_file_and_the_key(tmp_path):
+    """loop_closure.json is read once into a typed report (`io.read_loop`): a field the later
+    stages need that is missing is named with its file and its path of keys."""
+    content = loop_report(effects=["joint_compliance"]).details
+    path = tmp_path / "loop_closure.json"
+    io.write_json(path, content)
+    report = io.read_loop(path)
+    assert report.effects_added == ("joint_compliance",) and report.held_zero_offset_std == pytest.approx(np.radians(0.5))
+    assert report.source == str(path) and report.sigma_after == pytest.approx(1e-5)
+    del content["settings"]["priors"]
+    io.write_json(path, content)
+    with pytest.raises(InputError, match=r"loop_closure.json: settings/priors: missing in the loop-closure report"):
+        io.read_loop(path)

@@ -298,7 +298,7 @@ def twin_results(tmp_path_factory):
     io.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
     io.write_csv(folder / "fit" / "summary.csv", paper_summary(laplace))
     io.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
-    io.write_json(folder / "loop_closure.json", report)
+    io.write_json(folder / "loop_closure.json", report.details)
     io.write_parquet(folder / "loop_closure" / "samples.parquet", samples)
     io.write_parquet(folder / "loop_closure" / "residual_gp.parquet", pd.DataFrame())
     return root, campaign

@@ -106,7 +106,7 @@ def fitted(name: str, sensor: str, tmp_path_factory):
                                                  np.random.default_rng(SEED), settings)
         path = tmp_path_factory.mktemp("loop") / "loop_closure.json"
         io.write_json(path, result.report)
-        _fitted[key] = (campaign, laplace, io.read_json(path), result.samples)
+        _fitted[key] = (campaign, laplace, io.read_loop(path), result.samples)
     return _fitted[key]
 
 
@@ -176,7 +176,7 @@ def cubes_calibration(priors) -> prediction.Calibration:
     or flat (None: plain least squares, the parameters the data cannot see held at 0, as a
     threshold on identifiability did)."""
     campaign, laplace, report, _ = fitted("kuka-cubes", "laser_tracker", None)
-    effects = tuple(report["effects_added"])
+    effects = report.effects_added
     sensor, settings = campaign.sensors["laser_tracker"], loop_closure.LoopSettings()
     data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registered = fit.registration_stage(campaign, "laser_tracker")
@@ -208,7 +208,7 @@ def test_priors_make_the_cubes_calibration_transfer(tmp_path_factory):
     with_priors = np.sqrt(np.mean(on_twin(cubes_calibration(priors_from(CONFIG["priors"]))) ** 2))
     flat = np.sqrt(np.mean(on_twin(cubes_calibration(None)) ** 2))
     nominal = np.sqrt(np.mean(on_twin(prediction.Calibration("nominal")) ** 2))
-    assert "marker_offset" in fitted("kuka-cubes", "laser_tracker", None)[2]["effects_added"]
+    assert "marker_offset" in fitted("kuka-cubes", "laser_tracker", None)[2].effects_added
     assert flat > 3 * with_priors, (flat, with_priors)
     assert with_priors < 0.5 * nominal, (with_priors, nominal)
 

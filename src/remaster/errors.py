@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 MAX_ROWS_SHOWN = 10
 
@@ -41,3 +41,17 @@ class InputError(RemasterError, ValueError):
 
 class KinematicsError(InputError):
     """A robot model that cannot be used: missing frames, unsupported joints, a non-serial chain."""
+
+
+def report_reader(content: Mapping, source: str, message: str):
+    """get(*keys): the value at a path of nested keys of a stage's JSON report; InputError naming
+    the file and the path when a key is missing."""
+    def get(*keys):
+        value = content
+        for depth, key in enumerate(keys):
+            if not isinstance(value, Mapping) or key not in value:
+                raise InputError(message, file=source, key="/".join(keys[: depth + 1]))
+            value = value[key]
+        return value
+
+    return get

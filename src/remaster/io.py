@@ -156,6 +156,14 @@ def read_laplace(path: str | Path):
     return LaplaceReport.of(read_json(path), source=str(path))
 
 
+def read_loop(path: str | Path):
+    """The loop closure's report of a sensor (`loop.report.LoopReport`); InputError naming the
+    file and the key when one is missing."""
+    from .loop.report import LoopReport
+
+    return LoopReport.of(read_json(path), source=str(path))
+
+
 def read_registration(path: str | Path):
     """The initial registration of a sensor (`inference.fit.Registration`); InputError naming the
     file and the key when one is missing."""
@@ -524,5 +532,5 @@ def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> 
         raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
                          "folder it wrote", file=str(folder))
     readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": read_laplace,
-               "registration": read_registration}
+               "registration": read_registration, "loop": read_loop}
     return {key: readers.get(key, readers[Path(name).suffix])(folder / name) for key, name in SENSOR_RESULTS.items()}

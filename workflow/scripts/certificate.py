@@ -10,7 +10,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     per_sensor = {
         sensor: certificate.CertificateInputs(
             io.read_laplace(i.laplace[k]), io.read_csv(i.errors[k]), io.read_parquet(i.residuals[k]),
-            io.read_csv(i.claims[k]), io.read_json(i.workspace[k]), io.read_json(i.loop[k]), io.read_csv(i.offsets[k]))
+            io.read_csv(i.claims[k]), io.read_json(i.workspace[k]), io.read_loop(i.loop[k]), io.read_csv(i.offsets[k]))
         for k, sensor in enumerate(snakemake.params.sensors)}  # noqa: F821
     cert = certificate.certificate(io.read_json(i.summary), per_sensor)
     for name, table in (("verdict", cert.verdicts), ("accuracy", cert.accuracy), ("corrections", cert.corrections)):

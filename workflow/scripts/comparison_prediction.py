@@ -14,7 +14,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
 
     table = prediction.prediction_table(
         p.table, {c: io.read_campaign(f) for c, f in p.folders.items()}, each(io.read_csv, i.summaries),
-        each(io.read_laplace, i.laplaces), each(io.read_json, i.loops), each(io.read_parquet, i.paper_samples),
+        each(io.read_laplace, i.laplaces), each(io.read_loop, i.loops), each(io.read_parquet, i.paper_samples),
         each(io.read_parquet, i.loop_samples), n_configurations=p.random_configurations, seed=p.seed,
         draw_pairs=p.draw_pairs)
     io.write_table(Path(snakemake.output[0]).with_suffix(""), table, prediction.CAPTIONS[p.table], p.table)  # noqa: F821

@@ -11,6 +11,6 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     table = transfer.transfer_stage({c: io.read_campaign(f) for c, f in p.folders.items()},
                                     {pair: io.read_csv(f) for pair, f in zip(pairs, i.summaries)},
                                     {pair: io.read_laplace(f) for pair, f in zip(pairs, i.laplaces)},
-                                    {pair: io.read_json(f) for pair, f in zip(pairs, i.loops)})
+                                    {pair: io.read_loop(f) for pair, f in zip(pairs, i.loops)})
     io.write_table(Path(snakemake.output[0]).with_suffix(""), table, prediction.CAPTIONS["transfer"],  # noqa: F821
                    "transfer")

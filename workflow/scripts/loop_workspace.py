@@ -9,7 +9,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821
     campaign = io.read_campaign(p.folder)
     result = workspace.workspace_accuracy(
         campaign.chain, campaign.sensors[w.sensor], comparison.robot_identity(campaign), io.read_csv(i.summary),
-        io.read_laplace(i.laplace), io.read_json(i.report), io.read_parquet(i.samples),
+        io.read_laplace(i.laplace), io.read_loop(i.report), io.read_parquet(i.samples),
         seeding.generator(p.seed, w.campaign, w.sensor, "workspace"), n_draws=p.draws,
         n_random=p.random_configurations, seed=p.seed, label=i.samples, loop_gp_rows=io.read_parquet(i.gp))
     io.write_csv(out.theoretical, result.theoretical)

@@ -11,6 +11,6 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     table = budget.budget_table(io.read_campaign(snakemake.params.folder),  # noqa: F821
                                 dict(zip(sensors, map(io.read_registration, i.registration))),
                                 dict(zip(sensors, map(io.read_laplace, i.laplace))),
-                                dict(zip(sensors, map(io.read_json, i.loop))))
+                                dict(zip(sensors, map(io.read_loop, i.loop))))
     io.write_table(Path(snakemake.output[0]).with_suffix(""), table, tables.CAPTIONS["uncertainty_budget"],  # noqa: F821
                    "uncertainty_budget")

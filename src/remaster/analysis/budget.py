@@ -24,6 +24,7 @@ import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport, Registration, build_model
+from ..loop.report import LoopReport
 from ..labels import sensor_label
 from ..units import MM
 
@@ -72,16 +73,14 @@ def budget_rows(jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: floa
 
 
 def budget_table(campaign: Campaign, registrations: dict[str, Registration], laplaces: dict[str, LaplaceReport],
-                 loops: dict[str, dict]) -> pd.DataFrame:
+                 loops: dict[str, LoopReport]) -> pd.DataFrame:
     """The uncertainty budget of every sensor of a campaign (see the module docstring); loops:
-    sensor -> loop_closure.json (its sigma_after_mm)."""
+    sensor -> the loop closure's report (`io.read_loop`: its sigma after)."""
     out = []
     for sensor, laplace in laplaces.items():
         data = campaign.sensors[sensor]
         model, _, _ = build_model(campaign.chain, data, registrations[sensor].t_nr, exclude=laplace.outlier_rows)
         laplace.check_names(model.names)
-        loop_sigma = loops[sensor].get("sigma_after_mm")
-        rows = budget_rows(model.jacobian(laplace.theta_map), laplace, data.noise,
-                           None if loop_sigma is None else loop_sigma * MM)
+        rows = budget_rows(model.jacobian(laplace.theta_map), laplace, data.noise, loops[sensor].sigma_after)
         out += [{"Sensor": sensor_label(sensor), **row} for row in rows]
     return pd.DataFrame(out)

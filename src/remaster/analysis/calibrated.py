@@ -38,6 +38,7 @@ from ..errors import InputError
 from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
 from ..robot.kinematics import KinematicChain, origin_transform
+from ..loop.report import LoopReport
 from ..units import DEG
 from . import dh_table
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
@@ -166,19 +167,19 @@ class CalibratedFiles:
     offsets: pd.DataFrame
 
 
-def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: Mapping,
+def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport,
                      label: str = "") -> CalibratedFiles:
     """The calibrated URDFs of the paper's and the loop-closed model of one sensor of a campaign,
     the loop's effects a URDF cannot hold, and both models' controller offsets. summary: the fit's
     summary.csv; loop_report: loop_closure.json."""
     chain = campaign.chain
     paper, loop = paper_calibration(summary, label=label), loop_calibration(loop_report, label=label)
-    table = pd.DataFrame(loop_report["refit"]["parameters"])
+    table = loop_report.parameters
     paper_urdf, _ = calibrated_urdf(chain, paper.values)
     loop_urdf, left = calibrated_urdf(chain, loop.values)
-    gp = loop_report.get("residual_gp") or {}
+    gp = loop_report.residual_gp or {}
     extra = {"campaign": campaign.name, "sensor": sensor, "robot": dict(campaign.robot).get("serial", ""),
-             "effects_added": list(loop_report["effects_added"]),
+             "effects_added": list(loop_report.effects_added),
              "urdf_source": "the campaign's URDF" if chain.urdf_xml is not None else "generated from the DH table",
              "residual_gp": ("not in the URDF: its training rows are loop_closure/residual_gp.parquet, its "
                              "hyperparameters loop_closure.json residual_gp" if gp.get("added") else "not added")}
@@ -187,7 +188,7 @@ def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loo
     return CalibratedFiles(paper_urdf, loop_urdf, effects_yaml(loop, table, left, extra), offsets)
 
 
-def calibrated_dh_tables(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: Mapping,
+def calibrated_dh_tables(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport,
                          label: str = "") -> dict[str, dict]:
     """{'paper', 'loop': calibrated DH table} of a campaign given as a DH table
     (`dh_table.calibrated_dh`, checked at every configuration of the sensor's rows), each in the form

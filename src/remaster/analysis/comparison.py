@@ -30,12 +30,12 @@ from pathlib import PurePosixPath
 from typing import Any, NamedTuple
 
 import numpy as np
-import pandas as pd
-import scipy.special
+import pandas as pd  # scipy.special is imported where it is used: table jobs load this module
 
 from ..errors import InputError
 from ..inference.model import display_value
 from ..labels import paper_order
+from ..loop.report import LoopReport
 
 ZERO_OFFSET_PREFIX = "zero_offsets.q"
 ESTIMATED = "estimated"
@@ -402,23 +402,14 @@ def loop_parameter_agreement(entries: Iterable, significance: float = 3.0) -> pd
 
 
 def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame],
-               loops: Mapping[tuple[str, str], Mapping] | None = None) -> list[Entry]:
+               loops: Mapping[tuple[str, str], LoopReport] | None = None) -> list[Entry]:
     """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping), each
     sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table) and, when
-    given, its loop_closure.json content ((campaign, sensor) -> mapping)."""
+    given, its loop closure's report ((campaign, sensor) -> `io.read_loop`)."""
     loops = loops or {}
-
-    def loop(pair):
-        if pair not in loops:
-            return None
-        parameters = loops[pair].get("refit", {}).get("parameters") if isinstance(loops[pair], Mapping) else None
-        if not isinstance(parameters, list):
-            raise InputError("no refit parameters in the loop-closure report", file="/".join(pair),
-                             key="refit/parameters")
-        return pd.DataFrame(parameters)
-
     return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
-                  metadata[campaign]["sensors"][sensor]["kind"], loop((campaign, sensor)))
+                  metadata[campaign]["sensors"][sensor]["kind"],
+                  loops[(campaign, sensor)].parameters if (campaign, sensor) in loops else None)
             for (campaign, sensor), summary in summaries.items()]
 
 
@@ -433,6 +424,8 @@ def drift_calibration(drift: pd.DataFrame, significance: float = 3.0) -> pd.Data
     compared = drift[drift["status"] == "compared"]
     table = compared.groupby("parameter", sort=False).agg(pairs=("z", "size"), z_mean=("z", "mean"),
                                                           z_std=("z", "std"), flagged=("flagged", "sum"))
+    import scipy.special
+
     table["expected_flagged"] = table["pairs"] * 2.0 * scipy.special.ndtr(-significance)
     return table.reset_index()
 

@@ -56,7 +56,7 @@ from ..errors import InputError, format_rows
 from ..inference import residual_gp
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
-from ..units import DEG, MM
+from ..units import MM
 from .prediction import Calibration, Predictor, loop_calibration, paper_calibration
 
 MODELS = ("paper", "loop")
@@ -224,13 +224,13 @@ def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mappi
         setup, samples, gp = _setup_values(summary), results["paper_samples"], None
     else:
         calibration = loop_calibration(loop, results["loop_samples"], label)
-        setup = _setup_values(pd.DataFrame(loop["refit"]["parameters"]))
-        samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.get("residual_gp"))
+        setup = _setup_values(loop.parameters)
+        samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.residual_gp)
     laplace = results["laplace"]
     held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
     absorbed = frozenset(n for direction in laplace.null_directions
                          if any(k.startswith("registration.") for k in direction) for n in direction if n in held)
-    tolerance = float(loop["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
+    tolerance = loop.held_zero_offset_std
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)
     return CalibratedRobot(campaign.chain, calibration, np.asarray(point, dtype=float), tcp is None, setup,

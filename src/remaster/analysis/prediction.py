@@ -42,6 +42,7 @@ from ..errors import InputError
 from ..inference import metrics
 from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters, link_errors
 from ..inference.fit import LaplaceReport
+from ..loop.report import LoopReport
 from ..robot.gravity import gravity_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
 from ..units import MM
@@ -167,23 +168,17 @@ def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None
     return Calibration("paper", values, (), ModelSettings(), _free_draws(samples, free, label))
 
 
-def loop_calibration(report: Mapping, samples: pd.DataFrame | None = None, label: str = "") -> Calibration:
-    """The loop closure's model from its loop_closure.json content (`effects_added`, `settings`,
-    `refit.parameters`: parameter, block, mean SI, status) and, when given, its posterior samples."""
-    parameters = report.get("refit", {}).get("parameters") if isinstance(report, Mapping) else None
-    if not isinstance(parameters, list):
-        raise InputError("no refit parameters in the loop-closure report", file=label, key="refit/parameters")
-    if not isinstance(report.get("effects_added"), list):
-        raise InputError("no list of effects added in the loop-closure report", file=label, key="effects_added")
-    table = pd.DataFrame(parameters)
-    _checked_columns(table, ("parameter", "block", "mean", "status"), label, "the loop closure's parameters")
+def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, label: str = "") -> Calibration:
+    """The loop closure's model from its report (`io.read_loop`: effects added, payload, the refit's
+    parameters: parameter, block, mean SI, status) and, when given, its posterior samples."""
+    table = report.parameters
+    _checked_columns(table, ("parameter", "block", "mean", "status"), label or report.source,
+                     "the loop closure's parameters")
     kept = table[~table["block"].isin(SETUP_BLOCKS)]
     values = dict(zip(kept["parameter"].astype(str), kept["mean"].astype(float)))
     free = kept.loc[kept["status"].astype(str) == ESTIMATED, "parameter"].astype(str).tolist()
-    settings = report.get("settings", {})
-    model_settings = ModelSettings(payload_mass=float(settings.get("payload_mass_kg", 1.0)),
-                                   payload_com=tuple(float(v) for v in settings.get("payload_com_m", (0, 0, 0.02))))
-    effects = tuple(b for b in EXTENSIONS if b in report["effects_added"] and b not in SETUP_BLOCKS)
+    model_settings = ModelSettings(payload_mass=report.payload_mass, payload_com=report.payload_com)
+    effects = tuple(b for b in EXTENSIONS if b in report.effects_added and b not in SETUP_BLOCKS)
     return Calibration("loop", values, effects, model_settings, _free_draws(samples, free, label))
 
 
@@ -205,10 +200,10 @@ class Calibrated(NamedTuple):
 
 
 def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: LaplaceReport,
-               loop: Mapping | None = None, paper_samples: pd.DataFrame | None = None,
+               loop: LoopReport | None = None, paper_samples: pd.DataFrame | None = None,
                loop_samples: pd.DataFrame | None = None) -> Calibrated:
     """A campaign's sensor with its three calibrations, from its fit summary (summary.csv), Laplace
-    report (its outlier rows) and loop_closure.json content (no loop model without it)."""
+    report (its outlier rows) and loop-closure report (`io.read_loop`; no loop model without it)."""
     label = f"{campaign.name}/{sensor}"
     if sensor not in campaign.sensors:
         raise InputError(f"no sensor {sensor!r} in the campaign", file=campaign.name, key="sensors")
@@ -344,11 +339,11 @@ def _without_marker_offset(entry: Calibrated) -> Calibrated:
 
 def calibrated_entries(campaigns: Mapping[str, Campaign], summaries: Mapping[tuple[str, str], pd.DataFrame],
                        laplaces: Mapping[tuple[str, str], LaplaceReport],
-                       loops: Mapping[tuple[str, str], Mapping] | None = None,
+                       loops: Mapping[tuple[str, str], LoopReport] | None = None,
                        paper_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
                        loop_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None) -> list[Calibrated]:
     """`calibrated` for every (campaign, sensor) of `summaries`: campaigns {name: Campaign}, the
-    others {(campaign, sensor): its summary.csv, Laplace report (`io.read_laplace`), loop_closure.json,
+    others {(campaign, sensor): its summary.csv, Laplace report (`io.read_laplace`), loop report (`io.read_loop`),
     samples_default.parquet, loop_closure/samples.parquet} (loops and samples optional)."""
     loops, paper_samples, loop_samples = loops or {}, paper_samples or {}, loop_samples or {}
     out = []

@@ -57,6 +57,7 @@ from ..errors import InputError
 from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
+from ..loop.report import LoopReport
 from ..inference.model import SIGMA
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import DEG, MM, shown
@@ -146,12 +147,13 @@ def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
 
 
 def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, paper_summary: pd.DataFrame,
-                       laplace: LaplaceReport, loop_report: Mapping, loop_samples: pd.DataFrame,
+                       laplace: LaplaceReport, loop_report: LoopReport, loop_samples: pd.DataFrame,
                        rng: np.random.Generator, n_draws: int = 2000, n_random: int = 1000, seed: int = 0,
                        label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
     module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
-    parameters); loop_report, loop_samples: loop_closure.json and its MCMC samples (SI); robot:
+    parameters); loop_report, loop_samples: the loop closure's report (`io.read_loop`) and its MCMC
+    samples (SI); robot:
     the robot's identity (its random configurations come from seed and it); rng draws the
     posterior rows, the noise and the held zero-offsets; loop_gp_rows: the loop's residual GP
     training rows (residual_gp.parquet), empty or None when it added none. With a residual GP the
@@ -168,10 +170,10 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     sigma = loop_samples[SIGMA].to_numpy(float)[rows]
     held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
     # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
-    unseen = {n: loop.values[n] for n in loop_report.get("identifiability", {}).get("dropped", {}) if n in loop.values}
-    tolerance = float(loop_report["settings"]["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
+    unseen = {n: loop.values[n] for n in loop_report.unseen_by_data if n in loop.values}
+    tolerance = loop_report.held_zero_offset_std
     q_sets = {"optimization": sensor.q("optimization"), "random": robot_configurations(chain, robot, n_random, seed)}
-    gp = residual_gp.from_results(loop_gp_rows, loop_report.get("residual_gp"))
+    gp = residual_gp.from_results(loop_gp_rows, loop_report.residual_gp)
     if gp is not None:
         sigma = np.full(n_draws, gp.hyper.noise_std)
 
@@ -213,9 +215,9 @@ def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
     return float(chosen["mean_mm"].iloc[0])
 
 
-def _report(chain, sensor, claims, loop: Calibration, loop_report, held, tolerance, n_draws, n_random,
+def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, tolerance, n_draws, n_random,
             nowhere) -> dict:
-    dominated = [n for n in loop_report.get("prior_dominated", []) if n not in nowhere]
+    dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
     coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
     suggestions = _suggestions(coverage, dominated)
     warnings, holds = [], {}
@@ -233,12 +235,12 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report, held, toleran
     if dominated:
         warnings.append(f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
                         f"though other poses would: {', '.join(dominated)}")
-    unseeable = [n for n in loop_report.get("prior_dominated", []) if n in nowhere]
+    unseeable = [n for n in loop_report.prior_dominated if n in nowhere]
     if unseeable:
         warnings.append(f"parameters no external measurement can see anywhere in the joint space (absorbed by the "
                         f"registration or without effect), left to their prior: {', '.join(unseeable)}")
     return {
-        "campaign": loop_report.get("campaign"), "sensor": sensor.name,
+        "campaign": loop_report.campaign, "sensor": sensor.name,
         "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
         "configurations": dict(CONFIGURATIONS), "frames": dict(FRAMES),
         "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,

@@ -23,7 +23,7 @@ import pandas as pd
 
 from .. import diagnostics, spatial
 from ..campaigns.campaign import Campaign, SensorData
-from ..errors import InputError
+from ..errors import report_reader
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
@@ -31,20 +31,6 @@ from . import identifiability, samplers
 from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
 
 log = logging.getLogger(__name__)
-
-
-def _reader(content: Mapping, source: str, message: str):
-    """get(*keys): the value at a path of nested keys of a stage's JSON report; InputError naming
-    the file and the path when a key is missing."""
-    def get(*keys):
-        value = content
-        for depth, key in enumerate(keys):
-            if not isinstance(value, Mapping) or key not in value:
-                raise InputError(message, file=source, key="/".join(keys[: depth + 1]))
-            value = value[key]
-        return value
-
-    return get
 
 
 @dataclass(frozen=True)
@@ -61,7 +47,7 @@ class Registration:
     @classmethod
     def of(cls, content: Mapping, source: str = "registration.json") -> "Registration":
         """From the JSON content of `report()`; a missing key is an InputError naming the file and the key."""
-        get = _reader(content, source, "missing in the registration report")
+        get = report_reader(content, source, "missing in the registration report")
         return cls(t_nr=np.asarray(get("T_NR"), dtype=float), rows=tuple(int(r) for r in get("rows")),
                    kabsch_t_nr=np.asarray(get("kabsch_T_NR"), dtype=float),
                    three_point_rms=float(get("three_point_rms_mm")) * 1e-3,
@@ -228,7 +214,7 @@ class LaplaceReport:
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> "LaplaceReport":
         """From the JSON content; a missing key is an InputError naming the file and the key."""
-        get = _reader(content, source, "missing in the Laplace report")
+        get = report_reader(content, source, "missing in the Laplace report")
         return cls(names=tuple(get("names")), theta_map=np.asarray(get("theta_map"), dtype=float),
                    std=np.asarray(get("std"), dtype=float), covariance=np.asarray(get("covariance"), dtype=float),
                    sigma_map=float(get("sigma_map")), sigma_mean=float(get("sigma_mean")),

@@ -21,6 +21,7 @@ import pandas as pd
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..inference.fit import LaplaceReport
+from ..loop.report import LoopReport
 from ..labels import sensor_label
 from ..units import MM
 
@@ -41,7 +42,7 @@ class CertificateInputs:
     loop_residuals: pd.DataFrame
     workspace_accuracy: pd.DataFrame
     workspace: dict
-    loop: dict
+    loop: LoopReport
     controller_offsets: pd.DataFrame
 
 
@@ -97,8 +98,8 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
         norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
         pose_of_row = dict(zip(validation["row"], validation["pose"]))
         poses = after["row"].map(pose_of_row).to_numpy() if "row" in after else None  # older results: no rows
-        rows.append(_row(sensor, where, "loop-closed (" + ", ".join(inputs.loop.get("effects_added", [])) + ")"
-                         if inputs.loop.get("effects_added") else "loop-closed (no effect added)", norms, poses))
+        rows.append(_row(sensor, where, "loop-closed (" + ", ".join(inputs.loop.effects_added) + ")"
+                         if inputs.loop.effects_added else "loop-closed (no effect added)", norms, poses))
     claims = inputs.workspace_accuracy
     for configurations, label in (("optimization", "claimed at the measured configurations"),
                                   ("random", "claimed across the joint space")):
@@ -133,7 +134,7 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
             "After: mean (mm)": after["mean (mm)"], "U(After: mean) (mm)": after["U(mean) (mm)"],
             "After: p95 (mm)": after["p95 (mm)"], "After: model": after["Model"],
             "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
-            "Loop": inputs.loop.get("closure", {}).get("verdict", ""), "Holds": holds}
+            "Loop": inputs.loop.closure.get("verdict", ""), "Holds": holds}
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
@@ -158,7 +159,7 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     if inputs.laplace.outlier_rows:
         out.append(f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
                    f"(rows {list(inputs.laplace.outlier_rows)})")
-    closure = inputs.loop.get("closure", {})
+    closure = inputs.loop.closure
     if closure and not closure.get("closed", False):
         out.append(f"{label}: loop not closed against the sensor's noise: {closure.get('verdict', '')}")
     out += [f"{label}: {w}" for w in inputs.workspace.get("warnings", [])]
