@@ -343,3 +343,20 @@ def test_median_norm_beyond_limit_looks_like_millimetres():
     with pytest.raises(InputError, match="looks like millimetres") as info:
         validate_sensor_table(table, 7, SENSOR, source="memory")
     assert info.value.rows == list(range(9))
+
+
+def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_path):
+    """The estimate grows with the rows of the largest sensor; a campaign over the limit is refused
+    with its name, its rows, the estimate and the setting to change; one under it records the
+    estimate in its summary."""
+    from remaster.campaigns import campaign as campaigns, capacity
+
+    assert capacity.peak_estimate(100_000) == pytest.approx(2 * capacity.peak_estimate(50_000) - capacity.BASE_BYTES)
+    assert 3.5e9 < capacity.peak_estimate(100_000) < 4.5e9  # the 100,000-row accuracy job measured 3.6 GB
+    assert capacity.peak_estimate(100_000, draws=200) == pytest.approx(capacity.peak_estimate(10_000))  # per draw
+    data = read_campaign(make_campaign(tmp_path, tables={SENSOR: sensor_table()}), repo_root=REPO)
+    summary = campaigns.summarize(data, memory_limit=2e9)
+    assert summary["memory"]["largest_sensor_rows"] == 9 and summary["memory"]["limit_gb"] == 2.0
+    with pytest.raises(InputError, match=r"demo: 9 rows in its largest sensor: .* would need about 0\.5 GB, more than "
+                                         r"the 0\.1 GB a job may use \(max_job_memory_gb"):
+        campaigns.summarize(data, memory_limit=0.1e9)

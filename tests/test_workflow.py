@@ -260,3 +260,17 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
                           f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000", "--dump-dom",
                           checked.as_uri()], capture_output=True, text=True, timeout=120).stdout
     assert f'data-checked="images={len(sizes)};broken=0;empty=0"' in dom
+
+
+def test_a_campaign_too_large_for_the_configured_memory_stops_at_its_first_job(tiny):
+    """max_job_memory_gb below what the campaigns' jobs need: the campaign check refuses it with a
+    message that names the campaign, its rows and the setting; no fit starts and no summary is left."""
+    config = io.read_yaml(tiny / "config.yaml")
+    io.write_yaml(tiny / "small_memory.yaml", {**config, "results_dir": str(tiny / "small_memory"),
+                                               "max_job_memory_gb": 0.1})
+    result = run(tiny, config="small_memory.yaml")
+    assert result.returncode != 0
+    output = result.stdout + result.stderr
+    assert "rows in its largest sensor" in output and "max_job_memory_gb" in output
+    assert not list((tiny / "small_memory").glob("*/campaign/summary.json"))
+    assert not list((tiny / "small_memory").glob("*/*/registration.json"))

@@ -7,6 +7,8 @@ FIT = f"{RESULTS}/{{campaign}}/{{sensor}}/fit"
 rule registration:
     input:
         campaign_files,
+        # the campaign's check comes first: one too large for the memory a job may use stops here
+        summary=f"{RESULTS}/{{campaign}}/campaign/summary.json",
     output:
         registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
     log:

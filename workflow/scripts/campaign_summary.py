@@ -5,4 +5,5 @@ from remaster.campaigns import campaign
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     data = io.read_campaign(snakemake.params.folder)  # noqa: F821
-    io.write_json(snakemake.output.summary, campaign.summarize(data))  # noqa: F821
+    p = snakemake.params  # noqa: F821
+    io.write_json(snakemake.output.summary, campaign.summarize(data, p.memory_limit, p.draws))  # noqa: F821

@@ -22,6 +22,7 @@ import pandas as pd
 from ..errors import InputError, KinematicsError
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, KinematicChain
+from . import capacity
 from ..robot.priors import check_override
 
 SETS = ("optimization", "validation")
@@ -504,9 +505,13 @@ def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joint
                       noise=spec["noise"], table=validate_sensor_table(table, n_joints, name, source, limits=limits))
 
 
-def summarize(campaign: Campaign) -> dict[str, Any]:
+def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int = 2000) -> dict[str, Any]:
     """What a campaign holds: robot, and per sensor the rows, poses and configurations per set,
-    and the rows whose marker was not seen (kept, listed by 0-based row)."""
+    and the rows whose marker was not seen (kept, listed by 0-based row); and whether its jobs fit
+    in `memory_limit` bytes each (None: `capacity.default_limit`) with `draws` posterior draws in the
+    theoretical accuracy: InputError before any fit when they do not (`capacity.check`)."""
+    memory = capacity.check(campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0),
+                            capacity.default_limit() if memory_limit is None else memory_limit, draws)
     sensors = {}
     for name, sensor in campaign.sensors.items():
         table = sensor.table
@@ -523,4 +528,4 @@ def summarize(campaign: Campaign) -> dict[str, Any]:
     return {"campaign": campaign.name, "date": campaign.date.isoformat(),
             "robot": {"name": chain.name, "serial": campaign.robot.get("serial"), "joints": list(chain.joint_names),
                       "base": chain.base_frame, "flange": chain.flange_frame},
-            "sensors": sensors}
+            "sensors": sensors, "memory": memory}

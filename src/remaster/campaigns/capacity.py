@@ -1,0 +1,50 @@
+"""Will a campaign's jobs fit in memory? Estimated from its rows before any fit, so that a campaign
+too large for the memory a job may use is refused by its first job with a message that says what
+to do, not ended half-way by the kernel's out-of-memory killer.
+
+Every stage's memory grows at most linearly with the rows (`benchmarks/bench_scale.py`); the
+largest per row is the accuracy job's: the theoretical accuracy holds every posterior draw's
+error at every configuration (2000 draws x 8 bytes) and the interval summary one sorted copy of
+them, about 32 kB a row; measured 1,023 MB traced at 30,000 rows and 3.6 GB resident at 100,000.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..errors import InputError
+
+BASE_BYTES = 0.5e9       # a job's resident size with a small campaign: Python, NumPy, pandas, Numba, Pinocchio
+BYTES_PER_ROW = 36e3     # the accuracy job's per-row cost (module docstring), rounded up
+GB = 1e9
+
+
+def peak_estimate(rows: int, draws: int = 2000) -> float:
+    """Bytes the largest job of a campaign of `rows` rows (its largest sensor) is expected to
+    need at its peak, for `draws` posterior draws in the theoretical accuracy."""
+    return BASE_BYTES + BYTES_PER_ROW * (draws / 2000) * max(int(rows), 0)
+
+
+def machine_memory() -> float:
+    """Bytes of physical memory of this machine."""
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+def default_limit(parallel_jobs: int = 2) -> float:
+    """Bytes one job may use when none is configured: the machine's memory shared by the jobs
+    that run at once (`snakemake -j2`: two)."""
+    return machine_memory() / max(int(parallel_jobs), 1)
+
+
+def check(campaign: str, rows: int, limit: float, draws: int = 2000, source: str = "") -> dict:
+    """The estimate for a campaign whose largest sensor has `rows` rows against `limit` bytes per
+    job: {'largest_sensor_rows', 'estimated_peak_gb', 'limit_gb'}, or InputError naming the
+    campaign, its rows, the estimate and the limit when it does not fit."""
+    need = peak_estimate(rows, draws)
+    if need > limit:
+        raise InputError(f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
+                         f"at every configuration) would need about {need / GB:.1f} GB, more than the "
+                         f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; this machine has "
+                         f"{machine_memory() / GB:.0f} GB): raise max_job_memory_gb where the machine allows it, or "
+                         f"split the campaign into smaller ones (by date or by pose)", file=source or campaign)
+    return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB, "limit_gb": limit / GB}
