@@ -84,7 +84,7 @@ def main() -> None:
     print(f"  compiled, 32 walkers per call    {1 / batched:10.0f} evaluations/s")
     print(f"  Pinocchio loop                   {1 / slow:10.0f} evaluations/s  (compiled is {slow / fast:.0f}x faster)")
 
-    laplace = fit.laplace_report(fit.laplace_fit(model), analysis, excluded)
+    laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
     settings = {"paper": {"chains": 2, "samples": 200_000, "burn_in": 175_000, "half_width": 0.0125},
                 "default": {"chains": 2, "samples": 40_000, "burn_in": 10_000},
                 "emcee": {"walkers": 32, "steps": 6_000, "burn_in": 1_000}}
