@@ -287,6 +287,8 @@ def test_config_results_dir_that_is_a_file(tmp_path, tiny):
 def test_config_burn_in_not_shorter_than_the_run(tmp_path):
     result = dry_run(tmp_path, {"fit": {"emcee": {"steps": 500, "burn_in": 500}}})
     assert_refused(result, "fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500")
+    result = dry_run(tmp_path, {"loop_closure": {"mcmc": {"samples": 1000, "burn_in": 1000}}})
+    assert_refused(result, "loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000")
 
 
 def test_config_campaign_that_is_not_there(tmp_path):

@@ -50,11 +50,13 @@ def check_paths(raw, results):
 
 
 def check_fit_settings():
-    for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps")):
-        settings = config["fit"][method]
+    """Every sampler's burn-in shorter than its run: the paper model's three and the loop closure's refit."""
+    runs = [(f"fit/{method}", config["fit"][method], length)
+            for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps"))]
+    for key, settings, length in runs + [("loop_closure/mcmc", config["loop_closure"]["mcmc"], "samples")]:
         if settings["burn_in"] >= settings[length]:
-            raise config_error(f"fit/{method}/burn_in", f"{settings['burn_in']} is not below fit/{method}/{length} "
-                                                        f"= {settings[length]}: no sample would be kept")
+            raise config_error(f"{key}/burn_in", f"{settings['burn_in']} is not below {key}/{length} "
+                                                 f"= {settings[length]}: no sample would be kept")
 
 
 RAW = checked_path("raw_dir")
