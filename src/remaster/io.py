@@ -373,6 +373,21 @@ def _read_parquet(path: Path) -> pd.DataFrame:
         raise InputError(f"cannot read Parquet: {exc}", file=str(path)) from None
 
 
+def campaign_folders(files) -> dict[str, Path]:
+    """{campaign name: folder} of the campaign.yaml files among a job's declared input files: a
+    workflow job reads the campaigns it declares, and finds their folders from them."""
+    return {path.parent.name: path.parent for path in map(Path, files) if path.name == METADATA_FILE}
+
+
+def campaign_folder(files) -> Path:
+    """The folder of the one campaign whose files a job declares (`campaign_folders`)."""
+    folders = campaign_folders(files)
+    if len(folders) != 1:
+        raise InputError(f"a job's campaign files hold {len(folders)} {METADATA_FILE} files, not one",
+                         file=", ".join(map(str, files)) or "(no input files)")
+    return next(iter(folders.values()))
+
+
 def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Campaign:
     """Read and validate a campaign folder (campaign.yaml + one <sensor>.parquet per sensor).
 

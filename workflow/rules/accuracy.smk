@@ -21,7 +21,6 @@ rule accuracy:
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/accuracy.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         names=ACCURACY_FILES,
         seed=config["seed"],
         draws=config["accuracy"]["draws"],
@@ -89,7 +88,6 @@ rule table_iso9283:
     log:
         f"{RESULTS}/logs/{{campaign}}/table_iso9283.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         sensors=lambda wc: sensors_of(wc.campaign),
     script:
         "../scripts/table_iso9283.py"

@@ -19,8 +19,6 @@ rule calibrated:
         offsets=f"{CALIBRATED}/controller_offsets.csv",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated.log",
-    params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
     script:
         "../scripts/calibrated.py"
 
@@ -35,8 +33,6 @@ rule calibrated_dh:
         loop=f"{CALIBRATED}/loop_dh.yaml",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated_dh.log",
-    params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
     script:
         "../scripts/calibrated_dh.py"
 

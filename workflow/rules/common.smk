@@ -59,6 +59,10 @@ def check_fit_settings():
                                                  f"= {settings[length]}: no sample would be kept")
 
 
+# Bytes one job may use: max_job_memory_gb, or this machine's memory shared by the two jobs of -j2.
+JOB_MEMORY_LIMIT = (config["max_job_memory_gb"] * 1e9 if config["max_job_memory_gb"] is not None
+                    else os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2)
+
 RAW = checked_path("raw_dir")
 RESULTS = checked_path("results_dir")
 check_paths(RAW, RESULTS)

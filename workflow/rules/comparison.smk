@@ -96,7 +96,6 @@ rule comparison_transfer:
     log:
         f"{RESULTS}/logs/comparison/transfer.log",
     params:
-        folders={c: f"{RAW}/{c}" for c in CAMPAIGNS},
         pairs=[(c, s) for c in CAMPAIGNS for s in sensors_of(c)],
     script:
         "../scripts/comparison_transfer.py"
@@ -114,7 +113,6 @@ for _table in PREDICTION_TABLES:
         log:
             f"{RESULTS}/logs/comparison/{_table}.log",
         params:
-            folders={c: f"{RAW}/{c}" for c in CAMPAIGNS},
             pairs=[(c, s) for c in CAMPAIGNS for s in sensors_of(c)],
             table=_table,
             seed=config["seed"],

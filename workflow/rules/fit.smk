@@ -6,15 +6,13 @@ FIT = f"{RESULTS}/{{campaign}}/{{sensor}}/fit"
 
 rule registration:
     input:
-        campaign_files,
+        campaign=campaign_files,
         # the campaign's check comes first: one too large for the memory a job may use stops here
         summary=f"{RESULTS}/{{campaign}}/campaign/summary.json",
     output:
         registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/registration.log",
-    params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
     script:
         "../scripts/registration.py"
 
@@ -28,7 +26,6 @@ rule laplace:
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/laplace.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         outlier_alpha=config["outliers"]["alpha"],
     script:
         "../scripts/laplace.py"
@@ -48,7 +45,6 @@ rule sample:
     wildcard_constraints:
         method="|".join(FIT_METHODS),
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         settings=lambda wc: config["fit"][wc.method],
         seed=config["seed"],
     script:
@@ -95,8 +91,6 @@ rule discrepancy:
         report=f"{FIT}/discrepancy.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/discrepancy.log",
-    params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
     script:
         "../scripts/discrepancy.py"
 
@@ -109,7 +103,5 @@ rule remastering:
         remastering=f"{RESULTS}/{{campaign}}/{{sensor}}/remastering.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/remastering.log",
-    params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
     script:
         "../scripts/remastering.py"

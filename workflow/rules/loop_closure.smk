@@ -20,7 +20,6 @@ rule loop_closure:
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_closure.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         settings=config["loop_closure"],
         priors=config["priors"],
         convergence=config["fit"]["cross_check"],
@@ -123,7 +122,6 @@ rule loop_workspace:
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_workspace.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         seed=config["seed"],
         draws=config["accuracy"]["draws"],
         random_configurations=config["accuracy"]["random_configurations"],

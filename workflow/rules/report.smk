@@ -23,7 +23,6 @@ rule table_uncertainty_budget:
     log:
         f"{RESULTS}/logs/{{campaign}}/table_uncertainty_budget.log",
     params:
-        folder=lambda wc: f"{RAW}/{wc.campaign}",
         sensors=lambda wc: sensors_of(wc.campaign),
     script:
         "../scripts/table_uncertainty_budget.py"

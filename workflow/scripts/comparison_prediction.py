@@ -13,7 +13,7 @@ with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
         return {pair: read(f) for pair, f in zip(pairs, files)}
 
     table = prediction.prediction_table(
-        p.table, {c: io.read_campaign(f) for c, f in p.folders.items()}, each(io.read_csv, i.summaries),
+        p.table, {c: io.read_campaign(f) for c, f in io.campaign_folders(i.campaigns).items()}, each(io.read_csv, i.summaries),
         each(io.read_laplace, i.laplaces), each(io.read_loop, i.loops), each(io.read_parquet, i.paper_samples),
         each(io.read_parquet, i.loop_samples), n_configurations=p.random_configurations, seed=p.seed,
         draw_pairs=p.draw_pairs)

@@ -8,7 +8,7 @@ from remaster.analysis import prediction, transfer
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     p, i = snakemake.params, snakemake.input  # noqa: F821
     pairs = [tuple(pair) for pair in p.pairs]
-    table = transfer.transfer_stage({c: io.read_campaign(f) for c, f in p.folders.items()},
+    table = transfer.transfer_stage({c: io.read_campaign(f) for c, f in io.campaign_folders(i.campaigns).items()},
                                     {pair: io.read_csv(f) for pair, f in zip(pairs, i.summaries)},
                                     {pair: io.read_laplace(f) for pair, f in zip(pairs, i.laplaces)},
                                     {pair: io.read_loop(f) for pair, f in zip(pairs, i.loops)})

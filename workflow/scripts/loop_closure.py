@@ -9,7 +9,7 @@ w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821
     p, out = snakemake.params, snakemake.output  # noqa: F821
     result = loop_closure.loop_closure_stage(
-        io.read_campaign(p.folder), w.sensor, io.read_registration(snakemake.input.registration),  # noqa: F821
+        io.read_campaign(io.campaign_folder(snakemake.input.campaign)), w.sensor, io.read_registration(snakemake.input.registration),  # noqa: F821
         io.read_laplace(snakemake.input.laplace), seeding.generator(p.seed, w.campaign, w.sensor, "loop_closure"),  # noqa: F821
         loop_closure.settings_from(p.settings, p.priors, p.convergence))
     io.write_json(out.report, result.report)

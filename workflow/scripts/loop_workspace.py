@@ -6,7 +6,7 @@ from remaster.analysis import comparison, workspace
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]):  # noqa: F821
     p, i, out = snakemake.params, snakemake.input, snakemake.output  # noqa: F821
-    campaign = io.read_campaign(p.folder)
+    campaign = io.read_campaign(io.campaign_folder(snakemake.input.campaign))
     result = workspace.workspace_accuracy(
         campaign.chain, campaign.sensors[w.sensor], comparison.robot_identity(campaign), io.read_csv(i.summary),
         io.read_laplace(i.laplace), io.read_loop(i.report), io.read_parquet(i.samples),

@@ -5,7 +5,7 @@ from remaster.inference import fit
 
 w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
 with io.log_to(snakemake.log[0]) as log:  # noqa: F821
-    campaign = io.read_campaign(snakemake.params.folder)  # noqa: F821
+    campaign = io.read_campaign(io.campaign_folder(snakemake.input.campaign))  # noqa: F821
     samples, trace, diagnostics = fit.sampling_stage(
         campaign, w.sensor, io.read_registration(snakemake.input.registration), io.read_laplace(snakemake.input.laplace),  # noqa: F821
         w.method, dict(snakemake.params.settings),  # noqa: F821

@@ -7,7 +7,7 @@ from remaster.analysis import iso9283
 from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
-    campaign = io.read_campaign(snakemake.params.folder)  # noqa: F821
+    campaign = io.read_campaign(io.campaign_folder(snakemake.input.campaign))  # noqa: F821
     sensors = snakemake.params.sensors  # noqa: F821
     table = iso9283.iso9283_table({s: campaign.sensors[s] for s in sensors},
                                   {s: io.read_csv(p) for s, p in zip(sensors, snakemake.input.errors)})  # noqa: F821

@@ -8,7 +8,7 @@ from remaster.reporting import tables
 
 with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
     i, sensors = snakemake.input, snakemake.params.sensors  # noqa: F821
-    table = budget.budget_table(io.read_campaign(snakemake.params.folder),  # noqa: F821
+    table = budget.budget_table(io.read_campaign(io.campaign_folder(snakemake.input.campaign)),  # noqa: F821
                                 dict(zip(sensors, map(io.read_registration, i.registration))),
                                 dict(zip(sensors, map(io.read_laplace, i.laplace))),
                                 dict(zip(sensors, map(io.read_loop, i.loop))))

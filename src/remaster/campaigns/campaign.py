@@ -508,10 +508,10 @@ def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joint
 def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int = 2000) -> dict[str, Any]:
     """What a campaign holds: robot, and per sensor the rows, poses and configurations per set,
     and the rows whose marker was not seen (kept, listed by 0-based row); and whether its jobs fit
-    in `memory_limit` bytes each (None: `capacity.default_limit`) with `draws` posterior draws in the
-    theoretical accuracy: InputError before any fit when they do not (`capacity.check`)."""
+    in `memory_limit` bytes each (None: no limit) with `draws` posterior draws in the theoretical
+    accuracy: InputError before any fit when they do not (`capacity.check`)."""
     memory = capacity.check(campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0),
-                            capacity.default_limit() if memory_limit is None else memory_limit, draws)
+                            memory_limit, draws)
     sensors = {}
     for name, sensor in campaign.sensors.items():
         table = sensor.table

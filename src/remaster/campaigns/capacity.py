@@ -10,8 +10,6 @@ them, about 32 kB a row; measured 1,023 MB traced at 30,000 rows and 3.6 GB resi
 
 from __future__ import annotations
 
-import os
-
 from ..errors import InputError
 
 BASE_BYTES = 0.5e9       # a job's resident size with a small campaign: Python, NumPy, pandas, Numba, Pinocchio
@@ -25,26 +23,16 @@ def peak_estimate(rows: int, draws: int = 2000) -> float:
     return BASE_BYTES + BYTES_PER_ROW * (draws / 2000) * max(int(rows), 0)
 
 
-def machine_memory() -> float:
-    """Bytes of physical memory of this machine."""
-    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-
-
-def default_limit(parallel_jobs: int = 2) -> float:
-    """Bytes one job may use when none is configured: the machine's memory shared by the jobs
-    that run at once (`snakemake -j2`: two)."""
-    return machine_memory() / max(int(parallel_jobs), 1)
-
-
-def check(campaign: str, rows: int, limit: float, draws: int = 2000, source: str = "") -> dict:
+def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, source: str = "") -> dict:
     """The estimate for a campaign whose largest sensor has `rows` rows against `limit` bytes per
-    job: {'largest_sensor_rows', 'estimated_peak_gb', 'limit_gb'}, or InputError naming the
-    campaign, its rows, the estimate and the limit when it does not fit."""
+    job (None: no limit): {'largest_sensor_rows', 'estimated_peak_gb', 'limit_gb'}, or InputError
+    naming the campaign, its rows, the estimate and the limit when it does not fit."""
     need = peak_estimate(rows, draws)
-    if need > limit:
+    if limit is not None and need > limit:
         raise InputError(f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
                          f"at every configuration) would need about {need / GB:.1f} GB, more than the "
-                         f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; this machine has "
-                         f"{machine_memory() / GB:.0f} GB): raise max_job_memory_gb where the machine allows it, or "
-                         f"split the campaign into smaller ones (by date or by pose)", file=source or campaign)
-    return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB, "limit_gb": limit / GB}
+                         f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
+                         f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
+                         f"the campaign into smaller ones (by date or by pose)", file=source or campaign)
+    return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB,
+            "limit_gb": None if limit is None else limit / GB}
