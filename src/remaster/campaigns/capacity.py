@@ -25,8 +25,9 @@ def peak_estimate(rows: int, draws: int = 2000) -> float:
 
 def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, source: str = "") -> dict:
     """The estimate for a campaign whose largest sensor has `rows` rows against `limit` bytes per
-    job (None: no limit): {'largest_sensor_rows', 'estimated_peak_gb', 'limit_gb'}, or InputError
-    naming the campaign, its rows, the estimate and the limit when it does not fit."""
+    job (None: no limit): {'largest_sensor_rows', 'estimated_peak_gb'} (not the limit, which depends
+    on the machine: the summary stays the same bytes everywhere), or InputError naming the campaign,
+    its rows, the estimate and the limit when it does not fit."""
     need = peak_estimate(rows, draws)
     if limit is not None and need > limit:
         raise InputError(f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
@@ -34,5 +35,4 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, sour
                          f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
                          f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
                          f"the campaign into smaller ones (by date or by pose)", file=source or campaign)
-    return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB,
-            "limit_gb": None if limit is None else limit / GB}
+    return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB}
