@@ -21,8 +21,9 @@ from ..units import DEG, MM
 
 @dataclass(frozen=True, eq=False)
 class LoopReport:
-    """One sensor's loop closure. campaign: its name (None when not recorded); effects_added: in the order added; parameters: the refit's
-    table, one row per parameter (parameter, block, mean and std SI, status, prior ratio...);
+    """One sensor's loop closure. campaign: its name (None when not recorded); effects_added: in
+    the order added; parameters: the refit's table, one row per parameter (parameter, block, mean
+    and std SI, status, prior ratio...);
     payload_mass (kg) and payload_com (3,) m: the tool plate the gravity torques assumed;
     held_zero_offset_std (rad): the controller marks' tolerance on a joint no sensor sees;
     sigma_after (m); prior_dominated: parameters the data barely moved from their prior;
