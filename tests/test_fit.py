@@ -241,3 +241,12 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
     adaptive = [samplers.metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
                 for t in (compiled, python)]
     assert np.array_equal(adaptive[0].samples, adaptive[1].samples)
+    # a NaN log-posterior stops the compiled block where it occurs, as it stops the Python loop
+    steps = np.zeros((6, len(start)))
+    steps[3, 0] = np.nan
+    states, _, _, nan_at = model.metropolis_block(start, compiled.log_prob(start), steps, np.zeros(6))
+    assert nan_at == 3 and np.isfinite(states[:3]).all()
+    with pytest.raises(samplers.SamplingError, match="log_prob returned NaN"):
+        samplers._walk(compiled, np.random.default_rng(0), samplers._start(compiled, start), 10,
+                       lambda rng, m: np.where(np.arange(m)[:, None] == 3, np.nan, 0.0) * np.ones((m, len(start))),
+                       False, samplers._Progress(None, 10))

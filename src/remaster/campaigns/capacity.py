@@ -23,7 +23,7 @@ def peak_estimate(rows: int, draws: int = 2000) -> float:
     return BASE_BYTES + BYTES_PER_ROW * (draws / 2000) * max(int(rows), 0)
 
 
-def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, source: str = "") -> dict:
+def check(campaign: str, rows: int, limit: float | None, draws: int = 2000) -> dict:
     """The estimate for a campaign whose largest sensor has `rows` rows against `limit` bytes per
     job (None: no limit): {'largest_sensor_rows', 'estimated_peak_gb'} (not the limit, which depends
     on the machine: the summary stays the same bytes everywhere), or InputError naming the campaign,
@@ -34,5 +34,5 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, sour
                          f"at every configuration) would need about {need / GB:.1f} GB, more than the "
                          f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
                          f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
-                         f"the campaign into smaller ones (by date or by pose)", file=source or campaign)
+                         f"the campaign into smaller ones (by date or by pose)", file=campaign)
     return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB}
