@@ -99,18 +99,31 @@ def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):
 
 
 def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
-    """The bundled twin (its unmodelled compliance and link errors included): each identifiable
-    zero-offset within three posterior std of the truth, joint 1 held and reported as such."""
+    """The bundled twin (its unmodelled marker placement, drift, compliance and link errors
+    included): each identifiable zero-offset within three posterior std of what the paper's model
+    can recover, joint 1 held and reported as such. What it can recover: a drifting offset at the
+    optimization set's mean time, and joint 7 turned by the marker's error about the flange axis
+    (the paper's sensors differ there by 0.33 deg, which it puts down to the markers' mounting)."""
     campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
-    truth = np.radians(json.loads((REPO / "data" / "truth" / "kuka-twin.json").read_text())["zero_offsets_deg"])
+    truth = json.loads((REPO / "data" / "truth" / "kuka-twin.json").read_text())
+    rate = np.radians(truth["effects"]["drift"]["zero_offset_rate_deg_per_hour"]) / 3600.0
+    turns = {}  # rad: the marker's error about the flange axis, seen as a joint-7 offset
     for name, sensor in campaign.sensors.items():
+        times = sensor.table.loc[sensor.set_mask("optimization"), "time"]
+        elapsed = (times - sensor.table["time"].iloc[0]).dt.total_seconds().mean()
+        marker, error = sensor.marker, np.array(truth["sensors"][name]["marker_error_m"])
+        turns[name] = (marker[0] * error[1] - marker[1] * error[0]) / (marker[0] ** 2 + marker[1] ** 2)
+        recoverable = np.radians(truth["zero_offsets_deg"]) + rate * elapsed + np.eye(7)[6] * turns[name]
         laplace, samples, _ = fitted(campaign.chain, sensor)
         summary = fit.posterior_summary(samples["default"], laplace)
         assert summary.loc["zero_offsets.q1", "status"].startswith("held")
         for j in range(1, 7):
             row = summary.loc[f"zero_offsets.q{j + 1}"]
-            assert abs(row["mean"] - truth[j]) < 3 * row["std"], (name, j + 1, row["mean"], truth[j], row["std"])
+            assert abs(row["mean"] - recoverable[j]) < 3 * row["std"], (name, j + 1, row["mean"], recoverable[j],
+                                                                          row["std"])
         assert 0.7e-3 < summary.loc["noise.sigma", "mean"] < 0.95e-3  # the paper's size
+    # the laser tracker's marker error shows as a joint-7 offset the truth does not have, as in the paper
+    assert np.degrees(turns["laser_tracker"]) == pytest.approx(0.327, abs=0.001) and turns["motion_capture"] == 0.0
 
 
 def test_remastering_file_and_tables(iiwa):

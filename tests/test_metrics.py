@@ -9,14 +9,16 @@ import pandas as pd
 import pytest
 from scipy import optimize, stats
 
-from remaster import spatial
+from remaster import io, spatial
 from remaster.analysis import accuracy
 from remaster.campaigns.campaign import Campaign, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit, metrics
-from remaster.inference.model import ZeroOffsetModel, parameter_names
+from remaster.inference.model import SIGMA, ZeroOffsetModel, parameter_names
 from remaster.reporting import figures_accuracy
 from remaster.units import shown
+
+from .conftest import REPO
 
 SMALL_FIT = {"chains": 2, "samples": 2000, "burn_in": 1000}
 
@@ -135,13 +137,13 @@ def simulated_campaign(chain, rng, poses=(12, 6), per_pose=4, noise=5e-5, missin
     return Campaign("sim", dt.date(2020, 1, 1), "", {}, chain, {"laser_tracker": data})
 
 
-def fitted_stage(campaign, seed=0, **sizes):
-    sensor = campaign.sensors["laser_tracker"]
+def fitted_stage(campaign, seed=0, sensor_name="laser_tracker", **sizes):
+    sensor = campaign.sensors[sensor_name]
     registration = fit.register(campaign.chain, sensor)
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
     laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
     samples = fit.samples_frame(fit.sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
-    out = accuracy.accuracy_tables(campaign, "laser_tracker", registration, laplace, samples,
+    out = accuracy.accuracy_tables(campaign, sensor_name, registration, laplace, samples,
                                    np.random.default_rng(seed), **{"n_draws": 300, "n_random": 60, **sizes})
     return out, model, laplace, samples
 
@@ -251,6 +253,42 @@ def test_tcp_scatter_and_paper_layout(stage):
     assert validation.columns[0] == "Metric" and len(validation) == 7  # Vernier least squares: post-registration only
     compared = accuracy.paper_comparison("validation_accuracy", validation)
     assert compared["Paper Mean (mm)"].notna().sum() == 2  # the paper's Bayesian relative and post-registration
+
+
+@pytest.mark.parametrize("sensor_name", ["motion_capture", "laser_tracker"])
+def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
+    """kuka-twin against the paper's eight tables: every headline mean within +-25 % of the
+    paper's, but the Vernier theoretical rows. The paper's posterior draws carry a joint-1 offset
+    that no registration-free data determine; remaster holds joint 1 (a rotation about base Z), so
+    its Vernier rows leave that rotation out. With the twin's true joint-1 offset put into the
+    draws, those rows reach the paper's too: the gap is that rotation and nothing else."""
+    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    out, _, laplace, samples = fitted_stage(campaign, sensor_name=sensor_name, n_draws=500, n_random=300)
+    vernier_theoretical = {table: out[table].set_index("method").loc["Vernier", "mean_mm"]
+                           for table in accuracy.METRIC_TABLES if table.startswith("theoretical")}
+    for table in accuracy.PAPER_VALUES:
+        compared = accuracy.paper_comparison(table, accuracy.paper_table({sensor_name: out[table]}))
+        compared = compared[compared["Paper Mean (mm)"].notna()]
+        ratio = compared["Mean (mm)"] / compared["Paper Mean (mm)"]
+        held_rotation = (compared["Remastering Method"] == "Vernier") & table.startswith("theoretical")
+        assert len(compared) > 0 and ratio[~held_rotation].between(0.75, 1.25).all(), (table, compared)
+        assert (ratio[held_rotation] < 1.0).all(), (table, compared)  # lower: a rotation left out
+
+    truth = io.read_json(REPO / "data" / "truth" / "kuka-twin.json")
+    parameters = accuracy.parameter_table(samples, laplace, 7)
+    draws = parameters[list(parameter_names(7)[6:])].to_numpy(copy=True)
+    draws[:, 0] = np.radians(truth["zero_offsets_deg"][0])
+    rng = np.random.default_rng(1)
+    sensor = campaign.sensors[sensor_name]
+    random_q = metrics.random_configurations(campaign.chain, 300, rng)
+    for table, q, sigma in (("theoretical_accuracy_optimization_configs", sensor.q("optimization"),
+                             parameters[SIGMA].to_numpy()),
+                            ("theoretical_accuracy_random_configs", random_q, parameters[SIGMA].to_numpy()),
+                            ("theoretical_accuracy_zero_offsets_only", random_q, None)):
+        with_joint_1 = metrics.theoretical_errors(campaign.chain, q, sensor.marker, np.zeros(7), draws[:200],
+                                                  None if sigma is None else sigma[:200], rng).mean() * 1e3
+        paper = accuracy.PAPER_VALUES[table][("Vernier", accuracy.sensor_label(sensor_name))][0]
+        assert 0.75 < with_joint_1 / paper < 1.25, (table, with_joint_1, paper, vernier_theoretical[table])
 
 
 def test_sensor_comparison(stage):

@@ -34,10 +34,11 @@ def tracker_campaign(tmp_path, iiwa, growth: float):
     only noise), with range noise 10 um and transverse growth `growth` per metre."""
     spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
     spec["name"] = "tracker"
-    for effect in ("joint_compliance", "link_errors", "payload"):
+    for effect in ("joint_compliance", "link_errors", "payload", "drift_deg_per_hour"):
         spec["truth"].pop(effect, None)
     del spec["sensors"]["motion_capture"]
     spec["plan"]["reference_sensor"] = "laser_tracker"
+    spec["sensors"]["laser_tracker"].pop("marker_error", None)
     spec["sensors"]["laser_tracker"].update(transverse_growth_per_m=growth, missing=0)
     out = scenario.simulate(spec, iiwa)
     return io.read_campaign(io.write_campaign(tmp_path / "tracker", out.metadata, out.tables), repo_root=REPO), out
