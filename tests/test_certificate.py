@@ -45,8 +45,10 @@ def _inputs(outliers=(), closed=True):
     workspace = {"holds": {"loop": {"holds": "near the measured poses only"}},
                  "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
                  "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"]}
-    loop = loop_report(effects=["joint_compliance"],
-                       closure={"closed": closed, "verdict": "closed" if closed else "not closed: 0.1 mm left per axis"})
+    verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
+    refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
+    loop = loop_report(effects=["joint_compliance"], closure={"closed": closed, "verdict": verdict},
+                       warnings=([] if closed else [f"loop {verdict}"]) + [refit])
     offsets = pd.DataFrame([{"joint": "j1", "model": "paper", "correction_deg": 0.0, "std_deg": np.nan,
                              "status": "held: not identifiable"},
                             {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009,
@@ -80,7 +82,8 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"] and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
     assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
-    assert any("loop not closed" in w for w in cert.warnings)
+    assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
+    assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
     assert any("25 x" in w for w in cert.warnings)
     assert cert.warnings[0].endswith("over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis "
                                      "within 18 deg of one direction")

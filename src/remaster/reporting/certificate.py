@@ -151,17 +151,16 @@ def valid_for(sensor: str, inputs: CertificateInputs) -> str:
 
 
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
-    """What the user must know before relying on the calibration: flagged points, a loop not closed
-    against the sensor's noise, the workspace warnings (near the measured poses only, prior-dominated
-    parameters, what the next campaign should add) and the held joints."""
+    """What the user must know before relying on the calibration: flagged points, the loop
+    closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
+    refit short of the convergence criteria), the workspace warnings (near the measured poses
+    only, prior-dominated parameters, what the next campaign should add) and the held joints."""
     label = sensor_label(sensor)
     out = []
     if inputs.laplace.outlier_rows:
         out.append(f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
                    f"(rows {list(inputs.laplace.outlier_rows)})")
-    closure = inputs.loop.closure
-    if closure and not closure.get("closed", False):
-        out.append(f"{label}: loop not closed against the sensor's noise: {closure.get('verdict', '')}")
+    out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings]
     out += [f"{label}: {w}" for w in inputs.workspace.get("warnings", [])]
     if inputs.workspace.get("held_note"):
         out.append(f"{label}: {inputs.workspace['held_note']}")
