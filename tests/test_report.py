@@ -69,6 +69,9 @@ def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):
     assert cells[0] == ["j1", "0", "", "", "held", "held", "173", "3.21"]
     assert cells[1] == ["j2", "-0.1894", "0.0089", "-0.2068", "-0.1920", "0.0090", "12", "-0.000123"]
     assert cells[2] == ["j3", "12.3", "1.0", "10.3", "0.50", "0.25", "3", "1235"]
+    # a std that rounds up to the next power of ten keeps two significant digits as shown
+    edge = tables.formatted(pd.DataFrame({"mean (mm)": [1.8772, 12.34], "U(mean) (mm)": [0.0998, 9.96]}))
+    assert edge == [["1.88", "0.10"], ["12", "10"]]
     # every text form says the same
     io.write_table(tmp_path / "t", table, "caption", "t")
     markdown = (tmp_path / "t.md").read_text()

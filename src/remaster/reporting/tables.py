@@ -138,10 +138,12 @@ def _missing(value) -> bool:
 
 
 def _decimals_of_std(std: float | None) -> int | None:
-    """Decimals that show two significant digits of an uncertainty; None when there is none."""
+    """Decimals that show two significant digits of an uncertainty; None when there is none.
+    Counted on the std as shown: 0.0998 shows as 0.10 (two decimals), not 0.100."""
     if std is None or not np.isfinite(std) or std <= 0:
         return None
-    return max(0, 1 - math.floor(math.log10(float(std))))
+    decimals = max(0, 1 - math.floor(math.log10(float(std))))
+    return max(0, 1 - math.floor(math.log10(round(float(std), decimals))))
 
 
 def _uncertainty_columns(columns) -> dict[str, str]:
