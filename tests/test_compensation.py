@@ -21,7 +21,7 @@ from remaster.robot import kinematics
 from remaster.units import DEG, MM
 
 from .conftest import REPO
-from .test_workspace import fitted, laplace_content, paper_summary
+from .test_workspace import at_start, fitted, laplace_content, paper_summary
 
 MARKER = np.array([0.0, 0.0, 0.08])
 EFFECTS = ("joint_compliance", "marker_offset", "link_geometry")
@@ -211,11 +211,6 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
 
 
 # --------------------------------------------------------------------------- closed loop on the simulator
-
-
-def at_start(q) -> np.ndarray:
-    """Seconds since the campaign's first measurement (n,) for readings q (n, N): 0 for each."""
-    return np.zeros(len(q))
 
 
 def twin(model: str, tmp_path_factory):

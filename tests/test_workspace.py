@@ -76,12 +76,17 @@ def test_a_calibration_that_holds_near_its_poses_only_says_what_to_add(iiwa, rng
 # --------------------------------------------------------------------------- against the truth
 
 
+def at_start(q) -> np.ndarray:
+    """Seconds since the campaign's first measurement (n,) for readings q (n, N): 0 for each."""
+    return np.zeros(len(q))
+
+
 def true_points(campaign, sensor: str, q) -> np.ndarray:
     """Where the sensor's marker really is (robot frame) at readings q, at the campaign's first
     measurement: the time origin of a drift, so of a loop-closed model's zero-offsets."""
     truth = io.read_json(REPO / "data" / "truth" / f"{campaign.name}.json")
     device = sensor_from_truth(truth, sensor, campaign.sensors[sensor].marker)
-    return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q, np.zeros(len(q)))
+    return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q, at_start(q))
 
 
 def paper_summary(laplace: fit.LaplaceReport) -> pd.DataFrame:
