@@ -233,3 +233,18 @@ def test_rotation_angle_is_the_angle_turned_even_near_zero(angle, rng):
     axis = rng.normal(size=3)
     axis /= np.linalg.norm(axis)
     assert spatial.rotation_angle(spatial.rot_axis(axis, angle)) == pytest.approx(angle, rel=1e-9)
+
+
+@pytest.mark.parametrize("robot", ["iiwa", "ur5_dh"])
+def test_a_link_error_is_a_transform_after_the_link(robot, request, rng):
+    """F' = F D: `link_error_transforms` is the same link error as `perturbed_transforms`, as a
+    transform on the right (the form the sampler's folds use)."""
+    chain = request.getfixturevalue(robot)
+    errors = rng.normal(0.0, 1e-3, (chain.n_joints + 1, 2))
+    joints, tool = kinematics.perturbed_transforms(chain.joint_transforms, chain.tool_transform, errors)
+    fixed = list(chain.joint_transforms) + [chain.tool_transform]
+    for transform, perturbed, (length, twist) in zip(fixed, list(joints) + [tool], errors):
+        if np.linalg.norm(transform[:3, 3]) == 0:
+            length = 0.0  # no length error without a translation
+        np.testing.assert_allclose(transform @ kinematics.link_error_transforms(transform, length, twist), perturbed,
+                                   atol=1e-15)

@@ -49,7 +49,7 @@ import pandas as pd
 
 from .. import noise
 from ..campaigns.campaign import Campaign, SensorData
-from ..inference import blocks, evidence, fit, metrics, residual_gp, samplers
+from ..inference import blocks, evidence, fit, gauge, metrics, residual_gp, samplers
 from ..inference.blocks import BlockModel, ModelSettings, Readings, Reduction
 from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
@@ -356,6 +356,11 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
     target = fit.PosteriorTarget(mode.model)
     mean = np.append(mode.theta, mode.sigma)
     covariance = mode.covariance
+    # the model's exact symmetries are curved ridges in its own parameters, straight in these
+    folds = gauge.Gauge.of(target.names, mode.model.chain, mode.model.marker, mode.model.t_nr, covariance)
+    if folds is not None:
+        mean, covariance = folds.laplace(mean, covariance, target.scale)
+        target = gauge.FoldedTarget(target, folds)
     run, criteria = dict(settings.mcmc), settings.convergence
     attempts = []
     for attempt in range(int(criteria["max_doublings"]) + 1):
@@ -363,6 +368,8 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
         chains = samplers.run_chains(samplers.metropolis_independence, target, rng, int(run["chains"]), mean,
                                      mean=mean, covariance=covariance, n_samples=int(run["samples"]),
                                      burn_in=int(run["burn_in"]))
+        if folds is not None:
+            chains = [folds.back(c) for c in chains]
         report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
         done = fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
         attempts.append({"samples": int(run["samples"]), "burn_in": int(run["burn_in"]),

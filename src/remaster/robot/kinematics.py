@@ -381,6 +381,16 @@ def perturbed_transforms(joint_transforms, tool_transform, link_errors) -> tuple
     return out[..., :-1, :, :], out[..., -1, :, :]
 
 
+def link_error_transforms(transform, length, twist) -> np.ndarray:
+    """D (..., 4, 4) with F' = F D for a fixed transform F (4, 4) and its link errors (...,) m and
+    rad, as `perturbed_transforms` applies them: a stretch along F's translation and a
+    turn about the x axis of the frame it leads to."""
+    shift = np.asarray(transform, dtype=float)[:3, 3]
+    reach = np.linalg.norm(shift)
+    stretch = np.asarray(length, dtype=float) / reach if reach > 0 else np.zeros_like(length, dtype=float)
+    return spatial.homogeneous(spatial.rot_x(twist), stretch[..., None] * (transform[:3, :3].T @ shift))
+
+
 def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
     """The chain with link-geometry errors (N + 1, 2) (`perturbed_transforms`)."""
     joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors)

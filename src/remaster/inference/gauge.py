@@ -1,0 +1,262 @@
+"""Sampling coordinates with the measurement's exact symmetries folded out.
+
+Three changes of an extended model's parameters move no predicted point at all:
+- a link error before joint 1 (link_geometry.F1.*) moves the whole arm rigidly, and the
+  registration moves it back;
+- a link error of the tool transform (link_geometry.tool.*) moves the marker in the last joint's
+  frame, and the marker offset moves it back;
+- turning the marker about the last joint's axis is turning that joint's zero-offset.
+The data see only the combinations; the priors decide the rest. Each trade is a rotation, so in the
+model's own parameters (Euler angles, flange-frame x, y, z) it is a curved ridge, as long as the
+prior and as thin as the data: a Laplace approximation cannot follow it, and an independence
+proposal drawn from one is nearly always refused off it. In the folded coordinates, the
+registration that includes the base link's error, the marker where it really sits in the nominal
+tool frame, and that marker in cylindrical coordinates about the last joint's axis, each ridge is
+straight and the posterior is close to Gaussian. `Gauge` maps parameter vectors both ways with the
+log-Jacobian that keeps the posterior the same; `FoldedTarget` is a sampler target in the folded
+coordinates, and `Gauge.back` returns its chains in the model's own parameters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .. import spatial
+from ..robot.kinematics import KinematicChain, link_error_transforms
+from . import samplers
+from .model import correction_transforms
+
+REGISTRATION = ("registration.x", "registration.y", "registration.z",
+                "registration.alpha", "registration.beta", "registration.gamma")
+MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")
+TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
+MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
+JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates
+
+
+def _link_index(names, label: str) -> dict[str, int]:
+    return {kind: names.index(f"link_geometry.{label}.{kind}") for kind in ("length", "twist")
+            if f"link_geometry.{label}.{kind}" in names}
+
+
+def _link_errors(theta, index: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
+    zero = np.zeros(theta.shape[:-1])
+    return tuple(theta[..., index[k]] if k in index else zero for k in ("length", "twist"))
+
+
+def last_axis(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
+    """The last joint's axis in the flange frame: a point (3,) m on it and its unit direction (3,).
+    (The chain is F_1 R_1(q_1) ... F_N R_N(q_N) F_tool: the axis passes through joint N's origin.)"""
+    rotation, shift = chain.tool_transform[:3, :3], chain.tool_transform[:3, 3]
+    return -rotation.T @ shift, rotation.T @ chain.joint_axes[-1]
+
+
+@dataclass(frozen=True)
+class BaseFold:
+    """The registration that includes the base link's error: C(p~) = C(p) T_nr F_1 D_1 F_1^-1 T_nr^-1,
+    so that predictions depend on p~ alone. index (6,): the registration's positions; links:
+    {'length'|'twist': position} of link_geometry.F1.*."""
+
+    index: np.ndarray
+    links: dict
+    first: np.ndarray
+    t_nr: np.ndarray
+
+    def _move(self, theta) -> np.ndarray:
+        errors = link_error_transforms(self.first, *_link_errors(theta, self.links))
+        return self.t_nr @ self.first @ errors @ spatial.invert(self.first) @ spatial.invert(self.t_nr)
+
+    def _with(self, theta, transform) -> np.ndarray:
+        out = np.array(theta, dtype=float)
+        out[..., self.index] = np.concatenate([transform[..., :3, 3], spatial.matrix_to_euler_zyx(transform[..., :3, :3])],
+                                              axis=-1)
+        return out
+
+    def fold(self, theta) -> np.ndarray:
+        return self._with(theta, correction_transforms(theta[..., self.index]) @ self._move(theta))
+
+    def unfold(self, folded) -> tuple[np.ndarray, np.ndarray]:
+        theta = self._with(folded, correction_transforms(folded[..., self.index]) @ spatial.invert(self._move(folded)))
+        # a fixed rotation applied on the right keeps the Haar measure cos(beta) d alpha d beta d gamma
+        pitch = self.index[4]
+        return theta, np.log(np.cos(folded[..., pitch])) - np.log(np.cos(theta[..., pitch]))
+
+
+@dataclass(frozen=True)
+class ToolFold:
+    """The marker where it sits in the nominal tool frame: m~ = D_tool (m + d) - m, so that
+    predictions depend on the offset m~ alone. index (3,): the marker offset's positions; links:
+    {'length'|'twist': position} of link_geometry.tool.*; marker (3,) m nominal, flange frame."""
+
+    index: np.ndarray
+    links: dict
+    tool: np.ndarray
+    marker: np.ndarray
+
+    def _moved(self, theta, transform) -> np.ndarray:
+        out = np.array(theta, dtype=float)
+        point = self.marker + theta[..., self.index]
+        out[..., self.index] = (transform[..., :3, :3] @ point[..., None])[..., 0] + transform[..., :3, 3] - self.marker
+        return out
+
+    def _errors(self, theta) -> np.ndarray:
+        return link_error_transforms(self.tool, *_link_errors(theta, self.links))
+
+    def fold(self, theta) -> np.ndarray:
+        return self._moved(theta, self._errors(theta))
+
+    def unfold(self, folded) -> tuple[np.ndarray, np.ndarray]:  # a rigid motion: Jacobian 1
+        return self._moved(folded, spatial.invert(self._errors(folded))), np.zeros(folded.shape[:-1])
+
+
+@dataclass(frozen=True)
+class MarkerTurn:
+    """Cylindrical coordinates of the marker offset about an axis, at positions `index` (3,) of a
+    parameter vector: (radial, tangential arc, axial), all in metres, zero at the nominal marker.
+
+    marker (3,) m: the nominal marker, flange frame; centre (3,) m and axis (3,) unit: the axis;
+    radial, tangential (3,): unit vectors at the nominal marker (radial, axis x radial)."""
+
+    index: np.ndarray
+    marker: np.ndarray
+    centre: np.ndarray
+    axis: np.ndarray
+    radial: np.ndarray
+    tangential: np.ndarray
+    radius: float
+
+    @classmethod
+    def about(cls, index, marker, centre, axis) -> MarkerTurn:
+        axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        relative = np.asarray(marker, dtype=float) - centre
+        in_plane = relative - (relative @ axis) * axis
+        radius = float(np.linalg.norm(in_plane))
+        radial = in_plane / radius if radius > 0 else np.zeros(3)
+        return cls(np.asarray(index), np.asarray(marker, dtype=float), np.asarray(centre, dtype=float), axis,
+                   radial, np.cross(axis, radial), radius)
+
+    def fold(self, theta) -> np.ndarray:
+        """Vectors (..., P) with the offset in x, y, z -> the same with it in radial, tangential, axial."""
+        theta = np.array(theta, dtype=float)
+        relative = self.marker + theta[..., self.index] - self.centre
+        along = relative @ self.axis
+        in_plane = relative - along[..., None] * self.axis
+        angle = np.arctan2(in_plane @ self.tangential, in_plane @ self.radial)
+        theta[..., self.index] = np.stack([np.linalg.norm(in_plane, axis=-1) - self.radius, self.radius * angle,
+                                           along - (self.marker - self.centre) @ self.axis], axis=-1)
+        return theta
+
+    def unfold(self, turned) -> tuple[np.ndarray, np.ndarray]:
+        """The inverse of `fold`, and log |d(x, y, z) / d(radial, tangential, axial)| = log(rho / r),
+        -inf where rho <= 0 (outside the map's range)."""
+        turned = np.array(turned, dtype=float)
+        radial, arc, axial = np.moveaxis(turned[..., self.index], -1, 0)
+        rho, angle = self.radius + radial, arc / self.radius
+        point = (self.centre + ((self.marker - self.centre) @ self.axis + axial)[..., None] * self.axis
+                 + rho[..., None] * (np.cos(angle)[..., None] * self.radial + np.sin(angle)[..., None] * self.tangential))
+        turned[..., self.index] = point - self.marker
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return turned, np.where(rho > 0, np.log(np.abs(rho) / self.radius), -np.inf)
+
+
+@dataclass(frozen=True)
+class Gauge:
+    """The folds that apply to a model's parameters (`Gauge.of`), composed: `fold` applies them
+    in order, `unfold` undoes them in reverse. names: the model's parameter names."""
+
+    folds: tuple
+    names: tuple[str, ...]
+
+    @classmethod
+    def of(cls, names, chain: KinematicChain, marker, t_nr, covariance) -> Gauge | None:
+        """The folds for free parameters `names` (sigma last) of a model on `chain` with marker (3,)
+        m and initial registration t_nr (4, 4), or None when none applies. The marker is turned
+        only when its offset is free in x, y, z and it lies more than MIN_RADIUS_IN_STD times its
+        spread (covariance (P, P), e.g. the Laplace approximation's) from the axis."""
+        names = tuple(names)
+        folds = []
+        marker_free = set(MARKER) <= set(names)
+        index = np.array([names.index(n) for n in MARKER]) if marker_free else None
+        tool = _link_index(names, "tool")
+        if marker_free and tool:
+            folds.append(ToolFold(index, tool, chain.tool_transform, np.asarray(marker, dtype=float)))
+        if marker_free:
+            turn = MarkerTurn.about(index, marker, *last_axis(chain))
+            in_plane = np.column_stack([turn.radial, turn.tangential])
+            spread = np.sqrt(np.linalg.eigvalsh(in_plane.T @ covariance[np.ix_(index, index)] @ in_plane).max())
+            if turn.radius > MIN_RADIUS_IN_STD * spread:
+                folds.append(turn)
+        first = _link_index(names, "F1")
+        if set(REGISTRATION) <= set(names) and first:
+            folds.append(BaseFold(np.array([names.index(n) for n in REGISTRATION]), first, chain.joint_transforms[0],
+                                  np.asarray(t_nr, dtype=float)))
+        return cls(tuple(folds), names) if folds else None
+
+    @property
+    def folded_names(self) -> tuple[str, ...]:
+        out = list(self.names)
+        for fold in self.folds:
+            for i, name in zip(fold.index, TURNED if isinstance(fold, MarkerTurn) else (out[i] + "~" for i in fold.index)):
+                out[i] = name
+        return tuple(out)
+
+    def fold(self, theta) -> np.ndarray:
+        """Model parameters (..., P) -> folded coordinates (..., P)."""
+        out = np.array(theta, dtype=float)
+        for fold in self.folds:
+            out = fold.fold(out)
+        return out
+
+    def unfold(self, folded) -> tuple[np.ndarray, np.ndarray]:
+        """Folded coordinates (..., P) -> model parameters (..., P) and log |d model / d folded| (...,)."""
+        out, log_jacobian = np.array(folded, dtype=float), np.zeros(np.shape(folded)[:-1])
+        for fold in reversed(self.folds):
+            out, part = fold.unfold(out)
+            log_jacobian = log_jacobian + part
+        return out, log_jacobian
+
+    def laplace(self, mean, covariance, scale) -> tuple[np.ndarray, np.ndarray]:
+        """A Gaussian approximation (mean (P,), covariance (P, P)) carried into the folded
+        coordinates by the map's Jacobian at the mean (central differences of JACOBIAN_STEP x
+        scale (P,))."""
+        folded = self.fold(mean)
+        steps = JACOBIAN_STEP * np.asarray(scale, dtype=float)
+        shifted = folded + np.concatenate([np.diag(steps), -np.diag(steps)])
+        model, _ = self.unfold(shifted)
+        jacobian = ((model[:len(steps)] - model[len(steps):]) / (2 * steps)[:, None]).T
+        inverse = np.linalg.inv(jacobian)
+        return folded, inverse @ covariance @ inverse.T
+
+    def back(self, chain: samplers.Chain) -> samplers.Chain:
+        """A chain run on `FoldedTarget`, in the model's own parameters and log-posterior."""
+        samples, log_jacobian = self.unfold(chain.samples)
+        return replace(chain, samples=samples, log_prob=chain.log_prob - log_jacobian, names=self.names)
+
+
+@dataclass(frozen=True, eq=False)
+class FoldedTarget:
+    """`target`'s posterior in the folded coordinates: log p(unfold(u)) + log |d unfold / d u|."""
+
+    target: samplers.Target
+    gauge: Gauge
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.gauge.folded_names
+
+    @property
+    def scale(self) -> np.ndarray:
+        return self.target.scale
+
+    def log_prob(self, folded) -> float:
+        return float(self.log_prob_many(np.asarray(folded, dtype=float)[None, :])[0])
+
+    def log_prob_many(self, folded) -> np.ndarray:
+        theta, log_jacobian = self.gauge.unfold(np.asarray(folded, dtype=float))
+        out = np.full(len(theta), -np.inf)
+        inside = np.isfinite(log_jacobian)
+        if inside.any():
+            out[inside] = self.target.log_prob_many(theta[inside]) + log_jacobian[inside]
+        return out
