@@ -9,7 +9,6 @@ rule loop_closure:
         campaign=campaign_files,
         registration=rules.registration.output.registration,
         laplace=rules.laplace.output.laplace,
-        cross_check=rules.cross_check.output.table,
     output:
         report=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
         table=f"{LOOP}/before_after.csv",
