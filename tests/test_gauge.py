@@ -3,13 +3,15 @@ the map is a bijection with the stated Jacobian, a posterior that is Gaussian in
 coordinates (a curved ridge in the model's own) is sampled right, and the loop closure's refit
 on the bundled twin meets the convergence criteria in its first run."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy import stats
 
 from remaster import io
 from remaster.inference import blocks, fit, samplers
-from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis
+from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis, sampling_coordinates
 from remaster.robot.kinematics import marker_positions
 
 from .conftest import REPO
@@ -133,3 +135,33 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
     plain = samplers.run_chains(samplers.metropolis_independence, target, np.random.default_rng(5), 2, laplace_mean,
                                 mean=laplace_mean, covariance=covariance, n_samples=6000, burn_in=1000)
     assert fit.sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
+
+
+def test_the_coordinates_are_those_the_laplace_approximation_fits_best(iiwa):
+    """The same marker spread, Gaussian either in cylindrical coordinates (a tool that turns: the
+    marker trades with joint 7) or in x, y, z (a tool that never turns: it trades with the
+    registration's translation): each is sampled in its own coordinates."""
+    names = MARKER + ("noise.sigma",)
+    std = np.array([2e-5, 1e-2, 2e-5, 1e-6])
+    mean = np.array([0.0, 0.0, 0.0, 1e-5])
+    model = SimpleNamespace(chain=iiwa, marker=SIR, t_nr=np.eye(4))
+    turned = Gauge.of(names, iiwa, SIR, np.eye(4), np.diag(std**2))
+
+    def in_turned(theta):  # Gaussian in the cylindrical coordinates
+        folded = turned.fold(theta)
+        return -0.5 * np.sum(((folded - mean) / std) ** 2, axis=-1) - turned.unfold(folded)[1]
+
+    def in_xyz(theta):  # Gaussian in x, y, z
+        return -0.5 * np.sum(((np.asarray(theta) - mean) / std) ** 2, axis=-1)
+
+    start = turned.unfold(mean)[0]
+    steps = np.eye(4) * 1e-9
+    jacobian = ((turned.unfold(mean + steps)[0] - turned.unfold(mean - steps)[0]) / 2e-9).T
+    for log_prob, centre, covariance, expected in (
+            (in_turned, start, jacobian @ np.diag(std**2) @ jacobian.T, "folded"),
+            (in_xyz, mean, np.diag(std**2), "model parameters")):
+        target = samplers.CallableTarget(names, np.full(4, 1e-3), log_prob)
+        *_, gauge, report = sampling_coordinates(target, model, centre, covariance, np.random.default_rng(2))
+        assert report["chosen"] == expected, report
+        assert report["laplace_log_weight_std"][expected] < 0.1  # exactly Gaussian there
+        assert (gauge is None) == (expected == "model parameters")

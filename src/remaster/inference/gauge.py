@@ -170,11 +170,12 @@ class Gauge:
     names: tuple[str, ...]
 
     @classmethod
-    def of(cls, names, chain: KinematicChain, marker, t_nr, covariance) -> Gauge | None:
+    def of(cls, names, chain: KinematicChain, marker, t_nr, covariance, turn_marker: bool = True) -> Gauge | None:
         """The folds for free parameters `names` (sigma last) of a model on `chain` with marker (3,)
         m and initial registration t_nr (4, 4), or None when none applies. The marker is turned
-        only when its offset is free in x, y, z and it lies more than MIN_RADIUS_IN_STD times its
-        spread (covariance (P, P), e.g. the Laplace approximation's) from the axis."""
+        (if turn_marker) only when its offset is free in x, y, z and it lies more than
+        MIN_RADIUS_IN_STD times its spread (covariance (P, P), e.g. the Laplace approximation's)
+        from the axis."""
         names = tuple(names)
         folds = []
         marker_free = set(MARKER) <= set(names)
@@ -182,7 +183,7 @@ class Gauge:
         tool = _link_index(names, "tool")
         if marker_free and tool:
             folds.append(ToolFold(index, tool, chain.tool_transform, np.asarray(marker, dtype=float)))
-        if marker_free:
+        if marker_free and turn_marker:
             turn = MarkerTurn.about(index, marker, *last_axis(chain))
             in_plane = np.column_stack([turn.radial, turn.tangential])
             spread = np.sqrt(np.linalg.eigvalsh(in_plane.T @ covariance[np.ix_(index, index)] @ in_plane).max())
@@ -260,3 +261,44 @@ class FoldedTarget:
         if inside.any():
             out[inside] = self.target.log_prob_many(theta[inside]) + log_jacobian[inside]
         return out
+
+
+LAPLACE_CHECK_DRAWS = 256  # per option: the log-weights' spread to a few per cent, ~5 % of a refit's evaluations
+
+
+def laplace_mismatch(target: samplers.Target, mean, covariance, rng: np.random.Generator,
+                     draws: int = LAPLACE_CHECK_DRAWS) -> float:
+    """How far a posterior is from its Gaussian approximation N(mean (P,), covariance (P, P)):
+    the standard deviation of log p(x) - log N(x) over draws from it (0 for a Gaussian posterior;
+    an independence sampler's acceptance falls fast as it grows past 1). inf when a draw falls
+    outside the support."""
+    factor = np.linalg.cholesky(covariance)
+    z = rng.standard_normal((draws, len(mean)))
+    log_weights = target.log_prob_many(mean + z @ factor.T) + 0.5 * np.sum(z * z, axis=1)
+    return float(np.std(log_weights)) if np.all(np.isfinite(log_weights)) else np.inf
+
+
+def sampling_coordinates(target: samplers.Target, model, mean, covariance, rng: np.random.Generator
+                         ) -> tuple[samplers.Target, np.ndarray, np.ndarray, Gauge | None, dict]:
+    """The coordinates in which `target` (a `fit.PosteriorTarget` of a block model) is closest to
+    its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own,
+    every fold, or every fold but the marker's turn (which straightens the marker's trade with the
+    last joint but bends its trade with the registration, the one a campaign whose tool never
+    turns has). Returns the target, mean and covariance in the chosen coordinates, the gauge
+    (None: the model's own) and a JSON-ready report of each option's mismatch."""
+    options = {"model parameters": None}
+    for label, turn in (("folded", True), ("folded, marker not turned", False)):
+        gauge = Gauge.of(target.names, model.chain, model.marker, model.t_nr, covariance, turn_marker=turn)
+        kinds = [type(f) for f in gauge.folds] if gauge is not None else None
+        if kinds and all(kinds != [type(f) for f in g.folds] for g in options.values() if g is not None):
+            options[label] = gauge
+    mismatch, laplace = {}, {}
+    for label, gauge in options.items():
+        laplace[label] = (mean, covariance) if gauge is None else gauge.laplace(mean, covariance, target.scale)
+        folded = target if gauge is None else FoldedTarget(target, gauge)
+        mismatch[label] = laplace_mismatch(folded, *laplace[label], rng)
+    chosen = min(mismatch, key=mismatch.get)
+    gauge = options[chosen]
+    report = {"chosen": chosen, "folds": [type(f).__name__ for f in gauge.folds] if gauge else [],
+              "laplace_log_weight_std": mismatch}
+    return (target if gauge is None else FoldedTarget(target, gauge)), *laplace[chosen], gauge, report

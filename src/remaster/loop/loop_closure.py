@@ -59,6 +59,12 @@ from . import closure
 
 SETS = ("optimization", "validation")
 MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
+# The refit's Student-t proposal: a t in P dimensions is a Gaussian whose scale varies by a factor
+# sqrt(chi2_dof / dof) shared by all P coordinates, so with few degrees of freedom most draws land
+# at the wrong radius (log-weights spread by ~P / sqrt(2 dof) nats); dof ~ 4 P keeps that spread
+# near 1 nat and the tails still heavier than a Gaussian posterior's.
+PROPOSAL_DOF_PER_PARAMETER = 4
+PROPOSAL_INFLATION = 1.1
 CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
 GP_DEFAULT = {"subset": residual_gp.SUBSET, "inducing": residual_gp.INDUCING}
 GP = "residual_gp"
@@ -356,18 +362,17 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
     target = fit.PosteriorTarget(mode.model)
     mean = np.append(mode.theta, mode.sigma)
     covariance = mode.covariance
-    # the model's exact symmetries are curved ridges in its own parameters, straight in these
-    folds = gauge.Gauge.of(target.names, mode.model.chain, mode.model.marker, mode.model.t_nr, covariance)
-    if folds is not None:
-        mean, covariance = folds.laplace(mean, covariance, target.scale)
-        target = gauge.FoldedTarget(target, folds)
+    # the model's exact symmetries are curved ridges in its own parameters, straight in folded ones
+    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(target, mode.model, mean, covariance,
+                                                                               rng)
     run, criteria = dict(settings.mcmc), settings.convergence
     attempts = []
     for attempt in range(int(criteria["max_doublings"]) + 1):
         started = time.perf_counter()
         chains = samplers.run_chains(samplers.metropolis_independence, target, rng, int(run["chains"]), mean,
                                      mean=mean, covariance=covariance, n_samples=int(run["samples"]),
-                                     burn_in=int(run["burn_in"]))
+                                     burn_in=int(run["burn_in"]), dof=PROPOSAL_DOF_PER_PARAMETER * len(mean),
+                                     inflation=PROPOSAL_INFLATION)
         if folds is not None:
             chains = [folds.back(c) for c in chains]
         report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
@@ -379,7 +384,7 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
         if done:
             break
         run = {**run, "samples": 2 * int(run["samples"]), "burn_in": 2 * int(run["burn_in"])}
-    return chains, {**report, "converged": done, "attempts": attempts,
+    return chains, {**report, "converged": done, "attempts": attempts, "coordinates": coordinates,
                     "criteria": {"max_rhat": criteria["max_rhat"], "min_ess": criteria["min_ess"]}}
 
 
