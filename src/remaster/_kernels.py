@@ -89,35 +89,54 @@ def points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d):
     return out
 
 
+SMALL_ANGLE = 0.02  # rad: below it, cos and sin by their Taylor series to the 8th order, exact in double precision
+
+
 @_compiled(fastmath={"contract"})
-def _points_at(rotations, shifts, start, angles, x0, x1, x2):
-    """`_points` at joint angles (n, N) given as such: their cosines and sines are taken here, one
-    configuration at a time, so no (N, n) arrays of them are made."""
+def _points_linear(rotations, shifts, start, cos_q, sin_q, offsets, values, first, coefficients, x0, x1, x2):
+    """`_points` at joint angles q[i, j] + offsets[j] + d[i, j] with d linear in parameters:
+    d[i, j] = sum over k in first[j] .. first[j + 1] - 1 of coefficients[k] values[k, i] (a
+    compliance times a torque, a gear-ratio error times an angle, a drift times a time). cos_q,
+    sin_q (N, n) of the readings, offsets (N,), values (K, n) with joint j's rows at first[j] ..
+    first[j + 1] - 1, coefficients (K,). The angle-sum formulas take cos and sin of q + offset
+    from those of q, and d, a few milliradians, turns them by its Taylor series: no sine or
+    cosine is evaluated per configuration, which would cost ten times the rest."""
     x0[:] = start[0]
     x1[:] = start[1]
     x2[:] = start[2]
     for j in range(rotations.shape[0] - 1, -1, -1):
+        cd, sd = np.cos(offsets[j]), np.sin(offsets[j])
         r = rotations[j]
         for i in range(x0.shape[0]):
-            c = np.cos(angles[i, j])
-            s = np.sin(angles[i, j])
+            c = cos_q[j, i] * cd - sin_q[j, i] * sd
+            s = sin_q[j, i] * cd + cos_q[j, i] * sd
+            d = 0.0
+            for k in range(first[j], first[j + 1]):
+                d += coefficients[k] * values[k, i]
+            if d != 0.0:
+                if abs(d) < SMALL_ANGLE:
+                    d2 = d * d
+                    cos_d = 1.0 - 0.5 * d2 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0))
+                    sin_d = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)))
+                else:
+                    cos_d, sin_d = np.cos(d), np.sin(d)
+                c, s = c * cos_d - s * sin_d, s * cos_d + c * sin_d
             _through_joint(r, shifts[j], c, s, x0, x1, x2, i)
 
 
 @_compiled()
-def points_each(rotations, shifts, starts, angles):
-    """Positions (m, n, 3) for m chains of one axis layout, each at its own joint angles:
-    rotations (m, N, 3, 3), shifts (m, N, 3), starts (m, 3), angles (m, n, N). A leading
-    dimension of 1 is shared by every k (one chain at many angle sets)."""
-    m = max(rotations.shape[0], starts.shape[0], angles.shape[0])
-    n = angles.shape[1]
+def points_linear(rotations, shifts, starts, cos_q, sin_q, offsets, values, first, coefficients):
+    """Positions (m, n, 3) for m parameter vectors whose joint angles are linear in them
+    (`_points_linear`): rotations (m, N, 3, 3), shifts (m, N, 3), starts (m, 3) (a leading
+    dimension of 1 is shared by every vector), offsets (m, N), coefficients (m, K)."""
+    m, n = coefficients.shape[0], cos_q.shape[1]
     out = np.empty((m, n, 3))
     x0, x1, x2 = np.empty(n), np.empty(n), np.empty(n)
     for k in range(m):
         chain = k if rotations.shape[0] > 1 else 0
         start = k if starts.shape[0] > 1 else 0
-        at = k if angles.shape[0] > 1 else 0
-        _points_at(rotations[chain], shifts[chain], starts[start], angles[at], x0, x1, x2)
+        _points_linear(rotations[chain], shifts[chain], starts[start], cos_q, sin_q, offsets[k], values, first,
+                       coefficients[k], x0, x1, x2)
         out[k, :, 0] = x0
         out[k, :, 1] = x1
         out[k, :, 2] = x2

@@ -300,6 +300,16 @@ class BlockModel(MeasurementModel):
         self._joint_params = np.array([i for i, _, _ in rows], dtype=int)
         self._joint_values_t = np.array([self.data.regressor(key)[:, j] for _, j, key in rows]).T.copy()  # (n, K)
         self._joint_onehot = np.eye(self.chain.n_joints)[[j for _, j, _ in rows]]  # (K, N)
+        # the compiled kernel's form (`_kernels.points_linear`): the zero-offsets as offsets, the
+        # parameters whose regressor varies by reading grouped by joint, joint j's at first[j] .. first[j + 1] - 1
+        constant = np.array([key == "ones" for _, _, key in rows], dtype=bool)
+        joints = np.array([j for _, j, _ in rows], dtype=int)
+        order = np.flatnonzero(~constant)[np.argsort(joints[~constant], kind="stable")]
+        self._offset_params, self._offset_onehot = self._joint_params[constant], self._joint_onehot[constant]
+        self._kernel_params = self._joint_params[order]
+        self._kernel_values = np.ascontiguousarray(self._joint_values_t[:, order].T)  # (K, n)
+        self._kernel_first = np.searchsorted(joints[order], np.arange(self.chain.n_joints + 1))
+        self._cos_q, self._sin_q = np.ascontiguousarray(np.cos(self.q.T)), np.ascontiguousarray(np.sin(self.q.T))
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
         """Free-parameter vector (P,) from {name: value}; parameters not given are 0."""
@@ -371,7 +381,8 @@ class BlockModel(MeasurementModel):
         return points if every.ndim == 2 else points[0]
 
     # vectors per compiled call: at most _CHUNK, and at most _ANGLES_PER_CALL joint angles in all,
-    # which bounds the (chunk, N, n) angles, cosines and sines in memory whatever the campaign's size
+    # which bounds the (chunk, n, 3) points (and the transforms of a link-geometry stack) in memory
+    # whatever the campaign's size; the angles themselves are taken inside the kernel
     _CHUNK = 512
     _ANGLES_PER_CALL = 2**22  # 32 MB per array
 
@@ -387,8 +398,10 @@ class BlockModel(MeasurementModel):
         marker = self.marker + stack[:, self._marker_index] if self._marker_index else self.marker
         rotations, shifts = kernel.rotations, kernel.shifts
         starts = np.atleast_2d(kernel.start(marker))
-        return _kernels.points_each(rotations.reshape((-1,) + rotations.shape[-3:]),
-                                    shifts.reshape((-1,) + shifts.shape[-2:]), starts, self.angles(stack))
+        return _kernels.points_linear(rotations.reshape((-1,) + rotations.shape[-3:]),
+                                      shifts.reshape((-1,) + shifts.shape[-2:]), starts, self._cos_q, self._sin_q,
+                                      stack[:, self._offset_params] @ self._offset_onehot, self._kernel_values,
+                                      self._kernel_first, np.ascontiguousarray(stack[:, self._kernel_params]))
 
     def predict_full(self, every) -> np.ndarray:
         """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter

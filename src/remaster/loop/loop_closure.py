@@ -58,14 +58,14 @@ from ..units import DEG, MM
 from . import closure
 
 SETS = ("optimization", "validation")
-MCMC_DEFAULT = {"chains": 2, "samples": 6000, "burn_in": 1000}
+MCMC_DEFAULT = {"chains": 2, "samples": 2000, "burn_in": 500}
 # The refit's Student-t proposal: a t in P dimensions is a Gaussian whose scale varies by a factor
 # sqrt(chi2_dof / dof) shared by all P coordinates, so with few degrees of freedom most draws land
 # at the wrong radius (log-weights spread by ~P / sqrt(2 dof) nats); dof ~ 4 P keeps that spread
 # near 1 nat and the tails still heavier than a Gaussian posterior's.
 PROPOSAL_DOF_PER_PARAMETER = 4
 PROPOSAL_INFLATION = 1.1
-CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 3}
+CONVERGENCE_DEFAULT = {"max_rhat": 1.05, "min_ess": 200.0, "max_doublings": 4}
 GP_DEFAULT = {"subset": residual_gp.SUBSET, "inducing": residual_gp.INDUCING}
 GP = "residual_gp"
 TRACKER_NOISE_DEFAULT = {"growth_per_m": noise.GROWTH_PRIOR_PER_M,
