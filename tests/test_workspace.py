@@ -136,12 +136,13 @@ def claim(claims: pd.DataFrame, model: str, where: str = "random", frame: str = 
 
 
 @pytest.mark.parametrize("sensor", ["laser_tracker", "motion_capture"])
-def test_the_twins_loop_refit_converges_in_its_first_run(tmp_path_factory, sensor):
+def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     """The twin's loop-closed model trades the marker against joint 7 and the base link against the
-    registration: in the folded coordinates (`inference.gauge`) the refit meets R-hat and ESS
-    without running longer, and nothing warns about it."""
+    registration: in the folded coordinates (`inference.gauge`) the refit meets R-hat and ESS in
+    its first run or after one doubling (in the model's own parameters it missed them after three),
+    and nothing warns about it."""
     mcmc = fitted("kuka-twin", sensor, tmp_path_factory)[2].details["refit"]["mcmc"]
-    assert mcmc["converged"] and len(mcmc["attempts"]) == 1
+    assert mcmc["converged"] and len(mcmc["attempts"]) <= 2 and mcmc["coordinates"]["chosen"] == "folded"
     assert mcmc["max_rhat"] <= mcmc["criteria"]["max_rhat"] and mcmc["min_ess"] >= mcmc["criteria"]["min_ess"]
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
 
