@@ -129,6 +129,22 @@ def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.Works
     return result, campaign, laplace
 
 
+def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_factory):
+    """The draws' points are draws x rows x 3: past as many rows as there are random
+    configurations, that many evenly spaced rows carry the claims at the measured configurations
+    (24 GB at 70,000 rows otherwise); the report says how many of how many."""
+    campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
+    rows = len(campaign.sensors["laser_tracker"].q("optimization"))
+    for n_random, used in ((RANDOM, min(rows, RANDOM)), (50, 50)):
+        result = workspace.workspace_accuracy(
+            campaign.chain, campaign.sensors["laser_tracker"], comparison.robot_identity(campaign),
+            paper_summary(laplace), laplace, report, samples, np.random.default_rng(SEED), n_draws=200,
+            n_random=n_random, seed=SEED)
+        assert result.report["measured_configurations"]["used"] == used
+        assert result.report["measured_configurations"]["of"] == rows
+        assert (result.claims["count"][result.claims["configurations"] == "optimization"] == 200 * used).all()
+
+
 def claim(claims: pd.DataFrame, model: str, where: str = "random", frame: str = "registered") -> pd.Series:
     chosen = claims[(claims["model"] == model) & (claims["configurations"] == where) & (claims["frame"] == frame)
                     & (claims["noise"] == "with noise")]

@@ -3,8 +3,10 @@ error of the paper's and the loop-closed model (issue: calibrations that hold be
 poses).
 
 Configurations: the optimization set's (every row, the marker seen or not: the joint readings are
-valid either way) and the robot's one fixed set of random configurations across the joint limits
-(`prediction.robot_configurations`, shared with the comparison by prediction).
+valid either way; beyond as many rows as there are random configurations, that many evenly spaced
+rows, so that the posterior draws' points (draws x rows x 3) stay within a job's memory on a
+campaign of any size) and the robot's one fixed set of random configurations across the joint
+limits (`prediction.robot_configurations`, shared with the comparison by prediction).
 
 Two kinds of claim:
 
@@ -172,7 +174,9 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
     unseen = {n: loop.values[n] for n in loop_report.unseen_by_data if n in loop.values}
     tolerance = loop_report.held_zero_offset_std
-    q_sets = {"optimization": sensor.q("optimization"), "random": robot_configurations(chain, robot, n_random, seed)}
+    measured = sensor.q("optimization")
+    used = residual_gp.evenly_spaced(len(measured), n_random)
+    q_sets = {"optimization": measured[used], "random": robot_configurations(chain, robot, n_random, seed)}
     gp = residual_gp.from_results(loop_gp_rows, loop_report.residual_gp)
     if gp is not None:
         sigma = np.full(n_draws, gp.hyper.noise_std)
@@ -206,7 +210,7 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     nowhere = sorted(identifiable_extension(loop.predictor(chain, q_sets["random"], sensor.marker).model).dropped)
     return WorkspaceAccuracy(pd.DataFrame(theoretical), claims,
                              _report(chain, sensor, claims, loop, loop_report, held, tolerance, n_draws, n_random,
-                                     nowhere))
+                                     nowhere, (len(used), len(measured))))
 
 
 def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
@@ -216,7 +220,7 @@ def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
 
 
 def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, tolerance, n_draws, n_random,
-            nowhere) -> dict:
+            nowhere, measured_used: tuple[int, int]) -> dict:
     dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
     coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
     suggestions = _suggestions(coverage, dominated)
@@ -242,6 +246,9 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, h
     return {
         "campaign": loop_report.campaign, "sensor": sensor.name,
         "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
+        "measured_configurations": {"used": int(measured_used[0]), "of": int(measured_used[1]),
+                                    "how": "every optimization row, or that many evenly spaced rows when there are "
+                                           "more than random configurations"},
         "configurations": dict(CONFIGURATIONS), "frames": dict(FRAMES),
         "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
