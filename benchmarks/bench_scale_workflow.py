@@ -49,7 +49,9 @@ def _job_of(command: str) -> str | None:
     return found.group(1) if found else None
 
 
-def run(rows: int, root: Path) -> None:
+def run(rows: int, root: Path) -> int:
+    """Snakemake's exit status; the report is printed either way (a job killed for memory shows
+    where the memory went)."""
     raw, results = root / "raw", root / "results"
     name = f"scale-{rows}"
     if not (raw / name / "campaign.yaml").exists():
@@ -84,6 +86,7 @@ def run(rows: int, root: Path) -> None:
     others = {job: peak for job, peak in peaks.items() if job not in seconds}
     for job, peak in sorted(others.items()):
         print(f"{job + ' (script)':<40} {'':>11} {'':>5} {peak / 1e6:8.0f}")
+    return snakemake.returncode
 
 
 def job_seconds(log: str) -> dict[str, list[float]]:
@@ -104,10 +107,9 @@ def job_seconds(log: str) -> dict[str, list[float]]:
 def main() -> None:
     rows = int(sys.argv[1]) if len(sys.argv) > 1 else 100_000
     if len(sys.argv) > 2:
-        run(rows, Path(sys.argv[2]))
-    else:
-        with tempfile.TemporaryDirectory() as root:
-            run(rows, Path(root))
+        sys.exit(run(rows, Path(sys.argv[2])))
+    with tempfile.TemporaryDirectory() as root:
+        sys.exit(run(rows, Path(root)))
 
 
 if __name__ == "__main__":
