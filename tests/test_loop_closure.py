@@ -96,6 +96,26 @@ def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng, monkeypatch):
     assert np.array_equal(model.predict(theta), stacked)
 
 
+@pytest.mark.parametrize("size", [1e-5, 3e-3])
+def test_the_compiled_angles_are_the_joint_angles(iiwa, rng, size):
+    """The kernel turns cos and sin of q + zero-offset by the joint-space blocks' small angle with
+    a Taylor series (below `_kernels.SMALL_ANGLE`, cos and sin above it): the marker positions are
+    those of the forward kinematics at the model's joint angles, for small and for large angles."""
+    from remaster._kernels import SMALL_ANGLE
+    from remaster.robot.kinematics import marker_positions
+
+    sensor = simulated(iiwa, "none")
+    model = blocks.BlockModel(iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker, np.eye(4),
+                              ("joint_compliance", "joint_scale"), {})
+    every = model.full(rng.normal(0.0, size, (3, len(model.names))))
+    linear_part = model.angles(every) - model.angles(np.where(
+        [[n.startswith("zero_offsets.") for n in model.all_names]], every, 0.0)[0])
+    assert (np.abs(linear_part).max() > SMALL_ANGLE) == (size > 1e-3)  # both branches taken
+    for vector in every:
+        np.testing.assert_allclose(model.robot_points(vector),
+                                   marker_positions(iiwa, model.angles(vector), sensor.marker), rtol=0, atol=1e-14)
+
+
 @pytest.mark.parametrize("effect", list(EFFECTS))
 def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, effect):
     """Noise-free measurements of a robot with one effect are the block's prediction at the true

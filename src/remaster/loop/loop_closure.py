@@ -356,9 +356,11 @@ def _score_gp(current: Fitted, data: Readings, rotation: np.ndarray, folds: np.n
 def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
           ) -> tuple[list[samplers.Chain], dict]:
     """Chains of the model's posterior by independence Metropolis from its Laplace approximation
-    (`samplers.metropolis_independence`), run longer (samples and burn-in doubled) until every
-    R-hat <= max_rhat and every ESS >= min_ess, at most max_doublings times. Returns the chains
-    and a JSON-ready report: the last run's diagnostics, every attempt, and `converged`."""
+    (`samplers.metropolis_independence`), in the coordinates where that approximation fits best
+    (`gauge.sampling_coordinates`: the model's exact symmetries folded out), run longer (samples
+    and burn-in doubled) until every R-hat <= max_rhat and every ESS >= min_ess, at most
+    max_doublings times. Returns the chains, in the model's own parameters, and a JSON-ready
+    report: the last run's diagnostics, every attempt, the coordinates, and `converged`."""
     target = fit.PosteriorTarget(mode.model)
     mean = np.append(mode.theta, mode.sigma)
     covariance = mode.covariance
