@@ -26,11 +26,10 @@ import numpy as np
 from .. import spatial
 from ..robot.kinematics import KinematicChain, link_error_transforms
 from . import samplers
-from .model import correction_transforms
+from .model import REGISTRATION as REGISTRATION_PARTS, correction_transforms
 
-REGISTRATION = ("registration.x", "registration.y", "registration.z",
-                "registration.alpha", "registration.beta", "registration.gamma")
-MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")
+REGISTRATION = tuple(f"registration.{p}" for p in REGISTRATION_PARTS)  # x, y, z, then the ZYX Euler angles
+MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
 TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
 MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates
