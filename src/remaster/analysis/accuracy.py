@@ -50,7 +50,8 @@ from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..inference import metrics
 from ..inference.fit import LaplaceReport, Registration
-from ..inference.model import SIGMA, by_parameter, correction_transforms, display_scale, display_unit, parameter_names
+from ..inference.model import (SIGMA, by_parameter, correction_parameters, correction_transforms, display_scale,
+                               display_unit, parameter_names)
 from ..labels import paper_order, sensor_label
 from ..units import shown
 from ..robot import registration
@@ -144,8 +145,7 @@ def bayesian(mle: pd.Series, t_nr) -> Remastered:
 
 def registration_parameters(sensor_from_robot, t_nr) -> np.ndarray:
     """Theta1 (6,) (x, y, z m; alpha, beta, gamma rad) with T*(Theta1) T_NR = sensor_from_robot."""
-    correction = np.asarray(sensor_from_robot, dtype=float) @ spatial.invert(np.asarray(t_nr, dtype=float))
-    return np.concatenate([correction[:3, 3], spatial.matrix_to_euler_zyx(correction[:3, :3])])
+    return correction_parameters(np.asarray(sensor_from_robot, dtype=float) @ spatial.invert(np.asarray(t_nr, dtype=float)))
 
 
 # --------------------------------------------------------------------------- one set's data

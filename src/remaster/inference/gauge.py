@@ -26,7 +26,8 @@ import numpy as np
 from .. import spatial
 from ..robot.kinematics import KinematicChain, link_error_transforms
 from . import samplers
-from .model import REGISTRATION as REGISTRATION_PARTS, correction_transforms
+from .blocks import link_labels
+from .model import REGISTRATION as REGISTRATION_PARTS, correction_parameters, correction_transforms
 
 REGISTRATION = tuple(f"registration.{p}" for p in REGISTRATION_PARTS)  # x, y, z, then the ZYX Euler angles
 MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
@@ -35,9 +36,11 @@ MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: 
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates
 
 
-def _link_index(names, label: str) -> dict[str, int]:
-    return {kind: names.index(f"link_geometry.{label}.{kind}") for kind in ("length", "twist")
-            if f"link_geometry.{label}.{kind}" in names}
+def _link_index(names, chain: KinematicChain, row: int) -> dict[str, int]:
+    """{'length'|'twist': position in names} of the free link-geometry parameters of fixed
+    transform `row` (0: F_1, N: the tool), named as `blocks.link_labels` names them."""
+    return {("length", "twist")[column]: names.index(name) for link, column, name in link_labels(chain)
+            if link == row and name in names}
 
 
 def _link_errors(theta, index: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -69,8 +72,7 @@ class BaseFold:
 
     def _with(self, theta, transform) -> np.ndarray:
         out = np.array(theta, dtype=float)
-        out[..., self.index] = np.concatenate([transform[..., :3, 3], spatial.matrix_to_euler_zyx(transform[..., :3, :3])],
-                                              axis=-1)
+        out[..., self.index] = correction_parameters(transform)
         return out
 
     def fold(self, theta) -> np.ndarray:
@@ -179,7 +181,7 @@ class Gauge:
         folds = []
         marker_free = set(MARKER) <= set(names)
         index = np.array([names.index(n) for n in MARKER]) if marker_free else None
-        tool = _link_index(names, "tool")
+        tool = _link_index(names, chain, chain.n_joints)
         if marker_free and tool:
             folds.append(ToolFold(index, tool, chain.tool_transform, np.asarray(marker, dtype=float)))
         if marker_free and turn_marker:
@@ -188,7 +190,7 @@ class Gauge:
             spread = np.sqrt(np.linalg.eigvalsh(in_plane.T @ covariance[np.ix_(index, index)] @ in_plane).max())
             if turn.radius > MIN_RADIUS_IN_STD * spread:
                 folds.append(turn)
-        first = _link_index(names, "F1")
+        first = _link_index(names, chain, 0)
         if set(REGISTRATION) <= set(names) and first:
             folds.append(BaseFold(np.array([names.index(n) for n in REGISTRATION]), first, chain.joint_transforms[0],
                                   np.asarray(t_nr, dtype=float)))

@@ -63,6 +63,13 @@ def correction_transforms(registration) -> np.ndarray:
     return spatial.homogeneous(rotation, r[..., :3])
 
 
+def correction_parameters(transform) -> np.ndarray:
+    """The inverse of `correction_transforms`: (..., 6) (x, y, z m; alpha, beta, gamma rad) of
+    transforms (..., 4, 4)."""
+    t = np.asarray(transform, dtype=float)
+    return np.concatenate([t[..., :3, 3], spatial.matrix_to_euler_zyx(t[..., :3, :3])], axis=-1)
+
+
 class MeasurementModel:
     """What every measurement model shares (`remaster.inference.blocks` adds parameter blocks to the
     paper's): parameters held or free, predictions from the free ones, residuals, their Jacobian
