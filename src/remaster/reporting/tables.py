@@ -65,7 +65,9 @@ CAPTIONS = {
                           "at the measured configurations and at random configurations across the joint limits, "
                           "propagated from the loop-closed posterior (every draw of its parameters under their "
                           "priors, with its noise); registration fitted over the configurations, or in the robot "
-                          "frame with held zero-offsets drawn from the controller marks' tolerance. Holds: "
+                          "frame with held zero-offsets drawn from the controller marks' tolerance. 95%: the "
+                          "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
+                          "percentile stays below it with 95 % posterior probability. Holds: "
                           "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
     "workspace_warnings": "What the report warns about each calibration: workspace-wide error against the measured "
                           "configurations, parameters the data barely moved from their prior, and what the next "
