@@ -109,7 +109,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
             if len(claim):
                 rows.append({"Sensor": sensor_label(sensor), "Where": label, "Model": name,
                              "mean (mm)": float(claim["mean_mm"].iloc[0]), "U(mean) (mm)": np.nan,
-                             "p95 (mm)": float(claim["p95_mm"].iloc[0]), "points": int(claim["count"].iloc[0])})
+                             "p95 (mm)": float(claim["p95_bound_mm"].iloc[0]), "points": int(claim["count"].iloc[0])})
     return rows
 
 

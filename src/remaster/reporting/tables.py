@@ -32,12 +32,14 @@ CAPTIONS = {
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
                            "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
                            "optimization set; never picked by these validation numbers), its 95th percentile, what the "
-                           "loop-closed model claims across the joint space, whether the loop is closed against the "
+                           "loop-closed model claims across the joint space (the bound on its 95th percentile, "
+                           "95 % posterior probability), whether the loop is closed against the "
                            "sensor's noise, and where the calibration holds.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
                             "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
                             "and as the posteriors claim it at the measured configurations and across the joint "
-                            "space (registration fitted, with the sensor's noise).",
+                            "space (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
+                            "95th percentile stays below with 95 % posterior probability).",
     "certificate_corrections": "Zero-offset corrections to add to the controller's zero (the paper's model), with "
                                "their expanded uncertainty U (k = 2); held joints get none.",
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
