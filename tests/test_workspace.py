@@ -188,10 +188,11 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
 
 
 MOTION_CAPTURE_LOOP = pytest.mark.xfail(strict=True, reason=(
-    "known: the motion-capture loop model of the twin puts joint 3's compliance about 3 std from its true 0 "
-    "(its payload term, posterior correlation -0.97, compensates at the measured poses), and at random "
-    "configurations, where joint 3 moves, "
-    "its true error (95 % quantile) is about twice the claim"))
+    "known: the noise of the bundled twin's motion capture puts joint 3's compliance 2.8 std from its true 0 "
+    "(its payload term, posterior correlation -0.97, the other way; with a tenth of the noise the same seed "
+    "gives about the same z, so a fluctuation, not a missing effect), and at random configurations, where "
+    "joint 3 moves, the true 95 % quantile is about twice the claim, above the bound too "
+    "(benchmarks/bench_claim_coverage.py: over 20 new seeds the bound covers the truth 19 times)"))
 
 
 @pytest.mark.parametrize("sensor, model", [("laser_tracker", "paper"), ("laser_tracker", "loop"),
@@ -213,7 +214,9 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     assert claim(result.claims, model, frame="robot")["p95_mm"] >= np.quantile(robot_frame, 0.95) / 1e-3
     # the paper's tables say nothing of joint 1 (held): the robot-frame truth is far beyond the registered one
     assert np.quantile(robot_frame, 0.95) > 2 * np.quantile(registered, 0.95)
-    assert claim(result.claims, model)["p95_mm"] >= np.quantile(registered, 0.95) / 1e-3
+    true_p95 = np.quantile(registered, 0.95) / 1e-3
+    assert claim(result.claims, model)["p95_mm"] >= true_p95
+    assert claim(result.claims, model)["p95_bound_mm"] >= true_p95  # the certificate's claim
 
 
 def test_the_twins_loop_rows_and_notes(tmp_path_factory):

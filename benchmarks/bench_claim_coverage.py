@@ -1,0 +1,111 @@
+"""How often the workspace-wide claim of the loop-closed model covers the truth: the twin re-simulated.
+
+Run from the repository root: python benchmarks/bench_claim_coverage.py [sensor] [first seed] [count]
+(default laser_tracker, seeds 10-29). Each seed simulates the twin scenario again: the same robot and
+truth (its link errors come from their own seed), new poses and noise. Each campaign goes through
+registration, the paper's fit and the loop closure with config.yaml's settings; its claim across the
+joint space (`analysis.workspace`, 400 draws, 300 random configurations, registration fitted, with
+noise) is held against the simulator's true marker positions there. Printed per seed: the rms of
+z = (posterior mean - truth) / posterior std over the loop's parameters, the worst z, the true 95 %
+quantile of the error, the pooled claimed 95 % quantile and the bound on one arm's 95 % quantile;
+then how often each covers the truth.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from remaster import io
+from remaster.analysis import comparison, prediction, workspace
+from remaster.campaigns import scenario
+from remaster.campaigns.simulation import true_marker_positions
+from remaster.inference import fit, metrics
+from remaster.loop import loop_closure
+from remaster.robot import kinematics
+
+REPO = Path(__file__).resolve().parents[1]
+DRAWS, RANDOM, SEED = 400, 300, 20181113
+
+
+def true_parameters(truth: dict) -> dict[str, float]:
+    """The loop blocks' parameters as the simulator drew them (SI)."""
+    effects = truth["effects"]
+    out = {f"joint_compliance.q{j + 1}": c for j, c in enumerate(effects["joint_compliance"]["compliance_rad_per_Nm"])}
+    out |= {f"drift.q{j + 1}": np.radians(r) / 3600.0
+            for j, r in enumerate(effects["drift"]["zero_offset_rate_deg_per_hour"])}
+    links = [f"F{i + 1}" for i in range(len(effects["link_geometry"]["length_errors_m"]) - 1)] + ["tool"]
+    for name, length, twist in zip(links, effects["link_geometry"]["length_errors_m"],
+                                   effects["link_geometry"]["twist_errors_rad"]):
+        out |= {f"link_geometry.{name}.length": length, f"link_geometry.{name}.twist": twist}
+    return out
+
+
+def paper_summary(laplace: fit.LaplaceReport) -> pd.DataFrame:
+    """The paper's model at its Laplace mode, held parameters at their values."""
+    held = laplace.held
+    return pd.DataFrame({"parameter": list(laplace.names) + list(held),
+                         "mean": list(laplace.theta_map) + list(held.values()),
+                         "status": ["estimated"] * len(laplace.names) + ["held: not identifiable"] * len(held)})
+
+
+def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
+    simulated = scenario.simulate(spec, chain, seed=seed)
+    folder = Path(tempfile.mkdtemp()) / spec["name"]
+    io.write_campaign(folder, simulated.metadata, simulated.tables)
+    io.write_json(folder.parent / "truth.json", simulated.truth)
+    truth = io.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
+    campaign = io.read_campaign(folder, repo_root=REPO)
+    registered = fit.registration_stage(campaign, sensor)
+    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
+    settings = loop_closure.settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings)
+    io.write_json(folder.parent / "loop.json", result.report)
+    report, samples = io.read_loop(folder.parent / "loop.json"), result.samples
+    robot = comparison.robot_identity(campaign)
+    claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, paper_summary(laplace),
+                                          laplace, report, samples, np.random.default_rng(SEED), n_draws=DRAWS,
+                                          n_random=RANDOM, seed=SEED).claims
+    claim = claims[(claims["model"] == "loop") & (claims["configurations"] == "random")
+                   & (claims["frame"] == "registered") & (claims["noise"] == "with noise")].iloc[0]
+    q = prediction.robot_configurations(campaign.chain, robot, RANDOM, SEED)
+    marker = campaign.sensors[sensor].marker
+    device = scenario.sensor_from_truth(truth, sensor, marker)
+    true_points = true_marker_positions(campaign.chain, scenario.robot_from_truth(truth), device, q, np.zeros(len(q)))
+    calibration = prediction.loop_calibration(report, samples)
+    points = calibration.predictor(campaign.chain, q, marker).points(calibration.values)
+    true_p95 = np.quantile(metrics.registered_distances(points, true_points[None])[0], 0.95) / 1e-3
+    parameters = true_parameters(truth)
+    z = {n: (samples[n].mean() - v) / samples[n].std() for n, v in parameters.items() if n in samples}
+    worst = max(z, key=lambda n: abs(z[n]))
+    return {"seed": seed, "rms_z": float(np.sqrt(np.mean(np.square(list(z.values()))))), "worst": worst,
+            "worst_z": float(z[worst]), "true_p95_mm": float(true_p95), "p95_mm": float(claim["p95_mm"]),
+            "p95_bound_mm": float(claim["p95_bound_mm"])}
+
+
+def main() -> None:
+    sensor = sys.argv[1] if len(sys.argv) > 1 else "laser_tracker"
+    first = int(sys.argv[2]) if len(sys.argv) > 2 else 10
+    count = int(sys.argv[3]) if len(sys.argv) > 3 else 20
+    urdf = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
+    chain = kinematics.chain_from_urdf(urdf.read_text(), "iiwa_link_0", "iiwa_link_ee", source=str(urdf))
+    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
+    config = io.read_yaml(REPO / "config.yaml")
+    rows = []
+    for seed in range(first, first + count):
+        rows.append(one_seed(spec, chain, config, sensor, seed))
+        r = rows[-1]
+        print(f"seed {seed}: rms z {r['rms_z']:.2f}, worst {r['worst']} z {r['worst_z']:+.2f}; true p95 "
+              f"{r['true_p95_mm']:.4f} mm, claimed p95 {r['p95_mm']:.4f}, bound {r['p95_bound_mm']:.4f}", flush=True)
+    table = pd.DataFrame(rows)
+    for column in ("p95_mm", "p95_bound_mm"):
+        covered = int((table[column] >= table["true_p95_mm"]).sum())
+        print(f"{column} covers the true 95 % quantile in {covered} of {len(table)} campaigns")
+
+
+if __name__ == "__main__":
+    main()
