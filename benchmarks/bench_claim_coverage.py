@@ -45,14 +45,6 @@ def true_parameters(truth: dict) -> dict[str, float]:
     return out
 
 
-def paper_summary(laplace: fit.LaplaceReport) -> pd.DataFrame:
-    """The paper's model at its Laplace mode, held parameters at their values."""
-    held = laplace.held
-    return pd.DataFrame({"parameter": list(laplace.names) + list(held),
-                         "mean": list(laplace.theta_map) + list(held.values()),
-                         "status": ["estimated"] * len(laplace.names) + ["held: not identifiable"] * len(held)})
-
-
 def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     simulated = scenario.simulate(spec, chain, seed=seed)
     folder = Path(tempfile.mkdtemp()) / spec["name"]
@@ -67,7 +59,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     io.write_json(folder.parent / "loop.json", result.report)
     report, samples = io.read_loop(folder.parent / "loop.json"), result.samples
     robot = comparison.robot_identity(campaign)
-    claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, paper_summary(laplace),
+    claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, fit.mode_summary(laplace),
                                           laplace, report, samples, np.random.default_rng(SEED), n_draws=DRAWS,
                                           n_random=RANDOM, seed=SEED).claims
     claim = claims[(claims["model"] == "loop") & (claims["configurations"] == "random")

@@ -21,7 +21,7 @@ from remaster.robot import kinematics
 from remaster.units import DEG, MM
 
 from .conftest import REPO
-from .test_workspace import at_start, fitted, laplace_content, paper_summary
+from .test_workspace import at_start, fitted, laplace_content
 
 MARKER = np.array([0.0, 0.0, 0.08])
 EFFECTS = ("joint_compliance", "marker_offset", "link_geometry")
@@ -219,7 +219,7 @@ def twin(model: str, tmp_path_factory):
     block's time origin, the first measurement, so the true robot is taken then (`at_start`)."""
     campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
     results = {"registration": fit.registration_stage(campaign, "laser_tracker"), "laplace": laplace,
-               "summary": paper_summary(laplace), "paper_samples": None, "loop": report, "loop_samples": samples,
+               "summary": fit.mode_summary(laplace), "paper_samples": None, "loop": report, "loop_samples": samples,
                "gp": None}
     truth = io.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     sensor = sensor_from_truth(truth, "laser_tracker", campaign.sensors["laser_tracker"].marker)
@@ -304,7 +304,7 @@ def twin_results(tmp_path_factory):
     folder = root / "kuka-twin" / "laser_tracker"
     io.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker").report())
     io.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
-    io.write_csv(folder / "fit" / "summary.csv", paper_summary(laplace))
+    io.write_csv(folder / "fit" / "summary.csv", fit.mode_summary(laplace).reset_index())
     io.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
     io.write_json(folder / "loop_closure.json", report.details)
     io.write_parquet(folder / "loop_closure" / "samples.parquet", samples)

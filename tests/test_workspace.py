@@ -113,14 +113,6 @@ def true_points(campaign, sensor: str, q) -> np.ndarray:
     return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q, at_start(q))
 
 
-def paper_summary(laplace: fit.LaplaceReport) -> pd.DataFrame:
-    """The paper's model at its Laplace mode (its posterior mean up to the MCMC's error)."""
-    held = laplace.held
-    return pd.DataFrame({"parameter": list(laplace.names) + list(held),
-                         "mean": list(laplace.theta_map) + list(held.values()),
-                         "status": ["estimated"] * len(laplace.names) + ["held: not identifiable"] * len(held)})
-
-
 def fitted(name: str, sensor: str, tmp_path_factory):
     """(campaign, laplace report, loop-closure report as written to JSON, loop samples), cached."""
     key = (name, sensor)
@@ -148,7 +140,7 @@ def laplace_content(name: str, sensor: str) -> dict:
 def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.WorkspaceAccuracy, object, dict]:
     campaign, laplace, report, samples = fitted(name, sensor, tmp_path_factory)
     result = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], comparison.robot_identity(campaign),
-                                          paper_summary(laplace), laplace, report, samples,
+                                          fit.mode_summary(laplace), laplace, report, samples,
                                           np.random.default_rng(SEED), n_draws=DRAWS, n_random=RANDOM, seed=SEED)
     return result, campaign, laplace
 
@@ -162,7 +154,7 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
     for n_random, used in ((RANDOM, min(rows, RANDOM)), (50, 50)):
         result = workspace.workspace_accuracy(
             campaign.chain, campaign.sensors["laser_tracker"], comparison.robot_identity(campaign),
-            paper_summary(laplace), laplace, report, samples, np.random.default_rng(SEED), n_draws=200,
+            fit.mode_summary(laplace), laplace, report, samples, np.random.default_rng(SEED), n_draws=200,
             n_random=n_random, seed=SEED)
         assert result.report["measured_configurations"]["used"] == used
         assert result.report["measured_configurations"]["of"] == rows
@@ -206,7 +198,7 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     q = prediction.robot_configurations(campaign.chain, comparison.robot_identity(campaign), RANDOM, SEED)
     truth = true_points(campaign, sensor, q)
     _, _, report, samples = fitted("kuka-twin", sensor, tmp_path_factory)
-    calibration = (prediction.paper_calibration(paper_summary(laplace)) if model == "paper"
+    calibration = (prediction.paper_calibration(fit.mode_summary(laplace)) if model == "paper"
                    else prediction.loop_calibration(report, samples))
     points = calibration.predictor(campaign.chain, q, campaign.sensors[sensor].marker).points(calibration.values)
     registered = metrics.registered_distances(points, truth[None])[0]

@@ -377,6 +377,13 @@ def moments(samples: pd.DataFrame) -> pd.DataFrame:
                          "q2.5": samples.quantile(0.025), "q97.5": samples.quantile(0.975)})
 
 
+def mode_summary(laplace: LaplaceReport) -> pd.DataFrame:
+    """`posterior_summary` of the model at its Laplace mode alone (no samples: std and interval
+    undefined): what a calibration needs (mean, status) where no sampler ran."""
+    mode = pd.DataFrame([{**dict(zip(laplace.names, laplace.theta_map)), SIGMA: laplace.sigma_map}])
+    return posterior_summary(mode, laplace)
+
+
 def posterior_summary(frame: pd.DataFrame, laplace: LaplaceReport) -> pd.DataFrame:
     """Per parameter: MLE (the posterior mean, as in the paper), std and 95 % interval in SI and
     in display units (mm, deg), and its status; held parameters appear with status 'held'."""
