@@ -188,8 +188,9 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append("Errors are post-registration distances (mm). The validation set was read only for this "
                    f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
-                   "pose; the claims are the loop-closed posterior propagated with the sensor's noise. Corrections: "
-                   "add to the controller's zero (true angle = reading + correction).")
+                   "pose; the claims are the loop-closed posterior propagated with the sensor's noise, and a "
+                   "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
+                   "probability. Corrections: add to the controller's zero (true angle = reading + correction).")
     return Certificate(summary["campaign"], heading, pd.DataFrame(accuracy), pd.DataFrame(corrections),
                        pd.DataFrame(verdicts), warnings)
 
