@@ -24,24 +24,25 @@ from remaster import io
 from remaster.analysis import comparison, prediction, workspace
 from remaster.campaigns import scenario
 from remaster.campaigns.simulation import true_marker_positions
-from remaster.inference import fit, metrics
+from remaster.inference import blocks, fit, metrics
 from remaster.loop import loop_closure
 from remaster.robot import kinematics
+from remaster.units import SECONDS_PER_HOUR
 
 REPO = Path(__file__).resolve().parents[1]
 DRAWS, RANDOM, SEED = 400, 300, 20181113
 
 
-def true_parameters(truth: dict) -> dict[str, float]:
-    """The loop blocks' parameters as the simulator drew them (SI)."""
+def true_parameters(truth: dict, chain) -> dict[str, float]:
+    """The loop blocks' parameters as the simulator drew them (SI), named as the blocks name them."""
     effects = truth["effects"]
-    out = {f"joint_compliance.q{j + 1}": c for j, c in enumerate(effects["joint_compliance"]["compliance_rad_per_Nm"])}
-    out |= {f"drift.q{j + 1}": np.radians(r) / 3600.0
-            for j, r in enumerate(effects["drift"]["zero_offset_rate_deg_per_hour"])}
-    links = [f"F{i + 1}" for i in range(len(effects["link_geometry"]["length_errors_m"]) - 1)] + ["tool"]
-    for name, length, twist in zip(links, effects["link_geometry"]["length_errors_m"],
-                                   effects["link_geometry"]["twist_errors_rad"]):
-        out |= {f"link_geometry.{name}.length": length, f"link_geometry.{name}.twist": twist}
+    n = chain.n_joints
+    compliance = blocks.block_parameters("joint_compliance", chain).names[:n]  # the torque terms, not the payload's
+    out = dict(zip(compliance, effects["joint_compliance"]["compliance_rad_per_Nm"]))
+    rates = np.radians(effects["drift"]["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR
+    out |= dict(zip(blocks.block_parameters("drift", chain).names, rates))
+    links = (effects["link_geometry"]["length_errors_m"], effects["link_geometry"]["twist_errors_rad"])
+    out |= {name: links[column][link] for link, column, name in blocks.link_labels(chain)}
     return out
 
 
@@ -62,8 +63,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, fit.mode_summary(laplace),
                                           laplace, report, samples, np.random.default_rng(SEED), n_draws=DRAWS,
                                           n_random=RANDOM, seed=SEED).claims
-    claim = claims[(claims["model"] == "loop") & (claims["configurations"] == "random")
-                   & (claims["frame"] == "registered") & (claims["noise"] == "with noise")].iloc[0]
+    claim = workspace.claim_rows(claims, "loop", "random").iloc[0]
     q = prediction.robot_configurations(campaign.chain, robot, RANDOM, SEED)
     marker = campaign.sensors[sensor].marker
     device = scenario.sensor_from_truth(truth, sensor, marker)
@@ -71,7 +71,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     calibration = prediction.loop_calibration(report, samples)
     points = calibration.predictor(campaign.chain, q, marker).points(calibration.values)
     true_p95 = np.quantile(metrics.registered_distances(points, true_points[None])[0], 0.95) / 1e-3
-    parameters = true_parameters(truth)
+    parameters = true_parameters(truth, campaign.chain)
     z = {n: (samples[n].mean() - v) / samples[n].std() for n, v in parameters.items() if n in samples}
     worst = max(z, key=lambda n: abs(z[n]))
     return {"seed": seed, "rms_z": float(np.sqrt(np.mean(np.square(list(z.values()))))), "worst": worst,

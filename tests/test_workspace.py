@@ -162,9 +162,7 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
 
 
 def claim(claims: pd.DataFrame, model: str, where: str = "random", frame: str = "registered") -> pd.Series:
-    chosen = claims[(claims["model"] == model) & (claims["configurations"] == where) & (claims["frame"] == frame)
-                    & (claims["noise"] == "with noise")]
-    return chosen.iloc[0]
+    return workspace.claim_rows(claims, model, where, frame).iloc[0]
 
 
 @pytest.mark.parametrize("sensor", ["laser_tracker", "motion_capture"])

@@ -7,6 +7,7 @@ import math
 
 MM = 1e-3  # m per mm
 DEG = math.pi / 180.0  # rad per degree
+SECONDS_PER_HOUR = 3600.0  # s per hour (drift rates are shown per hour)
 
 
 def shown(value: float, significant: int = 3) -> str:

@@ -223,10 +223,16 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
                                      nowhere, (len(used), len(measured))))
 
 
+def claim_rows(claims: pd.DataFrame, model: str, configurations: str, frame: str = "registered",
+               noise: str = "with noise") -> pd.DataFrame:
+    """The rows of `claims` (`CLAIM_COLUMNS`) for one model ('paper' | 'loop'), configurations
+    ('optimization' | 'random'), frame and noise: one row, or none when the model was not propagated."""
+    return claims[(claims["model"] == model) & (claims["configurations"] == configurations)
+                  & (claims["frame"] == frame) & (claims["noise"] == noise)]
+
+
 def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
-    chosen = claims[(claims["model"] == model) & (claims["configurations"] == where)
-                    & (claims["frame"] == "registered") & (claims["noise"] == "with noise")]
-    return float(chosen["mean_mm"].iloc[0])
+    return float(claim_rows(claims, model, where)["mean_mm"].iloc[0])
 
 
 def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, tolerance, n_draws, n_random,

@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from ..units import SECONDS_PER_HOUR
 from ..robot import planning, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from .simulation import Sensor, TrueRobot, looking_at, measure, true_marker_positions
 
-SECONDS_PER_HOUR = 3600.0
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ from ..noise import RangeTransverse
 from ..robot.gravity import gravity_torques
 from ..robot.kinematics import KernelForm, KinematicChain, perturbed_transforms
 from ..robot.priors import Priors
-from ..units import DEG, MM
+from ..units import DEG, MM, SECONDS_PER_HOUR
 from .identifiability import JACOBIAN_STEP
 from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
 
@@ -55,7 +55,6 @@ BASE = ("registration", "zero_offsets")
 EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
 PPM = 1e-6
 MICRORAD_PER_NM = 1e-6
-SECONDS_PER_HOUR = 3600.0
 # An extension column of the Jacobian below this fraction of the longest of its own block is
 # invisible in the data: e.g. the compliance of joint 1 about the vertical (zero torque), the
 # scale of a joint that never moves. Within a block, so that the choice of units does not matter.

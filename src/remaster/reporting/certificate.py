@@ -20,6 +20,7 @@ import pandas as pd
 
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
+from ..analysis.workspace import claim_rows
 from ..inference.fit import LaplaceReport
 from ..loop.report import LoopReport
 from ..labels import sensor_label
@@ -104,8 +105,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     for configurations, label in (("optimization", "claimed at the measured configurations"),
                                   ("random", "claimed across the joint space")):
         for model, name in (("paper", "remastered zero-offsets"), ("loop", "loop-closed")):
-            claim = claims[(claims["model"] == model) & (claims["configurations"] == configurations)
-                           & (claims["frame"] == "registered") & (claims["noise"] == "with noise")]
+            claim = claim_rows(claims, model, configurations)
             if len(claim):
                 rows.append({"Sensor": sensor_label(sensor), "Where": label, "Model": name,
                              "mean (mm)": float(claim["mean_mm"].iloc[0]), "U(mean) (mm)": np.nan,

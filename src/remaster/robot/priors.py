@@ -20,11 +20,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from ..errors import InputError
+from ..units import SECONDS_PER_HOUR
 
 DEG = math.pi / 180.0
 MM = 1e-3
 MICRO = 1e-6
-SECONDS_PER_HOUR = 3600.0
 
 # config key: (SI size of one display unit, what it is the std of)
 KEYS = {
