@@ -245,14 +245,77 @@ def test_tcp_scatter_and_paper_layout(stage):
     assert list(table["Reference Sensor"]) == ["Motion Capture", "Laser Tracker"] * 2
     low, high = out["relative_accuracy"].loc[0, ["q2.5_mm", "q97.5_mm"]]
     assert table.loc[0, "95% Interval (mm)"] == f"[{shown(low)}, {shown(high)}]"
-    comparison = accuracy.paper_comparison("relative_accuracy", table)
+    comparison = accuracy.paper_comparison("relative_accuracy", two)
     assert comparison.loc[0, "Paper Mean (mm)"] == 3.384  # tab:dist_accuracy_measure, Vernier, motion capture
     assert comparison.loc[0, "Mean difference (mm)"] == pytest.approx(table.loc[0, "Mean (mm)"] - 3.384)
-    assert comparison.loc[0, "97.5% difference (mm)"] == pytest.approx(float(shown(high)) - 6.513)
+    assert comparison.loc[0, "97.5% difference (mm)"] == pytest.approx(high - 6.513)  # unrounded
     validation = accuracy.paper_table({"laser_tracker": out["validation_accuracy"]})
     assert validation.columns[0] == "Metric" and len(validation) == 7  # Vernier least squares: post-registration only
-    compared = accuracy.paper_comparison("validation_accuracy", validation)
+    compared = accuracy.paper_comparison("validation_accuracy", {"laser_tracker": out["validation_accuracy"]})
+    assert compared[list(validation.columns[:3])].equals(validation[validation.columns[:3]])
     assert compared["Paper Mean (mm)"].notna().sum() == 2  # the paper's Bayesian relative and post-registration
+
+
+def metric_rows(values: dict) -> pd.DataFrame:
+    """One sensor's metric rows from {method: (mean, 2.5 %, 97.5 %, count)} (mm)."""
+    return pd.DataFrame([{"method": method, "mean_mm": mean, "q2.5_mm": low, "q97.5_mm": high, "count": count}
+                         for method, (mean, low, high, count) in values.items()])
+
+
+COMPARED = [f"{prefix}{statistic}{suffix} (mm)" for statistic in ("Mean", "2.5%", "97.5%")
+            for prefix, suffix in (("", ""), ("Paper ", ""), ("", " difference"))]
+
+
+def test_paper_comparison_compares_numbers_with_the_published_ones():
+    ours = {"laser_tracker": metric_rows({"Bayesian": (0.2641234, 0.0104, 0.8031, 60), "Vernier": (3.5, 0.6, 6.4, 60)}),
+            "motion_capture": metric_rows({"Vernier": (3.384, 0.788, 6.513, 60), "Bayesian": (0.3, 0.1, 1.0, 0)})}
+    compared = accuracy.paper_comparison("relative_accuracy", ours)
+    assert list(compared.columns) == ["Remastering Method", "Reference Sensor", *COMPARED]  # no note for this table
+    labels = accuracy.paper_table(ours)[["Remastering Method", "Reference Sensor"]]
+    assert compared[labels.columns].equals(labels)  # the paper table's rows in its order
+    rows = compared.set_index(["Remastering Method", "Reference Sensor"])
+    assert rows.loc[("Vernier", "Motion Capture"), COMPARED[2::3]].tolist() == [0.0, 0.0, 0.0]
+    # tab:dist_accuracy_measure, Bayesian laser tracker: 0.264 [0.010, 0.800]; ours unrounded, not at 3 decimals
+    bayesian = rows.loc[("Bayesian", "Laser Tracker")]
+    assert bayesian[COMPARED[1::3]].tolist() == [0.264, 0.010, 0.800]
+    np.testing.assert_allclose(bayesian[COMPARED[2::3]].to_numpy(float), [0.0001234, 0.0004, 0.0031], atol=1e-12)
+    empty = rows.loc[("Bayesian", "Motion Capture")]  # count 0: no values of ours, the paper's still
+    assert empty[COMPARED[::3]].isna().all() and empty[COMPARED[2::3]].isna().all()
+    assert empty[COMPARED[1::3]].tolist() == [0.286, 0.007, 0.951]
+
+    theoretical = {"motion_capture": metric_rows({"Vernier": (5.0, 1.5, 9.0, 1000), "Bayesian": (0.2, 0.05, 0.5, 1000),
+                                                  "Loop-closed": (0.1, 0.02, 0.3, 1000)})}
+    compared = accuracy.paper_comparison("theoretical_accuracy_zero_offsets_only", theoretical)
+    assert compared["Remastering Method"].tolist() == ["Vernier", "Bayesian", "Loop-closed"]
+    assert compared["Paper Mean (mm)"].tolist()[:2] == [6.067, 0.223] and np.isnan(compared.loc[2, "Paper Mean (mm)"])
+    assert compared["Mean difference (mm)"].tolist()[:2] == pytest.approx([5.0 - 6.067, 0.2 - 0.223])
+    assert [bool(n) for n in compared["Note"]] == [True, False, False]  # the held joint 1: Vernier rows only
+
+    validation = pd.concat([metric_rows({"Bayesian": (0.5, 0.1, 1.2, 150)}).assign(metric=metric)
+                            for metric in ("post_registration_refit", "post_registration", "relative")])
+    compared = accuracy.paper_comparison("validation_accuracy", {"laser_tracker": validation})
+    assert compared["Metric"].tolist() == [accuracy.VALIDATION_METRICS[m][0] for m in accuracy.VALIDATION_METRICS]
+    assert compared["Paper Mean (mm)"].tolist()[:2] == [0.492, 1.509] and np.isnan(compared.loc[2, "Paper Mean (mm)"])
+    assert [bool(n) for n in compared["Note"]] == [True, True, False]  # the refit: the paper has no such row
+    with pytest.raises(ValueError, match="no published values"):
+        accuracy.paper_comparison("sensor_comparison", ours)
+
+
+def test_the_papers_numbers_are_package_data():
+    import fnmatch
+    import tomllib
+
+    published = accuracy.paper_values()
+    assert published["table"].tolist() == [t for t in accuracy.TABLE_NAMES for _ in range(4)]
+    assert published["source"].str.startswith("tab:").all() and published["sensor"].isin(["motion_capture",
+                                                                                          "laser_tracker"]).all()
+    assert ((published["q2.5_mm"] <= published["mean_mm"]) & (published["mean_mm"] <= published["q97.5_mm"])).all()
+    assert published.set_index(["table", "method", "sensor"]).loc[
+        ("validation_accuracy", "Bayesian", "motion_capture"), "q97.5_mm"].tolist() == [1.21, 2.952]
+    # a non-editable install ships it: the package-data globs of pyproject.toml match the file
+    globs = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["remaster"]
+    assert any(fnmatch.fnmatch(accuracy.PAPER_VALUES_FILE, g) for g in globs)
+    assert (REPO / "src" / "remaster" / accuracy.PAPER_VALUES_FILE).is_file()
 
 
 @pytest.mark.parametrize("sensor_name", ["motion_capture", "laser_tracker"])
@@ -266,8 +329,8 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
     out, _, laplace, samples = fitted_stage(campaign, sensor_name=sensor_name, n_draws=500, n_random=300)
     vernier_theoretical = {table: out[table].set_index("method").loc["Vernier", "mean_mm"]
                            for table in accuracy.METRIC_TABLES if table.startswith("theoretical")}
-    for table in accuracy.PAPER_VALUES:
-        compared = accuracy.paper_comparison(table, accuracy.paper_table({sensor_name: out[table]}))
+    for table in accuracy.paper_values()["table"].unique():
+        compared = accuracy.paper_comparison(table, {sensor_name: out[table]})
         compared = compared[compared["Paper Mean (mm)"].notna()]
         ratio = compared["Mean (mm)"] / compared["Paper Mean (mm)"]
         held_rotation = (compared["Remastering Method"] == "Vernier") & table.startswith("theoretical")
@@ -287,7 +350,7 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
                             ("theoretical_accuracy_zero_offsets_only", random_q, None)):
         with_joint_1 = metrics.theoretical_errors(campaign.chain, q, sensor.marker, np.zeros(7), draws[:200],
                                                   None if sigma is None else sigma[:200], rng).mean() * 1e3
-        paper = accuracy.PAPER_VALUES[table][("Vernier", accuracy.sensor_label(sensor_name))][0]
+        paper = accuracy.paper_values(table).query("method == 'Vernier' and sensor == @sensor_name")["mean_mm"].item()
         assert 0.75 < with_joint_1 / paper < 1.25, (table, with_joint_1, paper, vernier_theoretical[table])
 
 
@@ -316,7 +379,8 @@ def test_one_configuration_per_pose_gives_empty_relative_metrics(iiwa):
         assert (rows["count"] == 0).all() and rows[["mean_mm", "q2.5_mm", "q97.5_mm"]].isna().all().all()
     table = accuracy.paper_table({"laser_tracker": out["relative_accuracy"]})
     assert (table["95% Interval (mm)"] == accuracy.EMPTY_INTERVAL).all()
-    assert accuracy.paper_comparison("relative_accuracy", table)["2.5% (mm)"].isna().all()
+    compared = accuracy.paper_comparison("relative_accuracy", {"laser_tracker": out["relative_accuracy"]})
+    assert compared["2.5% (mm)"].isna().all() and compared["Paper 2.5% (mm)"].notna().all()
     assert (out["post_registration_accuracy"]["count"] == 40).all()
 
 

@@ -40,8 +40,9 @@ Everything inside is SI; the returned tables are in mm (columns say _mm).
 
 from __future__ import annotations
 
-import re
+import functools
 from dataclasses import dataclass, replace
+from importlib import resources
 
 import numpy as np
 import pandas as pd
@@ -377,38 +378,29 @@ def _parameters_used(robots: dict[str, Remastered], mle: pd.Series, t_nr, laplac
 
 # --------------------------------------------------------------------------- paper layout
 
-# The paper's published numbers (mean, 2.5 %, 97.5 %; mm) of the physical NIST experiment that
-# kuka-twin imitates, typed from its tables. They are the paper's, not ours: only for comparison.
-PAPER_VALUES: dict[str, dict[tuple[str, ...], tuple[float, float, float]]] = {
-    # tab:dist_accuracy_measure
-    "relative_accuracy": {
-        ("Vernier", "Motion Capture"): (3.384, 0.788, 6.513), ("Vernier", "Laser Tracker"): (3.567, 0.673, 6.359),
-        ("Bayesian", "Motion Capture"): (0.286, 0.007, 0.951), ("Bayesian", "Laser Tracker"): (0.264, 0.010, 0.800)},
-    # tab:reg_accuracy_measure
-    "post_registration_accuracy": {
-        ("Vernier", "Motion Capture"): (4.715, 1.508, 8.581), ("Vernier", "Laser Tracker"): (4.397, 1.517, 7.256),
-        ("Bayesian", "Motion Capture"): (1.533, 0.459, 2.770), ("Bayesian", "Laser Tracker"): (1.213, 0.504, 2.128)},
-    # tab:theor_accuracy_measure_all_opt_configs
-    "theoretical_accuracy_optimization_configs": {
-        ("Vernier", "Motion Capture"): (4.730, 1.353, 8.470), ("Vernier", "Laser Tracker"): (4.410, 1.673, 7.737),
-        ("Bayesian", "Motion Capture"): (1.433, 0.417, 2.750), ("Bayesian", "Laser Tracker"): (1.181, 0.344, 2.265)},
-    # tab:theor_accuracy_measure_all
-    "theoretical_accuracy_random_configs": {
-        ("Vernier", "Motion Capture"): (6.331, 2.041, 10.908), ("Vernier", "Laser Tracker"): (5.676, 1.795, 10.191),
-        ("Bayesian", "Motion Capture"): (1.439, 0.420, 2.758), ("Bayesian", "Laser Tracker"): (1.187, 0.345, 2.276)},
-    # tab:theor_accuracy_measure
-    "theoretical_accuracy_zero_offsets_only": {
-        ("Vernier", "Motion Capture"): (6.067, 1.918, 10.385), ("Vernier", "Laser Tracker"): (5.575, 1.865, 9.681),
-        ("Bayesian", "Motion Capture"): (0.223, 0.052, 0.512), ("Bayesian", "Laser Tracker"): (0.183, 0.042, 0.436)},
-    # tab:validation_measures: the motion-capture MLE applied to the controller, measured by both sensors
-    "validation_accuracy": {
-        ("Relative", "Bayesian", "Motion Capture"): (0.558, 0.128, 1.21),
-        ("Relative", "Bayesian", "Laser Tracker"): (0.492, 0.113, 1.133),
-        ("Post-Registration Absolute", "Bayesian", "Motion Capture"): (1.838, 0.794, 2.952),
-        ("Post-Registration Absolute", "Bayesian", "Laser Tracker"): (1.509, 0.696, 2.556)},
-}
+PAPER_VALUES_FILE = "data/paper_values.csv"  # inside the package: the paper's numbers are data, not code
+PAPER_STATISTICS = (("Mean", "mean_mm"), ("2.5%", "q2.5_mm"), ("97.5%", "q97.5_mm"))  # (table label, column)
 EMPTY_INTERVAL = "n/a (count 0)"
-_INTERVAL = re.compile(r"\[\s*([-+0-9.eE]+|nan),\s*([-+0-9.eE]+|nan)\s*\]")
+
+
+@functools.cache
+def _read_paper_values() -> pd.DataFrame:
+    with resources.files("remaster").joinpath(PAPER_VALUES_FILE).open("r", encoding="utf-8") as text:
+        return pd.read_csv(text, dtype={"table": str, "source": str, "metric": str, "method": str, "sensor": str})
+
+
+def paper_values(table_name: str | None = None) -> pd.DataFrame:
+    """The paper's published numbers (mm) of the physical NIST experiment that kuka-twin imitates,
+    from the package's PAPER_VALUES_FILE (typed from the paper's tables; they are the paper's, not
+    ours: only for comparison). One row per table row: table, source (the paper's table label
+    `tab:...`), metric (validation table only, else NaN), method, sensor, mean_mm, q2.5_mm, q97.5_mm.
+    table_name: only that table's rows; ValueError when the paper has none."""
+    values = _read_paper_values()
+    if table_name is None:
+        return values.copy()
+    if table_name not in set(values["table"]):
+        raise ValueError(f"no published values for {table_name!r}; tables: {sorted(set(values['table']))}")
+    return values[values["table"] == table_name].reset_index(drop=True)
 
 
 def format_interval(low: float, high: float, count: int) -> str:
@@ -416,70 +408,83 @@ def format_interval(low: float, high: float, count: int) -> str:
     return EMPTY_INTERVAL if count == 0 else f"[{shown(low)}, {shown(high)}]"
 
 
+def _paper_rows(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Every sensor's metric rows with a sensor column, in the paper's order: (metric, for a
+    validation table,) method in TABLE_METHODS order, sensor in the paper's order."""
+    sensors = paper_order(per_sensor)
+    rows = pd.concat([per_sensor[s].assign(sensor=s) for s in sensors], ignore_index=True)
+    validation = "metric" in rows.columns
+    metric_order = list(VALIDATION_METRICS)
+    order = [((metric_order.index(r["metric"]),) if validation else ()) +
+             (TABLE_METHODS.index(r["method"]), sensors.index(r["sensor"])) for _, r in rows.iterrows()]
+    return rows.iloc[sorted(range(len(rows)), key=order.__getitem__)].reset_index(drop=True)
+
+
+def _row_labels(rows: pd.DataFrame) -> pd.DataFrame:
+    """The label columns of a paper table: (Metric,) Remastering Method, Reference Sensor."""
+    labels = pd.DataFrame({"Remastering Method": rows["method"].to_numpy(),
+                           "Reference Sensor": [sensor_label(s) for s in rows["sensor"]]})
+    if "metric" in rows.columns:
+        labels.insert(0, "Metric", [VALIDATION_METRICS[m][0] for m in rows["metric"]])
+    return labels
+
+
 def paper_table(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """One metric for every sensor in the paper's layout: rows Vernier, Bayesian (then Loop-closed
     where given, theoretical tables), sensors in
     the paper's order; columns Remastering Method, Reference Sensor, Mean (mm), 95% Interval (mm).
     A validation table (rows with a metric column) gets a leading Metric column, metrics in the
-    order relative, post-registration, post-registration with the registration refit."""
-    frames = [per_sensor[s].assign(sensor=s) for s in paper_order(per_sensor)]
-    rows = pd.concat(frames, ignore_index=True)
-    sensors = paper_order(per_sensor)
-    validation = "metric" in rows.columns
-    metric_order = list(VALIDATION_METRICS)
-    rows["_order"] = [((metric_order.index(r["metric"]),) if validation else ()) +
-                      (TABLE_METHODS.index(r["method"]), sensors.index(r["sensor"])) for _, r in rows.iterrows()]
-    rows = rows.sort_values("_order", kind="stable")
-    table = pd.DataFrame({"Remastering Method": rows["method"].to_numpy(),
-                          "Reference Sensor": [sensor_label(s) for s in rows["sensor"]],
-                          "Mean (mm)": rows["mean_mm"].to_numpy(float),
-                          "95% Interval (mm)": [format_interval(lo, hi, n) for lo, hi, n in
-                                                zip(rows["q2.5_mm"], rows["q97.5_mm"], rows["count"])]})
-    if validation:
-        table.insert(0, "Metric", [VALIDATION_METRICS[m][0] for m in rows["metric"]])
-    return table
+    order relative, post-registration, post-registration with the registration refit.
+    per_sensor: sensor -> its metric rows (method, (metric,) mean_mm, q2.5_mm, q97.5_mm, count)."""
+    rows = _paper_rows(per_sensor)
+    return _row_labels(rows).assign(**{
+        "Mean (mm)": rows["mean_mm"].to_numpy(float),
+        "95% Interval (mm)": [format_interval(lo, hi, n) for lo, hi, n in
+                              zip(rows["q2.5_mm"], rows["q97.5_mm"], rows["count"])]})
 
 
-def _parse_interval(text: str) -> tuple[float, float]:
-    match = _INTERVAL.fullmatch(str(text).strip())
-    return (float(match.group(1)), float(match.group(2))) if match else (np.nan, np.nan)
+def paper_comparison(table_name: str, per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """A `paper_table` (same rows, same order) beside the paper's published numbers (`paper_values`;
+    meaningful for kuka-twin, the twin of the paper's experiment): for the mean and both interval
+    ends, ours, the paper's and ours - paper (mm). Rows the paper has no number for get NaN, and so
+    do our interval ends of a row without values (count 0).
 
-
-def paper_comparison(table_name: str, table: pd.DataFrame) -> pd.DataFrame:
-    """A `paper_table` beside the paper's published numbers (PAPER_VALUES; meaningful for
-    kuka-twin, the twin of the paper's experiment): for the mean and both interval ends, ours,
-    the paper's and ours - paper (mm). Rows the paper has no number for get NaN. Our interval
-    ends are read back from the table's cells (3 decimals, the paper's precision). A Note column says,
-    in the tables of PAPER_NOTES, where a row of ours and the paper's measure different things."""
-    if table_name not in PAPER_VALUES:
-        raise ValueError(f"no published values for {table_name!r}; tables: {sorted(PAPER_VALUES)}")
-    published = PAPER_VALUES[table_name]
-    labels = [c for c in ("Metric", "Remastering Method", "Reference Sensor") if c in table.columns]
-    out = table[labels].copy()
-    ours = np.column_stack([table["Mean (mm)"].to_numpy(float),
-                            np.array([_parse_interval(t) for t in table["95% Interval (mm)"]]).reshape(-1, 2)])
-    paper = np.array([published.get(tuple(row), (np.nan,) * 3) for row in table[labels].itertuples(index=False)])
-    for k, statistic in enumerate(("Mean", "2.5%", "97.5%")):
-        out[f"{statistic} (mm)"] = ours[:, k]
-        out[f"Paper {statistic} (mm)"] = paper[:, k]
-        out[f"{statistic} difference (mm)"] = ours[:, k] - paper[:, k]
+    per_sensor: the same {sensor: metric rows} as `paper_table` takes (the numbers, not the
+    formatted table): our values are compared unrounded, as computed (not at the 3 decimals the
+    table prints). A Note column says, in the tables of PAPER_NOTES, where a row of ours and the
+    paper's measure different things."""
+    published = paper_values(table_name)
+    rows = _paper_rows(per_sensor)
+    keys = ["metric", "method", "sensor"] if "metric" in rows.columns else ["method", "sensor"]
+    columns = [column for _, column in PAPER_STATISTICS]
+    # a left merge keeps our rows and their order; the paper's rows are unique per key
+    paper = rows[keys].merge(published[keys + columns], on=keys, how="left", validate="many_to_one")
+    has_paper = paper[columns].notna().any(axis=1).to_numpy()
+    empty = rows["count"].to_numpy() == 0
+    out = _row_labels(rows)
+    for statistic, column in PAPER_STATISTICS:
+        ours = rows[column].to_numpy(float, copy=True)
+        ours[empty] = np.nan
+        out[f"{statistic} (mm)"] = ours
+        out[f"Paper {statistic} (mm)"] = paper[column].to_numpy(float)
+        out[f"{statistic} difference (mm)"] = ours - paper[column].to_numpy(float)
     note = PAPER_NOTES.get(table_name)
     if note is not None:
-        applies, text = note
-        out["Note"] = [text if tuple(row) in published and applies(tuple(row)) else ""
-                       for row in table[labels].itertuples(index=False)]
+        methods, text = note
+        out["Note"] = [text if present and (methods is None or method in methods) else ""
+                       for present, method in zip(has_paper, rows["method"])]
     return out
 
 
 _HELD_JOINT_1 = ("paper: its posterior draws include a joint-1 zero-offset (table MLE_zero_offsets), which no "
                  "registration-free data determine; here joint 1 is held, so this row leaves out that rotation "
                  "about base Z")
-# Why a row of ours and the paper's measure different things: (which labelled rows, note)
-PAPER_NOTES = {
-    VALIDATION_TABLE: (lambda row: True, "paper: motion-capture MLE applied and measured by this sensor; "
-                                         "here: this sensor's own MLE"),
-    **{table: (lambda row: row[0] == "Vernier", _HELD_JOINT_1)
-       for table in METRIC_TABLES if table.startswith("theoretical")},
+# Why a row of ours and the paper's measure different things: {table: (the methods whose rows the
+# paper has a number for it applies to, None for all; note)}
+PAPER_NOTES: dict[str, tuple[tuple[str, ...] | None, str]] = {
+    VALIDATION_TABLE: (None, ("paper: motion-capture MLE applied and measured by this sensor; "
+                              "here: this sensor's own MLE")),
+    **{table: (("Vernier",), _HELD_JOINT_1) for table in METRIC_TABLES if table.startswith("theoretical")},
 }
 
 
