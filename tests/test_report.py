@@ -89,3 +89,22 @@ def test_a_number_without_uncertainty_shows_three_significant_digits():
     assert [shown(v) for v in (6.3138, 0.0102345, -1234.56, 173.0, 0.0, 2.5)] == [
         "6.31", "0.0102", "-1235", "173", "0", "2.50"]
     assert shown(float("nan")) == "nan"
+    # tiny numbers in scientific form, three significant digits; from 1e-4 up as before
+    assert [shown(v) for v in (-6.5912e-7, 2.3e-6, 9.99e-5, 1e-4, 0.000123456, -1e-12)] == [
+        "-6.59e-07", "2.30e-06", "9.99e-05", "0.000100", "0.000123", "-1.00e-12"]
+
+
+def test_tiny_numbers_in_tables_print_in_scientific_form():
+    from remaster.reporting import tables
+    from remaster.units import shown_to
+
+    # rounded to the decimal of an uncertainty: the same last digit, scientific when tiny
+    assert [shown_to(v, d) for v, d in ((-6.5912e-7, 9), (2.34e-8, 9), (-0.18938, 4), (0.00004, 4), (1e-12, 9),
+                                        (0.00012, 6), (4.4e-5, 6))] == [
+        "-6.59e-07", "2.3e-08", "-0.1894", "0.0000", "0.000000000", "0.000120", "4.4e-05"]
+    table = pd.DataFrame({"Candidate": ["drift", "gravity"], "gain (nats)": [-6.5912e-7, 2.3012e-6],
+                          "mean (mm)": [6.5912e-7, 0.123], "U(mean) (mm)": [2.34e-8, 0.0123], "value": [12.3, 0.0102]})
+    assert tables.formatted(table) == [["drift", "-6.59e-07", "6.59e-07", "2.3e-08", "12.3"],
+                                       ["gravity", "2.30e-06", "0.123", "0.012", "0.0102"]]
+    assert "| drift | -6.59e-07 | 6.59e-07 | 2.3e-08 | 12.3 |" in tables.to_markdown(table)
+    assert tables.formatted(pd.DataFrame({"x": ["-6.5912e-07"]})) == [["-6.59e-07"]]  # a number read back as text

@@ -16,7 +16,7 @@ import pandas as pd
 from ..analysis import iso9283
 from ..inference.model import SIGMA, by_parameter, display_value
 from ..labels import paper_order, sensor_label
-from ..units import shown
+from ..units import shown, shown_to
 
 CAPTIONS = {
     "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position against its measurement, per axis: "
@@ -196,8 +196,9 @@ def formatted(table: pd.DataFrame) -> list[list[str]]:
     """Every cell of a table as text, rounded to what its uncertainty supports (the one
     formatting rule of the Markdown, LaTeX and HTML tables; CSV and Parquet keep full precision):
     an uncertainty (a std column) to two significant digits, the value it belongs to (and the
-    quantiles beside it) to the same decimal; a whole number as an integer; any other number as
-    `units.shown` (three significant digits); text as it is, a missing value as an empty cell."""
+    quantiles beside it) to the same decimal (`units.shown_to`); a whole number as an integer; any other
+    number as `units.shown` (three significant digits); a tiny number (below `units.TINY`) in scientific
+    form either way ("-6.59e-07"); text as it is, a missing value as an empty cell."""
     columns = [str(c) for c in table.columns]
     partners = _uncertainty_columns(columns)
     position = {c: i for i, c in enumerate(columns)}
@@ -212,7 +213,7 @@ def formatted(table: pd.DataFrame) -> list[list[str]]:
             std = number if is_uncertainty(column) else (
                 _number(row[position[partners[column]]]) if column in partners else None)
             decimals = _decimals_of_std(std)
-            cells.append(shown(number) if decimals is None else f"{number:.{decimals}f}")
+            cells.append(shown(number) if decimals is None else shown_to(number, decimals))
         rows.append(cells)
     return rows
 
