@@ -1,6 +1,6 @@
 """Calibrations as predictions: robot-frame marker positions of a campaign's calibrated kinematics
-at any joint readings, and two calibrations compared by what they predict (design.md: "Predictions,
-not parameters, are what campaigns share").
+at any joint readings, and two calibrations compared by what they predict (docs/methods.md, "Across
+campaigns": predictions, not parameters, are what campaigns share).
 
 A `Calibration` is one campaign's (and sensor's) kinematics under one model:
 

@@ -1,5 +1,5 @@
 """The measurement model as parameter blocks: the paper's zero-offsets and registration, plus
-optional blocks for the effects the paper's model leaves out (design.md, "parameter blocks").
+optional blocks for the effects the paper's model leaves out (docs/methods.md, "Parameter blocks").
 
     angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i         (joint space)
     p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)

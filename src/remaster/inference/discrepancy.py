@@ -17,8 +17,8 @@ the paper's posterior means; only the stds change.
 A Gaussian-process discrepancy in the model (Kennedy & O'Hagan 2001: generalised least squares
 with the residual GP's covariance) was tried first and rejected: on 20 fleet copies of
 kuka-compliance the drift z of joint 7 still spread 2.2 (joint 6's std shrank to a tenth, the GP
-having no use for joint 6), against 0.9-1.2 for every joint with the sandwich (README, "Model
-discrepancy").
+having no use for joint 6), against 0.9-1.2 for every joint with the sandwich (docs/methods.md,
+"Model discrepancy in the comparison across campaigns").
 
 The paper's tables keep the paper's posterior; the comparison across campaigns (zero-offsets over
 time, drift, sensor agreement) uses these stds.

@@ -5,7 +5,7 @@ Jeffreys prior. Every parameter an extension block adds gets N(0, std^2) about t
 std from `config.yaml` (`priors:`), one set of tolerances per class of arm, overridable per
 campaign in campaign.yaml (`robot.priors`, same keys and units). With priors the extended
 model has a proper posterior and a Laplace evidence, and a parameter the data barely move keeps
-its prior width, which then shows in the workspace-wide accuracy (design.md).
+its prior width, which then shows in the workspace-wide accuracy (docs/methods.md, "Priors").
 
 Keys are in display units (the config is read by people); `Priors.std_of` gives SI.
 `held_zero_offset_deg` is the tolerance of the controller's marks (Vernier scales) on a
