@@ -20,12 +20,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from remaster import io
+from remaster import files
 from remaster.analysis import comparison, prediction, workspace
-from remaster.campaigns import scenario
+from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.inference import blocks, fit, metrics
 from remaster.loop import loop_closure
+from remaster.loop.report import LoopReport
 from remaster.robot import kinematics
 from remaster.units import SECONDS_PER_HOUR
 
@@ -49,16 +50,16 @@ def true_parameters(truth: dict, chain) -> dict[str, float]:
 def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     simulated = scenario.simulate(spec, chain, seed=seed)
     folder = Path(tempfile.mkdtemp()) / spec["name"]
-    io.write_campaign(folder, simulated.metadata, simulated.tables)
-    io.write_json(folder.parent / "truth.json", simulated.truth)
-    truth = io.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
-    campaign = io.read_campaign(folder, repo_root=REPO)
+    folders.write_campaign(folder, simulated.metadata, simulated.tables)
+    files.write_json(folder.parent / "truth.json", simulated.truth)
+    truth = files.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
+    campaign = folders.read_campaign(folder, repo_root=REPO)
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = loop_closure.settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
     result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings)
-    io.write_json(folder.parent / "loop.json", result.report)
-    report, samples = io.read_loop(folder.parent / "loop.json"), result.samples
+    files.write_json(folder.parent / "loop.json", result.report)
+    report, samples = LoopReport.read(folder.parent / "loop.json"), result.samples
     robot = comparison.robot_identity(campaign)
     claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, fit.mode_summary(laplace),
                                           laplace, report, samples, np.random.default_rng(SEED), n_draws=DRAWS,
@@ -85,8 +86,8 @@ def main() -> None:
     count = int(sys.argv[3]) if len(sys.argv) > 3 else 20
     urdf = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
     chain = kinematics.chain_from_urdf(urdf.read_text(), "iiwa_link_0", "iiwa_link_ee", source=str(urdf))
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
-    config = io.read_yaml(REPO / "config.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
+    config = files.read_yaml(REPO / "config.yaml")
     rows = []
     for seed in range(first, first + count):
         rows.append(one_seed(spec, chain, config, sensor, seed))

@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from remaster import io
+from remaster import files
 from remaster.analysis import comparison
 
 SCENARIO = "data/simulation/kuka-compliance.yaml"
@@ -28,7 +28,7 @@ def calibration(results: Path) -> str:
     """The drift calibration of both models' drift tables of a finished run, as text."""
     parts = []
     for name in ("drift_between_campaigns", "loop_parameter_drift"):
-        table = comparison.drift_calibration(io.read_csv(results / "comparison" / f"{name}.csv"))
+        table = comparison.drift_calibration(files.read_csv(results / "comparison" / f"{name}.csv"))
         parts.append(f"{name}:\n{table.to_string(index=False, float_format='%.2f')}")
     return "\n".join(parts)
 

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from remaster import diagnostics, io, spatial
+from remaster import diagnostics, spatial
+from remaster.campaigns import folders
 from remaster.inference import fit
 from remaster.inference.model import correction_transforms
 from remaster.robot import kinematics
@@ -66,7 +67,7 @@ def _split(chain):
 
 
 def main() -> None:
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     sensor = campaign.sensors["motion_capture"]
     registration = fit.register(campaign.chain, sensor)
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)

@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from remaster import io, seeding
+from remaster import files, seeding
 from remaster.analysis import accuracy
+from remaster.campaigns import folders
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit
 from remaster.loop import loop_closure
@@ -34,7 +35,7 @@ PAPER_STEPS = 2_000  # per chain, half burn-in: enough to time a step
 
 
 def write_campaign(folder: Path, rows: int, rng: np.random.Generator) -> None:
-    chain = io.read_campaign(REPO / "data" / "raw" / "kuka-compliance", repo_root=REPO).chain
+    chain = folders.read_campaign(REPO / "data" / "raw" / "kuka-compliance", repo_root=REPO).chain
     per_pose = 4
     q = rng.uniform(np.maximum(chain.lower, -2.0), np.minimum(chain.upper, 2.0), (rows, chain.n_joints))
     marker = np.array([-0.1, 0.0, 0.02])
@@ -52,7 +53,7 @@ def write_campaign(folder: Path, rows: int, rng: np.random.Generator) -> None:
                 "robot": {"urdf": str(REPO / "data" / "robots" / "kuka_iiwa14.urdf"), "base": "iiwa_link_0",
                           "flange": "iiwa_link_ee"},
                 "sensors": {"laser_tracker": {"kind": "laser_tracker", "marker": marker.tolist(), "noise": 1e-5}}}
-    io.write_campaign(folder, metadata, {"laser_tracker": table})
+    folders.write_campaign(folder, metadata, {"laser_tracker": table})
 
 
 def measured(stage, *args, **kw):
@@ -74,7 +75,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
         out.append({"stage": name, "seconds": seconds / per, "peak_mb": peak / 1e6})
         return result
 
-    campaign = record("read", measured(io.read_campaign, folder))
+    campaign = record("read", measured(folders.read_campaign, folder))
     registration = record("registration", measured(fit.registration_stage, campaign, sensor))
     laplace = fit.LaplaceReport.of(record("laplace", measured(fit.laplace_stage, campaign, sensor, registration,
                                                               config["outliers"]["alpha"])))
@@ -96,7 +97,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
 
 def main() -> None:
     sizes = [int(a) for a in sys.argv[1:]] or [1000, 3000, 10000]
-    config = io.read_yaml(REPO / "config.yaml")
+    config = files.read_yaml(REPO / "config.yaml")
     rows = []
     with tempfile.TemporaryDirectory() as root:  # compiled kernels loaded and caches warm before timing
         write_campaign(Path(root, "scale-200"), 200, np.random.default_rng(0))

@@ -1,7 +1,7 @@
 """The audit trail changes with any byte of a campaign and records the run's settings."""
 
 import remaster
-from remaster import audit, io
+from remaster import audit, provenance
 
 
 def test_folder_digest_sees_every_file_and_name():
@@ -25,12 +25,12 @@ def test_the_code_is_identified_by_the_content_of_the_package_that_ran(tmp_path)
     """Every source file of the package is hashed: the record's package digest is theirs, and
     changing one file's digest changes it; the version is the package's own; outside a git
     checkout there is no commit to record."""
-    code = io.package_digests()
-    assert {"audit.py", "io.py", "noise.py"} <= set(code) and all(len(d) == 64 for d in code.values())
+    code = provenance.package_digests()
+    assert {"audit.py", "files.py", "noise.py"} <= set(code) and all(len(d) == 64 for d in code.values())
     record = audit.audit_record({}, {}, {}, code, {"commit": "abc", "dirty": False})
     assert record["code"]["package_sha256"] == audit.folder_digest(code)
     assert record["code"]["package_files"] == len(code) and record["code"]["git"]["commit"] == "abc"
-    assert audit.audit_record({}, {}, {}, {**code, "io.py": "0" * 64})["code"]["package_sha256"] != \
+    assert audit.audit_record({}, {}, {}, {**code, "files.py": "0" * 64})["code"]["package_sha256"] != \
         record["code"]["package_sha256"]
     assert record["remaster_version"] == remaster.__version__
-    assert io.git_commit(tmp_path) is None
+    assert provenance.git_commit(tmp_path) is None

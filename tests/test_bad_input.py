@@ -15,8 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import io
-from remaster.campaigns import scenario
+from remaster import files
+from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError
 from remaster.inference import metrics
@@ -114,7 +114,7 @@ def test_joints_beyond_the_limits_by_far_are_refused_near_ones_kept(tmp_path, ii
     assert problem.key == "q2" and problem.rows == [1, 4]
     assert "outside the robot's limits by more than 10 deg" in str(problem) and "[-2.094, 2.094]" in str(problem)
     table.loc[[1, 4], "q2"] = iiwa.upper[1] + 0.5 * JOINT_MARGIN
-    campaign = io.read_campaign(make_campaign(tmp_path / "near", tables={SENSOR: table}), repo_root=REPO)
+    campaign = folders.read_campaign(make_campaign(tmp_path / "near", tables={SENSOR: table}), repo_root=REPO)
     assert campaign.sensors[SENSOR].q()[1, 1] == pytest.approx(iiwa.upper[1] + 0.5 * JOINT_MARGIN)
 
 
@@ -154,7 +154,7 @@ def test_empty_validation_set_is_read_and_reported_empty(tmp_path):
     """Not an error: the contract allows it. The summary says 0 validation configurations and
     the accuracy metrics of an empty set have count 0 and no number (NaN), never an invented one."""
     table = sensor_table(n_optimization=8, n_validation=0)
-    campaign = io.read_campaign(make_campaign(tmp_path, tables={SENSOR: table}), repo_root=REPO)
+    campaign = folders.read_campaign(make_campaign(tmp_path, tables={SENSOR: table}), repo_root=REPO)
     sets = summarize(campaign)["sensors"][SENSOR]["sets"]
     assert sets["validation"] == {"configurations": 0, "poses": 0, "measured": 0}
     assert sets["optimization"]["configurations"] == 8
@@ -233,7 +233,7 @@ def test_kabsch_refuses_weights_that_would_give_a_quiet_nan(rng):
 
 
 def dry_run(tmp_path, settings: dict) -> subprocess.CompletedProcess:
-    config = io.write_yaml(tmp_path / "bad-config.yaml", settings)
+    config = files.write_yaml(tmp_path / "bad-config.yaml", settings)
     return subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True,
                           timeout=300)
 
@@ -249,12 +249,12 @@ def assert_refused(result: subprocess.CompletedProcess, *fragments: str) -> None
 def tiny(tmp_path_factory, iiwa):
     """A small simulated campaign folder `tiny` under raw/ (outside the repository)."""
     root = tmp_path_factory.mktemp("bad_input_workflow")
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
     spec["name"] = "tiny"
     spec["plan"]["sets"] = {"optimization": {"poses": 4, "configurations": 12},
                             "validation": {"poses": 2, "configurations": 6}}
     out = scenario.simulate(spec, iiwa)
-    io.write_campaign(root / "raw" / "tiny", out.metadata, out.tables)
+    folders.write_campaign(root / "raw" / "tiny", out.metadata, out.tables)
     return root
 
 
@@ -316,9 +316,9 @@ def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
     table = pd.read_parquet(raw / "tiny" / "motion_capture.parquet")
     joints = [f"q{j}" for j in range(1, 8)]
     table[joints] = np.degrees(table[joints])
-    io.write_parquet(raw / "tiny" / "motion_capture.parquet", table)
+    files.write_parquet(raw / "tiny" / "motion_capture.parquet", table)
     results = tmp_path / "results"
-    config = io.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
+    config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
     result = subprocess.run(SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True,
                             text=True, timeout=600)
     output = result.stdout + result.stderr

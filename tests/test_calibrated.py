@@ -6,8 +6,9 @@ import pandas as pd
 import pinocchio as pin
 import pytest
 
-from remaster import io, spatial
+from remaster import spatial
 from remaster.analysis import calibrated, dh_table, prediction
+from remaster.campaigns import folders
 from remaster.errors import InputError
 from remaster.inference import blocks
 from remaster.robot import kinematics
@@ -168,7 +169,7 @@ def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng)
 
 
 def test_a_campaign_without_a_dh_table_gets_none_and_a_clear_refusal():
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin")
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin")
     with pytest.raises(InputError, match="no DH table") as refusal:
         calibrated.calibrated_dh_tables(campaign, "laser_tracker", pd.DataFrame(), {})
     assert refusal.value.key == "robot/dh"

@@ -13,8 +13,10 @@ import pandas as pd
 import pytest
 
 from remaster.campaigns.campaign import SETS, validate_metadata, validate_sensor_table
+from remaster.campaigns.folders import read_campaign, write_campaign
+from remaster.campaigns.robot_model import load_chain
 from remaster.errors import InputError, KinematicsError
-from remaster.io import load_chain, read_campaign, write_campaign, write_json
+from remaster.files import write_json
 from remaster.robot.kinematics import max_chain_difference
 
 REPO = Path(__file__).resolve().parents[1]
@@ -135,7 +137,7 @@ def test_naive_time_is_taken_as_utc(tmp_path):
 def test_unseen_markers_are_kept_and_counted(tmp_path, caplog):
     table = sensor_table()
     table.loc[[2, 7], ["x", "y", "z"]] = np.nan
-    with caplog.at_level("INFO", logger="remaster.io"):
+    with caplog.at_level("INFO", logger="remaster.campaigns.folders"):
         sensor = read_campaign(make_campaign(tmp_path, tables={SENSOR: table}), repo_root=REPO).sensors[SENSOR]
     assert len(sensor.table) == 9 and sensor.n_missing == 2
     assert sensor.missing_rows.tolist() == [2, 7]

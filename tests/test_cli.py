@@ -4,7 +4,8 @@ ends with a named error and exit status 2."""
 import numpy as np
 import pandas as pd
 
-from remaster import cli, io
+from remaster import cli, files
+from remaster.campaigns import folders
 from remaster.robot import kinematics
 
 from .conftest import IIWA_URDF, REPO
@@ -47,12 +48,12 @@ def test_plan_errors_name_the_problem(tmp_path, capsys):
 
 
 def test_simulate_regenerates_a_campaign_that_reads(tmp_path, monkeypatch):
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
     spec["plan"]["sets"] = {"optimization": {"poses": 4, "configurations": 15}, "validation": {"poses": 2, "configurations": 6}}
-    io.write_yaml(tmp_path / "small.yaml", spec)
+    files.write_yaml(tmp_path / "small.yaml", spec)
     monkeypatch.chdir(REPO)  # the scenario names the robot relative to the repository
     assert cli.main(["simulate", str(tmp_path / "small.yaml"), "--raw-dir", str(tmp_path / "raw"),
                      "--truth-dir", str(tmp_path / "truth")]) == 0
-    campaign = io.read_campaign(tmp_path / "raw" / "kuka-compliance", repo_root=REPO)
+    campaign = folders.read_campaign(tmp_path / "raw" / "kuka-compliance", repo_root=REPO)
     assert len(campaign.sensors["laser_tracker"].table) >= 15
     assert (tmp_path / "truth" / "kuka-compliance.json").is_file()

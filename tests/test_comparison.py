@@ -9,10 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import io
+from remaster import files
 from remaster.analysis import comparison
 from remaster.errors import InputError
 from remaster.inference.model import SIGMA
+from remaster.loop.report import LoopReport
 from remaster.reporting import figures_comparison
 from remaster.units import DEG
 
@@ -48,7 +49,7 @@ ENTRIES = [
 
 
 def test_robot_identity_of_the_bundled_campaigns():
-    twin, twin_2019, compliance = (io.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
+    twin, twin_2019, compliance = (files.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
                                    for c in ("kuka-twin", "kuka-twin-2019", "kuka-compliance"))
     # the serial names the physical unit: the twin and its campaign a year later are one robot,
     # kuka-compliance is another iiwa
@@ -124,7 +125,7 @@ def test_sensor_agreement_within_each_campaign():
 
 def test_summary_read_back_from_csv_is_accepted(tmp_path):
     """The workflow stores summaries as CSV with a parameter column."""
-    path = io.write_csv(tmp_path / "summary.csv", summary([0.1, 0.2], [0.01, 0.01], held=[2]).reset_index())
+    path = files.write_csv(tmp_path / "summary.csv", summary([0.1, 0.2], [0.01, 0.01], held=[2]).reset_index())
     table = comparison.zero_offsets_over_time([("c", "2020-01-01", "laser_tracker", pd.read_csv(path))])
     assert table["status"].tolist() == ["estimated", HELD] and table["robot"].tolist() == ["", ""]
     assert table["kind"].tolist() == ["laser_tracker"] * 2
@@ -308,15 +309,15 @@ def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
 
 
 def test_a_loop_report_missing_a_key_names_the_file_and_the_key(tmp_path):
-    """loop_closure.json is read once into a typed report (`io.read_loop`): a field the later
+    """loop_closure.json is read once into a typed report (`LoopReport.read`): a field the later
     stages need that is missing is named with its file and its path of keys."""
     content = loop_report(effects=["joint_compliance"]).details
     path = tmp_path / "loop_closure.json"
-    io.write_json(path, content)
-    report = io.read_loop(path)
+    files.write_json(path, content)
+    report = LoopReport.read(path)
     assert report.effects_added == ("joint_compliance",) and report.held_zero_offset_std == pytest.approx(np.radians(0.5))
     assert report.source == str(path) and report.sigma_after == pytest.approx(1e-5)
     del content["settings"]["priors"]
-    io.write_json(path, content)
+    files.write_json(path, content)
     with pytest.raises(InputError, match=r"loop_closure.json: settings/priors: missing in the loop-closure report"):
-        io.read_loop(path)
+        LoopReport.read(path)

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import io, spatial
+from remaster import files, spatial
 from remaster.analysis import compensation, prediction
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
@@ -221,7 +221,7 @@ def twin(model: str, tmp_path_factory):
     results = {"registration": fit.registration_stage(campaign, "laser_tracker"), "laplace": laplace,
                "summary": fit.mode_summary(laplace), "paper_samples": None, "loop": report, "loop_samples": samples,
                "gp": None}
-    truth = io.read_json(REPO / "data" / "truth" / "kuka-twin.json")
+    truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     sensor = sensor_from_truth(truth, "laser_tracker", campaign.sensors["laser_tracker"].marker)
     return (campaign, compensation.calibrated_robot(campaign, "laser_tracker", model, results), robot_from_truth(truth),
             sensor)
@@ -302,13 +302,13 @@ def twin_results(tmp_path_factory):
     campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
     root = tmp_path_factory.mktemp("results")
     folder = root / "kuka-twin" / "laser_tracker"
-    io.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker").report())
-    io.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
-    io.write_csv(folder / "fit" / "summary.csv", fit.mode_summary(laplace).reset_index())
-    io.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
-    io.write_json(folder / "loop_closure.json", report.details)
-    io.write_parquet(folder / "loop_closure" / "samples.parquet", samples)
-    io.write_parquet(folder / "loop_closure" / "residual_gp.parquet", pd.DataFrame())
+    files.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker").report())
+    files.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
+    files.write_csv(folder / "fit" / "summary.csv", fit.mode_summary(laplace).reset_index())
+    files.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
+    files.write_json(folder / "loop_closure.json", report.details)
+    files.write_parquet(folder / "loop_closure" / "samples.parquet", samples)
+    files.write_parquet(folder / "loop_closure" / "residual_gp.parquet", pd.DataFrame())
     return root, campaign
 
 
@@ -317,30 +317,30 @@ def test_predict_and_compensate_from_the_command_line(twin_results, tmp_path, ca
     monkeypatch.chdir(REPO)  # the campaign's URDF path is the repository's
     q = campaign.sensors["laser_tracker"].q("validation")[:6]
     program = tmp_path / "program.csv"
-    io.write_csv(program, pd.DataFrame(q, columns=[f"q{j + 1}" for j in range(7)]))
+    files.write_csv(program, pd.DataFrame(q, columns=[f"q{j + 1}" for j in range(7)]))
     common = ["--campaign", "data/raw/kuka-twin", "--sensor", "laser_tracker", "--results", str(root),
               "--draws", "300"]
     assert cli(["predict", *common, "--commands", str(program), "--out", str(tmp_path / "p.csv")]) == 0
-    predicted = io.read_csv(tmp_path / "p.csv")
+    predicted = files.read_csv(tmp_path / "p.csv")
     assert len(predicted) == 6 and predicted["bound95_mm"].notna().all()
     assert "the zero-offset of q1, which these data do not see" in capsys.readouterr().err
     assert cli(["compensate", *common, "--frame", "sensor", "--targets", str(program),
                 "--out", str(tmp_path / "c.csv")]) == 0
-    compensated = io.read_csv(tmp_path / "c.csv")
+    compensated = files.read_csv(tmp_path / "c.csv")
     assert (compensated["status"] == compensation.REACHED).all() and (compensated["nominal_error_mm"] > 0.5).all()
     # targets: the compensated ones' targets, one moved 3 m away; exit 3, every row written
     targets = compensated[["target_x", "target_y", "target_z"]].rename(columns=lambda c: c[-1])
     targets.loc[4, "x"] += 3.0
-    io.write_csv(tmp_path / "t.csv", targets)
+    files.write_csv(tmp_path / "t.csv", targets)
     assert cli(["compensate", *common, "--frame", "sensor", "--targets", str(tmp_path / "t.csv"),
                 "--out", str(tmp_path / "c2.csv")]) == 3
     assert "1 of 6 targets not reached (row 4): see the column reason" in capsys.readouterr().err
-    again = io.read_csv(tmp_path / "c2.csv")
+    again = files.read_csv(tmp_path / "c2.csv")
     assert len(again) == 6 and again.loc[4, "reason"].startswith("nominal model: out of reach")
     # from targets alone (seeded at the nearest optimization configuration) the other rows are reached
     reached = again.drop(index=4)
     assert (reached["status"] == compensation.REACHED).all() and (reached["error_mm"] < 1e-6).all()
-    io.write_csv(tmp_path / "bad.csv", pd.DataFrame({"a": [1.0], "b": [2.0]}))
+    files.write_csv(tmp_path / "bad.csv", pd.DataFrame({"a": [1.0], "b": [2.0]}))
     assert cli(["compensate", *common, "--targets", str(tmp_path / "bad.csv"), "--out", str(tmp_path / "c3.csv")]) == 2
     assert "bad.csv: x, y, z or q1..q7: neither target positions nor joint commands (got: a, b)" in \
         capsys.readouterr().err

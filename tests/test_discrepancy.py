@@ -4,7 +4,7 @@ copies of one robot whose model lacks an effect."""
 import numpy as np
 import pandas as pd
 
-from remaster import io
+from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import discrepancy, fit
@@ -44,7 +44,7 @@ def test_fleet_copies_of_a_robot_the_model_lacks_an_effect_of_drift_by_about_one
     """Copies of kuka-compliance (compliance and a heavy payload the paper's model lacks), laser
     tracker: the drift z between consecutive copies of every identifiable zero-offset has a spread
     near 1 with the sandwich stds, where the paper's Laplace stds give one joint 1.9."""
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
     estimates = []
     for copy, seed in scenario.copies(spec, 12):
         out = scenario.simulate(copy, iiwa, seed)

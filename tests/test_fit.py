@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import io
+from remaster import files
+from remaster.campaigns import folders
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.diagnostics import SamplerDisagreement
@@ -104,7 +105,7 @@ def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
     can recover, joint 1 held and reported as such. What it can recover: a drifting offset at the
     optimization set's mean time, and joint 7 turned by the marker's error about the flange axis
     (the paper's sensors differ there by 0.33 deg, which it puts down to the markers' mounting)."""
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     truth = json.loads((REPO / "data" / "truth" / "kuka-twin.json").read_text())
     rate = np.radians(truth["effects"]["drift"]["zero_offset_rate_deg_per_hour"]) / 3600.0
     turns = {}  # rad: the marker's error about the flange axis, seen as a joint-7 offset
@@ -189,8 +190,8 @@ def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tm
     model, analysis, excluded = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
     content = fit.laplace_report(fit.laplace_fit(model), analysis, excluded, (7, 2), model)
     path = tmp_path / "laplace.json"
-    io.write_json(path, content)
-    report = io.read_laplace(path)
+    files.write_json(path, content)
+    report = fit.LaplaceReport.read(path)
     assert report.names == model.names and report.parameters == model.all_names
     assert np.array_equal(report.covariance, content["covariance"]) and report.sigma_map == content["sigma_map"]
     assert report.held == {"zero_offsets.q1": 0.0} and report.null_directions
@@ -199,9 +200,9 @@ def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tm
     start, covariance = report.start()
     assert np.array_equal(start[:-1], content["theta_map"]) and covariance[-1, -1] == content["sigma_std"] ** 2
     del content["identifiability"]["held_at_controller_value"]
-    io.write_json(path, content)
+    files.write_json(path, content)
     with pytest.raises(InputError, match=r"laplace.json: identifiability/held_at_controller_value: missing"):
-        io.read_laplace(path)
+        fit.LaplaceReport.read(path)
 
 
 def test_a_registration_report_comes_back_typed_and_a_missing_key_is_named(iiwa, rng, tmp_path):
@@ -210,15 +211,15 @@ def test_a_registration_report_comes_back_typed_and_a_missing_key_is_named(iiwa,
     sensor, _ = simulated_sensor(iiwa, rng)
     registered = fit.register(iiwa, sensor)
     path = tmp_path / "registration.json"
-    io.write_json(path, registered.report())
-    read = io.read_registration(path)
+    files.write_json(path, registered.report())
+    read = fit.Registration.read(path)
     assert np.array_equal(read.t_nr, registered.t_nr) and np.array_equal(read.kabsch_t_nr, registered.kabsch_t_nr)
     assert read.rows == registered.rows and read.three_point_rms == pytest.approx(registered.three_point_rms, rel=1e-12)
     content = registered.report()
     del content["T_NR"]
-    io.write_json(path, content)
+    files.write_json(path, content)
     with pytest.raises(InputError, match=r"registration.json: T_NR: missing in the registration report"):
-        io.read_registration(path)
+        fit.Registration.read(path)
 
 
 def test_many_log_posteriors_are_the_same_a_slice_at_a_time(iiwa, rng, monkeypatch):

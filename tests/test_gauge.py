@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from remaster import io
+from remaster.campaigns import folders
 from remaster.inference import blocks, fit, samplers
 from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis, sampling_coordinates
 from remaster.robot.kinematics import marker_positions
@@ -41,7 +41,7 @@ def test_a_tangential_shift_is_a_turn_of_the_last_joint(robot, request, rng):
 @pytest.fixture(scope="module")
 def twin_model(iiwa):
     """The twin's laser-tracker optimization rows under every block the folds concern."""
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     sensor = campaign.sensors["laser_tracker"]
     data = blocks.readings(campaign.chain, sensor, "optimization")
     model = blocks.BlockModel(campaign.chain, data, sensor.marker, np.eye(4), ("link_geometry", "marker_offset"),

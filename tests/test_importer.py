@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import cli, io
-from remaster.campaigns import importer
+from remaster import cli, files
+from remaster.campaigns import folders, importer
 from remaster.errors import InputError
 
 from .conftest import IIWA_URDF
@@ -57,15 +57,15 @@ def write_import(tmp_path, controller=CONTROLLER, tracker=TRACKER, sensor=None, 
                                       "file": "tracker.csv", "xyz": ["X", "Y", "Z"], "unit": "mm", "match": "key",
                                       "key": "id", **(sensor or {})}},
     }
-    io.write_yaml(tmp_path / "import.yaml", config)
+    files.write_yaml(tmp_path / "import.yaml", config)
     return tmp_path / "import.yaml"
 
 
 def test_import_by_key_gives_si_values(tmp_path):
     config = write_import(tmp_path)
-    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     assert folder == tmp_path / "raw" / "cell3"
-    campaign = io.read_campaign(folder, repo_root=tmp_path)
+    campaign = folders.read_campaign(folder, repo_root=tmp_path)
     table = campaign.sensors["laser_tracker"].table
     assert campaign.n_joints == 3 and campaign.date.isoformat() == "2024-05-02"
     assert table["set"].tolist() == ["optimization"] * 3 + ["validation"] + ["optimization"] * 2
@@ -82,11 +82,11 @@ def test_import_by_key_gives_si_values(tmp_path):
 
 def test_import_is_deterministic_and_refuses_to_overwrite(tmp_path):
     config = write_import(tmp_path)
-    folder, _ = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folder, _ = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     before = {p.name: p.read_bytes() for p in folder.iterdir()}
     with pytest.raises(InputError, match="exists already"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
-    io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path, overwrite=True)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path, overwrite=True)
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
 
 
@@ -104,8 +104,8 @@ t;x;y;z
                           sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
                                   "tolerance": 0.5, "delimiter": ";", "decimal": ","},
                           controller_section={"time": "stamp", "key": None})
-    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
-    table = io.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
     np.testing.assert_allclose(table[["x", "y", "z"]].to_numpy(),
                                [[1.5, 0, 0.02], [1.0, 0.1, 0.2], [1.1, 0.1, 0.2], [np.nan] * 3, [0.9, 0.4, -0.1],
                                 [1.1, -0.3, 0.15]], atol=1e-15)
@@ -126,8 +126,8 @@ def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
                           sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
                                   "tolerance": 1.0},
                           controller_section={"time": "stamp", "key": None})
-    folder, report = io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
-    table = io.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
     assert table["x"].iloc[0] == 2.0
     [unmatched] = report["sensors"]["laser_tracker"]["unmatched"]
     assert unmatched["line"] == 2 and "already matched by line 3" in unmatched["reason"]
@@ -136,7 +136,7 @@ def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
 def test_non_numeric_cell_names_file_line_and_column(tmp_path):
     config = write_import(tmp_path, controller=CONTROLLER.replace("P3,90,0", "P3,90,abc"))
     with pytest.raises(InputError) as error:
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     message = str(error.value)
     assert "controller.csv" in message and "A2" in message and "line 4" in message and "'abc'" in message
     assert not (tmp_path / "raw" / "cell3").exists()
@@ -145,13 +145,13 @@ def test_non_numeric_cell_names_file_line_and_column(tmp_path):
 def test_missing_column_is_named(tmp_path):
     config = write_import(tmp_path, tracker=TRACKER.replace("id,X,Y,Z", "id,X,Y,Zmm"))
     with pytest.raises(InputError, match=r"tracker\.csv: Z: missing column \(named by `sensors/laser_tracker/xyz`"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_duplicate_keys_are_named(tmp_path):
     config = write_import(tmp_path, tracker=TRACKER + "P3,1,2,3\n")
     with pytest.raises(InputError, match=r"tracker\.csv: id: duplicate keys .* on lines 2, 9: 'P3', 'P3'"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_ragged_row_and_bad_time_name_their_line(tmp_path):
@@ -160,19 +160,19 @@ def test_ragged_row_and_bad_time_name_their_line(tmp_path):
     config = write_import(tmp_path, controller=CONTROLLER.replace("10:00:20", "ten past"),
                           controller_section={"time": "stamp"})
     with pytest.raises(InputError, match=r"controller\.csv: stamp: not a time \(time_format iso\) on line 4"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_configuration_errors_name_the_key(tmp_path):
     config = write_import(tmp_path, sensor={"unit": "inch"})
     with pytest.raises(InputError, match="import.yaml: sensors/laser_tracker/unit: must be one of mm, m"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     config = write_import(tmp_path, controller_section={"joints": ["A1", "A2"]})
     with pytest.raises(InputError, match="controller/joints: names 2 joint columns but the robot has 3"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     config = write_import(tmp_path, sensor={"match": "time", "tolerance": 0.5}, controller_section={"time": None})
     with pytest.raises(InputError, match="controller/time: missing"):
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 
 def test_cli_import(tmp_path, capsys, monkeypatch):
@@ -191,7 +191,7 @@ def test_contract_check_after_import_names_the_exports(tmp_path):
     the controller log's columns and lines, not the staged Parquet file."""
     config = write_import(tmp_path, controller_section={"unit": "rad"})
     with pytest.raises(InputError) as error:
-        io.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     message = str(error.value)
     assert message.startswith(str(tmp_path / "controller.csv")) and "A1, A2, A3" in message
     assert "lines 2, 3, 4, 6, 7" in message
@@ -209,13 +209,13 @@ def test_urdf_next_to_the_configuration_is_copied_into_the_campaign(tmp_path):
                                      for i in range(len(rows)))
     config = write_import(tmp_path, controller=controller, tracker=tracker,
                           controller_section={"joints": joints, "set": None, "time": None})
-    meta = io.read_yaml(config)
+    meta = files.read_yaml(config)
     meta["robot"] = {"urdf": "arm.urdf", "base": "iiwa_link_0", "flange": "iiwa_link_ee"}
-    io.write_yaml(config, meta)
+    files.write_yaml(config, meta)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    folder, _ = io.import_campaign(config, tmp_path / "raw", repo_root=elsewhere)
+    folder, _ = folders.import_campaign(config, tmp_path / "raw", repo_root=elsewhere)
     assert (folder / "arm.urdf").read_bytes() == IIWA_URDF.read_bytes()
-    campaign = io.read_campaign(folder, repo_root=elsewhere)
+    campaign = folders.read_campaign(folder, repo_root=elsewhere)
     assert campaign.robot["urdf"] == "arm.urdf" and campaign.n_joints == 7
     assert campaign.sensors["laser_tracker"].table["set"].eq("optimization").all()

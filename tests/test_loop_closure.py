@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from remaster import io
-from remaster.campaigns import scenario
+from remaster import files
+from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import blocks, fit
@@ -40,7 +40,7 @@ _campaigns = {}
 def simulated(chain, name: str, truth=None, sensor=None):
     """The laser tracker of kuka-compliance's scenario with small sets and only the effects given."""
     if name not in _campaigns:
-        spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
+        spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
         spec["plan"]["sets"] = {"optimization": {"poses": 12, "configurations": 60},
                                 "validation": {"poses": 8, "configurations": 40}}
         spec["truth"] = {"zero_offsets_deg": OFFSETS_DEG, **(truth or {})}
@@ -265,8 +265,8 @@ def test_the_twin_is_explained_by_its_four_undeclared_effects(iiwa):
     undeclared): the paper's model leaves more than 1 mm on the validation set; the loop names the
     four effects the simulator put in, no other, and brings the validation error to the laser
     tracker's noise, far below the paper's 1.5 mm."""
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
-    truth = io.read_json(REPO / "data" / "truth" / "kuka-twin.json")
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     assert any(truth["sensors"]["laser_tracker"]["marker_error_m"])
     report = closed(campaign.chain, campaign.sensors["laser_tracker"]).report
     assert set(report["effects_added"]) == set(truth["effects"]) | {"marker_offset"}

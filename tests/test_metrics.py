@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 from scipy import optimize, stats
 
-from remaster import io, spatial
+from remaster import files, spatial
 from remaster.analysis import accuracy
+from remaster.campaigns import folders
 from remaster.campaigns.campaign import Campaign, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit, metrics
@@ -325,7 +326,7 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
     that no registration-free data determine; remaster holds joint 1 (a rotation about base Z), so
     its Vernier rows leave that rotation out. With the twin's true joint-1 offset put into the
     draws, those rows reach the paper's too: the gap is that rotation and nothing else."""
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     out, _, laplace, samples = fitted_stage(campaign, sensor_name=sensor_name, n_draws=500, n_random=300)
     vernier_theoretical = {table: out[table].set_index("method").loc["Vernier", "mean_mm"]
                            for table in accuracy.METRIC_TABLES if table.startswith("theoretical")}
@@ -337,7 +338,7 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
         assert len(compared) > 0 and ratio[~held_rotation].between(0.75, 1.25).all(), (table, compared)
         assert (ratio[held_rotation] < 1.0).all(), (table, compared)  # lower: a rotation left out
 
-    truth = io.read_json(REPO / "data" / "truth" / "kuka-twin.json")
+    truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     parameters = accuracy.parameter_table(samples, laplace, 7)
     draws = parameters[list(parameter_names(7)[6:])].to_numpy(copy=True)
     draws[:, 0] = np.radians(truth["zero_offsets_deg"][0])

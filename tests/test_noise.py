@@ -7,8 +7,8 @@ from scipy import stats
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from remaster import io, noise
-from remaster.campaigns import scenario, simulation
+from remaster import files, noise
+from remaster.campaigns import folders, scenario, simulation
 from remaster.inference import blocks, evidence, fit
 from remaster.loop import loop_closure
 from remaster.loop.loop_closure import LoopSettings
@@ -32,7 +32,7 @@ def test_whitening_turns_the_covariance_into_the_identity_and_the_log_det_is_its
 def tracker_campaign(tmp_path, iiwa, growth: float):
     """kuka-twin's laser tracker alone, zero-offsets only in the truth (so the base model leaves
     only noise), with range noise 10 um and transverse growth `growth` per metre."""
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
     spec["name"] = "tracker"
     for effect in ("joint_compliance", "link_errors", "payload", "drift_deg_per_hour"):
         spec["truth"].pop(effect, None)
@@ -41,7 +41,8 @@ def tracker_campaign(tmp_path, iiwa, growth: float):
     spec["sensors"]["laser_tracker"].pop("marker_error", None)
     spec["sensors"]["laser_tracker"].update(transverse_growth_per_m=growth, missing=0)
     out = scenario.simulate(spec, iiwa)
-    return io.read_campaign(io.write_campaign(tmp_path / "tracker", out.metadata, out.tables), repo_root=REPO), out
+    folder = folders.write_campaign(tmp_path / "tracker", out.metadata, out.tables)
+    return folders.read_campaign(folder, repo_root=REPO), out
 
 
 def test_the_simulator_draws_range_and_transverse_noise_of_the_stated_size(tmp_path, iiwa):
@@ -119,7 +120,7 @@ def test_a_frame_that_cannot_be_the_trackers_is_said_so(tmp_path, iiwa):
     ("growth_per_m", 0, "0 is less than or equal to the minimum of 0"),
     ("grwoth_per_m", 1.0, "Additional properties are not allowed ('grwoth_per_m' was unexpected)")])
 def test_a_bad_tracker_noise_prior_is_refused_by_the_schema(key, value, says):
-    config = io.read_yaml(REPO / "config.yaml")
+    config = files.read_yaml(REPO / "config.yaml")
     config["loop_closure"]["tracker_noise"][key] = value
     with pytest.raises(WorkflowError) as info:
         validate(config, str(REPO / "workflow" / "schemas" / "config.schema.yaml"))
@@ -128,9 +129,9 @@ def test_a_bad_tracker_noise_prior_is_refused_by_the_schema(key, value, says):
 
 
 def test_the_config_turns_the_tracker_noise_off_or_sets_its_prior():
-    off = loop_closure.settings_from({**io.read_yaml(REPO / "config.yaml")["loop_closure"],
+    off = loop_closure.settings_from({**files.read_yaml(REPO / "config.yaml")["loop_closure"],
                                       "tracker_noise": {"enabled": False}})
     assert off.tracker_noise is None
-    wide = loop_closure.settings_from({**io.read_yaml(REPO / "config.yaml")["loop_closure"],
+    wide = loop_closure.settings_from({**files.read_yaml(REPO / "config.yaml")["loop_closure"],
                                        "tracker_noise": {"growth_per_m": 0.5, "growth_factor": 10}})
     assert wide.tracker_noise == {"growth_per_m": 0.5, "growth_factor": 10.0}

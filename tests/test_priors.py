@@ -12,13 +12,14 @@ import pytest
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from remaster import io
+from remaster import files
+from remaster.campaigns import folders
 from remaster.errors import InputError
 from remaster.robot.priors import CLASSES, DEFAULTS, KEYS, priors_from, with_defaults
 
 from .conftest import REPO
 
-CONFIG = io.read_yaml(REPO / "config.yaml")
+CONFIG = files.read_yaml(REPO / "config.yaml")
 SECTION = CONFIG["priors"]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
 TWIN = REPO / "data" / "raw" / "kuka-twin"
@@ -175,11 +176,11 @@ def twin_campaign(root, priors=None, yaml_text: str | None = None):
     folder = root / "kuka-twin"
     folder.mkdir()
     shutil.copy(TWIN / f"{SENSOR}.parquet", folder)
-    meta = io.read_yaml(TWIN / "campaign.yaml")
+    meta = files.read_yaml(TWIN / "campaign.yaml")
     meta["sensors"] = {SENSOR: meta["sensors"][SENSOR]}
     if priors is not None or yaml_text is not None:
         meta["robot"]["priors"] = {"RAW": 0} if yaml_text is not None else priors
-    path = io.write_yaml(folder / "campaign.yaml", meta)
+    path = files.write_yaml(folder / "campaign.yaml", meta)
     if yaml_text is not None:
         text = path.read_text()
         assert "\n  priors: {RAW: 0}\n" in text
@@ -189,7 +190,7 @@ def twin_campaign(root, priors=None, yaml_text: str | None = None):
 
 def test_a_campaign_folder_with_priors_is_read_and_overrides(tmp_path):
     folder, yaml_path = twin_campaign(tmp_path, {"arm_class": "industrial", "marker_offset_mm": 0.2})
-    campaign = io.read_campaign(folder, repo_root=REPO)
+    campaign = folders.read_campaign(folder, repo_root=REPO)
     assert campaign.robot["priors"] == {"arm_class": "industrial", "marker_offset_mm": 0.2}
     priors = priors_from(SECTION, campaign.robot, str(yaml_path))
     assert priors.arm_class == "industrial"
@@ -222,7 +223,7 @@ def test_bad_campaign_priors_name_file_and_key(tmp_path, case):
     yaml_text, key, message = BAD_CAMPAIGN_PRIORS[case]
     folder, yaml_path = twin_campaign(tmp_path, yaml_text=yaml_text)
     with pytest.raises(InputError) as info:
-        io.read_campaign(folder, repo_root=REPO)
+        folders.read_campaign(folder, repo_root=REPO)
     assert info.value.file == str(yaml_path) and info.value.key == key
     assert str(info.value) == f"{yaml_path}: {key}: {message}"
 
@@ -230,7 +231,7 @@ def test_bad_campaign_priors_name_file_and_key(tmp_path, case):
 def test_campaign_prior_written_1_0e_3_is_a_number(tmp_path):
     """The way out of the `1e-3` case above: with a point in the mantissa YAML reads a number."""
     folder, _ = twin_campaign(tmp_path, yaml_text="{link_length_mm: 1.0e-3}")
-    assert io.read_campaign(folder, repo_root=REPO).robot["priors"] == {"link_length_mm": 1e-3}
+    assert folders.read_campaign(folder, repo_root=REPO).robot["priors"] == {"link_length_mm": 1e-3}
 
 
 BAD_OVERRIDES = {
@@ -355,7 +356,7 @@ def test_schema_refuses_a_class_missing_a_key():
 
 
 def test_schema_and_code_know_the_same_keys_and_classes():
-    schema = io.read_yaml(SCHEMA)
+    schema = files.read_yaml(SCHEMA)
     prior_set = schema["definitions"]["prior_set"]
     assert list(prior_set["properties"]) == list(KEYS) == prior_set["required"]
     priors = schema["properties"]["priors"]["properties"]

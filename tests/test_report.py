@@ -52,7 +52,7 @@ def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):
     read back from CSV) rounded the same way; the CSV keeps every digit."""
     import math
 
-    from remaster import io
+    from remaster import files
     from remaster.reporting import tables
 
     table = pd.DataFrame({
@@ -73,12 +73,12 @@ def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):
     edge = tables.formatted(pd.DataFrame({"mean (mm)": [1.8772, 12.34], "U(mean) (mm)": [0.0998, 9.96]}))
     assert edge == [["1.88", "0.10"], ["12", "10"]]
     # every text form says the same
-    io.write_table(tmp_path / "t", table, "caption", "t")
+    tables.write_table(tmp_path / "t", table, "caption", "t")
     markdown = (tmp_path / "t.md").read_text()
     assert "| j2 | -0.1894 | 0.0089 | -0.2068 | -0.1920 | 0.0090 | 12 | -0.000123 |" in markdown
     assert r"j2 & -0.1894 & 0.0089 & -0.2068 & -0.1920 & 0.0090 & 12 & -0.000123 \\" in (tmp_path / "t.tex").read_text()
     assert "<td>-0.1894</td><td>0.0089</td>" in report.table_html("t", table)
-    back = io.read_csv(tmp_path / "t.csv")
+    back = files.read_csv(tmp_path / "t.csv")
     assert back.loc[1, "Correction (deg)"] == -0.18938243654688053 and back.loc[2, "z"] == 1234.5678
     assert math.isnan(back.loc[0, "Std (deg)"])
 

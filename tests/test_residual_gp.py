@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from remaster import io
+from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import evidence, fit, residual_gp
@@ -148,7 +148,7 @@ CYCLIC = {"amplitude_deg": [0, 0.02, 0, 0.015, 0, 0, 0], "cycles_per_turn": [1, 
 @pytest.fixture(scope="module")
 def cyclic(iiwa):
     """The laser tracker of kuka-compliance's scenario, a robot with a cyclic error of joints 2 and 4."""
-    spec = io.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
     spec["plan"]["sets"] = {"optimization": {"poses": 150, "configurations": 1200},
                             "validation": {"poses": 10, "configurations": 50}}
     spec["truth"] = {"zero_offsets_deg": [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62], "cyclic_error": CYCLIC}

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from remaster import cli, io
+from remaster import cli
+from remaster.campaigns import folders
 from remaster.errors import InputError, KinematicsError
 from remaster.robot import kinematics
 
@@ -40,7 +41,7 @@ def test_campaign_yaml_with_a_python_tag_is_refused_and_nothing_runs(tmp_path, k
     lines[line] = f"description: {payloads(marker)[kind]}"
     (folder / "campaign.yaml").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError) as info:
-        io.read_campaign(folder, repo_root=REPO)
+        folders.read_campaign(folder, repo_root=REPO)
     message = str(info.value)
     assert message.startswith(f"{folder / 'campaign.yaml'}: line {line + 1}: YAML tag 'tag:yaml.org,2002:python/")
     assert "refused" in message and "nothing was executed" in message
@@ -109,7 +110,7 @@ def source_files():
 
 def test_no_pickle_eval_exec_or_unsafe_yaml_in_the_code():
     files = source_files()
-    assert any(f.name == "io.py" for f in files)
+    assert any(f.name == "files.py" for f in files)
     found = []
     for path in files:
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
@@ -120,7 +121,7 @@ def test_no_pickle_eval_exec_or_unsafe_yaml_in_the_code():
 
 
 def test_yaml_is_read_with_safe_load_only():
-    io_source = (REPO / "src" / "remaster" / "io.py").read_text()
-    assert "yaml.safe_load(" in io_source
+    files_source = (REPO / "src" / "remaster" / "files.py").read_text()
+    assert "yaml.safe_load(" in files_source
     calls = re.findall(r"yaml\.(\w+)\(", "".join(p.read_text() for p in (REPO / "src").rglob("*.py")))
     assert set(calls) <= {"safe_load", "safe_dump"}, calls

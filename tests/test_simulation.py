@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import io, spatial
-from remaster.campaigns import scenario
+from remaster import files, spatial
+from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
 from remaster.errors import InputError
 from remaster.robot import kinematics, planning
@@ -23,7 +23,7 @@ SCENARIOS = REPO / "data" / "simulation"
 
 def small_scenario(**truth):
     """kuka-twin's scenario with small sets, for speed."""
-    spec = io.read_yaml(SCENARIOS / "kuka-twin.yaml")
+    spec = files.read_yaml(SCENARIOS / "kuka-twin.yaml")
     spec["plan"]["sets"] = {"optimization": {"poses": 6, "configurations": 25},
                             "validation": {"poses": 4, "configurations": 16}}
     spec["truth"].update(truth)
@@ -88,12 +88,12 @@ def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_pat
     second = scenario.simulate(copy.deepcopy(spec), iiwa)
     digests = []
     for run, out in enumerate((first, second)):
-        io.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
-        io.write_json(tmp_path / str(run) / "truth.json", out.truth)
+        folders.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
+        files.write_json(tmp_path / str(run) / "truth.json", out.truth)
         digests.append({p.name: hashlib.sha256(p.read_bytes()).hexdigest()
                         for p in sorted((tmp_path / str(run)).rglob("*")) if p.is_file()})
     assert digests[0] == digests[1]
-    campaign = io.read_campaign(tmp_path / "0" / spec["name"], repo_root=REPO)
+    campaign = folders.read_campaign(tmp_path / "0" / spec["name"], repo_root=REPO)
     assert set(campaign.sensors) == {"motion_capture", "laser_tracker"}
     lt = campaign.sensors["laser_tracker"]
     assert len(lt.table) == 41 and lt.n_missing == 2  # the scenario's unseen points are kept
@@ -123,7 +123,7 @@ def test_measurements_equal_truth_record_in_sensor_frame(iiwa):
 
 @pytest.mark.parametrize("name", ["kuka-twin", "kuka-twin-2019", "kuka-compliance"])
 def test_bundled_campaigns_read_and_twin_is_sized_like_the_paper(name):
-    campaign = io.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
     for sensor in campaign.sensors.values():
         table = sensor.table
         sizes = {s: (table[table["set"] == s]["pose"].nunique(), int((table["set"] == s).sum()))
@@ -134,8 +134,8 @@ def test_bundled_campaigns_read_and_twin_is_sized_like_the_paper(name):
 
 def test_bundled_campaigns_are_what_the_scenarios_generate(iiwa):
     """The committed kuka-twin is exactly what `remaster simulate` makes from its scenario."""
-    out = scenario.simulate(io.read_yaml(SCENARIOS / "kuka-twin.yaml"), iiwa)
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    out = scenario.simulate(files.read_yaml(SCENARIOS / "kuka-twin.yaml"), iiwa)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     for name, table in out.tables.items():
         stored = campaign.sensors[name].table
         # equal up to rounding, so that a change in the order of floating-point operations
@@ -151,11 +151,11 @@ def _cubes_of(spec, set_name):
 
 
 def test_cube_scenario_is_deterministic_and_matches_the_bundled_campaign(iiwa):
-    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    spec = files.read_yaml(SCENARIOS / "kuka-cubes.yaml")
     first = scenario.simulate(spec, iiwa)
     second = scenario.simulate(copy.deepcopy(spec), iiwa)
     assert first.truth == second.truth
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
     assert set(campaign.sensors) == set(first.tables) == {"motion_capture", "laser_tracker"}
     for name, table in first.tables.items():
         pd.testing.assert_frame_equal(table, second.tables[name])
@@ -167,13 +167,13 @@ def test_cube_scenario_is_deterministic_and_matches_the_bundled_campaign(iiwa):
 
 
 def test_bundled_cube_campaign_has_one_orientation_on_the_designed_cubes(iiwa):
-    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
-    twin = io.read_yaml(SCENARIOS / "kuka-twin.yaml")
+    spec = files.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    twin = files.read_yaml(SCENARIOS / "kuka-twin.yaml")
     assert spec["robot"] == twin["robot"] and spec["truth"] == twin["truth"] and spec["sensors"] == twin["sensors"]
-    truth = io.read_json(REPO / "data" / "truth" / "kuka-cubes.json")
-    assert truth["effects"] == io.read_json(REPO / "data" / "truth" / "kuka-twin.json")["effects"]  # the same links
+    truth = files.read_json(REPO / "data" / "truth" / "kuka-cubes.json")
+    assert truth["effects"] == files.read_json(REPO / "data" / "truth" / "kuka-twin.json")["effects"]  # the same links
     rotation = np.array(truth["planning"]["flange_rotation"])
-    campaign = io.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-cubes", repo_root=REPO)
     table = campaign.sensors["laser_tracker"].table
     centres = {}
     for set_name in ("optimization", "validation"):
@@ -196,7 +196,7 @@ def test_bundled_cube_campaign_has_one_orientation_on_the_designed_cubes(iiwa):
 
 
 def test_an_unknown_plan_design_is_refused(iiwa):
-    spec = io.read_yaml(SCENARIOS / "kuka-cubes.yaml")
+    spec = files.read_yaml(SCENARIOS / "kuka-cubes.yaml")
     spec["plan"]["design"] = "iso9283_cube"
     with pytest.raises(InputError, match="plan/design: unknown design 'iso9283_cube'"):
         scenario.simulate(spec, iiwa)

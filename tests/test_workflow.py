@@ -11,8 +11,8 @@ import time
 
 import pytest
 
-from remaster import audit, io
-from remaster.campaigns import scenario
+from remaster import audit, files, provenance
+from remaster.campaigns import folders, robot_model, scenario
 
 from .conftest import REPO
 
@@ -29,13 +29,13 @@ def tiny(tmp_path_factory, iiwa):
     """Two campaign folders with small sets, written by the simulator, and a config for them."""
     root = tmp_path_factory.mktemp("workflow")
     for name, scenario_file in (("tiny", "kuka-twin.yaml"), ("tiny2", "kuka-compliance.yaml")):
-        spec = io.read_yaml(REPO / "data" / "simulation" / scenario_file)
+        spec = files.read_yaml(REPO / "data" / "simulation" / scenario_file)
         spec["name"] = name
         spec["plan"]["sets"] = {"optimization": {"poses": 10, "configurations": 40},
                                 "validation": {"poses": 4, "configurations": 16}}
         out = scenario.simulate(spec, iiwa)
-        io.write_campaign(root / "raw" / name, out.metadata, out.tables)
-    io.write_yaml(root / "config.yaml", {"raw_dir": str(root / "raw"), "results_dir": str(root / "results"),
+        folders.write_campaign(root / "raw" / name, out.metadata, out.tables)
+    files.write_yaml(root / "config.yaml", {"raw_dir": str(root / "raw"), "results_dir": str(root / "results"),
                                           **SMALL_FIT})
     return root
 
@@ -47,8 +47,8 @@ def run(root, *extra, config="config.yaml"):
 
 def with_results(root, name, **settings):
     """A config like the tiny one (with `settings` changed), writing to another results folder."""
-    config = io.read_yaml(root / "config.yaml")
-    io.write_yaml(root / f"{name}.yaml", {**config, **settings, "results_dir": str(root / name)})
+    config = files.read_yaml(root / "config.yaml")
+    files.write_yaml(root / f"{name}.yaml", {**config, **settings, "results_dir": str(root / name)})
     return f"{name}.yaml"
 
 
@@ -74,13 +74,13 @@ def test_real_run_builds_everything_then_nothing(tiny):
     results = tiny / "results" / "tiny"
     assert (tiny / "results" / "tiny2" / "laser_tracker" / "loop_closure.json").is_file()
     for sensor in ("motion_capture", "laser_tracker"):
-        remastering = io.read_json(results / sensor / "remastering.json")
+        remastering = files.read_json(results / sensor / "remastering.json")
         assert [j["status"] for j in remastering["joints"]][0].startswith("held")
         assert (results / "figures" / f"zero_offset_trace_{sensor}.pdf").is_file()
     for table in ("zero_offsets", "registration_params"):
         for suffix in (".csv", ".md", ".tex"):
             assert (results / "tables" / f"{table}{suffix}").is_file()
-    over_time = io.read_csv(tiny / "results" / "comparison" / "loop_parameters_over_time.csv")
+    over_time = files.read_csv(tiny / "results" / "comparison" / "loop_parameters_over_time.csv")
     assert set(over_time["campaign"]) == {"tiny", "tiny2"} and "zero_offsets.q2" in set(over_time["parameter"])
     assert "Loop closure over time" in (tiny / "results" / "report.html").read_text(encoding="utf-8")
     again = run(tiny)
@@ -121,9 +121,9 @@ def test_changing_one_campaign_reruns_only_its_jobs(tiny):
     if not (first / "report.html").exists():
         assert run(tiny).returncode == 0
     parquet = tiny / "raw" / "tiny2" / "laser_tracker.parquet"
-    table = io.read_parquet(parquet)
+    table = files.read_parquet(parquet)
     table.loc[0, "x"] += 1e-6
-    io.write_parquet(parquet, table)
+    files.write_parquet(parquet, table)
     summary = run(tiny, "--summary")
     assert summary.returncode == 0, summary.stderr
     pending = [line.split("\t")[0] for line in summary.stdout.splitlines() if line.endswith("update pending")]
@@ -134,7 +134,7 @@ def test_changing_one_campaign_reruns_only_its_jobs(tiny):
 
 
 def test_bad_config_is_refused_by_the_schema(tiny):
-    io.write_yaml(tiny / "bad.yaml", {"seed": -1})
+    files.write_yaml(tiny / "bad.yaml", {"seed": -1})
     result = subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(tiny / "bad.yaml")], cwd=REPO,
                             capture_output=True, text=True, timeout=300)
     assert result.returncode != 0 and "seed" in result.stdout + result.stderr
@@ -144,11 +144,11 @@ def test_only_a_campaign_given_as_a_dh_table_gets_calibrated_dh_tables(tiny, tmp
     """The plan: a copy of the tiny campaigns where one also gives its chain as a DH table gets
     paper_dh.yaml and loop_dh.yaml per sensor, listed in its calibrated-files table; the other none."""
     shutil.copytree(tiny / "raw", tmp_path / "raw")
-    metadata = io.read_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml")
+    metadata = files.read_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml")
     metadata["robot"]["dh"] = {"convention": "standard", "rows": [[0.0, 0.0, 0.1, 0.0]] * 7}  # only planned here
-    io.write_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml", metadata)
-    io.write_yaml(tmp_path / "config.yaml", {**io.read_yaml(tiny / "config.yaml"), "raw_dir": str(tmp_path / "raw"),
-                                             "results_dir": str(tmp_path / "results")})
+    files.write_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml", metadata)
+    files.write_yaml(tmp_path / "config.yaml", {**files.read_yaml(tiny / "config.yaml"),
+                                                "raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results")})
     tables = [str(tmp_path / "results" / name / "tables" / "calibrated_files.md") for name in ("tiny", "tiny2")]
     result = run(tmp_path, "-n", "--quiet", "rules", "--", *tables)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -164,20 +164,21 @@ def test_editing_the_robot_description_reruns_its_campaign_and_changes_its_audit
     urdf = tmp_path / "robots" / "iiwa.urdf"
     urdf.parent.mkdir()
     shutil.copy(REPO / "data" / "robots" / "kuka_iiwa14.urdf", urdf)
-    metadata = io.read_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml")
+    metadata = files.read_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml")
     metadata["robot"]["urdf"] = "../../robots/iiwa.urdf"
-    io.write_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml", metadata)
-    io.write_yaml(tmp_path / "config.yaml", {**io.read_yaml(tiny / "config.yaml"), "raw_dir": str(tmp_path / "raw"),
-                                             "results_dir": str(tmp_path / "results")})
+    files.write_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml", metadata)
+    files.write_yaml(tmp_path / "config.yaml", {**files.read_yaml(tiny / "config.yaml"),
+                                                "raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results")})
     target = str(tmp_path / "results" / "tiny" / "campaign" / "summary.json")
     assert run(tmp_path, "--", target).returncode == 0
     unchanged = run(tmp_path, "-n", "--", target)
     assert "Nothing to be done" in unchanged.stdout + unchanged.stderr
     folder_files = sorted((tmp_path / "raw" / "tiny").iterdir())
-    assert io.robot_files(tmp_path / "raw" / "tiny") == [tmp_path / "raw" / "tiny" / "../../robots/iiwa.urdf"]
-    before = audit.folder_digest(io.file_digests(folder_files + io.robot_files(tmp_path / "raw" / "tiny"), True))
+    robot = robot_model.robot_files(tmp_path / "raw" / "tiny")
+    assert robot == [tmp_path / "raw" / "tiny" / "../../robots/iiwa.urdf"]
+    before = audit.folder_digest(provenance.file_digests(folder_files + robot, True))
     urdf.write_text(urdf.read_text() + "\n<!-- edited -->\n")
-    after = audit.folder_digest(io.file_digests(folder_files + io.robot_files(tmp_path / "raw" / "tiny"), True))
+    after = audit.folder_digest(provenance.file_digests(folder_files + robot, True))
     dry = run(tmp_path, "-n", "--", target)
     assert dry.returncode == 0 and "campaign_summary" in dry.stdout and "iiwa.urdf" in dry.stdout
     assert before != after
@@ -246,7 +247,7 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
     assert overview.count("<tr>") == 1 + 2 + 1  # header, tiny's two sensors, tiny2's one
     tiny_section = page[page.index("<h2 id='tiny'>"):page.index("<h2 id='tiny2'>")]
     assert tiny_section.index("Verdict per sensor") < tiny_section.index("<details>")
-    serial = io.read_yaml(tiny / "raw" / "tiny" / "campaign.yaml")["robot"]["serial"]
+    serial = files.read_yaml(tiny / "raw" / "tiny" / "campaign.yaml")["robot"]["serial"]
     assert f"serial {serial} (7 joints)" in tiny_section and "U(Correction) (deg)" in tiny_section
     for name in ("tiny", "tiny2"):
         certificate = (tiny / "results" / name / "certificate.md").read_text(encoding="utf-8")
@@ -266,8 +267,8 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
 def test_a_campaign_too_large_for_the_configured_memory_stops_at_its_first_job(tiny):
     """max_job_memory_gb below what the campaigns' jobs need: the campaign check refuses it with a
     message that names the campaign, its rows and the setting; no fit starts and no summary is left."""
-    config = io.read_yaml(tiny / "config.yaml")
-    io.write_yaml(tiny / "small_memory.yaml", {**config, "results_dir": str(tiny / "small_memory"),
+    config = files.read_yaml(tiny / "config.yaml")
+    files.write_yaml(tiny / "small_memory.yaml", {**config, "results_dir": str(tiny / "small_memory"),
                                                "max_job_memory_gb": 0.1})
     result = run(tiny, config="small_memory.yaml")
     assert result.returncode != 0

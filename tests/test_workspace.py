@@ -7,15 +7,17 @@ import pandas as pd
 import pytest
 import scipy.optimize
 
-from remaster import io
+from remaster import files
 from remaster import spatial
 from remaster.analysis import accuracy, comparison, prediction
 from remaster.analysis import transfer, workspace
+from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.inference import blocks, evidence, fit, metrics
 from remaster.inference.model import SIGMA
 from remaster.loop import loop_closure
+from remaster.loop.report import LoopReport
 from remaster.robot import registration
 from remaster.robot.priors import priors_from
 
@@ -23,7 +25,7 @@ from .conftest import REPO
 
 SEED = 20181113
 DRAWS, RANDOM = 400, 300  # fewer than the pipeline's 2000 x 1000: the quantiles are stable to ~1 %
-CONFIG = io.read_yaml(REPO / "config.yaml")
+CONFIG = files.read_yaml(REPO / "config.yaml")
 _fitted = {}
 _laplace_content = {}
 
@@ -108,7 +110,7 @@ def at_start(q) -> np.ndarray:
 def true_points(campaign, sensor: str, q) -> np.ndarray:
     """Where the sensor's marker really is (robot frame) at readings q, at the campaign's first
     measurement: the time origin of a drift, so of a loop-closed model's zero-offsets."""
-    truth = io.read_json(REPO / "data" / "truth" / f"{campaign.name}.json")
+    truth = files.read_json(REPO / "data" / "truth" / f"{campaign.name}.json")
     device = sensor_from_truth(truth, sensor, campaign.sensors[sensor].marker)
     return true_marker_positions(campaign.chain, robot_from_truth(truth), device, q, at_start(q))
 
@@ -117,7 +119,7 @@ def fitted(name: str, sensor: str, tmp_path_factory):
     """(campaign, laplace report, loop-closure report as written to JSON, loop samples), cached."""
     key = (name, sensor)
     if key not in _fitted:
-        campaign = io.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
+        campaign = folders.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
         config = CONFIG
         registered = fit.registration_stage(campaign, sensor)
         _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
@@ -127,8 +129,8 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace,
                                                  np.random.default_rng(SEED), settings)
         path = tmp_path_factory.mktemp("loop") / "loop_closure.json"
-        io.write_json(path, result.report)
-        _fitted[key] = (campaign, laplace, io.read_loop(path), result.samples)
+        files.write_json(path, result.report)
+        _fitted[key] = (campaign, laplace, LoopReport.read(path), result.samples)
     return _fitted[key]
 
 
@@ -246,7 +248,7 @@ def flat_fit(model) -> np.ndarray:
 
 def on_twin(calibration) -> np.ndarray:
     """Post-registration errors (m) of a calibration on the twin's laser-tracker validation rows."""
-    twin = io.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    twin = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     target = prediction.Calibrated("kuka-twin", "2018-06-12", comparison.robot_identity(twin),
                                    twin.sensors["laser_tracker"], twin.chain, {})
     return transfer.transfer_errors(calibration, target)

@@ -15,10 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io
+from . import layout
 from .analysis import compensation
 from .campaigns import importer, scenario
-from .errors import RemasterError
+from .campaigns.folders import import_campaign, read_campaign, write_campaign
+from .campaigns.robot_model import load_chain
+from .errors import InputError, RemasterError
+from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_json
+from .inference.fit import LaplaceReport, Registration
+from .loop.report import LoopReport
 from .robot import planning, registration
 from .robot.kinematics import ForwardKinematics
 
@@ -31,12 +36,12 @@ def _simulate(args: argparse.Namespace) -> None:
     if not paths:
         raise RemasterError(f"no scenario given and none found in {DEFAULT_SCENARIOS}")
     for path in paths:
-        base = io.read_yaml(path)
-        chain = io.load_chain(base["robot"], path.parent, Path.cwd(), source=str(path), name=base["name"])
+        base = read_yaml(path)
+        chain = load_chain(base["robot"], path.parent, Path.cwd(), source=str(path), name=base["name"])
         for spec, seed in scenario.copies(base, args.copies, args.seed):
             campaign = scenario.simulate(spec, chain, seed=seed)
-            folder = io.write_campaign(Path(args.raw_dir) / spec["name"], campaign.metadata, campaign.tables)
-            truth = io.write_json(Path(args.truth_dir) / f"{spec['name']}.json", campaign.truth)
+            folder = write_campaign(Path(args.raw_dir) / spec["name"], campaign.metadata, campaign.tables)
+            truth = write_json(Path(args.truth_dir) / f"{spec['name']}.json", campaign.truth)
             rows = {name: len(t) for name, t in campaign.tables.items()}
             print(f"{path}: wrote {folder} ({rows}) and {truth}")
 
@@ -44,7 +49,7 @@ def _simulate(args: argparse.Namespace) -> None:
 def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
     if args.sensor_origin is not None:
         return np.asarray(args.sensor_origin, dtype=float)
-    points = io.read_csv(args.registration_points)
+    points = read_csv(args.registration_points)
     joints = [f"q{j + 1}" for j in range(chain.n_joints)]
     missing = [c for c in joints + ["x", "y", "z"] if c not in points.columns]
     if missing:
@@ -56,7 +61,7 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 
 def _plan(args: argparse.Namespace) -> None:
     robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
-    chain = io.load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(),
+    chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(),
                           source="command line")
     origin = _sensor_origin(args, chain)
     rng = np.random.default_rng(args.seed)
@@ -67,22 +72,36 @@ def _plan(args: argparse.Namespace) -> None:
     table = plan.table.copy()
     for j in range(chain.n_joints):
         table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"])
-    io.write_csv(args.out, table)
+    write_csv(args.out, table)
     print(f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
           f"{plan.candidates} candidate poses; discarded: {plan.discarded}")
 
 
 def _import(args: argparse.Namespace) -> None:
-    folder, report = io.import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
+    folder, report = import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
     total = report["controller"]["rows"]
     rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
     print(f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
           f"{folder / importer.REPORT_FILE}")
 
 
+def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> dict:
+    """The results of one campaign's sensor that `remaster predict` and `compensate` read
+    (`layout.SENSOR_RESULTS`, under results_dir/layout.SENSOR_FOLDER) by key; InputError naming the
+    folder or file when the workflow has not written them."""
+    folder = Path(results_dir) / layout.SENSOR_FOLDER.format(campaign=campaign, sensor=sensor)
+    if not folder.is_dir():
+        raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
+                         "folder it wrote", file=str(folder))
+    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": LaplaceReport.read,
+               "registration": Registration.read, "loop": LoopReport.read}
+    return {key: readers.get(key, readers[Path(name).suffix])(folder / name)
+            for key, name in layout.SENSOR_RESULTS.items()}
+
+
 def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
-    campaign = io.read_campaign(args.campaign, Path.cwd())
-    results = io.read_sensor_results(args.results, Path(args.campaign).name, args.sensor)
+    campaign = read_campaign(args.campaign, Path.cwd())
+    results = read_sensor_results(args.results, Path(args.campaign).name, args.sensor)
     label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
     robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
     for note in robot.notes(args.frame):
@@ -92,23 +111,23 @@ def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.Calibrat
 
 def _predict(args: argparse.Namespace) -> None:
     _, robot = _calibrated(args)
-    q = compensation.joint_commands(io.read_csv(args.commands), robot.chain, args.commands)
+    q = compensation.joint_commands(read_csv(args.commands), robot.chain, args.commands)
     table = compensation.predict(robot, q, args.frame, args.draws, np.random.default_rng(args.seed))
-    io.write_csv(args.out, table)
+    write_csv(args.out, table)
     print(f"{args.out}: {len(table)} predicted positions ({args.model} model, {args.frame} frame); largest "
           f"95 % bound {table['bound95_mm'].max():.4g} mm")
 
 
 def _compensate(args: argparse.Namespace) -> int:
     campaign, robot = _calibrated(args)
-    targets, q = compensation.targets_or_commands(io.read_csv(args.targets), robot.chain, args.targets)
+    targets, q = compensation.targets_or_commands(read_csv(args.targets), robot.chain, args.targets)
     rng = np.random.default_rng(args.seed)
     if targets is not None:
         out = compensation.compensate(robot, args.frame, args.draws, rng, targets=targets, seeds=q,
                                       candidates=campaign.sensors[args.sensor].q("optimization"))
     else:
         out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)
-    io.write_csv(args.out, out)
+    write_csv(args.out, out)
     reached = out["status"] == compensation.REACHED
     print(f"{args.out}: {int(reached.sum())} of {len(out)} targets reached ({args.model} model, {args.frame} frame); "
           f"largest 95 % bound {out['bound95_mm'].max():.4g} mm")

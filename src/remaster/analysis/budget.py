@@ -75,7 +75,7 @@ def budget_rows(jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: floa
 def budget_table(campaign: Campaign, registrations: dict[str, Registration], laplaces: dict[str, LaplaceReport],
                  loops: dict[str, LoopReport]) -> pd.DataFrame:
     """The uncertainty budget of every sensor of a campaign (see the module docstring); loops:
-    sensor -> the loop closure's report (`io.read_loop`: its sigma after)."""
+    sensor -> the loop closure's report (`LoopReport.read`: its sigma after)."""
     out = []
     for sensor, laplace in laplaces.items():
         data = campaign.sensors[sensor]

@@ -405,7 +405,7 @@ def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, st
                loops: Mapping[tuple[str, str], LoopReport] | None = None) -> list[Entry]:
     """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping), each
     sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table) and, when
-    given, its loop closure's report ((campaign, sensor) -> `io.read_loop`)."""
+    given, its loop closure's report ((campaign, sensor) -> `LoopReport.read`)."""
     loops = loops or {}
     return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
                   metadata[campaign]["sensors"][sensor]["kind"],

@@ -169,7 +169,7 @@ def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None
 
 
 def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, label: str = "") -> Calibration:
-    """The loop closure's model from its report (`io.read_loop`: effects added, payload, the refit's
+    """The loop closure's model from its report (`LoopReport.read`: effects added, payload, the refit's
     parameters: parameter, block, mean SI, status) and, when given, its posterior samples."""
     table = report.parameters
     _checked_columns(table, ("parameter", "block", "mean", "status"), label or report.source,
@@ -203,7 +203,7 @@ def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: 
                loop: LoopReport | None = None, paper_samples: pd.DataFrame | None = None,
                loop_samples: pd.DataFrame | None = None) -> Calibrated:
     """A campaign's sensor with its three calibrations, from its fit summary (summary.csv), Laplace
-    report (its outlier rows) and loop-closure report (`io.read_loop`; no loop model without it)."""
+    report (its outlier rows) and loop-closure report (`LoopReport.read`; no loop model without it)."""
     label = f"{campaign.name}/{sensor}"
     if sensor not in campaign.sensors:
         raise InputError(f"no sensor {sensor!r} in the campaign", file=campaign.name, key="sensors")
@@ -343,7 +343,7 @@ def calibrated_entries(campaigns: Mapping[str, Campaign], summaries: Mapping[tup
                        paper_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
                        loop_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None) -> list[Calibrated]:
     """`calibrated` for every (campaign, sensor) of `summaries`: campaigns {name: Campaign}, the
-    others {(campaign, sensor): its summary.csv, Laplace report (`io.read_laplace`), loop report (`io.read_loop`),
+    others {(campaign, sensor): its summary.csv, Laplace report (`LaplaceReport.read`), loop report (`LoopReport.read`),
     samples_default.parquet, loop_closure/samples.parquet} (loops and samples optional)."""
     loops, paper_samples, loop_samples = loops or {}, paper_samples or {}, loop_samples or {}
     out = []

@@ -163,7 +163,7 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
                        label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
     module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
-    parameters); loop_report, loop_samples: the loop closure's report (`io.read_loop`) and its MCMC
+    parameters); loop_report, loop_samples: the loop closure's report (`LoopReport.read`) and its MCMC
     samples (SI); robot:
     the robot's identity (its random configurations come from seed and it); rng draws the
     posterior rows, the noise and the held zero-offsets; loop_gp_rows: the loop's residual GP

@@ -1,6 +1,6 @@
 """A measurement campaign as validated data: metadata, robot chain and one table per sensor.
 
-Pure validation, no file access (`remaster.io` reads and writes campaign folders). The data
+Pure validation, no file access (`remaster.campaigns.folders` reads and writes campaign folders). The data
 contract is docs/campaign-format.md. Every violation raises `InputError` (or `KinematicsError`
 for the robot section) naming the file, the key or column, and the 0-based rows as stored.
 """
@@ -144,7 +144,7 @@ class Campaign:
         return self.chain.n_joints
 
     def to_metadata(self) -> dict[str, Any]:
-        """The campaign.yaml content as a plain dict (for `remaster.io.write_campaign`)."""
+        """The campaign.yaml content as a plain dict (for `folders.write_campaign`)."""
         return {
             "name": self.name,
             "date": self.date,
@@ -295,7 +295,7 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     Returns {'name': str, 'date': datetime.date, 'description': str, 'robot': dict (see
     `validate_robot`), 'sensors': {name: {'kind': str, 'marker': (3,) m, 'noise': float | None}}}.
     Does not look at files: the folder name, URDF file and Parquet files are checked by
-    `remaster.io.read_campaign`.
+    `folders.read_campaign`.
     """
     meta = _mapping(meta, "", source)
     missing = [k for k in REQUIRED_KEYS if k not in meta]

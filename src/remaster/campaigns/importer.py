@@ -47,7 +47,7 @@ reason) inside the campaign folder, never silently dropped. The `time` column wr
 controller's time when the log has one, else the sensor's. Anything that cannot be parsed is an
 InputError naming the file, the column and the 1-based line (the header is line 1).
 
-This module works on text and tables only; `remaster.io.import_campaign` reads the files and
+This module works on text and tables only; `folders.import_campaign` reads the files and
 writes the campaign folder.
 """
 

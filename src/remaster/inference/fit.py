@@ -24,6 +24,7 @@ import pandas as pd
 from .. import diagnostics, spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..errors import report_reader
+from ..files import read_json
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
@@ -52,6 +53,11 @@ class Registration:
                    kabsch_t_nr=np.asarray(get("kabsch_T_NR"), dtype=float),
                    three_point_rms=float(get("three_point_rms_mm")) * 1e-3,
                    kabsch_rms=float(get("kabsch_rms_mm")) * 1e-3)
+
+    @classmethod
+    def read(cls, path) -> "Registration":
+        """From registration.json; InputError naming the file, and the key when one is missing."""
+        return cls.of(read_json(path), source=str(path))
 
     def report(self) -> dict:
         rotation_difference = self.t_nr[:3, :3].T @ self.kabsch_t_nr[:3, :3]
@@ -190,7 +196,7 @@ def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Ide
 @dataclass(frozen=True, eq=False)
 class LaplaceReport:
     """The paper model's Laplace fit of one sensor as the later stages read it (`laplace.json`,
-    written by `laplace_report`; read by `io.read_laplace`). names (P,) free parameters;
+    written by `laplace_report`; read by `LaplaceReport.read`). names (P,) free parameters;
     theta_map, std (P,) and covariance (P, P) SI; sigma_map, sigma_mean, sigma_std (m);
     parameters: every parameter in order, held ones included; held: {name: value} held at the
     controller's value; null_directions: the data's blind combinations ({name: weight} each);
@@ -224,6 +230,11 @@ class LaplaceReport:
                    outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
                    marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
                    points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]))
+
+    @classmethod
+    def read(cls, path) -> "LaplaceReport":
+        """From laplace.json; InputError naming the file, and the key when one is missing."""
+        return cls.of(read_json(path), source=str(path))
 
     def check_names(self, names) -> None:
         """The fitted model's free parameters must be the report's: else the report belongs to

@@ -2,7 +2,7 @@
 
 `loop_closure.loop_closure_stage` writes the report; the calibrated files, predictions,
 comparisons, workspace accuracy, uncertainty budget, certificate and figures read the fields of
-`LoopReport` (`io.read_loop`). A missing field is an InputError naming the file and the key.
+`LoopReport` (`LoopReport.read`). A missing field is an InputError naming the file and the key.
 The loop's own tables, which show the selection in full (candidates, rounds, noise model), read
 `details`, the report as written.
 """
@@ -16,6 +16,7 @@ from typing import Any
 import pandas as pd
 
 from ..errors import InputError, report_reader
+from ..files import read_json
 from ..units import DEG, MM
 
 
@@ -66,3 +67,8 @@ class LoopReport:
                    unseen_by_data=tuple(get("identifiability", "dropped")),
                    closure=dict(get("closure")), residual_gp=content.get("residual_gp"),
                    warnings=tuple(get("warnings")), details=content)
+
+    @classmethod
+    def read(cls, path) -> "LoopReport":
+        """From loop_closure.json; InputError naming the file, and the key when one is missing."""
+        return cls.of(read_json(path), source=str(path))

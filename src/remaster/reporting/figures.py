@@ -1,7 +1,7 @@
 """The paper's figures (and a few more), drawn from result files only.
 
 Every function takes DataFrames or arrays and returns a matplotlib Figure (Agg backend, no
-screen); `remaster.io.write_figure` saves it as PNG and PDF. Units on the axes are mm and deg.
+screen); `remaster.files.write_figure` saves it as PNG and PDF. Units on the axes are mm and deg.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Accuracy figures, drawn from the tables `remaster.analysis.accuracy.accuracy_tables` returns.
 
-Every function returns a matplotlib Figure (Agg backend); `remaster.io.write_figure` saves it.
+Every function returns a matplotlib Figure (Agg backend); `remaster.files.write_figure` saves it.
 Axes are in mm.
 """
 

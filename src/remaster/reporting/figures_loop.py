@@ -1,7 +1,7 @@
 """Loop-closure figures: what each candidate effect would explain, and the errors before/after.
 
 Every function takes arrays from `remaster.loop.loop_closure` and returns a matplotlib Figure (Agg
-backend, no screen); `remaster.io.write_figure` saves it. Axes in mm.
+backend, no screen); `remaster.files.write_figure` saves it. Axes in mm.
 """
 
 from __future__ import annotations

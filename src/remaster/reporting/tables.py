@@ -2,18 +2,20 @@
 
 Each table is a DataFrame whose first column labels the rows; numbers are in the units a
 person reads (mm, deg), with the unit in the column or row label. `to_markdown` and `to_latex`
-render any such table; `remaster.io.write_table` writes CSV, Markdown and LaTeX side by side.
+render any such table; `write_table` writes CSV, Markdown and LaTeX side by side.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from pathlib import PurePath
 
 import numpy as np
 import pandas as pd
 
 from ..analysis import iso9283
+from ..files import write_csv, write_text
 from ..inference.model import SIGMA, by_parameter, display_value
 from ..labels import paper_order, sensor_label
 from ..units import shown, shown_to
@@ -241,6 +243,15 @@ def to_latex(table: pd.DataFrame, caption: str, label: str) -> str:
     lines += [" & ".join(_latex_escape(cell) for cell in cells) + r" \\" for cells in formatted(table)]
     lines += [r"\hline", r"\end{tabular}", r"\end{table}"]
     return "\n".join(lines) + "\n"
+
+
+def write_table(stem: str | PurePath, table: pd.DataFrame, caption: str, label: str) -> list[PurePath]:
+    """Write a table as <stem>.csv (full precision: only the text forms are rounded), <stem>.md and
+    <stem>.tex; returns the three paths."""
+    stem = PurePath(stem)
+    return [write_csv(stem.with_suffix(".csv"), table),
+            write_text(stem.with_suffix(".md"), f"**{caption}**\n\n" + to_markdown(table)),
+            write_text(stem.with_suffix(".tex"), to_latex(table, caption, label))]
 
 
 def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:

@@ -1,0 +1,191 @@
+"""Campaign folders on disk: reading and checking one, writing one, finding a job's, and importing
+a controller's and sensors' CSV exports into one.
+
+A campaign folder is campaign.yaml plus one <sensor>.parquet per sensor (docs/campaign-format.md).
+`read_campaign` checks the folder against that contract and returns a `campaign.Campaign`.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ..errors import InputError, format_rows
+from ..files import plain, read_parquet, read_yaml, write_json, write_parquet, write_yaml
+from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
+from . import importer
+from .campaign import (
+    OPTIONAL_KEYS,
+    REQUIRED_KEYS,
+    SENSOR_NAME_PATTERN,
+    Campaign,
+    sensor_data,
+    validate_metadata,
+)
+from .robot_model import load_chain
+
+log = logging.getLogger(__name__)
+
+
+def campaign_folders(files) -> dict[str, Path]:
+    """{campaign name: folder} of the campaign.yaml files among a job's declared input files: a
+    workflow job reads the campaigns it declares, and finds their folders from them."""
+    return {path.parent.name: path.parent for path in map(Path, files) if path.name == CAMPAIGN_FILE}
+
+
+def campaign_folder(files) -> Path:
+    """The folder of the one campaign whose files a job declares (`campaign_folders`)."""
+    folders = campaign_folders(files)
+    if len(folders) != 1:
+        raise InputError(f"a job's campaign files hold {len(folders)} {CAMPAIGN_FILE} files, not one",
+                         file=", ".join(map(str, files)) or "(no input files)")
+    return next(iter(folders.values()))
+
+
+def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Campaign:
+    """Read and validate a campaign folder (campaign.yaml + one <sensor>.parquet per sensor).
+
+    `repo_root` (default: the current directory) is where shared URDFs are looked for. Raises
+    InputError (KinematicsError for the robot model) naming the file, key/column and rows.
+    Rows whose marker was not seen (x, y, z NaN) are kept and logged.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a campaign folder (no such directory)", file=str(folder))
+    source = str(folder / CAMPAIGN_FILE)
+    meta = validate_metadata(read_yaml(folder / CAMPAIGN_FILE), source)
+    folder_name = folder.resolve().name
+    if meta["name"] != folder_name:
+        raise InputError(f"is {meta['name']!r} but the folder is named {folder_name!r}; they must be equal",
+                         file=source, key="name")
+    chain = load_chain(meta["robot"], folder, repo_root, source=source, name=meta["name"])
+
+    tables = {path.stem: path for path in sorted(folder.glob("*.parquet"))}
+    for sensor in meta["sensors"]:
+        if sensor not in tables:
+            raise InputError(f"no file {sensor}.parquet in {folder}", file=source, key=f"sensors/{sensor}")
+    for stem, path in tables.items():
+        if stem not in meta["sensors"]:
+            raise InputError(f"no sensor {stem!r} under `sensors` in {source}: name it there or remove the file",
+                             file=str(path), key="sensors")
+
+    sensors = {}
+    for sensor, spec in meta["sensors"].items():
+        path = tables[sensor]
+        sensors[sensor] = sensor_data(sensor, spec, read_parquet(path), chain.n_joints, str(path),
+                                      limits=(chain.lower, chain.upper))
+        if sensors[sensor].n_missing:
+            log.info("%s: %d of %d rows without a measurement (marker not seen: %s)", path,
+                     sensors[sensor].n_missing, len(sensors[sensor].table), format_rows(sensors[sensor].missing_rows))
+    return Campaign(name=meta["name"], date=meta["date"], description=meta["description"],
+                    robot=plain(meta["robot"]), chain=chain, sensors=sensors)
+
+
+def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]) -> Path:
+    """Write campaign.yaml and one <sensor>.parquet per table into `folder` (created if needed).
+
+    Deterministic: the same input gives byte-identical files. Top-level keys are written in the
+    contract's order (name, date, description, robot, sensors, then anything else), tables with
+    pyarrow and no pandas index. Does not validate (read the folder back with `read_campaign`),
+    and does not delete other files already in the folder.
+    """
+    folder = Path(folder)
+    for sensor in tables:
+        if not isinstance(sensor, str) or not SENSOR_NAME_PATTERN.fullmatch(sensor):
+            raise InputError("a sensor name must be a file stem (letters, digits, _ . -)", file=str(folder),
+                             key=f"sensors/{sensor}")
+    folder.mkdir(parents=True, exist_ok=True)
+    order = [k for k in REQUIRED_KEYS[:2] + OPTIONAL_KEYS + REQUIRED_KEYS[2:] if k in metadata]
+    write_yaml(folder / CAMPAIGN_FILE, {**{k: metadata[k] for k in order},
+                                        **{k: v for k, v in metadata.items() if k not in order}})
+    for sensor, table in tables.items():
+        write_parquet(folder / f"{sensor}.parquet", table)
+    return folder
+
+
+# --------------------------------------------------------------------------- imports
+
+
+def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
+    """`importer.parse_csv` of a file (UTF-8, with or without a byte-order mark)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text: {exc}", file=str(path)) from None
+    return importer.parse_csv(text, str(path), delimiter)
+
+
+def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
+    """The URDF to copy into the campaign folder: one found next to the configuration only
+    (not under the repository root, nor shared in data/robots)."""
+    if "urdf" not in robot:
+        return None
+    urdf = robot["urdf"]
+    if (repo_root / urdf).is_file() or (repo_root / SHARED_ROBOTS / Path(urdf).name).is_file():
+        return None
+    return config_dir / urdf if (config_dir / urdf).is_file() else None
+
+
+def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None,
+                    overwrite: bool = False) -> tuple[Path, dict[str, Any]]:
+    """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
+    files, write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
+    it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
+    with `read_campaign`. Returns (folder, report).
+
+    `repo_root` (default: the current directory) is where shared URDFs are looked for. An existing
+    non-empty folder is an error unless `overwrite`, which replaces its campaign.yaml, *.parquet and
+    import report. Nothing is written when anything fails: the folder is built in a temporary
+    place and copied only once it reads back.
+    """
+    config_path = Path(config_path)
+    repo_root = Path.cwd() if repo_root is None else Path(repo_root)
+    source = str(config_path)
+    spec = importer.parse_config(read_yaml(config_path), source)
+    config_dir = config_path.parent
+    chain = load_chain(spec.metadata["robot"], config_dir, repo_root, source=source, name=spec.metadata["name"])
+    if chain.n_joints != len(spec.controller.joints):
+        raise InputError(f"names {len(spec.controller.joints)} joint columns but the robot has {chain.n_joints} joints",
+                         file=source, key="controller/joints")
+
+    def export(file: importer.FileSpec) -> importer.Export:
+        return read_export(config_dir / file.file, file.delimiter)
+
+    controller, sensors = export(spec.controller.file), {n: export(s.file) for n, s in spec.sensors.items()}
+    result = importer.build_campaign(spec, controller, sensors)
+    metadata = result.metadata
+    urdf = _local_urdf(metadata["robot"], config_dir, repo_root)
+    if urdf is not None:
+        metadata = {**metadata, "robot": {**metadata["robot"], "urdf": urdf.name}}
+
+    folder = Path(raw_dir) / metadata["name"]
+    if folder.exists() and any(folder.iterdir()) and not overwrite:
+        raise InputError("the campaign folder exists already (import with overwrite / --force to replace it)",
+                         file=str(folder))
+    with tempfile.TemporaryDirectory() as tmp:
+        staged = Path(tmp) / metadata["name"]
+        write_campaign(staged, metadata, result.tables)
+        if urdf is not None:
+            shutil.copyfile(urdf, staged / urdf.name)
+        try:
+            read_campaign(staged, repo_root)
+        except InputError as exc:
+            path = Path(exc.file) if exc.file else None
+            sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
+            raise importer.in_exports(exc, sensor, spec, result, controller, sensors) from None
+        write_json(staged / importer.REPORT_FILE, result.report)
+        folder.mkdir(parents=True, exist_ok=True)
+        for old in [folder / CAMPAIGN_FILE, folder / importer.REPORT_FILE, *folder.glob("*.parquet")]:
+            old.unlink(missing_ok=True)
+        for path in sorted(staged.iterdir()):
+            shutil.copyfile(path, folder / path.name)
+    return folder, result.report

@@ -1,0 +1,187 @@
+"""Reading and writing plain files: YAML, JSON, CSV, Parquet, text, figures, and a job's log.
+
+Every writer creates the file's folder and is deterministic (same data, same bytes); every reader
+raises InputError naming the file when it is missing or malformed. What the files mean (campaign
+folders, a stage's report) is for the modules that call these.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import json
+import logging
+import math
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import yaml
+
+from .errors import InputError
+
+
+def plain(value: Any) -> Any:
+    """Nested mappings/sequences of NumPy or Python values -> plain dicts, lists, floats, ints, str
+    (non-finite floats -> None, paths -> str)."""
+    if isinstance(value, Mapping):
+        return {str(k) if isinstance(k, Path) else k: plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+# --------------------------------------------------------------------------- YAML and JSON
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Content of a YAML file (yaml.safe_load); InputError naming the file if missing or malformed,
+    or if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        tag = re.search(r"constructor for the tag '([^']*)'", str(getattr(exc, "problem", "")))
+        if tag:  # e.g. !!python/object/apply: safe_load has no constructor for it
+            mark = getattr(exc, "problem_mark", None)
+            line = f"line {mark.line + 1}: " if mark is not None else ""
+            raise InputError(f"{line}YAML tag {tag.group(1)!r} refused: remaster reads plain YAML (yaml.safe_load) "
+                             f"and never builds objects from tags; nothing was executed", file=str(path)) from None
+        raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
+
+
+def write_yaml(path: str | Path, data: Any) -> Path:
+    """Write `data` as block YAML, keys in the given order, leaf lists inline; same data, same bytes."""
+    text = yaml.safe_dump(plain(data), sort_keys=False, allow_unicode=True, default_flow_style=None, width=100)
+    return write_text(path, text)
+
+
+def read_json(path: str | Path) -> Any:
+    """Content of a JSON file; InputError naming the file if missing or malformed."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
+
+
+def write_json(path: str | Path, data: Any) -> Path:
+    """Write `data` as indented JSON with sorted keys and a final newline; same data, same bytes.
+
+    NumPy values become plain numbers/lists, dates ISO strings; NaN and infinities become null,
+    so the file is strict JSON that any reader accepts.
+    """
+    path = Path(path)
+
+    def fallback(value: Any) -> Any:
+        if isinstance(value, (dt.date, dt.datetime)):
+            return value.isoformat()
+        raise TypeError(f"cannot write {type(value).__name__} to JSON ({path})")
+
+    text = json.dumps(plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
+    return write_text(path, text + "\n")
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write text (UTF-8, newlines as given) to `path`, creating its folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8", newline="\n")
+    return path
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def read_csv(path: str | Path) -> pd.DataFrame:
+    """A CSV table; InputError naming the file if it is missing or unreadable."""
+    path = Path(path)
+    try:
+        return pd.read_csv(path)
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=str(path)) from None
+
+
+def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
+    """Write a table as CSV without its index, floats at full precision; same data, same bytes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(path, index=False, float_format="%.17g", lineterminator="\n")
+    return path
+
+
+def read_parquet(path: str | Path) -> pd.DataFrame:
+    """A Parquet table; InputError naming the file if it is missing or cannot be read."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", file=str(path))
+    try:
+        return pd.read_parquet(path)
+    except (OSError, pa.ArrowException, ValueError) as exc:
+        raise InputError(f"cannot read Parquet: {exc}", file=str(path)) from None
+
+
+def write_parquet(path: str | Path, table: pd.DataFrame) -> Path:
+    """Write a table as Parquet (pyarrow) without its index; same data, same bytes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(pa.Table.from_pandas(table, preserve_index=False), path)
+    return path
+
+
+# --------------------------------------------------------------------------- figures and logs
+
+
+def write_figure(stem: str | Path, figure) -> list[Path]:
+    """Save a matplotlib figure as <stem>.png and <stem>.pdf, reproducibly (no timestamps), and close it."""
+    import matplotlib.pyplot as plt  # here: a job that writes no figure does not load matplotlib
+
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
+    figure.savefig(paths[0], dpi=120, metadata={"Software": None})
+    figure.savefig(paths[1], metadata={"Creator": None, "Producer": None, "CreationDate": None})
+    plt.close(figure)
+    return paths
+
+
+@contextlib.contextmanager
+def log_to(path: str | Path, level: int = logging.INFO):
+    """Send remaster's log records to `path` for the duration; an exception is logged with its
+    traceback before it propagates, so a failed workflow job's log says why."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    logger = logging.getLogger("remaster")
+    logger.addHandler(handler)
+    previous = logger.level
+    logger.setLevel(level)
+    try:
+        yield logger
+    except Exception:
+        logger.exception("failed")
+        raise
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
+        handler.close()
