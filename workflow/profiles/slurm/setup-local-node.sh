@@ -134,7 +134,7 @@ SlurmctldLogFile=$LOG_DIR/slurmctld.log
 SlurmdLogFile=$LOG_DIR/slurmd.log
 MpiDefault=none
 ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
+TaskPlugin=task/affinity
 ReturnToService=2
 SchedulerType=sched/backfill
 # Cores and memory are both consumable: a job's --mem is reserved on the node.
@@ -198,10 +198,10 @@ EOF
 )
     if [[ ! -f $DBD_CONF ]] || [[ "$(cat $DBD_CONF)" != "$new_dbd" ]]; then
         printf '%s\n' "$new_dbd" > $DBD_CONF
-        conf_changed=1
+        chown slurm:slurm $DBD_CONF && chmod 600 $DBD_CONF
+        stop_daemon slurmdbd "$RUN_DIR/slurmdbd.pid"
     fi
     chown slurm:slurm $DBD_CONF && chmod 600 $DBD_CONF
-    [[ $conf_changed -eq 1 ]] && stop_daemon slurmdbd "$RUN_DIR/slurmdbd.pid"
     if ! pid_alive "$RUN_DIR/slurmdbd.pid"; then
         say "starting slurmdbd"
         /usr/sbin/slurmdbd

@@ -42,21 +42,28 @@ def jobcomp_records(ids: set[str]) -> dict[str, dict[str, str]]:
 
 
 def sacct_records(ids: set[str]) -> dict[str, dict[str, str]]:
-    """sacct's job line of every job in `ids`, with MaxRSS (MB) taken from its steps."""
+    """sacct's job line of every job in `ids`, with its peak memory (MB): the sum of its steps'
+    MaxRSS, since the steps run at once (the batch step holds the plugin's jobstep snakemake, step 0
+    the job's own snakemake and its script), and step 0's alone."""
     if not ids:
         return {}
-    out = subprocess.run(["sacct", "-P", "-n", "--units=M", "-j", ",".join(sorted(ids, key=int)),
-                          "-o", "JobIDRaw,State,ElapsedRaw,MaxRSS,ReqMem,ExitCode"],
-                         capture_output=True, text=True, check=True).stdout
+    query = subprocess.run(["sacct", "-P", "-n", "--units=M", "-j", ",".join(sorted(ids, key=int)),
+                            "-o", "JobIDRaw,State,ElapsedRaw,MaxRSS,ReqMem,ExitCode"], capture_output=True, text=True)
+    if query.returncode != 0:
+        print(f"summarize-run: sacct failed, no peak memory recorded: {query.stderr.strip()}")
+        return {}
+    out = query.stdout
     records: dict[str, dict[str, str]] = {}
     for line in out.splitlines():
         job_id, state, elapsed, max_rss, req_mem, exit_code = line.split("|")
         main = job_id.split(".")[0]
-        record = records.setdefault(main, {"max_rss_mb": 0.0})
+        record = records.setdefault(main, {"max_rss_mb": 0.0, "step_rss_mb": 0.0})
         if "." not in job_id:
             record.update(state=state.split()[0], elapsed=elapsed, req_mem=req_mem, exit_code=exit_code)
         if max_rss:
-            record["max_rss_mb"] = max(record["max_rss_mb"], float(max_rss.rstrip("M")))
+            record["max_rss_mb"] += float(max_rss.rstrip("M"))
+            if not job_id.endswith((".batch", ".extern")):
+                record["step_rss_mb"] = max(record["step_rss_mb"], float(max_rss.rstrip("M")))
     return records
 
 
@@ -76,6 +83,30 @@ def command_output(*command: str) -> str:
         return ""
 
 
+def markdown(summary: dict) -> str:
+    """The summary as a short Markdown page: the run in a few lines, then a table of the rules."""
+    lines = [f"# SLURM, one node: measured {summary['date'][:10]} at {summary['commit']}", "",
+             f"- {summary['what']}",
+             f"- node: {summary['machine']['node']}; {summary['versions']['slurm']}, snakemake "
+             f"{summary['versions']['snakemake']}, snakemake-executor-plugin-slurm "
+             f"{summary['versions']['snakemake-executor-plugin-slurm']}; job status by {summary['status_query']}",
+             f"- campaigns: {', '.join(summary['campaigns'])}; `--jobs {summary['jobs_option']}`",
+             f"- wall time **{summary['wall_time_s']:.0f} s**, snakemake exit status {summary['exit_status']}, "
+             f"steps {summary['snakemake_steps_done']}",
+             f"- SLURM jobs: {summary['slurm_jobs']} ({', '.join(f'{n} {s}' for s, n in summary['slurm_states'].items())}); "
+             f"job elapsed time: {summary['job_elapsed_s'].get('total')} s in all, median "
+             f"{summary['job_elapsed_s'].get('median')} s, max {summary['job_elapsed_s'].get('max')} s; "
+             f"the node's cores busy {100 * (summary['node_busy_fraction'] or 0):.0f} % of the wall time",
+             "", "| rule | SLURM jobs | elapsed s (median / max) | peak MB, all steps (job's step) | asked MB (--mem) |",
+             "|---|---|---|---|---|"]
+    for rule, entry in summary["per_rule"].items():
+        elapsed = entry["elapsed_s"]
+        lines.append(f"| {rule} | {entry['slurm_jobs']} | {elapsed.get('median', '')} / {elapsed.get('max', '')} | "
+                     f"{entry.get('max_rss_mb', '')} ({entry.get('max_job_step_rss_mb', '')}) | "
+                     f"{', '.join(map(str, entry['requested_mem_mb']))} |")
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     for name in ("results", "checkout", "started", "ended", "status", "jobs", "campaigns", "accounting",
@@ -93,7 +124,8 @@ def main() -> None:
     per_rule: dict[str, dict[str, list]] = {}
     states: dict[str, int] = {}
     for job_id, rule in rule_of.items():
-        entry = per_rule.setdefault(rule, {"elapsed": [], "wait": [], "rss": [], "req_mem": set(), "states": []})
+        entry = per_rule.setdefault(rule, {"elapsed": [], "wait": [], "rss": [], "step_rss": [], "req_mem": set(),
+                                           "states": []})
         record = completion.get(job_id, {})
         state = accounting.get(job_id, {}).get("state") or record.get("JobState", "UNKNOWN")
         states[state] = states.get(state, 0) + 1
@@ -108,6 +140,7 @@ def main() -> None:
         if accounting.get(job_id, {}).get("elapsed"):
             elapsed = float(accounting[job_id]["elapsed"])
             entry["rss"].append(accounting[job_id]["max_rss_mb"])
+            entry["step_rss"].append(accounting[job_id]["step_rss_mb"])
         if elapsed is not None:
             entry["elapsed"].append(elapsed)
 
@@ -118,6 +151,7 @@ def main() -> None:
                        "requested_mem_mb": sorted(entry["req_mem"])}
         if entry["rss"]:
             rules[rule]["max_rss_mb"] = round(max(entry["rss"]), 1)
+            rules[rule]["max_job_step_rss_mb"] = round(max(entry["step_rss"]), 1)
         failed = [s for s in entry["states"] if s != "COMPLETED"]
         if failed:
             rules[rule]["not_completed"] = failed
@@ -151,6 +185,7 @@ def main() -> None:
         "per_rule": rules,
     }
     Path(args.out).write_text(json.dumps(summary, indent=2) + "\n")
+    Path(args.out).with_suffix(".md").write_text(markdown(summary))
     print(json.dumps({k: summary[k] for k in ("wall_time_s", "exit_status", "snakemake_steps_done", "slurm_jobs",
                                               "slurm_states", "job_elapsed_s", "node_busy_fraction")}))
 
