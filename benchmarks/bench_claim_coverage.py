@@ -27,6 +27,7 @@ from remaster.campaigns.simulation import true_marker_positions
 from remaster.inference import blocks, fit, metrics
 from remaster.loop import loop_closure
 from remaster.loop.report import LoopReport
+from remaster.loop.settings import settings_from
 from remaster.robot import kinematics
 from remaster.units import SECONDS_PER_HOUR
 
@@ -56,9 +57,10 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     campaign = folders.read_campaign(folder, repo_root=REPO)
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
-    settings = loop_closure.settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
-    result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings)
-    files.write_json(folder.parent / "loop.json", result.report)
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(SEED),
+                                             settings)
+    result.report.write(folder.parent / "loop.json")
     report, samples = LoopReport.read(folder.parent / "loop.json"), result.samples
     robot = comparison.robot_identity(campaign)
     claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, fit.mode_summary(laplace),

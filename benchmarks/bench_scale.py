@@ -29,6 +29,7 @@ from remaster.campaigns import folders
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit
 from remaster.loop import loop_closure
+from remaster.loop.settings import settings_from
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER_STEPS = 2_000  # per chain, half burn-in: enough to time a step
@@ -89,7 +90,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
     record("accuracy", measured(accuracy.accuracy_tables, campaign, sensor, registration, laplace, samples,
                                 seeding.generator(seed, "scale", "accuracy"), config["accuracy"]["draws"],
                                 config["accuracy"]["random_configurations"]))
-    settings = loop_closure.settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
     record("loop closure", measured(loop_closure.loop_closure_stage, campaign, sensor, registration, laplace,
                                     seeding.generator(seed, "scale", "loop"), settings))
     return out

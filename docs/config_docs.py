@@ -9,9 +9,9 @@ Every key gets a row: its path (fit/paper/samples), type, default, allowed value
 all taken from the schema. Defaults come from the schema only, never from config.yaml (the file a
 user edits for a run).
 
-It lives beside the page rather than in the package: remaster's modules leave files to remaster.io
-and the command line (tests/test_architecture.py), and this is a tool of the repository, not of the
-library.
+It lives beside the page rather than in the package: remaster's modules leave files to the few that
+test_architecture.FILE_ACCESS names (remaster.files among them) and the command line, and this is a
+tool of the repository, not of the library.
 """
 
 from __future__ import annotations

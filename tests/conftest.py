@@ -1,5 +1,8 @@
-"""Shared fixtures: the bundled iiwa model and a DH robot (UR5 nominal table)."""
+"""Shared fixtures: the bundled iiwa model and a DH robot (UR5 nominal table); the workflow's
+configuration with the schema's defaults, and the loop closure's settings and report from it."""
 
+import copy
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +11,7 @@ import pytest
 from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
+SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
 UR5_URDF = Path(__file__).resolve().parent / "data" / "ur5_nominal.urdf"
 # Universal Robots UR5 nominal standard DH table [a, alpha, d, theta offset]; ur5_nominal.urdf is the same chain.
@@ -36,15 +40,41 @@ def rng():
     return np.random.default_rng(20181113)
 
 
+def validated_config(config=None) -> dict:
+    """A copy of `config` (default: none at all) validated against the workflow's schema, with its
+    defaults filled in as the workflow fills them: the schema is the one place they live."""
+    from snakemake.utils import validate
+
+    config = copy.deepcopy(dict(config or {}))
+    validate(config, str(SCHEMA))
+    return config
+
+
+def loop_settings(config=None, **changes):
+    """The loop closure's settings (`remaster.loop.settings.LoopSettings`) of a configuration
+    (`validated_config`: the schema's defaults where it says nothing), with `changes` to its fields."""
+    from remaster.loop.settings import settings_from
+
+    config = validated_config(config)
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    return dataclasses.replace(settings, **changes)
+
+
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
-    """A loop closure's report (`remaster.loop.report.LoopReport`) with what the later stages read:
-    the refit's parameter rows, the effects added, the closure test, and neutral values for the rest
-    (1 kg tool plate, 0.5 deg marks' tolerance); `fields` overrides any top-level key."""
+    """A loop closure's report (`remaster.loop.report.LoopReport`) as read from its file, with what
+    the later stages read: the refit's parameter rows, the effects added, the closure test, and
+    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model);
+    `fields` overrides any top-level key."""
     from remaster.loop.report import LoopReport
 
-    content = {"effects_added": list(effects), "refit": {"parameters": list(parameters)},
+    accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
+    content = {"sensor": "laser_tracker", "evidence": "", "selection_data": "optimization set only",
                "settings": {"payload_mass_kg": 1.0, "payload_com_m": [0.0, 0.0, 0.02],
                             "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}}},
-               "sigma_after_mm": 0.01, "prior_dominated": [], "identifiability": {"dropped": {}},
-               "closure": dict(closure or {}), "residual_gp": None, "warnings": [], **fields}
+               "effects_added": list(effects), "explained_fraction_when_added": {}, "candidates": {}, "rounds": [],
+               "validation_rmse_before_mm": 0.02, "validation_rmse_after_mm": 0.02, "sigma_before_mm": 0.01,
+               "sigma_after_mm": 0.01, "before": accuracy, "after": accuracy, "identifiability": {"dropped": {}},
+               "prior_dominated": [], "warnings": [], "refit": {"parameters": list(parameters)},
+               "zero_offset_shifts": [], "closure": dict(closure or {}), "residual_gp": None,
+               "noise_model": {"offered": False, "chosen": "isotropic", "why": "not a laser tracker"}, **fields}
     return LoopReport.of(content, source)

@@ -311,7 +311,7 @@ def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
 def test_a_loop_report_missing_a_key_names_the_file_and_the_key(tmp_path):
     """loop_closure.json is read once into a typed report (`LoopReport.read`): a field the later
     stages need that is missing is named with its file and its path of keys."""
-    content = loop_report(effects=["joint_compliance"]).details
+    content = loop_report(effects=["joint_compliance"]).to_json()
     path = tmp_path / "loop_closure.json"
     files.write_json(path, content)
     report = LoopReport.read(path)

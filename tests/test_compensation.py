@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import files, spatial
+from remaster import files, layout, spatial
 from remaster.analysis import compensation, prediction
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
@@ -302,13 +302,13 @@ def twin_results(tmp_path_factory):
     campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
     root = tmp_path_factory.mktemp("results")
     folder = root / "kuka-twin" / "laser_tracker"
-    files.write_json(folder / "registration.json", fit.registration_stage(campaign, "laser_tracker").report())
-    files.write_json(folder / "fit" / "laplace.json", laplace_content("kuka-twin", "laser_tracker"))
-    files.write_csv(folder / "fit" / "summary.csv", fit.mode_summary(laplace).reset_index())
-    files.write_parquet(folder / "fit" / "samples_default.parquet", pd.DataFrame())
-    files.write_json(folder / "loop_closure.json", report.details)
-    files.write_parquet(folder / "loop_closure" / "samples.parquet", samples)
-    files.write_parquet(folder / "loop_closure" / "residual_gp.parquet", pd.DataFrame())
+    files.write_json(folder / layout.REGISTRATION, fit.registration_stage(campaign, "laser_tracker").report())
+    files.write_json(folder / layout.LAPLACE, laplace_content("kuka-twin", "laser_tracker"))
+    files.write_csv(folder / layout.SUMMARY, fit.mode_summary(laplace).reset_index())
+    files.write_parquet(folder / layout.DEFAULT_SAMPLES, pd.DataFrame())
+    report.write(folder / layout.LOOP_CLOSURE)
+    files.write_parquet(folder / layout.LOOP_SAMPLES, samples)
+    files.write_parquet(folder / layout.LOOP_GP, pd.DataFrame())
     return root, campaign
 
 

@@ -10,17 +10,17 @@ import pytest
 
 from remaster import files
 from remaster.campaigns import folders, scenario
-from remaster.campaigns.campaign import sensor_data
+from remaster.campaigns.campaign import SETS, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import blocks, fit
 from remaster.loop import loop_closure
-from remaster.reporting import figures_loop
+from remaster.reporting import figures_loop, tables_loop
 from remaster.robot.gravity import gravity_torques
 
-from .conftest import REPO
+from .conftest import REPO, loop_report, loop_settings
 
 NOISE = 1e-5  # the laser tracker's, m per axis
-LAPLACE_ONLY = loop_closure.LoopSettings(mcmc=None)
+LAPLACE_ONLY = loop_settings(mcmc=None)
 OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]
 COMPLIANCE = [0.0, 2.5e-5, 0.0, 3.0e-5, 0.0, 5.0e-5, 0.0]  # rad/(N m)
 PAYLOAD = {"mass": 1.0, "com": [0.0, 0.0, 0.02]}  # the tool plate the loop's settings assume by default
@@ -185,17 +185,17 @@ def test_an_undeclared_effect_is_named_and_removed(iiwa, effect):
     result = closed(iiwa, simulated(iiwa, effect, truth, sensor_changes))
     report = result.report
     for score in ("log_evidence_gain", "bic_gain"):
-        first_round = {name: scores[0].get(score, -np.inf) for name, scores in report["candidates"].items()}
+        first_round = {name: scores[0].get(score, -np.inf) for name, scores in report.candidates.items()}
         assert max(first_round, key=first_round.get) == effect, score
-    assert report["effects_added"] == [effect]
-    assert report["after"]["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE
-    assert report["before"]["validation"]["rms_per_axis_mm"] * 1e-3 > 4 * NOISE  # there was something to find
-    assert report["sigma_after_mm"] * 1e-3 == pytest.approx(NOISE, rel=0.25)
+    assert report.effects_added == (effect,)
+    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE
+    assert report.before["validation"]["rms_per_axis_mm"] * 1e-3 > 4 * NOISE  # there was something to find
+    assert report.sigma_after == pytest.approx(NOISE, rel=0.25)
 
 
 def test_nothing_is_added_when_nothing_is_missing(iiwa):
     result = closed(iiwa, simulated(iiwa, "none"))
-    report = json.loads(json.dumps(result.report, allow_nan=False))
+    report = json.loads(json.dumps(result.report.to_json(), allow_nan=False))
     assert report["effects_added"] == []
     # drift too (the table has a time column), and the residual GP last
     assert set(report["candidates"]) == set(blocks.EXTENSIONS) | {"residual_gp"}
@@ -208,18 +208,18 @@ def test_nothing_is_added_when_nothing_is_missing(iiwa):
 def test_two_effects_are_both_found(iiwa):
     truth = {"joint_compliance": COMPLIANCE, "payload": PAYLOAD}
     report = closed(iiwa, simulated(iiwa, "compliance+sensor_scale", truth, {"scale_error": 2e-4})).report
-    assert report["effects_added"] == ["joint_compliance", "sensor_scale"]
-    assert [r["added"] for r in report["rounds"]] == ["joint_compliance", "sensor_scale", None]
-    assert report["after"]["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE
+    assert report.effects_added == ("joint_compliance", "sensor_scale")
+    assert [r["added"] for r in report.rounds] == ["joint_compliance", "sensor_scale", None]
+    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE
 
 
 def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiwa):
     """On the compliance campaign, whose payload (2.5 kg) is not the settings' (1 kg): the
     compliances come out right, and their payload terms say how far the payload is off."""
     truth = EFFECTS["joint_compliance"][0]
-    settings = loop_closure.LoopSettings(mcmc={"chains": 2, "samples": 3000, "burn_in": 1000})
+    settings = loop_settings(mcmc={"chains": 2, "samples": 3000, "burn_in": 1000})
     result = closed(iiwa, simulated(iiwa, "joint_compliance", truth), settings, seed=1)
-    report = json.loads(json.dumps(result.report, allow_nan=False))
+    report = json.loads(json.dumps(result.report.to_json(), allow_nan=False))
     mcmc = report["refit"]["mcmc"]
     assert mcmc["chains"] == 2 and mcmc["converged"] and mcmc["max_rhat"] <= 1.05 and mcmc["min_ess"] >= 200
     last = mcmc["attempts"][-1]
@@ -253,7 +253,7 @@ def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiw
             np.testing.assert_allclose(dots.get_offsets(),
                                        np.column_stack([signature.effect[:, k], signature.residual[:, k]]) / 1e-3)
     histograms = figures_loop.residual_histograms(result.residuals, "before/after")
-    for ax, set_name in zip(histograms.axes, loop_closure.SETS):
+    for ax, set_name in zip(histograms.axes, SETS):
         labels = [t.get_text() for t in ax.get_legend().get_texts()]
         for when in ("before", "after"):
             rmse = np.sqrt(np.mean(np.sum(result.residuals[when][set_name] ** 2, axis=1))) / 1e-3
@@ -269,10 +269,10 @@ def test_the_twin_is_explained_by_its_four_undeclared_effects(iiwa):
     truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     assert any(truth["sensors"]["laser_tracker"]["marker_error_m"])
     report = closed(campaign.chain, campaign.sensors["laser_tracker"]).report
-    assert set(report["effects_added"]) == set(truth["effects"]) | {"marker_offset"}
-    assert report["before"]["validation"]["mean_error_mm"] > 1.0
-    assert report["after"]["validation"]["mean_error_mm"] < 0.05
-    assert report["after"]["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * NOISE
+    assert set(report.effects_added) == set(truth["effects"]) | {"marker_offset"}
+    assert report.before["validation"]["mean_error_mm"] > 1.0
+    assert report.after["validation"]["mean_error_mm"] < 0.05
+    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * NOISE
 
 
 def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
@@ -280,11 +280,10 @@ def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
     is listed without scores, not a KeyError."""
     scored = {"round": 1, "log_evidence_gain": 60.0, "cv_rmse_mm": 0.5, "cv_gain": 0.25,
               "cv_mse_fall_in_se": 4.0, "bic_gain": 120.0, "explained_fraction": 0.8, "passed": True}
-    report = {"effects_added": ["link_geometry"],
-              "candidates": {"link_geometry": [scored],
-                             "marker_offset": [{"round": 1, "skipped": "no parameter of this block is identifiable"},
-                                               {**scored, "round": 2, "bic_gain": 1.0}]}}
-    table = loop_closure.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
+    nothing_seen = {"round": 1, "skipped": "no parameter of this block is identifiable"}
+    report = loop_report(effects=["link_geometry"], candidates={"link_geometry": [scored], "marker_offset": [
+        nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}]})
+    table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
     assert table.loc[("link_geometry", 1), "Added"] == "yes"
     assert table.loc[("link_geometry", 1), "CV fall (%)"] == pytest.approx(25.0)
     skipped = table.loc[("marker_offset", 1)]
@@ -302,8 +301,8 @@ def test_the_selection_does_not_read_the_validation_set(iiwa):
     table.loc[validation, ["x", "y", "z"]] += np.random.default_rng(5).normal(0.0, 2e-3, (validation.sum(), 3))
     moved = dataclasses.replace(sensor, table=table)
     first, second = closed(iiwa, sensor).report, closed(iiwa, moved).report
-    assert first["effects_added"] == second["effects_added"] == ["link_geometry"]
-    assert first["candidates"] == second["candidates"]
-    assert first["refit"]["mode"] == second["refit"]["mode"]
-    assert second["after"]["validation"]["rmse_mm"] > 10 * first["after"]["validation"]["rmse_mm"]
-    assert first["after"]["optimization"] == second["after"]["optimization"]
+    assert first.effects_added == second.effects_added == ("link_geometry",)
+    assert first.candidates == second.candidates
+    assert first.refit["mode"] == second.refit["mode"]
+    assert second.after["validation"]["rmse_mm"] > 10 * first.after["validation"]["rmse_mm"]
+    assert first.after["optimization"] == second.after["optimization"]

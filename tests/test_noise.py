@@ -10,10 +10,9 @@ from snakemake.utils import validate
 from remaster import files, noise
 from remaster.campaigns import folders, scenario, simulation
 from remaster.inference import blocks, evidence, fit
-from remaster.loop import loop_closure
-from remaster.loop.loop_closure import LoopSettings
+from remaster.loop import selection as loop_selection
 
-from .conftest import REPO
+from .conftest import REPO, loop_settings
 
 
 def test_whitening_turns_the_covariance_into_the_identity_and_the_log_det_is_its_determinant(rng):
@@ -70,10 +69,8 @@ def noise_choice(campaign):
     registration = fit.registration_stage(campaign, "laser_tracker")
     data = blocks.readings(campaign.chain, sensor, "optimization")
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
-    selection = loop_closure.select(campaign.chain, data, sensor.marker, registration.t_nr,
-                                    {"zero_offsets.q1": 0.0}, poses, LoopSettings(candidates=(), residual_gp=None),
-                                    tracker=True)
-    return selection
+    return loop_selection.select(campaign.chain, data, sensor.marker, registration.t_nr, {"zero_offsets.q1": 0.0},
+                                 poses, loop_settings(candidates=(), residual_gp=None), tracker=True)
 
 
 @pytest.mark.parametrize("growth", [0.0, 2.0])
@@ -129,9 +126,11 @@ def test_a_bad_tracker_noise_prior_is_refused_by_the_schema(key, value, says):
 
 
 def test_the_config_turns_the_tracker_noise_off_or_sets_its_prior():
-    off = loop_closure.settings_from({**files.read_yaml(REPO / "config.yaml")["loop_closure"],
-                                      "tracker_noise": {"enabled": False}})
-    assert off.tracker_noise is None
-    wide = loop_closure.settings_from({**files.read_yaml(REPO / "config.yaml")["loop_closure"],
-                                       "tracker_noise": {"growth_per_m": 0.5, "growth_factor": 10}})
+    config = files.read_yaml(REPO / "config.yaml")
+
+    def tracker_noise(section):  # config.yaml with this tracker_noise section, the schema filling the rest
+        return loop_settings({**config, "loop_closure": {**config["loop_closure"], "tracker_noise": section}})
+
+    assert tracker_noise({"enabled": False}).tracker_noise is None
+    wide = tracker_noise({"growth_per_m": 0.5, "growth_factor": 10})
     assert wide.tracker_noise == {"growth_per_m": 0.5, "growth_factor": 10.0}

@@ -1,7 +1,6 @@
 """The residual Gaussian process against known answers, the closure test, and the loop on a robot
 whose effect is in no candidate's family (a transmission's cyclic error)."""
 
-import dataclasses
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ from remaster.campaigns.campaign import sensor_data
 from remaster.inference import evidence, fit, residual_gp
 from remaster.loop import closure, loop_closure
 
-from .conftest import REPO
+from .conftest import REPO, loop_settings
 
 NOISE = 2e-5
 
@@ -165,33 +164,33 @@ def cyclic(iiwa):
 
 def run(iiwa, cyclic, **changes):
     sensor, t_nr, held = cyclic
-    settings = dataclasses.replace(loop_closure.LoopSettings(mcmc=None), **changes)
-    return loop_closure.close_loop(iiwa, sensor, t_nr, held, np.random.default_rng(0), settings).report
+    return loop_closure.close_loop(iiwa, sensor, t_nr, held, np.random.default_rng(0),
+                                   loop_settings(mcmc=None, **changes)).report
 
 
 def test_an_effect_outside_the_candidates_is_explained_by_the_gp_and_traced_to_its_joints(iiwa, cyclic):
     report = run(iiwa, cyclic)
-    assert report["effects_added"][-1] == "residual_gp"
-    gp = report["residual_gp"]
+    assert report.effects_added[-1] == "residual_gp"
+    gp = report.residual_gp
     assert gp["added"] and gp["structure_found"]
     assert set(gp["depends_on"][:2]) == {"q2", "q4"}
     # what is left is the sensor's noise, by the GP's own account, and close to it held out
     assert gp["hyperparameters"]["noise_std_m"] == pytest.approx(cyclic[0].noise, rel=0.2)
-    assert report["closure"]["rounds"][-1]["ratio_to_floor"] < 1.5
-    assert report["validation_rmse_after_mm"] < 0.4 * report["validation_rmse_before_mm"]
+    assert report.closure["rounds"][-1]["ratio_to_floor"] < 1.5
+    assert report.validation_rmse_after_mm < 0.4 * report.validation_rmse_before_mm
     # a parametric effect added on the way explains a small share and is not named as the cause
-    assert report["closure"]["main_causes"] == ["residual_gp"]
-    for name, value in report["closure"]["share_of_structured_residual"].items():
+    assert report.closure["main_causes"] == ["residual_gp"]
+    for name, value in report.closure["share_of_structured_residual"].items():
         assert (value is not None and value >= closure.MAIN_CAUSE_SHARE) == (name == "residual_gp")
 
 
 def test_without_the_gp_the_loop_says_it_is_not_closed_and_where_the_residual_lives(iiwa, cyclic):
     report = run(iiwa, cyclic, residual_gp=None)
-    assert "residual_gp" not in report["effects_added"]
-    assert report["closure"]["closed"] is False
-    assert report["closure"]["main_causes"] == []
-    assert any(w.startswith("loop not closed") and "not its cause" in w for w in report["warnings"])
-    assert any(w.startswith("no candidate effect explains what is left") for w in report["warnings"])
+    assert "residual_gp" not in report.effects_added
+    assert report.closure["closed"] is False
+    assert report.closure["main_causes"] == []
+    assert any(w.startswith("loop not closed") and "not its cause" in w for w in report.warnings)
+    assert any(w.startswith("no candidate effect explains what is left") for w in report.warnings)
 
 
 def test_the_gp_written_with_the_loop_results_is_the_gp_the_loop_fitted():

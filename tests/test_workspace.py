@@ -7,8 +7,7 @@ import pandas as pd
 import pytest
 import scipy.optimize
 
-from remaster import files
-from remaster import spatial
+from remaster import files, spatial
 from remaster.analysis import accuracy, comparison, prediction
 from remaster.analysis import transfer, workspace
 from remaster.campaigns import folders
@@ -18,10 +17,11 @@ from remaster.inference import blocks, evidence, fit, metrics
 from remaster.inference.model import SIGMA
 from remaster.loop import loop_closure
 from remaster.loop.report import LoopReport
+from remaster.loop.settings import settings_from
 from remaster.robot import registration
 from remaster.robot.priors import priors_from
 
-from .conftest import REPO
+from .conftest import REPO, loop_settings
 
 SEED = 20181113
 DRAWS, RANDOM = 400, 300  # fewer than the pipeline's 2000 x 1000: the quantiles are stable to ~1 %
@@ -124,12 +124,11 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         registered = fit.registration_stage(campaign, sensor)
         _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
         laplace = fit.LaplaceReport.of(_laplace_content[key])
-        settings = loop_closure.settings_from(config["loop_closure"], config["priors"],
-                                                          config["fit"]["cross_check"])
+        settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
         result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace,
                                                  np.random.default_rng(SEED), settings)
         path = tmp_path_factory.mktemp("loop") / "loop_closure.json"
-        files.write_json(path, result.report)
+        result.report.write(path)
         _fitted[key] = (campaign, laplace, LoopReport.read(path), result.samples)
     return _fitted[key]
 
@@ -173,7 +172,7 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     registration: in the folded coordinates (`inference.gauge`) the refit meets R-hat and ESS in
     its first run or after one doubling (in the model's own parameters it missed them after three),
     and nothing warns about it."""
-    mcmc = fitted("kuka-twin", sensor, tmp_path_factory)[2].details["refit"]["mcmc"]
+    mcmc = fitted("kuka-twin", sensor, tmp_path_factory)[2].refit["mcmc"]
     assert mcmc["converged"] and len(mcmc["attempts"]) <= 2 and mcmc["coordinates"]["chosen"] == "folded"
     assert mcmc["max_rhat"] <= mcmc["criteria"]["max_rhat"] and mcmc["min_ess"] >= mcmc["criteria"]["min_ess"]
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
@@ -231,7 +230,7 @@ def cubes_calibration(priors) -> prediction.Calibration:
     threshold on identifiability did)."""
     campaign, laplace, report, _ = fitted("kuka-cubes", "laser_tracker", None)
     effects = report.effects_added
-    sensor, settings = campaign.sensors["laser_tracker"], loop_closure.LoopSettings()
+    sensor, settings = campaign.sensors["laser_tracker"], loop_settings(CONFIG)
     data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registered = fit.registration_stage(campaign, "laser_tracker")
     model, _ = blocks.extended_model(campaign.chain, data, sensor.marker, registered.t_nr,

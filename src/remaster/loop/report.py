@@ -1,72 +1,142 @@
-"""loop_closure.json as the stages after the loop closure read it: one typed view, checked once.
+"""loop_closure.json, typed: the loop closure's report of one sensor as `loop_closure.close_loop` makes
+it, `write` writes it and every later stage reads it (`LoopReport.read`, checked once).
 
-`loop_closure.loop_closure_stage` writes the report; the calibrated files, predictions,
-comparisons, workspace accuracy, uncertainty budget, certificate and figures read the fields of
-`LoopReport` (`LoopReport.read`). A missing field is an InputError naming the file and the key.
-The loop's own tables, which show the selection in full (candidates, rounds, noise model), read
-`details`, the report as written.
+The fields are the file's top-level keys, with their units in their names (mm); the properties
+give what the later stages use in SI. The file is written with sorted keys, so its bytes depend on
+the values only. Reading a file that lacks a key the later stages need (or any field) is an
+InputError naming the file and the key.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from functools import cached_property
 from typing import Any
 
 import pandas as pd
 
 from ..errors import InputError, report_reader
-from ..files import read_json
+from ..files import read_json, write_json
 from ..units import DEG, MM
+
+NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
+OPTIONAL = ("campaign",)  # written when known (`loop_closure_stage` sets it; `close_loop` alone does not)
 
 
 @dataclass(frozen=True, eq=False)
 class LoopReport:
-    """One sensor's loop closure. campaign: its name (None when not recorded); effects_added: in
-    the order added; parameters: the refit's table, one row per parameter (parameter, block, mean
-    and std SI, status, prior ratio...);
-    payload_mass (kg) and payload_com (3,) m: the tool plate the gravity torques assumed;
-    held_zero_offset_std (rad): the controller marks' tolerance on a joint no sensor sees;
-    sigma_after (m); prior_dominated: parameters the data barely moved from their prior;
-    unseen_by_data: parameters the data cannot see at all; closure: the closure test's verdict
-    and numbers; residual_gp: the residual GP's section (None when not tried); warnings;
-    details: the whole report, for the loop's own tables."""
+    """One sensor's loop closure.
 
-    source: str
-    campaign: str | None
+    sensor, campaign (None when not recorded); evidence, selection_data: what the selection used
+    (sentences); settings: `LoopSettings.report()`; effects_added: in the order added;
+    explained_fraction_when_added: {effect: share of the residual it explained when added};
+    candidates: {candidate: [its scores in each round, with the round number]}; rounds: ({'round',
+    'model', 'added'}, ...); validation_rmse_before_mm, validation_rmse_after_mm, sigma_before_mm,
+    sigma_after_mm (mm); before, after: {set: accuracy measures (mm)}; identifiability: the final
+    model's reduction ({'dropped', 'weak', ...}); prior_dominated: parameters the data barely moved
+    from their prior; warnings; refit: {'mode', 'mcmc', 'parameters'} (the MCMC refit, and the
+    parameter table as records); zero_offset_shifts: how far each zero-offset moved; closure: the
+    closure test's verdict and numbers; residual_gp: the residual GP's section (None when not
+    tried); noise_model: the laser tracker's noise model chosen or why not offered; source: the
+    file it was read from (not written)."""
+
+    sensor: str
+    evidence: str
+    selection_data: str
+    settings: Mapping[str, Any]
     effects_added: tuple[str, ...]
-    parameters: pd.DataFrame
-    payload_mass: float
-    payload_com: tuple[float, float, float]
-    held_zero_offset_std: float
-    sigma_after: float
+    explained_fraction_when_added: Mapping[str, float]
+    candidates: Mapping[str, list]
+    rounds: tuple[Mapping[str, Any], ...]
+    validation_rmse_before_mm: float
+    validation_rmse_after_mm: float
+    sigma_before_mm: float
+    sigma_after_mm: float
+    before: Mapping[str, Mapping[str, Any]]
+    after: Mapping[str, Mapping[str, Any]]
+    identifiability: Mapping[str, Any]
     prior_dominated: tuple[str, ...]
-    unseen_by_data: tuple[str, ...]
+    warnings: tuple[str, ...]
+    refit: Mapping[str, Any]
+    zero_offset_shifts: tuple[Mapping[str, Any], ...]
     closure: Mapping[str, Any]
     residual_gp: Mapping[str, Any] | None
-    warnings: tuple[str, ...]
-    details: Mapping[str, Any]
+    noise_model: Mapping[str, Any]
+    campaign: str | None = None
+    source: str = "loop_closure.json"
+
+    # ----------------------------------------------------------------------- what the later stages use
+
+    @cached_property
+    def parameters(self) -> pd.DataFrame:
+        """The refit's table, one row per parameter (parameter, block, mean and std SI, status, prior ratio...)."""
+        return pd.DataFrame(self.refit["parameters"])
+
+    @property
+    def payload_mass(self) -> float:
+        """kg: the tool plate the gravity torques assumed."""
+        return float(self.settings["payload_mass_kg"])
+
+    @property
+    def payload_com(self) -> tuple[float, float, float]:
+        """(3,) m: the tool plate's centre of mass in the flange frame."""
+        return tuple(float(v) for v in self.settings["payload_com_m"])
+
+    @property
+    def held_zero_offset_std(self) -> float:
+        """rad: the controller marks' tolerance on a joint no sensor sees."""
+        return float(self.settings["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
+
+    @property
+    def sigma_after(self) -> float:
+        """m: the noise std of the selected model."""
+        return float(self.sigma_after_mm) * MM
+
+    @property
+    def unseen_by_data(self) -> tuple[str, ...]:
+        """Parameters the data cannot see at all."""
+        return tuple(self.identifiability["dropped"])
+
+    # ----------------------------------------------------------------------- the file
+
+    def to_json(self) -> dict:
+        """The content of loop_closure.json: {key: value}, the sequences as lists (`write` turns any
+        NumPy value into a plain number)."""
+        out = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in NOT_WRITTEN or (f.name in OPTIONAL and value is None):
+                continue
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    def write(self, path):
+        """Write loop_closure.json (`files.write_json`: sorted keys, same report, same bytes); returns its path."""
+        return write_json(path, self.to_json())
 
     @classmethod
     def of(cls, content: Mapping, source: str = "loop_closure.json") -> "LoopReport":
-        """From the JSON content; a missing key is an InputError naming the file and the key."""
+        """From the JSON content; a missing key (or one of the nested keys the properties read) is an
+        InputError naming the file and the key."""
         get = report_reader(content, source, "missing in the loop-closure report")
-        parameters, effects = get("refit", "parameters"), get("effects_added")
-        if not isinstance(parameters, list):
+        for path in (("settings", "payload_mass_kg"), ("settings", "payload_com_m"),
+                     ("settings", "priors", "std_display_units", "held_zero_offset_deg"),
+                     ("identifiability", "dropped"), ("refit", "parameters")):
+            get(*path)
+        if not isinstance(get("refit", "parameters"), list):
             raise InputError("not a list of parameters", file=source, key="refit/parameters")
-        if not isinstance(effects, list):
+        if not isinstance(get("effects_added"), list):
             raise InputError("not a list of effects", file=source, key="effects_added")
-        return cls(source=source, campaign=content.get("campaign"), effects_added=tuple(str(e) for e in effects),
-                   parameters=pd.DataFrame(parameters),
-                   payload_mass=float(get("settings", "payload_mass_kg")),
-                   payload_com=tuple(float(v) for v in get("settings", "payload_com_m")),
-                   held_zero_offset_std=float(get("settings", "priors", "std_display_units",
-                                                  "held_zero_offset_deg")) * DEG,
-                   sigma_after=float(get("sigma_after_mm")) * MM,
-                   prior_dominated=tuple(get("prior_dominated")),
-                   unseen_by_data=tuple(get("identifiability", "dropped")),
-                   closure=dict(get("closure")), residual_gp=content.get("residual_gp"),
-                   warnings=tuple(get("warnings")), details=content)
+        sequences = ("effects_added", "rounds", "prior_dominated", "warnings", "zero_offset_shifts")
+        numbers = ("validation_rmse_before_mm", "validation_rmse_after_mm", "sigma_before_mm", "sigma_after_mm")
+        values = {}
+        for f in fields(cls):
+            if f.name in NOT_WRITTEN or (f.name in OPTIONAL and f.name not in content):
+                continue
+            value = get(f.name)
+            values[f.name] = tuple(value) if f.name in sequences else float(value) if f.name in numbers else value
+        return cls(**values, source=source)
 
     @classmethod
     def read(cls, path) -> "LoopReport":

@@ -16,7 +16,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..loop.loop_closure import SETS, Signature  # noqa: E402
+from ..campaigns.campaign import SETS  # noqa: E402
+from ..loop.selection import Signature  # noqa: E402
 from ..units import MM  # noqa: E402
 from .figures import _grid, error_histogram_axes, finished  # noqa: E402
 

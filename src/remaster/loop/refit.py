@@ -1,0 +1,116 @@
+"""The selected model refitted by MCMC (`remaster.loop.loop_closure`, step 3), and its parameter table:
+every parameter with its uncertainty, and which ones the data barely moved from their prior.
+
+SI inside; the tables give display units (mm, deg) beside SI.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from ..inference import evidence, fit, gauge, metrics, samplers
+from ..inference.model import SIGMA
+from ..units import DEG, MM
+from .selection import Fitted
+from .settings import LoopSettings
+
+# The refit's Student-t proposal: a t in P dimensions is a Gaussian whose scale varies by a factor
+# sqrt(chi2_dof / dof) shared by all P coordinates, so with few degrees of freedom most draws land
+# at the wrong radius (log-weights spread by ~P / sqrt(2 dof) nats); dof ~ 4 P keeps that spread
+# near 1 nat and the tails still heavier than a Gaussian posterior's.
+PROPOSAL_DOF_PER_PARAMETER = 4
+PROPOSAL_INFLATION = 1.1
+# posterior std / prior std above this: the data barely moved the parameter from its prior
+PRIOR_DOMINATED = 0.5
+
+
+def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
+          ) -> tuple[list[samplers.Chain], dict]:
+    """Chains of the model's posterior by independence Metropolis from its Laplace approximation
+    (`samplers.metropolis_independence`), in the coordinates where that approximation fits best
+    (`gauge.sampling_coordinates`: the model's exact symmetries folded out), run longer (samples
+    and burn-in doubled) until every R-hat <= max_rhat and every ESS >= min_ess, at most
+    max_doublings times. Returns the chains, in the model's own parameters, and a JSON-ready
+    report: the last run's diagnostics, every attempt, the coordinates, and `converged`."""
+    target = fit.PosteriorTarget(mode.model)
+    mean = np.append(mode.theta, mode.sigma)
+    covariance = mode.covariance
+    # the model's exact symmetries are curved ridges in its own parameters, straight in folded ones
+    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(target, mode.model, mean, covariance,
+                                                                               rng)
+    run, criteria = dict(settings.mcmc), settings.convergence
+    attempts = []
+    for attempt in range(int(criteria["max_doublings"]) + 1):
+        started = time.perf_counter()
+        chains = samplers.run_chains(samplers.metropolis_independence, target, rng, int(run["chains"]), mean,
+                                     mean=mean, covariance=covariance, n_samples=int(run["samples"]),
+                                     burn_in=int(run["burn_in"]), dof=PROPOSAL_DOF_PER_PARAMETER * len(mean),
+                                     inflation=PROPOSAL_INFLATION)
+        if folds is not None:
+            chains = [folds.back(c) for c in chains]
+        report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
+        done = fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
+        attempts.append({"samples": int(run["samples"]), "burn_in": int(run["burn_in"]),
+                         "max_rhat": report["max_rhat"], "min_ess": report["min_ess"],
+                         "acceptance_rate": report["acceptance_rate"], "seconds": report["seconds"],
+                         "converged": done})
+        if done:
+            break
+        run = {**run, "samples": 2 * int(run["samples"]), "burn_in": 2 * int(run["burn_in"])}
+    return chains, {**report, "converged": done, "attempts": attempts, "coordinates": coordinates,
+                    "criteria": {"max_rhat": criteria["max_rhat"], "min_ess": criteria["min_ess"]}}
+
+
+def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Per parameter (held ones included) and sigma: mean, std and 95 % interval in SI and in
+    display units, prior std, the posterior / prior std ratio, status, and why the data cannot see
+    it (`unseen_by_data`: kept under its prior, or held without one). From the MCMC samples when
+    given, else the Laplace approximation (mean = mode, interval mode +- 1.96 std)."""
+    model = fitted.model
+    names = list(model.names) + [SIGMA]
+    if samples is not None:
+        summary = fit.moments(samples[names])
+        mean, std, low, high = (summary[c].to_numpy() for c in ("mean", "std", "q2.5", "q97.5"))
+        source = "MCMC (independence Metropolis)"
+    else:
+        mean = np.append(fitted.theta, fitted.mode.sigma)
+        std = np.append(fitted.mode.std, fitted.mode.sigma_std)
+        low, high = mean - metrics.Z95 * std, mean + metrics.Z95 * std
+        source = "posterior mode + Laplace"
+    free = {n: (m, s, lo, hi) for n, m, s, lo, hi in zip(names, mean, std, low, high)}
+    prior = dict(zip(model.names, model.prior_std))
+    reasons = {**{n: "held: not identifiable" for n in model.fixed},
+               **{n: f"held: {why}" for n, why in fitted.reduction.dropped.items() if n in model.fixed}}
+    rows = []
+    for name, scale, unit in list(zip(model.all_names, model.all_scale, model.all_unit)) + [(SIGMA, MM, "mm")]:
+        m, s, lo, hi = free.get(name, (model.fixed.get(name, 0.0), np.nan, np.nan, np.nan))
+        tau = prior.get(name, np.inf)
+        ratio = s / tau if np.isfinite(tau) and np.isfinite(s) else np.nan
+        rows.append({"parameter": name, "block": model.block_of.get(name, "noise"), "mean": m, "std": s,
+                     "q2.5": lo, "q97.5": hi, "unit": unit, "mean_display": m / scale, "std_display": s / scale,
+                     "q2.5_display": lo / scale, "q97.5_display": hi / scale,
+                     "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
+                     "posterior_to_prior_std": ratio, "prior_dominated": bool(ratio > PRIOR_DOMINATED),
+                     "status": "estimated" if name in free else reasons.get(name, "held"),
+                     "unseen_by_data": fitted.reduction.dropped.get(name, ""), "source": source})
+    return pd.DataFrame(rows)
+
+
+def zero_offset_shifts(before: pd.DataFrame, after: pd.DataFrame) -> list[dict]:
+    """How far each zero-offset moved (deg) and in units of its std before and after."""
+    before, after = before.set_index("parameter"), after.set_index("parameter")
+    out = []
+    for name in [n for n in after.index if n.startswith("zero_offsets.")]:
+        first, last = float(before.loc[name, "mean"]) / DEG, float(after.loc[name, "mean"]) / DEG
+        row = {"parameter": name, "before_deg": first, "after_deg": last, "shift_deg": last - first,
+               "std_before_deg": None, "std_after_deg": None, "shift_in_std_before": None, "shift_in_std_after": None}
+        if after.loc[name, "status"] == "estimated":
+            row["std_before_deg"] = float(before.loc[name, "std"]) / DEG
+            row["std_after_deg"] = float(after.loc[name, "std"]) / DEG
+            row["shift_in_std_before"] = (last - first) / row["std_before_deg"]
+            row["shift_in_std_after"] = (last - first) / row["std_after_deg"]
+        out.append(row)
+    return out

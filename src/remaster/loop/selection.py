@@ -1,0 +1,270 @@
+"""Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2): every candidate effect fitted at
+its posterior mode on the optimization set, scored by its evidence gain, its pose-grouped
+cross-validation and its signature, and added greedily while one passes; then a laser tracker's
+range/transverse noise, and last the residual Gaussian process over the joints.
+
+SI inside (m, rad); the JSON-ready scores are in mm where their names say so.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
+
+from .. import noise
+from ..inference import blocks, evidence, metrics, residual_gp
+from ..inference.blocks import BlockModel, Readings, Reduction
+from ..robot.kinematics import KinematicChain
+from ..robot.priors import Priors
+from ..units import MM
+from .settings import LoopSettings
+
+GP = "residual_gp"
+NOISE_SEARCH_WIDTH = 3.0  # prior stds of log g either side of its median searched for the mode
+MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
+
+
+# --------------------------------------------------------------------------- accuracy measures
+
+
+def accuracy(measured, predicted, poses) -> dict:
+    """Post-registration and relative accuracy (mm) of predictions (n, 3) against measurements
+    (n, 3), both in the sensor frame; poses (n,) group the relative measure's pairs
+    (`remaster.inference.metrics`)."""
+    error = np.asarray(measured) - np.asarray(predicted)
+    norms = metrics.post_registration_errors(measured, predicted)
+    relative = metrics.interval_summary(metrics.relative_errors(measured, predicted, poses))
+    return {"points": int(len(norms)), "rmse_mm": float(np.sqrt(np.mean(norms**2)) / MM),
+            "rms_per_axis_mm": float(np.sqrt(np.mean(error**2)) / MM), "mean_error_mm": float(norms.mean() / MM),
+            "error_q97.5_mm": float(np.quantile(norms, 0.975) / MM), "relative_pairs": relative["count"],
+            "relative_mean_mm": relative["mean"] / MM if relative["count"] else None}
+
+
+# --------------------------------------------------------------------------- one fit
+
+
+@dataclass(frozen=True, eq=False)
+class Fitted:
+    """One model at its posterior mode on the optimization set, with its pose-grouped
+    cross-validation and the identifiability reduction of its extensions."""
+
+    mode: evidence.PosteriorMode
+    reduction: Reduction
+    cv: evidence.CrossValidation
+
+    @property
+    def model(self) -> BlockModel:
+        return self.mode.model
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.mode.theta
+
+    def values(self) -> dict[str, float]:
+        return self.model.values(self.theta)
+
+    def residuals(self, data: Readings | None = None) -> np.ndarray:
+        """(n, 3) measured - predicted, m, on the optimization set or other readings, with the
+        optimization fit's parameters and registration."""
+        return (self.model if data is None else self.model.on(data)).residuals(self.theta)
+
+    def accuracy(self, data: Readings, poses) -> dict:
+        """`accuracy` on some readings (n rows) with the optimization fit's parameters; poses (n,)."""
+        model = self.model.on(data)
+        return accuracy(model.measured, model.predict(self.theta), poses)
+
+
+def fit_blocks(chain: KinematicChain, data: Readings, marker, t_nr, extensions: Sequence[str],
+               base_held: Mapping[str, float], folds: np.ndarray, priors: Priors,
+               start: Mapping[str, float] | None = None) -> Fitted:
+    """Base + extensions under their priors on the optimization readings, from `start`
+    ({name: value}; 0 for the others), with its cross-validation over `folds` (n,)."""
+    model, reduction = blocks.extended_model(chain, data, marker, t_nr, extensions, base_held, priors)
+    mode = evidence.posterior_mode(model, model.vector(start or {}))
+    return Fitted(mode, reduction, evidence.cross_validate(mode, folds))
+
+
+# --------------------------------------------------------------------------- diagnose and decide
+
+
+@dataclass(frozen=True, eq=False)
+class Signature:
+    """What a candidate would explain: residual (n, 3) m of the current fit on the optimization
+    set, effect (n, 3) m the change in the prediction the candidate's fit makes; when the
+    candidate is the missing effect, effect ~ residual. residual - effect is the candidate's
+    residual, so `explained` is the fraction of the sum of squares it removes."""
+
+    residual: np.ndarray
+    effect: np.ndarray
+
+    @property
+    def explained(self) -> float:
+        """1 - |residual - effect|^2 / |residual|^2."""
+        return float(1.0 - np.sum((self.residual - self.effect) ** 2) / np.sum(self.residual**2))
+
+
+def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
+    """A candidate's scores against the current fit (JSON-ready), and whether it passes."""
+    out = {"log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
+           "bic_gain": current.mode.bic() - candidate.mode.bic(),
+           **evidence.cv_gain(current.cv, candidate.cv),
+           "sigma_mm": candidate.mode.sigma / MM, "parameters": list(candidate.reduction.kept),
+           "dropped": dict(candidate.reduction.dropped), "weak": dict(candidate.reduction.weak),
+           "condition_number": candidate.reduction.condition_number}
+    out["passed"] = passes(out, settings)
+    return out
+
+
+def passes(scores: Mapping, settings: LoopSettings) -> bool:
+    """The selection's rule, for a parametric candidate and the residual GP alike: the evidence gain
+    exceeds min_log_evidence_gain AND the cross-validated fall exceeds cv_standard_errors."""
+    return bool(scores["log_evidence_gain"] > settings.min_log_evidence_gain
+                and scores["cv_mse_fall_in_se"] > settings.cv_standard_errors)
+
+
+@dataclass(frozen=True, eq=False)
+class Selection:
+    """The greedy forward selection: final fit (parametric), the base fit, the rounds (JSON-ready)
+    and the signatures {round: {candidate: Signature}}; gp: the Gaussian process fitted to what the
+    parametric effects left (added or not: it also says where the residual lives), None when not
+    tried; rotation (3, 3): the final fit's registration (robot -> sensor), which the GP's robot-frame
+    correction goes through."""
+
+    base: Fitted
+    final: Fitted
+    added: tuple[str, ...]
+    rounds: list[dict]
+    signatures: dict[int, dict[str, Signature]]
+    gp: residual_gp.Candidate | None = None
+    rotation: np.ndarray | None = None
+    noise: dict | None = None
+
+    @property
+    def gp_added(self) -> bool:
+        return GP in self.added
+
+    def prediction(self, data: Readings) -> np.ndarray:
+        """(n, 3) m predicted sensor-frame positions of the selected model (parametric fit at its
+        mode, plus the GP's mean when it was added) at some readings."""
+        predicted = self.final.model.on(data).predict(self.final.theta)
+        return predicted + self.gp.gp.mean(data.q) @ self.rotation.T if self.gp_added else predicted
+
+
+def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mapping[str, float], poses,
+           settings: LoopSettings, tracker: bool = False) -> Selection:
+    """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2) on the optimization readings;
+    poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
+    sensor is a laser tracker, whose range/transverse noise is then offered."""
+    folds = evidence.pose_folds(poses, settings.cv_folds)
+    base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
+    remaining = [c for c in settings.candidates if blocks.available(c, data)]
+    added: list[str] = []
+    rounds, signatures = [], {}
+    while remaining:
+        number = len(rounds) + 1
+        residual, prediction = current.residuals(), current.model.predict(current.theta)
+        scores, fits, signatures[number] = {}, {}, {}
+        for candidate in remaining:
+            try:
+                fitted = fit_blocks(chain, data, marker, t_nr, tuple(added) + (candidate,), base_held, folds,
+                                    settings.priors, current.values())
+            except np.linalg.LinAlgError as exc:
+                scores[candidate] = {"skipped": f"not identifiable: {exc}"}
+                continue
+            if not fitted.reduction.kept:
+                scores[candidate] = {"skipped": "no parameter of this block is visible in these data",
+                                     "dropped": dict(fitted.reduction.dropped)}
+                continue
+            fits[candidate] = fitted
+            signature = signatures[number][candidate] = Signature(residual,
+                                                                  fitted.model.predict(fitted.theta) - prediction)
+            scores[candidate] = {**score(current, fitted, settings), "explained_fraction": signature.explained}
+        passing = [c for c in fits if scores[c]["passed"]]
+        best = max(passing, key=lambda c: scores[c]["log_evidence_gain"]) if passing else None
+        rounds.append({"round": number, "model": list(blocks.BASE) + added, "scores": scores, "added": best})
+        if best is None:
+            break
+        current = fits[best]
+        added.append(best)
+        remaining.remove(best)
+    noise_choice = None
+    if tracker and settings.tracker_noise is not None:
+        current, noise_choice = choose_noise(current, folds, settings)
+    rotation = current.model.sensor_rotation(current.theta)
+    if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
+        return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice)
+    gp, scores = _score_gp(current, data, rotation, folds, settings)
+    if rounds and rounds[-1]["added"] is None:  # tried in the round where no parametric effect passed
+        last = rounds[-1]
+    else:
+        last = {"round": len(rounds) + 1, "model": list(blocks.BASE) + added, "scores": {}, "added": None}
+        rounds.append(last)
+    last["scores"][GP] = scores
+    if scores["passed"]:
+        last["added"] = GP
+        added.append(GP)
+    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice)
+
+
+def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> tuple[Fitted, dict]:
+    """The current model with a laser tracker's range/transverse noise (`remaster.noise`) against
+    its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
+    integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. Returns
+    the chosen fit and a JSON-ready report."""
+    import scipy.optimize
+    prior = settings.tracker_noise
+    median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
+
+    def mode_at(log_growth: float) -> evidence.PosteriorMode:
+        return evidence.posterior_mode(current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))),
+                                       current.theta)
+
+    def objective(log_growth: float) -> float:
+        return -(mode_at(log_growth).log_evidence + noise.log_growth_prior(log_growth, median, log_std))
+
+    centre, width = math.log(median), NOISE_SEARCH_WIDTH * log_std
+    best = scipy.optimize.minimize_scalar(objective, bounds=(centre - width, centre + width), method="bounded",
+                                          options={"xatol": 0.05})
+    step = 0.1  # in log g: the posterior of log g is wider than this wherever the data leave g free
+    curvature = (objective(best.x + step) - 2.0 * best.fun + objective(best.x - step)) / step**2
+    curvature = max(curvature, 1.0 / log_std**2)  # the prior alone curves this much; a noisy difference may not
+    log_evidence = -best.fun + 0.5 * math.log(2.0 * math.pi) - 0.5 * math.log(curvature)
+    gain = log_evidence - current.mode.log_evidence
+    mode = mode_at(best.x)
+    growth = math.exp(best.x)
+    distance = np.linalg.norm(current.model.measured, axis=1)
+    chosen = bool(gain > settings.min_log_evidence_gain)
+    report = {"offered": True, "compared": "range/transverse (laser tracker) against isotropic",
+              **noise.RangeTransverse(growth).report(),
+              "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
+              "growth_std_log": 1.0 / math.sqrt(curvature), "log_evidence_isotropic": current.mode.log_evidence,
+              "log_evidence_range_transverse": float(log_evidence), "log_evidence_gain": float(gain),
+              "sigma_isotropic_mm": current.mode.sigma / MM, "sigma_range_mm": mode.sigma / MM,
+              "sigma_transverse_at_median_distance_mm": mode.sigma * math.sqrt(1.0 + (growth * float(
+                  np.median(distance))) ** 2) / MM, "median_distance_m": float(np.median(distance)),
+              "chosen": "range_transverse" if chosen else "isotropic",
+              "note": "sigma of the chosen range/transverse model is the range std; the transverse std grows with "
+                      "the distance from the sensor frame's origin, which must be the tracker head"}
+    if not chosen:
+        return current, report
+    return Fitted(mode, current.reduction, evidence.cross_validate(mode, folds)), report
+
+
+def _score_gp(current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
+              ) -> tuple[residual_gp.Candidate, dict]:
+    """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
+    parametric candidates' rule: evidence gain and pose-grouped cross-validated fall."""
+    residual = current.residuals()
+    gp = residual_gp.candidate(data.q, residual @ rotation, current.cv.held_out @ rotation, folds,
+                               int(settings.residual_gp["subset"]), int(settings.residual_gp["inducing"]))
+    signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
+    scores = {"log_evidence_gain": gp.log_evidence_gain,
+              **evidence.cv_gain(current.cv, evidence.CrossValidation(gp.mse, gp.points)),
+              "sigma_mm": gp.gp.hyper.noise_std / MM, "parameters": ["lengthscales", "signal_std", "noise_std"],
+              "explained_fraction": signature.explained}
+    scores["passed"] = passes(scores, settings)
+    return gp, scores
+

@@ -1,0 +1,84 @@
+"""The loop closure's settings, from the workflow's configuration as its schema has checked it.
+
+Every value comes from the configuration: workflow/schemas/config.schema.yaml is the one place
+their defaults live (the workflow fills them in when it validates config.yaml), so `settings_from`
+requires every key and has no defaults of its own. Only the candidate list is the library's
+(`blocks.EXTENSIONS`), and the prior sets a `priors` section leaves out are `robot.priors.DEFAULTS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from ..inference import blocks
+from ..inference.blocks import ModelSettings
+from ..robot.priors import Priors, priors_from, with_defaults
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """candidates: extension blocks to try; min_log_evidence_gain: the Laplace evidence (nats) an
+    effect needs; cv_folds, cv_standard_errors: the pose-grouped cross-validation and the number
+    of its standard errors the fall must exceed; model: payload and drift column; priors: the
+    extension blocks' Gaussian priors; priors_config: the config's `priors` section, which a
+    campaign's own `robot.priors` is laid over; mcmc: {'chains', 'samples', 'burn_in'} of the final
+    refit's first attempt, None for Laplace only; convergence: {'max_rhat', 'min_ess',
+    'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
+    residual_gp: {'subset', 'inducing'} of the Gaussian-process candidate tried last
+    (`remaster.inference.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the
+    noise floor at which the loop counts as closed (`remaster.loop.closure`); tracker_noise:
+    {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
+    noise model (`remaster.noise`), None not to offer it."""
+
+    candidates: tuple[str, ...]
+    min_log_evidence_gain: float
+    cv_folds: int
+    cv_standard_errors: float
+    model: ModelSettings
+    priors: Priors
+    priors_config: dict
+    mcmc: dict | None
+    convergence: dict
+    residual_gp: dict | None
+    closure_ratio: float
+    tracker_noise: dict | None
+
+    def report(self) -> dict:
+        """The settings as loop_closure.json records them (JSON-ready)."""
+        return {"candidates": list(self.candidates), "min_log_evidence_gain": self.min_log_evidence_gain,
+                "cv_folds": self.cv_folds, "cv_standard_errors": self.cv_standard_errors,
+                "payload_mass_kg": self.model.payload_mass, "payload_com_m": list(self.model.payload_com),
+                "drift_column": self.model.drift_column, "priors": self.priors.report(), "mcmc": self.mcmc,
+                "convergence": self.convergence, "residual_gp": self.residual_gp, "closure_ratio": self.closure_ratio,
+                "tracker_noise": self.tracker_noise}
+
+
+def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping) -> LoopSettings:
+    """LoopSettings from the workflow's `loop_closure` section, its `priors` section and the
+    convergence criteria of the fit's cross-check (`fit/cross_check`: max_rhat, min_ess), as the
+    schema has filled them: a missing key is a KeyError (validate the configuration first)."""
+    payload = config["payload"]
+    priors_config = with_defaults(priors_config)
+    return LoopSettings(candidates=blocks.EXTENSIONS, min_log_evidence_gain=float(config["min_log_evidence_gain"]),
+                        cv_folds=int(config["cv_folds"]), cv_standard_errors=float(config["cv_standard_errors"]),
+                        model=ModelSettings(payload_mass=float(payload["mass"]), payload_com=tuple(payload["com"])),
+                        priors=priors_from(priors_config), priors_config=dict(priors_config),
+                        mcmc=dict(config["mcmc"]) if config["mcmc"] else None,
+                        convergence={"max_rhat": convergence["max_rhat"], "min_ess": convergence["min_ess"],
+                                     "max_doublings": int(config["max_doublings"])},
+                        residual_gp=_gp_settings(config["residual_gp"]),
+                        closure_ratio=float(config["closure_ratio"]),
+                        tracker_noise=_tracker_noise_settings(config["tracker_noise"]))
+
+
+def _gp_settings(section: Mapping) -> dict | None:
+    """The residual GP's settings from its config section ({'enabled', 'subset', 'inducing'})."""
+    return {"subset": int(section["subset"]), "inducing": int(section["inducing"])} if section["enabled"] else None
+
+
+def _tracker_noise_settings(section: Mapping) -> dict | None:
+    """The tracker noise model's prior from its config section ({'enabled', 'growth_per_m', 'growth_factor'})."""
+    if not section["enabled"]:
+        return None
+    return {"growth_per_m": float(section["growth_per_m"]), "growth_factor": float(section["growth_factor"])}
