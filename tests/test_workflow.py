@@ -16,7 +16,10 @@ from remaster.campaigns import folders, robot_model, scenario
 
 from .conftest import REPO
 
+pytestmark = pytest.mark.workflow  # runs Snakemake: deselect with -m "not workflow"
+
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+CROSS_CAMPAIGN_RULES = {"comparison", "comparison_prediction", "comparison_figures", "audit", "report", "all"}
 SMALL_FIT = {"fit": {"paper": {"chains": 2, "samples": 3000, "burn_in": 2000},
                      "default": {"chains": 2, "samples": 4000, "burn_in": 1000},
                      "emcee": {"walkers": 32, "steps": 600, "burn_in": 200}},
@@ -59,12 +62,27 @@ def result_bytes(folder, campaign):
     return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
 
 
-def test_dry_run_lists_the_jobs(tiny):
-    result = run(tiny, "-n")
-    assert result.returncode == 0, result.stderr
-    for rule in ("campaign_summary", "registration", "laplace", "sample", "cross_check", "posterior_summary",
-                 "remastering", "table_zero_offsets", "figure_zero_offset_trace"):
-        assert rule in result.stdout
+def planned_rules(root, *targets, config="config.yaml"):
+    """rule -> jobs a dry run plans."""
+    result = run(root, "-n", "--quiet", "rules", *(("--", *targets) if targets else ()), config=config)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return {rule: int(n) for rule, n in re.findall(r"^(\w+)\s+(\d+)$", result.stdout, flags=re.M) if rule != "total"}
+
+
+def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
+    """Per sensor: prepare, three samplers, fit summary, loop closure, calibrated outputs, figures;
+    per campaign: summary, tables, its figure; across campaigns: comparison (two), their figures,
+    audit, report. tiny has two sensors, tiny2 one."""
+    planned = planned_rules(tiny)
+    sensors, campaigns = 3, 2
+    assert planned == {"campaign_summary": campaigns, "prepare": sensors, "sample": 3 * sensors,
+                       "fit_summary": sensors, "loop_closure": sensors, "calibrated": sensors, "figures": sensors,
+                       "tables": campaigns, "campaign_figures": campaigns, "comparison": 1,
+                       "comparison_prediction": 1, "comparison_figures": 1, "audit": 1, "report": 1, "all": 1}
+    per_campaign = sum(n for rule, n in planned.items() if rule not in CROSS_CAMPAIGN_RULES)
+    # the issue's bound: at most 20 jobs per campaign (a two-sensor campaign plans 19) and 10 across
+    assert per_campaign == 8 * sensors + 3 * campaigns <= 20 * campaigns
+    assert sum(planned.get(rule, 0) for rule in CROSS_CAMPAIGN_RULES) <= 10
     assert not (tiny / "results").exists()
 
 
@@ -150,11 +168,9 @@ def test_only_a_campaign_given_as_a_dh_table_gets_calibrated_dh_tables(tiny, tmp
     files.write_yaml(tmp_path / "config.yaml", {**files.read_yaml(tiny / "config.yaml"),
                                                 "raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results")})
     tables = [str(tmp_path / "results" / name / "tables" / "calibrated_files.md") for name in ("tiny", "tiny2")]
-    result = run(tmp_path, "-n", "--quiet", "rules", "--", *tables)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", result.stdout, flags=re.M))
-    assert counts.get("calibrated") == "3"  # tiny: two sensors, tiny2: one
-    assert counts.get("calibrated_dh") == "1"
+    counts = planned_rules(tmp_path, *tables)
+    assert counts.get("calibrated") == 2  # tiny: two sensors
+    assert counts.get("calibrated_dh") == 1  # tiny2: one
 
 
 def test_editing_the_robot_description_reruns_its_campaign_and_changes_its_audit_hash(tiny, tmp_path):

@@ -1,77 +1,78 @@
-# Stage 6: the calibration in the robot's own terms: calibrated URDFs, the effects a URDF cannot hold,
-# the controller offsets and, for a campaign given as a DH table, the calibrated DH tables, per
-# campaign and sensor; two tables per campaign for the report.
+# Stage 5: the calibration in the robot's own terms, per campaign and sensor: the workspace claims
+# (where it holds, both models' posteriors propagated), the calibrated URDFs, the effects a URDF
+# cannot hold, the controller offsets and, for a campaign given as a DH table, the calibrated DH
+# tables. Two rules because the DH tables exist only for DH campaigns: each campaign matches one.
+import re
+
 from remaster.analysis.calibrated import DH_FILES as CALIBRATED_DH_FILES
 from remaster.analysis.calibrated import FILES as CALIBRATED_FILES
 
 CALIBRATED = f"{RESULTS}/{{campaign}}/{{sensor}}/calibrated"
+DH_CAMPAIGNS = [c for c in CAMPAIGNS if gives_dh(c)]
+
+
+def one_of(campaigns):
+    """A wildcard constraint matching exactly these campaign names (none: matches nothing)."""
+    return "|".join(re.escape(c) for c in campaigns) or "(?!)"
+
+
+CALIBRATED_INPUTS = dict(
+    campaign=campaign_files,
+    summary=f"{FIT}/summary.csv",
+    laplace=rules.prepare.output.laplace,
+    loop=rules.loop_closure.output.report,
+    samples=rules.loop_closure.output.samples,
+    gp=rules.loop_closure.output.gp,
+)
+CALIBRATED_OUTPUTS = dict(
+    theoretical=f"{LOOP}/theoretical_accuracy.csv",
+    claims=f"{LOOP}/workspace_accuracy.csv",
+    workspace=f"{LOOP}/workspace.json",
+    paper=f"{CALIBRATED}/paper.urdf",
+    loop=f"{CALIBRATED}/loop.urdf",
+    effects=f"{CALIBRATED}/loop_effects.yaml",
+    offsets=f"{CALIBRATED}/controller_offsets.csv",
+)
+CALIBRATED_PARAMS = dict(
+    seed=config["seed"],
+    draws=config["accuracy"]["draws"],
+    random_configurations=config["accuracy"]["random_configurations"],
+)
 
 
 rule calibrated:
     input:
-        campaign=campaign_files,
-        summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv",
-        loop=rules.loop_closure.output.report,
+        **CALIBRATED_INPUTS,
     output:
-        paper=f"{CALIBRATED}/paper.urdf",
-        loop=f"{CALIBRATED}/loop.urdf",
-        effects=f"{CALIBRATED}/loop_effects.yaml",
-        offsets=f"{CALIBRATED}/controller_offsets.csv",
+        **CALIBRATED_OUTPUTS,
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated.log",
+    wildcard_constraints:
+        campaign=f"(?!(?:{one_of(DH_CAMPAIGNS)})/)[^/]+",
+    params:
+        **CALIBRATED_PARAMS,
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(2, at_least=10),
     script:
         "../scripts/calibrated.py"
 
 
 rule calibrated_dh:
     input:
-        campaign=campaign_files,
-        summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv",
-        loop=rules.loop_closure.output.report,
+        **CALIBRATED_INPUTS,
     output:
-        paper=f"{CALIBRATED}/paper_dh.yaml",
-        loop=f"{CALIBRATED}/loop_dh.yaml",
+        **CALIBRATED_OUTPUTS,
+        paper_dh=f"{CALIBRATED}/paper_dh.yaml",
+        loop_dh=f"{CALIBRATED}/loop_dh.yaml",
     log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated_dh.log",
-    script:
-        "../scripts/calibrated_dh.py"
-
-
-def calibrated_dh_files(wildcards):
-    """The calibrated DH tables of a campaign given as a DH table, every sensor; none otherwise."""
-    if not gives_dh(wildcards.campaign):
-        return []
-    return [f"{RESULTS}/{wildcards.campaign}/{s}/calibrated/{name}" for s in sensors_of(wildcards.campaign)
-            for name in CALIBRATED_DH_FILES]
-
-
-rule table_controller_offsets:
-    input:
-        per_sensor(f"{CALIBRATED}/controller_offsets.csv"),
-    output:
-        multiext(f"{TABLES}/controller_offsets", ".csv", ".md", ".tex"),
-    log:
-        f"{RESULTS}/logs/{{campaign}}/table_controller_offsets.log",
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated.log",
+    wildcard_constraints:
+        campaign=one_of(DH_CAMPAIGNS),
     params:
-        sensors=lambda wc: sensors_of(wc.campaign),
-        kind="controller_offsets",
+        **CALIBRATED_PARAMS,
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(2, at_least=10),
     script:
-        "../scripts/table_calibrated.py"
-
-
-rule table_calibrated_files:
-    input:
-        per_sensor(f"{CALIBRATED}/paper.urdf"),
-        per_sensor(f"{CALIBRATED}/loop.urdf"),
-        per_sensor(f"{CALIBRATED}/loop_effects.yaml"),
-        calibrated_dh_files,
-    output:
-        multiext(f"{TABLES}/calibrated_files", ".csv", ".md", ".tex"),
-    log:
-        f"{RESULTS}/logs/{{campaign}}/table_calibrated_files.log",
-    params:
-        sensors=lambda wc: sensors_of(wc.campaign),
-        kind="calibrated_files",
-        dh=lambda wc: gives_dh(wc.campaign),
-    script:
-        "../scripts/table_calibrated.py"
+        "../scripts/calibrated.py"

@@ -11,5 +11,8 @@ rule campaign_summary:
     params:
         memory_limit=JOB_MEMORY_LIMIT,
         draws=config["accuracy"]["draws"],
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=5,
     script:
         "../scripts/campaign_summary.py"

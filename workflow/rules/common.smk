@@ -6,7 +6,7 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
-from remaster.io import robot_files, robot_section
+from remaster.campaigns.robot_model import robot_files, robot_section
 
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
@@ -85,10 +85,12 @@ CAMPAIGNS = list_campaigns()
 
 
 def campaign_files(wildcards):
-    """Every file of a campaign folder and the robot description it refers to outside it (a
-    shared URDF), so that changing one reruns that campaign's jobs only."""
+    """The files a campaign is read from: campaign.yaml, its Parquet tables, a URDF in its folder
+    and the robot description it names outside it (a shared URDF), so that changing one reruns
+    that campaign's jobs only; a README or licence beside them is not an input."""
     folder = Path(RAW, wildcards.campaign)
-    return sorted(str(p) for p in folder.iterdir() if p.is_file()) + [str(p) for p in robot_files(folder)]
+    inside = [folder / "campaign.yaml", *sorted(folder.glob("*.parquet")), *sorted(folder.glob("*.urdf"))]
+    return [str(p) for p in inside + robot_files(folder)]
 
 
 def sensors_of(campaign):
@@ -102,11 +104,13 @@ def gives_dh(campaign):
     return "dh" in robot_section(Path(RAW, campaign))
 
 
-def per_sensor(pattern):
-    """Input function: `pattern` (with {campaign} and {sensor}) for every sensor of the campaign."""
+def sensor_inputs(**patterns):
+    """unpack() input function: each named `pattern` (with {campaign} and {sensor}) for every sensor
+    of the campaign, named `<name>__<sensor>` (`remaster.stage_inputs` reads them back by name)."""
 
     def files(wildcards):
-        return [pattern.format(campaign=wildcards.campaign, sensor=s) for s in sensors_of(wildcards.campaign)]
+        return {f"{name}__{sensor}": pattern.format(campaign=wildcards.campaign, sensor=sensor)
+                for name, pattern in patterns.items() for sensor in sensors_of(wildcards.campaign)}
 
     return files
 
@@ -114,6 +118,37 @@ def per_sensor(pattern):
 def every_campaign_sensor(pattern):
     """`pattern` for every (campaign, sensor) pair of the run."""
     return [pattern.format(campaign=c, sensor=s) for c in CAMPAIGNS for s in sensors_of(c)]
+
+
+def every_pair_inputs(**patterns):
+    """Named inputs `<name>__<campaign>__<sensor>` for every (campaign, sensor) pair of the run."""
+    return {f"{name}__{c}__{s}": pattern.format(campaign=c, sensor=s)
+            for name, pattern in patterns.items() for c in CAMPAIGNS for s in sensors_of(c)}
+
+
+def largest_sensor_rows(campaign):
+    """Rows of the campaign's largest sensor, from the Parquet footers (no data read)."""
+    import pyarrow.parquet
+
+    return max((pyarrow.parquet.read_metadata(p).num_rows for p in Path(RAW, campaign).glob("*.parquet")), default=0)
+
+
+def campaign_mem_mb(wildcards):
+    """Memory (MB) a campaign's job may need at its peak: the campaign check's own estimate
+    (`remaster.campaigns.capacity.peak_estimate`), so a cluster reserves what the job uses."""
+    from remaster.campaigns import capacity
+
+    return int(capacity.peak_estimate(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"]) / 1e6) + 1
+
+
+def runtime_minutes(minutes_per_thousand_rows, at_least=5):
+    """Runtime resource (minutes) of a per-campaign job, growing with the campaign's rows."""
+
+    def runtime(wildcards):
+        rows = largest_sensor_rows(wildcards.campaign)
+        return max(at_least, int(minutes_per_thousand_rows * rows / 1000) + 1)
+
+    return runtime
 
 
 FIT_METHODS = ["paper", "default", "emcee"]

@@ -1,41 +1,38 @@
-# Stage 2: per campaign and sensor, registration, identifiability + least squares, samplers,
-# their cross-check, the posterior summary and the remastering file (paper, section Optimization).
+# Stage 2: per campaign and sensor, the registration and Laplace fit (prepare), one job per sampler
+# (the expensive, parallel part), then the samplers' cross-check, the posterior summary, the model
+# discrepancy, the remastering file and the accuracy metrics of the paper's tables (paper, sections
+# Optimization, Quantifying Positional Accuracy and Validation).
+from remaster.analysis.accuracy import TABLE_NAMES
 
 FIT = f"{RESULTS}/{{campaign}}/{{sensor}}/fit"
+ACC = f"{RESULTS}/{{campaign}}/{{sensor}}/metrics"
+ACCURACY_FILES = list(TABLE_NAMES) + ["configuration_errors", "tcp_scatter", "remastering_parameters"]
 
 
-rule registration:
+rule prepare:
     input:
         campaign=campaign_files,
         # the campaign's check comes first: one too large for the memory a job may use stops here
         summary=f"{RESULTS}/{{campaign}}/campaign/summary.json",
     output:
         registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
-    log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/registration.log",
-    script:
-        "../scripts/registration.py"
-
-
-rule laplace:
-    input:
-        campaign=campaign_files,
-        registration=rules.registration.output.registration,
-    output:
         laplace=f"{FIT}/laplace.json",
     log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/laplace.log",
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/prepare.log",
     params:
         outlier_alpha=config["outliers"]["alpha"],
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(1),
     script:
-        "../scripts/laplace.py"
+        "../scripts/prepare.py"
 
 
 rule sample:
     input:
         campaign=campaign_files,
-        registration=rules.registration.output.registration,
-        laplace=rules.laplace.output.laplace,
+        registration=rules.prepare.output.registration,
+        laplace=rules.prepare.output.laplace,
     output:
         samples=f"{FIT}/samples_{{method}}.parquet",
         trace=f"{FIT}/trace_{{method}}.parquet",
@@ -47,61 +44,37 @@ rule sample:
     params:
         settings=lambda wc: config["fit"][wc.method],
         seed=config["seed"],
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(10, at_least=15),
     script:
         "../scripts/sample.py"
 
 
-rule cross_check:
+rule fit_summary:
     input:
-        samples=expand(f"{FIT}/samples_{{method}}.parquet", method=FIT_METHODS, allow_missing=True),
-        diagnostics=expand(f"{FIT}/diagnostics_{{method}}.json", method=FIT_METHODS, allow_missing=True),
-        laplace=rules.laplace.output.laplace,
+        campaign=campaign_files,
+        registration=rules.prepare.output.registration,
+        laplace=rules.prepare.output.laplace,
+        **{f"samples__{m}": f"{FIT}/samples_{m}.parquet" for m in FIT_METHODS},
+        **{f"diagnostics__{m}": f"{FIT}/diagnostics_{m}.json" for m in FIT_METHODS},
     output:
-        table=f"{FIT}/cross_check.csv",
-    log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/cross_check.log",
-    params:
-        methods=FIT_METHODS,
-        settings=config["fit"]["cross_check"],
-    script:
-        "../scripts/cross_check.py"
-
-
-rule posterior_summary:
-    input:
-        samples=f"{FIT}/samples_default.parquet",
-        laplace=rules.laplace.output.laplace,
-        cross_check=rules.cross_check.output.table,  # no summary of samplers that disagree
-    output:
+        cross_check=f"{FIT}/cross_check.csv",
         summary=f"{FIT}/summary.csv",
-    log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/posterior_summary.log",
-    script:
-        "../scripts/posterior_summary.py"
-
-
-rule discrepancy:
-    input:
-        campaign=campaign_files,
-        registration=rules.registration.output.registration,
-        laplace=rules.laplace.output.laplace,
-        summary=rules.posterior_summary.output.summary,
-    output:
-        summary=f"{FIT}/summary_discrepancy.csv",
-        report=f"{FIT}/discrepancy.json",
-    log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/discrepancy.log",
-    script:
-        "../scripts/discrepancy.py"
-
-
-rule remastering:
-    input:
-        campaign=campaign_files,
-        summary=rules.posterior_summary.output.summary,
-    output:
+        with_discrepancy=f"{FIT}/summary_discrepancy.csv",
+        discrepancy=f"{FIT}/discrepancy.json",
         remastering=f"{RESULTS}/{{campaign}}/{{sensor}}/remastering.json",
+        **{f"metrics__{name}": f"{ACC}/{name}.csv" for name in ACCURACY_FILES},
+        accuracy=f"{ACC}/report.json",
     log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/remastering.log",
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/fit_summary.log",
+    params:
+        cross_check=config["fit"]["cross_check"],
+        seed=config["seed"],
+        draws=config["accuracy"]["draws"],
+        random_configurations=config["accuracy"]["random_configurations"],
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(2, at_least=10),
     script:
-        "../scripts/remastering.py"
+        "../scripts/fit_summary.py"

@@ -9,50 +9,8 @@ REPORT_FIGURES = ["zero_offset_trace", "zero_offset_histograms", "tcp_scatter", 
                   "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy"]
 
 
-CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections", "uncertainty_budget"]
-
-
-rule table_uncertainty_budget:
-    input:
-        campaign=campaign_files,
-        registration=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json"),
-        laplace=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
-        loop=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
-    output:
-        multiext(f"{TABLES}/uncertainty_budget", ".csv", ".md", ".tex"),
-    log:
-        f"{RESULTS}/logs/{{campaign}}/table_uncertainty_budget.log",
-    params:
-        sensors=lambda wc: sensors_of(wc.campaign),
-    script:
-        "../scripts/table_uncertainty_budget.py"
-
-
-rule certificate:
-    input:
-        summary=rules.campaign_summary.output.summary,
-        laplace=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json"),
-        errors=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/metrics/configuration_errors.csv"),
-        residuals=per_sensor(f"{LOOP}/residuals.parquet"),
-        claims=per_sensor(f"{LOOP}/workspace_accuracy.csv"),
-        workspace=per_sensor(f"{LOOP}/workspace.json"),
-        loop=per_sensor(f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json"),
-        offsets=per_sensor(f"{CALIBRATED}/controller_offsets.csv"),
-    output:
-        markdown=f"{RESULTS}/{{campaign}}/certificate.md",
-        record=f"{RESULTS}/{{campaign}}/certificate.json",
-        verdict=f"{TABLES}/certificate_verdict.csv",
-        accuracy=f"{TABLES}/certificate_accuracy.csv",
-        corrections=f"{TABLES}/certificate_corrections.csv",
-        text=multiext(f"{TABLES}/certificate_verdict", ".md", ".tex")
-        + multiext(f"{TABLES}/certificate_accuracy", ".md", ".tex")
-        + multiext(f"{TABLES}/certificate_corrections", ".md", ".tex"),
-    log:
-        f"{RESULTS}/logs/{{campaign}}/certificate.log",
-    params:
-        sensors=lambda wc: sensors_of(wc.campaign),
-    script:
-        "../scripts/certificate.py"
+# the certificate's tables first, in the report's order
+REPORT_CERTIFICATE_TABLES = [*CERTIFICATE_TABLES, "uncertainty_budget"]
 
 
 def report_layout():
@@ -63,7 +21,7 @@ def report_layout():
             "summary": f"{RESULTS}/{c}/campaign/summary.json",
             "certificate": f"{RESULTS}/{c}/certificate.json",
             "tables": {
-                **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in CERTIFICATE_TABLES},
+                **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in REPORT_CERTIFICATE_TABLES},
                 **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in REPORT_TABLES},
                 **{f"{t}_vs_paper": f"{RESULTS}/{c}/tables/{t}_vs_paper.csv" for t in TABLE_NAMES
                    if c in config["paper_twins"]},
@@ -106,6 +64,9 @@ rule audit:
         audit=f"{RESULTS}/audit.json",
     log:
         f"{RESULTS}/logs/audit.log",
+    resources:
+        mem_mb=1000,
+        runtime=10,
     params:
         campaigns={c: campaign_files(SimpleNamespace(campaign=c)) for c in CAMPAIGNS},
         results={c: audited_results(c) for c in CAMPAIGNS},
@@ -116,7 +77,7 @@ rule audit:
 
 def comparison_layout():
     return {"tables": {t: f"{COMPARISON}/{t}.csv" for t in COMPARISON_TABLES},
-            "figures": {f"{f}_{r}": f"{COMPARISON}/{f}_{r}.png" for f in COMPARISON_FIGURES for r in ROBOTS}}
+            "figures": {f"{f}_{r}": f"{COMPARISON}/{f}_{r}.png" for f in OVER_TIME_FIGURES for r in ROBOTS}}
 
 
 def prediction_layout():
@@ -142,6 +103,9 @@ rule report:
         html=f"{RESULTS}/report.html",
     log:
         f"{RESULTS}/logs/report.log",
+    resources:
+        mem_mb=2000,
+        runtime=10,
     params:
         layout=report_layout(),
         comparison=comparison_layout(),

@@ -1,10 +1,21 @@
-"""results/audit.json: per campaign the content hash (robot description included), the config, the code's hash, the seed and every result's hash."""
+"""results/audit.json: per campaign the content hash (robot description included), the config, the
+code's hash, the seed and every result's hash."""
 
-from remaster import audit, io
+from snakemake.iocontainers import Snakemake
 
-with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
-    p = snakemake.params  # noqa: F821
-    record = audit.audit_record({c: io.file_digests(files, relative_to_parent=True) for c, files in p.campaigns.items()},
-                                {c: io.file_digests(files) for c, files in p.results.items()}, dict(p.config),
-                                io.package_digests(), io.git_commit())
-    io.write_json(snakemake.output.audit, record)  # noqa: F821
+from remaster import audit, files, provenance
+
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
+
+with files.log_to(snakemake.log[0]):
+    p = snakemake.params
+    record = audit.audit_record(
+        {c: provenance.file_digests(paths, relative_to_parent=True) for c, paths in p.campaigns.items()},
+        {c: provenance.file_digests(paths) for c, paths in p.results.items()},
+        dict(p.config),
+        provenance.package_digests(),
+        provenance.git_commit(),
+    )
+    files.write_json(snakemake.output.audit, record)

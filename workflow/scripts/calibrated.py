@@ -1,14 +1,42 @@
-"""The calibration of one sensor in the robot's own terms: calibrated URDFs, the effects a URDF cannot hold, controller offsets."""
+"""One sensor's calibration in the robot's own terms: workspace claims, calibrated URDFs, effects,
+controller offsets and, for a DH campaign, the calibrated DH tables."""
 
-from remaster import io
-from remaster.analysis import calibrated
+from snakemake.iocontainers import Snakemake
 
-w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
-with io.log_to(snakemake.log[0]):  # noqa: F821
-    i, out = snakemake.input, snakemake.output  # noqa: F821
-    files = calibrated.calibrated_stage(io.read_campaign(io.campaign_folder(snakemake.input.campaign)), w.sensor,  # noqa: F821
-                                        io.read_csv(i.summary), io.read_loop(i.loop), label=i.loop)
-    io.write_text(out.paper, files.paper_urdf)
-    io.write_text(out.loop, files.loop_urdf)
-    io.write_yaml(out.effects, files.effects)
-    io.write_csv(out.offsets, files.offsets)
+from remaster import files, seeding
+from remaster.analysis import calibrated_outputs
+from remaster.campaigns import folders
+from remaster.inference import fit
+from remaster.loop.report import LoopReport
+
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
+
+w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
+with files.log_to(snakemake.log[0]):
+    result = calibrated_outputs.calibrated_outputs_stage(
+        folders.read_campaign(folders.campaign_folder(i.campaign)),
+        w.sensor,
+        files.read_csv(i.summary),
+        fit.LaplaceReport.read(i.laplace),
+        LoopReport.read(i.loop),
+        files.read_parquet(i.samples),
+        files.read_parquet(i.gp),
+        seeding.generator(p.seed, w.campaign, w.sensor, "workspace"),
+        n_draws=p.draws,
+        n_random=p.random_configurations,
+        seed=p.seed,
+        samples_label=i.samples,
+        loop_label=i.loop,
+    )
+    files.write_csv(out.theoretical, result.workspace.theoretical)
+    files.write_csv(out.claims, result.workspace.claims)
+    files.write_json(out.workspace, result.workspace.report)
+    files.write_text(out.paper, result.files.paper_urdf)
+    files.write_text(out.loop, result.files.loop_urdf)
+    files.write_yaml(out.effects, result.files.effects)
+    files.write_csv(out.offsets, result.files.offsets)
+    if result.dh is not None:
+        files.write_yaml(out.paper_dh, result.dh["paper"])
+        files.write_yaml(out.loop_dh, result.dh["loop"])

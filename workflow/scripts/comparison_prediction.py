@@ -1,20 +1,39 @@
-"""Drift between campaigns or the sensors' agreement as the change of predicted marker positions."""
+"""Across campaigns, by what calibrations predict: each calibration on the other campaigns of its
+robot (transfer), drift and agreement as the change of predicted marker positions."""
 
 from pathlib import Path
 
-from remaster import io
-from remaster.analysis import prediction
+from snakemake.iocontainers import Snakemake
 
-with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
-    p, i = snakemake.params, snakemake.input  # noqa: F821
-    pairs = [tuple(pair) for pair in p.pairs]
+from remaster import files, stage_inputs
+from remaster.analysis import prediction, transfer
+from remaster.campaigns import folders
+from remaster.inference import fit
+from remaster.loop.report import LoopReport
+from remaster.reporting import tables
 
-    def each(read, files):
-        return {pair: read(f) for pair, f in zip(pairs, files)}
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
 
-    table = prediction.prediction_table(
-        p.table, {c: io.read_campaign(f) for c, f in io.campaign_folders(i.campaigns).items()}, each(io.read_csv, i.summaries),
-        each(io.read_laplace, i.laplaces), each(io.read_loop, i.loops), each(io.read_parquet, i.paper_samples),
-        each(io.read_parquet, i.loop_samples), n_configurations=p.random_configurations, seed=p.seed,
-        draw_pairs=p.draw_pairs)
-    io.write_table(Path(snakemake.output[0]).with_suffix(""), table, prediction.CAPTIONS[p.table], p.table)  # noqa: F821
+i, p = snakemake.input, snakemake.params
+with files.log_to(snakemake.log[0]):
+    named = dict(i.items())
+
+    def each(kind, read):
+        return {pair: read(f) for pair, f in stage_inputs.by_pair(named, kind).items()}
+
+    result = transfer.prediction_stage(
+        {c: folders.read_campaign(f) for c, f in folders.campaign_folders(i.campaigns).items()},
+        each("summary", files.read_csv),
+        each("laplace", fit.LaplaceReport.read),
+        each("loop", LoopReport.read),
+        each("paper_samples", files.read_parquet),
+        each("loop_samples", files.read_parquet),
+        n_configurations=p.random_configurations,
+        seed=p.seed,
+        draw_pairs=p.draw_pairs,
+    )
+    for name, table in result.items():
+        stem = Path(snakemake.output[name][0]).with_suffix("")
+        tables.write_table(stem, table, prediction.CAPTIONS[name], name)

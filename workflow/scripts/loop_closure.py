@@ -1,20 +1,24 @@
 """Loop closure of one sensor: candidate effects scored, supported ones added, refit, before and after."""
 
-import pandas as pd
+from snakemake.iocontainers import Snakemake
 
-from remaster import io, seeding
-from remaster.loop import loop_closure
+from remaster import files, seeding
+from remaster.campaigns import folders
+from remaster.inference import fit
+from remaster.loop import loop_closure, settings
 
-w = snakemake.wildcards  # noqa: F821 (snakemake injects it)
-with io.log_to(snakemake.log[0]):  # noqa: F821
-    p, out = snakemake.params, snakemake.output  # noqa: F821
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
+
+w, i, p, out = snakemake.wildcards, snakemake.input, snakemake.params, snakemake.output
+with files.log_to(snakemake.log[0]):
     result = loop_closure.loop_closure_stage(
-        io.read_campaign(io.campaign_folder(snakemake.input.campaign)), w.sensor, io.read_registration(snakemake.input.registration),  # noqa: F821
-        io.read_laplace(snakemake.input.laplace), seeding.generator(p.seed, w.campaign, w.sensor, "loop_closure"),  # noqa: F821
-        loop_closure.settings_from(p.settings, p.priors, p.convergence))
-    io.write_json(out.report, result.report)
-    io.write_csv(out.table, result.table)
-    io.write_parquet(out.signatures, loop_closure.signatures_frame(result.signatures))
-    io.write_parquet(out.residuals, loop_closure.residuals_frame(result.residuals, result.rows))
-    io.write_parquet(out.samples, result.samples if result.samples is not None else pd.DataFrame())
-    io.write_parquet(out.gp, result.gp)
+        folders.read_campaign(folders.campaign_folder(i.campaign)),
+        w.sensor,
+        fit.Registration.read(i.registration),
+        fit.LaplaceReport.read(i.laplace),
+        seeding.generator(p.seed, w.campaign, w.sensor, "loop_closure"),
+        settings.settings_from(p.settings, p.priors, p.convergence),
+    )
+    result.write(**{name: out[name] for name in ("report", "table", "signatures", "residuals", "samples", "gp")})

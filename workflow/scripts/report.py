@@ -1,25 +1,34 @@
-"""results/report.html: every table and figure of the run on one self-contained page."""
+"""results/report.html: every campaign's certificate, tables and figures, the comparisons across
+campaigns and the audit trail, on one self-contained page."""
 
 from pathlib import Path
 
-from remaster import io
+from snakemake.iocontainers import Snakemake
+
+from remaster import files
 from remaster.analysis import prediction
 from remaster.reporting import report, tables
 
-with io.log_to(snakemake.log[0]):  # noqa: F821 (snakemake injects it)
-    campaigns = {
-        name: {"summary": io.read_json(part["summary"]), "certificate": io.read_json(part["certificate"]),
-               "tables": {t: io.read_csv(p) for t, p in part["tables"].items()},
-               "figures": {f: Path(p).read_bytes() for f, p in part["figures"].items()}}
-        for name, part in snakemake.params.layout.items()  # noqa: F821
-    }
-    layout = snakemake.params.comparison  # noqa: F821
-    comparison = {"tables": {t: io.read_csv(p) for t, p in layout["tables"].items()},
-                  "figures": {f: Path(p).read_bytes() for f, p in layout["figures"].items()}}
-    layout = snakemake.params.prediction  # noqa: F821
-    predicted = {"tables": {t: io.read_csv(p) for t, p in layout["tables"].items()},
-                 "figures": {f: Path(p).read_bytes() for f, p in layout["figures"].items()}}
-    page = report.build(campaigns, {**tables.CAPTIONS, **prediction.CAPTIONS},
-                        audit=io.read_json(snakemake.input.audit), comparison=comparison,  # noqa: F821
-                        prediction=predicted)
-    Path(snakemake.output.html).write_text(page, encoding="utf-8")  # noqa: F821
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
+
+
+def read_part(part):
+    """A layout part's files read: summary and certificate (JSON), tables (CSV), figures (PNG bytes)."""
+    out = {key: files.read_json(part[key]) for key in ("summary", "certificate") if key in part}
+    out["tables"] = {t: files.read_csv(path) for t, path in part["tables"].items()}
+    out["figures"] = {f: Path(path).read_bytes() for f, path in part["figures"].items()}
+    return out
+
+
+with files.log_to(snakemake.log[0]):
+    p = snakemake.params
+    page = report.build(
+        {name: read_part(part) for name, part in p.layout.items()},
+        {**tables.CAPTIONS, **prediction.CAPTIONS},
+        audit=files.read_json(snakemake.input.audit),
+        comparison=read_part(p.comparison),
+        prediction=read_part(p.prediction),
+    )
+    files.write_text(snakemake.output.html, page)

@@ -447,3 +447,11 @@ def table(name: str, entries: Iterable, significance: float = 3.0) -> pd.DataFra
 def robot_slug(identity: str) -> str:
     """A file-name-safe short form of a robot identity."""
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in identity)[:80]
+
+
+def comparison_tables(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame],
+                      loops: Mapping[tuple[str, str], LoopReport], significance: float = 3.0
+                      ) -> dict[str, pd.DataFrame]:
+    """Every table of TABLES, from the arguments of `entries_of`."""
+    entries = entries_of(metadata, summaries, loops)
+    return {name: table(name, entries, significance) for name in TABLES}

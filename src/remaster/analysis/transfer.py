@@ -100,3 +100,17 @@ def transfer_table(entries: Iterable[Calibrated]) -> pd.DataFrame:
 def transfer_stage(campaigns, summaries, laplaces, loops=None) -> pd.DataFrame:
     """`transfer_table` of the campaigns' calibrations (arguments as `prediction.calibrated_entries`)."""
     return transfer_table(calibrated_entries(campaigns, summaries, laplaces, loops))
+
+
+def prediction_stage(campaigns, summaries, laplaces, loops, paper_samples, loop_samples, *, n_configurations: int,
+                     seed: int, draw_pairs: int) -> dict[str, pd.DataFrame]:
+    """The comparisons by prediction (arguments as `prediction.calibrated_entries`): the transfer
+    table, then every table of `prediction.PREDICTION_TABLES` at `n_configurations` random
+    configurations per robot (from `seed`), with `draw_pairs` posterior draw pairs."""
+    from .prediction import PREDICTION_TABLES, prediction_table
+
+    out = {"transfer": transfer_stage(campaigns, summaries, laplaces, loops)}
+    for name in PREDICTION_TABLES:
+        out[name] = prediction_table(name, campaigns, summaries, laplaces, loops, paper_samples, loop_samples,
+                                     n_configurations=n_configurations, seed=seed, draw_pairs=draw_pairs)
+    return out

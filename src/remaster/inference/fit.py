@@ -462,3 +462,11 @@ def sampling_stage(campaign: Campaign, sensor: str, registration: Registration, 
     chains = sample(model, laplace, method, settings, rng, progress)
     seconds = time.perf_counter() - started
     return samples_frame(chains), trace_frame(chains), sampler_diagnostics(chains, seconds)
+
+
+def prepare_stage(campaign: Campaign, sensor: str, outlier_alpha: float) -> tuple[dict, dict]:
+    """(registration.json, laplace.json) contents of one sensor: the initial registration, then the
+    outlier screen, identifiability analysis and Laplace fit from it. The fit starts from the
+    registration as its file holds it (`Registration.of(report)`), so the two files always agree."""
+    registration = registration_stage(campaign, sensor).report()
+    return registration, laplace_stage(campaign, sensor, Registration.of(registration), outlier_alpha)

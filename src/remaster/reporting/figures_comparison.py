@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator, Mapping
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -158,3 +160,27 @@ def transfer_figure(table: pd.DataFrame, title: str) -> plt.Figure:
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+# figure -> (the comparison table it draws, how, title)
+OVER_TIME_FIGURES = {
+    "zero_offsets_over_time": ("zero_offsets_over_time", zero_offsets_over_time_figure, "Zero-offsets over time"),
+    "loop_effects_over_time": ("loop_parameters_over_time", loop_effects_over_time_figure,
+                               "Loop-closure effects over time"),
+}
+
+
+def comparison_figures(tables: Mapping[str, pd.DataFrame], robots: Mapping[str, str], models: Iterable[str]
+                       ) -> Iterator[tuple[str, plt.Figure]]:
+    """(file stem, figure) for every cross-campaign figure of every robot (`robots`: file-name slug ->
+    robot identity): the OVER_TIME_FIGURES and the transfer heat-map of each model of `models`.
+    `tables`: the comparison tables by name, with 'transfer'. Drawn one at a time."""
+    for slug, identity in robots.items():
+        for figure, (name, draw, title) in OVER_TIME_FIGURES.items():
+            table = tables[name]
+            yield f"{figure}_{slug}", draw(table[table["robot"] == identity], f"{title}: {identity}")
+    transfer = tables["transfer"]
+    for model in models:
+        for slug, identity in robots.items():
+            rows = transfer[(transfer["robot"] == identity) & (transfer["model"] == model)]
+            yield f"transfer_{model}_{slug}", transfer_figure(rows, f"Transfer, {model} model: {identity}")

@@ -1,0 +1,156 @@
+"""The main job's wall time against an earlier commit's, side by side, and the test command's time.
+
+Both checkouts run `snakemake -j2` from an empty results folder on the same campaigns (by default
+the four simulated campaigns that both have), alternately (base, this, base, this, ...), so that a
+machine whose speed drifts during the session affects both alike. Each run imports its own
+checkout's library (PYTHONPATH), with the one environment this script runs in. The numbers go to
+benchmarks/results/main_job.json and into benchmarks/README.md between the bench_main_job markers.
+
+Run from the repository root, on a quiet machine (nothing else running):
+    .venv/bin/python benchmarks/bench_main_job.py [--base COMMIT] [--repeats N] [--tests]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results" / "main_job.json"
+README = REPO / "benchmarks" / "README.md"
+BEGIN, END = "<!-- bench_main_job:begin -->", "<!-- bench_main_job:end -->"
+# The commit issue 1/5 ("a job per campaign and stage") started from, and the campaigns it had.
+DEFAULT_BASE = "4cb14a1"
+DEFAULT_CAMPAIGNS = ["kuka-compliance", "kuka-cubes", "kuka-twin", "kuka-twin-2019"]
+TEST_COMMAND = [".venv/bin/python", "-m", "pytest", "-q"]  # the README's, after the install
+
+
+def snakemake(checkout: Path, results: str, campaigns: list[str], *extra: str) -> subprocess.CompletedProcess:
+    config = [f"results_dir={results}", f"campaigns=[{','.join(campaigns)}]"]
+    env = {**os.environ, "PYTHONPATH": str(checkout / "src")}
+    return subprocess.run(
+        [sys.executable, "-m", "snakemake", "-j2", "--quiet", "all", *extra, "--config", *config],
+        cwd=checkout,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+
+
+def planned_jobs(checkout: Path, campaigns: list[str]) -> int:
+    """Jobs a run from empty results plans (`snakemake -n`), the `all` target aside."""
+    with tempfile.TemporaryDirectory() as results:
+        out = snakemake(checkout, results, campaigns, "-n", "--quiet", "rules")
+    counts = re.findall(r"^(\S+)\s+(\d+)$", out.stdout, flags=re.MULTILINE)
+    return sum(int(n) for rule, n in counts if rule not in ("total", "all"))
+
+
+def timed_run(checkout: Path, campaigns: list[str]) -> float:
+    with tempfile.TemporaryDirectory() as results:
+        started = time.perf_counter()
+        out = snakemake(checkout, results, campaigns)
+        seconds = time.perf_counter() - started
+    if out.returncode != 0:
+        sys.exit(f"snakemake failed in {checkout}:\n{out.stderr[-3000:]}")
+    return seconds
+
+
+def test_command_seconds() -> tuple[float, str]:
+    started = time.perf_counter()
+    out = subprocess.run(TEST_COMMAND, cwd=REPO, capture_output=True, text=True)
+    seconds = time.perf_counter() - started
+    if out.returncode != 0:
+        sys.exit(f"the test command failed:\n{out.stdout[-3000:]}")
+    return seconds, out.stdout.strip().splitlines()[-1]
+
+
+def markdown(record: dict) -> str:
+    base, this = record["base"], record["this"]
+    lines = [
+        f"Last measured {record['date']} by `bench_main_job.py` ({record['campaigns_note']}), "
+        f"runs alternated base/this:",
+        "",
+        "| checkout | planned jobs | wall per run (s) | median (s) |",
+        "|---|---|---|---|",
+    ]
+    for label, run in (("base " + base["commit"], base), ("this " + this["commit"], this)):
+        walls = ", ".join(f"{s:.0f}" for s in run["wall_s"])
+        lines.append(f"| {label} | {run['jobs']} | {walls} | {statistics.median(run['wall_s']):.0f} |")
+    lines += ["", f"Ratio this / base (medians): **{record['ratio']:.2f}** (target: at most 0.5)."]
+    if "tests" in record:
+        tests = record["tests"]
+        lines += [
+            "",
+            f"The test command (`{' '.join(TEST_COMMAND)}`, installed environment): "
+            f"**{tests['seconds']:.0f} s** ({tests['summary']}); target: at most 360 s.",
+        ]
+    return "\n".join(lines)
+
+
+def write(record: dict) -> None:
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    text = README.read_text(encoding="utf-8")
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        _, tail = rest.split(END, 1)
+        README.write_text(f"{head}{BEGIN}\n{markdown(record)}\n{END}{tail}", encoding="utf-8")
+
+
+def commit_of(checkout: Path) -> str:
+    return subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", default=DEFAULT_BASE, help="commit to compare with (default: %(default)s)")
+    parser.add_argument("--repeats", type=int, default=2, help="runs of each checkout (default: %(default)s)")
+    parser.add_argument("--campaigns", nargs="+", default=DEFAULT_CAMPAIGNS)
+    parser.add_argument("--tests", action="store_true", help="also time the README's test command")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        base = Path(folder) / "base"
+        subprocess.run(
+            ["git", "worktree", "add", "--detach", str(base), args.base], cwd=REPO, check=True, capture_output=True
+        )
+        try:
+            checkouts = {"base": base, "this": REPO}
+            record = {
+                "date": date.today().isoformat(),
+                "campaigns": args.campaigns,
+                "campaigns_note": f"{len(args.campaigns)} campaigns: {', '.join(args.campaigns)}",
+            }
+            for name, checkout in checkouts.items():
+                record[name] = {
+                    "commit": commit_of(checkout),
+                    "jobs": planned_jobs(checkout, args.campaigns),
+                    "wall_s": [],
+                }
+            for repeat in range(args.repeats):
+                for name, checkout in checkouts.items():
+                    seconds = timed_run(checkout, args.campaigns)
+                    record[name]["wall_s"].append(round(seconds, 1))
+                    print(f"run {repeat + 1}, {name}: {seconds:.1f} s", flush=True)
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=REPO, capture_output=True)
+    record["ratio"] = statistics.median(record["this"]["wall_s"]) / statistics.median(record["base"]["wall_s"])
+    if args.tests:
+        seconds, summary = test_command_seconds()
+        record["tests"] = {"seconds": round(seconds, 1), "summary": summary}
+    write(record)
+    print(markdown(record))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,48 @@
+"""What one sensor's fit gives once its samplers have run: their cross-check, the posterior
+summary, the model discrepancy, the remastering (the new zero-offsets for the controller) and the
+accuracy metrics of the paper's tables (`accuracy.accuracy_tables`). One job, because each step
+needs the one before and none is worth a process of its own."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..campaigns.campaign import Campaign
+from ..inference import discrepancy, fit
+from . import accuracy
+
+
+@dataclass(frozen=True)
+class FitSummary:
+    """cross_check: `fit.cross_check` table; summary: `fit.posterior_summary` with a parameter
+    column; with_discrepancy and discrepancy: `discrepancy.discrepancy_stage`'s table and report;
+    remastering: `fit.remastering`'s JSON-ready content; accuracy: `accuracy.accuracy_tables`."""
+
+    cross_check: pd.DataFrame
+    summary: pd.DataFrame
+    with_discrepancy: pd.DataFrame
+    discrepancy: dict
+    remastering: dict
+    accuracy: dict
+
+
+def fit_summary_stage(campaign: Campaign, campaign_label: str, sensor: str, registration: fit.Registration,
+                      laplace: fit.LaplaceReport, samples: Mapping[str, pd.DataFrame],
+                      sampler_reports: Mapping[str, dict], cross_check_settings: Mapping, rng: np.random.Generator,
+                      *, n_draws: int, n_random: int, default_method: str = "default") -> FitSummary:
+    """Cross-check every sampler (`samples`, `sampler_reports`: method -> samples, diagnostics):
+    a disagreement stops here (SamplerDisagreement), so nothing is summarized from samplers that
+    disagree; then summarize the default method's samples. `campaign_label`: the campaign's folder
+    name, as the remastering file names it; rng draws the accuracy metrics' posterior rows,
+    random configurations and noise (`accuracy.accuracy_tables`)."""
+    checked = fit.cross_check(dict(samples), dict(sampler_reports), laplace, **cross_check_settings)
+    summary = fit.posterior_summary(samples[default_method], laplace).reset_index()
+    with_discrepancy, report = discrepancy.discrepancy_stage(campaign, sensor, registration, laplace, summary)
+    remastering = fit.remastering(summary, campaign.chain.joint_names, campaign_label, sensor)
+    metrics = accuracy.accuracy_tables(campaign, sensor, registration, laplace, samples[default_method], rng,
+                                       n_draws=n_draws, n_random=n_random)
+    return FitSummary(checked, summary, with_discrepancy, report, remastering, metrics)

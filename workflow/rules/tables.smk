@@ -1,0 +1,131 @@
+# Stage 6: every table of a campaign in one job (the paper's tables, the loop closure's, the
+# workspace claims, the calibration's, the uncertainty budget and the certificate); the figures of
+# each sensor in one job and the campaign's own figure in another (a rule's files cannot depend on
+# how many sensors a campaign has). Tables and figures only read result files. The paper's twins
+# (config paper_twins) also get each accuracy table beside the paper's published numbers: a
+# second rule, because their set of files is larger; each campaign matches one of the two.
+from remaster.reporting.campaign_figures import SENSOR_FIGURES
+
+TABLES = f"{RESULTS}/{{campaign}}/tables"
+FIGURES = f"{RESULTS}/{{campaign}}/figures"
+PAPER_TWINS = [c for c in CAMPAIGNS if c in config["paper_twins"]]
+CAMPAIGN_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison", "iso9283",
+                   "loop_closure", "loop_closure_test", "loop_candidates", "workspace_accuracy",
+                   "workspace_warnings", "controller_offsets", "calibrated_files", "uncertainty_budget"]
+CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections"]
+
+
+def table_files(names):
+    """Named outputs: each table as .csv, .md and .tex."""
+    return {name: multiext(f"{TABLES}/{name}", ".csv", ".md", ".tex") for name in names}
+
+
+def calibrated_file_inputs(wildcards):
+    """The calibrated files the calibrated-files table lists (DH tables for a DH campaign)."""
+    names = [*CALIBRATED_FILES, *(CALIBRATED_DH_FILES if gives_dh(wildcards.campaign) else ())]
+    return {f"{Path(name).stem}_{Path(name).suffix[1:]}__{s}": f"{RESULTS}/{wildcards.campaign}/{s}/calibrated/{name}"
+            for name in names for s in sensors_of(wildcards.campaign)}
+
+
+TABLE_INPUTS = dict(
+    campaign=campaign_files,
+    summary=rules.campaign_summary.output.summary,
+)
+SENSOR_TABLE_INPUTS = sensor_inputs(
+    summary=f"{FIT}/summary.csv",
+    laplace=f"{FIT}/laplace.json",
+    registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
+    configuration_errors=f"{ACC}/configuration_errors.csv",
+    loop_theoretical=f"{LOOP}/theoretical_accuracy.csv",
+    loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
+    loop_table=f"{LOOP}/before_after.csv",
+    loop_residuals=f"{LOOP}/residuals.parquet",
+    claims=f"{LOOP}/workspace_accuracy.csv",
+    workspace=f"{LOOP}/workspace.json",
+    offsets=f"{CALIBRATED}/controller_offsets.csv",
+    **{f"metrics_{t}": f"{ACC}/{t}.csv" for t in TABLE_NAMES},
+)
+TABLE_OUTPUTS = dict(
+    certificate=f"{RESULTS}/{{campaign}}/certificate.md",
+    record=f"{RESULTS}/{{campaign}}/certificate.json",
+    **table_files(CAMPAIGN_TABLES + CERTIFICATE_TABLES),
+)
+
+
+rule tables:
+    input:
+        unpack(SENSOR_TABLE_INPUTS),
+        unpack(calibrated_file_inputs),
+        **TABLE_INPUTS,
+    output:
+        **TABLE_OUTPUTS,
+    log:
+        f"{RESULTS}/logs/{{campaign}}/tables.log",
+    wildcard_constraints:
+        campaign=f"(?!(?:{one_of(PAPER_TWINS)})/)[^/]+",
+    params:
+        beside_paper=False,
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(1),
+    script:
+        "../scripts/tables.py"
+
+
+rule tables_beside_paper:
+    input:
+        unpack(SENSOR_TABLE_INPUTS),
+        unpack(calibrated_file_inputs),
+        **TABLE_INPUTS,
+    output:
+        **TABLE_OUTPUTS,
+        **table_files([f"{t}_vs_paper" for t in TABLE_NAMES]),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/tables.log",
+    wildcard_constraints:
+        campaign=one_of(PAPER_TWINS),
+    params:
+        beside_paper=True,
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(1),
+    script:
+        "../scripts/tables.py"
+
+
+rule figures:
+    input:
+        trace=f"{FIT}/trace_paper.parquet",
+        samples=f"{FIT}/samples_default.parquet",
+        tcp_scatter=f"{ACC}/tcp_scatter.csv",
+        configuration_errors=f"{ACC}/configuration_errors.csv",
+        signatures=f"{LOOP}/signatures.parquet",
+        loop_residuals=f"{LOOP}/residuals.parquet",
+        residual_gp=f"{LOOP}/residual_gp.parquet",
+        loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
+        claims=f"{LOOP}/workspace_accuracy.csv",
+    output:
+        **{name: multiext(f"{FIGURES}/{name}_{{sensor}}", ".png", ".pdf") for name in SENSOR_FIGURES},
+    log:
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figures.log",
+    params:
+        burn_in=config["fit"]["paper"]["burn_in"],
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(1),
+    script:
+        "../scripts/figures.py"
+
+
+rule campaign_figures:
+    input:
+        unpack(sensor_inputs(configuration_errors=f"{ACC}/configuration_errors.csv")),
+    output:
+        residuals=multiext(f"{FIGURES}/residuals", ".png", ".pdf"),
+    log:
+        f"{RESULTS}/logs/{{campaign}}/campaign_figures.log",
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=5,
+    script:
+        "../scripts/campaign_figures.py"

@@ -1,0 +1,38 @@
+"""One sensor's fit once its samplers have run: cross-check, posterior summary, discrepancy,
+remastering and the accuracy metrics."""
+
+from snakemake.iocontainers import Snakemake
+
+from remaster import files, seeding, stage_inputs
+from remaster.analysis import fit_summary
+from remaster.campaigns import folders
+from remaster.inference import fit
+
+# The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
+# this file runs; named here so that readers and linters see where it comes from.
+snakemake: Snakemake = globals()["snakemake"]
+
+w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
+with files.log_to(snakemake.log[0]):
+    named = dict(i.items())
+    result = fit_summary.fit_summary_stage(
+        folders.read_campaign(folders.campaign_folder(i.campaign)),
+        w.campaign,
+        w.sensor,
+        fit.Registration.read(i.registration),
+        fit.LaplaceReport.read(i.laplace),
+        {m: files.read_parquet(f) for m, f in stage_inputs.by_sensor(named, "samples").items()},
+        {m: files.read_json(f) for m, f in stage_inputs.by_sensor(named, "diagnostics").items()},
+        dict(p.cross_check),
+        seeding.generator(p.seed, w.campaign, w.sensor, "accuracy"),
+        n_draws=p.draws,
+        n_random=p.random_configurations,
+    )
+    files.write_csv(out.cross_check, result.cross_check)
+    files.write_csv(out.summary, result.summary)
+    files.write_csv(out.with_discrepancy, result.with_discrepancy)
+    files.write_json(out.discrepancy, result.discrepancy)
+    files.write_json(out.remastering, result.remastering)
+    for name, path in stage_inputs.by_sensor(dict(out.items()), "metrics").items():
+        files.write_csv(path, result.accuracy[name])
+    files.write_json(out.accuracy, result.accuracy["report"])
