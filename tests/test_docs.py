@@ -48,8 +48,6 @@ def test_stray_key_detector_sees_a_description_cut_at_a_comma():
     assert _generator().stray_keys(yaml.safe_load("properties:\n  a: {type: integer, description: 'x, y'}\n")) == []
 
 
-@pytest.mark.xfail(reason="config.schema.yaml: six flow-mapping descriptions with an unquoted comma are cut "
-                          "short (fit/paper/samples, ...); quoting them in the schema fixes it", strict=False)
 def test_schema_descriptions_are_whole():
     assert _generator().stray_keys(_schema()) == []
 
