@@ -1,6 +1,6 @@
 """Batched forward kinematics vs a Pinocchio loop, 173 configurations of the iiwa (the paper's set).
 
-Run: python benchmarks/bench_kinematics.py   (numbers go into the README by hand-run, never into a test)
+Run: python benchmarks/bench_kinematics.py   (numbers go into benchmarks/README.md by hand-run, never into a test)
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ Two scenarios, each timed from scratch (wall time includes burn-in and the least
   B. the default pipeline: least squares + Laplace first, then a short chain from there.
 ESS is the smallest over the 14 parameters; "err" the largest |mean - exact| in posterior sd.
 
-Run: python benchmarks/bench_samplers.py   (numbers go into the README by hand-run)
+Run: python benchmarks/bench_samplers.py   (numbers go into benchmarks/README.md by hand-run)
 """
 
 from __future__ import annotations
