@@ -161,7 +161,7 @@ def _calibration_arguments(command: argparse.ArgumentParser) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
-    main = argparse.ArgumentParser(prog="remaster", description=__doc__.splitlines()[0])
+    main = argparse.ArgumentParser(prog="remaster", description=" ".join(__doc__.split("\n\n")[0].split()))
     commands = main.add_subparsers(dest="command", required=True)
 
     simulate = commands.add_parser("simulate", help="regenerate simulated campaigns from scenarios")
