@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Iterable, Iterator, Mapping
 
 import matplotlib
@@ -157,9 +158,21 @@ def transfer_figure(table: pd.DataFrame, title: str) -> plt.Figure:
         ax.set_ylabel("calibrated on", fontsize=8)
         ax.set_title(sensor_label(sensor), fontsize=9)
         fig.colorbar(image, ax=ax, fraction=0.046, pad=0.04).set_label("validation RMSE (mm)", fontsize=7)
-    fig.suptitle(title, fontsize=10)
+    _suptitle(fig, title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def _suptitle(fig: plt.Figure, title: str, fontsize: float) -> None:
+    """The figure's title on one line when it fits the figure's width, else wrapped (textwrap) to it
+    (a one-panel figure is narrower than a long robot name)."""
+    text = fig.suptitle(title, fontsize=fontsize)
+    renderer = fig.canvas.get_renderer()
+    room = fig.bbox.width
+    columns = len(title)
+    while (drawn := text.get_window_extent(renderer).width) > room and columns > 10:
+        columns = min(columns - 1, int(0.95 * columns * room / drawn))  # a margin once wrapped
+        text.set_text(textwrap.fill(title, columns))
 
 
 # figure -> (the comparison table it draws, how, title)
