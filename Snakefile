@@ -14,7 +14,7 @@ include: "workflow/rules/report.smk"
 
 
 rule all:
+    default_target: True
     input:
         # the report reads every table and figure; its audit hashes every result file
         f"{RESULTS}/report.html",
-    default_target: True

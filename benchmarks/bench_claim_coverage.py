@@ -58,14 +58,25 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
-    result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(SEED),
-                                             settings)
+    result = loop_closure.loop_closure_stage(
+        campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings
+    )
     result.report.write(folder.parent / "loop.json")
     report, samples = LoopReport.read(folder.parent / "loop.json"), result.samples
     robot = comparison.robot_identity(campaign)
-    claims = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], robot, fit.mode_summary(laplace),
-                                          laplace, report, samples, np.random.default_rng(SEED), n_draws=DRAWS,
-                                          n_random=RANDOM, seed=SEED).claims
+    claims = workspace.workspace_accuracy(
+        campaign.chain,
+        campaign.sensors[sensor],
+        robot,
+        fit.mode_summary(laplace),
+        laplace,
+        report,
+        samples,
+        np.random.default_rng(SEED),
+        n_draws=DRAWS,
+        n_random=RANDOM,
+        seed=SEED,
+    ).claims
     claim = workspace.claim_rows(claims, "loop", "random").iloc[0]
     q = prediction.robot_configurations(campaign.chain, robot, RANDOM, SEED)
     marker = campaign.sensors[sensor].marker
@@ -77,9 +88,15 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     parameters = true_parameters(truth, campaign.chain)
     z = {n: (samples[n].mean() - v) / samples[n].std() for n, v in parameters.items() if n in samples}
     worst = max(z, key=lambda n: abs(z[n]))
-    return {"seed": seed, "rms_z": float(np.sqrt(np.mean(np.square(list(z.values()))))), "worst": worst,
-            "worst_z": float(z[worst]), "true_p95_mm": float(true_p95), "p95_mm": float(claim["p95_mm"]),
-            "p95_bound_mm": float(claim["p95_bound_mm"])}
+    return {
+        "seed": seed,
+        "rms_z": float(np.sqrt(np.mean(np.square(list(z.values()))))),
+        "worst": worst,
+        "worst_z": float(z[worst]),
+        "true_p95_mm": float(true_p95),
+        "p95_mm": float(claim["p95_mm"]),
+        "p95_bound_mm": float(claim["p95_bound_mm"]),
+    }
 
 
 def main() -> None:
@@ -94,8 +111,11 @@ def main() -> None:
     for seed in range(first, first + count):
         rows.append(one_seed(spec, chain, config, sensor, seed))
         r = rows[-1]
-        print(f"seed {seed}: rms z {r['rms_z']:.2f}, worst {r['worst']} z {r['worst_z']:+.2f}; true p95 "
-              f"{r['true_p95_mm']:.4f} mm, claimed p95 {r['p95_mm']:.4f}, bound {r['p95_bound_mm']:.4f}", flush=True)
+        print(
+            f"seed {seed}: rms z {r['rms_z']:.2f}, worst {r['worst']} z {r['worst_z']:+.2f}; true p95 "
+            f"{r['true_p95_mm']:.4f} mm, claimed p95 {r['p95_mm']:.4f}, bound {r['p95_bound_mm']:.4f}",
+            flush=True,
+        )
     table = pd.DataFrame(rows)
     for column in ("p95_mm", "p95_bound_mm"):
         covered = int((table[column] >= table["true_p95_mm"]).sum())

@@ -38,12 +38,37 @@ def run(n: int) -> tuple[float, str]:
     kept (and named) if it fails."""
     folder = tempfile.mkdtemp(prefix=f"fleet{n}-")
     raw, results = Path(folder, "raw"), Path(folder, "results")
-    subprocess.run([sys.executable, "-m", "remaster.cli", "simulate", SCENARIO, "--copies", str(n),
-                    "--raw-dir", str(raw), "--truth-dir", str(Path(folder, "truth"))],
-                   check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "remaster.cli",
+            "simulate",
+            SCENARIO,
+            "--copies",
+            str(n),
+            "--raw-dir",
+            str(raw),
+            "--truth-dir",
+            str(Path(folder, "truth")),
+        ],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
     started = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "snakemake", "-j2", "--quiet", "all", "--config",
-                           f"raw_dir={raw}", f"results_dir={results}"])
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "-j2",
+            "--quiet",
+            "all",
+            "--config",
+            f"raw_dir={raw}",
+            f"results_dir={results}",
+        ]
+    )
     seconds = time.perf_counter() - started
     if done.returncode != 0:
         sys.exit(f"{n} campaigns: snakemake failed (exit {done.returncode}); logs in {results}/logs")

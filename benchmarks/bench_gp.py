@@ -53,7 +53,9 @@ def main(sizes) -> None:
             cov = residual_gp.kernel(q, q, hyper) + hyper.noise_std**2 * np.eye(n)
             mean = residual_gp.kernel(new, q, hyper) @ np.linalg.solve(cov, y)
             exact = f"{np.sqrt(np.mean((mean - truth(new)) ** 2)) * 1e6:9.2f}"
-        print(f"{n:6d} {fitted - started:8.1f} {conditioned - fitted:11.2f} {scored - conditioned:11.1f} {error:11.2f} {exact}")
+        print(
+            f"{n:6d} {fitted - started:8.1f} {conditioned - fitted:11.2f} {scored - conditioned:11.1f} {error:11.2f} {exact}"
+        )
 
 
 if __name__ == "__main__":

@@ -23,10 +23,12 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-TOUCH_OUTPUTS = ("from pathlib import Path as _Path\n"
-                 "for _file in snakemake.output:  # noqa: F821\n"
-                 "    _Path(_file).parent.mkdir(parents=True, exist_ok=True)\n"
-                 "    _Path(_file).touch()\n")
+TOUCH_OUTPUTS = (
+    "from pathlib import Path as _Path\n"
+    "for _file in snakemake.output:  # noqa: F821\n"
+    "    _Path(_file).parent.mkdir(parents=True, exist_ok=True)\n"
+    "    _Path(_file).touch()\n"
+)
 
 
 def top_level_imports(script: Path) -> str:
@@ -74,8 +76,10 @@ def main() -> None:
     for name, wall, jobs in rows:
         print(f"| {name} | {jobs} | {wall:.0f} | {wall / max(jobs, 1):.2f} |")
     (_, bare, _), (_, imports, _), (_, main_job, _) = rows
-    print(f"the jobs' work alone, both cores busy throughout: about {main_job - imports:.0f} s "
-          f"(+ {bare:.0f} s of Snakemake if importing cost nothing)")
+    print(
+        f"the jobs' work alone, both cores busy throughout: about {main_job - imports:.0f} s "
+        f"(+ {bare:.0f} s of Snakemake if importing cost nothing)"
+    )
 
 
 if __name__ == "__main__":

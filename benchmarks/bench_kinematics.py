@@ -51,8 +51,10 @@ def main() -> None:
     print(f"  Pinocchio loop                  {t_pin * 1e6:9.1f} us")
     print(f"  batched (precomputed sin/cos)   {t_batched * 1e6:9.1f} us   {t_pin / t_batched:5.1f}x faster")
     print(f"  batched (from scratch)          {t_cold * 1e6:9.1f} us   {t_pin / t_cold:5.1f}x faster")
-    print(f"  batched, 64 offset vectors      {t_walkers * 1e6:9.1f} us   "
-          f"{64 * t_pin / t_walkers:5.1f}x faster than 64 Pinocchio loops")
+    print(
+        f"  batched, 64 offset vectors      {t_walkers * 1e6:9.1f} us   "
+        f"{64 * t_pin / t_walkers:5.1f}x faster than 64 Pinocchio loops"
+    )
 
 
 if __name__ == "__main__":

@@ -62,7 +62,7 @@ def min_ess_per_second(method, run) -> tuple[float, float, float]:
 def _split(chain):
     walkers = chain.per_walker()
     if walkers.shape[1] >= 4:
-        return [walkers[:, : walkers.shape[1] // 2], walkers[:, walkers.shape[1] // 2:]]
+        return [walkers[:, : walkers.shape[1] // 2], walkers[:, walkers.shape[1] // 2 :]]
     return [walkers]
 
 
@@ -86,13 +86,17 @@ def main() -> None:
     print(f"  Pinocchio loop                   {1 / slow:10.0f} evaluations/s  (compiled is {slow / fast:.0f}x faster)")
 
     laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
-    settings = {"paper": {"chains": 2, "samples": 200_000, "burn_in": 175_000, "half_width": 0.0125},
-                "default": {"chains": 2, "samples": 40_000, "burn_in": 10_000},
-                "emcee": {"walkers": 32, "steps": 6_000, "burn_in": 1_000}}
+    settings = {
+        "paper": {"chains": 2, "samples": 200_000, "burn_in": 175_000, "half_width": 0.0125},
+        "default": {"chains": 2, "samples": 40_000, "burn_in": 10_000},
+        "emcee": {"walkers": 32, "steps": 6_000, "burn_in": 1_000},
+    }
     results = {}
     for method in ("paper", "default", "emcee"):
         rng = np.random.default_rng(7)
-        results[method] = min_ess_per_second(method, lambda: fit.sample(model, laplace, method, settings[method], rng))
+        results[method] = min_ess_per_second(
+            method, lambda m=method, r=rng: fit.sample(model, laplace, m, settings[m], r)
+        )
     paper_seconds = results["paper"][0] / settings["paper"]["chains"]
     print(f"paper-mode chain of 2e5 steps: {paper_seconds:.2f} s per chain")
     print("method     seconds   min ESS   min ESS/s   vs paper")

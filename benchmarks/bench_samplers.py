@@ -31,8 +31,11 @@ from remaster.inference import samplers
 MM, DEG = 1e-3, math.pi / 180
 N_POINTS = 173
 K = 3 * N_POINTS
-NAMES = tuple(f"registration.{p}" for p in ("x", "y", "z", "alpha", "beta", "gamma")) + tuple(
-    f"zero_offsets.q{j}" for j in range(1, 8)) + ("noise.sigma",)
+NAMES = (
+    tuple(f"registration.{p}" for p in ("x", "y", "z", "alpha", "beta", "gamma"))
+    + tuple(f"zero_offsets.q{j}" for j in range(1, 8))
+    + ("noise.sigma",)
+)
 SCALE = np.array([MM] * 3 + [DEG] * 10 + [MM])
 # the paper's motion-capture column: registration then zero-offsets, display units
 MEAN = np.array([-2.096, 0.502, 3.311, -0.252, -0.334, -0.960, 0.477, -0.192, 0.139, 0.099, 0.392, -0.114, 0.936])
@@ -49,8 +52,7 @@ class LinearPaperModel:
     def __init__(self, rng: np.random.Generator):
         design = rng.standard_normal((K, 13)) @ (np.eye(13) + 0.4 * rng.standard_normal((13, 13)))
         # scale columns so that sigma sqrt(diag((J^T J)^-1)) is the paper's standard deviations
-        self.jacobian = design * (SIGMA * np.sqrt(np.diag(np.linalg.inv(design.T @ design)))
-                                  / (STD * SCALE[:13]))
+        self.jacobian = design * (SIGMA * np.sqrt(np.diag(np.linalg.inv(design.T @ design))) / (STD * SCALE[:13]))
         self.y = self.jacobian @ (MEAN * SCALE[:13]) + SIGMA * rng.standard_normal(K)
         self.q = rng.uniform(-np.pi, np.pi, (N_POINTS, 7))
         ols, *_ = np.linalg.lstsq(self.jacobian, self.y, rcond=None)
@@ -94,25 +96,34 @@ def report(label: str, seconds: float, chain: samplers.Chain, model: LinearPaper
     error = float(np.max(np.abs(table["mean"].to_numpy() - model.exact_mean) / model.exact_std))
     rate = ess / seconds
     ratio = f"{rate / baseline:7.1f}x" if baseline else "    1.0x"
-    print(f"{label:52s} {seconds:6.2f} {chain.acceptance_rate:6.3f} {ess:8.1f} {rate:8.1f} {ratio} "
-          f"{error:5.2f}  {bool(table['tau_reliable'].all())}")
+    print(
+        f"{label:52s} {seconds:6.2f} {chain.acceptance_rate:6.3f} {ess:8.1f} {rate:8.1f} {ratio} "
+        f"{error:5.2f}  {bool(table['tau_reliable'].all())}"
+    )
     return rate
 
 
 def main() -> None:
     model = LinearPaperModel(np.random.default_rng(2018))
     start = np.append(np.zeros(13), 1.0 * MM)  # the paper's start
-    print(f"log_prob: {per_call_seconds(model.log_prob, start) * 1e6:.1f} us per single call, "
-          f"{per_call_seconds(model.log_prob_many, np.repeat(start[None], 32, 0)) * 1e6:.1f} us per call of 32")
-    print(f"{'method':52s} {'time s':>6s} {'accept':>6s} {'min ESS':>8s} {'ESS/s':>8s} {'vs paper':>8s} "
-          f"{'err':>5s}  tau reliable")
+    print(
+        f"log_prob: {per_call_seconds(model.log_prob, start) * 1e6:.1f} us per single call, "
+        f"{per_call_seconds(model.log_prob_many, np.repeat(start[None], 32, 0)) * 1e6:.1f} us per call of 32"
+    )
+    print(
+        f"{'method':52s} {'time s':>6s} {'accept':>6s} {'min ESS':>8s} {'ESS/s':>8s} {'vs paper':>8s} "
+        f"{'err':>5s}  tau reliable"
+    )
     runs = {
         "A paper: 2e5 steps, keep the last 2.5e4": lambda rng: samplers.metropolis_paper(
-            model, rng, start, n_samples=BUDGET, burn_in=175_000),
+            model, rng, start, n_samples=BUDGET, burn_in=175_000
+        ),
         "A adaptive: 2e5 steps, burn-in 5e4": lambda rng: samplers.metropolis_adaptive(
-            model, rng, start, n_samples=BUDGET, burn_in=50_000),
+            model, rng, start, n_samples=BUDGET, burn_in=50_000
+        ),
         "A emcee: 32 walkers x 6250 steps, burn-in 2500": lambda rng: samplers.run_emcee(
-            model, rng, start, 0.01 * SCALE, n_walkers=32, n_steps=BUDGET // 32, burn_in=2_500),
+            model, rng, start, 0.01 * SCALE, n_walkers=32, n_steps=BUDGET // 32, burn_in=2_500
+        ),
     }
     baseline = None
     for label, run in runs.items():
@@ -129,10 +140,17 @@ def main() -> None:
 
     pipeline = {
         "B Laplace + adaptive: 3e4 steps, burn-in 5e3": lambda fit: samplers.metropolis_adaptive(
-            model, np.random.default_rng(7), fit.theta_start, fit.full_covariance(), n_samples=30_000, burn_in=5_000),
+            model, np.random.default_rng(7), fit.theta_start, fit.full_covariance(), n_samples=30_000, burn_in=5_000
+        ),
         "B Laplace + emcee: 32 walkers x 1500 steps, burn-in 300": lambda fit: samplers.run_emcee(
-            model, np.random.default_rng(7), fit.theta_start, np.sqrt(np.diag(fit.full_covariance())),
-            n_walkers=32, n_steps=1_500, burn_in=300),
+            model,
+            np.random.default_rng(7),
+            fit.theta_start,
+            np.sqrt(np.diag(fit.full_covariance())),
+            n_walkers=32,
+            n_steps=1_500,
+            burn_in=300,
+        ),
     }
     for label, sampler in pipeline.items():
         seconds, chain = laplace_then(sampler)

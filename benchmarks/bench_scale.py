@@ -41,19 +41,33 @@ def write_campaign(folder: Path, rows: int, rng: np.random.Generator) -> None:
     q = rng.uniform(np.maximum(chain.lower, -2.0), np.minimum(chain.upper, 2.0), (rows, chain.n_joints))
     marker = np.array([-0.1, 0.0, 0.02])
     sensor = Sensor("laser_tracker", "laser_tracker", looking_at([1.6, 0.3, 1.2], [0, 0, 0.6]), 1e-5, marker)
-    truth = TrueRobot(zero_offsets=rng.normal(0.0, np.radians(0.3), chain.n_joints),
-                      joint_compliance=np.full(chain.n_joints, 1e-4), payload_mass=1.0)
+    truth = TrueRobot(
+        zero_offsets=rng.normal(0.0, np.radians(0.3), chain.n_joints),
+        joint_compliance=np.full(chain.n_joints, 1e-4),
+        payload_mass=1.0,
+    )
     n_opt = int(0.7 * rows) // per_pose * per_pose
     index = np.arange(rows)
-    table = pd.DataFrame({"set": np.where(index < n_opt, "optimization", "validation"),
-                          "pose": np.where(index < n_opt, index, index - n_opt) // per_pose,
-                          "solution": index % per_pose})
+    table = pd.DataFrame(
+        {
+            "set": np.where(index < n_opt, "optimization", "validation"),
+            "pose": np.where(index < n_opt, index, index - n_opt) // per_pose,
+            "solution": index % per_pose,
+        }
+    )
     table[[f"q{j + 1}" for j in range(chain.n_joints)]] = q
     table[["x", "y", "z"]] = measure(chain, truth, sensor, q, rng)
-    metadata = {"name": f"scale-{rows}", "date": "2020-01-01", "description": "bench_scale",
-                "robot": {"urdf": str(REPO / "data" / "robots" / "kuka_iiwa14.urdf"), "base": "iiwa_link_0",
-                          "flange": "iiwa_link_ee"},
-                "sensors": {"laser_tracker": {"kind": "laser_tracker", "marker": marker.tolist(), "noise": 1e-5}}}
+    metadata = {
+        "name": f"scale-{rows}",
+        "date": "2020-01-01",
+        "description": "bench_scale",
+        "robot": {
+            "urdf": str(REPO / "data" / "robots" / "kuka_iiwa14.urdf"),
+            "base": "iiwa_link_0",
+            "flange": "iiwa_link_ee",
+        },
+        "sensors": {"laser_tracker": {"kind": "laser_tracker", "marker": marker.tolist(), "noise": 1e-5}},
+    }
     folders.write_campaign(folder, metadata, {"laser_tracker": table})
 
 
@@ -78,21 +92,64 @@ def stages(folder: Path, config: dict) -> list[dict]:
 
     campaign = record("read", measured(folders.read_campaign, folder))
     registration = record("registration", measured(fit.registration_stage, campaign, sensor))
-    laplace = fit.LaplaceReport.of(record("laplace", measured(fit.laplace_stage, campaign, sensor, registration,
-                                                              config["outliers"]["alpha"])))
+    laplace = fit.LaplaceReport.of(
+        record("laplace", measured(fit.laplace_stage, campaign, sensor, registration, config["outliers"]["alpha"]))
+    )
     paper = {**config["fit"]["paper"], "samples": PAPER_STEPS, "burn_in": PAPER_STEPS // 2}
-    record("paper chain, per step", measured(fit.sampling_stage, campaign, sensor, registration, laplace, "paper",
-                                             paper, seeding.generator(seed, "scale", "paper")),
-           per=paper["chains"] * paper["samples"])
-    samples, _, _ = record("default sampler", measured(fit.sampling_stage, campaign, sensor, registration, laplace,
-                                                       "default", config["fit"]["default"],
-                                                       seeding.generator(seed, "scale", "default")))
-    record("accuracy", measured(accuracy.accuracy_tables, campaign, sensor, registration, laplace, samples,
-                                seeding.generator(seed, "scale", "accuracy"), config["accuracy"]["draws"],
-                                config["accuracy"]["random_configurations"]))
+    record(
+        "paper chain, per step",
+        measured(
+            fit.sampling_stage,
+            campaign,
+            sensor,
+            registration,
+            laplace,
+            "paper",
+            paper,
+            seeding.generator(seed, "scale", "paper"),
+        ),
+        per=paper["chains"] * paper["samples"],
+    )
+    samples, _, _ = record(
+        "default sampler",
+        measured(
+            fit.sampling_stage,
+            campaign,
+            sensor,
+            registration,
+            laplace,
+            "default",
+            config["fit"]["default"],
+            seeding.generator(seed, "scale", "default"),
+        ),
+    )
+    record(
+        "accuracy",
+        measured(
+            accuracy.accuracy_tables,
+            campaign,
+            sensor,
+            registration,
+            laplace,
+            samples,
+            seeding.generator(seed, "scale", "accuracy"),
+            config["accuracy"]["draws"],
+            config["accuracy"]["random_configurations"],
+        ),
+    )
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
-    record("loop closure", measured(loop_closure.loop_closure_stage, campaign, sensor, registration, laplace,
-                                    seeding.generator(seed, "scale", "loop"), settings))
+    record(
+        "loop closure",
+        measured(
+            loop_closure.loop_closure_stage,
+            campaign,
+            sensor,
+            registration,
+            laplace,
+            seeding.generator(seed, "scale", "loop"),
+            settings,
+        ),
+    )
     return out
 
 

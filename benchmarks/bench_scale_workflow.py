@@ -58,8 +58,17 @@ def run(rows: int, root: Path) -> int:
         started = time.perf_counter()
         write_campaign(raw / name, rows, np.random.default_rng(rows))
         print(f"campaign of {rows} rows written in {time.perf_counter() - started:.0f} s", flush=True)
-    command = [sys.executable, "-m", "snakemake", "-j2", "--config", f"raw_dir={raw}", f"results_dir={results}",
-               f"campaigns=[{name}]", "paper_twins=[]"]
+    command = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "-j2",
+        "--config",
+        f"raw_dir={raw}",
+        f"results_dir={results}",
+        f"campaigns=[{name}]",
+        "paper_twins=[]",
+    ]
     peaks: dict[str, int] = defaultdict(int)
     started = time.perf_counter()
     with open(root / "snakemake.log", "w") as log:

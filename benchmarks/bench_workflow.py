@@ -14,8 +14,17 @@ import time
 
 def main() -> None:
     with tempfile.TemporaryDirectory() as results:
-        command = [sys.executable, "-m", "snakemake", "-j2", "--quiet", "all", "--config", f"results_dir={results}",
-                   *sys.argv[1:]]
+        command = [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "-j2",
+            "--quiet",
+            "all",
+            "--config",
+            f"results_dir={results}",
+            *sys.argv[1:],
+        ]
         started = time.perf_counter()
         subprocess.run(command, check=True)
         print(f"snakemake -j2 from empty results: {time.perf_counter() - started:.1f} s")

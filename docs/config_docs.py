@@ -31,9 +31,27 @@ COMMAND = "python docs/config_docs.py --write"
 
 # JSON Schema keywords the schema uses; any other key inside a property is a slip (a comma in an unquoted
 # flow-mapping description ends the description and makes the rest a key of its own).
-KEYWORDS = {"$schema", "$ref", "description", "type", "additionalProperties", "properties", "default", "items",
-            "pattern", "uniqueItems", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "enum",
-            "minItems", "maxItems", "required", "definitions"}
+KEYWORDS = {
+    "$schema",
+    "$ref",
+    "description",
+    "type",
+    "additionalProperties",
+    "properties",
+    "default",
+    "items",
+    "pattern",
+    "uniqueItems",
+    "minimum",
+    "maximum",
+    "exclusiveMinimum",
+    "exclusiveMaximum",
+    "enum",
+    "minItems",
+    "maxItems",
+    "required",
+    "definitions",
+}
 
 
 def stray_keys(node: dict, path: str = "") -> list[str]:
@@ -65,7 +83,12 @@ def _type(node: dict) -> str:
         if kind == "array":
             items = node.get("items", {}).get("type")
             size = node.get("minItems") if node.get("minItems") == node.get("maxItems") else None
-            kind = "array" + (" of" if size or items else "") + (f" {size}" if size else "") + (f" {items}s" if items else "")
+            kind = (
+                "array"
+                + (" of" if size or items else "")
+                + (f" {size}" if size else "")
+                + (f" {items}s" if items else "")
+            )
         names.append(kind)
     return " or ".join(names)
 
@@ -104,8 +127,10 @@ def _rows(properties: dict, required: list, prefix: str, schema: dict) -> list[s
     for name, raw in properties.items():
         node = _resolve(raw, schema)
         path = f"{prefix}{name}"
-        rows.append(f"| `{path}` | {_type(node)} | {_default(node, name in required)} | {_cell(_allowed(node))} "
-                    f"| {_cell(node.get('description', ''))} |")
+        rows.append(
+            f"| `{path}` | {_type(node)} | {_default(node, name in required)} | {_cell(_allowed(node))} "
+            f"| {_cell(node.get('description', ''))} |"
+        )
         if "properties" in node:
             rows += _rows(node["properties"], node.get("required", []), f"{path}/", schema)
     return rows
@@ -141,8 +166,15 @@ def markdown(schema: dict) -> str:
     ]
     for name, raw in groups.items():
         node = _resolve(raw, schema)
-        lines += ["", f"## {name}", "", _cell(node.get("description", "")), "", HEADER,
-                  *_rows(node["properties"], node.get("required", []), f"{name}/", schema)]
+        lines += [
+            "",
+            f"## {name}",
+            "",
+            _cell(node.get("description", "")),
+            "",
+            HEADER,
+            *_rows(node["properties"], node.get("required", []), f"{name}/", schema),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -152,8 +184,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     schema = yaml.safe_load(SCHEMA.read_text(encoding="utf-8"))
     for stray in stray_keys(schema):
-        print(f"warning: {SCHEMA.relative_to(REPO)}: {stray} is not a JSON Schema keyword (a description cut at a "
-              "comma? quote it)", file=sys.stderr)
+        print(
+            f"warning: {SCHEMA.relative_to(REPO)}: {stray} is not a JSON Schema keyword (a description cut at a "
+            "comma? quote it)",
+            file=sys.stderr,
+        )
     text = markdown(schema)
     if args.write:
         PAGE.write_text(text, encoding="utf-8")

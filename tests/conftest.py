@@ -68,13 +68,33 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
     from remaster.loop.report import LoopReport
 
     accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
-    content = {"sensor": "laser_tracker", "evidence": "", "selection_data": "optimization set only",
-               "settings": {"payload_mass_kg": 1.0, "payload_com_m": [0.0, 0.0, 0.02],
-                            "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}}},
-               "effects_added": list(effects), "explained_fraction_when_added": {}, "candidates": {}, "rounds": [],
-               "validation_rmse_before_mm": 0.02, "validation_rmse_after_mm": 0.02, "sigma_before_mm": 0.01,
-               "sigma_after_mm": 0.01, "before": accuracy, "after": accuracy, "identifiability": {"dropped": {}},
-               "prior_dominated": [], "warnings": [], "refit": {"parameters": list(parameters)},
-               "zero_offset_shifts": [], "closure": dict(closure or {}), "residual_gp": None,
-               "noise_model": {"offered": False, "chosen": "isotropic", "why": "not a laser tracker"}, **fields}
+    content = {
+        "sensor": "laser_tracker",
+        "evidence": "",
+        "selection_data": "optimization set only",
+        "settings": {
+            "payload_mass_kg": 1.0,
+            "payload_com_m": [0.0, 0.0, 0.02],
+            "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}},
+        },
+        "effects_added": list(effects),
+        "explained_fraction_when_added": {},
+        "candidates": {},
+        "rounds": [],
+        "validation_rmse_before_mm": 0.02,
+        "validation_rmse_after_mm": 0.02,
+        "sigma_before_mm": 0.01,
+        "sigma_after_mm": 0.01,
+        "before": accuracy,
+        "after": accuracy,
+        "identifiability": {"dropped": {}},
+        "prior_dominated": [],
+        "warnings": [],
+        "refit": {"parameters": list(parameters)},
+        "zero_offset_shifts": [],
+        "closure": dict(closure or {}),
+        "residual_gp": None,
+        "noise_model": {"offered": False, "chosen": "isotropic", "why": "not a laser tracker"},
+        **fields,
+    }
     return LoopReport.of(content, source)

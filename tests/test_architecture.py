@@ -20,7 +20,9 @@ def _file_access(source: str) -> list[str]:
     found = []
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
-            found += [f"line {node.lineno}: import {a.name}" for a in node.names if a.name.split(".")[0] in FILE_MODULES]
+            found += [
+                f"line {node.lineno}: import {a.name}" for a in node.names if a.name.split(".")[0] in FILE_MODULES
+            ]
         elif isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in FILE_MODULES:
             names = {a.name for a in node.names}
             if names - {"PurePosixPath", "PurePath", "PureWindowsPath"}:  # pure paths never touch the disk
@@ -32,22 +34,31 @@ def _file_access(source: str) -> list[str]:
 
 def test_file_access_detector_sees_imports_and_open():
     assert _file_access("import shutil\nfrom pathlib import Path\nopen('x')\n") == [
-        "line 1: import shutil", "line 2: from pathlib import Path", "line 3: open()"]
+        "line 1: import shutil",
+        "line 2: from pathlib import Path",
+        "line 3: open()",
+    ]
     assert _file_access("from pathlib import PurePosixPath\nimport io as _s\n") == []
 
 
 def _modules() -> dict[str, Path]:
     """{dotted name below remaster (e.g. 'inference.fit'): file} of every module of the package."""
     package = Path(remaster.__file__).parent
-    return {".".join(p.relative_to(package).with_suffix("").parts): p for p in sorted(package.rglob("*.py"))
-            if "__pycache__" not in p.parts}
+    return {
+        ".".join(p.relative_to(package).with_suffix("").parts): p
+        for p in sorted(package.rglob("*.py"))
+        if "__pycache__" not in p.parts
+    }
 
 
 def test_only_the_file_modules_and_cli_touch_files():
     modules = _modules()
     assert FILE_ACCESS <= set(modules), "a module of FILE_ACCESS is gone: update the list"
-    offenders = {name: hits for name, path in modules.items() if name not in FILE_ACCESS
-                 and (hits := _file_access(path.read_text(encoding="utf-8")))}
+    offenders = {
+        name: hits
+        for name, path in modules.items()
+        if name not in FILE_ACCESS and (hits := _file_access(path.read_text(encoding="utf-8")))
+    }
     assert offenders == {}
 
 
@@ -58,8 +69,22 @@ def test_only_the_file_modules_and_cli_touch_files():
 # the sub-packages in the workflow's order, and the edge (cli: the command line). A module may
 # import its own layer and those below, never a later stage; a new top-level module must be placed
 # here, or the test says so.
-FOUNDATION = {"__init__", "errors", "spatial", "units", "labels", "_kernels", "seeding", "diagnostics", "noise",
-              "audit", "files", "layout", "provenance", "stage_inputs"}
+FOUNDATION = {
+    "__init__",
+    "errors",
+    "spatial",
+    "units",
+    "labels",
+    "_kernels",
+    "seeding",
+    "diagnostics",
+    "noise",
+    "audit",
+    "files",
+    "layout",
+    "provenance",
+    "stage_inputs",
+}
 STAGES = ("robot", "campaigns", "inference", "loop", "analysis", "reporting")
 INTERFACE = {"cli"}
 LAYER_NAMES = ["foundation", *STAGES, "interface"]
@@ -95,8 +120,10 @@ def _imported_modules(source: str, here: str, modules) -> set[str]:
 
 def test_the_import_detector_sees_relative_absolute_and_late_imports():
     modules = {"inference.fit", "reporting.tables", "inference.model", "units"}
-    source = ("from . import fit\nfrom ..reporting.tables import x\nfrom .. import units\ndef f():\n"
-              "    from remaster.inference.model import y\nimport numpy\n")
+    source = (
+        "from . import fit\nfrom ..reporting.tables import x\nfrom .. import units\ndef f():\n"
+        "    from remaster.inference.model import y\nimport numpy\n"
+    )
     assert _imported_modules(source, "inference.evidence", modules) == modules
 
 
@@ -104,13 +131,17 @@ def test_no_module_imports_a_later_stage():
     modules = _modules()
     unplaced = {m for m in modules if _layer(m) < 0}
     assert unplaced == set(), "place new top-level modules in FOUNDATION or INTERFACE"
-    upward = {f"{m} ({LAYER_NAMES[_layer(m)]}) imports {d} ({LAYER_NAMES[_layer(d)]})"
-              for m, path in modules.items()
-              for d in _imported_modules(path.read_text(encoding="utf-8"), m, modules) if _layer(d) > _layer(m)}
+    upward = {
+        f"{m} ({LAYER_NAMES[_layer(m)]}) imports {d} ({LAYER_NAMES[_layer(d)]})"
+        for m, path in modules.items()
+        for d in _imported_modules(path.read_text(encoding="utf-8"), m, modules)
+        if _layer(d) > _layer(m)
+    }
     assert upward == set()
     # the check sees an upward import when there is one
     assert _layer("reporting.tables") > _layer("inference.fit") and _imported_modules(
-        "from ..reporting import tables\n", "inference.fit", modules) == {"reporting.tables"}
+        "from ..reporting import tables\n", "inference.fit", modules
+    ) == {"reporting.tables"}
 
 
 # --------------------------------------------------------------------------- light readers
@@ -130,16 +161,28 @@ def test_jobs_that_only_read_results_import_no_solver():
     import subprocess
     import sys
 
-    scripts = [p for p in sorted((Path(__file__).parents[1] / "workflow" / "scripts").glob("*.py"))
-               if p.stem in READERS]
+    scripts = [
+        p for p in sorted((Path(__file__).parents[1] / "workflow" / "scripts").glob("*.py")) if p.stem in READERS
+    ]
     assert len(scripts) == len(READERS)
     imports = sorted({m for p in scripts for m in _library_imports(p)})
-    code = ("import sys\n" + "".join(f"import remaster.{m}\n" for m in imports)
-            + f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))")
+    code = (
+        "import sys\n"
+        + "".join(f"import remaster.{m}\n" for m in imports)
+        + f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))"
+    )
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert loaded == "", f"importing {imports} loads {loaded}"
     # the check itself sees a solver when one is imported
-    seen = subprocess.run([sys.executable, "-c", "import sys, remaster.inference.evidence, scipy.optimize\n"
-                           f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))"],
-                          capture_output=True, text=True, check=True).stdout.strip()
+    seen = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys, remaster.inference.evidence, scipy.optimize\n"
+            f"print(','.join(m for m in {SOLVERS!r} if m in sys.modules))",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     assert "scipy.optimize" in seen

@@ -30,7 +30,9 @@ def test_the_code_is_identified_by_the_content_of_the_package_that_ran(tmp_path)
     record = audit.audit_record({}, {}, {}, code, {"commit": "abc", "dirty": False})
     assert record["code"]["package_sha256"] == audit.folder_digest(code)
     assert record["code"]["package_files"] == len(code) and record["code"]["git"]["commit"] == "abc"
-    assert audit.audit_record({}, {}, {}, {**code, "files.py": "0" * 64})["code"]["package_sha256"] != \
-        record["code"]["package_sha256"]
+    assert (
+        audit.audit_record({}, {}, {}, {**code, "files.py": "0" * 64})["code"]["package_sha256"]
+        != record["code"]["package_sha256"]
+    )
     assert record["remaster_version"] == remaster.__version__
     assert provenance.git_commit(tmp_path) is None

@@ -26,9 +26,13 @@ from .conftest import REPO
 from .test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-TINY_FIT = {"fit": {"paper": {"chains": 2, "samples": 300, "burn_in": 200},
-                    "default": {"chains": 2, "samples": 300, "burn_in": 100},
-                    "emcee": {"walkers": 32, "steps": 200, "burn_in": 100}}}
+TINY_FIT = {
+    "fit": {
+        "paper": {"chains": 2, "samples": 300, "burn_in": 200},
+        "default": {"chains": 2, "samples": 300, "burn_in": 100},
+        "emcee": {"walkers": 32, "steps": 200, "burn_in": 100},
+    }
+}
 
 
 def parquet(folder: Path) -> str:
@@ -43,8 +47,9 @@ def test_misspelt_top_level_key_is_named_with_a_guess(tmp_path):
     meta["sensor"] = meta.pop("sensors")
     problem = read_error(make_campaign(tmp_path, meta))
     assert problem.key == "sensors"
-    assert str(problem) == (f"{tmp_path / 'demo' / 'campaign.yaml'}: sensors: missing required key "
-                            f"(misspelt? sensor -> sensors)")
+    assert str(problem) == (
+        f"{tmp_path / 'demo' / 'campaign.yaml'}: sensors: missing required key (misspelt? sensor -> sensors)"
+    )
 
 
 def test_misspelt_sensor_key_is_named_with_a_guess(tmp_path):
@@ -159,8 +164,11 @@ def test_empty_validation_set_is_read_and_reported_empty(tmp_path):
     assert sets["validation"] == {"configurations": 0, "poses": 0, "measured": 0}
     assert sets["optimization"]["configurations"] == 8
     sensor = campaign.sensors[SENSOR]
-    relative = metrics.relative_errors(sensor.positions("validation"), sensor.positions("validation"),
-                                       sensor.table.loc[sensor.set_mask("validation"), "pose"].to_numpy())
+    relative = metrics.relative_errors(
+        sensor.positions("validation"),
+        sensor.positions("validation"),
+        sensor.table.loc[sensor.set_mask("validation"), "pose"].to_numpy(),
+    )
     assert relative.shape == (0,)
     summary = metrics.interval_summary(relative)
     assert summary["count"] == 0 and math.isnan(summary["mean"])
@@ -176,8 +184,9 @@ CLOSED_LOOP = """<robot name="loop"><link name="base"/><link name="a"/><link nam
 
 
 def small_urdf_campaign(tmp_path, urdf_text):
-    folder = make_campaign(tmp_path, metadata(robot={"urdf": "robot.urdf", "base": "base", "flange": "tool"}),
-                           {SENSOR: sensor_table(3)})
+    folder = make_campaign(
+        tmp_path, metadata(robot={"urdf": "robot.urdf", "base": "base", "flange": "tool"}), {SENSOR: sensor_table(3)}
+    )
     (folder / "robot.urdf").write_text(urdf_text)
     return folder
 
@@ -191,8 +200,9 @@ def test_non_serial_urdf_in_a_campaign_names_the_urdf(tmp_path):
 def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
     from .test_campaign import SMALL_URDF
 
-    bad_limit = SMALL_URDF.replace('<joint name="j2" type="revolute">',
-                                   '<joint name="j2" type="revolute"><limit lower="-1.5" upper="one"/>')
+    bad_limit = SMALL_URDF.replace(
+        '<joint name="j2" type="revolute">', '<joint name="j2" type="revolute"><limit lower="-1.5" upper="one"/>'
+    )
     problem = read_error(small_urdf_campaign(tmp_path / "limit", bad_limit), KinematicsError)
     urdf = tmp_path / "limit" / "demo" / "robot.urdf"
     assert str(problem) == f"{urdf}: joint j2/limit/upper: cannot read a number from 'one'"
@@ -204,8 +214,9 @@ def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
 def test_urdf_limits_upside_down(tmp_path):
     from .test_campaign import SMALL_URDF
 
-    swapped = SMALL_URDF.replace('<joint name="j1" type="revolute">',
-                                 '<joint name="j1" type="revolute"><limit lower="1.0" upper="-1.0"/>')
+    swapped = SMALL_URDF.replace(
+        '<joint name="j1" type="revolute">', '<joint name="j1" type="revolute"><limit lower="1.0" upper="-1.0"/>'
+    )
     with pytest.raises(KinematicsError, match=r"robot.urdf: joint j1/limit: lower limit 1 is above upper limit -1"):
         kinematics.chain_from_urdf(swapped, "base", "tool", source="robot.urdf")
 
@@ -234,8 +245,9 @@ def test_kabsch_refuses_weights_that_would_give_a_quiet_nan(rng):
 
 def dry_run(tmp_path, settings: dict) -> subprocess.CompletedProcess:
     config = files.write_yaml(tmp_path / "bad-config.yaml", settings)
-    return subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
 
 
 def assert_refused(result: subprocess.CompletedProcess, *fragments: str) -> None:
@@ -251,8 +263,10 @@ def tiny(tmp_path_factory, iiwa):
     root = tmp_path_factory.mktemp("bad_input_workflow")
     spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-twin.yaml")
     spec["name"] = "tiny"
-    spec["plan"]["sets"] = {"optimization": {"poses": 4, "configurations": 12},
-                            "validation": {"poses": 2, "configurations": 6}}
+    spec["plan"]["sets"] = {
+        "optimization": {"poses": 4, "configurations": 12},
+        "validation": {"poses": 2, "configurations": 6},
+    }
     out = scenario.simulate(spec, iiwa)
     folders.write_campaign(root / "raw" / "tiny", out.metadata, out.tables)
     return root
@@ -292,8 +306,10 @@ def test_config_burn_in_not_shorter_than_the_run(tmp_path):
 
 
 def test_config_campaign_that_is_not_there(tmp_path):
-    assert_refused(dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
-                   "campaigns: no data/raw/<name>/campaign.yaml for kuka-twim")
+    assert_refused(
+        dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
+        "campaigns: no data/raw/<name>/campaign.yaml for kuka-twim",
+    )
 
 
 def test_config_raw_dir_without_any_campaign(tmp_path):
@@ -319,15 +335,19 @@ def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
     files.write_parquet(raw / "tiny" / "motion_capture.parquet", table)
     results = tmp_path / "results"
     config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
-    result = subprocess.run(SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True,
-                            text=True, timeout=600)
+    result = subprocess.run(
+        SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=600
+    )
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
     failed = re.findall(r"Error in rule (\w+):", output)
     assert failed and set(failed) <= {"campaign_summary", "registration"}, output[-2000:]
-    outputs = {"campaign_summary": [results / "tiny" / "campaign" / "summary.json"],
-               "registration": [results / "tiny" / sensor / "registration.json"
-                                for sensor in ("laser_tracker", "motion_capture")]}
+    outputs = {
+        "campaign_summary": [results / "tiny" / "campaign" / "summary.json"],
+        "registration": [
+            results / "tiny" / sensor / "registration.json" for sensor in ("laser_tracker", "motion_capture")
+        ],
+    }
     for rule in failed:
         assert not any(path.exists() for path in outputs[rule])
     assert [p for p in results.rglob("*") if p.is_file() and "logs" not in p.relative_to(results).parts] == []

@@ -34,7 +34,7 @@ def pinocchio_points(xml, chain, q):
         configuration = pin.neutral(model)
         for joint, angle in zip(joints, row):  # a continuous joint is (cos, sin) in Pinocchio
             values = [np.cos(angle), np.sin(angle)] if joint.nq == 2 else [angle]
-            configuration[joint.idx_q:joint.idx_q + joint.nq] = values
+            configuration[joint.idx_q : joint.idx_q + joint.nq] = values
         pin.framesForwardKinematics(model, data, configuration)
         placement = data.oMf[base].actInv(data.oMf[flange])
         out.append(placement.act(MARKER))
@@ -76,14 +76,22 @@ def test_a_chain_ending_on_a_joint_keeps_its_tool_twist_out_of_the_urdf_and_says
 def test_the_nominal_values_give_the_nominal_robot(iiwa, rng):
     xml, _ = calibrated.calibrated_urdf(iiwa, {})
     q = rng.uniform(-1.0, 1.0, (10, iiwa.n_joints))
-    np.testing.assert_allclose(pinocchio_points(xml, iiwa, q), prediction.robot_points(iiwa, q, MARKER, {}),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        pinocchio_points(xml, iiwa, q), prediction.robot_points(iiwa, q, MARKER, {}), rtol=0, atol=1e-12
+    )
 
 
 def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
-    table = pd.DataFrame({"parameter": ["zero_offsets.q1", "zero_offsets.q2"], "mean": [0.0, 0.3 * DEG],
-                          "std": [np.nan, 0.01 * DEG], "q2.5": [np.nan, 0.28 * DEG], "q97.5": [np.nan, 0.32 * DEG],
-                          "status": ["held: not identifiable", "estimated"]})
+    table = pd.DataFrame(
+        {
+            "parameter": ["zero_offsets.q1", "zero_offsets.q2"],
+            "mean": [0.0, 0.3 * DEG],
+            "std": [np.nan, 0.01 * DEG],
+            "q2.5": [np.nan, 0.28 * DEG],
+            "q97.5": [np.nan, 0.32 * DEG],
+            "status": ["held: not identifiable", "estimated"],
+        }
+    )
     offsets = calibrated.controller_offsets(["a1", "a2"], table, "paper").set_index("joint")
     assert offsets.loc["a2", "correction_deg"] == pytest.approx(0.3)
     assert offsets.loc["a2", "correction_rad"] == pytest.approx(0.3 * DEG)
@@ -160,8 +168,9 @@ def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng)
     assert not table["exact"]
     assert [m.split(":")[0] for m in table["not_dh_form"]] == ["F1", "F3"]
     assert "base" in table["not_dh_form"][0] and "17.19 deg" in table["not_dh_form"][1]
-    expected = kinematics.flange_poses(kinematics.perturbed_chain(chain, blocks.link_errors(chain, values)), q,
-                                       zero_offsets=[0.0, 0.01, 0, 0, 0, 0])
+    expected = kinematics.flange_poses(
+        kinematics.perturbed_chain(chain, blocks.link_errors(chain, values)), q, zero_offsets=[0.0, 0.01, 0, 0, 0, 0]
+    )
     written = kinematics.flange_poses(kinematics.chain_from_dh(table["rows"], "standard", table["flange"]), q)
     miss = np.max(np.linalg.norm(written[:, :3, 3] - expected[:, :3, 3], axis=1))
     assert table["max_position_difference_m"] == pytest.approx(miss, rel=1e-9)

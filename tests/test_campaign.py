@@ -25,8 +25,10 @@ IIWA_ROBOT = {"urdf": str(IIWA_URDF), "base": "iiwa_link_0", "flange": "iiwa_lin
 SENSOR = "laser_tracker"
 
 # A 3-joint arm, as standard DH rows [a, alpha, d, theta] and as the equivalent URDF.
-SMALL_DH = {"convention": "standard",
-            "rows": [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]]}
+SMALL_DH = {
+    "convention": "standard",
+    "rows": [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]],
+}
 SMALL_URDF = f"""<?xml version="1.0"?>
 <robot name="small">
   <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="tool"/>
@@ -45,11 +47,13 @@ def sensor_table(n_joints: int = 7, n_optimization: int = 6, n_validation: int =
     a UTC time column and an extra numeric column."""
     rng = np.random.default_rng(seed)
     n = n_optimization + n_validation
-    table = pd.DataFrame({
-        "set": ["optimization"] * n_optimization + ["validation"] * n_validation,
-        "pose": np.r_[np.arange(n_optimization) // 2, np.arange(n_validation)].astype(np.int64),
-        "solution": np.r_[np.arange(n_optimization) % 2, np.zeros(n_validation)].astype(np.int64),
-    })
+    table = pd.DataFrame(
+        {
+            "set": ["optimization"] * n_optimization + ["validation"] * n_validation,
+            "pose": np.r_[np.arange(n_optimization) // 2, np.arange(n_validation)].astype(np.int64),
+            "solution": np.r_[np.arange(n_optimization) % 2, np.zeros(n_validation)].astype(np.int64),
+        }
+    )
     for j, column in enumerate(rng.uniform(-1.0, 1.0, (n_joints, n))):
         table[f"q{j + 1}"] = column
     for axis, column in zip("xyz", rng.uniform(-1.5, 1.5, (3, n))):
@@ -60,16 +64,21 @@ def sensor_table(n_joints: int = 7, n_optimization: int = 6, n_validation: int =
 
 
 def metadata(name: str = "demo", robot: dict | None = None) -> dict:
-    return {"name": name, "date": dt.date(2018, 6, 12), "description": "test campaign",
-            "robot": dict(IIWA_ROBOT) if robot is None else robot,
-            "sensors": {SENSOR: {"kind": "laser_tracker", "marker": [0.0, 0.0, 0.05], "noise": 3e-5}}}
+    return {
+        "name": name,
+        "date": dt.date(2018, 6, 12),
+        "description": "test campaign",
+        "robot": dict(IIWA_ROBOT) if robot is None else robot,
+        "sensors": {SENSOR: {"kind": "laser_tracker", "marker": [0.0, 0.0, 0.05], "noise": 3e-5}},
+    }
 
 
 def make_campaign(root: Path, meta: dict | None = None, tables: dict | None = None, name: str = "demo") -> Path:
     """Write a campaign folder root/name; a valid iiwa campaign unless told otherwise."""
     folder = root / name
-    write_campaign(folder, metadata(name) if meta is None else meta,
-                   {SENSOR: sensor_table()} if tables is None else tables)
+    write_campaign(
+        folder, metadata(name) if meta is None else meta, {SENSOR: sensor_table()} if tables is None else tables
+    )
     return folder
 
 
@@ -106,16 +115,19 @@ def test_write_campaign_is_deterministic(tmp_path):
     for file in ("campaign.yaml", f"{SENSOR}.parquet"):
         assert (first / file).read_bytes() == (second / file).read_bytes()
     campaign = read_campaign(first, repo_root=REPO)
-    rewritten = write_campaign(tmp_path / "c" / "demo", campaign.to_metadata(),
-                               {name: s.table for name, s in campaign.sensors.items()})
+    rewritten = write_campaign(
+        tmp_path / "c" / "demo", campaign.to_metadata(), {name: s.table for name, s in campaign.sensors.items()}
+    )
     assert (rewritten / f"{SENSOR}.parquet").read_bytes() == (first / f"{SENSOR}.parquet").read_bytes()
 
 
 def test_write_json_is_sorted_and_deterministic(tmp_path):
     data = {"b": np.float64(1.5), "a": np.arange(3), "date": dt.date(2018, 6, 12)}
     path = write_json(tmp_path / "out.json", data)
-    assert path.read_text() == json.dumps({"a": [0, 1, 2], "b": 1.5, "date": "2018-06-12"},
-                                          sort_keys=True, indent=2) + "\n"
+    assert (
+        path.read_text()
+        == json.dumps({"a": [0, 1, 2], "b": 1.5, "date": "2018-06-12"}, sort_keys=True, indent=2) + "\n"
+    )
 
 
 def test_set_column_may_be_object_string_or_categorical(tmp_path):
@@ -149,10 +161,14 @@ def test_unseen_markers_are_kept_and_counted(tmp_path, caplog):
 @pytest.mark.parametrize("urdf_place", ["campaign folder", "repository root", "shared robots"])
 def test_urdf_is_found_in_folder_then_repo_root_then_shared_robots(tmp_path, urdf_place):
     repo = tmp_path / "repo"
-    urdf = {"campaign folder": "iiwa.urdf", "repository root": "models/iiwa.urdf",
-            "shared robots": "kuka_iiwa14.urdf"}[urdf_place]
-    target = {"campaign folder": repo / "demo" / urdf, "repository root": repo / urdf,
-              "shared robots": repo / "data" / "robots" / urdf}[urdf_place]
+    urdf = {"campaign folder": "iiwa.urdf", "repository root": "models/iiwa.urdf", "shared robots": "kuka_iiwa14.urdf"}[
+        urdf_place
+    ]
+    target = {
+        "campaign folder": repo / "demo" / urdf,
+        "repository root": repo / urdf,
+        "shared robots": repo / "data" / "robots" / urdf,
+    }[urdf_place]
     target.parent.mkdir(parents=True, exist_ok=True)
     shutil.copy(IIWA_URDF, target)
     folder = make_campaign(repo, metadata(robot={**IIWA_ROBOT, "urdf": urdf}))
@@ -164,8 +180,11 @@ def test_dh_only_and_agreeing_urdf_and_dh(tmp_path):
     dh_chain = read_campaign(dh_only).chain
     assert dh_chain.n_joints == 3
 
-    both = make_campaign(tmp_path / "b", metadata(robot={"urdf": "small.urdf", "base": "base", "flange": "tool",
-                                                         "dh": SMALL_DH}), {SENSOR: sensor_table(3)})
+    both = make_campaign(
+        tmp_path / "b",
+        metadata(robot={"urdf": "small.urdf", "base": "base", "flange": "tool", "dh": SMALL_DH}),
+        {SENSOR: sensor_table(3)},
+    )
     (both / "small.urdf").write_text(SMALL_URDF)
     campaign = read_campaign(both, repo_root=tmp_path)
     assert campaign.chain.joint_names == ("j1", "j2", "j3")  # the URDF chain is the one kept
@@ -192,11 +211,13 @@ def drop(key):
 
 def set_key(path, value):
     """Mutation setting meta[path[0]][path[1]]... = value."""
+
     def mutate(meta):
         section = meta
         for key in path[:-1]:
             section = section[key]
         section[path[-1]] = value
+
     return mutate
 
 
@@ -214,17 +235,24 @@ METADATA_ERRORS = {
     "urdf missing": (set_key(["robot", "urdf"], "no_such_robot.urdf"), "robot/urdf", KinematicsError),
     "base not in urdf": (set_key(["robot", "base"], "world"), "robot/base", KinematicsError),
     "flange not in urdf": (set_key(["robot", "flange"], "tool0"), "robot/flange", KinematicsError),
-    "dh convention": (set_key(["robot"], {"dh": {**SMALL_DH, "convention": "craig"}}), "robot/dh/convention",
-                      KinematicsError),
-    "dh flange": (set_key(["robot"], {"dh": {**SMALL_DH, "flange": [[2, 0, 0, 0]] * 4}}), "robot/dh/flange",
-                  KinematicsError),
+    "dh convention": (
+        set_key(["robot"], {"dh": {**SMALL_DH, "convention": "craig"}}),
+        "robot/dh/convention",
+        KinematicsError,
+    ),
+    "dh flange": (
+        set_key(["robot"], {"dh": {**SMALL_DH, "flange": [[2, 0, 0, 0]] * 4}}),
+        "robot/dh/flange",
+        KinematicsError,
+    ),
     "unknown kind": (set_key(["sensors", SENSOR, "kind"], "camera"), f"sensors/{SENSOR}/kind", InputError),
-    "marker two numbers": (set_key(["sensors", SENSOR, "marker"], [0.0, 0.1]), f"sensors/{SENSOR}/marker",
-                           InputError),
-    "marker nan": (set_key(["sensors", SENSOR, "marker"], [0.0, float("nan"), 0.1]), f"sensors/{SENSOR}/marker",
-                   InputError),
-    "marker text": (set_key(["sensors", SENSOR, "marker"], ["a", 0.0, 0.1]), f"sensors/{SENSOR}/marker",
-                    InputError),
+    "marker two numbers": (set_key(["sensors", SENSOR, "marker"], [0.0, 0.1]), f"sensors/{SENSOR}/marker", InputError),
+    "marker nan": (
+        set_key(["sensors", SENSOR, "marker"], [0.0, float("nan"), 0.1]),
+        f"sensors/{SENSOR}/marker",
+        InputError,
+    ),
+    "marker text": (set_key(["sensors", SENSOR, "marker"], ["a", 0.0, 0.1]), f"sensors/{SENSOR}/marker", InputError),
     "noise zero": (set_key(["sensors", SENSOR, "noise"], 0.0), f"sensors/{SENSOR}/noise", InputError),
     "noise negative": (set_key(["sensors", SENSOR, "noise"], -1e-5), f"sensors/{SENSOR}/noise", InputError),
 }
@@ -253,8 +281,9 @@ def test_name_must_equal_folder(tmp_path):
 
 def test_malformed_dh_rows_are_named(tmp_path):
     dh = {**SMALL_DH, "rows": [SMALL_DH["rows"][0], [0.4, 0.0, 0.0], SMALL_DH["rows"][2], ["a", 0, 0, 0]]}
-    problem = read_error(make_campaign(tmp_path, metadata(robot={"dh": dh}), {SENSOR: sensor_table(3)}),
-                         KinematicsError)
+    problem = read_error(
+        make_campaign(tmp_path, metadata(robot={"dh": dh}), {SENSOR: sensor_table(3)}), KinematicsError
+    )
     assert "campaign.yaml: robot/dh/rows" in str(problem) and problem.rows == [1, 3]
     assert "rows 1, 3" in str(problem)
 
@@ -289,6 +318,7 @@ def with_values(columns, rows, value):
     def mutate(table):
         table.loc[rows, columns] = value
         return table
+
     return mutate
 
 
@@ -317,8 +347,12 @@ TABLE_ERRORS = {
     "joint inf": (with_values(["q1", "q6"], [0, 8], np.inf), "q1, q6", [0, 8], "non-finite"),
     "position inf": (with_values("y", [6], -np.inf), "x, y, z", [6], "infinite"),
     "partial nan": (with_values("z", [1, 4], np.nan), "x, y, z", [1, 4], "not all"),
-    "millimetres": (lambda t: t.assign(x=t.x * 1e3, y=t.y * 1e3, z=t.z * 1e3 + 2e3), "x, y, z", list(range(9)),
-                    "looks like millimetres"),
+    "millimetres": (
+        lambda t: t.assign(x=t.x * 1e3, y=t.y * 1e3, z=t.z * 1e3 + 2e3),
+        "x, y, z",
+        list(range(9)),
+        "looks like millimetres",
+    ),
     "one far row": (with_values("x", [3], 25.0), "x, y, z", [3], "looks like millimetres"),
     "empty table": (lambda t: t.iloc[:0], None, None, "no rows"),
     "no optimization rows": (lambda t: t.iloc[6:], "set", None, "no optimization rows"),
@@ -351,7 +385,8 @@ def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_pa
     """The estimate grows with the rows of the largest sensor; a campaign over the limit is refused
     with its name, its rows, the estimate and the setting to change; one under it records the
     estimate in its summary."""
-    from remaster.campaigns import campaign as campaigns, capacity
+    from remaster.campaigns import campaign as campaigns
+    from remaster.campaigns import capacity
 
     assert capacity.peak_estimate(100_000) == pytest.approx(2 * capacity.peak_estimate(50_000) - capacity.BASE_BYTES)
     assert 3.5e9 < capacity.peak_estimate(100_000) < 4.5e9  # the 100,000-row accuracy job measured 3.6 GB
@@ -360,6 +395,9 @@ def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_pa
     summary = campaigns.summarize(data, memory_limit=2e9)
     assert summary["memory"] == {"largest_sensor_rows": 9, "estimated_peak_gb": pytest.approx(0.500324)}
     assert campaigns.summarize(data) == summary  # the limit is not recorded: the same bytes on every machine
-    with pytest.raises(InputError, match=r"demo: 9 rows in its largest sensor: .* would need about 0\.5 GB, more than "
-                                         r"the 0\.1 GB a job may use \(max_job_memory_gb"):
+    with pytest.raises(
+        InputError,
+        match=r"demo: 9 rows in its largest sensor: .* would need about 0\.5 GB, more than "
+        r"the 0\.1 GB a job may use \(max_job_memory_gb",
+    ):
         campaigns.summarize(data, memory_limit=0.1e9)

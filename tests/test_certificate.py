@@ -27,40 +27,100 @@ def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
 
 
 def _inputs(outliers=(), closed=True):
-    laplace = LaplaceReport(("zero_offsets.q2",), np.zeros(1), np.ones(1), np.eye(1), 1e-3, 1e-3, 1e-4,
-                            ("zero_offsets.q1", "zero_offsets.q2"), {"zero_offsets.q1": 0.0}, (), tuple(outliers),
-                            (4,), 40)
+    laplace = LaplaceReport(
+        ("zero_offsets.q2",),
+        np.zeros(1),
+        np.ones(1),
+        np.eye(1),
+        1e-3,
+        1e-3,
+        1e-4,
+        ("zero_offsets.q1", "zero_offsets.q2"),
+        {"zero_offsets.q1": 0.0},
+        (),
+        tuple(outliers),
+        (4,),
+        40,
+    )
     rows = []
     for method, level in ((certificate.BEFORE, 3.0), (certificate.AFTER, 1.0)):
         for k in range(20):
-            rows.append({"set": "validation", "registration": certificate.AS_IS, "method": method, "row": 100 + k,
-                         "pose": k // 2, "error_mm": level + 0.1 * (k % 2) + 0.01 * k})
+            rows.append(
+                {
+                    "set": "validation",
+                    "registration": certificate.AS_IS,
+                    "method": method,
+                    "row": 100 + k,
+                    "pose": k // 2,
+                    "error_mm": level + 0.1 * (k % 2) + 0.01 * k,
+                }
+            )
     errors = pd.DataFrame(rows)
-    residuals = pd.DataFrame({"when": "after", "set": "validation", "point": np.arange(20), "row": 100 + np.arange(20),
-                              "x_m": 2e-5 + 1e-6 * (np.arange(20) // 2), "y_m": 0.0, "z_m": 0.0})  # rows of 10 poses
-    claims = pd.DataFrame([{"model": m, "configurations": c, "frame": "registered", "noise": "with noise",
-                            "mean_mm": v, "p95_mm": 2 * v, "p95_bound_mm": 3 * v, "count": 100}
-                           for m, c, v in (("paper", "optimization", 1.0), ("loop", "optimization", 0.02),
-                                           ("paper", "random", 1.1), ("loop", "random", 0.5))])
-    workspace = {"holds": {"loop": {"holds": "near the measured poses only"}},
-                 "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
-                 "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"]}
+    residuals = pd.DataFrame(
+        {
+            "when": "after",
+            "set": "validation",
+            "point": np.arange(20),
+            "row": 100 + np.arange(20),
+            "x_m": 2e-5 + 1e-6 * (np.arange(20) // 2),
+            "y_m": 0.0,
+            "z_m": 0.0,
+        }
+    )  # rows of 10 poses
+    claims = pd.DataFrame(
+        [
+            {
+                "model": m,
+                "configurations": c,
+                "frame": "registered",
+                "noise": "with noise",
+                "mean_mm": v,
+                "p95_mm": 2 * v,
+                "p95_bound_mm": 3 * v,
+                "count": 100,
+            }
+            for m, c, v in (
+                ("paper", "optimization", 1.0),
+                ("loop", "optimization", 0.02),
+                ("paper", "random", 1.1),
+                ("loop", "random", 0.5),
+            )
+        ]
+    )
+    workspace = {
+        "holds": {"loop": {"holds": "near the measured poses only"}},
+        "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
+        "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"],
+    }
     verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
     refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
-    loop = loop_report(effects=["joint_compliance"], closure={"closed": closed, "verdict": verdict},
-                       warnings=([] if closed else [f"loop {verdict}"]) + [refit])
-    offsets = pd.DataFrame([{"joint": "j1", "model": "paper", "correction_deg": 0.0, "std_deg": np.nan,
-                             "status": "held: not identifiable"},
-                            {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009,
-                             "status": "estimated"},
-                            {"joint": "j2", "model": "loop", "correction_deg": 0.2, "std_deg": 0.0001,
-                             "status": "estimated"}])
+    loop = loop_report(
+        effects=["joint_compliance"],
+        closure={"closed": closed, "verdict": verdict},
+        warnings=([] if closed else [f"loop {verdict}"]) + [refit],
+    )
+    offsets = pd.DataFrame(
+        [
+            {
+                "joint": "j1",
+                "model": "paper",
+                "correction_deg": 0.0,
+                "std_deg": np.nan,
+                "status": "held: not identifiable",
+            },
+            {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009, "status": "estimated"},
+            {"joint": "j2", "model": "loop", "correction_deg": 0.2, "std_deg": 0.0001, "status": "estimated"},
+        ]
+    )
     return certificate.CertificateInputs(laplace, errors, residuals, claims, workspace, loop, offsets)
 
 
-SUMMARY = {"campaign": "c", "date": "2020-01-01",
-           "robot": {"name": "arm", "serial": "S-1", "joints": ["j1", "j2"]},
-           "sensors": {"laser_tracker": {"kind": "laser_tracker"}}}
+SUMMARY = {
+    "campaign": "c",
+    "date": "2020-01-01",
+    "robot": {"name": "arm", "serial": "S-1", "joints": ["j1", "j2"]},
+    "sensors": {"laser_tracker": {"kind": "laser_tracker"}},
+}
 
 
 def test_a_certificate_says_before_after_corrections_and_warnings():
@@ -80,13 +140,19 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model
     assert np.isnan(corrections.loc["j1", "Correction (deg)"]) and corrections.loc["j1", "Status"].startswith("held")
     verdict = cert.verdicts.iloc[0]
-    assert verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"] and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
+    assert (
+        verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
+        and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
+    )
     assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
     assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
     assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
     assert any("25 x" in w for w in cert.warnings)
-    assert cert.warnings[0].endswith("over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis "
-                                     "within 18 deg of one direction")
+    assert cert.warnings[0].endswith(
+        "over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis within 18 deg of one direction"
+    )
     text = certificate.to_markdown(cert)
-    assert text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
+    assert (
+        text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
+    )

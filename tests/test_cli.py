@@ -13,9 +13,31 @@ from .conftest import IIWA_URDF, REPO
 
 def test_plan_writes_commandable_configurations(tmp_path, iiwa):
     out = tmp_path / "plan.csv"
-    status = cli.main(["plan", "--urdf", str(IIWA_URDF), "--base", "iiwa_link_0", "--flange", "iiwa_link_ee",
-                       "--sensor-origin", "1.6", "0.5", "1.0", "--marker", "-0.1", "0", "0.02",
-                       "--candidates", "20", "--seed", "3", "--out", str(out)])
+    status = cli.main(
+        [
+            "plan",
+            "--urdf",
+            str(IIWA_URDF),
+            "--base",
+            "iiwa_link_0",
+            "--flange",
+            "iiwa_link_ee",
+            "--sensor-origin",
+            "1.6",
+            "0.5",
+            "1.0",
+            "--marker",
+            "-0.1",
+            "0",
+            "0.02",
+            "--candidates",
+            "20",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+        ]
+    )
     assert status == 0
     table = pd.read_csv(out)
     q = table[[f"q{j}" for j in range(1, 8)]].to_numpy()
@@ -30,30 +52,69 @@ def test_plan_from_three_registration_points(tmp_path, iiwa):
     q = np.radians([[-40, 40, 0, -70, 0, 50, 0], [0, 20, 0, -100, 0, -30, 0], [40, 55, 0, -40, 0, 60, 0]])
     marker = np.array([-0.1, 0.0, 0.02])
     measured = kinematics.marker_positions(iiwa, q, marker) - sensor_origin  # a sensor frame parallel to the base
-    points = pd.DataFrame(q, columns=[f"q{j}" for j in range(1, 8)]).assign(x=measured[:, 0], y=measured[:, 1],
-                                                                          z=measured[:, 2])
+    points = pd.DataFrame(q, columns=[f"q{j}" for j in range(1, 8)]).assign(
+        x=measured[:, 0], y=measured[:, 1], z=measured[:, 2]
+    )
     points.to_csv(tmp_path / "three.csv", index=False)
-    common = ["plan", "--urdf", str(IIWA_URDF), "--flange", "iiwa_link_ee", "--marker", *map(str, marker),
-              "--candidates", "10"]
-    assert cli.main(common + ["--registration-points", str(tmp_path / "three.csv"), "--out", str(tmp_path / "a.csv")]) == 0
+    common = [
+        "plan",
+        "--urdf",
+        str(IIWA_URDF),
+        "--flange",
+        "iiwa_link_ee",
+        "--marker",
+        *map(str, marker),
+        "--candidates",
+        "10",
+    ]
+    assert (
+        cli.main(common + ["--registration-points", str(tmp_path / "three.csv"), "--out", str(tmp_path / "a.csv")]) == 0
+    )
     assert cli.main(common + ["--sensor-origin", *map(str, sensor_origin), "--out", str(tmp_path / "b.csv")]) == 0
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv"), atol=1e-9)
 
 
 def test_plan_errors_name_the_problem(tmp_path, capsys):
-    status = cli.main(["plan", "--urdf", str(IIWA_URDF), "--flange", "tool0", "--sensor-origin", "1", "0", "1",
-                       "--out", str(tmp_path / "p.csv")])
+    status = cli.main(
+        [
+            "plan",
+            "--urdf",
+            str(IIWA_URDF),
+            "--flange",
+            "tool0",
+            "--sensor-origin",
+            "1",
+            "0",
+            "1",
+            "--out",
+            str(tmp_path / "p.csv"),
+        ]
+    )
     assert status == 2
     assert "robot/flange" in capsys.readouterr().err and not (tmp_path / "p.csv").exists()
 
 
 def test_simulate_regenerates_a_campaign_that_reads(tmp_path, monkeypatch):
     spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
-    spec["plan"]["sets"] = {"optimization": {"poses": 4, "configurations": 15}, "validation": {"poses": 2, "configurations": 6}}
+    spec["plan"]["sets"] = {
+        "optimization": {"poses": 4, "configurations": 15},
+        "validation": {"poses": 2, "configurations": 6},
+    }
     files.write_yaml(tmp_path / "small.yaml", spec)
     monkeypatch.chdir(REPO)  # the scenario names the robot relative to the repository
-    assert cli.main(["simulate", str(tmp_path / "small.yaml"), "--raw-dir", str(tmp_path / "raw"),
-                     "--truth-dir", str(tmp_path / "truth")]) == 0
+    assert (
+        cli.main(
+            [
+                "simulate",
+                str(tmp_path / "small.yaml"),
+                "--raw-dir",
+                str(tmp_path / "raw"),
+                "--truth-dir",
+                str(tmp_path / "truth"),
+            ]
+        )
+        == 0
+    )
     campaign = folders.read_campaign(tmp_path / "raw" / "kuka-compliance", repo_root=REPO)
     assert len(campaign.sensors["laser_tracker"].table) >= 15
     assert (tmp_path / "truth" / "kuka-compliance.json").is_file()

@@ -31,26 +31,48 @@ def summary(means_deg, stds_deg, held=()):
     status = ["estimated"] * len(names)
     for j in held:
         mean[j - 1], std[j - 1], status[j - 1] = 0.0, np.nan, HELD
-    table = pd.DataFrame({"mean": mean, "std": std, "q2.5": np.nan, "q97.5": np.nan, "status": status},
-                         index=pd.Index(names, name="parameter"))
+    table = pd.DataFrame(
+        {"mean": mean, "std": std, "q2.5": np.nan, "q97.5": np.nan, "status": status},
+        index=pd.Index(names, name="parameter"),
+    )
     return table
 
 
 ROBOT = "urdf:kuka_iiwa14.urdf:iiwa_link_0:iiwa_link_ee"
 ENTRIES = [
     # kuka-twin-2019 given first: the order of entries does not matter, dates do
-    comparison.Entry("kuka-twin-2019", "2019-06-18", "laser_tracker",
-                     summary([0.10, 0.34, 0.0], [0.009, 0.009, 0.01], held=[3]), ROBOT, "laser_tracker"),
-    ("kuka-twin", "2018-06-12", "laser_tracker", summary([0.10, 0.30, 0.05], [0.009, 0.009, 0.01]), ROBOT,
-     "laser_tracker"),
-    ("kuka-twin", "2018-06-12", "motion_capture", summary([0.11, 0.31, 0.10], [0.02, 0.01, 0.01]), ROBOT,
-     "motion_capture"),
+    comparison.Entry(
+        "kuka-twin-2019",
+        "2019-06-18",
+        "laser_tracker",
+        summary([0.10, 0.34, 0.0], [0.009, 0.009, 0.01], held=[3]),
+        ROBOT,
+        "laser_tracker",
+    ),
+    (
+        "kuka-twin",
+        "2018-06-12",
+        "laser_tracker",
+        summary([0.10, 0.30, 0.05], [0.009, 0.009, 0.01]),
+        ROBOT,
+        "laser_tracker",
+    ),
+    (
+        "kuka-twin",
+        "2018-06-12",
+        "motion_capture",
+        summary([0.11, 0.31, 0.10], [0.02, 0.01, 0.01]),
+        ROBOT,
+        "motion_capture",
+    ),
 ]
 
 
 def test_robot_identity_of_the_bundled_campaigns():
-    twin, twin_2019, compliance = (files.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
-                                   for c in ("kuka-twin", "kuka-twin-2019", "kuka-compliance"))
+    twin, twin_2019, compliance = (
+        files.read_yaml(REPO / "data" / "raw" / c / "campaign.yaml")
+        for c in ("kuka-twin", "kuka-twin-2019", "kuka-compliance")
+    )
     # the serial names the physical unit: the twin and its campaign a year later are one robot,
     # kuka-compliance is another iiwa
     assert comparison.robot_identity(twin) == comparison.robot_identity(twin_2019) == "serial:iiwa14-NIST-01"
@@ -78,8 +100,11 @@ def test_zero_offsets_over_time_is_a_long_table_in_degrees():
     assert len(table) == 9  # 3 entries x 3 zero-offsets, sigma left out
     assert table["campaign"].tolist() == ["kuka-twin"] * 6 + ["kuka-twin-2019"] * 3
     assert table["sensor"].tolist()[:6] == ["motion_capture"] * 3 + ["laser_tracker"] * 3  # paper order
-    row = table[(table["campaign"] == "kuka-twin") & (table["parameter"] == "zero_offsets.q2")
-                & (table["sensor"] == "laser_tracker")].iloc[0]
+    row = table[
+        (table["campaign"] == "kuka-twin")
+        & (table["parameter"] == "zero_offsets.q2")
+        & (table["sensor"] == "laser_tracker")
+    ].iloc[0]
     assert row["mean_deg"] == pytest.approx(0.30) and row["std_deg"] == pytest.approx(0.009)
     held = table[(table["campaign"] == "kuka-twin-2019") & (table["parameter"] == "zero_offsets.q3")].iloc[0]
     assert held["status"] == HELD and math.isnan(held["std_deg"]) and held["mean_deg"] == 0.0
@@ -98,13 +123,22 @@ def test_drift_between_consecutive_campaigns():
     assert q1["diff_deg"] == pytest.approx(0.0, abs=1e-12) and not q1["flagged"]
     assert q3["status"] == "not comparable: held in kuka-twin-2019 (not identifiable)" and not q3["flagged"]
     assert math.isnan(q3["z"]) and math.isnan(q3["diff_deg"])
-    assert not comparison.drift_between(ENTRIES, significance=3.2).set_index("parameter").loc[
-        "zero_offsets.q2", "flagged"]
+    assert (
+        not comparison.drift_between(ENTRIES, significance=3.2).set_index("parameter").loc["zero_offsets.q2", "flagged"]
+    )
 
 
 def test_drift_only_within_one_robot_and_kind():
-    other = [("dh-arm-a", "2019-01-01", "laser_tracker", summary([0.5, 0.5, 0.5], [0.01] * 3), "dh:standard:x",
-              "laser_tracker")]
+    other = [
+        (
+            "dh-arm-a",
+            "2019-01-01",
+            "laser_tracker",
+            summary([0.5, 0.5, 0.5], [0.01] * 3),
+            "dh:standard:x",
+            "laser_tracker",
+        )
+    ]
     drift = comparison.drift_between(ENTRIES + other)
     assert "dh-arm-a" not in set(drift["campaign_a"]) | set(drift["campaign_b"])
     assert comparison.drift_between(ENTRIES[1:]).empty  # one campaign per robot and kind
@@ -135,8 +169,9 @@ def test_bad_entries_are_named():
     with pytest.raises(InputError, match="kuka-twin/laser_tracker: date"):
         comparison.zero_offsets_over_time([("kuka-twin", "June 2018", "laser_tracker", summary([0.1], [0.01]))])
     with pytest.raises(InputError, match="kuka-twin/laser_tracker: std"):
-        comparison.zero_offsets_over_time([("kuka-twin", "2018-06-12", "laser_tracker",
-                                            summary([0.1], [0.01]).drop(columns="std"))])
+        comparison.zero_offsets_over_time(
+            [("kuka-twin", "2018-06-12", "laser_tracker", summary([0.1], [0.01]).drop(columns="std"))]
+        )
     with pytest.raises(InputError, match="given twice"):
         comparison.zero_offsets_over_time([ENTRIES[1], ENTRIES[1]])
 
@@ -148,7 +183,8 @@ def test_zero_offsets_over_time_figure():
     assert len(panels) == 3 and panels[1].get_title() == "zero-offset q2"
     plt.close(fig)
     mixed = comparison.zero_offsets_over_time(
-        ENTRIES + [("other", "2019-01-01", "laser_tracker", summary([0.1] * 3, [0.01] * 3), "dh:standard:x")])
+        ENTRIES + [("other", "2019-01-01", "laser_tracker", summary([0.1] * 3, [0.01] * 3), "dh:standard:x")]
+    )
     with pytest.raises(ValueError, match="one robot at a time"):
         figures_comparison.zero_offsets_over_time_figure(mixed, "mixed")
 
@@ -156,8 +192,17 @@ def test_zero_offsets_over_time_figure():
 def test_over_time_figure_of_a_fleet_keeps_campaigns_of_one_day_apart(recwarn):
     """50 campaigns of one robot on one day (a simulated fleet): one slot each, a readable number
     of labels, and a layout matplotlib could fit (no tight-layout warning)."""
-    entries = [(f"fleet-{i:03d}", "2020-03-02", "laser_tracker", summary([0.1 + 0.001 * i, 0.3], [0.01, 0.01]),
-                ROBOT, "laser_tracker") for i in range(50)]
+    entries = [
+        (
+            f"fleet-{i:03d}",
+            "2020-03-02",
+            "laser_tracker",
+            summary([0.1 + 0.001 * i, 0.3], [0.01, 0.01]),
+            ROBOT,
+            "laser_tracker",
+        )
+        for i in range(50)
+    ]
     fig = figures_comparison.zero_offsets_over_time_figure(comparison.zero_offsets_over_time(entries), "fleet")
     fig.canvas.draw()
     panel = fig.axes[0]
@@ -173,24 +218,49 @@ def test_over_time_figure_of_a_fleet_keeps_campaigns_of_one_day_apart(recwarn):
 def loop(compliance=None, marker=None, q2=(0.3, 0.009)):
     """A loop closure's refit parameter table (display units): registration, zero-offset q2, noise,
     and optionally joint compliance q2 (mean, std in urad/(N m)) and a marker offset x (mm)."""
-    rows = [("registration", "registration.x", "mm", 1.0, 0.01, "estimated"),
-            ("zero_offsets", "zero_offsets.q2", "deg", *q2, "estimated"),
-            ("noise", "noise.sigma", "mm", 0.01, 0.001, "estimated")]
+    rows = [
+        ("registration", "registration.x", "mm", 1.0, 0.01, "estimated"),
+        ("zero_offsets", "zero_offsets.q2", "deg", *q2, "estimated"),
+        ("noise", "noise.sigma", "mm", 0.01, 0.001, "estimated"),
+    ]
     if compliance is not None:
-        rows += [("joint_compliance", "joint_compliance.q2", "urad/(N m)", *compliance, "estimated"),
-                 ("joint_compliance", "joint_compliance.q1", "urad/(N m)", 0.0, None, "invisible: no torque")]
+        rows += [
+            ("joint_compliance", "joint_compliance.q2", "urad/(N m)", *compliance, "estimated"),
+            ("joint_compliance", "joint_compliance.q1", "urad/(N m)", 0.0, None, "invisible: no torque"),
+        ]
     if marker is not None:
         rows.append(("marker_offset", "marker_offset.x", "mm", *marker, "estimated"))
     return pd.DataFrame(rows, columns=["block", "parameter", "unit", "mean_display", "std_display", "status"])
 
 
 LOOP_ENTRIES = [
-    comparison.Entry("kuka-twin-2019", "2019-06-18", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
-                     loop(compliance=(26.0, 0.5), marker=(0.3, 0.01), q2=(0.34, 0.009))),
-    comparison.Entry("kuka-twin", "2018-06-12", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker",
-                     loop(compliance=(24.0, 0.5), marker=(0.2, 0.01))),
-    comparison.Entry("kuka-twin", "2018-06-12", "motion_capture", summary([0.1], [0.01]), ROBOT, "motion_capture",
-                     loop(compliance=(24.0, 0.5), marker=(5.0, 0.1))),
+    comparison.Entry(
+        "kuka-twin-2019",
+        "2019-06-18",
+        "laser_tracker",
+        summary([0.1], [0.01]),
+        ROBOT,
+        "laser_tracker",
+        loop(compliance=(26.0, 0.5), marker=(0.3, 0.01), q2=(0.34, 0.009)),
+    ),
+    comparison.Entry(
+        "kuka-twin",
+        "2018-06-12",
+        "laser_tracker",
+        summary([0.1], [0.01]),
+        ROBOT,
+        "laser_tracker",
+        loop(compliance=(24.0, 0.5), marker=(0.2, 0.01)),
+    ),
+    comparison.Entry(
+        "kuka-twin",
+        "2018-06-12",
+        "motion_capture",
+        summary([0.1], [0.01]),
+        ROBOT,
+        "motion_capture",
+        loop(compliance=(24.0, 0.5), marker=(5.0, 0.1)),
+    ),
     comparison.Entry("no-loop", "2018-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker"),
 ]
 
@@ -201,8 +271,12 @@ def test_loop_parameters_over_time_keep_display_units_and_leave_out_setup():
     assert "no-loop" not in set(table["campaign"])  # no loop closure, no rows
     assert not table["block"].isin(["registration", "noise"]).any()  # the campaign's set-up, not the robot
     twin_lt = table[(table["campaign"] == "kuka-twin") & (table["sensor"] == "laser_tracker")]
-    assert twin_lt["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1",
-                                             "marker_offset.x"]  # model order
+    assert twin_lt["parameter"].tolist() == [
+        "zero_offsets.q2",
+        "joint_compliance.q2",
+        "joint_compliance.q1",
+        "marker_offset.x",
+    ]  # model order
     compliance = twin_lt.set_index("parameter").loc["joint_compliance.q2"]
     assert compliance["unit"] == "urad/(N m)" and compliance["mean"] == 24.0 and compliance["std"] == 0.5
     assert math.isnan(twin_lt.set_index("parameter").loc["joint_compliance.q1", "std"])  # not estimated
@@ -244,26 +318,35 @@ def test_loop_parameters_of_models_with_different_effects_are_not_compared():
     assert drift["z"].isna().all() and not drift["flagged"].any()
     sensors = [LOOP_ENTRIES[1], LOOP_ENTRIES[2]._replace(loop=loop(compliance=(24.0, 0.5)))]
     agreement = comparison.loop_parameter_agreement(sensors)
-    assert (agreement["status"] == "not comparable: models differ (joint_compliance vs joint_compliance + "
-                                   "marker_offset)").all() and agreement["z"].isna().all()  # motion capture first
+    assert (
+        agreement["status"] == "not comparable: models differ (joint_compliance vs joint_compliance + marker_offset)"
+    ).all() and agreement["z"].isna().all()  # motion capture first
     over_time = comparison.loop_parameters_over_time(differ)
     assert set(over_time["effects"]) == {"joint_compliance + marker_offset", "none"}
 
 
 def test_loop_parameters_in_other_units_are_not_compared():
     hourly, per_kelvin = (loop().assign(unit=u) for u in ("deg/h", "deg/K"))
-    entries = [("a", "2020-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", hourly),
-               ("b", "2021-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", per_kelvin)]
+    entries = [
+        ("a", "2020-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", hourly),
+        ("b", "2021-01-01", "laser_tracker", summary([0.1], [0.01]), ROBOT, "laser_tracker", per_kelvin),
+    ]
     drift = comparison.loop_parameter_drift(entries).set_index("parameter")
     assert drift.loc["zero_offsets.q2", "status"] == "not comparable: units differ (deg/h, deg/K)"
 
 
 def test_loop_entries_from_loop_closure_reports():
-    metadata = {"c": {"date": "2020-01-01", "robot": {"urdf": "kuka_iiwa14.urdf"},
-                      "sensors": {"laser_tracker": {"kind": "laser_tracker"}}}}
+    metadata = {
+        "c": {
+            "date": "2020-01-01",
+            "robot": {"urdf": "kuka_iiwa14.urdf"},
+            "sensors": {"laser_tracker": {"kind": "laser_tracker"}},
+        }
+    }
     report = loop_report(loop(compliance=(24.0, 0.5)).replace({np.nan: None}).to_dict("records"))
-    entries = comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])},
-                                    {("c", "laser_tracker"): report})
+    entries = comparison.entries_of(
+        metadata, {("c", "laser_tracker"): summary([0.1], [0.01])}, {("c", "laser_tracker"): report}
+    )
     table = comparison.table("loop_parameters_over_time", entries)
     assert table["parameter"].tolist() == ["zero_offsets.q2", "joint_compliance.q2", "joint_compliance.q1"]
     assert comparison.entries_of(metadata, {("c", "laser_tracker"): summary([0.1], [0.01])})[0].loop is None
@@ -296,8 +379,10 @@ def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
 
     def fleet(stated_std):
         estimates = truth + std * rng.standard_normal((200, 2))
-        return [(f"c{i:03d}", "2020-03-02", "laser_tracker", summary(e, stated_std), ROBOT, "laser_tracker")
-                for i, e in enumerate(estimates)]
+        return [
+            (f"c{i:03d}", "2020-03-02", "laser_tracker", summary(e, stated_std), ROBOT, "laser_tracker")
+            for i, e in enumerate(estimates)
+        ]
 
     honest = comparison.drift_calibration(comparison.drift_between(fleet(std)))
     assert honest["parameter"].tolist() == ["zero_offsets.q1", "zero_offsets.q2"]
@@ -315,7 +400,9 @@ def test_a_loop_report_missing_a_key_names_the_file_and_the_key(tmp_path):
     path = tmp_path / "loop_closure.json"
     files.write_json(path, content)
     report = LoopReport.read(path)
-    assert report.effects_added == ("joint_compliance",) and report.held_zero_offset_std == pytest.approx(np.radians(0.5))
+    assert report.effects_added == ("joint_compliance",) and report.held_zero_offset_std == pytest.approx(
+        np.radians(0.5)
+    )
     assert report.source == str(path) and report.sigma_after == pytest.approx(1e-5)
     del content["settings"]["priors"]
     files.write_json(path, content)

@@ -40,17 +40,34 @@ def synthetic_robot(chain, rng, spread=1e-5, draws=400, held=None, tcp=None, **g
     """A loop-closed model with random values (`given` ones replaced: zero_offsets_q4=0.01) and Gaussian
     posterior rows of std `spread` (SI) around them."""
     values = {**loop_values(chain, rng), **{k.replace("_q", ".q"): v for k, v in given.items()}}
-    setup = {"registration.x": 0.8, "registration.y": -0.2, "registration.z": 0.1, "registration.alpha": 0.3,
-             "registration.beta": -0.01, "registration.gamma": 0.02, "sensor_scale.s": 2e-5}
+    setup = {
+        "registration.x": 0.8,
+        "registration.y": -0.2,
+        "registration.z": 0.1,
+        "registration.alpha": 0.3,
+        "registration.beta": -0.01,
+        "registration.gamma": 0.02,
+        "sensor_scale.s": 2e-5,
+    }
     names = [n for n in values if n not in (held or {})]
     every = {**values, **setup}
     samples = pd.DataFrame({n: every[n] + spread * rng.standard_normal(draws) for n in names + list(setup)})
     samples[SIGMA] = 2e-5
-    calibration = prediction.Calibration("loop", {**values, **(held or {})}, EFFECTS, blocks.ModelSettings(),
-                                         samples[names])
-    return compensation.CalibratedRobot(chain, calibration, MARKER if tcp is None else np.asarray(tcp), tcp is None,
-                                        setup, spatial.homogeneous(spatial.rot_z(0.4), [1.0, 2.0, 0.5]), samples,
-                                        dict(held or {}), 0.5 * DEG, absorbed=frozenset(held or {}))
+    calibration = prediction.Calibration(
+        "loop", {**values, **(held or {})}, EFFECTS, blocks.ModelSettings(), samples[names]
+    )
+    return compensation.CalibratedRobot(
+        chain,
+        calibration,
+        MARKER if tcp is None else np.asarray(tcp),
+        tcp is None,
+        setup,
+        spatial.homogeneous(spatial.rot_z(0.4), [1.0, 2.0, 0.5]),
+        samples,
+        dict(held or {}),
+        0.5 * DEG,
+        absorbed=frozenset(held or {}),
+    )
 
 
 def commands(chain, rng, n=12):
@@ -69,8 +86,9 @@ def test_the_flange_pose_carries_the_point(iiwa, rng):
     values = robot.calibration.values
     poses = predictor.flange_poses(values)
     offset = np.array([values[f"marker_offset.{a}"] for a in "xyz"])
-    np.testing.assert_allclose(poses[:, :3, :3] @ (MARKER + offset) + poses[:, :3, 3], predictor.points(values),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        poses[:, :3, :3] @ (MARKER + offset) + poses[:, :3, 3], predictor.points(values), atol=1e-12
+    )
 
 
 def test_sensor_frame_round_trip(iiwa, rng):
@@ -95,10 +113,10 @@ def test_compensated_commands_put_the_calibrated_robot_where_the_nominal_one_was
     assert np.all(out["error_mm"] < 1e-5) and np.all(out["nominal_error_mm"] > 0.1)
     evaluate = compensation._calibrated_evaluate(robot)
     for i in range(3):
-        base_points, base_frames = evaluate(q[i:i + 1])
+        base_points, base_frames = evaluate(q[i : i + 1])
         columns = []
         for j in range(7):
-            step = q[i:i + 1].copy()
+            step = q[i : i + 1].copy()
             step[0, j] += 1e-6
             p, r = evaluate(step)
             dr = r[0] @ base_frames[0].T  # I + skew(small rotation)
@@ -145,10 +163,12 @@ def test_bounds_follow_the_posterior_spread(iiwa, rng):
     model is exact to ~1e-3 at these sizes), and the held zero-offset's tolerance widens the
     robot-frame bound, not the sensor-frame one (the registration holds it there)."""
     q = commands(iiwa, rng, 10)
-    narrow = compensation.predict(synthetic_robot(iiwa, np.random.default_rng(1), 1e-6), q, "robot", 2000,
-                                  np.random.default_rng(2))
-    wide = compensation.predict(synthetic_robot(iiwa, np.random.default_rng(1), 1e-5), q, "robot", 2000,
-                                np.random.default_rng(2))
+    narrow = compensation.predict(
+        synthetic_robot(iiwa, np.random.default_rng(1), 1e-6), q, "robot", 2000, np.random.default_rng(2)
+    )
+    wide = compensation.predict(
+        synthetic_robot(iiwa, np.random.default_rng(1), 1e-5), q, "robot", 2000, np.random.default_rng(2)
+    )
     np.testing.assert_allclose(wide["bound95_mm"] / narrow["bound95_mm"], 10.0, rtol=0.01)
     np.testing.assert_allclose(wide["x"], narrow["x"], atol=1e-12)
     held = synthetic_robot(iiwa, np.random.default_rng(1), 1e-6, held={"zero_offsets.q1": 0.0})
@@ -182,7 +202,9 @@ def test_bad_commands_name_the_file_column_and_rows(iiwa):
         compensation.joint_commands(bad, iiwa, "c.csv")
     far = table.copy()
     far.loc[2, "q4"] = 120.0  # degrees given for radians
-    with pytest.raises(InputError, match=r"c.csv: q4: beyond the joint limits .* rad \(commands are in rad\) \(row 2\)"):
+    with pytest.raises(
+        InputError, match=r"c.csv: q4: beyond the joint limits .* rad \(commands are in rad\) \(row 2\)"
+    ):
         compensation.joint_commands(far, iiwa, "c.csv")
     with pytest.raises(InputError, match="c.csv: no rows"):
         compensation.joint_commands(table.iloc[:0], iiwa, "c.csv")
@@ -198,8 +220,22 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
     (tmp_path / "results" / "kuka-twin" / "laser_tracker").mkdir(parents=True)
     assert cli(["predict", *common, "--results", str(tmp_path / "results"), "--commands", "c.csv"]) == 2
     assert "laser_tracker/registration.json: file not found" in capsys.readouterr().err
-    assert cli(["compensate", "--campaign", campaign, "--sensor", "camera", "--results", str(tmp_path / "results"),
-                "--targets", "t.csv"]) == 2
+    assert (
+        cli(
+            [
+                "compensate",
+                "--campaign",
+                campaign,
+                "--sensor",
+                "camera",
+                "--results",
+                str(tmp_path / "results"),
+                "--targets",
+                "t.csv",
+            ]
+        )
+        == 2
+    )
     assert "no results of this campaign and sensor" in capsys.readouterr().err
     for bad in (["--draws", "0"], ["--model", "full"]):
         with pytest.raises(SystemExit) as exited:
@@ -218,13 +254,23 @@ def twin(model: str, tmp_path_factory):
     its true robot and sensor. The twin drifts: a calibration's zero-offsets are those of its drift
     block's time origin, the first measurement, so the true robot is taken then (`at_start`)."""
     campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
-    results = {"registration": fit.registration_stage(campaign, "laser_tracker"), "laplace": laplace,
-               "summary": fit.mode_summary(laplace), "paper_samples": None, "loop": report, "loop_samples": samples,
-               "gp": None}
+    results = {
+        "registration": fit.registration_stage(campaign, "laser_tracker"),
+        "laplace": laplace,
+        "summary": fit.mode_summary(laplace),
+        "paper_samples": None,
+        "loop": report,
+        "loop_samples": samples,
+        "gp": None,
+    }
     truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
     sensor = sensor_from_truth(truth, "laser_tracker", campaign.sensors["laser_tracker"].marker)
-    return (campaign, compensation.calibrated_robot(campaign, "laser_tracker", model, results), robot_from_truth(truth),
-            sensor)
+    return (
+        campaign,
+        compensation.calibrated_robot(campaign, "laser_tracker", model, results),
+        robot_from_truth(truth),
+        sensor,
+    )
 
 
 def closed_loop(frame: str, tmp_path_factory):
@@ -245,8 +291,11 @@ def closed_loop(frame: str, tmp_path_factory):
     q = out[[f"q{j + 1}" for j in range(7)]].to_numpy()
     where = true_sensor_positions if frame == "sensor" else true_marker_positions
     targets = out[["target_x", "target_y", "target_z"]].to_numpy()
-    return (out, np.linalg.norm(where(campaign.chain, true_robot, sensor, q0, at_start(q0)) - targets, axis=1),
-            np.linalg.norm(where(campaign.chain, true_robot, sensor, q, at_start(q)) - targets, axis=1))
+    return (
+        out,
+        np.linalg.norm(where(campaign.chain, true_robot, sensor, q0, at_start(q0)) - targets, axis=1),
+        np.linalg.norm(where(campaign.chain, true_robot, sensor, q, at_start(q)) - targets, axis=1),
+    )
 
 
 def test_compensated_commands_reach_the_twins_targets_on_its_true_robot(tmp_path_factory):
@@ -318,22 +367,36 @@ def test_predict_and_compensate_from_the_command_line(twin_results, tmp_path, ca
     q = campaign.sensors["laser_tracker"].q("validation")[:6]
     program = tmp_path / "program.csv"
     files.write_csv(program, pd.DataFrame(q, columns=[f"q{j + 1}" for j in range(7)]))
-    common = ["--campaign", "data/raw/kuka-twin", "--sensor", "laser_tracker", "--results", str(root),
-              "--draws", "300"]
+    common = ["--campaign", "data/raw/kuka-twin", "--sensor", "laser_tracker", "--results", str(root), "--draws", "300"]
     assert cli(["predict", *common, "--commands", str(program), "--out", str(tmp_path / "p.csv")]) == 0
     predicted = files.read_csv(tmp_path / "p.csv")
     assert len(predicted) == 6 and predicted["bound95_mm"].notna().all()
     assert "the zero-offset of q1, which these data do not see" in capsys.readouterr().err
-    assert cli(["compensate", *common, "--frame", "sensor", "--targets", str(program),
-                "--out", str(tmp_path / "c.csv")]) == 0
+    assert (
+        cli(["compensate", *common, "--frame", "sensor", "--targets", str(program), "--out", str(tmp_path / "c.csv")])
+        == 0
+    )
     compensated = files.read_csv(tmp_path / "c.csv")
     assert (compensated["status"] == compensation.REACHED).all() and (compensated["nominal_error_mm"] > 0.5).all()
     # targets: the compensated ones' targets, one moved 3 m away; exit 3, every row written
     targets = compensated[["target_x", "target_y", "target_z"]].rename(columns=lambda c: c[-1])
     targets.loc[4, "x"] += 3.0
     files.write_csv(tmp_path / "t.csv", targets)
-    assert cli(["compensate", *common, "--frame", "sensor", "--targets", str(tmp_path / "t.csv"),
-                "--out", str(tmp_path / "c2.csv")]) == 3
+    assert (
+        cli(
+            [
+                "compensate",
+                *common,
+                "--frame",
+                "sensor",
+                "--targets",
+                str(tmp_path / "t.csv"),
+                "--out",
+                str(tmp_path / "c2.csv"),
+            ]
+        )
+        == 3
+    )
     assert "1 of 6 targets not reached (row 4): see the column reason" in capsys.readouterr().err
     again = files.read_csv(tmp_path / "c2.csv")
     assert len(again) == 6 and again.loc[4, "reason"].startswith("nominal model: out of reach")
@@ -342,6 +405,7 @@ def test_predict_and_compensate_from_the_command_line(twin_results, tmp_path, ca
     assert (reached["status"] == compensation.REACHED).all() and (reached["error_mm"] < 1e-6).all()
     files.write_csv(tmp_path / "bad.csv", pd.DataFrame({"a": [1.0], "b": [2.0]}))
     assert cli(["compensate", *common, "--targets", str(tmp_path / "bad.csv"), "--out", str(tmp_path / "c3.csv")]) == 2
-    assert "bad.csv: x, y, z or q1..q7: neither target positions nor joint commands (got: a, b)" in \
-        capsys.readouterr().err
+    assert (
+        "bad.csv: x, y, z or q1..q7: neither target positions nor joint commands (got: a, b)" in capsys.readouterr().err
+    )
     assert not (tmp_path / "c3.csv").exists()

@@ -35,7 +35,7 @@ def test_a_residual_shared_by_a_pose_widens_it():
     stds = []
     for shared in (0.0, 0.5):
         offsets = rng.normal(0.0, shared, n_poses)[poses]  # each pose moves parameter 0 by its own amount
-        residuals = (jacobian[:, 0].reshape(-1, 3) * offsets[:, None] + rng.normal(0.0, 0.1, (len(poses), 3)))
+        residuals = jacobian[:, 0].reshape(-1, 3) * offsets[:, None] + rng.normal(0.0, 0.1, (len(poses), 3))
         stds.append(np.sqrt(np.diag(discrepancy.sandwich_covariance(jacobian, residuals, poses))))
     assert stds[1][0] > 3 * stds[0][0]
 
@@ -49,19 +49,38 @@ def test_fleet_copies_of_a_robot_the_model_lacks_an_effect_of_drift_by_about_one
     for copy, seed in scenario.copies(spec, 12):
         out = scenario.simulate(copy, iiwa, seed)
         meta = out.metadata["sensors"]["laser_tracker"]
-        sensor = sensor_data("laser_tracker", {**meta, "marker": np.array(meta["marker"])},
-                             out.tables["laser_tracker"], iiwa.n_joints, "simulated.parquet")
+        sensor = sensor_data(
+            "laser_tracker",
+            {**meta, "marker": np.array(meta["marker"])},
+            out.tables["laser_tracker"],
+            iiwa.n_joints,
+            "simulated.parquet",
+        )
         model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
         laplace = fit.laplace_fit(model)
         names = list(model.names)
-        summary = pd.DataFrame({"parameter": names, "mean": laplace.theta_map, "std": laplace.std,
-                                "q2.5": np.nan, "q97.5": np.nan, "status": "estimated"})
-        table, report = discrepancy.discrepancy_summary(model, laplace.theta_map,
-                                                        sensor.table.loc[model.table_rows, "pose"], summary)
+        summary = pd.DataFrame(
+            {
+                "parameter": names,
+                "mean": laplace.theta_map,
+                "std": laplace.std,
+                "q2.5": np.nan,
+                "q97.5": np.nan,
+                "status": "estimated",
+            }
+        )
+        table, report = discrepancy.discrepancy_summary(
+            model, laplace.theta_map, sensor.table.loc[model.table_rows, "pose"], summary
+        )
         offsets = [n for n in names if n.startswith("zero_offsets.")]
         table = table.set_index("parameter").loc[offsets]
-        estimates.append((table["mean"].to_numpy(float), summary.set_index("parameter").loc[offsets, "std"].to_numpy(),
-                          table["std"].to_numpy(float)))
+        estimates.append(
+            (
+                table["mean"].to_numpy(float),
+                summary.set_index("parameter").loc[offsets, "std"].to_numpy(),
+                table["std"].to_numpy(float),
+            )
+        )
     z_paper = np.array([(b[0] - a[0]) / np.hypot(a[1], b[1]) for a, b in zip(estimates, estimates[1:])])
     z_sandwich = np.array([(b[0] - a[0]) / np.hypot(a[2], b[2]) for a, b in zip(estimates, estimates[1:])])
     spread_paper, spread = z_paper.std(axis=0), z_sandwich.std(axis=0)

@@ -32,13 +32,21 @@ def _schema() -> dict:
 def test_configuration_page_is_what_the_schema_generates():
     page = REPO / "docs" / "configuration.md"
     assert page.read_text(encoding="utf-8") == _generator().markdown(_schema()), (
-        "docs/configuration.md is stale or was edited by hand: run `python docs/config_docs.py --write`")
+        "docs/configuration.md is stale or was edited by hand: run `python docs/config_docs.py --write`"
+    )
 
 
 def test_configuration_page_has_a_row_for_every_setting():
     text = (REPO / "docs" / "configuration.md").read_text(encoding="utf-8")
-    for path in ("raw_dir", "fit/paper/samples", "fit/cross_check/max_rhat", "loop_closure/residual_gp/inducing",
-                 "priors/arm_class", "priors/industrial/joint_compliance_urad_per_Nm", "max_job_memory_gb"):
+    for path in (
+        "raw_dir",
+        "fit/paper/samples",
+        "fit/cross_check/max_rhat",
+        "loop_closure/residual_gp/inducing",
+        "priors/arm_class",
+        "priors/industrial/joint_compliance_urad_per_Nm",
+        "max_job_memory_gb",
+    ):
         assert f"| `{path}` |" in text
 
 
@@ -89,8 +97,9 @@ def _broken_links(page: Path, root: Path = REPO) -> list[str]:
 
 def test_link_checker_sees_a_broken_link_and_a_missing_heading(tmp_path):
     page = tmp_path / "page.md"
-    page.write_text("# Two words\n[a](page.md#two-words) [b](gone.md) [c](#nothing) [d](https://x.org)\n"
-                    "```\n[e](in-code.md)\n```\n")
+    page.write_text(
+        "# Two words\n[a](page.md#two-words) [b](gone.md) [c](#nothing) [d](https://x.org)\n```\n[e](in-code.md)\n```\n"
+    )
     (tmp_path / "repo").mkdir()
     (tmp_path / "outside.md").write_text("")
     page.write_text(page.read_text() + "[f](outside.md)\n")
@@ -114,12 +123,16 @@ def test_nothing_points_outside_the_repository():
 
 # --------------------------------------------------------------------------- README and command line
 
+
 def test_readme_is_short_and_keeps_ci_test_command():
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert len(readme.splitlines()) <= 150
     lines = set(readme.splitlines())
-    ci = [line.strip() for line in (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()
-          if line.strip().startswith("python3 -m venv")]
+    ci = [
+        line.strip()
+        for line in (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+        if line.strip().startswith("python3 -m venv")
+    ]
     assert ci and all(line in lines for line in ci), "the README must show .ci/run's command verbatim"
     assert "python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/snakemake -j2" in lines
 
@@ -133,6 +146,10 @@ def test_cli_page_names_every_subcommand_and_option():
     missing = [f"remaster {name}" for name in commands if f"remaster {name}" not in page]
     for name, command in commands.items():
         section = page.split(f"## remaster {name}", 1)[-1].split("\n## ", 1)[0]
-        missing += [f"{name} {o}" for a in command._actions for o in a.option_strings
-                    if o.startswith("--") and o != "--help" and o not in section]
+        missing += [
+            f"{name} {o}"
+            for a in command._actions
+            for o in a.option_strings
+            if o.startswith("--") and o != "--help" and o not in section
+        ]
     assert missing == []

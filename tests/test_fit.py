@@ -18,21 +18,29 @@ from remaster.inference import fit
 
 from .conftest import REPO
 
-FAST = {"paper": {"chains": 2, "samples": 4000, "burn_in": 3000, "half_width": 0.0125},
-        "default": {"chains": 2, "samples": 5000, "burn_in": 1500},
-        "emcee": {"walkers": 32, "steps": 800, "burn_in": 300}}
+FAST = {
+    "paper": {"chains": 2, "samples": 4000, "burn_in": 3000, "half_width": 0.0125},
+    "default": {"chains": 2, "samples": 5000, "burn_in": 1500},
+    "emcee": {"walkers": 32, "steps": 800, "burn_in": 300},
+}
 
 
 def simulated_sensor(chain, rng, n=80, noise=5e-5, missing=()):
     """A sensor table from random configurations: known zero-offsets, no other effect."""
     q = rng.uniform(np.maximum(chain.lower, -2.0), np.minimum(chain.upper, 2.0), (n, chain.n_joints))
     truth = rng.normal(0.0, np.radians(0.4), chain.n_joints)
-    sensor = Sensor("laser_tracker", "laser_tracker", looking_at(rng.uniform([1.2, -0.5, 0.6], [2.0, 0.5, 1.5]),
-                                                                  [0, 0, 0.6]), noise, np.array([-0.1, 0.0, 0.02]))
+    sensor = Sensor(
+        "laser_tracker",
+        "laser_tracker",
+        looking_at(rng.uniform([1.2, -0.5, 0.6], [2.0, 0.5, 1.5]), [0, 0, 0.6]),
+        noise,
+        np.array([-0.1, 0.0, 0.02]),
+    )
     xyz = measure(chain, TrueRobot(zero_offsets=truth), sensor, q, rng)
     xyz[list(missing)] = np.nan
-    table = pd.DataFrame({"set": "optimization", "pose": np.arange(n, dtype=np.int64),
-                          "solution": np.zeros(n, dtype=np.int64)})
+    table = pd.DataFrame(
+        {"set": "optimization", "pose": np.arange(n, dtype=np.int64), "solution": np.zeros(n, dtype=np.int64)}
+    )
     for j in range(chain.n_joints):
         table[f"q{j + 1}"] = q[:, j]
     table[["x", "y", "z"]] = xyz
@@ -120,8 +128,13 @@ def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
         assert summary.loc["zero_offsets.q1", "status"].startswith("held")
         for j in range(1, 7):
             row = summary.loc[f"zero_offsets.q{j + 1}"]
-            assert abs(row["mean"] - recoverable[j]) < 3 * row["std"], (name, j + 1, row["mean"], recoverable[j],
-                                                                          row["std"])
+            assert abs(row["mean"] - recoverable[j]) < 3 * row["std"], (
+                name,
+                j + 1,
+                row["mean"],
+                recoverable[j],
+                row["std"],
+            )
         assert 0.7e-3 < summary.loc["noise.sigma", "mean"] < 0.95e-3  # the paper's size
     # the laser tracker's marker error shows as a joint-7 offset the truth does not have, as in the paper
     assert np.degrees(turns["laser_tracker"]) == pytest.approx(0.327, abs=0.001) and turns["motion_capture"] == 0.0
@@ -145,8 +158,15 @@ def test_remastering_file_and_tables(iiwa):
     assert list(table.columns)[1].startswith("Motion Capture")  # the paper's column order
     assert table.iloc[0, 1] == tables.HELD and len(table) == 7
     other = tables.registration_params_table({"laser_tracker": summary})
-    assert other["Parameter"].tolist() == ["x (mm)", "y (mm)", "z (mm)", "sigma (mm)", "alpha (deg)",
-                                           "beta (deg)", "gamma (deg)"]
+    assert other["Parameter"].tolist() == [
+        "x (mm)",
+        "y (mm)",
+        "z (mm)",
+        "sigma (mm)",
+        "alpha (deg)",
+        "beta (deg)",
+        "gamma (deg)",
+    ]
     assert other.loc[3, "Laser Tracker MLE"] == pytest.approx(summary.loc["noise.sigma", "mean"] * 1e3)
 
 
@@ -168,8 +188,9 @@ def test_gross_error_is_flagged_listed_and_left_out(iiwa):
     assert fit.flag_outliers(clean_model, alpha=0.01).size == 0  # nothing flagged on clean data
     table = sensor.table.copy()
     table.loc[37, "y"] += 4e-3
-    glitched = rebuild("laser_tracker", {"kind": "laser_tracker", "marker": sensor.marker, "noise": 2e-4},
-                       table, 7, "glitch.parquet")
+    glitched = rebuild(
+        "laser_tracker", {"kind": "laser_tracker", "marker": sensor.marker, "noise": 2e-4}, table, 7, "glitch.parquet"
+    )
     model, _, _ = fit.build_model(iiwa, glitched, registration.t_nr)
     outliers = fit.flag_outliers(model, alpha=0.01)
     np.testing.assert_array_equal(outliers, [37])
@@ -247,13 +268,19 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
     python = samplers.CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
     assert compiled.walk_block is not None and getattr(python, "walk_block", None) is None
     start = np.append(np.zeros(len(model.names)), 2e-5)  # sigma near 0: some proposals fall below it
-    runs = [samplers.metropolis_paper(t, np.random.default_rng(3), start, n_samples=9000, burn_in=5000,
-                                      half_width=0.05, trace_every=7) for t in (compiled, python)]
+    runs = [
+        samplers.metropolis_paper(
+            t, np.random.default_rng(3), start, n_samples=9000, burn_in=5000, half_width=0.05, trace_every=7
+        )
+        for t in (compiled, python)
+    ]
     assert np.array_equal(runs[0].samples, runs[1].samples) and np.array_equal(runs[0].log_prob, runs[1].log_prob)
     assert np.array_equal(runs[0].settings["burn_in_trace"], runs[1].settings["burn_in_trace"])
     assert runs[0].acceptance_rate == runs[1].acceptance_rate and 0 < runs[0].acceptance_rate < 1
-    adaptive = [samplers.metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
-                for t in (compiled, python)]
+    adaptive = [
+        samplers.metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
+        for t in (compiled, python)
+    ]
     assert np.array_equal(adaptive[0].samples, adaptive[1].samples)
     # a NaN log-posterior stops the compiled block where it occurs, as it stops the Python loop
     steps = np.zeros((6, len(start)))
@@ -261,6 +288,12 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
     states, _, _, nan_at = model.metropolis_block(start, compiled.log_prob(start), steps, np.zeros(6))
     assert nan_at == 3 and np.isfinite(states[:3]).all()
     with pytest.raises(samplers.SamplingError, match="log_prob returned NaN"):
-        samplers._walk(compiled, np.random.default_rng(0), samplers._start(compiled, start), 10,
-                       lambda rng, m: np.where(np.arange(m)[:, None] == 3, np.nan, 0.0) * np.ones((m, len(start))),
-                       False, samplers._Progress(None, 10))
+        samplers._walk(
+            compiled,
+            np.random.default_rng(0),
+            samplers._start(compiled, start),
+            10,
+            lambda rng, m: np.where(np.arange(m)[:, None] == 3, np.nan, 0.0) * np.ones((m, len(start))),
+            False,
+            samplers._Progress(None, 10),
+        )

@@ -32,8 +32,9 @@ def test_a_tangential_shift_is_a_turn_of_the_last_joint(robot, request, rng):
     moved, _ = turn.unfold(np.array([0.0, turn.radius * angle, 0.0]))
     turned = q.copy()
     turned[:, -1] += angle
-    np.testing.assert_allclose(marker_positions(chain, q, turn.marker + moved),
-                               marker_positions(chain, turned, turn.marker), atol=1e-12)
+    np.testing.assert_allclose(
+        marker_positions(chain, q, turn.marker + moved), marker_positions(chain, turned, turn.marker), atol=1e-12
+    )
     shifted, _ = turn.unfold(np.array([radial, 0.0, axial]))  # the others: along the radius and the axis
     np.testing.assert_allclose(shifted, radial * turn.radial + axial * turn.axis, atol=1e-15)
 
@@ -44,8 +45,9 @@ def twin_model(iiwa):
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     sensor = campaign.sensors["laser_tracker"]
     data = blocks.readings(campaign.chain, sensor, "optimization")
-    model = blocks.BlockModel(campaign.chain, data, sensor.marker, np.eye(4), ("link_geometry", "marker_offset"),
-                              {"zero_offsets.q1": 0.0})
+    model = blocks.BlockModel(
+        campaign.chain, data, sensor.marker, np.eye(4), ("link_geometry", "marker_offset"), {"zero_offsets.q1": 0.0}
+    )
     names = model.names + ("noise.sigma",)
     gauge = Gauge.of(names, model.chain, model.marker, model.t_nr, np.diag(np.full(len(names), 1e-3**2)))
     return model, names, gauge
@@ -61,9 +63,11 @@ def test_each_fold_moves_no_predicted_point(twin_model, rng):
     folded = gauge.fold(theta)
     before = model.predict(theta[:-1])
     turn = gauge.folds[1]
-    for moves in ({"link_geometry.F1.twist": 2e-3, "link_geometry.F1.length": 1e-3},
-                  {"link_geometry.tool.twist": 2e-3, "link_geometry.tool.length": 1e-3},
-                  {"marker_offset.y": 1e-3, "zero_offsets.q7": -1e-3 / turn.radius}):
+    for moves in (
+        {"link_geometry.F1.twist": 2e-3, "link_geometry.F1.length": 1e-3},
+        {"link_geometry.tool.twist": 2e-3, "link_geometry.tool.length": 1e-3},
+        {"marker_offset.y": 1e-3, "zero_offsets.q7": -1e-3 / turn.radius},
+    ):
         moved = folded.copy()
         for name, step in moves.items():
             moved[names.index(name)] += step
@@ -87,10 +91,16 @@ def test_it_folds_only_what_applies(iiwa):
     covariance = np.diag(np.full(4, 1e-3**2))
     names = MARKER + ("noise.sigma",)
     assert [type(f).__name__ for f in Gauge.of(names, iiwa, SIR, np.eye(4), covariance).folds] == ["MarkerTurn"]
-    assert Gauge.of(("marker_offset.x", "marker_offset.z", "zero_offsets.q7", "noise.sigma"), iiwa, SIR, np.eye(4),
-                    covariance) is None  # y held: nothing to fold
+    assert (
+        Gauge.of(
+            ("marker_offset.x", "marker_offset.z", "zero_offsets.q7", "noise.sigma"), iiwa, SIR, np.eye(4), covariance
+        )
+        is None
+    )  # y held: nothing to fold
     centre, axis = last_axis(iiwa)
-    assert Gauge.of(names, iiwa, centre + 0.05 * axis + [3e-3, 0, 0], np.eye(4), covariance) is None  # 3 mm off, spread 1 mm
+    assert (
+        Gauge.of(names, iiwa, centre + 0.05 * axis + [3e-3, 0, 0], np.eye(4), covariance) is None
+    )  # 3 mm off, spread 1 mm
 
 
 def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
@@ -115,9 +125,17 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
     covariance = jacobian @ np.diag(std**2) @ jacobian.T
     start, folded_covariance = gauge.laplace(laplace_mean, covariance, target.scale)
     np.testing.assert_allclose(folded_covariance, np.diag(std**2), rtol=1e-5, atol=1e-20)
-    chains = samplers.run_chains(samplers.metropolis_independence, FoldedTarget(target, gauge),
-                                 np.random.default_rng(5), 2, start, mean=start, covariance=folded_covariance,
-                                 n_samples=6000, burn_in=1000)
+    chains = samplers.run_chains(
+        samplers.metropolis_independence,
+        FoldedTarget(target, gauge),
+        np.random.default_rng(5),
+        2,
+        start,
+        mean=start,
+        covariance=folded_covariance,
+        n_samples=6000,
+        burn_in=1000,
+    )
     back = [gauge.back(c) for c in chains]
     report = fit.sampler_diagnostics(back, 1.0)
     assert report["max_rhat"] <= 1.05 and report["min_ess"] >= 200
@@ -132,8 +150,17 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
     in_plane = relative - np.outer(relative @ turn.axis, turn.axis)
     np.testing.assert_allclose(np.linalg.norm(in_plane, axis=1), turn.radius, atol=5 * std[0])
     assert np.ptp(relative @ turn.tangential) > 0.03
-    plain = samplers.run_chains(samplers.metropolis_independence, target, np.random.default_rng(5), 2, laplace_mean,
-                                mean=laplace_mean, covariance=covariance, n_samples=6000, burn_in=1000)
+    plain = samplers.run_chains(
+        samplers.metropolis_independence,
+        target,
+        np.random.default_rng(5),
+        2,
+        laplace_mean,
+        mean=laplace_mean,
+        covariance=covariance,
+        n_samples=6000,
+        burn_in=1000,
+    )
     assert fit.sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
 
 
@@ -158,8 +185,9 @@ def test_the_coordinates_are_those_the_laplace_approximation_fits_best(iiwa):
     steps = np.eye(4) * 1e-9
     jacobian = ((turned.unfold(mean + steps)[0] - turned.unfold(mean - steps)[0]) / 2e-9).T
     for log_prob, centre, covariance, expected in (
-            (in_turned, start, jacobian @ np.diag(std**2) @ jacobian.T, "folded"),
-            (in_xyz, mean, np.diag(std**2), "model parameters")):
+        (in_turned, start, jacobian @ np.diag(std**2) @ jacobian.T, "folded"),
+        (in_xyz, mean, np.diag(std**2), "model parameters"),
+    ):
         target = samplers.CallableTarget(names, np.full(4, 1e-3), log_prob)
         *_, gauge, report = sampling_coordinates(target, model, centre, covariance, np.random.default_rng(2))
         assert report["chosen"] == expected, report

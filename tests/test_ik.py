@@ -27,8 +27,9 @@ def pose_of(chain, q):
 def pose_errors(chain, solutions, pose):
     """Largest position (m) / rotation-entry error of each solution, (k,)."""
     poses = kinematics.flange_poses(chain, solutions)
-    return np.maximum(np.abs(poses[:, :3, 3] - pose[:3, 3]).max(axis=1),
-                      np.abs(poses[:, :3, :3] - pose[:3, :3]).max(axis=(1, 2)))
+    return np.maximum(
+        np.abs(poses[:, :3, 3] - pose[:3, 3]).max(axis=1), np.abs(poses[:, :3, :3] - pose[:3, :3]).max(axis=(1, 2))
+    )
 
 
 def assert_valid(chain, solutions, pose):
@@ -290,8 +291,9 @@ def test_shoulder_singular_any_orientation(iiwa, solver, rng):
     """Wrist centre on axis 1 in random orientations: valid, within limits; q1 = 0 unless moved."""
     moved = 0
     for _ in range(20):
-        rotation = spatial.euler_zyx_to_matrix(rng.uniform(-np.pi, np.pi), rng.uniform(-1.5, 1.5),
-                                               rng.uniform(-np.pi, np.pi))
+        rotation = spatial.euler_zyx_to_matrix(
+            rng.uniform(-np.pi, np.pi), rng.uniform(-1.5, 1.5), rng.uniform(-np.pi, np.pi)
+        )
         pose = wrist_on_axis1_pose(solver, rng.uniform(0.5, 1.1), rotation)
         solutions = solver.solve(pose)
         assert_valid(iiwa, solutions, pose)

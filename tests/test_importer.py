@@ -18,8 +18,9 @@ from remaster.errors import InputError
 from .conftest import IIWA_URDF
 
 # A 3-joint arm as standard DH rows: no URDF file needed.
-ROBOT = {"dh": {"convention": "standard",
-                "rows": [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]]}}
+ROBOT = {
+    "dh": {"convention": "standard", "rows": [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]]}
+}
 
 CONTROLLER = """\
 point,A1,A2,A3,phase,stamp
@@ -41,8 +42,14 @@ P4,1200.25,10,5
 P6,900,400,-100
 P5,1100,-300,150
 """
-SEEN = [[1.5, 0.0, 0.02], [np.nan] * 3, [1.0, -0.2505, 0.3], [1.20025, 0.01, 0.005], [1.1, -0.3, 0.15],
-        [0.9, 0.4, -0.1]]
+SEEN = [
+    [1.5, 0.0, 0.02],
+    [np.nan] * 3,
+    [1.0, -0.2505, 0.3],
+    [1.20025, 0.01, 0.005],
+    [1.1, -0.3, 0.15],
+    [0.9, 0.4, -0.1],
+]
 DEGREES = [[10, 20, 30], [-15.5, 45, 0], [90, 0, -45], [0, 0, 0], [30, 60, -90], [-60, 30, 45]]
 
 
@@ -50,12 +57,32 @@ def write_import(tmp_path, controller=CONTROLLER, tracker=TRACKER, sensor=None, 
     (tmp_path / "controller.csv").write_text(controller, encoding="utf-8")
     (tmp_path / "tracker.csv").write_text(tracker, encoding="utf-8")
     config = {
-        "name": "cell3", "date": "2024-05-02", "description": "hand-written exports", "robot": ROBOT,
-        "controller": {"file": "controller.csv", "joints": ["A1", "A2", "A3"], "unit": "deg", "set": "phase",
-                       "key": "point", "time": "stamp", **(controller_section or {})},
-        "sensors": {"laser_tracker": {"kind": "laser_tracker", "marker": [-0.1, 0.0, 0.02], "noise": 1e-5,
-                                      "file": "tracker.csv", "xyz": ["X", "Y", "Z"], "unit": "mm", "match": "key",
-                                      "key": "id", **(sensor or {})}},
+        "name": "cell3",
+        "date": "2024-05-02",
+        "description": "hand-written exports",
+        "robot": ROBOT,
+        "controller": {
+            "file": "controller.csv",
+            "joints": ["A1", "A2", "A3"],
+            "unit": "deg",
+            "set": "phase",
+            "key": "point",
+            "time": "stamp",
+            **(controller_section or {}),
+        },
+        "sensors": {
+            "laser_tracker": {
+                "kind": "laser_tracker",
+                "marker": [-0.1, 0.0, 0.02],
+                "noise": 1e-5,
+                "file": "tracker.csv",
+                "xyz": ["X", "Y", "Z"],
+                "unit": "mm",
+                "match": "key",
+                "key": "id",
+                **(sensor or {}),
+            }
+        },
     }
     files.write_yaml(tmp_path / "import.yaml", config)
     return tmp_path / "import.yaml"
@@ -100,32 +127,50 @@ t;x;y;z
 2024-05-02T10:00:40Z;0,9;0,4;-0,1
 2024-05-02T10:00:50Z;1,1;-0,3;0,15
 """
-    config = write_import(tmp_path, tracker=tracker,
-                          sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
-                                  "tolerance": 0.5, "delimiter": ";", "decimal": ","},
-                          controller_section={"time": "stamp", "key": None})
+    config = write_import(
+        tmp_path,
+        tracker=tracker,
+        sensor={
+            "xyz": ["x", "y", "z"],
+            "unit": "m",
+            "match": "time",
+            "key": None,
+            "time": "t",
+            "tolerance": 0.5,
+            "delimiter": ";",
+            "decimal": ",",
+        },
+        controller_section={"time": "stamp", "key": None},
+    )
     folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
-    np.testing.assert_allclose(table[["x", "y", "z"]].to_numpy(),
-                               [[1.5, 0, 0.02], [1.0, 0.1, 0.2], [1.1, 0.1, 0.2], [np.nan] * 3, [0.9, 0.4, -0.1],
-                                [1.1, -0.3, 0.15]], atol=1e-15)
+    np.testing.assert_allclose(
+        table[["x", "y", "z"]].to_numpy(),
+        [[1.5, 0, 0.02], [1.0, 0.1, 0.2], [1.1, 0.1, 0.2], [np.nan] * 3, [0.9, 0.4, -0.1], [1.1, -0.3, 0.15]],
+        atol=1e-15,
+    )
     assert table["time"].iloc[0] == pd.Timestamp("2024-05-02T10:00:00Z")  # the controller's time
     section = report["sensors"]["laser_tracker"]
     assert section["matched"] == 5 and report["unmatched_rows"] == 1
     [unmatched] = section["unmatched"]
     assert unmatched["file"] == str(tmp_path / "tracker.csv") and unmatched["line"] == 5
     assert unmatched["time"] == "2024-05-02T10:00:45Z" and "nearest 5 s away" in unmatched["reason"]
-    assert section["not_measured"] == [{"file": str(tmp_path / "controller.csv"), "line": 5,
-                                        "time": "2024-05-02T10:00:30"}]
+    assert section["not_measured"] == [
+        {"file": str(tmp_path / "controller.csv"), "line": 5, "time": "2024-05-02T10:00:30"}
+    ]
 
 
 def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
-    tracker = ("t,x,y,z\n2024-05-02T10:00:00.3,1,0,0\n2024-05-02T10:00:00.1,2,0,0\n2024-05-02T10:00:10,1,1,0\n"
-               "2024-05-02T10:00:20,1,0,1\n2024-05-02T10:00:40,1,1,1\n")
-    config = write_import(tmp_path, tracker=tracker,
-                          sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t",
-                                  "tolerance": 1.0},
-                          controller_section={"time": "stamp", "key": None})
+    tracker = (
+        "t,x,y,z\n2024-05-02T10:00:00.3,1,0,0\n2024-05-02T10:00:00.1,2,0,0\n2024-05-02T10:00:10,1,1,0\n"
+        "2024-05-02T10:00:20,1,0,1\n2024-05-02T10:00:40,1,1,1\n"
+    )
+    config = write_import(
+        tmp_path,
+        tracker=tracker,
+        sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t", "tolerance": 1.0},
+        controller_section={"time": "stamp", "key": None},
+    )
     folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
     assert table["x"].iloc[0] == 2.0
@@ -157,8 +202,9 @@ def test_duplicate_keys_are_named(tmp_path):
 def test_ragged_row_and_bad_time_name_their_line(tmp_path):
     with pytest.raises(InputError, match=r"c\.csv: line 3 has 2 fields, the header has 3"):
         importer.parse_csv("a,b,c\n1,2,3\n4,5\n", "c.csv")
-    config = write_import(tmp_path, controller=CONTROLLER.replace("10:00:20", "ten past"),
-                          controller_section={"time": "stamp"})
+    config = write_import(
+        tmp_path, controller=CONTROLLER.replace("10:00:20", "ten past"), controller_section={"time": "stamp"}
+    )
     with pytest.raises(InputError, match=r"controller\.csv: stamp: not a time \(time_format iso\) on line 4"):
         folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
@@ -201,14 +247,29 @@ def test_contract_check_after_import_names_the_exports(tmp_path):
 def test_urdf_next_to_the_configuration_is_copied_into_the_campaign(tmp_path):
     shutil.copyfile(IIWA_URDF, tmp_path / "arm.urdf")
     joints = [f"A{j}" for j in range(1, 8)]
-    rows = [[0, 30, 0, -60, 0, 45, 0], [20, 40, 0, -80, 10, 30, 0], [-30, 50, 0, -40, 0, 60, 0],
-            [45, 20, 0, -90, -20, 40, 0], [-10, 60, 0, -30, 0, 20, 0], [60, 35, 0, -70, 30, 50, 0]]
-    controller = "point," + ",".join(joints) + "\n" + "".join(
-        f"P{i + 1}," + ",".join(map(str, row)) + "\n" for i, row in enumerate(rows))
-    tracker = "id,X,Y,Z\n" + "".join(f"P{i + 1},{800 + 37 * i},{-200 + 91 * i ** 2},{500 - 55 * i}\n"
-                                     for i in range(len(rows)))
-    config = write_import(tmp_path, controller=controller, tracker=tracker,
-                          controller_section={"joints": joints, "set": None, "time": None})
+    rows = [
+        [0, 30, 0, -60, 0, 45, 0],
+        [20, 40, 0, -80, 10, 30, 0],
+        [-30, 50, 0, -40, 0, 60, 0],
+        [45, 20, 0, -90, -20, 40, 0],
+        [-10, 60, 0, -30, 0, 20, 0],
+        [60, 35, 0, -70, 30, 50, 0],
+    ]
+    controller = (
+        "point,"
+        + ",".join(joints)
+        + "\n"
+        + "".join(f"P{i + 1}," + ",".join(map(str, row)) + "\n" for i, row in enumerate(rows))
+    )
+    tracker = "id,X,Y,Z\n" + "".join(
+        f"P{i + 1},{800 + 37 * i},{-200 + 91 * i**2},{500 - 55 * i}\n" for i in range(len(rows))
+    )
+    config = write_import(
+        tmp_path,
+        controller=controller,
+        tracker=tracker,
+        controller_section={"joints": joints, "set": None, "time": None},
+    )
     meta = files.read_yaml(config)
     meta["robot"] = {"urdf": "arm.urdf", "base": "iiwa_link_0", "flange": "iiwa_link_ee"}
     files.write_yaml(config, meta)

@@ -32,8 +32,17 @@ def _errors(rows, residuals_mm):
     frame = []
     for method in (VERNIER_LEAST_SQUARES, "Bayesian"):
         for row, e in zip(rows, residuals_mm):
-            frame.append({"set": "validation", "registration": REGISTRATION_AS_FITTED, "method": method, "row": row,
-                          "residual_x_mm": e[0], "residual_y_mm": e[1], "residual_z_mm": e[2]})
+            frame.append(
+                {
+                    "set": "validation",
+                    "registration": REGISTRATION_AS_FITTED,
+                    "method": method,
+                    "row": row,
+                    "residual_x_mm": e[0],
+                    "residual_y_mm": e[1],
+                    "residual_z_mm": e[2],
+                }
+            )
     return pd.DataFrame(frame)
 
 
@@ -45,8 +54,11 @@ def test_the_table_finds_repeated_configurations_by_their_readings_or_says_rp_is
     row = table.iloc[1]
     assert row["Model"] == "remastered zero-offsets" and row["configurations"] == 3 and row["cycles"] == 5
     assert row["AP max (mm)"] == 3.0 and np.isclose(row["AP mean (mm)"], (1.0 + 2.0 + 3.0) / 3)
-    l = np.abs([0.0, 0.2, -0.2])  # the three cycles of (0.1, 0.5) about their barycentre
-    assert np.isclose(row["RP max (mm)"], l.mean() + 3 * l.std(ddof=1)) and "1 configurations measured 3 to 3" in row["note"]
+    deviations = np.abs([0.0, 0.2, -0.2])  # the three cycles of (0.1, 0.5) about their barycentre
+    assert (
+        np.isclose(row["RP max (mm)"], deviations.mean() + 3 * deviations.std(ddof=1))
+        and "1 configurations measured 3 to 3" in row["note"]
+    )
     first_two = SimpleNamespace(table=readings.iloc[:2], joint_columns=("q1", "q2"))
     once = iso9283.iso9283_table({"laser_tracker": first_two}, {"laser_tracker": _errors(range(2), residuals)})
     assert once["RP mean (mm)"].isna().all() and once["note"].str.startswith("RP not available").all()

@@ -104,8 +104,11 @@ def test_gravity_torques_of_chain_model_equal_urdf_model(iiwa, rng):
     chain_model = kinematics.pinocchio_model(iiwa)
     urdf_data, chain_data = urdf_model.createData(), chain_model.createData()
     for qi in random_configurations(iiwa, rng, 10):
-        np.testing.assert_allclose(pin.computeGeneralizedGravity(chain_model, chain_data, qi),
-                                   pin.computeGeneralizedGravity(urdf_model, urdf_data, qi), atol=1e-9)
+        np.testing.assert_allclose(
+            pin.computeGeneralizedGravity(chain_model, chain_data, qi),
+            pin.computeGeneralizedGravity(urdf_model, urdf_data, qi),
+            atol=1e-9,
+        )
 
 
 def test_pinocchio_model_of_dh_chain(ur5_dh, rng):
@@ -126,8 +129,11 @@ def test_modified_dh_matches_craig_formula(rng):
     for qi, pose in zip(q, kinematics.flange_poses(chain, q)):
         expected = np.eye(4)
         for (a, alpha, d, theta), angle in zip(rows, qi):
-            expected = (expected @ spatial.homogeneous(spatial.rot_x(alpha), [a, 0, 0])
-                        @ spatial.homogeneous(spatial.rot_z(theta + angle), [0, 0, d]))
+            expected = (
+                expected
+                @ spatial.homogeneous(spatial.rot_x(alpha), [a, 0, 0])
+                @ spatial.homogeneous(spatial.rot_z(theta + angle), [0, 0, d])
+            )
         np.testing.assert_allclose(pose, expected @ flange, atol=1e-12)
 
 
@@ -138,8 +144,11 @@ def test_standard_dh_matches_textbook_formula(rng):
     for qi, pose in zip(q, kinematics.flange_poses(chain, q)):
         expected = np.eye(4)
         for (a, alpha, d, theta), angle in zip(rows, qi):
-            expected = (expected @ spatial.homogeneous(spatial.rot_z(theta + angle), [0, 0, d])
-                        @ spatial.homogeneous(spatial.rot_x(alpha), [a, 0, 0]))
+            expected = (
+                expected
+                @ spatial.homogeneous(spatial.rot_z(theta + angle), [0, 0, d])
+                @ spatial.homogeneous(spatial.rot_x(alpha), [a, 0, 0])
+            )
         np.testing.assert_allclose(pose, expected, atol=1e-12)
 
 
@@ -160,15 +169,19 @@ def test_base_frame_other_than_root(iiwa, rng):
     q = random_configurations(iiwa, rng, 10)
     full = kinematics.ForwardKinematics(iiwa, q)
     link1 = full.joint_frames()[:, 0]
-    np.testing.assert_allclose(spatial.invert(link1) @ full.flange_poses(),
-                               kinematics.flange_poses(sub, q[:, 1:]), atol=1e-12)
+    np.testing.assert_allclose(
+        spatial.invert(link1) @ full.flange_poses(), kinematics.flange_poses(sub, q[:, 1:]), atol=1e-12
+    )
 
 
-@pytest.mark.parametrize("base, flange, fragment", [
-    ("iiwa_link_0", "tool0", "'tool0' is not a link"),
-    ("world", "iiwa_link_ee", "'world' is not a link"),
-    ("iiwa_link_ee", "iiwa_link_0", "is not below base"),
-])
+@pytest.mark.parametrize(
+    "base, flange, fragment",
+    [
+        ("iiwa_link_0", "tool0", "'tool0' is not a link"),
+        ("world", "iiwa_link_ee", "'world' is not a link"),
+        ("iiwa_link_ee", "iiwa_link_0", "is not below base"),
+    ],
+)
 def test_missing_or_misplaced_frames_are_named(base, flange, fragment):
     with pytest.raises(KinematicsError, match=fragment) as info:
         kinematics.chain_from_urdf(IIWA_URDF.read_text(), base, flange, source="robot.urdf")
@@ -202,15 +215,22 @@ def test_bad_dh_tables_are_rejected():
 
 def random_axis_chain(rng, n_joints=6):
     """A chain with joint axes in arbitrary directions (not z), to exercise the general case."""
-    transforms = spatial.homogeneous(spatial.euler_zyx_to_matrix(*rng.uniform(-np.pi, np.pi, (3, n_joints))),
-                                     rng.uniform(-0.3, 0.3, (n_joints, 3)))
+    transforms = spatial.homogeneous(
+        spatial.euler_zyx_to_matrix(*rng.uniform(-np.pi, np.pi, (3, n_joints))), rng.uniform(-0.3, 0.3, (n_joints, 3))
+    )
     axes = rng.normal(size=(n_joints, 3))
     axes[1] = [0.0, 0.0, -1.0]  # an axis opposite to z
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
     tool = spatial.homogeneous(spatial.rot_x(0.4), [0.01, 0.02, 0.1])
-    return kinematics.KinematicChain(name="skew", joint_names=tuple(f"j{i}" for i in range(n_joints)),
-                                     joint_transforms=transforms, joint_axes=axes, tool_transform=tool,
-                                     lower=np.full(n_joints, -np.inf), upper=np.full(n_joints, np.inf))
+    return kinematics.KinematicChain(
+        name="skew",
+        joint_names=tuple(f"j{i}" for i in range(n_joints)),
+        joint_transforms=transforms,
+        joint_axes=axes,
+        tool_transform=tool,
+        lower=np.full(n_joints, -np.inf),
+        upper=np.full(n_joints, np.inf),
+    )
 
 
 def test_compiled_points_equal_numpy_and_pinocchio_for_any_axes(rng):
@@ -246,5 +266,6 @@ def test_a_link_error_is_a_transform_after_the_link(robot, request, rng):
     for transform, perturbed, (length, twist) in zip(fixed, list(joints) + [tool], errors):
         if np.linalg.norm(transform[:3, 3]) == 0:
             length = 0.0  # no length error without a translation
-        np.testing.assert_allclose(transform @ kinematics.link_error_transforms(transform, length, twist), perturbed,
-                                   atol=1e-15)
+        np.testing.assert_allclose(
+            transform @ kinematics.link_error_transforms(transform, length, twist), perturbed, atol=1e-15
+        )

@@ -41,15 +41,22 @@ def simulated(chain, name: str, truth=None, sensor=None):
     """The laser tracker of kuka-compliance's scenario with small sets and only the effects given."""
     if name not in _campaigns:
         spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
-        spec["plan"]["sets"] = {"optimization": {"poses": 12, "configurations": 60},
-                                "validation": {"poses": 8, "configurations": 40}}
+        spec["plan"]["sets"] = {
+            "optimization": {"poses": 12, "configurations": 60},
+            "validation": {"poses": 8, "configurations": 40},
+        }
         spec["truth"] = {"zero_offsets_deg": OFFSETS_DEG, **(truth or {})}
         spec["sensors"]["laser_tracker"].update(sensor or {})
         out = scenario.simulate(spec, chain)
         meta = out.metadata["sensors"]["laser_tracker"]
         assert meta["noise"] == NOISE
-        _campaigns[name] = sensor_data("laser_tracker", {**meta, "marker": np.array(meta["marker"])},
-                                       out.tables["laser_tracker"], chain.n_joints, "simulated.parquet")
+        _campaigns[name] = sensor_data(
+            "laser_tracker",
+            {**meta, "marker": np.array(meta["marker"])},
+            out.tables["laser_tracker"],
+            chain.n_joints,
+            "simulated.parquet",
+        )
     return _campaigns[name]
 
 
@@ -57,8 +64,9 @@ def closed(chain, sensor, settings=LAPLACE_ONLY, seed=0):
     """The loop after the zero-offset fit's registration and identifiability analysis."""
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
-    return loop_closure.close_loop(chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(seed),
-                                   settings)
+    return loop_closure.close_loop(
+        chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(seed), settings
+    )
 
 
 # --------------------------------------------------------------------------- the blocks
@@ -68,8 +76,9 @@ def test_base_blocks_are_the_papers_model(iiwa):
     sensor = simulated(iiwa, "none")
     registration = fit.register(iiwa, sensor)
     paper, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
-    model = blocks.BlockModel(iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker,
-                              registration.t_nr, (), analysis.held)
+    model = blocks.BlockModel(
+        iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker, registration.t_nr, (), analysis.held
+    )
     assert model.names == paper.names
     theta = np.random.default_rng(3).normal(0.0, 1e-3, (4, len(model.names)))
     np.testing.assert_allclose(model.predict(theta), paper.predict(theta), rtol=0, atol=1e-12)
@@ -83,8 +92,14 @@ def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng, monkeypatch):
     sensor = simulated(iiwa, "none")
     registration = fit.register(iiwa, sensor)
     _, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
-    model = blocks.BlockModel(iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker,
-                              registration.t_nr, blocks.EXTENSIONS, analysis.held)
+    model = blocks.BlockModel(
+        iiwa,
+        blocks.readings(iiwa, sensor, "optimization"),
+        sensor.marker,
+        registration.t_nr,
+        blocks.EXTENSIONS,
+        analysis.held,
+    )
     theta = rng.normal(0.0, 1e-4, (model._CHUNK + 3, len(model.names)))
     stacked = model.predict(theta)
     assert stacked.shape == (len(theta), model.n_points, 3)
@@ -105,15 +120,23 @@ def test_the_compiled_angles_are_the_joint_angles(iiwa, rng, size):
     from remaster.robot.kinematics import marker_positions
 
     sensor = simulated(iiwa, "none")
-    model = blocks.BlockModel(iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker, np.eye(4),
-                              ("joint_compliance", "joint_scale"), {})
+    model = blocks.BlockModel(
+        iiwa,
+        blocks.readings(iiwa, sensor, "optimization"),
+        sensor.marker,
+        np.eye(4),
+        ("joint_compliance", "joint_scale"),
+        {},
+    )
     every = model.full(rng.normal(0.0, size, (3, len(model.names))))
-    linear_part = model.angles(every) - model.angles(np.where(
-        [[n.startswith("zero_offsets.") for n in model.all_names]], every, 0.0)[0])
+    linear_part = model.angles(every) - model.angles(
+        np.where([[n.startswith("zero_offsets.") for n in model.all_names]], every, 0.0)[0]
+    )
     assert (np.abs(linear_part).max() > SMALL_ANGLE) == (size > 1e-3)  # both branches taken
     for vector in every:
-        np.testing.assert_allclose(model.robot_points(vector),
-                                   marker_positions(iiwa, model.angles(vector), sensor.marker), rtol=0, atol=1e-14)
+        np.testing.assert_allclose(
+            model.robot_points(vector), marker_positions(iiwa, model.angles(vector), sensor.marker), rtol=0, atol=1e-14
+        )
 
 
 @pytest.mark.parametrize("effect", list(EFFECTS))
@@ -124,29 +147,50 @@ def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, eff
     q = rng.uniform(np.maximum(iiwa.lower, -2.0), np.minimum(iiwa.upper, 2.0), (n, 7))
     elapsed = 70.0 * np.arange(n)
     link_errors = rng.normal(0.0, 5e-4, (8, 2))
-    truth = {"joint_compliance": {"joint_compliance": np.array(COMPLIANCE), "payload_mass": PAYLOAD["mass"],
-                                  "payload_com": np.array(PAYLOAD["com"])},
-             "joint_scale": {"joint_scale": np.array(EFFECTS["joint_scale"][0]["joint_scale"])},
-             "link_geometry": {"link_errors": link_errors},
-             "drift": {"drift_rate": np.full(7, 2e-6)}}.get(effect, {})
+    truth = {
+        "joint_compliance": {
+            "joint_compliance": np.array(COMPLIANCE),
+            "payload_mass": PAYLOAD["mass"],
+            "payload_com": np.array(PAYLOAD["com"]),
+        },
+        "joint_scale": {"joint_scale": np.array(EFFECTS["joint_scale"][0]["joint_scale"])},
+        "link_geometry": {"link_errors": link_errors},
+        "drift": {"drift_rate": np.full(7, 2e-6)},
+    }.get(effect, {})
     robot = TrueRobot(zero_offsets=offsets, **truth)
-    sensor = Sensor("lt", "laser_tracker", looking_at([1.6, 0.5, 1.0], [0, 0, 0.6]), 0.0, np.array([-0.1, 0, 0.02]),
-                    marker_error=np.array([4e-4, 3e-4, -5e-4]) if effect == "marker_offset" else np.zeros(3),
-                    scale_error=2e-4 if effect == "sensor_scale" else 0.0)
+    sensor = Sensor(
+        "lt",
+        "laser_tracker",
+        looking_at([1.6, 0.5, 1.0], [0, 0, 0.6]),
+        0.0,
+        np.array([-0.1, 0, 0.02]),
+        marker_error=np.array([4e-4, 3e-4, -5e-4]) if effect == "marker_offset" else np.zeros(3),
+        scale_error=2e-4 if effect == "sensor_scale" else 0.0,
+    )
     torques = gravity_torques(iiwa, q + offsets, PAYLOAD["mass"], PAYLOAD["com"])  # at the true angles here
-    data = blocks.Readings(rows=np.arange(n), q=q, measured=measure(iiwa, robot, sensor, q, rng, elapsed),
-                           torques=torques, payload_torques=torques - gravity_torques(iiwa, q + offsets),
-                           drift=elapsed, drift_unit="s")
+    data = blocks.Readings(
+        rows=np.arange(n),
+        q=q,
+        measured=measure(iiwa, robot, sensor, q, rng, elapsed),
+        torques=torques,
+        payload_torques=torques - gravity_torques(iiwa, q + offsets),
+        drift=elapsed,
+        drift_unit="s",
+    )
     model = blocks.BlockModel(iiwa, data, sensor.marker, sensor.robot_to_sensor, [effect])
     values = {f"zero_offsets.q{j + 1}": offsets[j] for j in range(7)}
-    values.update({"joint_compliance": lambda: {f"joint_compliance.q{j + 1}": c for j, c in enumerate(COMPLIANCE)},
-                   "joint_scale": lambda: {f"joint_scale.q{j + 1}": s for j, s in enumerate(robot.joint_scale)},
-                   "marker_offset": lambda: dict(zip(("marker_offset.x", "marker_offset.y", "marker_offset.z"),
-                                                     sensor.marker_error)),
-                   "sensor_scale": lambda: {"sensor_scale.s": sensor.scale_error},
-                   "link_geometry": lambda: {name: link_errors[row, column]
-                                             for row, column, name in blocks.link_labels(iiwa)},
-                   "drift": lambda: {f"drift.q{j + 1}": 2e-6 for j in range(7)}}[effect]())
+    values.update(
+        {
+            "joint_compliance": lambda: {f"joint_compliance.q{j + 1}": c for j, c in enumerate(COMPLIANCE)},
+            "joint_scale": lambda: {f"joint_scale.q{j + 1}": s for j, s in enumerate(robot.joint_scale)},
+            "marker_offset": lambda: dict(
+                zip(("marker_offset.x", "marker_offset.y", "marker_offset.z"), sensor.marker_error)
+            ),
+            "sensor_scale": lambda: {"sensor_scale.s": sensor.scale_error},
+            "link_geometry": lambda: {name: link_errors[row, column] for row, column, name in blocks.link_labels(iiwa)},
+            "drift": lambda: {f"drift.q{j + 1}": 2e-6 for j in range(7)},
+        }[effect]()
+    )
     assert np.abs(model.residuals(model.vector(values))).max() < 1e-12
     without = {name: value for name, value in values.items() if name.startswith("zero_offsets.")}
     assert np.abs(model.residuals(model.vector(without))).max() > 1e-4  # the effect's values matter
@@ -250,8 +294,9 @@ def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiw
     assert [ax.get_title().split(":")[0] for ax in drawn] == list(candidates)
     for ax, signature in zip(drawn, candidates.values()):
         for k, dots in enumerate(ax.collections):
-            np.testing.assert_allclose(dots.get_offsets(),
-                                       np.column_stack([signature.effect[:, k], signature.residual[:, k]]) / 1e-3)
+            np.testing.assert_allclose(
+                dots.get_offsets(), np.column_stack([signature.effect[:, k], signature.residual[:, k]]) / 1e-3
+            )
     histograms = figures_loop.residual_histograms(result.residuals, "before/after")
     for ax, set_name in zip(histograms.axes, SETS):
         labels = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -278,17 +323,32 @@ def test_the_twin_is_explained_by_its_four_undeclared_effects(iiwa):
 def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
     """A block with nothing identifiable (the marker offset when the tool never turns, kuka-cubes)
     is listed without scores, not a KeyError."""
-    scored = {"round": 1, "log_evidence_gain": 60.0, "cv_rmse_mm": 0.5, "cv_gain": 0.25,
-              "cv_mse_fall_in_se": 4.0, "bic_gain": 120.0, "explained_fraction": 0.8, "passed": True}
+    scored = {
+        "round": 1,
+        "log_evidence_gain": 60.0,
+        "cv_rmse_mm": 0.5,
+        "cv_gain": 0.25,
+        "cv_mse_fall_in_se": 4.0,
+        "bic_gain": 120.0,
+        "explained_fraction": 0.8,
+        "passed": True,
+    }
     nothing_seen = {"round": 1, "skipped": "no parameter of this block is identifiable"}
-    report = loop_report(effects=["link_geometry"], candidates={"link_geometry": [scored], "marker_offset": [
-        nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}]})
+    report = loop_report(
+        effects=["link_geometry"],
+        candidates={
+            "link_geometry": [scored],
+            "marker_offset": [nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}],
+        },
+    )
     table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
     assert table.loc[("link_geometry", 1), "Added"] == "yes"
     assert table.loc[("link_geometry", 1), "CV fall (%)"] == pytest.approx(25.0)
     skipped = table.loc[("marker_offset", 1)]
     assert skipped["Added"] == "skipped: no parameter of this block is identifiable"
-    assert np.isnan(skipped[["Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "BIC gain", "Explained (%)"]].to_numpy(float)).all()
+    assert np.isnan(
+        skipped[["Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "BIC gain", "Explained (%)"]].to_numpy(float)
+    ).all()
     assert table.loc[("marker_offset", 2), "BIC gain"] == 1.0 and table.loc[("marker_offset", 2), "Added"] == ""
 
 

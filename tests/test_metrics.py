@@ -128,9 +128,13 @@ def simulated_campaign(chain, rng, poses=(12, 6), per_pose=4, noise=5e-5, missin
     sensor = Sensor("laser_tracker", "laser_tracker", looking_at([1.6, 0.3, 1.2], [0, 0, 0.6]), noise, marker)
     xyz = measure(chain, TrueRobot(zero_offsets=truth), sensor, q, rng)
     xyz[list(missing)] = np.nan
-    table = pd.DataFrame({"set": ["optimization"] * n_opt + ["validation"] * n_val,
-                          "pose": np.concatenate([np.arange(n_opt), np.arange(n_val)]) // per_pose,
-                          "solution": np.concatenate([np.arange(n_opt), np.arange(n_val)]) % per_pose})
+    table = pd.DataFrame(
+        {
+            "set": ["optimization"] * n_opt + ["validation"] * n_val,
+            "pose": np.concatenate([np.arange(n_opt), np.arange(n_val)]) // per_pose,
+            "solution": np.concatenate([np.arange(n_opt), np.arange(n_val)]) % per_pose,
+        }
+    )
     table[[f"q{j + 1}" for j in range(chain.n_joints)]] = q
     table[["x", "y", "z"]] = xyz
     spec = {"kind": "laser_tracker", "marker": marker, "noise": noise}
@@ -144,8 +148,15 @@ def fitted_stage(campaign, seed=0, sensor_name="laser_tracker", **sizes):
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
     laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
     samples = fit.samples_frame(fit.sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
-    out = accuracy.accuracy_tables(campaign, sensor_name, registration, laplace, samples,
-                                   np.random.default_rng(seed), **{"n_draws": 300, "n_random": 60, **sizes})
+    out = accuracy.accuracy_tables(
+        campaign,
+        sensor_name,
+        registration,
+        laplace,
+        samples,
+        np.random.default_rng(seed),
+        **{"n_draws": 300, "n_random": 60, **sizes},
+    )
     return out, model, laplace, samples
 
 
@@ -164,10 +175,13 @@ def test_bayesian_beats_vernier_on_every_metric(stage):
         assert (rows[["mean_mm", "q2.5_mm", "q97.5_mm"]] >= 0).all().all()
     counts = {t: out[t].set_index("method").loc["Bayesian", "count"] for t in accuracy.METRIC_TABLES}
     # 12 poses of 4 with row 5 unseen: 11 x 6 + 3 pairs; 47 seen configurations; 300 draws x 48 or 60 configurations
-    assert counts == {"relative_accuracy": 69, "post_registration_accuracy": 47,
-                      "theoretical_accuracy_optimization_configs": 300 * 48,
-                      "theoretical_accuracy_random_configs": 300 * 60,
-                      "theoretical_accuracy_zero_offsets_only": 300 * 60}
+    assert counts == {
+        "relative_accuracy": 69,
+        "post_registration_accuracy": 47,
+        "theoretical_accuracy_optimization_configs": 300 * 48,
+        "theoretical_accuracy_random_configs": 300 * 60,
+        "theoretical_accuracy_zero_offsets_only": 300 * 60,
+    }
     # noise 0.05 mm: the MLE leaves about sigma * 1.6 per point, the zero-offsets alone almost nothing
     assert out["post_registration_accuracy"].set_index("method").loc["Bayesian", "mean_mm"] < 0.15
     assert out["theoretical_accuracy_zero_offsets_only"].set_index("method").loc["Bayesian", "mean_mm"] < 0.05
@@ -177,12 +191,17 @@ def test_validation_rows_and_excluded_rows(stage):
     _, out, _, _, _ = stage
     validation = out["validation_accuracy"]
     assert list(zip(validation["metric"], validation["method"])) == [
-        ("relative", "Vernier"), ("relative", "Bayesian"), ("post_registration", "Vernier"),
-        ("post_registration", accuracy.VERNIER_LEAST_SQUARES), ("post_registration", "Bayesian"),
-        ("post_registration_refit", "Vernier"), ("post_registration_refit", "Bayesian")]
+        ("relative", "Vernier"),
+        ("relative", "Bayesian"),
+        ("post_registration", "Vernier"),
+        ("post_registration", accuracy.VERNIER_LEAST_SQUARES),
+        ("post_registration", "Bayesian"),
+        ("post_registration_refit", "Vernier"),
+        ("post_registration_refit", "Bayesian"),
+    ]
     rows = validation.set_index(["metric", "method"])
     assert rows.loc[("relative", "Bayesian"), "count"] == 5 * 6 + 3
-    assert (rows.loc[("relative", "Bayesian"), "mean_mm"] < rows.loc[("relative", "Vernier"), "mean_mm"])
+    assert rows.loc[("relative", "Bayesian"), "mean_mm"] < rows.loc[("relative", "Vernier"), "mean_mm"]
     for metric in ("post_registration", "post_registration_refit"):
         assert rows.loc[(metric, "Bayesian"), "count"] == 23
         assert rows.loc[(metric, "Bayesian"), "mean_mm"] < rows.loc[(metric, "Vernier"), "mean_mm"]
@@ -198,14 +217,24 @@ def test_validation_rows_and_excluded_rows(stage):
 
 def test_rows_flagged_by_the_fit_are_left_out_and_listed(stage):
     campaign, _, model, laplace, samples = stage
-    flagged = accuracy.accuracy_tables(campaign, "laser_tracker", fit.register(campaign.chain, campaign.sensors["laser_tracker"]),
-                                       dataclasses.replace(laplace, outlier_rows=(9, 5)), samples,
-                                       np.random.default_rng(0), n_draws=50, n_random=10)
+    flagged = accuracy.accuracy_tables(
+        campaign,
+        "laser_tracker",
+        fit.register(campaign.chain, campaign.sensors["laser_tracker"]),
+        dataclasses.replace(laplace, outlier_rows=(9, 5)),
+        samples,
+        np.random.default_rng(0),
+        n_draws=50,
+        n_random=10,
+    )
     assert flagged["report"]["excluded_rows_outliers"] == {"optimization": [9], "validation": []}  # 5 is unseen
     assert flagged["report"]["excluded_counts"]["optimization"] == {"marker_not_seen": 1, "outliers": 1}
     counts = {t: flagged[t].set_index("method").loc["Vernier", "count"] for t in accuracy.METRIC_TABLES[:3]}
-    assert counts == {"relative_accuracy": 69 - 3, "post_registration_accuracy": 46,
-                      "theoretical_accuracy_optimization_configs": 50 * 48}
+    assert counts == {
+        "relative_accuracy": 69 - 3,
+        "post_registration_accuracy": 46,
+        "theoretical_accuracy_optimization_configs": 50 * 48,
+    }
     assert 9 not in set(flagged["configuration_errors"]["row"])
 
 
@@ -214,8 +243,13 @@ def test_vernier_is_scored_with_the_three_point_registration_beside_the_least_sq
     chain = campaign.chain
     zero_offsets = {name: 0.0 for name in parameter_names(chain.n_joints)[6:]}
     registration_only = ZeroOffsetModel(chain, model.q, model.measured, model.marker, model.t_nr, fixed=zero_offsets)
-    best = optimize.least_squares(lambda theta: registration_only.residuals(theta).ravel(), np.zeros(6),
-                                  x_scale=registration_only.scale, xtol=1e-14, ftol=1e-14)
+    best = optimize.least_squares(
+        lambda theta: registration_only.residuals(theta).ravel(),
+        np.zeros(6),
+        x_scale=registration_only.scale,
+        xtol=1e-14,
+        ftol=1e-14,
+    )
     used = out["remastering_parameters"].set_index("parameter")
     least_squares = accuracy.VERNIER_LEAST_SQUARES
     np.testing.assert_allclose(used[least_squares].to_numpy()[:6] * registration_only.scale, best.x, atol=1e-7)
@@ -236,8 +270,12 @@ def test_vernier_is_scored_with_the_three_point_registration_beside_the_least_sq
 def test_tcp_scatter_and_paper_layout(stage):
     _, out, _, _, _ = stage
     scatter = out["tcp_scatter"]
-    assert scatter["kind"].value_counts().to_dict() == {"probable + noise": 300, "probable": 300, "MLE": 1,
-                                                        "Vernier": 1}
+    assert scatter["kind"].value_counts().to_dict() == {
+        "probable + noise": 300,
+        "probable": 300,
+        "MLE": 1,
+        "Vernier": 1,
+    }
     assert np.allclose(scatter.loc[scatter["kind"] == "MLE", ["x_mm", "y_mm", "z_mm"]], 0.0)
     two = {"laser_tracker": out["relative_accuracy"], "motion_capture": out["relative_accuracy"]}
     table = accuracy.paper_table(two)
@@ -259,17 +297,26 @@ def test_tcp_scatter_and_paper_layout(stage):
 
 def metric_rows(values: dict) -> pd.DataFrame:
     """One sensor's metric rows from {method: (mean, 2.5 %, 97.5 %, count)} (mm)."""
-    return pd.DataFrame([{"method": method, "mean_mm": mean, "q2.5_mm": low, "q97.5_mm": high, "count": count}
-                         for method, (mean, low, high, count) in values.items()])
+    return pd.DataFrame(
+        [
+            {"method": method, "mean_mm": mean, "q2.5_mm": low, "q97.5_mm": high, "count": count}
+            for method, (mean, low, high, count) in values.items()
+        ]
+    )
 
 
-COMPARED = [f"{prefix}{statistic}{suffix} (mm)" for statistic in ("Mean", "2.5%", "97.5%")
-            for prefix, suffix in (("", ""), ("Paper ", ""), ("", " difference"))]
+COMPARED = [
+    f"{prefix}{statistic}{suffix} (mm)"
+    for statistic in ("Mean", "2.5%", "97.5%")
+    for prefix, suffix in (("", ""), ("Paper ", ""), ("", " difference"))
+]
 
 
 def test_paper_comparison_compares_numbers_with_the_published_ones():
-    ours = {"laser_tracker": metric_rows({"Bayesian": (0.2641234, 0.0104, 0.8031, 60), "Vernier": (3.5, 0.6, 6.4, 60)}),
-            "motion_capture": metric_rows({"Vernier": (3.384, 0.788, 6.513, 60), "Bayesian": (0.3, 0.1, 1.0, 0)})}
+    ours = {
+        "laser_tracker": metric_rows({"Bayesian": (0.2641234, 0.0104, 0.8031, 60), "Vernier": (3.5, 0.6, 6.4, 60)}),
+        "motion_capture": metric_rows({"Vernier": (3.384, 0.788, 6.513, 60), "Bayesian": (0.3, 0.1, 1.0, 0)}),
+    }
     compared = accuracy.paper_comparison("relative_accuracy", ours)
     assert list(compared.columns) == ["Remastering Method", "Reference Sensor", *COMPARED]  # no note for this table
     labels = accuracy.paper_table(ours)[["Remastering Method", "Reference Sensor"]]
@@ -284,16 +331,27 @@ def test_paper_comparison_compares_numbers_with_the_published_ones():
     assert empty[COMPARED[::3]].isna().all() and empty[COMPARED[2::3]].isna().all()
     assert empty[COMPARED[1::3]].tolist() == [0.286, 0.007, 0.951]
 
-    theoretical = {"motion_capture": metric_rows({"Vernier": (5.0, 1.5, 9.0, 1000), "Bayesian": (0.2, 0.05, 0.5, 1000),
-                                                  "Loop-closed": (0.1, 0.02, 0.3, 1000)})}
+    theoretical = {
+        "motion_capture": metric_rows(
+            {
+                "Vernier": (5.0, 1.5, 9.0, 1000),
+                "Bayesian": (0.2, 0.05, 0.5, 1000),
+                "Loop-closed": (0.1, 0.02, 0.3, 1000),
+            }
+        )
+    }
     compared = accuracy.paper_comparison("theoretical_accuracy_zero_offsets_only", theoretical)
     assert compared["Remastering Method"].tolist() == ["Vernier", "Bayesian", "Loop-closed"]
     assert compared["Paper Mean (mm)"].tolist()[:2] == [6.067, 0.223] and np.isnan(compared.loc[2, "Paper Mean (mm)"])
     assert compared["Mean difference (mm)"].tolist()[:2] == pytest.approx([5.0 - 6.067, 0.2 - 0.223])
     assert [bool(n) for n in compared["Note"]] == [True, False, False]  # the held joint 1: Vernier rows only
 
-    validation = pd.concat([metric_rows({"Bayesian": (0.5, 0.1, 1.2, 150)}).assign(metric=metric)
-                            for metric in ("post_registration_refit", "post_registration", "relative")])
+    validation = pd.concat(
+        [
+            metric_rows({"Bayesian": (0.5, 0.1, 1.2, 150)}).assign(metric=metric)
+            for metric in ("post_registration_refit", "post_registration", "relative")
+        ]
+    )
     compared = accuracy.paper_comparison("validation_accuracy", {"laser_tracker": validation})
     assert compared["Metric"].tolist() == [accuracy.VALIDATION_METRICS[m][0] for m in accuracy.VALIDATION_METRICS]
     assert compared["Paper Mean (mm)"].tolist()[:2] == [0.492, 1.509] and np.isnan(compared.loc[2, "Paper Mean (mm)"])
@@ -308,11 +366,14 @@ def test_the_papers_numbers_are_package_data():
 
     published = accuracy.paper_values()
     assert published["table"].tolist() == [t for t in accuracy.TABLE_NAMES for _ in range(4)]
-    assert published["source"].str.startswith("tab:").all() and published["sensor"].isin(["motion_capture",
-                                                                                          "laser_tracker"]).all()
+    assert (
+        published["source"].str.startswith("tab:").all()
+        and published["sensor"].isin(["motion_capture", "laser_tracker"]).all()
+    )
     assert ((published["q2.5_mm"] <= published["mean_mm"]) & (published["mean_mm"] <= published["q97.5_mm"])).all()
     assert published.set_index(["table", "method", "sensor"]).loc[
-        ("validation_accuracy", "Bayesian", "motion_capture"), "q97.5_mm"].tolist() == [1.21, 2.952]
+        ("validation_accuracy", "Bayesian", "motion_capture"), "q97.5_mm"
+    ].tolist() == [1.21, 2.952]
     # a non-editable install ships it: the package-data globs of pyproject.toml match the file
     globs = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["remaster"]
     assert any(fnmatch.fnmatch(accuracy.PAPER_VALUES_FILE, g) for g in globs)
@@ -328,8 +389,11 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
     draws, those rows reach the paper's too: the gap is that rotation and nothing else."""
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     out, _, laplace, samples = fitted_stage(campaign, sensor_name=sensor_name, n_draws=500, n_random=300)
-    vernier_theoretical = {table: out[table].set_index("method").loc["Vernier", "mean_mm"]
-                           for table in accuracy.METRIC_TABLES if table.startswith("theoretical")}
+    vernier_theoretical = {
+        table: out[table].set_index("method").loc["Vernier", "mean_mm"]
+        for table in accuracy.METRIC_TABLES
+        if table.startswith("theoretical")
+    }
     for table in accuracy.paper_values()["table"].unique():
         compared = accuracy.paper_comparison(table, {sensor_name: out[table]})
         compared = compared[compared["Paper Mean (mm)"].notna()]
@@ -345,12 +409,17 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
     rng = np.random.default_rng(1)
     sensor = campaign.sensors[sensor_name]
     random_q = metrics.random_configurations(campaign.chain, 300, rng)
-    for table, q, sigma in (("theoretical_accuracy_optimization_configs", sensor.q("optimization"),
-                             parameters[SIGMA].to_numpy()),
-                            ("theoretical_accuracy_random_configs", random_q, parameters[SIGMA].to_numpy()),
-                            ("theoretical_accuracy_zero_offsets_only", random_q, None)):
-        with_joint_1 = metrics.theoretical_errors(campaign.chain, q, sensor.marker, np.zeros(7), draws[:200],
-                                                  None if sigma is None else sigma[:200], rng).mean() * 1e3
+    for table, q, sigma in (
+        ("theoretical_accuracy_optimization_configs", sensor.q("optimization"), parameters[SIGMA].to_numpy()),
+        ("theoretical_accuracy_random_configs", random_q, parameters[SIGMA].to_numpy()),
+        ("theoretical_accuracy_zero_offsets_only", random_q, None),
+    ):
+        with_joint_1 = (
+            metrics.theoretical_errors(
+                campaign.chain, q, sensor.marker, np.zeros(7), draws[:200], None if sigma is None else sigma[:200], rng
+            ).mean()
+            * 1e3
+        )
         paper = accuracy.paper_values(table).query("method == 'Vernier' and sensor == @sensor_name")["mean_mm"].item()
         assert 0.75 < with_joint_1 / paper < 1.25, (table, with_joint_1, paper, vernier_theoretical[table])
 
@@ -360,8 +429,9 @@ def test_sensor_comparison(stage):
     summary = fit.posterior_summary(samples, laplace)
     other = summary.copy()
     other["mean"] += 2 * other["std"].fillna(0.0)
-    table = accuracy.sensor_comparison({"laser_tracker": summary, "motion_capture": other.reset_index()},
-                                       {"laser_tracker": out, "motion_capture": out})
+    table = accuracy.sensor_comparison(
+        {"laser_tracker": summary, "motion_capture": other.reset_index()}, {"laser_tracker": out, "motion_capture": out}
+    )
     rows = table.set_index("quantity")
     assert rows.loc["registration.x", "note"] == "not comparable (different frames)"
     assert np.isnan(rows.loc["registration.x", "difference / combined std"])
@@ -389,9 +459,11 @@ def test_figures_draw_from_the_stage_tables(stage):
     import matplotlib.pyplot as plt
 
     _, out, _, _, _ = stage
-    figures = [figures_accuracy.tcp_scatter(out["tcp_scatter"], "TCPs"),
-               figures_accuracy.post_registration_histograms(out["configuration_errors"], "errors"),
-               figures_accuracy.residual_plots({"laser_tracker": out["configuration_errors"]}, "residuals")]
+    figures = [
+        figures_accuracy.tcp_scatter(out["tcp_scatter"], "TCPs"),
+        figures_accuracy.post_registration_histograms(out["configuration_errors"], "errors"),
+        figures_accuracy.residual_plots({"laser_tracker": out["configuration_errors"]}, "residuals"),
+    ]
     assert [len([a for a in f.axes if a.get_visible()]) for f in figures] == [1, 2, 2]
     for figure in figures:
         plt.close(figure)
@@ -403,11 +475,13 @@ def test_theoretical_errors_in_blocks_of_draws_are_the_same_numbers(iiwa, rng, m
     q = metrics.random_configurations(iiwa, 40, rng)
     draws = rng.normal(0.0, np.radians(0.05), (30, 7))
     sigma = np.full(30, 1e-4)
-    whole = metrics.theoretical_errors(iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma,
-                                       np.random.default_rng(3))
+    whole = metrics.theoretical_errors(
+        iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma, np.random.default_rng(3)
+    )
     monkeypatch.setattr(metrics, "TCPS_PER_BLOCK", 7 * 40)  # 7 draws a block: 5 blocks, the last one short
-    blocked = metrics.theoretical_errors(iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma,
-                                         np.random.default_rng(3))
+    blocked = metrics.theoretical_errors(
+        iiwa, q, np.array([0.1, 0, 0.02]), np.zeros(7), draws, sigma, np.random.default_rng(3)
+    )
     assert whole.shape == (30 * 40,) and np.array_equal(whole, blocked)
 
 

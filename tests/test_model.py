@@ -35,7 +35,8 @@ def test_registration_correction_composes_before_initial_transform(iiwa, rng):
     model = ZeroOffsetModel(iiwa, q, measured, marker, t_nr)
     expected = spatial.transform_points(
         spatial.homogeneous(spatial.euler_zyx_to_matrix(0.01, -0.02, 0.03), correction[:3]) @ t_nr,
-        kinematics.marker_positions(iiwa, q + offsets, marker))
+        kinematics.marker_positions(iiwa, q + offsets, marker),
+    )
     np.testing.assert_allclose(model.predict(np.concatenate([correction, offsets])), expected, atol=1e-12)
     np.testing.assert_allclose(correction_transforms(np.zeros(6)), np.eye(4))
 
@@ -46,12 +47,15 @@ def test_log_posterior_is_the_papers(iiwa, rng):
     theta = rng.normal(0, 1e-3, 13)
     energy = np.sum((measured - model.predict(theta)) ** 2)
     for sigma in (1e-4, 1e-3):
-        assert model.log_posterior(theta, sigma) == pytest.approx(-(3 * 30 + 2) * np.log(sigma) - energy / (2 * sigma**2))
+        assert model.log_posterior(theta, sigma) == pytest.approx(
+            -(3 * 30 + 2) * np.log(sigma) - energy / (2 * sigma**2)
+        )
     assert model.log_posterior(theta, 0.0) == -np.inf and model.log_posterior(theta, -1.0) == -np.inf
     many = rng.normal(0, 1e-3, (5, 13))
     sigmas = np.array([1e-3, 2e-3, -1.0, 5e-4, 1e-3])
-    np.testing.assert_allclose(model.log_posterior(many, sigmas),
-                               [model.log_posterior(t, s) for t, s in zip(many, sigmas)])
+    np.testing.assert_allclose(
+        model.log_posterior(many, sigmas), [model.log_posterior(t, s) for t, s in zip(many, sigmas)]
+    )
 
 
 def test_held_parameters_and_names(iiwa, rng):
@@ -81,8 +85,9 @@ def test_iiwa_has_exactly_one_degeneracy_joint_1_against_registration(iiwa, rng)
     result = identifiability.analyse(ZeroOffsetModel(iiwa, q, measured, marker, t_nr))
     assert list(result.held) == ["zero_offsets.q1"]
     assert len(result.null_directions) == 1
-    assert set(result.null_directions[0]) <= {"zero_offsets.q1"} | {f"registration.{p}" for p in
-                                                                 ("x", "y", "z", "alpha", "beta", "gamma")}
+    assert set(result.null_directions[0]) <= {"zero_offsets.q1"} | {
+        f"registration.{p}" for p in ("x", "y", "z", "alpha", "beta", "gamma")
+    }
     assert result.singular_values[-1] < 1e-7 * result.singular_values[0]
     assert result.singular_values[-2] > 1e-3 * result.singular_values[0]  # nothing else is near-degenerate
     assert np.isfinite(result.condition_number) and result.condition_number < 1e4

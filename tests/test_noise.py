@@ -60,7 +60,9 @@ def test_the_simulator_draws_range_and_transverse_noise_of_the_stated_size(tmp_p
     assert truth["transverse_growth_per_m"] == 2.0
     # standardised, each is N(0, 1) per component: range one, transverse two
     assert stats.kstest(along / 1e-5, "norm").pvalue > 0.01
-    assert stats.chi2(2 * len(q)).cdf(np.sum((transverse / (1e-5 * ratio[:, None])) ** 2)) == pytest.approx(0.5, abs=0.49)
+    assert stats.chi2(2 * len(q)).cdf(np.sum((transverse / (1e-5 * ratio[:, None])) ** 2)) == pytest.approx(
+        0.5, abs=0.49
+    )
     assert np.std(np.linalg.norm(transverse, axis=1)) > 2 * np.std(along)
 
 
@@ -69,8 +71,16 @@ def noise_choice(campaign):
     registration = fit.registration_stage(campaign, "laser_tracker")
     data = blocks.readings(campaign.chain, sensor, "optimization")
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
-    return loop_selection.select(campaign.chain, data, sensor.marker, registration.t_nr, {"zero_offsets.q1": 0.0},
-                                 poses, loop_settings(candidates=(), residual_gp=None), tracker=True)
+    return loop_selection.select(
+        campaign.chain,
+        data,
+        sensor.marker,
+        registration.t_nr,
+        {"zero_offsets.q1": 0.0},
+        poses,
+        loop_settings(candidates=(), residual_gp=None),
+        tracker=True,
+    )
 
 
 @pytest.mark.parametrize("growth", [0.0, 2.0])
@@ -112,10 +122,14 @@ def test_a_frame_that_cannot_be_the_trackers_is_said_so(tmp_path, iiwa):
     assert "robot's base origin" in why and "not in the tracker's own frame" in why
 
 
-@pytest.mark.parametrize("key, value, says", [
-    ("growth_factor", 1.0, "1.0 is less than or equal to the minimum of 1"),
-    ("growth_per_m", 0, "0 is less than or equal to the minimum of 0"),
-    ("grwoth_per_m", 1.0, "Additional properties are not allowed ('grwoth_per_m' was unexpected)")])
+@pytest.mark.parametrize(
+    "key, value, says",
+    [
+        ("growth_factor", 1.0, "1.0 is less than or equal to the minimum of 1"),
+        ("growth_per_m", 0, "0 is less than or equal to the minimum of 0"),
+        ("grwoth_per_m", 1.0, "Additional properties are not allowed ('grwoth_per_m' was unexpected)"),
+    ],
+)
 def test_a_bad_tracker_noise_prior_is_refused_by_the_schema(key, value, says):
     config = files.read_yaml(REPO / "config.yaml")
     config["loop_closure"]["tracker_noise"][key] = value

@@ -71,8 +71,16 @@ def test_plan_is_a_nearest_neighbour_tour(plan):
 
 def test_exact_sizes_are_met(iiwa):
     rng = np.random.default_rng(3)
-    plan = planning.plan_set(iiwa, "validation", SENSOR, [planning.SightLine(SENSOR, MARKER)], rng,
-                             candidates=60, n_poses=20, n_configurations=90)
+    plan = planning.plan_set(
+        iiwa,
+        "validation",
+        SENSOR,
+        [planning.SightLine(SENSOR, MARKER)],
+        rng,
+        candidates=60,
+        n_poses=20,
+        n_configurations=90,
+    )
     assert plan.table["pose"].nunique() == 20 and len(plan.table) == 90
     assert (plan.table["set"] == "validation").all()
 
@@ -87,9 +95,13 @@ def test_choose_poses_subset_sum():
 
 
 def test_collision_checks_catch_floor_and_folded_wrist(iiwa):
-    q = np.radians([[0, 120, 0, 0, 0, 0, 0],    # bent down through the floor
-                    [0, 0, 0, -120, 0, -120, 0],  # wrist folded back onto the forearm
-                    [0, 0, 0, 0, 0, 0, 0]])       # upright
+    q = np.radians(
+        [
+            [0, 120, 0, 0, 0, 0, 0],  # bent down through the floor
+            [0, 0, 0, -120, 0, -120, 0],  # wrist folded back onto the forearm
+            [0, 0, 0, 0, 0, 0, 0],
+        ]
+    )  # upright
     above, apart = planning.collision_free(iiwa, q, planning.CollisionModel())
     np.testing.assert_array_equal(above, [False, True, True])
     np.testing.assert_array_equal(apart, [True, False, True])
@@ -116,8 +128,9 @@ def test_segment_distances_match_brute_force(rng):
         if k % 5 == 0:
             a1 = a0.copy()  # a point
         s = np.linspace(0, 1, 301)
-        brute = np.linalg.norm((a0 + s[:, None] * (a1 - a0))[:, None] - (b0 + s[:, None] * (b1 - b0))[None],
-                               axis=-1).min()
+        brute = np.linalg.norm(
+            (a0 + s[:, None] * (a1 - a0))[:, None] - (b0 + s[:, None] * (b1 - b0))[None], axis=-1
+        ).min()
         distance = planning.segment_distances(a0, a1, b0, b1)
         assert distance <= brute + 1e-12 and distance >= brute - 1e-3
 
@@ -154,7 +167,7 @@ def test_cube_plan_has_one_flange_orientation_and_the_designed_positions(iiwa):
     designed = np.concatenate([planning.iso9283_points(c, e) for c, e in cubes])
     gaps = np.linalg.norm(flange[:, None, :3, 3] - designed[None], axis=2)
     assert gaps.min(axis=1).max() < 1e-9  # every configuration reaches a designed point
-    for pose, group in table.groupby("pose"):  # the solutions of one pose reach one point
+    for _, group in table.groupby("pose"):  # the solutions of one pose reach one point
         assert len(set(gaps[group.index].argmin(axis=1))) == 1
     # the same checks as the Latin-hypercube plan, and the same tour
     assert np.all(iiwa.within_limits(q))

@@ -24,18 +24,38 @@ SECTION = CONFIG["priors"]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
 TWIN = REPO / "data" / "raw" / "kuka-twin"
 SENSOR = "laser_tracker"
-ALLOWED = ("allowed: arm_class, link_length_mm, link_twist_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
-           "joint_scale_ppm, sensor_scale_ppm, drift_deg_per_hour, drift_deg_per_kelvin, held_zero_offset_deg")
+ALLOWED = (
+    "allowed: arm_class, link_length_mm, link_twist_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
+    "joint_scale_ppm, sensor_scale_ppm, drift_deg_per_hour, drift_deg_per_kelvin, held_zero_offset_deg"
+)
 POSITIVE = "must be a positive number (a standard deviation in the unit its name gives), got "
 
 # A hand-written section with round numbers, so the SI answers below are known without the code.
-KNOWN = {"arm_class": "industrial",
-         "industrial": {"link_length_mm": 1.0, "link_twist_deg": 0.1, "marker_offset_mm": 2.0,
-                        "joint_compliance_urad_per_Nm": 50, "joint_scale_ppm": 1000, "sensor_scale_ppm": 500,
-                        "drift_deg_per_hour": 0.36, "drift_deg_per_kelvin": 0.02, "held_zero_offset_deg": 0.5},
-         "collaborative": {"link_length_mm": 1.0, "link_twist_deg": 0.1, "marker_offset_mm": 2.0,
-                           "joint_compliance_urad_per_Nm": 200, "joint_scale_ppm": 1000, "sensor_scale_ppm": 500,
-                           "drift_deg_per_hour": 0.36, "drift_deg_per_kelvin": 0.02, "held_zero_offset_deg": 0.5}}
+KNOWN = {
+    "arm_class": "industrial",
+    "industrial": {
+        "link_length_mm": 1.0,
+        "link_twist_deg": 0.1,
+        "marker_offset_mm": 2.0,
+        "joint_compliance_urad_per_Nm": 50,
+        "joint_scale_ppm": 1000,
+        "sensor_scale_ppm": 500,
+        "drift_deg_per_hour": 0.36,
+        "drift_deg_per_kelvin": 0.02,
+        "held_zero_offset_deg": 0.5,
+    },
+    "collaborative": {
+        "link_length_mm": 1.0,
+        "link_twist_deg": 0.1,
+        "marker_offset_mm": 2.0,
+        "joint_compliance_urad_per_Nm": 200,
+        "joint_scale_ppm": 1000,
+        "sensor_scale_ppm": 500,
+        "drift_deg_per_hour": 0.36,
+        "drift_deg_per_kelvin": 0.02,
+        "held_zero_offset_deg": 0.5,
+    },
+}
 
 
 def section(arm_class: str | None = None, **changes) -> dict:
@@ -55,16 +75,16 @@ def test_std_of_gives_si_values_of_known_priors():
     priors = priors_from(KNOWN)
     assert priors.arm_class == "industrial" and priors.source == "config"
     expected = {
-        "link_geometry.F2.length": 1e-3,                 # 1 mm
+        "link_geometry.F2.length": 1e-3,  # 1 mm
         "link_geometry.tool.length": 1e-3,
-        "link_geometry.F2.twist": 0.1 * math.pi / 180,   # 0.1 deg = 1.745e-3 rad
+        "link_geometry.F2.twist": 0.1 * math.pi / 180,  # 0.1 deg = 1.745e-3 rad
         "link_geometry.tool.twist": 1.7453292519943296e-3,
-        "marker_offset.x": 2e-3,                         # 2 mm
+        "marker_offset.x": 2e-3,  # 2 mm
         "marker_offset.z": 2e-3,
-        "joint_compliance.q3": 50e-6,                    # 50 urad/(N m)
+        "joint_compliance.q3": 50e-6,  # 50 urad/(N m)
         "joint_compliance.payload_q3": 50e-6,
-        "joint_scale.q7": 1e-3,                          # 1000 ppm
-        "sensor_scale.s": 5e-4,                          # 500 ppm
+        "joint_scale.q7": 1e-3,  # 1000 ppm
+        "sensor_scale.s": 5e-4,  # 500 ppm
     }
     for name, value in expected.items():
         assert priors.std_of(name) == pytest.approx(value, rel=1e-12), name
@@ -150,8 +170,9 @@ def test_campaign_override_changes_only_its_key_and_class():
     assert priors.arm_class == "industrial"
     assert priors.values == {**SECTION["industrial"], "link_length_mm": 2.5}
     assert priors.std_of("link_geometry.F2.length") == pytest.approx(2.5e-3)
-    assert priors.std_of("joint_compliance.q1") == pytest.approx(SECTION["industrial"]["joint_compliance_urad_per_Nm"]
-                                                                 * 1e-6)
+    assert priors.std_of("joint_compliance.q1") == pytest.approx(
+        SECTION["industrial"]["joint_compliance_urad_per_Nm"] * 1e-6
+    )
     assert priors.source == f"config, overridden by {source}"
 
 
@@ -212,8 +233,11 @@ BAD_CAMPAIGN_PRIORS = {
     "yes": ("{sensor_scale_ppm: yes}", "robot/priors/sensor_scale_ppm", POSITIVE + "True"),
     # YAML 1.1 (PyYAML) reads 1e-3 (no point in the mantissa) as text; 1.0e-3 is a number
     "1e-3": ("{link_length_mm: 1e-3}", "robot/priors/link_length_mm", POSITIVE + "'1e-3'"),
-    "unknown class": ("{arm_class: heavy, link_length_mm: 2.0}", "robot/priors/arm_class",
-                      "must be one of industrial, collaborative, got 'heavy'"),
+    "unknown class": (
+        "{arm_class: heavy, link_length_mm: 2.0}",
+        "robot/priors/arm_class",
+        "must be one of industrial, collaborative, got 'heavy'",
+    ),
     "not a mapping": ("[1.0, 0.1]", "robot/priors", "must be a mapping of priors, got [1.0, 0.1]"),
 }
 
@@ -240,10 +264,16 @@ BAD_OVERRIDES = {
     "zero": ({"joint_scale_ppm": 0.0}, "robot/priors/joint_scale_ppm", POSITIVE + "0.0"),
     "text": ({"link_twist_deg": "0.1"}, "robot/priors/link_twist_deg", POSITIVE + "'0.1'"),
     "bool": ({"sensor_scale_ppm": False}, "robot/priors/sensor_scale_ppm", POSITIVE + "False"),
-    "unknown class": ({"arm_class": "Industrial"}, "robot/priors/arm_class",
-                      "must be one of industrial, collaborative, got 'Industrial'"),
-    "not a mapping": ([("link_length_mm", 2.0)], "robot/priors",
-                      "must be a mapping of priors, got [('link_length_mm', 2.0)]"),
+    "unknown class": (
+        {"arm_class": "Industrial"},
+        "robot/priors/arm_class",
+        "must be one of industrial, collaborative, got 'Industrial'",
+    ),
+    "not a mapping": (
+        [("link_length_mm", 2.0)],
+        "robot/priors",
+        "must be a mapping of priors, got [('link_length_mm', 2.0)]",
+    ),
 }
 
 
@@ -261,22 +291,45 @@ def test_bad_campaign_priors_given_to_priors_from_directly(case):
 
 BAD_CONFIG_PRIORS = {
     # case: (section, key, message after "config: <key>: ")
-    "unknown key": (section("industrial", industrial={"link_lenght_mm": 2.0}), "priors/industrial/link_lenght_mm",
-                    f"unknown prior; {ALLOWED}"),
-    "negative": (section("collaborative", collaborative={"link_twist_deg": -0.1}),
-                 "priors/collaborative/link_twist_deg", POSITIVE + "-0.1"),
-    "zero": (section("industrial", industrial={"joint_compliance_urad_per_Nm": 0}),
-             "priors/industrial/joint_compliance_urad_per_Nm", POSITIVE + "0"),
-    "text": (section("collaborative", collaborative={"drift_deg_per_kelvin": "0.02 deg"}),
-             "priors/collaborative/drift_deg_per_kelvin", POSITIVE + "'0.02 deg'"),
-    "infinite": (section("collaborative", collaborative={"sensor_scale_ppm": math.inf}),
-                 "priors/collaborative/sensor_scale_ppm", POSITIVE + "inf"),
+    "unknown key": (
+        section("industrial", industrial={"link_lenght_mm": 2.0}),
+        "priors/industrial/link_lenght_mm",
+        f"unknown prior; {ALLOWED}",
+    ),
+    "negative": (
+        section("collaborative", collaborative={"link_twist_deg": -0.1}),
+        "priors/collaborative/link_twist_deg",
+        POSITIVE + "-0.1",
+    ),
+    "zero": (
+        section("industrial", industrial={"joint_compliance_urad_per_Nm": 0}),
+        "priors/industrial/joint_compliance_urad_per_Nm",
+        POSITIVE + "0",
+    ),
+    "text": (
+        section("collaborative", collaborative={"drift_deg_per_kelvin": "0.02 deg"}),
+        "priors/collaborative/drift_deg_per_kelvin",
+        POSITIVE + "'0.02 deg'",
+    ),
+    "infinite": (
+        section("collaborative", collaborative={"sensor_scale_ppm": math.inf}),
+        "priors/collaborative/sensor_scale_ppm",
+        POSITIVE + "inf",
+    ),
     "unknown class": (section("heavy"), "priors/arm_class", "must be one of industrial, collaborative, got 'heavy'"),
-    "class without values": ({"arm_class": "industrial", "collaborative": DEFAULTS["collaborative"]},
-                             "priors/industrial", "must be a mapping of priors, got None"),
-    "missing key": ({"arm_class": "industrial",
-                     "industrial": {k: v for k, v in DEFAULTS["industrial"].items() if k != "held_zero_offset_deg"}},
-                    "priors/industrial", "missing priors held_zero_offset_deg"),
+    "class without values": (
+        {"arm_class": "industrial", "collaborative": DEFAULTS["collaborative"]},
+        "priors/industrial",
+        "must be a mapping of priors, got None",
+    ),
+    "missing key": (
+        {
+            "arm_class": "industrial",
+            "industrial": {k: v for k, v in DEFAULTS["industrial"].items() if k != "held_zero_offset_deg"},
+        },
+        "priors/industrial",
+        "missing priors held_zero_offset_deg",
+    ),
 }
 
 
@@ -318,17 +371,31 @@ def test_schema_default_without_a_priors_section_gives_the_defaults():
 
 BAD_SCHEMA_PRIORS = {
     # case: (change to config.yaml's priors section, what the schema says, where)
-    "negative": ({"industrial": {"joint_scale_ppm": -5}}, "-5 is less than or equal to the minimum of 0",
-                 "['priors']['industrial']['joint_scale_ppm']"),
-    "zero": ({"collaborative": {"link_twist_deg": 0}}, "0 is less than or equal to the minimum of 0",
-             "['priors']['collaborative']['link_twist_deg']"),
-    "text": ({"industrial": {"link_length_mm": "one"}}, "'one' is not of type 'number'",
-             "['priors']['industrial']['link_length_mm']"),
-    "unknown key": ({"industrial": {"link_lenght_mm": 1.0}},
-                    "Additional properties are not allowed ('link_lenght_mm' was unexpected)",
-                    "['priors']['industrial']"),
-    "unknown class": ({"arm_class": "heavy"}, "'heavy' is not one of ['industrial', 'collaborative']",
-                      "['priors']['arm_class']"),
+    "negative": (
+        {"industrial": {"joint_scale_ppm": -5}},
+        "-5 is less than or equal to the minimum of 0",
+        "['priors']['industrial']['joint_scale_ppm']",
+    ),
+    "zero": (
+        {"collaborative": {"link_twist_deg": 0}},
+        "0 is less than or equal to the minimum of 0",
+        "['priors']['collaborative']['link_twist_deg']",
+    ),
+    "text": (
+        {"industrial": {"link_length_mm": "one"}},
+        "'one' is not of type 'number'",
+        "['priors']['industrial']['link_length_mm']",
+    ),
+    "unknown key": (
+        {"industrial": {"link_lenght_mm": 1.0}},
+        "Additional properties are not allowed ('link_lenght_mm' was unexpected)",
+        "['priors']['industrial']",
+    ),
+    "unknown class": (
+        {"arm_class": "heavy"},
+        "'heavy' is not one of ['industrial', 'collaborative']",
+        "['priors']['arm_class']",
+    ),
 }
 
 

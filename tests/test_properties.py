@@ -17,8 +17,7 @@ from remaster.robot import ik, kinematics, registration
 SETTINGS = settings(max_examples=100, deadline=None, derandomize=True)
 
 angles = st.floats(-np.pi, np.pi, allow_nan=False)
-rigid = st.tuples(angles, st.floats(-np.pi / 2, np.pi / 2), angles,
-                  *[st.floats(-5.0, 5.0, allow_nan=False)] * 3)
+rigid = st.tuples(angles, st.floats(-np.pi / 2, np.pi / 2), angles, *[st.floats(-5.0, 5.0, allow_nan=False)] * 3)
 seeds = st.integers(0, 2**32 - 1)
 
 
@@ -63,8 +62,11 @@ def test_ik_of_fk_contains_the_configuration_and_every_solution_reaches_the_pose
 
 
 @SETTINGS
-@given(q=iiwa_configuration(), offsets=st.tuples(*[st.floats(-0.05, 0.05)] * 7).map(np.array),
-       marker=st.tuples(*[st.floats(-0.2, 0.2)] * 3).map(np.array))
+@given(
+    q=iiwa_configuration(),
+    offsets=st.tuples(*[st.floats(-0.05, 0.05)] * 7).map(np.array),
+    marker=st.tuples(*[st.floats(-0.2, 0.2)] * 3).map(np.array),
+)
 def test_marker_fk_is_the_flange_pose_applied_to_the_marker_and_offsets_add(iiwa, q, offsets, marker):
     fk = kinematics.ForwardKinematics(iiwa, q[None])
     with_offsets = fk.points(marker, offsets)[0]
@@ -97,15 +99,19 @@ def test_kabsch_moves_with_the_sensor_and_inverts(motion, seed):
     sensor = spatial.transform_points(transform(rng.uniform(-1, 1, 6)), robot) + rng.normal(0, 1e-3, (30, 3))
     fitted = registration.kabsch(robot, sensor)
     moved = transform(motion)
-    np.testing.assert_allclose(registration.kabsch(robot, spatial.transform_points(moved, sensor)), moved @ fitted,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        registration.kabsch(robot, spatial.transform_points(moved, sensor)), moved @ fitted, atol=1e-9
+    )
     np.testing.assert_allclose(registration.kabsch(sensor, robot), spatial.invert(fitted), atol=1e-9)
 
 
 # --------------------------------------------------------------------------- metrics
 
-points = hnp.arrays(np.float64, st.tuples(st.integers(2, 12), st.just(3)),
-                    elements=st.floats(-2.0, 2.0, allow_nan=False, allow_infinity=False))
+points = hnp.arrays(
+    np.float64,
+    st.tuples(st.integers(2, 12), st.just(3)),
+    elements=st.floats(-2.0, 2.0, allow_nan=False, allow_infinity=False),
+)
 
 
 @st.composite
@@ -127,8 +133,11 @@ def pairs_per_group(groups) -> int:
 def test_relative_errors_do_not_depend_on_either_frame(data, sensor_motion, robot_motion):
     p_ref, p_robot, groups = data
     errors = metrics.relative_errors(p_ref, p_robot, groups)
-    moved = metrics.relative_errors(spatial.transform_points(transform(sensor_motion), p_ref),
-                                    spatial.transform_points(transform(robot_motion), p_robot), groups)
+    moved = metrics.relative_errors(
+        spatial.transform_points(transform(sensor_motion), p_ref),
+        spatial.transform_points(transform(robot_motion), p_robot),
+        groups,
+    )
     np.testing.assert_allclose(moved, errors, atol=1e-12)
     assert errors.shape == (pairs_per_group(groups),) and np.all(errors >= 0)
 
@@ -163,5 +172,7 @@ def test_unseen_rows_drop_out_of_the_relative_metric(data, unseen):
     with_nan = p_ref.copy()
     with_nan[row] = np.nan
     keep = np.arange(len(p_ref)) != row
-    np.testing.assert_array_equal(metrics.relative_errors(with_nan, p_robot, groups),
-                                  metrics.relative_errors(p_ref[keep], p_robot[keep], groups[keep]))
+    np.testing.assert_array_equal(
+        metrics.relative_errors(with_nan, p_robot, groups),
+        metrics.relative_errors(p_ref[keep], p_robot[keep], groups[keep]),
+    )

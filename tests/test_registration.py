@@ -63,11 +63,13 @@ def test_the_farthest_pair_from_the_hull_is_the_all_pairs_answer(rng, shape):
     """Above ALL_PAIRS_UP_TO points the farthest pair is sought among the hull's vertices: the
     same pair as among all pairs, the first one on ties, in every degenerate shape."""
     n = registration.ALL_PAIRS_UP_TO + 500
-    q = {"cloud": lambda: rng.normal(size=(n, 3)),
-         "grid with ties and duplicates": lambda: np.round(rng.uniform(0, 4, (n, 3))),
-         "plane": lambda: np.column_stack([rng.normal(size=(n, 2)), np.full(n, 0.3)]) @ spatial.rot_z(0.4).T,
-         "line": lambda: np.outer(rng.normal(size=n), [1.0, 2.0, 3.0]),
-         "one point": lambda: np.ones((n, 3))}[shape]()
+    q = {
+        "cloud": lambda: rng.normal(size=(n, 3)),
+        "grid with ties and duplicates": lambda: np.round(rng.uniform(0, 4, (n, 3))),
+        "plane": lambda: np.column_stack([rng.normal(size=(n, 2)), np.full(n, 0.3)]) @ spatial.rot_z(0.4).T,
+        "line": lambda: np.outer(rng.normal(size=n), [1.0, 2.0, 3.0]),
+        "one point": lambda: np.ones((n, 3)),
+    }[shape]()
     assert registration.farthest_pair(q) == _all_pairs_farthest(q)
 
 

@@ -6,29 +6,49 @@ import pandas as pd
 
 from remaster.reporting import report
 
-PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
+PNG = base64.b64decode(
+    "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg=="
+)
 
 
 def _summary(name="c1", date="2020-01-01"):
-    return {"campaign": name, "date": date,
-            "robot": {"name": "arm", "joints": ["j1", "j2"], "base": "b", "flange": "f"},
-            "sensors": {"laser_tracker": {"kind": "laser_tracker", "n_missing": 2, "missing_rows": [4, 9],
-                                          "sets": {"optimization": {"poses": 3, "configurations": 7}}}}}
+    return {
+        "campaign": name,
+        "date": date,
+        "robot": {"name": "arm", "joints": ["j1", "j2"], "base": "b", "flange": "f"},
+        "sensors": {
+            "laser_tracker": {
+                "kind": "laser_tracker",
+                "n_missing": 2,
+                "missing_rows": [4, 9],
+                "sets": {"optimization": {"poses": 3, "configurations": 7}},
+            }
+        },
+    }
 
 
 def test_page_embeds_tables_and_figures():
     summary = _summary()
     table = pd.DataFrame({"Parameter": ["x (mm)", "<b>"], "MLE": [1.23456, float("nan")]})
-    page = report.build({"c1": {"summary": summary, "tables": {"registration_params": table},
-                                "figures": {"zero_offset_trace_laser_tracker": PNG}}},
-                        {"registration_params": "Registration", "zero_offset_trace": "Trace"})
+    page = report.build(
+        {
+            "c1": {
+                "summary": summary,
+                "tables": {"registration_params": table},
+                "figures": {"zero_offset_trace_laser_tracker": PNG},
+            }
+        },
+        {"registration_params": "Registration", "zero_offset_trace": "Trace"},
+    )
     assert page.startswith("<!DOCTYPE html>") and "</html>" in page
-    assert "<caption>Registration</caption>" in page and "<td>1.23</td>" in page  # three significant digits: no std beside it
+    assert (
+        "<caption>Registration</caption>" in page and "<td>1.23</td>" in page
+    )  # three significant digits: no std beside it
     assert "&lt;b&gt;" in page  # text is escaped, never injected
     assert "data:image/png;base64," + base64.b64encode(PNG).decode() in page
     assert "Trace (laser tracker)" in page
     assert "2 rows without a measurement" in page and "[4, 9]" in page
-    assert "src=\"http" not in page and "href=\"http" not in page  # nothing fetched from outside
+    assert 'src="http' not in page and 'href="http' not in page  # nothing fetched from outside
 
 
 def test_campaigns_are_shown_in_date_order():
@@ -39,8 +59,13 @@ def test_campaigns_are_shown_in_date_order():
 
 
 def test_a_file_column_is_a_column_of_links_beside_the_page():
-    table = pd.DataFrame({"Sensor": ["laser_tracker"], "File": ["demo/laser_tracker/calibrated/loop.urdf"],
-                          "What": ["a <calibrated> URDF"]})
+    table = pd.DataFrame(
+        {
+            "Sensor": ["laser_tracker"],
+            "File": ["demo/laser_tracker/calibrated/loop.urdf"],
+            "What": ["a <calibrated> URDF"],
+        }
+    )
     page = report.table_html("files", table)
     assert '<a href="demo/laser_tracker/calibrated/loop.urdf">demo/laser_tracker/calibrated/loop.urdf</a>' in page
     assert "a &lt;calibrated&gt; URDF" in page and page.count("<a href") == 1  # only the File column links
@@ -55,16 +80,18 @@ def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):
     from remaster import files
     from remaster.reporting import tables
 
-    table = pd.DataFrame({
-        "Joint": ["j1", "j2", "j3"],
-        "Correction (deg)": [0.0, -0.18938243654688053, 12.3456],
-        "Std (deg)": [float("nan"), 0.008883956444893744, 1.04],
-        "2.5% (deg)": [float("nan"), -0.2068123, 10.2791],
-        "Laser Tracker MLE (deg)": ["held", "-0.1920376699042468", "0.5"],
-        "Laser Tracker Std (deg)": ["held", "0.008960076849942784", "0.25"],
-        "points": [173.0, 12.0, 3.0],
-        "z": [3.21234, -0.000123456, 1234.5678],
-    })
+    table = pd.DataFrame(
+        {
+            "Joint": ["j1", "j2", "j3"],
+            "Correction (deg)": [0.0, -0.18938243654688053, 12.3456],
+            "Std (deg)": [float("nan"), 0.008883956444893744, 1.04],
+            "2.5% (deg)": [float("nan"), -0.2068123, 10.2791],
+            "Laser Tracker MLE (deg)": ["held", "-0.1920376699042468", "0.5"],
+            "Laser Tracker Std (deg)": ["held", "0.008960076849942784", "0.25"],
+            "points": [173.0, 12.0, 3.0],
+            "z": [3.21234, -0.000123456, 1234.5678],
+        }
+    )
     cells = tables.formatted(table)
     assert cells[0] == ["j1", "0", "", "", "held", "held", "173", "3.21"]
     assert cells[1] == ["j2", "-0.1894", "0.0089", "-0.2068", "-0.1920", "0.0090", "12", "-0.000123"]
@@ -87,11 +114,23 @@ def test_a_number_without_uncertainty_shows_three_significant_digits():
     from remaster.units import shown
 
     assert [shown(v) for v in (6.3138, 0.0102345, -1234.56, 173.0, 0.0, 2.5)] == [
-        "6.31", "0.0102", "-1235", "173", "0", "2.50"]
+        "6.31",
+        "0.0102",
+        "-1235",
+        "173",
+        "0",
+        "2.50",
+    ]
     assert shown(float("nan")) == "nan"
     # tiny numbers in scientific form, three significant digits; from 1e-4 up as before
     assert [shown(v) for v in (-6.5912e-7, 2.3e-6, 9.99e-5, 1e-4, 0.000123456, -1e-12)] == [
-        "-6.59e-07", "2.30e-06", "9.99e-05", "0.000100", "0.000123", "-1.00e-12"]
+        "-6.59e-07",
+        "2.30e-06",
+        "9.99e-05",
+        "0.000100",
+        "0.000123",
+        "-1.00e-12",
+    ]
 
 
 def test_tiny_numbers_in_tables_print_in_scientific_form():
@@ -99,12 +138,22 @@ def test_tiny_numbers_in_tables_print_in_scientific_form():
     from remaster.units import shown_to
 
     # rounded to the decimal of an uncertainty: the same last digit, scientific when tiny
-    assert [shown_to(v, d) for v, d in ((-6.5912e-7, 9), (2.34e-8, 9), (-0.18938, 4), (0.00004, 4), (1e-12, 9),
-                                        (0.00012, 6), (4.4e-5, 6))] == [
-        "-6.59e-07", "2.3e-08", "-0.1894", "0.0000", "0.000000000", "0.000120", "4.4e-05"]
-    table = pd.DataFrame({"Candidate": ["drift", "gravity"], "gain (nats)": [-6.5912e-7, 2.3012e-6],
-                          "mean (mm)": [6.5912e-7, 0.123], "U(mean) (mm)": [2.34e-8, 0.0123], "value": [12.3, 0.0102]})
-    assert tables.formatted(table) == [["drift", "-6.59e-07", "6.59e-07", "2.3e-08", "12.3"],
-                                       ["gravity", "2.30e-06", "0.123", "0.012", "0.0102"]]
+    assert [
+        shown_to(v, d)
+        for v, d in ((-6.5912e-7, 9), (2.34e-8, 9), (-0.18938, 4), (0.00004, 4), (1e-12, 9), (0.00012, 6), (4.4e-5, 6))
+    ] == ["-6.59e-07", "2.3e-08", "-0.1894", "0.0000", "0.000000000", "0.000120", "4.4e-05"]
+    table = pd.DataFrame(
+        {
+            "Candidate": ["drift", "gravity"],
+            "gain (nats)": [-6.5912e-7, 2.3012e-6],
+            "mean (mm)": [6.5912e-7, 0.123],
+            "U(mean) (mm)": [2.34e-8, 0.0123],
+            "value": [12.3, 0.0102],
+        }
+    )
+    assert tables.formatted(table) == [
+        ["drift", "-6.59e-07", "6.59e-07", "2.3e-08", "12.3"],
+        ["gravity", "2.30e-06", "0.123", "0.012", "0.0102"],
+    ]
     assert "| drift | -6.59e-07 | 6.59e-07 | 2.3e-08 | 12.3 |" in tables.to_markdown(table)
     assert tables.formatted(pd.DataFrame({"x": ["-6.5912e-07"]})) == [["-6.59e-07"]]  # a number read back as text

@@ -1,7 +1,6 @@
 """The residual Gaussian process against known answers, the closure test, and the loop on a robot
 whose effect is in no candidate's family (a transmission's cyclic error)."""
 
-
 import numpy as np
 import pytest
 import scipy.optimize
@@ -120,7 +119,9 @@ def test_repeatability_is_the_pooled_spread_of_repeated_configurations():
     rng = np.random.default_rng(11)
     q = np.repeat(readings(rng, 200), 3, axis=0)
     measured = np.repeat(rng.normal(0, 0.1, (200, 3)), 3, axis=0) + rng.normal(0.0, 3e-5, (600, 3))
-    spread, repeated = closure.repeatability(np.vstack([q, readings(rng, 10)]), np.vstack([measured, np.zeros((10, 3))]))
+    spread, repeated = closure.repeatability(
+        np.vstack([q, readings(rng, 10)]), np.vstack([measured, np.zeros((10, 3))])
+    )
     assert repeated == 200
     assert spread == pytest.approx(3e-5, rel=0.05)
     assert closure.repeatability(readings(rng, 10), np.zeros((10, 3))) == (None, 0)
@@ -140,23 +141,38 @@ def test_the_verdict_and_the_shares():
 
 # --------------------------------------------------------------------------- an effect outside the candidates
 
-CYCLIC = {"amplitude_deg": [0, 0.02, 0, 0.015, 0, 0, 0], "cycles_per_turn": [1, 2, 1, 3, 1, 1, 1],
-          "phase_deg": [0, 30, 0, -60, 0, 0, 0]}
+CYCLIC = {
+    "amplitude_deg": [0, 0.02, 0, 0.015, 0, 0, 0],
+    "cycles_per_turn": [1, 2, 1, 3, 1, 1, 1],
+    "phase_deg": [0, 30, 0, -60, 0, 0, 0],
+}
 
 
 @pytest.fixture(scope="module")
 def cyclic(iiwa):
     """The laser tracker of kuka-compliance's scenario, a robot with a cyclic error of joints 2 and 4."""
     spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
-    spec["plan"]["sets"] = {"optimization": {"poses": 150, "configurations": 1200},
-                            "validation": {"poses": 10, "configurations": 50}}
+    spec["plan"]["sets"] = {
+        "optimization": {"poses": 150, "configurations": 1200},
+        "validation": {"poses": 10, "configurations": 50},
+    }
     spec["truth"] = {"zero_offsets_deg": [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62], "cyclic_error": CYCLIC}
     out = scenario.simulate(spec, iiwa)
     meta = out.metadata["sensors"]["laser_tracker"]
-    assert out.truth["effects"] == {"cyclic_error": {**CYCLIC, "amplitude_deg": pytest.approx(CYCLIC["amplitude_deg"]),
-                                                     "phase_deg": pytest.approx(CYCLIC["phase_deg"])}}
-    sensor = sensor_data("laser_tracker", {**meta, "marker": np.array(meta["marker"])}, out.tables["laser_tracker"],
-                         iiwa.n_joints, "simulated.parquet")
+    assert out.truth["effects"] == {
+        "cyclic_error": {
+            **CYCLIC,
+            "amplitude_deg": pytest.approx(CYCLIC["amplitude_deg"]),
+            "phase_deg": pytest.approx(CYCLIC["phase_deg"]),
+        }
+    }
+    sensor = sensor_data(
+        "laser_tracker",
+        {**meta, "marker": np.array(meta["marker"])},
+        out.tables["laser_tracker"],
+        iiwa.n_joints,
+        "simulated.parquet",
+    )
     registration = fit.register(iiwa, sensor)
     _, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
     return sensor, registration.t_nr, analysis.held
@@ -164,8 +180,9 @@ def cyclic(iiwa):
 
 def run(iiwa, cyclic, **changes):
     sensor, t_nr, held = cyclic
-    return loop_closure.close_loop(iiwa, sensor, t_nr, held, np.random.default_rng(0),
-                                   loop_settings(mcmc=None, **changes)).report
+    return loop_closure.close_loop(
+        iiwa, sensor, t_nr, held, np.random.default_rng(0), loop_settings(mcmc=None, **changes)
+    ).report
 
 
 def test_an_effect_outside_the_candidates_is_explained_by_the_gp_and_traced_to_its_joints(iiwa, cyclic):

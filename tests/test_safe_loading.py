@@ -37,7 +37,7 @@ def test_campaign_yaml_with_a_python_tag_is_refused_and_nothing_runs(tmp_path, k
     marker = tmp_path / "pwned"
     text = (folder / "campaign.yaml").read_text()
     lines = text.splitlines()
-    line = next(i for i, l in enumerate(lines) if l.startswith("description:"))
+    line = next(i for i, text_line in enumerate(lines) if text_line.startswith("description:"))
     lines[line] = f"description: {payloads(marker)[kind]}"
     (folder / "campaign.yaml").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError) as info:
@@ -53,8 +53,16 @@ def test_scenario_with_a_python_tag_is_refused_by_the_cli(tmp_path, capsys):
     spec = (REPO / "data" / "simulation" / "kuka-twin.yaml").read_text()
     spec = spec.replace("seed: 20180612", f"seed: {payloads(marker)['object/apply']}")
     (tmp_path / "evil.yaml").write_text(spec)
-    status = cli.main(["simulate", str(tmp_path / "evil.yaml"), "--raw-dir", str(tmp_path / "raw"),
-                       "--truth-dir", str(tmp_path / "truth")])
+    status = cli.main(
+        [
+            "simulate",
+            str(tmp_path / "evil.yaml"),
+            "--raw-dir",
+            str(tmp_path / "raw"),
+            "--truth-dir",
+            str(tmp_path / "truth"),
+        ]
+    )
     assert status == 2
     error = capsys.readouterr().err
     assert "evil.yaml: line" in error and "python/object/apply:os.system' refused" in error
@@ -69,8 +77,9 @@ def test_config_with_a_python_tag_is_refused_by_the_workflow(tmp_path):
     for kind, fragment in (("object/apply", "not valid JSON or YAML"), ("name", "is not of type 'string'")):
         config = tmp_path / f"config-{kind.replace('/', '-')}.yaml"
         config.write_text(f"results_dir: {payloads(marker)[kind]}\n")
-        result = subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True,
-                                text=True, timeout=300)
+        result = subprocess.run(
+            SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
+        )
         assert result.returncode != 0 and fragment in result.stdout + result.stderr
         assert not marker.exists()
 
@@ -95,8 +104,10 @@ def test_urdf_with_entities_is_refused(tmp_path):
 UNSAFE = {
     "pickle": r"\bc?pickle\b|read_pickle|to_pickle|allow_pickle\s*=\s*True",
     "eval/exec": r"(?<![\w.])(eval|exec)\s*\(",
-    "unsafe YAML": (r"yaml\.load\s*\((?![^)]*SafeLoader)|yaml\.unsafe_load|yaml\.full_load"
-                    r"|Loader\s*=\s*yaml\.(Unsafe|Full)?Loader\b"),
+    "unsafe YAML": (
+        r"yaml\.load\s*\((?![^)]*SafeLoader)|yaml\.unsafe_load|yaml\.full_load"
+        r"|Loader\s*=\s*yaml\.(Unsafe|Full)?Loader\b"
+    ),
     "other deserialisers": r"\bmarshal\.loads?\b|\bshelve\b|\bdill\b|\bjoblib\.load\b|\btorch\.load\b",
     "shell": r"shell\s*=\s*True|os\.system\s*\(",
 }

@@ -112,8 +112,9 @@ def assert_ks(chains):
 
 def test_adaptive_metropolis_matches_exact_posterior(target):
     starts = START + np.array([[0.1, -0.1, 0.1, 0.0, 0.2], [-0.1, 0.1, 0.0, 0.1, -0.2]]) * MM
-    chains = samplers.run_chains(samplers.metropolis_adaptive, target, np.random.default_rng(11), 2, starts,
-                                 n_samples=30_000, burn_in=8_000)
+    chains = samplers.run_chains(
+        samplers.metropolis_adaptive, target, np.random.default_rng(11), 2, starts, n_samples=30_000, burn_in=8_000
+    )
     assert_matches_exact(chains)
     assert_ks(chains)
     for chain in chains:
@@ -140,15 +141,17 @@ def test_adaptive_proposal_is_learnt_then_frozen(target):
 def test_adaptive_recovers_from_a_bad_initial_covariance(target, factor):
     """Steps 1000x too small or too large at first: the doubling windows still find the scale."""
     initial = np.diag(np.append(STD, 0.1 * MM) ** 2) * factor
-    chain = samplers.metropolis_adaptive(target, np.random.default_rng(5), START, initial,
-                                         n_samples=25_000, burn_in=10_000)
+    chain = samplers.metropolis_adaptive(
+        target, np.random.default_rng(5), START, initial, n_samples=25_000, burn_in=10_000
+    )
     assert 0.15 < chain.acceptance_rate < 0.45
     assert_matches_exact([chain])
 
 
 def test_emcee_matches_exact_posterior(target):
-    chain = samplers.run_emcee(target, np.random.default_rng(12), START, np.append(STD, 0.1 * MM),
-                               n_walkers=20, n_steps=3_000, burn_in=600)
+    chain = samplers.run_emcee(
+        target, np.random.default_rng(12), START, np.append(STD, 0.1 * MM), n_walkers=20, n_steps=3_000, burn_in=600
+    )
     assert chain.samples.shape == (2_400 * 20, 5) and chain.n_walkers == 20
     assert chain.per_walker().shape == (2_400, 20, 5)
     assert 0.2 < chain.acceptance_rate < 0.8
@@ -162,8 +165,14 @@ def test_paper_metropolis_shapes_and_convergence():
     n_data, sum_squares = 5_000, 5_000 * MM**2  # sigma = 1 mm +- 0.01 mm
     easy = gaussian_sigma_target(mu, np.diag(std**2), n_data, sum_squares)
     calls = []
-    chain = samplers.metropolis_paper(easy, np.random.default_rng(21), [0, 0, MM], n_samples=50_000,
-                                      burn_in=20_000, progress=lambda *a: calls.append(a))
+    chain = samplers.metropolis_paper(
+        easy,
+        np.random.default_rng(21),
+        [0, 0, MM],
+        n_samples=50_000,
+        burn_in=20_000,
+        progress=lambda *a: calls.append(a),
+    )
     assert chain.samples.shape == (30_000, 3) and chain.log_prob.shape == (30_000,)
     assert chain.names == ("x0", "x1", "noise.sigma") and chain.method == "metropolis_paper"
     assert 0.2 < chain.acceptance_rate < 0.9
@@ -184,8 +193,7 @@ def small_runs():
     return [
         ("paper", lambda t, rng: samplers.metropolis_paper(t, rng, START, n_samples=2_000, burn_in=1_000)),
         ("adaptive", lambda t, rng: samplers.metropolis_adaptive(t, rng, START, n_samples=3_000, burn_in=1_000)),
-        ("emcee", lambda t, rng: samplers.run_emcee(t, rng, START, 0.05 * MM, n_walkers=12, n_steps=300,
-                                                    burn_in=100)),
+        ("emcee", lambda t, rng: samplers.run_emcee(t, rng, START, 0.05 * MM, n_walkers=12, n_steps=300, burn_in=100)),
     ]
 
 
@@ -210,8 +218,9 @@ def test_stored_log_prob_is_the_target_log_prob(target, label, run):
 
 def test_run_chains_uses_independent_reproducible_generators(target):
     def run(seed):
-        return samplers.run_chains(samplers.metropolis_adaptive, target, np.random.default_rng(seed), 3, START,
-                                   n_samples=1_500, burn_in=500)
+        return samplers.run_chains(
+            samplers.metropolis_adaptive, target, np.random.default_rng(seed), 3, START, n_samples=1_500, burn_in=500
+        )
 
     first, again = run(4), run(4)
     assert len(first) == 3
@@ -230,15 +239,17 @@ def test_bad_starts_and_nan_log_prob_are_named(target):
         samplers.metropolis_paper(target, np.random.default_rng(0), START, n_samples=10, burn_in=10)
     with pytest.raises(ValueError, match="walkers"):
         samplers.run_emcee(target, np.random.default_rng(0), START, MM, n_walkers=8, n_steps=10, burn_in=0)
-    nan_away = CallableTarget(("x", "noise.sigma"), [MM, MM],
-                              lambda t: np.where(t[:, 0] > 0.02 * MM, np.nan, -t[:, 0] ** 2 / MM**2))
+    nan_away = CallableTarget(
+        ("x", "noise.sigma"), [MM, MM], lambda t: np.where(t[:, 0] > 0.02 * MM, np.nan, -(t[:, 0] ** 2) / MM**2)
+    )
     with pytest.raises(SamplingError, match="NaN"):
         samplers.metropolis_paper(nan_away, np.random.default_rng(0), [0, MM], n_samples=5_000, burn_in=0)
 
 
 def test_chain_summary_names_method_and_parameters(target):
-    chain = samplers.run_emcee(target, np.random.default_rng(2), START, 0.05 * MM, n_walkers=12,
-                               n_steps=200, burn_in=50)
+    chain = samplers.run_emcee(
+        target, np.random.default_rng(2), START, 0.05 * MM, n_walkers=12, n_steps=200, burn_in=50
+    )
     text = chain.summary()
     assert text.startswith("emcee: 150 kept steps x 12 walker(s)")
     assert all(name in text for name in NAMES)
@@ -295,8 +306,9 @@ def test_laplace_restarts_need_rng_and_find_the_global_minimum():
     with pytest.raises(ValueError, match="rng"):
         samplers.least_squares_laplace(residuals, [-1.0], 1.0, n_restarts=2)
     single = samplers.least_squares_laplace(residuals, [-1.0], 1.0)
-    multi = samplers.least_squares_laplace(residuals, [-1.0], 1.0, rng=np.random.default_rng(0), n_restarts=16,
-                                           restart_spread=3.0)
+    multi = samplers.least_squares_laplace(
+        residuals, [-1.0], 1.0, rng=np.random.default_rng(0), n_restarts=16, restart_spread=3.0
+    )
     assert single.theta_map[0] < 0 < multi.theta_map[0] and multi.cost < single.cost
 
 
@@ -312,12 +324,26 @@ def test_laplace_and_samplers_agree_on_a_linear_model():
         return sigma_log_posterior(thetas[:, m], k, np.sum(r * r, axis=1))
 
     posterior = CallableTarget(names, np.full(4, MM), many)
-    adaptive = samplers.metropolis_adaptive(posterior, np.random.default_rng(1), fit.theta_start,
-                                            fit.full_covariance(), n_samples=25_000, burn_in=3_000)
-    ensemble = samplers.run_emcee(posterior, np.random.default_rng(2), fit.theta_start,
-                                  np.sqrt(np.diag(fit.full_covariance())), n_walkers=16, n_steps=1_500, burn_in=300)
-    table = diagnostics.cross_check({"laplace": fit.moments(), "adaptive": diagnostics.moments([adaptive]),
-                                     "emcee": diagnostics.moments([ensemble])}, names)
+    adaptive = samplers.metropolis_adaptive(
+        posterior, np.random.default_rng(1), fit.theta_start, fit.full_covariance(), n_samples=25_000, burn_in=3_000
+    )
+    ensemble = samplers.run_emcee(
+        posterior,
+        np.random.default_rng(2),
+        fit.theta_start,
+        np.sqrt(np.diag(fit.full_covariance())),
+        n_walkers=16,
+        n_steps=1_500,
+        burn_in=300,
+    )
+    table = diagnostics.cross_check(
+        {
+            "laplace": fit.moments(),
+            "adaptive": diagnostics.moments([adaptive]),
+            "emcee": diagnostics.moments([ensemble]),
+        },
+        names,
+    )
     assert table.attrs["reference"] == "laplace"
     # the exact marginal of b is Student-t: Laplace's s^2 (X^T X)^-1 is its covariance to O(1/k)
     np.testing.assert_allclose(table["std"]["adaptive"], table["std"]["laplace"], rtol=0.12)
@@ -382,8 +408,10 @@ def test_split_rhat():
 
 
 def test_chain_report_columns(target):
-    chains = [samplers.metropolis_adaptive(target, np.random.default_rng(s), START, n_samples=3_000, burn_in=1_000)
-              for s in (1, 2)]
+    chains = [
+        samplers.metropolis_adaptive(target, np.random.default_rng(s), START, n_samples=3_000, burn_in=1_000)
+        for s in (1, 2)
+    ]
     report = diagnostics.chain_report(chains)
     assert list(report.index) == list(NAMES) and report.index.name == "parameter"
     assert list(report.columns) == ["mean", "std", "q2.5", "q97.5", "tau", "ess", "rhat", "mcse", "tau_reliable"]
@@ -394,9 +422,11 @@ def test_chain_report_columns(target):
 def test_cross_check_raises_when_one_method_is_shifted():
     names = ["x", "y"]
     mean, std = np.array([1.0, 2.0]), np.array([0.1, 0.2])
-    results = {"reference": (mean, std, np.array([0.005, 0.01])),
-               "good": (mean + np.array([0.01, -0.02]), std, np.array([0.005, 0.01])),
-               "shifted": (mean + np.array([0.0, 0.2]), std, np.array([0.005, 0.01]))}
+    results = {
+        "reference": (mean, std, np.array([0.005, 0.01])),
+        "good": (mean + np.array([0.01, -0.02]), std, np.array([0.005, 0.01])),
+        "shifted": (mean + np.array([0.0, 0.2]), std, np.array([0.005, 0.01])),
+    }
     with pytest.raises(SamplerDisagreement, match=r"y: shifted .* vs reference") as info:
         diagnostics.cross_check(results, names)
     z = 0.2 / math.hypot(0.01, 0.01)  # combined Monte Carlo error of the two methods

@@ -24,8 +24,10 @@ SCENARIOS = REPO / "data" / "simulation"
 def small_scenario(**truth):
     """kuka-twin's scenario with small sets, for speed."""
     spec = files.read_yaml(SCENARIOS / "kuka-twin.yaml")
-    spec["plan"]["sets"] = {"optimization": {"poses": 6, "configurations": 25},
-                            "validation": {"poses": 4, "configurations": 16}}
+    spec["plan"]["sets"] = {
+        "optimization": {"poses": 6, "configurations": 25},
+        "validation": {"poses": 4, "configurations": 16},
+    }
     spec["truth"].update(truth)
     return spec
 
@@ -34,8 +36,9 @@ def test_noise_free_measurement_is_true_kinematics_in_sensor_frame(iiwa, rng):
     q = rng.uniform(iiwa.lower, iiwa.upper, (40, 7))
     robot = TrueRobot(zero_offsets=np.radians([0.4, -0.2, 0.1, 0.1, 0.4, -0.1, 0.9]))
     sensor = Sensor("lt", "laser_tracker", looking_at([1.6, 0.5, 1.0], [0, 0, 0.6]), 0.0, np.array([-0.1, 0, 0.02]))
-    expected = spatial.transform_points(spatial.invert(sensor.pose_in_robot),
-                                        kinematics.marker_positions(iiwa, q + robot.zero_offsets, sensor.marker))
+    expected = spatial.transform_points(
+        spatial.invert(sensor.pose_in_robot), kinematics.marker_positions(iiwa, q + robot.zero_offsets, sensor.marker)
+    )
     np.testing.assert_allclose(measure(iiwa, robot, sensor, q, rng), expected, atol=1e-12)
 
 
@@ -90,8 +93,13 @@ def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_pat
     for run, out in enumerate((first, second)):
         folders.write_campaign(tmp_path / str(run) / spec["name"], out.metadata, out.tables)
         files.write_json(tmp_path / str(run) / "truth.json", out.truth)
-        digests.append({p.name: hashlib.sha256(p.read_bytes()).hexdigest()
-                        for p in sorted((tmp_path / str(run)).rglob("*")) if p.is_file()})
+        digests.append(
+            {
+                p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+                for p in sorted((tmp_path / str(run)).rglob("*"))
+                if p.is_file()
+            }
+        )
     assert digests[0] == digests[1]
     campaign = folders.read_campaign(tmp_path / "0" / spec["name"], repo_root=REPO)
     assert set(campaign.sensors) == {"motion_capture", "laser_tracker"}
@@ -114,8 +122,9 @@ def test_measurements_equal_truth_record_in_sensor_frame(iiwa):
     out = scenario.simulate(small_scenario(), iiwa)
     for name, table in out.tables.items():
         truth = out.truth["sensors"][name]
-        expected = spatial.transform_points(np.array(truth["T_NR"]),
-                                            np.array(truth["true_marker_positions_robot_frame_m"]))
+        expected = spatial.transform_points(
+            np.array(truth["T_NR"]), np.array(truth["true_marker_positions_robot_frame_m"])
+        )
         seen = table[["x", "y", "z"]].notna().all(axis=1).to_numpy()
         error = table[["x", "y", "z"]].to_numpy()[seen] - expected[seen]
         assert np.abs(error).max() < 5 * truth["noise_m"]
@@ -126,8 +135,10 @@ def test_bundled_campaigns_read_and_twin_is_sized_like_the_paper(name):
     campaign = folders.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
     for sensor in campaign.sensors.values():
         table = sensor.table
-        sizes = {s: (table[table["set"] == s]["pose"].nunique(), int((table["set"] == s).sum()))
-                 for s in ("optimization", "validation")}
+        sizes = {
+            s: (table[table["set"] == s]["pose"].nunique(), int((table["set"] == s).sum()))
+            for s in ("optimization", "validation")
+        }
         assert sizes == {"optimization": (36, 173), "validation": (32, 156)}
     assert (set(campaign.sensors) == {"laser_tracker"}) == (name == "kuka-compliance")
 
@@ -140,10 +151,15 @@ def test_bundled_campaigns_are_what_the_scenarios_generate(iiwa):
         stored = campaign.sensors[name].table
         # equal up to rounding, so that a change in the order of floating-point operations
         # does not force regenerating the data; regenerating with the same code is byte-identical
-        np.testing.assert_allclose(stored[["x", "y", "z"]].to_numpy(), table[["x", "y", "z"]].to_numpy(),
-                                   rtol=0, atol=1e-12)
-        np.testing.assert_allclose(stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
-                                   table[[f"q{j}" for j in range(1, 8)]].to_numpy(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            stored[["x", "y", "z"]].to_numpy(), table[["x", "y", "z"]].to_numpy(), rtol=0, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            stored[[f"q{j}" for j in range(1, 8)]].to_numpy(),
+            table[[f"q{j}" for j in range(1, 8)]].to_numpy(),
+            rtol=0,
+            atol=1e-12,
+        )
 
 
 def _cubes_of(spec, set_name):

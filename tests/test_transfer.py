@@ -48,8 +48,9 @@ def entry(chain, name: str, date: str, sensor: SensorData, models: dict, exclude
 
 
 def paper(offsets, draws=None) -> prediction.Calibration:
-    return prediction.Calibration("paper", {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(offsets)},
-                                  draws=draws)
+    return prediction.Calibration(
+        "paper", {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(offsets)}, draws=draws
+    )
 
 
 @pytest.fixture(scope="module")
@@ -73,8 +74,9 @@ def test_own_paper_model_on_itself_is_a_direct_validation(iiwa, noisy):
     val = np.arange(24, 40)
     q, xyz = noisy.q(), noisy.positions()
     fk = ForwardKinematics(iiwa, q).points(MARKER, estimate)
-    direct = np.linalg.norm(xyz[val] - spatial.transform_points(registration.kabsch(fk[opt], xyz[opt]), fk[val]),
-                            axis=1)
+    direct = np.linalg.norm(
+        xyz[val] - spatial.transform_points(registration.kabsch(fk[opt], xyz[opt]), fk[val]), axis=1
+    )
     np.testing.assert_allclose(errors, direct, rtol=1e-9, atol=1e-12)
     table = transfer.transfer_table([entry(iiwa, "x", "2020-01-01", noisy, {"paper": paper(estimate)}, [7])])
     assert list(table.columns) == transfer.TRANSFER_COLUMNS
@@ -89,8 +91,17 @@ def loop_values(chain) -> dict[str, float]:
     values = {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(OFFSETS)}
     for i, (_, column, name) in enumerate(link_labels(chain)):
         values[name] = (3e-4 if column == 0 else 2e-4) * (-1) ** i
-    values.update({"joint_compliance.q2": 3e-5, "joint_compliance.q4": 2e-5, "marker_offset.x": 4e-4,
-                   "marker_offset.z": -3e-4, "sensor_scale.s": 0.5, "registration.x": 1.0, "drift.q2": 1.0})
+    values.update(
+        {
+            "joint_compliance.q2": 3e-5,
+            "joint_compliance.q4": 2e-5,
+            "marker_offset.x": 4e-4,
+            "marker_offset.z": -3e-4,
+            "sensor_scale.s": 0.5,
+            "registration.x": 1.0,
+            "drift.q2": 1.0,
+        }
+    )
     return values
 
 
@@ -98,13 +109,22 @@ def test_transfer_of_exact_predictions_is_zero(iiwa):
     """(b) Y's measurements are X's loop model's exact predictions (no noise), seen from another
     sensor position: the transfer RMSE is ~0, the nominal's is not."""
     rng = np.random.default_rng(6)
-    loop = prediction.Calibration("loop", loop_values(iiwa), ("link_geometry", "joint_compliance", "marker_offset"),
-                                  ModelSettings(payload_mass=2.0, payload_com=(0.0, 0.0, 0.03)))
+    loop = prediction.Calibration(
+        "loop",
+        loop_values(iiwa),
+        ("link_geometry", "joint_compliance", "marker_offset"),
+        ModelSettings(payload_mass=2.0, payload_com=(0.0, 0.0, 0.03)),
+    )
     q = random_configurations(iiwa, 30, rng) * 0.6
     robot = prediction.robot_points(iiwa, q, MARKER, loop.values, loop.blocks, loop.settings)
     target = sensor_table(q, spatial.transform_points(sensor_from_robot(), robot), 18)
-    x = entry(iiwa, "x", "2020-01-01", sensor_table(q, np.zeros((30, 3)), 18),
-              {"nominal": prediction.Calibration("nominal"), "loop": loop})
+    x = entry(
+        iiwa,
+        "x",
+        "2020-01-01",
+        sensor_table(q, np.zeros((30, 3)), 18),
+        {"nominal": prediction.Calibration("nominal"), "loop": loop},
+    )
     y = entry(iiwa, "y", "2021-01-01", target, {"nominal": prediction.Calibration("nominal")})
     table = transfer.transfer_table([y, x]).set_index(["model", "calibrated_on", "evaluated_on"])
     assert table.loc[("loop", "x", "y"), "rmse_mm"] < 1e-6
@@ -131,8 +151,11 @@ def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
     assert same["status"] == "compared" and same["draw_pairs"] == 50 and same["null_p95_of_mean_mm"] > 0
 
     d = 2e-4  # rad
-    b = prediction.Calibration("paper", {**a.values, "zero_offsets.q2": a.values["zero_offsets.q2"] + d},
-                               draws=a.draws.assign(**{"zero_offsets.q2": a.draws["zero_offsets.q2"] + d}))
+    b = prediction.Calibration(
+        "paper",
+        {**a.values, "zero_offsets.q2": a.values["zero_offsets.q2"] + d},
+        draws=a.draws.assign(**{"zero_offsets.q2": a.draws["zero_offsets.q2"] + d}),
+    )
     moved = prediction.compare_predictions(iiwa, q, MARKER, a, b, 50, np.random.default_rng(1))
     fk = ForwardKinematics(iiwa, q)
     frames = fk.joint_frames(OFFSETS)[:, 1]
@@ -154,8 +177,11 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     loop = prediction.Calibration("loop", loop_values(iiwa), ("link_geometry", "marker_offset"))
     models = {"nominal": prediction.Calibration("nominal"), "paper": paper(OFFSETS), "loop": loop}
     other = SensorData("motion_capture", "motion_capture", np.array([0.1, 0.0, 0.02]), 3e-5, noisy.table)
-    entries = [entry(iiwa, "b", "2021-01-01", noisy, {**models, "paper": paper(OFFSETS + 1e-3)}),
-               entry(iiwa, "a", "2020-01-01", noisy, models), entry(iiwa, "a", "2020-01-01", other, models)]
+    entries = [
+        entry(iiwa, "b", "2021-01-01", noisy, {**models, "paper": paper(OFFSETS + 1e-3)}),
+        entry(iiwa, "a", "2020-01-01", noisy, models),
+        entry(iiwa, "a", "2020-01-01", other, models),
+    ]
     drift = prediction.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
     assert list(drift.columns) == prediction.DRIFT_COLUMNS
     assert drift[["campaign_a", "campaign_b", "model"]].values.tolist() == [["a", "b", "paper"], ["a", "b", "loop"]]
@@ -166,8 +192,9 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     pd.testing.assert_frame_equal(drift, again)  # one fixed set of configurations per robot and seed
     agreement = prediction.prediction_agreement(entries, n_configurations=50, seed=3, draw_pairs=10)
     assert list(agreement.columns) == prediction.AGREEMENT_COLUMNS
-    assert agreement[["sensor_a", "sensor_b"]].drop_duplicates().values.tolist() == [["motion_capture",
-                                                                                      "laser_tracker"]]
+    assert agreement[["sensor_a", "sensor_b"]].drop_duplicates().values.tolist() == [
+        ["motion_capture", "laser_tracker"]
+    ]
     # the marker offset is each sensor's own: left out between sensors
     assert set(agreement["effects_a"]) == {"none", "link_geometry"} and (agreement["mean_mm"] == 0.0).all()
 
@@ -175,8 +202,9 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
 def test_transfer_heat_map(iiwa, noisy):
     models = {"paper": paper(OFFSETS)}
     other = SensorData("motion_capture", "motion_capture", MARKER, 3e-5, noisy.table)
-    entries = [entry(iiwa, c, d, s, models) for c, d in (("a", "2020-01-01"), ("b", "2021-01-01"))
-               for s in (noisy, other)]
+    entries = [
+        entry(iiwa, c, d, s, models) for c, d in (("a", "2020-01-01"), ("b", "2021-01-01")) for s in (noisy, other)
+    ]
     table = transfer.transfer_table(entries)
     assert len(table) == 8  # 2 sensors x 2 x 2 campaigns
     fig = figures_comparison.transfer_figure(table, "Transfer, paper model")

@@ -20,11 +20,15 @@ pytestmark = pytest.mark.workflow  # runs Snakemake: deselect with -m "not workf
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 CROSS_CAMPAIGN_RULES = {"comparison", "comparison_prediction", "comparison_figures", "audit", "report", "all"}
-SMALL_FIT = {"fit": {"paper": {"chains": 2, "samples": 3000, "burn_in": 2000},
-                     "default": {"chains": 2, "samples": 4000, "burn_in": 1000},
-                     "emcee": {"walkers": 32, "steps": 600, "burn_in": 200}},
-             "accuracy": {"draws": 200, "random_configurations": 100},
-             "loop_closure": {"mcmc": {"chains": 2, "samples": 1500, "burn_in": 500}}}
+SMALL_FIT = {
+    "fit": {
+        "paper": {"chains": 2, "samples": 3000, "burn_in": 2000},
+        "default": {"chains": 2, "samples": 4000, "burn_in": 1000},
+        "emcee": {"walkers": 32, "steps": 600, "burn_in": 200},
+    },
+    "accuracy": {"draws": 200, "random_configurations": 100},
+    "loop_closure": {"mcmc": {"chains": 2, "samples": 1500, "burn_in": 500}},
+}
 
 
 @pytest.fixture(scope="module")
@@ -34,18 +38,26 @@ def tiny(tmp_path_factory, iiwa):
     for name, scenario_file in (("tiny", "kuka-twin.yaml"), ("tiny2", "kuka-compliance.yaml")):
         spec = files.read_yaml(REPO / "data" / "simulation" / scenario_file)
         spec["name"] = name
-        spec["plan"]["sets"] = {"optimization": {"poses": 10, "configurations": 40},
-                                "validation": {"poses": 4, "configurations": 16}}
+        spec["plan"]["sets"] = {
+            "optimization": {"poses": 10, "configurations": 40},
+            "validation": {"poses": 4, "configurations": 16},
+        }
         out = scenario.simulate(spec, iiwa)
         folders.write_campaign(root / "raw" / name, out.metadata, out.tables)
-    files.write_yaml(root / "config.yaml", {"raw_dir": str(root / "raw"), "results_dir": str(root / "results"),
-                                          **SMALL_FIT})
+    files.write_yaml(
+        root / "config.yaml", {"raw_dir": str(root / "raw"), "results_dir": str(root / "results"), **SMALL_FIT}
+    )
     return root
 
 
 def run(root, *extra, config="config.yaml"):
-    return subprocess.run(SNAKEMAKE + ["-j2", "--configfile", str(root / config), *extra],
-                          cwd=REPO, capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        SNAKEMAKE + ["-j2", "--configfile", str(root / config), *extra],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 def with_results(root, name, **settings):
@@ -57,8 +69,13 @@ def with_results(root, name, **settings):
 
 def result_bytes(folder, campaign):
     """Every table, remastering file, sample and metric of one campaign in a run, as bytes."""
-    patterns = [f"{campaign}/tables/*", f"{campaign}/*/remastering.json", f"{campaign}/*/fit/summary.csv",
-                f"{campaign}/*/fit/samples_*.parquet", f"{campaign}/*/metrics/*.csv"]
+    patterns = [
+        f"{campaign}/tables/*",
+        f"{campaign}/*/remastering.json",
+        f"{campaign}/*/fit/summary.csv",
+        f"{campaign}/*/fit/samples_*.parquet",
+        f"{campaign}/*/metrics/*.csv",
+    ]
     return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
 
 
@@ -75,10 +92,23 @@ def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
     audit, report. tiny has two sensors, tiny2 one."""
     planned = planned_rules(tiny)
     sensors, campaigns = 3, 2
-    assert planned == {"campaign_summary": campaigns, "prepare": sensors, "sample": 3 * sensors,
-                       "fit_summary": sensors, "loop_closure": sensors, "calibrated": sensors, "figures": sensors,
-                       "tables": campaigns, "campaign_figures": campaigns, "comparison": 1,
-                       "comparison_prediction": 1, "comparison_figures": 1, "audit": 1, "report": 1, "all": 1}
+    assert planned == {
+        "campaign_summary": campaigns,
+        "prepare": sensors,
+        "sample": 3 * sensors,
+        "fit_summary": sensors,
+        "loop_closure": sensors,
+        "calibrated": sensors,
+        "figures": sensors,
+        "tables": campaigns,
+        "campaign_figures": campaigns,
+        "comparison": 1,
+        "comparison_prediction": 1,
+        "comparison_figures": 1,
+        "audit": 1,
+        "report": 1,
+        "all": 1,
+    }
     per_campaign = sum(n for rule, n in planned.items() if rule not in CROSS_CAMPAIGN_RULES)
     # the issue's bound: at most 20 jobs per campaign (a two-sensor campaign plans 19) and 10 across
     assert per_campaign == 8 * sensors + 3 * campaigns <= 20 * campaigns
@@ -114,8 +144,13 @@ def test_a_run_killed_half_way_completes_with_identical_results(tiny):
     if not (first / "report.html").exists():
         assert run(tiny).returncode == 0
     killed = with_results(tiny, "results_killed", campaigns=["tiny"])
-    process = subprocess.Popen(SNAKEMAKE + ["-j2", "--configfile", str(tiny / killed)], cwd=REPO,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    process = subprocess.Popen(
+        SNAKEMAKE + ["-j2", "--configfile", str(tiny / killed)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 120
     while not list((tiny / "results_killed").glob("tiny/*/fit/samples_*.parquet")) and time.monotonic() < deadline:
         time.sleep(0.2)
@@ -147,14 +182,20 @@ def test_changing_one_campaign_reruns_only_its_jobs(tiny):
     pending = [line.split("\t")[0] for line in summary.stdout.splitlines() if line.endswith("update pending")]
     assert any("/tiny2/" in path for path in pending)
     assert not any("/results/tiny/" in path for path in pending)
-    assert all("/tiny2/" in path or "/comparison/" in path or path.endswith(("audit.json", "report.html"))
-               for path in pending)
+    assert all(
+        "/tiny2/" in path or "/comparison/" in path or path.endswith(("audit.json", "report.html")) for path in pending
+    )
 
 
 def test_bad_config_is_refused_by_the_schema(tiny):
     files.write_yaml(tiny / "bad.yaml", {"seed": -1})
-    result = subprocess.run(SNAKEMAKE + ["-n", "--configfile", str(tiny / "bad.yaml")], cwd=REPO,
-                            capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        SNAKEMAKE + ["-n", "--configfile", str(tiny / "bad.yaml")],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode != 0 and "seed" in result.stdout + result.stderr
 
 
@@ -165,8 +206,14 @@ def test_only_a_campaign_given_as_a_dh_table_gets_calibrated_dh_tables(tiny, tmp
     metadata = files.read_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml")
     metadata["robot"]["dh"] = {"convention": "standard", "rows": [[0.0, 0.0, 0.1, 0.0]] * 7}  # only planned here
     files.write_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml", metadata)
-    files.write_yaml(tmp_path / "config.yaml", {**files.read_yaml(tiny / "config.yaml"),
-                                                "raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results")})
+    files.write_yaml(
+        tmp_path / "config.yaml",
+        {
+            **files.read_yaml(tiny / "config.yaml"),
+            "raw_dir": str(tmp_path / "raw"),
+            "results_dir": str(tmp_path / "results"),
+        },
+    )
     tables = [str(tmp_path / "results" / name / "tables" / "calibrated_files.md") for name in ("tiny", "tiny2")]
     counts = planned_rules(tmp_path, *tables)
     assert counts.get("calibrated") == 2  # tiny: two sensors
@@ -183,8 +230,14 @@ def test_editing_the_robot_description_reruns_its_campaign_and_changes_its_audit
     metadata = files.read_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml")
     metadata["robot"]["urdf"] = "../../robots/iiwa.urdf"
     files.write_yaml(tmp_path / "raw" / "tiny" / "campaign.yaml", metadata)
-    files.write_yaml(tmp_path / "config.yaml", {**files.read_yaml(tiny / "config.yaml"),
-                                                "raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results")})
+    files.write_yaml(
+        tmp_path / "config.yaml",
+        {
+            **files.read_yaml(tiny / "config.yaml"),
+            "raw_dir": str(tmp_path / "raw"),
+            "results_dir": str(tmp_path / "results"),
+        },
+    )
     target = str(tmp_path / "results" / "tiny" / "campaign" / "summary.json")
     assert run(tmp_path, "--", target).returncode == 0
     unchanged = run(tmp_path, "-n", "--", target)
@@ -259,24 +312,41 @@ def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tm
     titles, sizes, empty = _report_structure(page)
     assert titles[:3] == ["Overview", "tiny", "tiny2"] and not empty
     assert sizes and all(w > 100 and h > 100 for w, h in sizes)
-    overview = page[page.index("<h2 id='overview'>"):page.index("<h2 id='tiny'>")]
+    overview = page[page.index("<h2 id='overview'>") : page.index("<h2 id='tiny'>")]
     assert overview.count("<tr>") == 1 + 2 + 1  # header, tiny's two sensors, tiny2's one
-    tiny_section = page[page.index("<h2 id='tiny'>"):page.index("<h2 id='tiny2'>")]
+    tiny_section = page[page.index("<h2 id='tiny'>") : page.index("<h2 id='tiny2'>")]
     assert tiny_section.index("Verdict per sensor") < tiny_section.index("<details>")
     serial = files.read_yaml(tiny / "raw" / "tiny" / "campaign.yaml")["robot"]["serial"]
     assert f"serial {serial} (7 joints)" in tiny_section and "U(Correction) (deg)" in tiny_section
     for name in ("tiny", "tiny2"):
         certificate = (tiny / "results" / name / "certificate.md").read_text(encoding="utf-8")
-        assert certificate.startswith(f"# Calibration certificate: {name}") and "## Valid for, and warnings" in certificate
+        assert (
+            certificate.startswith(f"# Calibration certificate: {name}") and "## Valid for, and warnings" in certificate
+        )
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
         pytest.skip("no Chromium on this machine: the page was checked without a browser")
     checked = tmp_path / "report.html"
     checked.write_text(page.replace("</body>", CHECK_SCRIPT + "</body>"), encoding="utf-8")
-    dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                          "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                          f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000", "--dump-dom",
-                          checked.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    dom = subprocess.run(
+        [
+            chromium,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+            checked.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
     assert f'data-checked="images={len(sizes)};broken=0;empty=0"' in dom
 
 
@@ -284,8 +354,9 @@ def test_a_campaign_too_large_for_the_configured_memory_stops_at_its_first_job(t
     """max_job_memory_gb below what the campaigns' jobs need: the campaign check refuses it with a
     message that names the campaign, its rows and the setting; no fit starts and no summary is left."""
     config = files.read_yaml(tiny / "config.yaml")
-    files.write_yaml(tiny / "small_memory.yaml", {**config, "results_dir": str(tiny / "small_memory"),
-                                               "max_job_memory_gb": 0.1})
+    files.write_yaml(
+        tiny / "small_memory.yaml", {**config, "results_dir": str(tiny / "small_memory"), "max_job_memory_gb": 0.1}
+    )
     result = run(tiny, config="small_memory.yaml")
     assert result.returncode != 0
     output = result.stdout + result.stderr

@@ -8,8 +8,7 @@ import pytest
 import scipy.optimize
 
 from remaster import files, spatial
-from remaster.analysis import accuracy, comparison, prediction
-from remaster.analysis import transfer, workspace
+from remaster.analysis import accuracy, comparison, prediction, transfer, workspace
 from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
@@ -38,16 +37,19 @@ def test_registered_distances_are_kabsch_per_set(rng):
     rigid motion of the reference alone leaves no error."""
     model = rng.uniform(-0.5, 0.5, (50, 3))
     axes = rng.normal(size=(3, 3))
-    motions = [spatial.homogeneous(spatial.rot_axis(a / np.linalg.norm(a), rng.uniform(0, 3)), rng.normal(size=3))
-               for a in axes]
+    motions = [
+        spatial.homogeneous(spatial.rot_axis(a / np.linalg.norm(a), rng.uniform(0, 3)), rng.normal(size=3))
+        for a in axes
+    ]
     references = np.stack([spatial.transform_points(t, model) for t in motions])
     np.testing.assert_allclose(metrics.registered_distances(model, references), 0.0, atol=1e-12)
     noisy = references + rng.normal(0.0, 1e-3, references.shape)
     distances = metrics.registered_distances(model, noisy)
     for k in range(3):
         t = registration.kabsch(model, noisy[k])
-        np.testing.assert_allclose(distances[k], np.linalg.norm(spatial.transform_points(t, model) - noisy[k], axis=1),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            distances[k], np.linalg.norm(spatial.transform_points(t, model) - noisy[k], axis=1), atol=1e-12
+        )
 
 
 def test_the_bound_is_the_95_percent_quantile_over_draws_of_each_draws_95_percent_quantile():
@@ -75,11 +77,25 @@ def test_one_arms_95_percent_quantile_is_within_the_bound_95_percent_of_the_time
 
 
 def test_loop_rows_follow_the_papers_rows():
-    paper = pd.DataFrame({"method": ["Vernier", "Bayesian"], "mean_mm": [3.0, 1.3], "q2.5_mm": [1.0, 0.4],
-                          "q97.5_mm": [6.0, 2.6], "count": [10, 10]})
-    loop = pd.DataFrame({"table": ["theoretical_accuracy_random_configs", "theoretical_accuracy_zero_offsets_only"],
-                         "method": [workspace.LOOP_METHOD] * 2, "mean_mm": [0.02, 0.01], "q2.5_mm": [0.0, 0.0],
-                         "q97.5_mm": [0.05, 0.03], "count": [10, 10]})
+    paper = pd.DataFrame(
+        {
+            "method": ["Vernier", "Bayesian"],
+            "mean_mm": [3.0, 1.3],
+            "q2.5_mm": [1.0, 0.4],
+            "q97.5_mm": [6.0, 2.6],
+            "count": [10, 10],
+        }
+    )
+    loop = pd.DataFrame(
+        {
+            "table": ["theoretical_accuracy_random_configs", "theoretical_accuracy_zero_offsets_only"],
+            "method": [workspace.LOOP_METHOD] * 2,
+            "mean_mm": [0.02, 0.01],
+            "q2.5_mm": [0.0, 0.0],
+            "q97.5_mm": [0.05, 0.03],
+            "count": [10, 10],
+        }
+    )
     rows = workspace.with_loop_rows(paper, loop, "theoretical_accuracy_random_configs")
     table = accuracy.paper_table({"laser_tracker": rows, "motion_capture": rows})
     assert table["Remastering Method"].tolist() == ["Vernier"] * 2 + ["Bayesian"] * 2 + [workspace.LOOP_METHOD] * 2
@@ -125,8 +141,9 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
         laplace = fit.LaplaceReport.of(_laplace_content[key])
         settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
-        result = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace,
-                                                 np.random.default_rng(SEED), settings)
+        result = loop_closure.loop_closure_stage(
+            campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings
+        )
         path = tmp_path_factory.mktemp("loop") / "loop_closure.json"
         result.report.write(path)
         _fitted[key] = (campaign, laplace, LoopReport.read(path), result.samples)
@@ -140,9 +157,19 @@ def laplace_content(name: str, sensor: str) -> dict:
 
 def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.WorkspaceAccuracy, object, dict]:
     campaign, laplace, report, samples = fitted(name, sensor, tmp_path_factory)
-    result = workspace.workspace_accuracy(campaign.chain, campaign.sensors[sensor], comparison.robot_identity(campaign),
-                                          fit.mode_summary(laplace), laplace, report, samples,
-                                          np.random.default_rng(SEED), n_draws=DRAWS, n_random=RANDOM, seed=SEED)
+    result = workspace.workspace_accuracy(
+        campaign.chain,
+        campaign.sensors[sensor],
+        comparison.robot_identity(campaign),
+        fit.mode_summary(laplace),
+        laplace,
+        report,
+        samples,
+        np.random.default_rng(SEED),
+        n_draws=DRAWS,
+        n_random=RANDOM,
+        seed=SEED,
+    )
     return result, campaign, laplace
 
 
@@ -154,9 +181,18 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
     rows = len(campaign.sensors["laser_tracker"].q("optimization"))
     for n_random, used in ((RANDOM, min(rows, RANDOM)), (50, 50)):
         result = workspace.workspace_accuracy(
-            campaign.chain, campaign.sensors["laser_tracker"], comparison.robot_identity(campaign),
-            fit.mode_summary(laplace), laplace, report, samples, np.random.default_rng(SEED), n_draws=200,
-            n_random=n_random, seed=SEED)
+            campaign.chain,
+            campaign.sensors["laser_tracker"],
+            comparison.robot_identity(campaign),
+            fit.mode_summary(laplace),
+            laplace,
+            report,
+            samples,
+            np.random.default_rng(SEED),
+            n_draws=200,
+            n_random=n_random,
+            seed=SEED,
+        )
         assert result.report["measured_configurations"]["used"] == used
         assert result.report["measured_configurations"]["of"] == rows
         assert (result.claims["count"][result.claims["configurations"] == "optimization"] == 200 * used).all()
@@ -178,17 +214,27 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
 
 
-MOTION_CAPTURE_LOOP = pytest.mark.xfail(strict=True, reason=(
-    "known: the noise of the bundled twin's motion capture puts joint 3's compliance 2.8 std from its true 0 "
-    "(its payload term, posterior correlation -0.97, the other way; with a tenth of the noise the same seed "
-    "gives about the same z, so a fluctuation, not a missing effect), and at random configurations, where "
-    "joint 3 moves, the true 95 % quantile is about twice the claim, above the bound too "
-    "(benchmarks/bench_claim_coverage.py: over 20 new seeds the bound covers the truth 19 times)"))
+MOTION_CAPTURE_LOOP = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "known: the noise of the bundled twin's motion capture puts joint 3's compliance 2.8 std from its true 0 "
+        "(its payload term, posterior correlation -0.97, the other way; with a tenth of the noise the same seed "
+        "gives about the same z, so a fluctuation, not a missing effect), and at random configurations, where "
+        "joint 3 moves, the true 95 % quantile is about twice the claim, above the bound too "
+        "(benchmarks/bench_claim_coverage.py: over 20 new seeds the bound covers the truth 19 times)"
+    ),
+)
 
 
-@pytest.mark.parametrize("sensor, model", [("laser_tracker", "paper"), ("laser_tracker", "loop"),
-                                           ("motion_capture", "paper"),
-                                           pytest.param("motion_capture", "loop", marks=MOTION_CAPTURE_LOOP)])
+@pytest.mark.parametrize(
+    "sensor, model",
+    [
+        ("laser_tracker", "paper"),
+        ("laser_tracker", "loop"),
+        ("motion_capture", "paper"),
+        pytest.param("motion_capture", "loop", marks=MOTION_CAPTURE_LOOP),
+    ],
+)
 def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, model):
     """At the robot's random configurations, the claimed error distribution (registration fitted)
     reaches at least the true 95 % quantile; in the robot frame, with joint 1 at the controller
@@ -197,8 +243,11 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     q = prediction.robot_configurations(campaign.chain, comparison.robot_identity(campaign), RANDOM, SEED)
     truth = true_points(campaign, sensor, q)
     _, _, report, samples = fitted("kuka-twin", sensor, tmp_path_factory)
-    calibration = (prediction.paper_calibration(fit.mode_summary(laplace)) if model == "paper"
-                   else prediction.loop_calibration(report, samples))
+    calibration = (
+        prediction.paper_calibration(fit.mode_summary(laplace))
+        if model == "paper"
+        else prediction.loop_calibration(report, samples)
+    )
     points = calibration.predictor(campaign.chain, q, campaign.sensors[sensor].marker).points(calibration.values)
     registered = metrics.registered_distances(points, truth[None])[0]
     robot_frame = np.linalg.norm(points - truth, axis=1)
@@ -233,23 +282,31 @@ def cubes_calibration(priors) -> prediction.Calibration:
     sensor, settings = campaign.sensors["laser_tracker"], loop_settings(CONFIG)
     data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registered = fit.registration_stage(campaign, "laser_tracker")
-    model, _ = blocks.extended_model(campaign.chain, data, sensor.marker, registered.t_nr,
-                                     effects, laplace.held, priors)
+    model, _ = blocks.extended_model(
+        campaign.chain, data, sensor.marker, registered.t_nr, effects, laplace.held, priors
+    )
     theta = evidence.posterior_mode(model).theta if priors is not None else flat_fit(model)
     return prediction.Calibration("loop", {**model.fixed, **model.values(theta)}, effects, settings.model)
 
 
 def flat_fit(model) -> np.ndarray:
     """Least squares without priors (what a threshold-only reduction leaves)."""
-    return scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), np.zeros(len(model.names)),
-                                        x_scale=model.scale, method="lm", xtol=1e-12, ftol=1e-12).x
+    return scipy.optimize.least_squares(
+        lambda t: model.residuals(t).ravel(),
+        np.zeros(len(model.names)),
+        x_scale=model.scale,
+        method="lm",
+        xtol=1e-12,
+        ftol=1e-12,
+    ).x
 
 
 def on_twin(calibration) -> np.ndarray:
     """Post-registration errors (m) of a calibration on the twin's laser-tracker validation rows."""
     twin = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
-    target = prediction.Calibrated("kuka-twin", "2018-06-12", comparison.robot_identity(twin),
-                                   twin.sensors["laser_tracker"], twin.chain, {})
+    target = prediction.Calibrated(
+        "kuka-twin", "2018-06-12", comparison.robot_identity(twin), twin.sensors["laser_tracker"], twin.chain, {}
+    )
     return transfer.transfer_errors(calibration, target)
 
 

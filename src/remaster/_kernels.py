@@ -135,8 +135,20 @@ def points_linear(rotations, shifts, starts, cos_q, sin_q, offsets, values, firs
     for k in range(m):
         chain = k if rotations.shape[0] > 1 else 0
         start = k if starts.shape[0] > 1 else 0
-        _points_linear(rotations[chain], shifts[chain], starts[start], cos_q, sin_q, offsets[k], values, first,
-                       coefficients[k], x0, x1, x2)
+        _points_linear(
+            rotations[chain],
+            shifts[chain],
+            starts[start],
+            cos_q,
+            sin_q,
+            offsets[k],
+            values,
+            first,
+            coefficients[k],
+            x0,
+            x1,
+            x2,
+        )
         out[k, :, 0] = x0
         out[k, :, 1] = x1
         out[k, :, 2] = x2
@@ -180,16 +192,32 @@ def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, 
         total = 0.0
         for i in range(n):
             for r in range(3):
-                e = measured[r, i] - (rotation[r, 0] * x0[i] + rotation[r, 1] * x1[i]
-                                      + rotation[r, 2] * x2[i] + translation[r])
+                e = measured[r, i] - (
+                    rotation[r, 0] * x0[i] + rotation[r, 1] * x1[i] + rotation[r, 2] * x2[i] + translation[r]
+                )
                 total += e * e
         out[k] = total
     return out
 
 
 @_compiled()
-def metropolis_walk(rotations, shifts, start, cos_q, sin_q, t_nr, measured, fixed_values, free_index, theta,
-                    log_prob, steps, log_u, states, log_probs):
+def metropolis_walk(
+    rotations,
+    shifts,
+    start,
+    cos_q,
+    sin_q,
+    t_nr,
+    measured,
+    fixed_values,
+    free_index,
+    theta,
+    log_prob,
+    steps,
+    log_u,
+    states,
+    log_probs,
+):
     """Random-walk Metropolis on the paper's log-posterior (eq. posterior), the loop of
     `samplers._walk` compiled: from (theta (P,) = free parameters and sigma, its log_prob), step i
     proposes theta + steps[i] and accepts when log_u[i] < the log-posterior ratio. Every state

@@ -32,22 +32,30 @@ def config_digest(config: dict) -> str:
     return sha256(json.dumps(config, sort_keys=True, separators=(",", ":")).encode("utf-8"))
 
 
-def audit_record(campaigns: dict[str, dict[str, str]], results: dict[str, dict[str, str]], config: dict,
-                 code: dict[str, str] | None = None, git: dict | None = None) -> dict:
+def audit_record(
+    campaigns: dict[str, dict[str, str]],
+    results: dict[str, dict[str, str]],
+    config: dict,
+    code: dict[str, str] | None = None,
+    git: dict | None = None,
+) -> dict:
     """campaigns: campaign -> {file name: SHA-256} (its folder's files and the robot description
     it refers to); results: campaign -> {result path: SHA-256}; config: the workflow configuration
     as used; code: {package file: SHA-256} of the remaster package that ran; git: {'commit',
     'dirty'} of the checkout, if any. JSON-ready."""
     return {
         "remaster_version": __version__,
-        "code": {"package_sha256": folder_digest(code or {}), "package_files": len(code or {}),
-                 "git": git},
+        "code": {"package_sha256": folder_digest(code or {}), "package_files": len(code or {}), "git": git},
         "python": platform.python_version(),
         "seed": config.get("seed"),
         "config_sha256": config_digest(config),
         "config": config,
         "campaigns": {
-            name: {"content_sha256": folder_digest(files), "files": dict(sorted(files.items())),
-                   "results": dict(sorted(results.get(name, {}).items()))}
-            for name, files in sorted(campaigns.items())},
+            name: {
+                "content_sha256": folder_digest(files),
+                "files": dict(sorted(files.items())),
+                "results": dict(sorted(results.get(name, {}).items())),
+            }
+            for name, files in sorted(campaigns.items())
+        },
     }

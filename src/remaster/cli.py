@@ -61,28 +61,41 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 
 def _plan(args: argparse.Namespace) -> None:
     robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
-    chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(),
-                          source="command line")
+    chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
     origin = _sensor_origin(args, chain)
     rng = np.random.default_rng(args.seed)
     model = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
     sight = planning.SightLine(origin, np.asarray(args.marker, dtype=float))
-    plan = planning.plan_set(chain, args.set, origin, [sight], rng, candidates=args.candidates,
-                             n_poses=args.poses, n_configurations=args.configurations, model=model, q3=args.q3)
+    plan = planning.plan_set(
+        chain,
+        args.set,
+        origin,
+        [sight],
+        rng,
+        candidates=args.candidates,
+        n_poses=args.poses,
+        n_configurations=args.configurations,
+        model=model,
+        q3=args.q3,
+    )
     table = plan.table.copy()
     for j in range(chain.n_joints):
         table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"])
     write_csv(args.out, table)
-    print(f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
-          f"{plan.candidates} candidate poses; discarded: {plan.discarded}")
+    print(
+        f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
+        f"{plan.candidates} candidate poses; discarded: {plan.discarded}"
+    )
 
 
 def _import(args: argparse.Namespace) -> None:
     folder, report = import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
     total = report["controller"]["rows"]
     rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
-    print(f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
-          f"{folder / importer.REPORT_FILE}")
+    print(
+        f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
+        f"{folder / importer.REPORT_FILE}"
+    )
 
 
 def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> dict:
@@ -91,12 +104,21 @@ def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> 
     folder or file when the workflow has not written them."""
     folder = Path(results_dir) / layout.SENSOR_FOLDER.format(campaign=campaign, sensor=sensor)
     if not folder.is_dir():
-        raise InputError("no results of this campaign and sensor: run `snakemake -j2` first, or give the results "
-                         "folder it wrote", file=str(folder))
-    readers = {".json": read_json, ".csv": read_csv, ".parquet": read_parquet, "laplace": LaplaceReport.read,
-               "registration": Registration.read, "loop": LoopReport.read}
-    return {key: readers.get(key, readers[Path(name).suffix])(folder / name)
-            for key, name in layout.SENSOR_RESULTS.items()}
+        raise InputError(
+            "no results of this campaign and sensor: run `snakemake -j2` first, or give the results folder it wrote",
+            file=str(folder),
+        )
+    readers = {
+        ".json": read_json,
+        ".csv": read_csv,
+        ".parquet": read_parquet,
+        "laplace": LaplaceReport.read,
+        "registration": Registration.read,
+        "loop": LoopReport.read,
+    }
+    return {
+        key: readers.get(key, readers[Path(name).suffix])(folder / name) for key, name in layout.SENSOR_RESULTS.items()
+    }
 
 
 def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
@@ -114,8 +136,10 @@ def _predict(args: argparse.Namespace) -> None:
     q = compensation.joint_commands(read_csv(args.commands), robot.chain, args.commands)
     table = compensation.predict(robot, q, args.frame, args.draws, np.random.default_rng(args.seed))
     write_csv(args.out, table)
-    print(f"{args.out}: {len(table)} predicted positions ({args.model} model, {args.frame} frame); largest "
-          f"95 % bound {table['bound95_mm'].max():.4g} mm")
+    print(
+        f"{args.out}: {len(table)} predicted positions ({args.model} model, {args.frame} frame); largest "
+        f"95 % bound {table['bound95_mm'].max():.4g} mm"
+    )
 
 
 def _compensate(args: argparse.Namespace) -> int:
@@ -123,14 +147,23 @@ def _compensate(args: argparse.Namespace) -> int:
     targets, q = compensation.targets_or_commands(read_csv(args.targets), robot.chain, args.targets)
     rng = np.random.default_rng(args.seed)
     if targets is not None:
-        out = compensation.compensate(robot, args.frame, args.draws, rng, targets=targets, seeds=q,
-                                      candidates=campaign.sensors[args.sensor].q("optimization"))
+        out = compensation.compensate(
+            robot,
+            args.frame,
+            args.draws,
+            rng,
+            targets=targets,
+            seeds=q,
+            candidates=campaign.sensors[args.sensor].q("optimization"),
+        )
     else:
         out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)
     write_csv(args.out, out)
     reached = out["status"] == compensation.REACHED
-    print(f"{args.out}: {int(reached.sum())} of {len(out)} targets reached ({args.model} model, {args.frame} frame); "
-          f"largest 95 % bound {out['bound95_mm'].max():.4g} mm")
+    print(
+        f"{args.out}: {int(reached.sum())} of {len(out)} targets reached ({args.model} model, {args.frame} frame); "
+        f"largest 95 % bound {out['bound95_mm'].max():.4g} mm"
+    )
     left = compensation.not_reached_summary(out)
     if left:
         print(f"remaster compensate: {left}", file=sys.stderr)
@@ -148,14 +181,31 @@ def _positive(text: str) -> int:
 def _calibration_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--campaign", required=True, metavar="FOLDER", help="the campaign folder (data/raw/<name>)")
     command.add_argument("--sensor", required=True, help="the sensor whose calibration to use")
-    command.add_argument("--results", default="results", metavar="FOLDER",
-                         help="the results folder `snakemake -j2` wrote (its results_dir)")
-    command.add_argument("--model", default="loop", choices=compensation.MODELS,
-                         help="the paper's model (zero-offsets) or the loop-closed model (default)")
-    command.add_argument("--frame", default="robot", choices=compensation.FRAMES,
-                         help="positions in the robot's base frame, or in the sensor's frame of this campaign's set-up")
-    command.add_argument("--tcp", nargs=3, type=float, metavar=("X", "Y", "Z"),
-                         help="a tool centre point in the flange frame (m); default: the sensor's marker")
+    command.add_argument(
+        "--results",
+        default="results",
+        metavar="FOLDER",
+        help="the results folder `snakemake -j2` wrote (its results_dir)",
+    )
+    command.add_argument(
+        "--model",
+        default="loop",
+        choices=compensation.MODELS,
+        help="the paper's model (zero-offsets) or the loop-closed model (default)",
+    )
+    command.add_argument(
+        "--frame",
+        default="robot",
+        choices=compensation.FRAMES,
+        help="positions in the robot's base frame, or in the sensor's frame of this campaign's set-up",
+    )
+    command.add_argument(
+        "--tcp",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="a tool centre point in the flange frame (m); default: the sensor's marker",
+    )
     command.add_argument("--draws", type=_positive, default=2000, help="posterior draws for the 95 %% bounds")
     command.add_argument("--seed", type=int, default=0, help="seed of the posterior draws")
 
@@ -169,8 +219,13 @@ def parser() -> argparse.ArgumentParser:
     simulate.add_argument("--raw-dir", default="data/raw", help="where campaign folders go")
     simulate.add_argument("--truth-dir", default="data/truth", help="where ground-truth JSON goes")
     simulate.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    simulate.add_argument("--copies", type=int, default=None, metavar="N",
-                          help="a fleet: N campaigns <name>-001 ... from seeds seed, seed + 1, ... (new poses and noise)")
+    simulate.add_argument(
+        "--copies",
+        type=int,
+        default=None,
+        metavar="N",
+        help="a fleet: N campaigns <name>-001 ... from seeds seed, seed + 1, ... (new poses and noise)",
+    )
     simulate.set_defaults(run=_simulate)
 
     plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
@@ -178,18 +233,34 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument("--base", help="base frame (default: the URDF root)")
     plan.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
     where = plan.add_mutually_exclusive_group(required=True)
-    where.add_argument("--sensor-origin", nargs=3, type=float, metavar=("X", "Y", "Z"),
-                       help="reference sensor origin in the robot base frame (m)")
-    where.add_argument("--registration-points", metavar="CSV",
-                       help="three configurations q1..qN (rad) with the marker measured by the sensor x, y, z (m): "
-                            "the sensor origin comes from a three-point registration as in the paper")
-    plan.add_argument("--marker", nargs=3, type=float, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"),
-                      help="marker in the flange frame (m)")
+    where.add_argument(
+        "--sensor-origin",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="reference sensor origin in the robot base frame (m)",
+    )
+    where.add_argument(
+        "--registration-points",
+        metavar="CSV",
+        help="three configurations q1..qN (rad) with the marker measured by the sensor x, y, z (m): "
+        "the sensor origin comes from a three-point registration as in the paper",
+    )
+    plan.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        default=[0.0, 0.0, 0.0],
+        metavar=("X", "Y", "Z"),
+        help="marker in the flange frame (m)",
+    )
     plan.add_argument("--set", default="optimization", choices=["optimization", "validation"])
     plan.add_argument("--candidates", type=int, default=60, help="Latin-hypercube poses per batch")
     plan.add_argument("--poses", type=int, help="exact number of poses (needs --configurations)")
     plan.add_argument("--configurations", type=int, help="exact number of configurations (needs --poses)")
-    plan.add_argument("--q3", type=float, default=0.0, help="joint 3 held at this angle (rad) by the inverse kinematics")
+    plan.add_argument(
+        "--q3", type=float, default=0.0, help="joint 3 held at this angle (rad) by the inverse kinematics"
+    )
     plan.add_argument("--link-radius", type=float, default=0.06, help="capsule radius of the links (m)")
     plan.add_argument("--floor", type=float, default=0.0, help="floor height in the base frame (m)")
     plan.add_argument("--seed", type=int, default=0)
@@ -197,9 +268,13 @@ def parser() -> argparse.ArgumentParser:
     plan.set_defaults(run=_plan)
 
     imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
-    imp.add_argument("--config", required=True, metavar="IMPORT.yaml",
-                     help="campaign metadata, the controller log and sensor files with their columns, units and "
-                          "matching (format: remaster.campaigns.importer)")
+    imp.add_argument(
+        "--config",
+        required=True,
+        metavar="IMPORT.yaml",
+        help="campaign metadata, the controller log and sensor files with their columns, units and "
+        "matching (format: remaster.campaigns.importer)",
+    )
     imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
     imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
     imp.set_defaults(run=_import)
@@ -212,9 +287,13 @@ def parser() -> argparse.ArgumentParser:
 
     compensate = commands.add_parser("compensate", help="joint commands that reach targets under the calibrated model")
     _calibration_arguments(compensate)
-    compensate.add_argument("--targets", required=True, metavar="CSV",
-                            help="target positions x, y, z (m, in --frame), optionally with seed commands q1..qN "
-                                 "(rad); or nominal joint commands q1..qN alone")
+    compensate.add_argument(
+        "--targets",
+        required=True,
+        metavar="CSV",
+        help="target positions x, y, z (m, in --frame), optionally with seed commands q1..qN "
+        "(rad); or nominal joint commands q1..qN alone",
+    )
     compensate.add_argument("--out", default="compensated.csv")
     compensate.set_defaults(run=_compensate)
     return main

@@ -126,7 +126,7 @@ def split_rhat(chains: Sequence) -> np.ndarray:
     h = n // 2
     if h < 2:
         raise ValueError(f"split-R-hat needs chains of at least 4 samples, the shortest has {n}")
-    halves = np.stack([part for c in flat for part in (c[:h], c[len(c) - h:])])  # (2C, h, P)
+    halves = np.stack([part for c in flat for part in (c[:h], c[len(c) - h :])])  # (2C, h, P)
     within = halves.var(axis=1, ddof=1).mean(axis=0)
     between_over_h = halves.mean(axis=1).var(axis=0, ddof=1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -147,11 +147,20 @@ def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.Dat
     ess = np.sum([a.ess for a in autocorr], axis=0)
     std = pooled.std(axis=0, ddof=1)
     q_low, q_high = np.quantile(pooled, [0.025, 0.975], axis=0)
-    table = pd.DataFrame({
-        "mean": pooled.mean(axis=0), "std": std, "q2.5": q_low, "q97.5": q_high,
-        "tau": np.mean([a.tau for a in autocorr], axis=0), "ess": ess, "rhat": split_rhat(walkers),
-        "mcse": std / np.sqrt(ess), "tau_reliable": np.all([a.reliable for a in autocorr], axis=0),
-    }, index=pd.Index(names, name="parameter"))
+    table = pd.DataFrame(
+        {
+            "mean": pooled.mean(axis=0),
+            "std": std,
+            "q2.5": q_low,
+            "q97.5": q_high,
+            "tau": np.mean([a.tau for a in autocorr], axis=0),
+            "ess": ess,
+            "rhat": split_rhat(walkers),
+            "mcse": std / np.sqrt(ess),
+            "tau_reliable": np.all([a.reliable for a in autocorr], axis=0),
+        },
+        index=pd.Index(names, name="parameter"),
+    )
     return table
 
 
@@ -161,8 +170,13 @@ def moments(chains: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return report["mean"].to_numpy(), report["std"].to_numpy(), report["mcse"].to_numpy()
 
 
-def cross_check(results: Mapping[str, tuple], names: Sequence[str], tolerance: float | None = 4.0,
-                reference: str | None = None, floor: float = MCSE_FLOOR) -> pd.DataFrame:
+def cross_check(
+    results: Mapping[str, tuple],
+    names: Sequence[str],
+    tolerance: float | None = 4.0,
+    reference: str | None = None,
+    floor: float = MCSE_FLOOR,
+) -> pd.DataFrame:
     """Compare posterior means of several methods parameter by parameter.
 
     results: {method: (mean (P,), std (P,), mcse (P,))}, e.g. `moments(chains)` or
@@ -228,9 +242,15 @@ def check_agreement(table: pd.DataFrame, tolerance: float | None = None) -> None
             if not abs(value) <= tolerance:  # NaN counts as a disagreement
                 offenders.append((str(name), str(method), str(reference), float(value)))
     if offenders:
-        lines = [f"  {name}: {method} mean {table.loc[name, ('mean', method)]:.6g} vs {ref} "
-                 f"{table.loc[name, ('mean', ref)]:.6g} (z = {value:+.2f})" if ref in z.columns else
-                 f"  {name}: {method} (z = {value:+.2f})" for name, method, ref, value in offenders]
+        lines = [
+            f"  {name}: {method} mean {table.loc[name, ('mean', method)]:.6g} vs {ref} "
+            f"{table.loc[name, ('mean', ref)]:.6g} (z = {value:+.2f})"
+            if ref in z.columns
+            else f"  {name}: {method} (z = {value:+.2f})"
+            for name, method, ref, value in offenders
+        ]
         raise SamplerDisagreement(
             f"posterior means disagree beyond {tolerance:g} combined Monte Carlo errors for "
-            f"{len(offenders)} parameter/method pair(s):\n" + "\n".join(lines), offenders)
+            f"{len(offenders)} parameter/method pair(s):\n" + "\n".join(lines),
+            offenders,
+        )

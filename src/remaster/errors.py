@@ -26,8 +26,9 @@ class InputError(RemasterError, ValueError):
     Rows are 0-based positions in the table as stored.
     """
 
-    def __init__(self, message: str, *, file: str | None = None, key: str | None = None,
-                 rows: Iterable[int] | None = None):
+    def __init__(
+        self, message: str, *, file: str | None = None, key: str | None = None, rows: Iterable[int] | None = None
+    ):
         self.file = file
         self.key = key
         self.rows = None if rows is None else [int(r) for r in rows]
@@ -46,6 +47,7 @@ class KinematicsError(InputError):
 def report_reader(content: Mapping, source: str, message: str):
     """get(*keys): the value at a path of nested keys of a stage's JSON report; InputError naming
     the file and the path when a key is missing."""
+
     def get(*keys):
         value = content
         for depth, key in enumerate(keys):

@@ -60,8 +60,11 @@ def read_yaml(path: str | Path) -> Any:
         if tag:  # e.g. !!python/object/apply: safe_load has no constructor for it
             mark = getattr(exc, "problem_mark", None)
             line = f"line {mark.line + 1}: " if mark is not None else ""
-            raise InputError(f"{line}YAML tag {tag.group(1)!r} refused: remaster reads plain YAML (yaml.safe_load) "
-                             f"and never builds objects from tags; nothing was executed", file=str(path)) from None
+            raise InputError(
+                f"{line}YAML tag {tag.group(1)!r} refused: remaster reads plain YAML (yaml.safe_load) "
+                f"and never builds objects from tags; nothing was executed",
+                file=str(path),
+            ) from None
         raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
 
 

@@ -43,6 +43,12 @@ METRICS = "metrics"
 CALIBRATED = "calibrated"
 
 # what `remaster predict` and `remaster compensate` read of a sensor's results, by key
-SENSOR_RESULTS = {"registration": REGISTRATION, "laplace": LAPLACE, "summary": SUMMARY,
-                  "paper_samples": DEFAULT_SAMPLES, "loop": LOOP_CLOSURE, "loop_samples": LOOP_SAMPLES,
-                  "gp": LOOP_GP}
+SENSOR_RESULTS = {
+    "registration": REGISTRATION,
+    "laplace": LAPLACE,
+    "summary": SUMMARY,
+    "paper_samples": DEFAULT_SAMPLES,
+    "loop": LOOP_CLOSURE,
+    "loop_samples": LOOP_SAMPLES,
+    "gp": LOOP_GP,
+}

@@ -64,9 +64,12 @@ class RangeTransverse:
         return float(-2.0 * np.sum(np.log(self.ratios(measured))))
 
     def report(self) -> dict:
-        return {"model": "range_transverse", "transverse_growth_per_m": self.growth_per_m,
-                "covariance": "sigma^2 (u u^T + (1 + (g d)^2) (I - u u^T)), u and d the direction and distance "
-                              "from the tracker head (the sensor frame's origin); sigma the range std"}
+        return {
+            "model": "range_transverse",
+            "transverse_growth_per_m": self.growth_per_m,
+            "covariance": "sigma^2 (u u^T + (1 + (g d)^2) (I - u u^T)), u and d the direction and distance "
+            "from the tracker head (the sensor frame's origin); sigma the range std",
+        }
 
 
 def frame_problem(t_nr, measured) -> str | None:
@@ -75,18 +78,20 @@ def frame_problem(t_nr, measured) -> str | None:
     points. t_nr (4, 4) robot -> sensor; measured (n, 3) m in the sensor frame."""
     head = spatial.invert(t_nr)[:3, 3]  # the sensor frame's origin in the robot frame
     if np.linalg.norm(head) < BASE_CLEARANCE_M:
-        return (f"the sensor frame's origin is {np.linalg.norm(head):.3f} m from the robot's base origin: the "
-                "positions are not in the tracker's own frame (already in the robot frame?), so the directions "
-                "and distances from its head are unknown")
+        return (
+            f"the sensor frame's origin is {np.linalg.norm(head):.3f} m from the robot's base origin: the "
+            "positions are not in the tracker's own frame (already in the robot frame?), so the directions "
+            "and distances from its head are unknown"
+        )
     closest = float(np.min(np.linalg.norm(np.asarray(measured, dtype=float), axis=-1)))
     if closest < BASE_CLEARANCE_M:
-        return (f"a measured point is {closest:.3f} m from the sensor frame's origin: it cannot be the tracker's "
-                "head")
+        return f"a measured point is {closest:.3f} m from the sensor frame's origin: it cannot be the tracker's head"
     return None
 
 
-def log_growth_prior(log_growth: float, median: float = GROWTH_PRIOR_PER_M,
-                     log_std: float = GROWTH_PRIOR_LOG_STD) -> float:
+def log_growth_prior(
+    log_growth: float, median: float = GROWTH_PRIOR_PER_M, log_std: float = GROWTH_PRIOR_LOG_STD
+) -> float:
     """Normalised log density of log g under the log-normal prior."""
     z = (log_growth - math.log(median)) / log_std
     return -0.5 * z * z - math.log(log_std) - 0.5 * math.log(2.0 * math.pi)

@@ -28,10 +28,14 @@ def package_digests() -> dict[str, str]:
 def git_commit(repo_root: str | Path = ".") -> dict | None:
     """{'commit', 'dirty'} of the git checkout at repo_root, None outside one (or without git)."""
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo_root, capture_output=True, text=True,
-                                timeout=30)
-        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=repo_root,
-                                capture_output=True, text=True, timeout=30)
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo_root, capture_output=True, text=True, timeout=30)
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=repo_root,
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
     except (OSError, subprocess.SubprocessError):
         return None
     if commit.returncode != 0:

@@ -13,36 +13,35 @@ def rot_x(angle) -> np.ndarray:
     """Rotation about X, shape (..., 3, 3)."""
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack([np.stack([one, zero, zero], -1),
-                     np.stack([zero, c, -s], -1),
-                     np.stack([zero, s, c], -1)], -2)
+    return np.stack([np.stack([one, zero, zero], -1), np.stack([zero, c, -s], -1), np.stack([zero, s, c], -1)], -2)
 
 
 def rot_y(angle) -> np.ndarray:
     """Rotation about Y, shape (..., 3, 3)."""
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack([np.stack([c, zero, s], -1),
-                     np.stack([zero, one, zero], -1),
-                     np.stack([-s, zero, c], -1)], -2)
+    return np.stack([np.stack([c, zero, s], -1), np.stack([zero, one, zero], -1), np.stack([-s, zero, c], -1)], -2)
 
 
 def rot_z(angle) -> np.ndarray:
     """Rotation about Z, shape (..., 3, 3)."""
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack([np.stack([c, -s, zero], -1),
-                     np.stack([s, c, zero], -1),
-                     np.stack([zero, zero, one], -1)], -2)
+    return np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)], -2)
 
 
 def skew(v) -> np.ndarray:
     """Cross-product matrix K with K @ x = v x x, shape (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
     zero = np.zeros_like(v[..., 0])
-    return np.stack([np.stack([zero, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], zero, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], zero], -1)], -2)
+    return np.stack(
+        [
+            np.stack([zero, -v[..., 2], v[..., 1]], -1),
+            np.stack([v[..., 2], zero, -v[..., 0]], -1),
+            np.stack([-v[..., 1], v[..., 0], zero], -1),
+        ],
+        -2,
+    )
 
 
 def rot_axis(axis, angle) -> np.ndarray:

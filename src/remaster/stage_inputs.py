@@ -16,7 +16,7 @@ SEPARATOR = "__"
 def by_sensor(inputs: Mapping[str, str], kind: str) -> dict[str, str]:
     """sensor -> file of the inputs named `<kind>__<sensor>`, in the order the inputs give them."""
     prefix = kind + SEPARATOR
-    return {name[len(prefix):]: str(path) for name, path in inputs.items() if name.startswith(prefix)}
+    return {name[len(prefix) :]: str(path) for name, path in inputs.items() if name.startswith(prefix)}
 
 
 def by_pair(inputs: Mapping[str, str], kind: str) -> dict[tuple[str, str], str]:

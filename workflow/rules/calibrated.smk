@@ -11,11 +11,6 @@ CALIBRATED = f"{RESULTS}/{{campaign}}/{{sensor}}/calibrated"
 DH_CAMPAIGNS = [c for c in CAMPAIGNS if gives_dh(c)]
 
 
-def one_of(campaigns):
-    """A wildcard constraint matching exactly these campaign names (none: matches nothing)."""
-    return "|".join(re.escape(c) for c in campaigns) or "(?!)"
-
-
 CALIBRATED_INPUTS = dict(
     campaign=campaign_files,
     summary=f"{FIT}/summary.csv",
@@ -49,11 +44,11 @@ rule calibrated:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated.log",
     wildcard_constraints:
         campaign=f"(?!(?:{one_of(DH_CAMPAIGNS)})/)[^/]+",
-    params:
-        **CALIBRATED_PARAMS,
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(2, at_least=10),
+    params:
+        **CALIBRATED_PARAMS,
     script:
         "../scripts/calibrated.py"
 
@@ -69,10 +64,10 @@ rule calibrated_dh:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/calibrated.log",
     wildcard_constraints:
         campaign=one_of(DH_CAMPAIGNS),
-    params:
-        **CALIBRATED_PARAMS,
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(2, at_least=10),
+    params:
+        **CALIBRATED_PARAMS,
     script:
         "../scripts/calibrated.py"

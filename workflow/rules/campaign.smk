@@ -8,11 +8,11 @@ rule campaign_summary:
         summary=f"{RESULTS}/{{campaign}}/campaign/summary.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/campaign_summary.log",
-    params:
-        memory_limit=JOB_MEMORY_LIMIT,
-        draws=config["accuracy"]["draws"],
     resources:
         mem_mb=campaign_mem_mb,
         runtime=5,
+    params:
+        memory_limit=JOB_MEMORY_LIMIT,
+        draws=config["accuracy"]["draws"],
     script:
         "../scripts/campaign_summary.py"

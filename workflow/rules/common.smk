@@ -8,7 +8,6 @@ from snakemake.utils import validate
 
 from remaster.campaigns.robot_model import robot_files, robot_section
 
-
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
 
 # Each job is single-threaded and -j sets how many run at once. A BLAS that starts a thread per
@@ -33,8 +32,11 @@ def checked_path(key):
     if not value.strip():
         raise config_error(key, "is empty")
     if not os.path.isabs(value) and os.path.normpath(value).split(os.sep)[0] == "..":
-        raise config_error(key, f"{value!r} leads outside the repository; relative paths are taken from the "
-                                f"repository root: give an absolute path for a folder elsewhere")
+        raise config_error(
+            key,
+            f"{value!r} leads outside the repository; relative paths are taken from the "
+            f"repository root: give an absolute path for a folder elsewhere",
+        )
     return os.path.normpath(value)
 
 
@@ -45,23 +47,33 @@ def check_paths(raw, results):
         raise config_error("results_dir", f"{results!r} exists and is not a directory")
     raw_path, results_path = Path(raw).resolve(), Path(results).resolve()
     if raw_path == results_path or raw_path in results_path.parents or results_path in raw_path.parents:
-        raise config_error("results_dir", f"{results!r} overlaps raw_dir {raw!r}: generated files and campaign "
-                                          f"data must live in separate folders")
+        raise config_error(
+            "results_dir",
+            f"{results!r} overlaps raw_dir {raw!r}: generated files and campaign "
+            f"data must live in separate folders",
+        )
 
 
 def check_fit_settings():
     """Every sampler's burn-in shorter than its run: the paper model's three and the loop closure's refit."""
-    runs = [(f"fit/{method}", config["fit"][method], length)
-            for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps"))]
+    runs = [
+        (f"fit/{method}", config["fit"][method], length)
+        for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps"))
+    ]
     for key, settings, length in runs + [("loop_closure/mcmc", config["loop_closure"]["mcmc"], "samples")]:
         if settings["burn_in"] >= settings[length]:
-            raise config_error(f"{key}/burn_in", f"{settings['burn_in']} is not below {key}/{length} "
-                                                 f"= {settings[length]}: no sample would be kept")
+            raise config_error(
+                f"{key}/burn_in",
+                f"{settings['burn_in']} is not below {key}/{length} " f"= {settings[length]}: no sample would be kept",
+            )
 
 
 # Bytes one job may use: max_job_memory_gb, or this machine's memory shared by the two jobs of -j2.
-JOB_MEMORY_LIMIT = (config["max_job_memory_gb"] * 1e9 if config["max_job_memory_gb"] is not None
-                    else os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2)
+JOB_MEMORY_LIMIT = (
+    config["max_job_memory_gb"] * 1e9
+    if config["max_job_memory_gb"] is not None
+    else os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2
+)
 
 RAW = checked_path("raw_dir")
 RESULTS = checked_path("results_dir")
@@ -109,8 +121,11 @@ def sensor_inputs(**patterns):
     of the campaign, named `<name>__<sensor>` (`remaster.stage_inputs` reads them back by name)."""
 
     def files(wildcards):
-        return {f"{name}__{sensor}": pattern.format(campaign=wildcards.campaign, sensor=sensor)
-                for name, pattern in patterns.items() for sensor in sensors_of(wildcards.campaign)}
+        return {
+            f"{name}__{sensor}": pattern.format(campaign=wildcards.campaign, sensor=sensor)
+            for name, pattern in patterns.items()
+            for sensor in sensors_of(wildcards.campaign)
+        }
 
     return files
 
@@ -122,8 +137,12 @@ def every_campaign_sensor(pattern):
 
 def every_pair_inputs(**patterns):
     """Named inputs `<name>__<campaign>__<sensor>` for every (campaign, sensor) pair of the run."""
-    return {f"{name}__{c}__{s}": pattern.format(campaign=c, sensor=s)
-            for name, pattern in patterns.items() for c in CAMPAIGNS for s in sensors_of(c)}
+    return {
+        f"{name}__{c}__{s}": pattern.format(campaign=c, sensor=s)
+        for name, pattern in patterns.items()
+        for c in CAMPAIGNS
+        for s in sensors_of(c)
+    }
 
 
 def largest_sensor_rows(campaign):
@@ -152,3 +171,120 @@ def runtime_minutes(minutes_per_thousand_rows, at_least=5):
 
 
 FIT_METHODS = ["paper", "default", "emcee"]
+
+
+# --------------------------------------------------------------------------- for the stages' rules
+
+
+def one_of(campaigns):
+    """A wildcard constraint matching exactly these campaign names (none: matches nothing)."""
+    return "|".join(re.escape(c) for c in campaigns) or "(?!)"
+
+
+def table_files(names):
+    """Named outputs: each table as .csv, .md and .tex."""
+    return {name: multiext(f"{TABLES}/{name}", ".csv", ".md", ".tex") for name in names}
+
+
+def calibrated_file_inputs(wildcards):
+    """The calibrated files the calibrated-files table lists (DH tables for a DH campaign)."""
+    names = [*CALIBRATED_FILES, *(CALIBRATED_DH_FILES if gives_dh(wildcards.campaign) else ())]
+    return {
+        f"{Path(name).stem}_{Path(name).suffix[1:]}__{s}": f"{RESULTS}/{wildcards.campaign}/{s}/calibrated/{name}"
+        for name in names
+        for s in sensors_of(wildcards.campaign)
+    }
+
+
+def robots():
+    """robot slug -> robot identity, for every robot of the run."""
+    from remaster import files
+    from remaster.analysis import comparison
+
+    keys = {comparison.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
+    return {comparison.robot_slug(k): k for k in sorted(keys)}
+
+
+def report_layout():
+    """campaign -> summary, table and figure files, in the order the report shows them."""
+    layout = {}
+    for c in CAMPAIGNS:
+        layout[c] = {
+            "summary": f"{RESULTS}/{c}/campaign/summary.json",
+            "certificate": f"{RESULTS}/{c}/certificate.json",
+            "tables": {
+                **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in REPORT_CERTIFICATE_TABLES},
+                **{t: f"{RESULTS}/{c}/tables/{t}.csv" for t in REPORT_TABLES},
+                **{
+                    f"{t}_vs_paper": f"{RESULTS}/{c}/tables/{t}_vs_paper.csv"
+                    for t in TABLE_NAMES
+                    if c in config["paper_twins"]
+                },
+            },
+            "figures": {
+                **{f"{f}_{s}": f"{RESULTS}/{c}/figures/{f}_{s}.png" for f in REPORT_FIGURES for s in sensors_of(c)},
+                "residuals": f"{RESULTS}/{c}/figures/residuals.png",
+            },
+        }
+    return layout
+
+
+def audited_results(campaign):
+    """Every final result of a campaign: its tables, figures, fits, metrics and remastering files."""
+    part = report_layout()[campaign]
+    files = [
+        part["summary"],
+        part["certificate"],
+        f"{RESULTS}/{campaign}/certificate.md",
+        *part["tables"].values(),
+        *part["figures"].values(),
+    ]
+    files += [str(Path(t).with_suffix(e)) for t in part["tables"].values() for e in (".md", ".tex")]
+    files += [str(Path(f).with_suffix(".pdf")) for f in part["figures"].values()]
+    for s in sensors_of(campaign):
+        base = f"{RESULTS}/{campaign}/{s}"
+        files += [
+            f"{base}/remastering.json",
+            f"{base}/registration.json",
+            f"{base}/fit/summary.csv",
+            f"{base}/loop_closure.json",
+            f"{base}/loop_closure/workspace.json",
+            f"{base}/loop_closure/residual_gp.parquet",
+            f"{base}/fit/summary_discrepancy.csv",
+            *[f"{base}/calibrated/{name}" for name in CALIBRATED_FILES],
+            *[f"{base}/calibrated/{name}" for name in (CALIBRATED_DH_FILES if gives_dh(campaign) else ())],
+            f"{base}/fit/discrepancy.json",
+            f"{base}/loop_closure/workspace_accuracy.csv",
+            f"{base}/loop_closure/theoretical_accuracy.csv",
+            f"{base}/fit/laplace.json",
+            f"{base}/fit/cross_check.csv",
+            *[f"{base}/fit/samples_{m}.parquet" for m in FIT_METHODS],
+            *[f"{base}/metrics/{n}.csv" for n in ACCURACY_FILES],
+        ]
+    return files
+
+
+def comparison_layout():
+    return {
+        "tables": {t: f"{COMPARISON}/{t}.csv" for t in COMPARISON_TABLES},
+        "figures": {f"{f}_{r}": f"{COMPARISON}/{f}_{r}.png" for f in OVER_TIME_FIGURES for r in ROBOTS},
+    }
+
+
+def prediction_layout():
+    """The transfer table and the comparisons by prediction, with the transfer heat-maps."""
+    return {
+        "tables": {t: f"{COMPARISON}/{t}.csv" for t in PREDICTION_COMPARISON_TABLES},
+        "figures": {f"transfer_{m}_{r}": f"{COMPARISON}/transfer_{m}_{r}.png" for m in TRANSFER_MODELS for r in ROBOTS},
+    }
+
+
+def report_files(wildcards=None):
+    files = []
+    for part in [*report_layout().values(), comparison_layout(), prediction_layout()]:
+        files += [
+            *(part[k] for k in ("summary", "certificate") if k in part),
+            *part["tables"].values(),
+            *part["figures"].values(),
+        ]
+    return files

@@ -12,15 +12,6 @@ COMPARISON = f"{RESULTS}/comparison"
 PREDICTION_COMPARISON_TABLES = ["transfer", *PREDICTION_TABLES]
 
 
-def robots():
-    """robot slug -> robot identity, for every robot of the run."""
-    from remaster import files
-    from remaster.analysis import comparison
-
-    keys = {comparison.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
-    return {comparison.robot_slug(k): k for k in sorted(keys)}
-
-
 ROBOTS = robots()
 ALL_CAMPAIGN_FILES = [f for c in CAMPAIGNS for f in campaign_files(SimpleNamespace(campaign=c))]
 
@@ -36,18 +27,17 @@ rule comparison:
         **{t: multiext(f"{COMPARISON}/{t}", ".csv", ".md", ".tex") for t in COMPARISON_TABLES},
     log:
         f"{RESULTS}/logs/comparison/comparison.log",
-    params:
-        significance=config["comparison"]["significance"],
     resources:
         mem_mb=2000,
         runtime=10,
+    params:
+        significance=config["comparison"]["significance"],
     script:
         "../scripts/comparison.py"
 
 
 rule comparison_prediction:
     input:
-        campaigns=ALL_CAMPAIGN_FILES,
         **every_pair_inputs(
             summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv",
             laplace=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json",
@@ -55,17 +45,18 @@ rule comparison_prediction:
             paper_samples=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/samples_default.parquet",
             loop_samples=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure/samples.parquet",
         ),
+        campaigns=ALL_CAMPAIGN_FILES,
     output:
         **{t: multiext(f"{COMPARISON}/{t}", ".csv", ".md", ".tex") for t in PREDICTION_COMPARISON_TABLES},
     log:
         f"{RESULTS}/logs/comparison/comparison_prediction.log",
+    resources:
+        mem_mb=4000,
+        runtime=30,
     params:
         seed=config["seed"],
         random_configurations=config["comparison"]["random_configurations"],
         draw_pairs=config["comparison"]["draw_pairs"],
-    resources:
-        mem_mb=4000,
-        runtime=30,
     script:
         "../scripts/comparison_prediction.py"
 
@@ -82,11 +73,11 @@ rule comparison_figures:
         },
     log:
         f"{RESULTS}/logs/comparison/comparison_figures.log",
-    params:
-        robots=ROBOTS,
-        models=list(TRANSFER_MODELS),
     resources:
         mem_mb=2000,
         runtime=10,
+    params:
+        robots=ROBOTS,
+        models=list(TRANSFER_MODELS),
     script:
         "../scripts/comparison_figures.py"

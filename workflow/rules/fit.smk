@@ -19,11 +19,11 @@ rule prepare:
         laplace=f"{FIT}/laplace.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/prepare.log",
-    params:
-        outlier_alpha=config["outliers"]["alpha"],
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(1),
+    params:
+        outlier_alpha=config["outliers"]["alpha"],
     script:
         "../scripts/prepare.py"
 
@@ -41,40 +41,40 @@ rule sample:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/sample_{{method}}.log",
     wildcard_constraints:
         method="|".join(FIT_METHODS),
-    params:
-        settings=lambda wc: config["fit"][wc.method],
-        seed=config["seed"],
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(10, at_least=15),
+    params:
+        settings=lambda wc: config["fit"][wc.method],
+        seed=config["seed"],
     script:
         "../scripts/sample.py"
 
 
 rule fit_summary:
     input:
+        **{f"samples__{m}": f"{FIT}/samples_{m}.parquet" for m in FIT_METHODS},
+        **{f"diagnostics__{m}": f"{FIT}/diagnostics_{m}.json" for m in FIT_METHODS},
         campaign=campaign_files,
         registration=rules.prepare.output.registration,
         laplace=rules.prepare.output.laplace,
-        **{f"samples__{m}": f"{FIT}/samples_{m}.parquet" for m in FIT_METHODS},
-        **{f"diagnostics__{m}": f"{FIT}/diagnostics_{m}.json" for m in FIT_METHODS},
     output:
+        **{f"metrics__{name}": f"{ACC}/{name}.csv" for name in ACCURACY_FILES},
         cross_check=f"{FIT}/cross_check.csv",
         summary=f"{FIT}/summary.csv",
         with_discrepancy=f"{FIT}/summary_discrepancy.csv",
         discrepancy=f"{FIT}/discrepancy.json",
         remastering=f"{RESULTS}/{{campaign}}/{{sensor}}/remastering.json",
-        **{f"metrics__{name}": f"{ACC}/{name}.csv" for name in ACCURACY_FILES},
         accuracy=f"{ACC}/report.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/fit_summary.log",
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(2, at_least=10),
     params:
         cross_check=config["fit"]["cross_check"],
         seed=config["seed"],
         draws=config["accuracy"]["draws"],
         random_configurations=config["accuracy"]["random_configurations"],
-    resources:
-        mem_mb=campaign_mem_mb,
-        runtime=runtime_minutes(2, at_least=10),
     script:
         "../scripts/fit_summary.py"

@@ -18,13 +18,13 @@ rule loop_closure:
         gp=f"{LOOP}/residual_gp.parquet",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_closure.log",
+    resources:
+        mem_mb=campaign_mem_mb,
+        runtime=runtime_minutes(10, at_least=15),
     params:
         settings=config["loop_closure"],
         priors=config["priors"],
         convergence=config["fit"]["cross_check"],
         seed=config["seed"],
-    resources:
-        mem_mb=campaign_mem_mb,
-        runtime=runtime_minutes(10, at_least=15),
     script:
         "../scripts/loop_closure.py"

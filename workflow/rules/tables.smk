@@ -9,22 +9,22 @@ from remaster.reporting.campaign_figures import SENSOR_FIGURES
 TABLES = f"{RESULTS}/{{campaign}}/tables"
 FIGURES = f"{RESULTS}/{{campaign}}/figures"
 PAPER_TWINS = [c for c in CAMPAIGNS if c in config["paper_twins"]]
-CAMPAIGN_TABLES = ["zero_offsets", "registration_params", *TABLE_NAMES, "sensor_comparison", "iso9283",
-                   "loop_closure", "loop_closure_test", "loop_candidates", "workspace_accuracy",
-                   "workspace_warnings", "controller_offsets", "calibrated_files", "uncertainty_budget"]
+CAMPAIGN_TABLES = [
+    "zero_offsets",
+    "registration_params",
+    *TABLE_NAMES,
+    "sensor_comparison",
+    "iso9283",
+    "loop_closure",
+    "loop_closure_test",
+    "loop_candidates",
+    "workspace_accuracy",
+    "workspace_warnings",
+    "controller_offsets",
+    "calibrated_files",
+    "uncertainty_budget",
+]
 CERTIFICATE_TABLES = ["certificate_verdict", "certificate_accuracy", "certificate_corrections"]
-
-
-def table_files(names):
-    """Named outputs: each table as .csv, .md and .tex."""
-    return {name: multiext(f"{TABLES}/{name}", ".csv", ".md", ".tex") for name in names}
-
-
-def calibrated_file_inputs(wildcards):
-    """The calibrated files the calibrated-files table lists (DH tables for a DH campaign)."""
-    names = [*CALIBRATED_FILES, *(CALIBRATED_DH_FILES if gives_dh(wildcards.campaign) else ())]
-    return {f"{Path(name).stem}_{Path(name).suffix[1:]}__{s}": f"{RESULTS}/{wildcards.campaign}/{s}/calibrated/{name}"
-            for name in names for s in sensors_of(wildcards.campaign)}
 
 
 TABLE_INPUTS = dict(
@@ -63,11 +63,11 @@ rule tables:
         f"{RESULTS}/logs/{{campaign}}/tables.log",
     wildcard_constraints:
         campaign=f"(?!(?:{one_of(PAPER_TWINS)})/)[^/]+",
-    params:
-        beside_paper=False,
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(1),
+    params:
+        beside_paper=False,
     script:
         "../scripts/tables.py"
 
@@ -84,11 +84,11 @@ rule tables_beside_paper:
         f"{RESULTS}/logs/{{campaign}}/tables.log",
     wildcard_constraints:
         campaign=one_of(PAPER_TWINS),
-    params:
-        beside_paper=True,
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(1),
+    params:
+        beside_paper=True,
     script:
         "../scripts/tables.py"
 
@@ -108,11 +108,11 @@ rule figures:
         **{name: multiext(f"{FIGURES}/{name}_{{sensor}}", ".png", ".pdf") for name in SENSOR_FIGURES},
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/figures.log",
-    params:
-        burn_in=config["fit"]["paper"]["burn_in"],
     resources:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(1),
+    params:
+        burn_in=config["fit"]["paper"]["burn_in"],
     script:
         "../scripts/figures.py"
 

@@ -51,12 +51,19 @@ from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..inference import metrics
 from ..inference.fit import LaplaceReport, Registration
-from ..inference.model import (SIGMA, by_parameter, correction_parameters, correction_transforms, display_scale,
-                               display_unit, parameter_names)
+from ..inference.model import (
+    SIGMA,
+    by_parameter,
+    correction_parameters,
+    correction_transforms,
+    display_scale,
+    display_unit,
+    parameter_names,
+)
 from ..labels import paper_order, sensor_label
-from ..units import shown
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..units import shown
 
 METHODS = ("Vernier", "Bayesian")
 # Vernier scored as the paper scored it (its three-point registration T_NR, Theta1 = 0) and, beside
@@ -75,17 +82,35 @@ REGISTRATION_NOT_USED = "none: distances are frame-invariant"
 REGISTRATION_AS_FITTED = "optimization set's, as is (sensor not moved)"
 REGISTRATION_REFIT = "refit on the validation points, zero-offsets fixed"
 
-METRIC_TABLES = ("relative_accuracy", "post_registration_accuracy", "theoretical_accuracy_optimization_configs",
-                 "theoretical_accuracy_random_configs", "theoretical_accuracy_zero_offsets_only")
+METRIC_TABLES = (
+    "relative_accuracy",
+    "post_registration_accuracy",
+    "theoretical_accuracy_optimization_configs",
+    "theoretical_accuracy_random_configs",
+    "theoretical_accuracy_zero_offsets_only",
+)
 VALIDATION_TABLE = "validation_accuracy"
 TABLE_NAMES = METRIC_TABLES + (VALIDATION_TABLE,)
-VALIDATION_METRICS = {RELATIVE: ("Relative", REGISTRATION_NOT_USED),
-                      POST_REGISTRATION: ("Post-Registration Absolute", REGISTRATION_AS_FITTED),
-                      POST_REGISTRATION_REFIT: ("Post-Registration Absolute (registration refit on validation set)",
-                                                REGISTRATION_REFIT)}
+VALIDATION_METRICS = {
+    RELATIVE: ("Relative", REGISTRATION_NOT_USED),
+    POST_REGISTRATION: ("Post-Registration Absolute", REGISTRATION_AS_FITTED),
+    POST_REGISTRATION_REFIT: ("Post-Registration Absolute (registration refit on validation set)", REGISTRATION_REFIT),
+}
 SUMMARY_COLUMNS = ("mean_mm", "q2.5_mm", "q97.5_mm", "count")
-CONFIGURATION_COLUMNS = ("set", "registration", "method", "row", "pose", "solution", "configuration", "error_mm",
-                         "residual_x_mm", "residual_y_mm", "residual_z_mm", "distance_from_base_mm")
+CONFIGURATION_COLUMNS = (
+    "set",
+    "registration",
+    "method",
+    "row",
+    "pose",
+    "solution",
+    "configuration",
+    "error_mm",
+    "residual_x_mm",
+    "residual_y_mm",
+    "residual_z_mm",
+    "distance_from_base_mm",
+)
 
 
 # --------------------------------------------------------------------------- remastered robots
@@ -133,8 +158,10 @@ def parameter_table(samples: pd.DataFrame, laplace: LaplaceReport, n_joints: int
     if names != list(parameter_names(n_joints)):
         raise ValueError(f"the fit's parameters {names} are not those of a {n_joints}-joint robot")
     held = laplace.held
-    columns = {name: (np.full(len(samples), float(held[name])) if name in held else samples[name].to_numpy(float))
-               for name in names + [SIGMA]}
+    columns = {
+        name: (np.full(len(samples), float(held[name])) if name in held else samples[name].to_numpy(float))
+        for name in names + [SIGMA]
+    }
     return pd.DataFrame(columns)
 
 
@@ -146,7 +173,9 @@ def bayesian(mle: pd.Series, t_nr) -> Remastered:
 
 def registration_parameters(sensor_from_robot, t_nr) -> np.ndarray:
     """Theta1 (6,) (x, y, z m; alpha, beta, gamma rad) with T*(Theta1) T_NR = sensor_from_robot."""
-    return correction_parameters(np.asarray(sensor_from_robot, dtype=float) @ spatial.invert(np.asarray(t_nr, dtype=float)))
+    return correction_parameters(
+        np.asarray(sensor_from_robot, dtype=float) @ spatial.invert(np.asarray(t_nr, dtype=float))
+    )
 
 
 # --------------------------------------------------------------------------- one set's data
@@ -177,8 +206,16 @@ class SetData:
         unseen = ~np.all(np.isfinite(positions), axis=1)
         flagged = np.isin(rows, np.asarray(flagged_rows, dtype=np.int64)) & ~unseen
         positions[flagged] = np.nan
-        return cls(set_name, rows, sensor.q(set_name), positions, table["pose"].to_numpy(np.int64),
-                   table["solution"].to_numpy(np.int64), unseen, flagged)
+        return cls(
+            set_name,
+            rows,
+            sensor.q(set_name),
+            positions,
+            table["pose"].to_numpy(np.int64),
+            table["solution"].to_numpy(np.int64),
+            unseen,
+            flagged,
+        )
 
     @property
     def usable(self) -> np.ndarray:
@@ -199,8 +236,13 @@ class SetData:
 def _summary_row(values_m, **labels) -> dict:
     """Labels plus mean, 95 % interval (mm) and count of values in m."""
     summary = metrics.interval_summary(values_m)
-    return {**labels, "mean_mm": summary["mean"] * TO_MM, "q2.5_mm": summary["q2.5"] * TO_MM,
-            "q97.5_mm": summary["q97.5"] * TO_MM, "count": summary["count"]}
+    return {
+        **labels,
+        "mean_mm": summary["mean"] * TO_MM,
+        "q2.5_mm": summary["q2.5"] * TO_MM,
+        "q97.5_mm": summary["q97.5"] * TO_MM,
+        "count": summary["count"],
+    }
 
 
 def _relative(chain: KinematicChain, data: SetData, robot: Remastered, marker) -> np.ndarray:
@@ -208,8 +250,9 @@ def _relative(chain: KinematicChain, data: SetData, robot: Remastered, marker) -
     return metrics.relative_errors(data.positions, robot.robot_points(chain, data.q, marker), data.poses)
 
 
-def _configuration_errors(chain: KinematicChain, data: SetData, robot: Remastered | None, marker,
-                          registration_label: str) -> tuple[np.ndarray, pd.DataFrame]:
+def _configuration_errors(
+    chain: KinematicChain, data: SetData, robot: Remastered | None, marker, registration_label: str
+) -> tuple[np.ndarray, pd.DataFrame]:
     """Post-registration errors (n_used,) m and their per-configuration table (mm) for the used
     rows of a set; robot None (no registration possible) gives no rows."""
     seen = np.flatnonzero(data.usable)
@@ -220,20 +263,38 @@ def _configuration_errors(chain: KinematicChain, data: SetData, robot: Remastere
     predicted = spatial.transform_points(robot.sensor_from_robot, robot_frame)
     errors = metrics.post_registration_errors(measured, predicted)
     residuals = (measured - predicted) * TO_MM
-    frame = pd.DataFrame({"set": data.name, "registration": registration_label, "method": robot.method,
-                          "row": data.rows[seen], "pose": data.poses[seen], "solution": data.solutions[seen],
-                          "configuration": seen, "error_mm": errors * TO_MM, "residual_x_mm": residuals[:, 0],
-                          "residual_y_mm": residuals[:, 1], "residual_z_mm": residuals[:, 2],
-                          "distance_from_base_mm": np.linalg.norm(robot_frame, axis=1) * TO_MM})
+    frame = pd.DataFrame(
+        {
+            "set": data.name,
+            "registration": registration_label,
+            "method": robot.method,
+            "row": data.rows[seen],
+            "pose": data.poses[seen],
+            "solution": data.solutions[seen],
+            "configuration": seen,
+            "error_mm": errors * TO_MM,
+            "residual_x_mm": residuals[:, 0],
+            "residual_y_mm": residuals[:, 1],
+            "residual_z_mm": residuals[:, 2],
+            "distance_from_base_mm": np.linalg.norm(robot_frame, axis=1) * TO_MM,
+        }
+    )
     return errors, frame
 
 
 # --------------------------------------------------------------------------- the stage
 
 
-def accuracy_tables(campaign: Campaign, sensor_name: str, registration: Registration, laplace: LaplaceReport,
-                    samples: pd.DataFrame, rng: np.random.Generator, n_draws: int = 2000,
-                    n_random: int = 1000) -> dict:
+def accuracy_tables(
+    campaign: Campaign,
+    sensor_name: str,
+    registration: Registration,
+    laplace: LaplaceReport,
+    samples: pd.DataFrame,
+    rng: np.random.Generator,
+    n_draws: int = 2000,
+    n_random: int = 1000,
+) -> dict:
     """Every accuracy metric of one sensor, Vernier and Bayesian (see the module docstring).
 
     registration: `fit.Registration` (its t_nr); laplace: `fit.LaplaceReport`;
@@ -263,14 +324,19 @@ def accuracy_tables(campaign: Campaign, sensor_name: str, registration: Registra
     validation = SetData.of(sensor, "validation")
     used = optimization.usable
     robots = {"Vernier": vernier(chain, t_nr), "Bayesian": bayesian(mle, t_nr)}
-    scored = {**robots, VERNIER_LEAST_SQUARES: vernier_least_squares(chain, optimization.q[used],
-                                                                     optimization.positions[used], marker)}
+    scored = {
+        **robots,
+        VERNIER_LEAST_SQUARES: vernier_least_squares(chain, optimization.q[used], optimization.positions[used], marker),
+    }
 
     out: dict = {}
-    errors = {method: _configuration_errors(chain, optimization, robot, marker, REGISTRATION_AS_FITTED)
-              for method, robot in scored.items()}
-    out["relative_accuracy"] = pd.DataFrame([_summary_row(_relative(chain, optimization, robot, marker), method=method)
-                                             for method, robot in robots.items()])
+    errors = {
+        method: _configuration_errors(chain, optimization, robot, marker, REGISTRATION_AS_FITTED)
+        for method, robot in scored.items()
+    }
+    out["relative_accuracy"] = pd.DataFrame(
+        [_summary_row(_relative(chain, optimization, robot, marker), method=method) for method, robot in robots.items()]
+    )
     out["post_registration_accuracy"] = pd.DataFrame([_summary_row(errors[m][0], method=m) for m in SCORED_METHODS])
 
     replace_draws = len(parameters) < n_draws
@@ -278,44 +344,65 @@ def accuracy_tables(campaign: Campaign, sensor_name: str, registration: Registra
     draw_offsets = draws[list(parameter_names(chain.n_joints)[6:])].to_numpy()
     draw_sigma = draws[SIGMA].to_numpy()
     random_q = metrics.random_configurations(chain, n_random, rng)
-    for table, q, sigma in (("theoretical_accuracy_optimization_configs", optimization.q, draw_sigma),
-                            ("theoretical_accuracy_random_configs", random_q, draw_sigma),
-                            ("theoretical_accuracy_zero_offsets_only", random_q, None)):
-        out[table] = pd.DataFrame([
-            _summary_row(metrics.theoretical_errors(chain, q, marker, robot.zero_offsets, draw_offsets, sigma, rng),
-                         method=method) for method, robot in robots.items()])
+    for table, q, sigma in (
+        ("theoretical_accuracy_optimization_configs", optimization.q, draw_sigma),
+        ("theoretical_accuracy_random_configs", random_q, draw_sigma),
+        ("theoretical_accuracy_zero_offsets_only", random_q, None),
+    ):
+        out[table] = pd.DataFrame(
+            [
+                _summary_row(
+                    metrics.theoretical_errors(chain, q, marker, robot.zero_offsets, draw_offsets, sigma, rng),
+                    method=method,
+                )
+                for method, robot in robots.items()
+            ]
+        )
 
     validation_rows, validation_frames = _validation(chain, validation, scored, marker)
     out[VALIDATION_TABLE] = pd.DataFrame(validation_rows)
     frames = [frame for frame in [errors[m][1] for m in SCORED_METHODS] + validation_frames if len(frame)]
-    out["configuration_errors"] = (pd.concat(frames, ignore_index=True) if frames
-                                   else pd.DataFrame(columns=list(CONFIGURATION_COLUMNS)))
+    out["configuration_errors"] = (
+        pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(CONFIGURATION_COLUMNS))
+    )
     out["tcp_scatter"] = tcp_scatter(chain, optimization, marker, robots, draw_offsets, draw_sigma, rng)
     out["remastering_parameters"] = _parameters_used(scored, mle, t_nr, laplace, errors)
     out["report"] = {
-        "campaign": campaign.name, "sensor": sensor_name,
+        "campaign": campaign.name,
+        "sensor": sensor_name,
         "excluded_rows_marker_not_seen": {data.name: data.unseen_rows for data in (optimization, validation)},
         "excluded_rows_outliers": {data.name: data.flagged_rows for data in (optimization, validation)},
-        "excluded_counts": {data.name: {"marker_not_seen": len(data.unseen_rows),
-                                        "outliers": len(data.flagged_rows)} for data in (optimization, validation)},
+        "excluded_counts": {
+            data.name: {"marker_not_seen": len(data.unseen_rows), "outliers": len(data.flagged_rows)}
+            for data in (optimization, validation)
+        },
         "configurations": {data.name: int(len(data.rows)) for data in (optimization, validation)},
-        "posterior_samples": int(len(parameters)), "draws": int(n_draws), "draws_with_replacement": replace_draws,
+        "posterior_samples": int(len(parameters)),
+        "draws": int(n_draws),
+        "draws_with_replacement": replace_draws,
         "random_configurations": int(n_random),
         "random_configuration_bounds_rad": [b.tolist() for b in metrics.joint_space_bounds(chain)],
         "held_parameters": dict(laplace.held),
         "vernier": "controller zero-offsets with the initial three-point registration T_NR (the paper's scoring)",
         "vernier_least_squares": "controller zero-offsets; registration by least squares (Kabsch) with "
-                                 "zero-offsets 0 on the optimization set's used points (seen, not flagged); "
-                                 "post-registration errors only",
+        "zero-offsets 0 on the optimization set's used points (seen, not flagged); "
+        "post-registration errors only",
         "bayesian": "posterior means of the free parameters, held parameters at their held value, with the "
-                    "fitted registration T*(Theta1) T_NR",
+        "fitted registration T*(Theta1) T_NR",
         "theoretical": "distances in the robot frame between the method's TCP and the TCPs of posterior draws "
-                       "(whole posterior rows), with each draw's N(0, sigma^2 I3) added except for zero-offsets "
-                       "only; optimization configurations include rows whose marker was not seen",
-        "validation_registration": {POST_REGISTRATION: REGISTRATION_AS_FITTED,
-                                    POST_REGISTRATION_REFIT: REGISTRATION_REFIT},
-        "tcp_scatter_configuration": {"row": int(optimization.rows[0]), "pose": int(optimization.poses[0]),
-                                      "solution": int(optimization.solutions[0])} if len(optimization.rows) else None,
+        "(whole posterior rows), with each draw's N(0, sigma^2 I3) added except for zero-offsets "
+        "only; optimization configurations include rows whose marker was not seen",
+        "validation_registration": {
+            POST_REGISTRATION: REGISTRATION_AS_FITTED,
+            POST_REGISTRATION_REFIT: REGISTRATION_REFIT,
+        },
+        "tcp_scatter_configuration": {
+            "row": int(optimization.rows[0]),
+            "pose": int(optimization.poses[0]),
+            "solution": int(optimization.solutions[0]),
+        }
+        if len(optimization.rows)
+        else None,
     }
     return out
 
@@ -329,12 +416,23 @@ def _validation(chain: KinematicChain, data: SetData, robots: dict[str, Remaster
     for method, robot in robots.items():
         own = method in METHODS
         if own:
-            rows.append(_summary_row(_relative(chain, data, robot, marker), metric=RELATIVE,
-                                     registration=REGISTRATION_NOT_USED, method=method))
-        refit = (robot.registered_to(chain, data.q[seen], data.positions[seen], marker)
-                 if seen.size >= MIN_REGISTRATION_POINTS else None)
-        for metric, registered, label in ((POST_REGISTRATION, robot, REGISTRATION_AS_FITTED),
-                                          (POST_REGISTRATION_REFIT, refit, REGISTRATION_REFIT))[:2 if own else 1]:
+            rows.append(
+                _summary_row(
+                    _relative(chain, data, robot, marker),
+                    metric=RELATIVE,
+                    registration=REGISTRATION_NOT_USED,
+                    method=method,
+                )
+            )
+        refit = (
+            robot.registered_to(chain, data.q[seen], data.positions[seen], marker)
+            if seen.size >= MIN_REGISTRATION_POINTS
+            else None
+        )
+        for metric, registered, label in (
+            (POST_REGISTRATION, robot, REGISTRATION_AS_FITTED),
+            (POST_REGISTRATION_REFIT, refit, REGISTRATION_REFIT),
+        )[: 2 if own else 1]:
             errors, frame = _configuration_errors(chain, data, registered, marker, label)
             rows.append(_summary_row(errors, metric=metric, registration=label, method=method))
             frames.append(frame)
@@ -343,8 +441,15 @@ def _validation(chain: KinematicChain, data: SetData, robots: dict[str, Remaster
     return rows, frames
 
 
-def tcp_scatter(chain: KinematicChain, data: SetData, marker, robots: dict[str, Remastered], draw_offsets,
-                draw_sigma, rng: np.random.Generator) -> pd.DataFrame:
+def tcp_scatter(
+    chain: KinematicChain,
+    data: SetData,
+    marker,
+    robots: dict[str, Remastered],
+    draw_offsets,
+    draw_sigma,
+    rng: np.random.Generator,
+) -> pd.DataFrame:
     """Fig. accuracy's points at the set's first configuration, robot frame, mm relative to the
     MLE TCP: kind (Vernier, MLE, probable, probable + noise), x_mm, y_mm, z_mm."""
     if len(data.q) == 0:
@@ -353,27 +458,47 @@ def tcp_scatter(chain: KinematicChain, data: SetData, marker, robots: dict[str, 
     mle = robots["Bayesian"].robot_points(chain, q, marker)[0]
     probable = metrics.probable_tcps(chain, q, marker, draw_offsets, None, rng)[:, 0]
     noisy = probable + np.asarray(draw_sigma)[:, None] * rng.standard_normal(probable.shape)
-    parts = [("probable + noise", noisy), ("probable", probable), ("MLE", mle[None]),
-             ("Vernier", robots["Vernier"].robot_points(chain, q, marker))]
-    frames = [pd.DataFrame((points - mle) * TO_MM, columns=["x_mm", "y_mm", "z_mm"]).assign(kind=kind)
-              for kind, points in parts]
+    parts = [
+        ("probable + noise", noisy),
+        ("probable", probable),
+        ("MLE", mle[None]),
+        ("Vernier", robots["Vernier"].robot_points(chain, q, marker)),
+    ]
+    frames = [
+        pd.DataFrame((points - mle) * TO_MM, columns=["x_mm", "y_mm", "z_mm"]).assign(kind=kind)
+        for kind, points in parts
+    ]
     return pd.concat(frames, ignore_index=True)[["kind", "x_mm", "y_mm", "z_mm"]]
 
 
-def _parameters_used(robots: dict[str, Remastered], mle: pd.Series, t_nr, laplace: LaplaceReport,
-                     errors: dict) -> pd.DataFrame:
+def _parameters_used(
+    robots: dict[str, Remastered], mle: pd.Series, t_nr, laplace: LaplaceReport, errors: dict
+) -> pd.DataFrame:
     """Per parameter the value each method used, display units (mm, deg). A Vernier's sigma is the
     ML estimate sqrt(sum ||E_i||^2 / 3n) of its residuals."""
     held = laplace.held
     names = list(mle.index)
     scale = np.array([display_scale(n) for n in names])
-    columns = {method: np.concatenate([registration_parameters(robots[method].sensor_from_robot, t_nr),
-                                       robots[method].zero_offsets,
-                                       [np.sqrt(np.mean(np.square(errors[method][0])) / 3.0)]]) / scale
-               for method in ("Vernier", VERNIER_LEAST_SQUARES)}
-    return pd.DataFrame({"parameter": names, "unit": [display_unit(n) for n in names], **columns,
-                         "Bayesian": mle.to_numpy(float) / scale,
-                         "status": ["held" if n in held else "estimated" for n in names]})
+    columns = {
+        method: np.concatenate(
+            [
+                registration_parameters(robots[method].sensor_from_robot, t_nr),
+                robots[method].zero_offsets,
+                [np.sqrt(np.mean(np.square(errors[method][0])) / 3.0)],
+            ]
+        )
+        / scale
+        for method in ("Vernier", VERNIER_LEAST_SQUARES)
+    }
+    return pd.DataFrame(
+        {
+            "parameter": names,
+            "unit": [display_unit(n) for n in names],
+            **columns,
+            "Bayesian": mle.to_numpy(float) / scale,
+            "status": ["held" if n in held else "estimated" for n in names],
+        }
+    )
 
 
 # --------------------------------------------------------------------------- paper layout
@@ -415,15 +540,19 @@ def _paper_rows(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
     rows = pd.concat([per_sensor[s].assign(sensor=s) for s in sensors], ignore_index=True)
     validation = "metric" in rows.columns
     metric_order = list(VALIDATION_METRICS)
-    order = [((metric_order.index(r["metric"]),) if validation else ()) +
-             (TABLE_METHODS.index(r["method"]), sensors.index(r["sensor"])) for _, r in rows.iterrows()]
+    order = [
+        ((metric_order.index(r["metric"]),) if validation else ())
+        + (TABLE_METHODS.index(r["method"]), sensors.index(r["sensor"]))
+        for _, r in rows.iterrows()
+    ]
     return rows.iloc[sorted(range(len(rows)), key=order.__getitem__)].reset_index(drop=True)
 
 
 def _row_labels(rows: pd.DataFrame) -> pd.DataFrame:
     """The label columns of a paper table: (Metric,) Remastering Method, Reference Sensor."""
-    labels = pd.DataFrame({"Remastering Method": rows["method"].to_numpy(),
-                           "Reference Sensor": [sensor_label(s) for s in rows["sensor"]]})
+    labels = pd.DataFrame(
+        {"Remastering Method": rows["method"].to_numpy(), "Reference Sensor": [sensor_label(s) for s in rows["sensor"]]}
+    )
     if "metric" in rows.columns:
         labels.insert(0, "Metric", [VALIDATION_METRICS[m][0] for m in rows["metric"]])
     return labels
@@ -437,10 +566,14 @@ def paper_table(per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
     order relative, post-registration, post-registration with the registration refit.
     per_sensor: sensor -> its metric rows (method, (metric,) mean_mm, q2.5_mm, q97.5_mm, count)."""
     rows = _paper_rows(per_sensor)
-    return _row_labels(rows).assign(**{
-        "Mean (mm)": rows["mean_mm"].to_numpy(float),
-        "95% Interval (mm)": [format_interval(lo, hi, n) for lo, hi, n in
-                              zip(rows["q2.5_mm"], rows["q97.5_mm"], rows["count"])]})
+    return _row_labels(rows).assign(
+        **{
+            "Mean (mm)": rows["mean_mm"].to_numpy(float),
+            "95% Interval (mm)": [
+                format_interval(lo, hi, n) for lo, hi, n in zip(rows["q2.5_mm"], rows["q97.5_mm"], rows["count"])
+            ],
+        }
+    )
 
 
 def paper_comparison(table_name: str, per_sensor: dict[str, pd.DataFrame]) -> pd.DataFrame:
@@ -471,19 +604,25 @@ def paper_comparison(table_name: str, per_sensor: dict[str, pd.DataFrame]) -> pd
     note = PAPER_NOTES.get(table_name)
     if note is not None:
         methods, text = note
-        out["Note"] = [text if present and (methods is None or method in methods) else ""
-                       for present, method in zip(has_paper, rows["method"])]
+        out["Note"] = [
+            text if present and (methods is None or method in methods) else ""
+            for present, method in zip(has_paper, rows["method"])
+        ]
     return out
 
 
-_HELD_JOINT_1 = ("paper: its posterior draws include a joint-1 zero-offset (table MLE_zero_offsets), which no "
-                 "registration-free data determine; here joint 1 is held, so this row leaves out that rotation "
-                 "about base Z")
+_HELD_JOINT_1 = (
+    "paper: its posterior draws include a joint-1 zero-offset (table MLE_zero_offsets), which no "
+    "registration-free data determine; here joint 1 is held, so this row leaves out that rotation "
+    "about base Z"
+)
 # Why a row of ours and the paper's measure different things: {table: (the methods whose rows the
 # paper has a number for it applies to, None for all; note)}
 PAPER_NOTES: dict[str, tuple[tuple[str, ...] | None, str]] = {
-    VALIDATION_TABLE: (None, ("paper: motion-capture MLE applied and measured by this sensor; "
-                              "here: this sensor's own MLE")),
+    VALIDATION_TABLE: (
+        None,
+        ("paper: motion-capture MLE applied and measured by this sensor; here: this sensor's own MLE"),
+    ),
     **{table: (("Vernier",), _HELD_JOINT_1) for table in METRIC_TABLES if table.startswith("theoretical")},
 }
 
@@ -494,8 +633,9 @@ PAPER_NOTES: dict[str, tuple[tuple[str, ...] | None, str]] = {
 def _accuracy_rows(accuracy) -> pd.DataFrame:
     """Metric rows with a 'quantity' label, from {table name: rows} or a frame with a 'table' column."""
     if isinstance(accuracy, dict):
-        accuracy = pd.concat([accuracy[name].assign(table=name) for name in TABLE_NAMES if name in accuracy],
-                             ignore_index=True)
+        accuracy = pd.concat(
+            [accuracy[name].assign(table=name) for name in TABLE_NAMES if name in accuracy], ignore_index=True
+        )
     labels = []
     for _, row in accuracy.iterrows():
         parts = [row["table"]] + ([row["metric"]] if "metric" in row and isinstance(row["metric"], str) else [])
@@ -530,8 +670,11 @@ def sensor_comparison(summaries: dict[str, pd.DataFrame], accuracy: dict) -> pd.
             entry = summaries[sensor].loc[name] if name in summaries[sensor].index else None
             row[f"{label} estimate"] = np.nan if entry is None else float(entry["mean"]) / scale
             row[f"{label} std"] = np.nan if entry is None else float(entry["std"]) / scale
-        held = [label for s, label in zip(sensors, labels)
-                if name in summaries[s].index and summaries[s].loc[name, "status"] != "estimated"]
+        held = [
+            label
+            for s, label in zip(sensors, labels)
+            if name in summaries[s].index and summaries[s].loc[name, "status"] != "estimated"
+        ]
         difference, z, note = np.nan, np.nan, single_note
         if compared:
             a, b = labels[:2]
@@ -549,8 +692,9 @@ def sensor_comparison(summaries: dict[str, pd.DataFrame], accuracy: dict) -> pd.
         row = {"kind": "accuracy", "quantity": quantity, "unit": "mm"}
         for sensor, label in zip(sensors, labels):
             table = accuracy_rows.get(sensor)
-            row[f"{label} estimate"] = (float(table.loc[quantity, "mean_mm"])
-                                        if table is not None and quantity in table.index else np.nan)
+            row[f"{label} estimate"] = (
+                float(table.loc[quantity, "mean_mm"]) if table is not None and quantity in table.index else np.nan
+            )
             row[f"{label} std"] = np.nan
         difference = row[f"{labels[0]} estimate"] - row[f"{labels[1]} estimate"] if compared else np.nan
         note = "mean error; the sensors measure different markers" if compared else single_note

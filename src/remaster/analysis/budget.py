@@ -24,8 +24,8 @@ import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport, Registration, build_model
-from ..loop.report import LoopReport
 from ..labels import sensor_label
+from ..loop.report import LoopReport
 from ..units import MM
 
 COVERAGE_FACTOR = 2.0
@@ -39,8 +39,9 @@ def propagated(jacobian: np.ndarray, covariance: np.ndarray, columns) -> float:
     return float(np.sqrt(np.mean(np.einsum("ij,jk,ik->i", j, covariance[np.ix_(columns, columns)], j))))
 
 
-def budget_rows(jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: float | None,
-                loop_sigma: float | None = None) -> list[dict]:
+def budget_rows(
+    jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: float | None, loop_sigma: float | None = None
+) -> list[dict]:
     """The budget's rows (Component, u per axis (mm), share of u_c^2 (%), source) of one fit.
     jacobian (3n, P) of the residuals at the MAP; stated_noise and loop_sigma in m (or None)."""
     names = laplace.names
@@ -51,29 +52,69 @@ def budget_rows(jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: floa
     lacks = np.sqrt(max(sigma**2 - stated_noise**2, 0.0)) if stated_noise is not None else None
     noise = stated_noise if stated_noise is not None else sigma
     combined = np.sqrt(noise**2 + (lacks or 0.0) ** 2 + together**2)
-    rows = [("sensor noise", noise, "stated in campaign.yaml" if stated_noise is not None else
-             "not stated: the fit's sigma, which holds what the model lacks too")]
+    rows = [
+        (
+            "sensor noise",
+            noise,
+            "stated in campaign.yaml"
+            if stated_noise is not None
+            else "not stated: the fit's sigma, which holds what the model lacks too",
+        )
+    ]
     rows += [(label, value, "the fit's Laplace covariance through its Jacobian") for label, value in u.items()]
     correlation = together**2 - sum(v**2 for v in u.values())
-    rows.append(("registration x zero-offsets correlation", np.sign(correlation) * np.sqrt(abs(correlation)),
-                 "signed: their joint variance minus the two alone"))
+    rows.append(
+        (
+            "registration x zero-offsets correlation",
+            np.sign(correlation) * np.sqrt(abs(correlation)),
+            "signed: their joint variance minus the two alone",
+        )
+    )
     if lacks is not None:
         rows.append(("what the model lacks", lacks, "the fit's sigma beyond the stated noise"))
-    out = [{"Component": c, "u per axis (mm)": v / MM, "share of u_c^2 (%)": 100 * np.sign(v) * v**2 / combined**2,
-            "source": s} for c, v, s in rows]
-    out.append({"Component": "combined u_c", "u per axis (mm)": combined / MM, "share of u_c^2 (%)": 100.0,
-                "source": "root sum of squares"})
-    out.append({"Component": f"expanded U (k = {COVERAGE_FACTOR:g})", "u per axis (mm)": COVERAGE_FACTOR * combined / MM,
-                "share of u_c^2 (%)": np.nan, "source": "about 95 % for a normal distribution"})
+    out = [
+        {
+            "Component": c,
+            "u per axis (mm)": v / MM,
+            "share of u_c^2 (%)": 100 * np.sign(v) * v**2 / combined**2,
+            "source": s,
+        }
+        for c, v, s in rows
+    ]
+    out.append(
+        {
+            "Component": "combined u_c",
+            "u per axis (mm)": combined / MM,
+            "share of u_c^2 (%)": 100.0,
+            "source": "root sum of squares",
+        }
+    )
+    out.append(
+        {
+            "Component": f"expanded U (k = {COVERAGE_FACTOR:g})",
+            "u per axis (mm)": COVERAGE_FACTOR * combined / MM,
+            "share of u_c^2 (%)": np.nan,
+            "source": "about 95 % for a normal distribution",
+        }
+    )
     if loop_sigma is not None and stated_noise is not None:
-        out.append({"Component": "what the model lacks after the loop closure",
-                    "u per axis (mm)": np.sqrt(max(loop_sigma**2 - stated_noise**2, 0.0)) / MM,
-                    "share of u_c^2 (%)": np.nan, "source": "the loop-closed refit's sigma beyond the stated noise"})
+        out.append(
+            {
+                "Component": "what the model lacks after the loop closure",
+                "u per axis (mm)": np.sqrt(max(loop_sigma**2 - stated_noise**2, 0.0)) / MM,
+                "share of u_c^2 (%)": np.nan,
+                "source": "the loop-closed refit's sigma beyond the stated noise",
+            }
+        )
     return out
 
 
-def budget_table(campaign: Campaign, registrations: dict[str, Registration], laplaces: dict[str, LaplaceReport],
-                 loops: dict[str, LoopReport]) -> pd.DataFrame:
+def budget_table(
+    campaign: Campaign,
+    registrations: dict[str, Registration],
+    laplaces: dict[str, LaplaceReport],
+    loops: dict[str, LoopReport],
+) -> pd.DataFrame:
     """The uncertainty budget of every sensor of a campaign (see the module docstring); loops:
     sensor -> the loop closure's report (`LoopReport.read`: its sigma after)."""
     out = []

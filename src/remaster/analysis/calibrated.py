@@ -37,16 +37,25 @@ from ..campaigns.campaign import Campaign
 from ..errors import InputError
 from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
-from ..robot.kinematics import KinematicChain, origin_transform
 from ..loop.report import LoopReport
+from ..robot.kinematics import KinematicChain, origin_transform
 from ..units import DEG
 from . import dh_table
 from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 
 URDF_BLOCKS = ("zero_offsets", "link_geometry")  # what the joint origins hold
 SIGN = "true joint angle = controller reading + correction: add the correction to the controller's zero"
-OFFSET_COLUMNS = ["joint", "model", "correction_deg", "std_deg", "q2.5_deg", "q97.5_deg", "correction_rad", "std_rad",
-                  "status"]
+OFFSET_COLUMNS = [
+    "joint",
+    "model",
+    "correction_deg",
+    "std_deg",
+    "q2.5_deg",
+    "q97.5_deg",
+    "correction_rad",
+    "std_rad",
+    "status",
+]
 
 
 def _path(root: ET.Element, base: str, flange: str) -> list[ET.Element]:
@@ -85,8 +94,14 @@ def nominal_urdf(chain: KinematicChain) -> str:
         _set_origin(joint, chain.joint_transforms[j])
         ET.SubElement(joint, "axis", xyz=" ".join(repr(float(v)) for v in chain.joint_axes[j]))
         if bounded:
-            ET.SubElement(joint, "limit", lower=repr(float(chain.lower[j])), upper=repr(float(chain.upper[j])),
-                          effort="0", velocity="0")
+            ET.SubElement(
+                joint,
+                "limit",
+                lower=repr(float(chain.lower[j])),
+                upper=repr(float(chain.upper[j])),
+                effort="0",
+                velocity="0",
+            )
     tool = ET.SubElement(root, "joint", name=f"{chain.name}_flange_fixed", type="fixed")
     ET.SubElement(tool, "parent", link=links[-2])
     ET.SubElement(tool, "child", link=links[-1])
@@ -106,7 +121,7 @@ def calibrated_urdf(chain: KinematicChain, values: Mapping[str, float]) -> tuple
         origin = origin_transform(element, f"joint {element.get('name')}")
         _set_origin(element, origin @ np.linalg.inv(chain.joint_transforms[j]) @ joints[j])
     left = []
-    after = path[path.index(movable[-1]) + 1:]
+    after = path[path.index(movable[-1]) + 1 :]
     if np.any(tool != chain.tool_transform):
         if after:
             last = after[-1]
@@ -129,9 +144,14 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
         rows = table[~table["block"].isin(URDF_BLOCKS + SETUP_BLOCKS)]
         for block, part in rows.groupby("block", sort=False):
             out["effects"][str(block)] = {
-                str(r["parameter"]): {"value": float(r["mean_display"]), "unit": str(r["unit"]),
-                                      "std": None if pd.isna(r["std_display"]) else float(r["std_display"]),
-                                      "status": str(r["status"])} for _, r in part.iterrows()}
+                str(r["parameter"]): {
+                    "value": float(r["mean_display"]),
+                    "unit": str(r["unit"]),
+                    "std": None if pd.isna(r["std_display"]) else float(r["std_display"]),
+                    "status": str(r["status"]),
+                }
+                for _, r in part.iterrows()
+            }
     out["payload"] = {"mass_kg": calibration.settings.payload_mass, "com_m": list(calibration.settings.payload_com)}
     out["not_in_urdf"] = list(left)
     out.update(extra)
@@ -147,12 +167,19 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str) -> pd.DataF
         r = table.loc[f"zero_offsets.q{j + 1}"]
         estimated = str(r["status"]) == "estimated"
         value = float(r["mean"])
-        rows.append({"joint": joint, "model": model, "correction_deg": value / DEG,
-                     "std_deg": float(r["std"]) / DEG if estimated else np.nan,
-                     "q2.5_deg": float(r["q2.5"]) / DEG if estimated else np.nan,
-                     "q97.5_deg": float(r["q97.5"]) / DEG if estimated else np.nan,
-                     "correction_rad": value, "std_rad": float(r["std"]) if estimated else np.nan,
-                     "status": str(r["status"])})
+        rows.append(
+            {
+                "joint": joint,
+                "model": model,
+                "correction_deg": value / DEG,
+                "std_deg": float(r["std"]) / DEG if estimated else np.nan,
+                "q2.5_deg": float(r["q2.5"]) / DEG if estimated else np.nan,
+                "q97.5_deg": float(r["q97.5"]) / DEG if estimated else np.nan,
+                "correction_rad": value,
+                "std_rad": float(r["std"]) if estimated else np.nan,
+                "status": str(r["status"]),
+            }
+        )
     return pd.DataFrame(rows, columns=OFFSET_COLUMNS)
 
 
@@ -167,8 +194,9 @@ class CalibratedFiles:
     offsets: pd.DataFrame
 
 
-def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport,
-                     label: str = "") -> CalibratedFiles:
+def calibrated_stage(
+    campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport, label: str = ""
+) -> CalibratedFiles:
     """The calibrated URDFs of the paper's and the loop-closed model of one sensor of a campaign,
     the loop's effects a URDF cannot hold, and both models' controller offsets. summary: the fit's
     summary.csv; loop_report: loop_closure.json."""
@@ -178,52 +206,87 @@ def calibrated_stage(campaign: Campaign, sensor: str, summary: pd.DataFrame, loo
     paper_urdf, _ = calibrated_urdf(chain, paper.values)
     loop_urdf, left = calibrated_urdf(chain, loop.values)
     gp = loop_report.residual_gp or {}
-    extra = {"campaign": campaign.name, "sensor": sensor, "robot": dict(campaign.robot).get("serial", ""),
-             "effects_added": list(loop_report.effects_added),
-             "urdf_source": "the campaign's URDF" if chain.urdf_xml is not None else "generated from the DH table",
-             "residual_gp": ("not in the URDF: its training rows are loop_closure/residual_gp.parquet, its "
-                             "hyperparameters loop_closure.json residual_gp" if gp.get("added") else "not added")}
-    offsets = pd.concat([controller_offsets(chain.joint_names, summary, "paper"),
-                         controller_offsets(chain.joint_names, table, "loop")], ignore_index=True)
+    extra = {
+        "campaign": campaign.name,
+        "sensor": sensor,
+        "robot": dict(campaign.robot).get("serial", ""),
+        "effects_added": list(loop_report.effects_added),
+        "urdf_source": "the campaign's URDF" if chain.urdf_xml is not None else "generated from the DH table",
+        "residual_gp": (
+            "not in the URDF: its training rows are loop_closure/residual_gp.parquet, its "
+            "hyperparameters loop_closure.json residual_gp"
+            if gp.get("added")
+            else "not added"
+        ),
+    }
+    offsets = pd.concat(
+        [controller_offsets(chain.joint_names, summary, "paper"), controller_offsets(chain.joint_names, table, "loop")],
+        ignore_index=True,
+    )
     return CalibratedFiles(paper_urdf, loop_urdf, effects_yaml(loop, table, left, extra), offsets)
 
 
-def calibrated_dh_tables(campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport,
-                         label: str = "") -> dict[str, dict]:
+def calibrated_dh_tables(
+    campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport, label: str = ""
+) -> dict[str, dict]:
     """{'paper', 'loop': calibrated DH table} of a campaign given as a DH table
     (`dh_table.calibrated_dh`, checked at every configuration of the sensor's rows), each in the form
     of campaign.yaml's robot/dh with what it holds and how exactly."""
     if "dh" not in campaign.robot:
-        raise InputError("the campaign gives no DH table (robot/dh): no calibrated DH table to write",
-                         file=f"{campaign.name}/campaign.yaml", key="robot/dh")
+        raise InputError(
+            "the campaign gives no DH table (robot/dh): no calibrated DH table to write",
+            file=f"{campaign.name}/campaign.yaml",
+            key="robot/dh",
+        )
     out = {}
     for calibration in (paper_calibration(summary, label=label), loop_calibration(loop_report, label=label)):
-        table = dh_table.calibrated_dh(campaign.chain, campaign.robot["dh"], calibration.values,
-                                       campaign.sensors[sensor].q())
-        out[calibration.model] = {"campaign": campaign.name, "sensor": sensor, "model": calibration.model,
-                                  "convention_note": SIGN + "; here it is already in theta", **table,
-                                  "holds": "zero-offsets (theta) and link geometry (a, alpha, d, flange); the "
-                                           "loop-closed model's other effects are in loop_effects.yaml"}
+        table = dh_table.calibrated_dh(
+            campaign.chain, campaign.robot["dh"], calibration.values, campaign.sensors[sensor].q()
+        )
+        out[calibration.model] = {
+            "campaign": campaign.name,
+            "sensor": sensor,
+            "model": calibration.model,
+            "convention_note": SIGN + "; here it is already in theta",
+            **table,
+            "holds": "zero-offsets (theta) and link geometry (a, alpha, d, flange); the "
+            "loop-closed model's other effects are in loop_effects.yaml",
+        }
     return out
 
 
-FILES = {"paper.urdf": "the paper's model: zero-offsets in the joint origins",
-         "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins",
-         "loop_effects.yaml": "the loop-closed model's effects a URDF cannot hold",
-         "controller_offsets.csv": "zero-offset corrections for the controller, both models"}
-DH_FILES = {"paper_dh.yaml": "the paper's model as the campaign's DH table (robot/dh form)",
-            "loop_dh.yaml": "the loop-closed model as the campaign's DH table (robot/dh form), exact or not"}
+FILES = {
+    "paper.urdf": "the paper's model: zero-offsets in the joint origins",
+    "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins",
+    "loop_effects.yaml": "the loop-closed model's effects a URDF cannot hold",
+    "controller_offsets.csv": "zero-offset corrections for the controller, both models",
+}
+DH_FILES = {
+    "paper_dh.yaml": "the paper's model as the campaign's DH table (robot/dh form)",
+    "loop_dh.yaml": "the loop-closed model as the campaign's DH table (robot/dh form), exact or not",
+}
 
 
 def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """One campaign's controller offsets, every sensor ({sensor: `OFFSET_COLUMNS` frame}), display
     columns: Sensor, Model, Joint, Correction (deg), Std (deg), 95 % interval (deg), Correction (rad),
     Status."""
-    frames = [pd.DataFrame({"Sensor": sensor, "Model": f["model"], "Joint": f["joint"],
-                            "Correction (deg)": f["correction_deg"], "Std (deg)": f["std_deg"],
-                            "2.5% (deg)": f["q2.5_deg"], "97.5% (deg)": f["q97.5_deg"],
-                            "Correction (rad)": f["correction_rad"], "Status": f["status"]})
-              for sensor, f in offsets.items()]
+    frames = [
+        pd.DataFrame(
+            {
+                "Sensor": sensor,
+                "Model": f["model"],
+                "Joint": f["joint"],
+                "Correction (deg)": f["correction_deg"],
+                "Std (deg)": f["std_deg"],
+                "2.5% (deg)": f["q2.5_deg"],
+                "97.5% (deg)": f["q97.5_deg"],
+                "Correction (rad)": f["correction_rad"],
+                "Status": f["status"],
+            }
+        )
+        for sensor, f in offsets.items()
+    ]
     return pd.concat(frames, ignore_index=True)
 
 
@@ -231,5 +294,10 @@ def files_table(campaign: str, sensors, dh: bool = False) -> pd.DataFrame:
     """Sensor, File (path from the results folder, where report.html is), What: the calibrated files
     (with the DH tables when the campaign gives one)."""
     files = {**FILES, **(DH_FILES if dh else {})}
-    return pd.DataFrame([{"Sensor": s, "File": f"{campaign}/{s}/calibrated/{name}", "What": what}
-                         for s in sensors for name, what in files.items()])
+    return pd.DataFrame(
+        [
+            {"Sensor": s, "File": f"{campaign}/{s}/calibrated/{name}", "What": what}
+            for s in sensors
+            for name, what in files.items()
+        ]
+    )

@@ -42,24 +42,73 @@ ESTIMATED = "estimated"
 DH_DIGITS = 9  # DH values are rounded to 1e-9 (m, rad) before they are hashed
 
 OVER_TIME_COLUMNS = ["campaign", "date", "robot", "sensor", "kind", "parameter", "mean_deg", "std_deg", "status"]
-_PAIR_COLUMNS = ["mean_a_deg", "std_a_deg", "mean_b_deg", "std_b_deg", "diff_deg", "combined_std_deg", "z",
-                 "flagged", "status"]
-DRIFT_COLUMNS = ["robot", "kind", "parameter", "campaign_a", "date_a", "sensor_a", "campaign_b", "date_b",
-                 "sensor_b"] + _PAIR_COLUMNS
+_PAIR_COLUMNS = [
+    "mean_a_deg",
+    "std_a_deg",
+    "mean_b_deg",
+    "std_b_deg",
+    "diff_deg",
+    "combined_std_deg",
+    "z",
+    "flagged",
+    "status",
+]
+DRIFT_COLUMNS = [
+    "robot",
+    "kind",
+    "parameter",
+    "campaign_a",
+    "date_a",
+    "sensor_a",
+    "campaign_b",
+    "date_b",
+    "sensor_b",
+] + _PAIR_COLUMNS
 AGREEMENT_COLUMNS = ["campaign", "date", "robot", "parameter", "sensor_a", "sensor_b"] + _PAIR_COLUMNS
 
 # The loop closure's registration and noise belong to one campaign's set-up; its marker offset and
 # scale to one sensor: compared over time within a sensor kind, never between two sensors.
 CAMPAIGN_BLOCKS = ("registration", "noise")
 SENSOR_BLOCKS = ("marker_offset", "sensor_scale")
-LOOP_OVER_TIME_COLUMNS = ["campaign", "date", "robot", "sensor", "kind", "block", "parameter", "unit", "mean", "std",
-                          "status", "effects"]
+LOOP_OVER_TIME_COLUMNS = [
+    "campaign",
+    "date",
+    "robot",
+    "sensor",
+    "kind",
+    "block",
+    "parameter",
+    "unit",
+    "mean",
+    "std",
+    "status",
+    "effects",
+]
 NO_EFFECTS = "none"  # the effects of a loop-closure model that added none (the paper's blocks only)
 _LOOP_PAIR_COLUMNS = [c.removesuffix("_deg") for c in _PAIR_COLUMNS]
-LOOP_DRIFT_COLUMNS = ["robot", "kind", "block", "parameter", "unit", "campaign_a", "date_a", "sensor_a", "campaign_b",
-                      "date_b", "sensor_b"] + _LOOP_PAIR_COLUMNS
-LOOP_AGREEMENT_COLUMNS = ["campaign", "date", "robot", "block", "parameter", "unit", "sensor_a", "sensor_b"] + \
-    _LOOP_PAIR_COLUMNS
+LOOP_DRIFT_COLUMNS = [
+    "robot",
+    "kind",
+    "block",
+    "parameter",
+    "unit",
+    "campaign_a",
+    "date_a",
+    "sensor_a",
+    "campaign_b",
+    "date_b",
+    "sensor_b",
+] + _LOOP_PAIR_COLUMNS
+LOOP_AGREEMENT_COLUMNS = [
+    "campaign",
+    "date",
+    "robot",
+    "block",
+    "parameter",
+    "unit",
+    "sensor_a",
+    "sensor_b",
+] + _LOOP_PAIR_COLUMNS
 
 
 class Entry(NamedTuple):
@@ -118,13 +167,18 @@ def robot_identity(campaign: Any) -> str:
         return f"urdf:{name}:{robot.get('base') or ''}:{robot.get('flange') or ''}"
     if robot.get("dh"):
         dh = robot["dh"]
-        content = {"convention": dh.get("convention", "standard"), "rows": _rounded(dh["rows"]),
-                   "flange": None if dh.get("flange") is None else _rounded(dh["flange"])}
+        content = {
+            "convention": dh.get("convention", "standard"),
+            "rows": _rounded(dh["rows"]),
+            "flange": None if dh.get("flange") is None else _rounded(dh["flange"]),
+        }
         digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:12]
         return f"dh:{content['convention']}:{digest}"
     if robot.get("joints"):
-        return f"chain:{robot.get('name', '')}:{robot.get('base') or ''}:{robot.get('flange') or ''}:" \
-               f"{len(robot['joints'])} joints"
+        return (
+            f"chain:{robot.get('name', '')}:{robot.get('base') or ''}:{robot.get('flange') or ''}:"
+            f"{len(robot['joints'])} joints"
+        )
     raise InputError("names no robot model (urdf or dh, or a summary's chain)", key="robot")
 
 
@@ -152,18 +206,24 @@ def _zero_offsets(entry: Entry, label: str) -> pd.DataFrame:
     missing = [c for c in ("mean", "std", "status") if c not in summary.columns]
     if missing:
         raise InputError("missing column(s) of a posterior summary", file=label, key=", ".join(missing))
-    names = sorted((str(n) for n in summary.index if str(n).startswith(ZERO_OFFSET_PREFIX)),
-                   key=lambda n: int(n[len(ZERO_OFFSET_PREFIX):]))
+    names = sorted(
+        (str(n) for n in summary.index if str(n).startswith(ZERO_OFFSET_PREFIX)),
+        key=lambda n: int(n[len(ZERO_OFFSET_PREFIX) :]),
+    )
     if not names:
         raise InputError(f"no {ZERO_OFFSET_PREFIX}N parameters", file=label, key="parameter")
     rows = summary.loc[names]
     held = rows["status"].astype(str) != ESTIMATED
-    return pd.DataFrame({
-        "parameter": names,
-        "mean_deg": [display_value(n, v) for n, v in zip(names, rows["mean"].astype(float))],
-        "std_deg": [np.nan if h else display_value(n, v) for n, v, h in zip(names, rows["std"].astype(float), held)],
-        "status": rows["status"].astype(str).to_numpy(),
-    })
+    return pd.DataFrame(
+        {
+            "parameter": names,
+            "mean_deg": [display_value(n, v) for n, v in zip(names, rows["mean"].astype(float))],
+            "std_deg": [
+                np.nan if h else display_value(n, v) for n, v, h in zip(names, rows["std"].astype(float), held)
+            ],
+            "status": rows["status"].astype(str).to_numpy(),
+        }
+    )
 
 
 def _entries(entries: Iterable) -> list[Entry]:
@@ -175,8 +235,9 @@ def _entries(entries: Iterable) -> list[Entry]:
         if (entry.campaign, entry.sensor) in seen:
             raise InputError("given twice", file=label)
         seen.add((entry.campaign, entry.sensor))
-        checked.append(entry._replace(date=_iso_date(entry.date, label), robot=entry.robot or "",
-                                      kind=entry.kind or entry.sensor))
+        checked.append(
+            entry._replace(date=_iso_date(entry.date, label), robot=entry.robot or "", kind=entry.kind or entry.sensor)
+        )
     return checked
 
 
@@ -199,8 +260,16 @@ def _long_table(entries: Iterable, rows_of, columns: list[str]) -> pd.DataFrame:
     for entry in _entries(entries):
         rows = rows_of(entry, f"{entry.campaign}/{entry.sensor}")
         if rows is not None:
-            frames.append(rows.assign(campaign=entry.campaign, date=entry.date, robot=entry.robot,
-                                      sensor=entry.sensor, kind=entry.kind, position=np.arange(len(rows))))
+            frames.append(
+                rows.assign(
+                    campaign=entry.campaign,
+                    date=entry.date,
+                    robot=entry.robot,
+                    sensor=entry.sensor,
+                    kind=entry.kind,
+                    position=np.arange(len(rows)),
+                )
+            )
     if not frames:
         return pd.DataFrame(columns=columns)
     table = pd.concat(frames, ignore_index=True)
@@ -213,8 +282,9 @@ def _long_table(entries: Iterable, rows_of, columns: list[str]) -> pd.DataFrame:
 # --------------------------------------------------------------------------- comparisons
 
 
-def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, significance: float,
-             unit: str = "_deg") -> pd.DataFrame:
+def _compare(
+    a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, significance: float, unit: str = "_deg"
+) -> pd.DataFrame:
     """Per parameter of a or b (rows of an over-time table, parameters in a's order then b's): the
     pair columns of b - a, named with `unit` ('_deg': mean_a_deg, ...; '': mean_a, ...). Where the
     rows carry a `unit` column, estimates in different units are not comparable. Where they carry
@@ -251,12 +321,26 @@ def _compare(a: pd.DataFrame, b: pd.DataFrame, label_a: str, label_b: str, signi
         if differ:
             why = [differ]
         if why:
-            row.update({f"diff{unit}": np.nan, f"combined_std{unit}": np.nan, "z": np.nan, "flagged": False,
-                        "status": "not comparable: " + "; ".join(why)})
+            row.update(
+                {
+                    f"diff{unit}": np.nan,
+                    f"combined_std{unit}": np.nan,
+                    "z": np.nan,
+                    "flagged": False,
+                    "status": "not comparable: " + "; ".join(why),
+                }
+            )
         else:
             diff = row[f"mean_b{unit}"] - row[f"mean_a{unit}"]
-            row.update({f"diff{unit}": diff, f"combined_std{unit}": combined, "z": diff / combined,
-                        "flagged": bool(abs(diff / combined) > significance), "status": "compared"})
+            row.update(
+                {
+                    f"diff{unit}": diff,
+                    f"combined_std{unit}": combined,
+                    "z": diff / combined,
+                    "flagged": bool(abs(diff / combined) > significance),
+                    "status": "compared",
+                }
+            )
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -286,7 +370,7 @@ def sensor_pairs(table: pd.DataFrame):
     for _, group in table.groupby("campaign", sort=False):
         sensors = paper_order(group["sensor"].unique())
         for i, sensor_a in enumerate(sensors):
-            for sensor_b in sensors[i + 1:]:
+            for sensor_b in sensors[i + 1 :]:
                 yield group[group["sensor"] == sensor_a], group[group["sensor"] == sensor_b]
 
 
@@ -298,9 +382,18 @@ def _drift_pairs(table: pd.DataFrame, significance: float, unit: str) -> list[pd
         pair = _compare(a, b, first, second, significance, unit)
         if "block" in table.columns:
             pair = _described(pair, pd.concat([a, b]))
-        pairs.append(pair.assign(robot=robot, kind=kind, campaign_a=first, date_a=a["date"].iloc[0],
-                                 sensor_a=a["sensor"].iloc[0], campaign_b=second, date_b=b["date"].iloc[0],
-                                 sensor_b=b["sensor"].iloc[0]))
+        pairs.append(
+            pair.assign(
+                robot=robot,
+                kind=kind,
+                campaign_a=first,
+                date_a=a["date"].iloc[0],
+                sensor_a=a["sensor"].iloc[0],
+                campaign_b=second,
+                date_b=b["date"].iloc[0],
+                sensor_b=b["sensor"].iloc[0],
+            )
+        )
     return pairs
 
 
@@ -312,8 +405,15 @@ def _agreement_pairs(table: pd.DataFrame, significance: float, unit: str) -> lis
         pair = _compare(a, b, sensor_a, sensor_b, significance, unit)
         if "block" in table.columns:
             pair = _described(pair, pd.concat([a, b]))
-        pairs.append(pair.assign(campaign=a["campaign"].iloc[0], date=a["date"].iloc[0], robot=a["robot"].iloc[0],
-                                 sensor_a=sensor_a, sensor_b=sensor_b))
+        pairs.append(
+            pair.assign(
+                campaign=a["campaign"].iloc[0],
+                date=a["date"].iloc[0],
+                robot=a["robot"].iloc[0],
+                sensor_a=sensor_a,
+                sensor_b=sensor_b,
+            )
+        )
     return pairs
 
 
@@ -352,17 +452,24 @@ def _loop_rows(entry: Entry, label: str) -> pd.DataFrame | None:
         return None
     if not isinstance(loop, pd.DataFrame):
         raise InputError(f"loop-closure parameters must be a DataFrame, got {type(loop).__name__}", file=label)
-    missing = [c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status")
-               if c not in loop.columns]
+    missing = [
+        c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status") if c not in loop.columns
+    ]
     if missing:
-        raise InputError("missing column(s) of the loop closure's parameter table", file=label,
-                         key=", ".join(missing))
+        raise InputError("missing column(s) of the loop closure's parameter table", file=label, key=", ".join(missing))
     rows = loop[~loop["block"].isin(CAMPAIGN_BLOCKS)]
     estimated = rows["status"].astype(str) == ESTIMATED
-    return pd.DataFrame({"block": rows["block"].astype(str), "parameter": rows["parameter"].astype(str),
-                         "unit": rows["unit"].astype(str), "mean": rows["mean_display"].astype(float),
-                         "std": rows["std_display"].astype(float).where(estimated),
-                         "status": rows["status"].astype(str), "effects": loop_effects(loop)}).reset_index(drop=True)
+    return pd.DataFrame(
+        {
+            "block": rows["block"].astype(str),
+            "parameter": rows["parameter"].astype(str),
+            "unit": rows["unit"].astype(str),
+            "mean": rows["mean_display"].astype(float),
+            "std": rows["std_display"].astype(float).where(estimated),
+            "status": rows["status"].astype(str),
+            "effects": loop_effects(loop),
+        }
+    ).reset_index(drop=True)
 
 
 def loop_effects(loop: pd.DataFrame) -> str:
@@ -401,16 +508,27 @@ def loop_parameter_agreement(entries: Iterable, significance: float = 3.0) -> pd
     return _joined(_agreement_pairs(table, significance, ""), LOOP_AGREEMENT_COLUMNS)
 
 
-def entries_of(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame],
-               loops: Mapping[tuple[str, str], LoopReport] | None = None) -> list[Entry]:
+def entries_of(
+    metadata: Mapping[str, Mapping],
+    summaries: Mapping[tuple[str, str], pd.DataFrame],
+    loops: Mapping[tuple[str, str], LoopReport] | None = None,
+) -> list[Entry]:
     """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping), each
     sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table) and, when
     given, its loop closure's report ((campaign, sensor) -> `LoopReport.read`)."""
     loops = loops or {}
-    return [Entry(campaign, metadata[campaign]["date"], sensor, summary, robot_identity(metadata[campaign]),
-                  metadata[campaign]["sensors"][sensor]["kind"],
-                  loops[(campaign, sensor)].parameters if (campaign, sensor) in loops else None)
-            for (campaign, sensor), summary in summaries.items()]
+    return [
+        Entry(
+            campaign,
+            metadata[campaign]["date"],
+            sensor,
+            summary,
+            robot_identity(metadata[campaign]),
+            metadata[campaign]["sensors"][sensor]["kind"],
+            loops[(campaign, sensor)].parameters if (campaign, sensor) in loops else None,
+        )
+        for (campaign, sensor), summary in summaries.items()
+    ]
 
 
 def drift_calibration(drift: pd.DataFrame, significance: float = 3.0) -> pd.DataFrame:
@@ -422,18 +540,23 @@ def drift_calibration(drift: pd.DataFrame, significance: float = 3.0) -> pd.Data
     not there), flagged, and expected_flagged = pairs * P(|N(0, 1)| > significance).
     """
     compared = drift[drift["status"] == "compared"]
-    table = compared.groupby("parameter", sort=False).agg(pairs=("z", "size"), z_mean=("z", "mean"),
-                                                          z_std=("z", "std"), flagged=("flagged", "sum"))
+    table = compared.groupby("parameter", sort=False).agg(
+        pairs=("z", "size"), z_mean=("z", "mean"), z_std=("z", "std"), flagged=("flagged", "sum")
+    )
     import scipy.special
 
     table["expected_flagged"] = table["pairs"] * 2.0 * scipy.special.ndtr(-significance)
     return table.reset_index()
 
 
-TABLES = {"zero_offsets_over_time": lambda entries, significance: zero_offsets_over_time(entries),
-          "drift_between_campaigns": drift_between, "sensor_agreement": sensor_agreement,
-          "loop_parameters_over_time": lambda entries, significance: loop_parameters_over_time(entries),
-          "loop_parameter_drift": loop_parameter_drift, "loop_parameter_agreement": loop_parameter_agreement}
+TABLES = {
+    "zero_offsets_over_time": lambda entries, significance: zero_offsets_over_time(entries),
+    "drift_between_campaigns": drift_between,
+    "sensor_agreement": sensor_agreement,
+    "loop_parameters_over_time": lambda entries, significance: loop_parameters_over_time(entries),
+    "loop_parameter_drift": loop_parameter_drift,
+    "loop_parameter_agreement": loop_parameter_agreement,
+}
 LOOP_TABLES = ("loop_parameters_over_time", "loop_parameter_drift", "loop_parameter_agreement")
 
 
@@ -449,9 +572,12 @@ def robot_slug(identity: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in identity)[:80]
 
 
-def comparison_tables(metadata: Mapping[str, Mapping], summaries: Mapping[tuple[str, str], pd.DataFrame],
-                      loops: Mapping[tuple[str, str], LoopReport], significance: float = 3.0
-                      ) -> dict[str, pd.DataFrame]:
+def comparison_tables(
+    metadata: Mapping[str, Mapping],
+    summaries: Mapping[tuple[str, str], pd.DataFrame],
+    loops: Mapping[tuple[str, str], LoopReport],
+    significance: float = 3.0,
+) -> dict[str, pd.DataFrame]:
     """Every table of TABLES, from the arguments of `entries_of`."""
     entries = entries_of(metadata, summaries, loops)
     return {name: table(name, entries, significance) for name in TABLES}

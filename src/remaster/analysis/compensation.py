@@ -112,14 +112,24 @@ class CalibratedRobot:
         drawn = self.held_drawn(frame)
         if drawn:
             joints = ", ".join(n.split(".")[-1] for n in drawn)
-            out.append(f"{frame} frame: the zero-offset of {joints}, which these data do not see, is at the controller's "
-                       f"mark and drawn at its tolerance ({np.degrees(self.held_tolerance):.3g} deg) in the bounds")
+            out.append(
+                f"{frame} frame: the zero-offset of {joints}, which these data do not see, is at the controller's "
+                f"mark and drawn at its tolerance ({np.degrees(self.held_tolerance):.3g} deg) in the bounds"
+            )
         if frame == "robot" and self.absorbed:
-            out.append("--frame sensor gives positions in this campaign's sensor set-up, where the registration holds "
-                       f"the zero-offset of {', '.join(n.split('.')[-1] for n in sorted(self.absorbed))}")
+            out.append(
+                "--frame sensor gives positions in this campaign's sensor set-up, where the registration holds "
+                f"the zero-offset of {', '.join(n.split('.')[-1] for n in sorted(self.absorbed))}"
+            )
         if not self.at_marker and ("marker_offset" in self.calibration.blocks or self.gp is not None):
-            left = [n for n, has in (("marker offset", "marker_offset" in self.calibration.blocks),
-                                     ("residual GP", self.gp is not None)) if has]
+            left = [
+                n
+                for n, has in (
+                    ("marker offset", "marker_offset" in self.calibration.blocks),
+                    ("residual GP", self.gp is not None),
+                )
+                if has
+            ]
             out.append(f"the loop's {' and '.join(left)} were measured at the marker: not applied to a TCP")
         if self.samples.empty:
             out.append("no posterior samples: no bounds")
@@ -194,8 +204,9 @@ def _setup_values(table: pd.DataFrame) -> dict[str, float]:
     return {str(n): float(v) for n, v in zip(table["parameter"], table["mean"]) if str(n) in SETUP}
 
 
-def _posterior_rows(samples: pd.DataFrame, calibration: Calibration, setup: Mapping[str, float],
-                    label: str) -> pd.DataFrame:
+def _posterior_rows(
+    samples: pd.DataFrame, calibration: Calibration, setup: Mapping[str, float], label: str
+) -> pd.DataFrame:
     """The sample columns of every free parameter (robot and set-up) and sigma; empty without samples."""
     if samples is None or samples.empty:
         return pd.DataFrame()
@@ -207,14 +218,18 @@ def _posterior_rows(samples: pd.DataFrame, calibration: Calibration, setup: Mapp
     return samples[names].astype(float).reset_index(drop=True)
 
 
-def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mapping, tcp=None,
-                     label: str = "") -> CalibratedRobot:
+def calibrated_robot(
+    campaign: Campaign, sensor: str, model: str, results: Mapping, tcp=None, label: str = ""
+) -> CalibratedRobot:
     """The calibrated robot of a campaign's sensor from its results (`cli.read_sensor_results`:
     registration, laplace, summary, paper_samples, loop, loop_samples, gp). tcp (3,) m in the
     flange frame, or None for the sensor's marker."""
     if sensor not in campaign.sensors:
-        raise InputError(f"no sensor {sensor!r} in the campaign (known: {', '.join(campaign.sensors)})",
-                         file=campaign.name, key="sensors")
+        raise InputError(
+            f"no sensor {sensor!r} in the campaign (known: {', '.join(campaign.sensors)})",
+            file=campaign.name,
+            key="sensors",
+        )
     if model not in MODELS:
         raise InputError(f"unknown model {model!r} (known: {', '.join(MODELS)})", key="model")
     loop = results["loop"]
@@ -228,14 +243,29 @@ def calibrated_robot(campaign: Campaign, sensor: str, model: str, results: Mappi
         samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.residual_gp)
     laplace = results["laplace"]
     held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
-    absorbed = frozenset(n for direction in laplace.null_directions
-                         if any(k.startswith("registration.") for k in direction) for n in direction if n in held)
+    absorbed = frozenset(
+        n
+        for direction in laplace.null_directions
+        if any(k.startswith("registration.") for k in direction)
+        for n in direction
+        if n in held
+    )
     tolerance = loop.held_zero_offset_std
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)
-    return CalibratedRobot(campaign.chain, calibration, np.asarray(point, dtype=float), tcp is None, setup,
-                           results["registration"].t_nr,
-                           _posterior_rows(samples, calibration, setup, label), held, tolerance, gp, absorbed)
+    return CalibratedRobot(
+        campaign.chain,
+        calibration,
+        np.asarray(point, dtype=float),
+        tcp is None,
+        setup,
+        results["registration"].t_nr,
+        _posterior_rows(samples, calibration, setup, label),
+        held,
+        tolerance,
+        gp,
+        absorbed,
+    )
 
 
 # --------------------------------------------------------------------------- inputs
@@ -250,27 +280,36 @@ def joint_commands(table: pd.DataFrame, chain: KinematicChain, label: str, requi
         return None
     missing = [n for n in names if n not in table.columns]
     if missing:
-        raise InputError(f"missing joint column(s) (got: {', '.join(map(str, table.columns))})", file=label,
-                         key=", ".join(missing))
+        raise InputError(
+            f"missing joint column(s) (got: {', '.join(map(str, table.columns))})", file=label, key=", ".join(missing)
+        )
     q = _numbers(table, names, label)
     for j, name in enumerate(names):
         outside = np.flatnonzero((q[:, j] < chain.lower[j]) | (q[:, j] > chain.upper[j]))
         if len(outside):
-            raise InputError(f"beyond the joint limits [{chain.lower[j]:.4g}, {chain.upper[j]:.4g}] rad "
-                             "(commands are in rad)", file=label, key=name, rows=outside)
+            raise InputError(
+                f"beyond the joint limits [{chain.lower[j]:.4g}, {chain.upper[j]:.4g}] rad (commands are in rad)",
+                file=label,
+                key=name,
+                rows=outside,
+            )
     return q
 
 
-def targets_or_commands(table: pd.DataFrame, chain: KinematicChain, label: str) -> tuple[np.ndarray | None,
-                                                                                        np.ndarray | None]:
+def targets_or_commands(
+    table: pd.DataFrame, chain: KinematicChain, label: str
+) -> tuple[np.ndarray | None, np.ndarray | None]:
     """(targets (n, 3) m from x, y, z or None, commands (n, N) rad from q1..qN or None) of a
     targets file: target positions with optional seed commands, or nominal commands alone."""
     q = joint_commands(table, chain, label, required=False)
     if {"x", "y", "z"} <= set(table.columns):
         return _numbers(table, ["x", "y", "z"], label), q
     if q is None:
-        raise InputError(f"neither target positions nor joint commands (got: {', '.join(map(str, table.columns))})",
-                         file=label, key=f"x, y, z or q1..q{chain.n_joints}")
+        raise InputError(
+            f"neither target positions nor joint commands (got: {', '.join(map(str, table.columns))})",
+            file=label,
+            key=f"x, y, z or q1..q{chain.n_joints}",
+        )
     return None, q
 
 
@@ -356,8 +395,10 @@ def nearest_solution(evaluate: Callable, targets, q_anchor, rotations=None) -> S
         steps = [q[active]] + [q[active] + DIFFERENCE_STEP * np.eye(n_joints)[j] for j in range(n_joints)]
         points, frames = evaluate(np.vstack(steps))
         m = len(active)
-        parts = [residual(points[k * m:(k + 1) * m], None if frames is None else frames[k * m:(k + 1) * m], active)
-                 for k in range(n_joints + 1)]
+        parts = [
+            residual(points[k * m : (k + 1) * m], None if frames is None else frames[k * m : (k + 1) * m], active)
+            for k in range(n_joints + 1)
+        ]
         r = parts[0]
         errors[active, 0] = np.linalg.norm(r[:, :3], axis=1)
         errors[active, 1] = np.linalg.norm(r[:, 3:], axis=1) if r.shape[1] > 3 else 0.0
@@ -383,12 +424,14 @@ def _nominal_evaluate(chain: KinematicChain, point) -> Callable:
     def evaluate(q):
         poses = ForwardKinematics(chain, q).flange_poses()
         return poses[:, :3, :3] @ point + poses[:, :3, 3], poses[:, :3, :3]
+
     return evaluate
 
 
 def _calibrated_evaluate(robot: CalibratedRobot) -> Callable:
     def evaluate(q):
         return robot.robot_points(q), robot.predictor(q).flange_poses(robot.calibration.values)[:, :3, :3]
+
     return evaluate
 
 
@@ -399,8 +442,11 @@ def _why_not(solution: Solution, rows, chain: KinematicChain, what: str) -> dict
         if not solution.converged[i]:
             cause = "at a singular configuration" if solution.singular[i] else "out of reach"
             turned = solution.orientation_error[i]
-            reasons[i] = (f"{what}: {cause}: no convergence, closest {solution.position_error[i] / MM:.3g} mm"
-                          + (f", {np.degrees(turned):.3g} deg" if turned > 0 else "") + " away")
+            reasons[i] = (
+                f"{what}: {cause}: no convergence, closest {solution.position_error[i] / MM:.3g} mm"
+                + (f", {np.degrees(turned):.3g} deg" if turned > 0 else "")
+                + " away"
+            )
             continue
         below, above = chain.lower - solution.q[i], solution.q[i] - chain.upper
         beyond = np.maximum(below, above)
@@ -414,13 +460,24 @@ def _seeds(targets_nominal, candidates, chain: KinematicChain, point) -> np.ndar
     """Per target, the candidate configuration (rows of candidates) whose nominal point is nearest."""
     points = ForwardKinematics(chain, candidates).points(point)
     block = max(1, 2**20 // len(points))  # targets per block: memory bounded whatever the campaign's size
-    nearest = [np.argmin(np.linalg.norm(targets_nominal[start:start + block, None, :] - points[None], axis=-1), axis=1)
-               for start in range(0, len(targets_nominal), block)]
+    nearest = [
+        np.argmin(np.linalg.norm(targets_nominal[start : start + block, None, :] - points[None], axis=-1), axis=1)
+        for start in range(0, len(targets_nominal), block)
+    ]
     return candidates[np.concatenate(nearest)] if nearest else candidates[:0]
 
 
-def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Generator, *, commands=None,
-               targets=None, seeds=None, candidates=None) -> pd.DataFrame:
+def compensate(
+    robot: CalibratedRobot,
+    frame: str,
+    count: int,
+    rng: np.random.Generator,
+    *,
+    commands=None,
+    targets=None,
+    seeds=None,
+    candidates=None,
+) -> pd.DataFrame:
     """Compensated joint commands (see the module docstring), from nominal `commands` (n, N) rad or
     from `targets` (n, 3) m in `frame` with optional `seeds` (n, N) rad, else the nearest of
     `candidates` (m, N) rad (the campaign's optimization configurations). One row per input row:
@@ -454,13 +511,20 @@ def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Ge
     ok = np.array([i not in reasons for i in range(n)])
     solution = nearest_solution(_calibrated_evaluate(robot), t_robot[ok], q0[ok], r_robot[ok])
     rows = np.flatnonzero(ok)
-    reasons.update({rows[k]: text for k, text in _why_not(solution, range(len(rows)), chain, "calibrated model").items()})
+    reasons.update(
+        {rows[k]: text for k, text in _why_not(solution, range(len(rows)), chain, "calibrated model").items()}
+    )
     q = np.full_like(q0, np.nan)
     q[rows] = solution.q
     reached = np.array([i not in reasons for i in range(n)])
 
-    table = pd.DataFrame({"row": np.arange(n), "status": np.where(reached, REACHED, NOT_REACHED),
-                          "reason": [reasons.get(i, "") for i in range(n)]})
+    table = pd.DataFrame(
+        {
+            "row": np.arange(n),
+            "status": np.where(reached, REACHED, NOT_REACHED),
+            "reason": [reasons.get(i, "") for i in range(n)],
+        }
+    )
     for k, axis in enumerate("xyz"):
         table[f"target_{axis}"] = t_frame[:, k]
     for j in range(chain.n_joints):
@@ -479,8 +543,9 @@ def compensate(robot: CalibratedRobot, frame: str, count: int, rng: np.random.Ge
         table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM
         table.loc[at, "bound95_mm"] = _bounds(draws, target)
         table.loc[at, "bound95_with_noise_mm"] = _bounds(noisy, target)
-        table.loc[at, "nominal_error_mm"] = np.linalg.norm(
-            robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
+        table.loc[at, "nominal_error_mm"] = (
+            np.linalg.norm(robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
+        )
     return table
 
 

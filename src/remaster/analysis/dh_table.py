@@ -76,8 +76,9 @@ def _frame_change(chain: KinematicChain, dh: KinematicChain) -> np.ndarray:
         axis = chain.joint_axes[j - 1]
         turned, shift = change[j, :3, 2], change[j, :3, 3]
         if not (np.allclose(turned, axis, atol=1e-9) and np.linalg.norm(np.cross(shift, axis)) < 1e-9):
-            raise KinematicsError(f"the DH table's joint {j} is not on the URDF's joint axis: they are not the same "
-                                  "chain", key="robot/dh")
+            raise KinematicsError(
+                f"the DH table's joint {j} is not on the URDF's joint axis: they are not the same chain", key="robot/dh"
+            )
     return change
 
 
@@ -103,10 +104,12 @@ def calibrated_dh(chain: KinematicChain, dh: Mapping, values: Mapping[str, float
         free = first if j == 0 else "d a alpha theta"
         part, miss = _factor(transforms[j], free)
         if miss > EXACT:
-            why = ("joint 1's axis tilted from the base's z, which a standard table without a base transform cannot "
-                   "hold" if standard and j == 0 else
-                   f"a twist after a theta of {part['theta'] / DEG:.4g} deg, neither 0 nor 180, tilts the axis out of "
-                   "the DH form")
+            why = (
+                "joint 1's axis tilted from the base's z, which a standard table without a base transform cannot hold"
+                if standard and j == 0
+                else f"a twist after a theta of {part['theta'] / DEG:.4g} deg, neither 0 nor 180, tilts the axis out of "
+                "the DH form"
+            )
             misses.append(f"F{j + 1}: {why}; the nearest DH row is written (it misses by {miss:.3g} m + rad)")
         rows[j, 3] = part["theta"]
         if standard:
@@ -132,10 +135,17 @@ def calibrated_dh(chain: KinematicChain, dh: Mapping, values: Mapping[str, float
     orientation = max(spatial.rotation_angle(g[:3, :3].T @ e[:3, :3]) for g, e in zip(got, expected))
     delta = rows - nominal
     delta[:, 3] = np.angle(np.exp(1j * delta[:, 3]))
-    return {"convention": convention, "rows": rows.tolist(), "flange": flange.tolist(),
-            "exact": not misses, "not_dh_form": misses,
-            "max_position_difference_m": position, "max_orientation_difference_rad": float(orientation),
-            "checked_at": f"{len(configurations)} configurations of the campaign",
-            "change_from_nominal": [{"a_mm": r[0] / MM, "alpha_deg": r[1] / DEG, "d_mm": r[2] / MM,
-                                     "theta_deg": r[3] / DEG} for r in delta.tolist()]}
-
+    return {
+        "convention": convention,
+        "rows": rows.tolist(),
+        "flange": flange.tolist(),
+        "exact": not misses,
+        "not_dh_form": misses,
+        "max_position_difference_m": position,
+        "max_orientation_difference_rad": float(orientation),
+        "checked_at": f"{len(configurations)} configurations of the campaign",
+        "change_from_nominal": [
+            {"a_mm": r[0] / MM, "alpha_deg": r[1] / DEG, "d_mm": r[2] / MM, "theta_deg": r[3] / DEG}
+            for r in delta.tolist()
+        ],
+    }

@@ -30,10 +30,21 @@ class FitSummary:
     accuracy: dict
 
 
-def fit_summary_stage(campaign: Campaign, campaign_label: str, sensor: str, registration: fit.Registration,
-                      laplace: fit.LaplaceReport, samples: Mapping[str, pd.DataFrame],
-                      sampler_reports: Mapping[str, dict], cross_check_settings: Mapping, rng: np.random.Generator,
-                      *, n_draws: int, n_random: int, default_method: str = "default") -> FitSummary:
+def fit_summary_stage(
+    campaign: Campaign,
+    campaign_label: str,
+    sensor: str,
+    registration: fit.Registration,
+    laplace: fit.LaplaceReport,
+    samples: Mapping[str, pd.DataFrame],
+    sampler_reports: Mapping[str, dict],
+    cross_check_settings: Mapping,
+    rng: np.random.Generator,
+    *,
+    n_draws: int,
+    n_random: int,
+    default_method: str = "default",
+) -> FitSummary:
     """Cross-check every sampler (`samples`, `sampler_reports`: method -> samples, diagnostics):
     a disagreement stops here (SamplerDisagreement), so nothing is summarized from samplers that
     disagree; then summarize the default method's samples. `campaign_label`: the campaign's folder
@@ -43,6 +54,7 @@ def fit_summary_stage(campaign: Campaign, campaign_label: str, sensor: str, regi
     summary = fit.posterior_summary(samples[default_method], laplace).reset_index()
     with_discrepancy, report = discrepancy.discrepancy_stage(campaign, sensor, registration, laplace, summary)
     remastering = fit.remastering(summary, campaign.chain.joint_names, campaign_label, sensor)
-    metrics = accuracy.accuracy_tables(campaign, sensor, registration, laplace, samples[default_method], rng,
-                                       n_draws=n_draws, n_random=n_random)
+    metrics = accuracy.accuracy_tables(
+        campaign, sensor, registration, laplace, samples[default_method], rng, n_draws=n_draws, n_random=n_random
+    )
     return FitSummary(checked, summary, with_discrepancy, report, remastering, metrics)

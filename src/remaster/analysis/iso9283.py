@@ -21,13 +21,15 @@ import pandas as pd
 
 from ..campaigns.campaign import SensorData
 from ..labels import sensor_label
-from .accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 from ..loop.closure import configuration_groups
 from ..units import MM
+from .accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 
-CANNOT_GIVE = ("orientation accuracy and repeatability (AP_a,b,c, RP_a,b,c): one marker point, not the tool's "
-               "orientation, is measured; path, distance, cornering and stabilisation characteristics (AT, RT, AD, "
-               "RD, ...): static poses only")
+CANNOT_GIVE = (
+    "orientation accuracy and repeatability (AP_a,b,c, RP_a,b,c): one marker point, not the tool's "
+    "orientation, is measured; path, distance, cornering and stabilisation characteristics (AT, RT, AD, "
+    "RD, ...): static poses only"
+)
 MODELS = ((VERNIER_LEAST_SQUARES, "controller's zero-offsets"), ("Bayesian", "remastered zero-offsets"))
 
 
@@ -57,20 +59,33 @@ def iso9283_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame
         group, _ = configuration_groups(data.table[list(data.joint_columns)].to_numpy(float))
         frame = errors[sensor]
         for method, label in MODELS:
-            part = frame[(frame["set"] == "validation") & (frame["method"] == method)
-                         & (frame["registration"] == REGISTRATION_AS_FITTED)]
+            part = frame[
+                (frame["set"] == "validation")
+                & (frame["method"] == method)
+                & (frame["registration"] == REGISTRATION_AS_FITTED)
+            ]
             rows = part["row"].to_numpy(int)
             residuals = part[["residual_x_mm", "residual_y_mm", "residual_z_mm"]].to_numpy(float) * MM
             poses = pose_characteristics(residuals, group[rows])
             repeated = poses[poses["cycles"] > 1]
-            note = (f"RP from {len(repeated)} configurations measured {int(repeated['cycles'].min())} to "
-                    f"{int(repeated['cycles'].max())} times (ISO 9283 asks for 30 cycles)" if len(repeated) else
-                    "RP not available: no configuration is measured more than once (ISO 9283 asks for 30 cycles "
-                    "to one command)")
-            out.append({"Sensor": sensor_label(sensor), "Model": label, "configurations": len(poses),
-                        "cycles": int(poses["cycles"].sum()), "AP mean (mm)": poses["AP"].mean() / MM,
-                        "AP max (mm)": poses["AP"].max() / MM,
-                        "RP mean (mm)": repeated["RP"].mean() / MM if len(repeated) else np.nan,
-                        "RP max (mm)": repeated["RP"].max() / MM if len(repeated) else np.nan,
-                        "note": note})
+            note = (
+                f"RP from {len(repeated)} configurations measured {int(repeated['cycles'].min())} to "
+                f"{int(repeated['cycles'].max())} times (ISO 9283 asks for 30 cycles)"
+                if len(repeated)
+                else "RP not available: no configuration is measured more than once (ISO 9283 asks for 30 cycles "
+                "to one command)"
+            )
+            out.append(
+                {
+                    "Sensor": sensor_label(sensor),
+                    "Model": label,
+                    "configurations": len(poses),
+                    "cycles": int(poses["cycles"].sum()),
+                    "AP mean (mm)": poses["AP"].mean() / MM,
+                    "AP max (mm)": poses["AP"].max() / MM,
+                    "RP mean (mm)": repeated["RP"].mean() / MM if len(repeated) else np.nan,
+                    "RP max (mm)": repeated["RP"].max() / MM if len(repeated) else np.nan,
+                    "note": note,
+                }
+            )
     return pd.DataFrame(out)

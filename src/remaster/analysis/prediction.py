@@ -48,16 +48,36 @@ from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chai
 from ..units import MM
 from . import comparison
 
+DEFAULT_SETTINGS = ModelSettings()  # frozen: one instance serves every default
+
 MODELS = ("nominal", "paper", "loop")
 SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise")  # one campaign's set-up: never transferred
 ESTIMATED = "estimated"
 NULL_QUANTILE = 0.95
-PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged",
-                      "status"]
-DRIFT_COLUMNS = ["robot", "kind", "model", "campaign_a", "date_a", "sensor_a", "campaign_b", "date_b", "sensor_b",
-                 "effects_a", "effects_b"] + PREDICTION_COLUMNS
-AGREEMENT_COLUMNS = ["campaign", "date", "robot", "model", "sensor_a", "sensor_b", "effects_a",
-                     "effects_b"] + PREDICTION_COLUMNS
+PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
+DRIFT_COLUMNS = [
+    "robot",
+    "kind",
+    "model",
+    "campaign_a",
+    "date_a",
+    "sensor_a",
+    "campaign_b",
+    "date_b",
+    "sensor_b",
+    "effects_a",
+    "effects_b",
+] + PREDICTION_COLUMNS
+AGREEMENT_COLUMNS = [
+    "campaign",
+    "date",
+    "robot",
+    "model",
+    "sensor_a",
+    "sensor_b",
+    "effects_a",
+    "effects_b",
+] + PREDICTION_COLUMNS
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,7 +93,7 @@ class Calibration:
     model: str
     values: Mapping[str, float] = field(default_factory=dict)
     blocks: tuple[str, ...] = ()
-    settings: ModelSettings = ModelSettings()
+    settings: ModelSettings = DEFAULT_SETTINGS
     draws: pd.DataFrame | None = None
 
     @property
@@ -100,12 +120,16 @@ class Predictor:
     gravity torques (payload from `settings`) are computed once at q, so a compliance acts as at
     those readings; nothing is measured there (measured positions are zeros)."""
 
-    def __init__(self, chain: KinematicChain, q, marker, blocks: Sequence[str] = (),
-                 settings: ModelSettings = ModelSettings()):
+    def __init__(
+        self, chain: KinematicChain, q, marker, blocks: Sequence[str] = (), settings: ModelSettings = DEFAULT_SETTINGS
+    ):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         kept = tuple(b for b in EXTENSIONS if b in blocks and b not in SETUP_BLOCKS)
-        torques = (gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
-                   if "joint_compliance" in kept else np.zeros_like(q))
+        torques = (
+            gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
+            if "joint_compliance" in kept
+            else np.zeros_like(q)
+        )
         payload = torques - gravity_torques(chain, q) if "joint_compliance" in kept else np.zeros_like(q)
         data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), torques, payload)
         self.model = BlockModel(chain, data, marker, np.eye(4), kept)
@@ -122,16 +146,25 @@ class Predictor:
         """Flange poses (n, 4, 4) in the robot frame: the joint angles the joint-space effects give
         and the links the link geometry gives (the marker offset is not the flange's)."""
         model = self.model
-        chain = (perturbed_chain(model.chain, link_errors(model.chain, values))
-                 if "link_geometry" in model.blocks else model.chain)
+        chain = (
+            perturbed_chain(model.chain, link_errors(model.chain, values))
+            if "link_geometry" in model.blocks
+            else model.chain
+        )
         return ForwardKinematics(chain, model.angles(self._vector(values))).flange_poses()
 
     def _vector(self, values: Mapping[str, float]) -> np.ndarray:
         return np.array([float(values.get(name, 0.0)) for name in self.model.all_names])
 
 
-def robot_points(chain: KinematicChain, q, marker, values: Mapping[str, float], blocks: Sequence[str] = (),
-                 settings: ModelSettings = ModelSettings()) -> np.ndarray:
+def robot_points(
+    chain: KinematicChain,
+    q,
+    marker,
+    values: Mapping[str, float],
+    blocks: Sequence[str] = (),
+    settings: ModelSettings = DEFAULT_SETTINGS,
+) -> np.ndarray:
     """Marker positions (n, 3) m in the robot frame at readings q (n, N) rad for parameter values
     {name: SI} of the base + `blocks` model (see `Predictor`)."""
     return Predictor(chain, q, marker, blocks, settings).points(values)
@@ -172,8 +205,9 @@ def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, la
     """The loop closure's model from its report (`LoopReport.read`: effects added, payload, the refit's
     parameters: parameter, block, mean SI, status) and, when given, its posterior samples."""
     table = report.parameters
-    _checked_columns(table, ("parameter", "block", "mean", "status"), label or report.source,
-                     "the loop closure's parameters")
+    _checked_columns(
+        table, ("parameter", "block", "mean", "status"), label or report.source, "the loop closure's parameters"
+    )
     kept = table[~table["block"].isin(SETUP_BLOCKS)]
     values = dict(zip(kept["parameter"].astype(str), kept["mean"].astype(float)))
     free = kept.loc[kept["status"].astype(str) == ESTIMATED, "parameter"].astype(str).tolist()
@@ -199,9 +233,15 @@ class Calibrated(NamedTuple):
         return self.sensor.kind
 
 
-def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: LaplaceReport,
-               loop: LoopReport | None = None, paper_samples: pd.DataFrame | None = None,
-               loop_samples: pd.DataFrame | None = None) -> Calibrated:
+def calibrated(
+    campaign: Campaign,
+    sensor: str,
+    summary: pd.DataFrame,
+    laplace: LaplaceReport,
+    loop: LoopReport | None = None,
+    paper_samples: pd.DataFrame | None = None,
+    loop_samples: pd.DataFrame | None = None,
+) -> Calibrated:
     """A campaign's sensor with its three calibrations, from its fit summary (summary.csv), Laplace
     report (its outlier rows) and loop-closure report (`LoopReport.read`; no loop model without it)."""
     label = f"{campaign.name}/{sensor}"
@@ -211,15 +251,23 @@ def calibrated(campaign: Campaign, sensor: str, summary: pd.DataFrame, laplace: 
     if loop is not None:
         models["loop"] = loop_calibration(loop, loop_samples, label)
     excluded = laplace.outlier_rows
-    return Calibrated(campaign.name, campaign.date.isoformat(), comparison.robot_identity(campaign),
-                      campaign.sensors[sensor], campaign.chain, models, excluded)
+    return Calibrated(
+        campaign.name,
+        campaign.date.isoformat(),
+        comparison.robot_identity(campaign),
+        campaign.sensors[sensor],
+        campaign.chain,
+        models,
+        excluded,
+    )
 
 
 # --------------------------------------------------------------------------- comparison by prediction
 
 
-def compare_predictions(chain: KinematicChain, q, marker, a: Calibration, b: Calibration, draw_pairs: int,
-                        rng: np.random.Generator) -> dict:
+def compare_predictions(
+    chain: KinematicChain, q, marker, a: Calibration, b: Calibration, draw_pairs: int, rng: np.random.Generator
+) -> dict:
     """What B predicts against what A predicts at configurations q (n, N) rad, marker (3,) m
     (flange frame, each model's marker offset added): configurations, mean_mm and p95_mm of
     |p_B - p_A| at the posterior means, draw_pairs and null_p95_of_mean_mm from `draw_pairs`
@@ -227,19 +275,33 @@ def compare_predictions(chain: KinematicChain, q, marker, a: Calibration, b: Cal
     pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
     mean_a, mean_b = pa.points(a.values), pb.points(b.values)
     distance = np.linalg.norm(mean_b - mean_a, axis=1)
-    row = {"configurations": int(len(distance)), "mean_mm": float(distance.mean() / MM),
-           "p95_mm": float(np.quantile(distance, 0.95) / MM), "draw_pairs": 0, "null_p95_of_mean_mm": np.nan,
-           "flagged": False}
+    row = {
+        "configurations": int(len(distance)),
+        "mean_mm": float(distance.mean() / MM),
+        "p95_mm": float(np.quantile(distance, 0.95) / MM),
+        "draw_pairs": 0,
+        "null_p95_of_mean_mm": np.nan,
+        "flagged": False,
+    }
     draws_a, draws_b = a.draw_values(draw_pairs, rng), b.draw_values(draw_pairs, rng)
     if draws_a is None or draws_b is None:
         missing = " and ".join(s for s, d in (("A", draws_a), ("B", draws_b)) if d is None)
         return {**row, "status": f"no null: no posterior samples of {missing}"}
-    null = np.array([np.linalg.norm((pb.points(db) - mean_b) - (pa.points(da) - mean_a), axis=1).mean()
-                     for da, db in zip(draws_a, draws_b)])
+    null = np.array(
+        [
+            np.linalg.norm((pb.points(db) - mean_b) - (pa.points(da) - mean_a), axis=1).mean()
+            for da, db in zip(draws_a, draws_b)
+        ]
+    )
     threshold = float(np.quantile(null, NULL_QUANTILE))
     flagged = bool(distance.mean() > threshold)
-    return {**row, "draw_pairs": int(len(null)), "null_p95_of_mean_mm": threshold / MM, "flagged": flagged,
-            "status": "compared"}
+    return {
+        **row,
+        "draw_pairs": int(len(null)),
+        "null_p95_of_mean_mm": threshold / MM,
+        "flagged": flagged,
+        "status": "compared",
+    }
 
 
 def _entries_frame(entries: Sequence[Calibrated]) -> pd.DataFrame:
@@ -250,9 +312,16 @@ def _entries_frame(entries: Sequence[Calibrated]) -> pd.DataFrame:
         if (e.campaign, e.sensor.name) in seen:
             raise InputError("given twice", file=f"{e.campaign}/{e.sensor.name}")
         seen.add((e.campaign, e.sensor.name))
-    return pd.DataFrame({"campaign": [e.campaign for e in entries], "date": [e.date for e in entries],
-                         "robot": [e.robot for e in entries], "sensor": [e.sensor.name for e in entries],
-                         "kind": [e.kind for e in entries], "entry": np.arange(len(entries))})
+    return pd.DataFrame(
+        {
+            "campaign": [e.campaign for e in entries],
+            "date": [e.date for e in entries],
+            "robot": [e.robot for e in entries],
+            "sensor": [e.sensor.name for e in entries],
+            "kind": [e.kind for e in entries],
+            "entry": np.arange(len(entries)),
+        }
+    )
 
 
 def robot_configurations(chain: KinematicChain, robot: str, n: int, seed: int) -> np.ndarray:
@@ -267,10 +336,25 @@ def _pair_rows(a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: i
     rows = []
     for model in [m for m in MODELS if m in a.models and m in b.models and m != "nominal"]:
         ca, cb = a.models[model], b.models[model]
-        rng = seeding.generator(seed, "comparison", comparison.robot_slug(a.robot), a.campaign, a.sensor.name,
-                                b.campaign, b.sensor.name, model)
-        rows.append({**labels, "model": model, "effects_a": ca.effects, "effects_b": cb.effects,
-                     **compare_predictions(a.chain, q, marker, ca, cb, draw_pairs, rng)})
+        rng = seeding.generator(
+            seed,
+            "comparison",
+            comparison.robot_slug(a.robot),
+            a.campaign,
+            a.sensor.name,
+            b.campaign,
+            b.sensor.name,
+            model,
+        )
+        rows.append(
+            {
+                **labels,
+                "model": model,
+                "effects_a": ca.effects,
+                "effects_b": cb.effects,
+                **compare_predictions(a.chain, q, marker, ca, cb, draw_pairs, rng),
+            }
+        )
     return rows
 
 
@@ -278,8 +362,9 @@ def _table(rows: list[dict], columns: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns) if rows else pd.DataFrame(columns=columns)
 
 
-def prediction_drift(entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0,
-                     draw_pairs: int = 200) -> pd.DataFrame:
+def prediction_drift(
+    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
+) -> pd.DataFrame:
     """Drift between consecutive campaigns of one robot and sensor kind (pairs as
     `comparison.drift_between` makes them) as the change of predicted marker position, robot
     frame, at the robot's fixed random configurations (`robot_configurations`), per model (paper,
@@ -292,14 +377,23 @@ def prediction_drift(entries: Iterable[Calibrated], n_configurations: int = 1000
         a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
         if robot not in configurations:
             configurations[robot] = robot_configurations(a.chain, robot, n_configurations, seed)
-        labels = {"robot": robot, "kind": kind, "campaign_a": a.campaign, "date_a": a.date, "sensor_a": a.sensor.name,
-                  "campaign_b": b.campaign, "date_b": b.date, "sensor_b": b.sensor.name}
+        labels = {
+            "robot": robot,
+            "kind": kind,
+            "campaign_a": a.campaign,
+            "date_a": a.date,
+            "sensor_a": a.sensor.name,
+            "campaign_b": b.campaign,
+            "date_b": b.date,
+            "sensor_b": b.sensor.name,
+        }
         rows += _pair_rows(a, b, configurations[robot], a.sensor.marker, draw_pairs, seed, labels)
     return _table(rows, DRIFT_COLUMNS)
 
 
-def prediction_agreement(entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0,
-                         draw_pairs: int = 200) -> pd.DataFrame:
+def prediction_agreement(
+    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
+) -> pd.DataFrame:
     """The sensors' agreement within each campaign (pairs as `comparison.sensor_agreement` makes
     them) as the difference of predicted positions, robot frame, at the robot's fixed random
     configurations, per model. The point is the midpoint of the two sensors' nominal markers,
@@ -313,8 +407,13 @@ def prediction_agreement(entries: Iterable[Calibrated], n_configurations: int = 
         if a.robot not in configurations:
             configurations[a.robot] = robot_configurations(a.chain, a.robot, n_configurations, seed)
         a, b = _without_marker_offset(a), _without_marker_offset(b)
-        labels = {"campaign": a.campaign, "date": a.date, "robot": a.robot, "sensor_a": a.sensor.name,
-                  "sensor_b": b.sensor.name}
+        labels = {
+            "campaign": a.campaign,
+            "date": a.date,
+            "robot": a.robot,
+            "sensor_a": a.sensor.name,
+            "sensor_b": b.sensor.name,
+        }
         marker = (np.asarray(a.sensor.marker) + np.asarray(b.sensor.marker)) / 2.0
         rows += _pair_rows(a, b, configurations[a.robot], marker, draw_pairs, seed, labels)
     return _table(rows, AGREEMENT_COLUMNS)
@@ -328,20 +427,25 @@ def _without_marker_offset(entry: Calibrated) -> Calibrated:
         if "marker_offset" not in c.blocks:
             return c
         draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
-        return Calibration(c.model, {k: v for k, v in c.values.items() if k not in names},
-                           tuple(b for b in c.blocks if b != "marker_offset"), c.settings, draws)
+        return Calibration(
+            c.model,
+            {k: v for k, v in c.values.items() if k not in names},
+            tuple(b for b in c.blocks if b != "marker_offset"),
+            c.settings,
+            draws,
+        )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
 
 
-
-
-
-def calibrated_entries(campaigns: Mapping[str, Campaign], summaries: Mapping[tuple[str, str], pd.DataFrame],
-                       laplaces: Mapping[tuple[str, str], LaplaceReport],
-                       loops: Mapping[tuple[str, str], LoopReport] | None = None,
-                       paper_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
-                       loop_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None) -> list[Calibrated]:
+def calibrated_entries(
+    campaigns: Mapping[str, Campaign],
+    summaries: Mapping[tuple[str, str], pd.DataFrame],
+    laplaces: Mapping[tuple[str, str], LaplaceReport],
+    loops: Mapping[tuple[str, str], LoopReport] | None = None,
+    paper_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
+    loop_samples: Mapping[tuple[str, str], pd.DataFrame] | None = None,
+) -> list[Calibrated]:
     """`calibrated` for every (campaign, sensor) of `summaries`: campaigns {name: Campaign}, the
     others {(campaign, sensor): its summary.csv, Laplace report (`LaplaceReport.read`), loop report (`LoopReport.read`),
     samples_default.parquet, loop_closure/samples.parquet} (loops and samples optional)."""
@@ -352,16 +456,35 @@ def calibrated_entries(campaigns: Mapping[str, Campaign], summaries: Mapping[tup
             raise InputError("a fit summary of a campaign that was not given", file=f"{name}/{sensor}")
         if (name, sensor) not in laplaces:
             raise InputError("no Laplace report", file=f"{name}/{sensor}", key="laplace.json")
-        out.append(calibrated(campaigns[name], sensor, summary, laplaces[(name, sensor)], loops.get((name, sensor)),
-                              paper_samples.get((name, sensor)), loop_samples.get((name, sensor))))
+        out.append(
+            calibrated(
+                campaigns[name],
+                sensor,
+                summary,
+                laplaces[(name, sensor)],
+                loops.get((name, sensor)),
+                paper_samples.get((name, sensor)),
+                loop_samples.get((name, sensor)),
+            )
+        )
     return out
 
 
 PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement": prediction_agreement}
 
 
-def prediction_table(name: str, campaigns, summaries, laplaces, loops=None, paper_samples=None, loop_samples=None,
-                     n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200) -> pd.DataFrame:
+def prediction_table(
+    name: str,
+    campaigns,
+    summaries,
+    laplaces,
+    loops=None,
+    paper_samples=None,
+    loop_samples=None,
+    n_configurations: int = 1000,
+    seed: int = 0,
+    draw_pairs: int = 200,
+) -> pd.DataFrame:
     """One of PREDICTION_TABLES by name, of the campaigns' calibrations (arguments as
     `calibrated_entries`)."""
     if name not in PREDICTION_TABLES:
@@ -372,18 +495,18 @@ def prediction_table(name: str, campaigns, summaries, laplaces, loops=None, pape
 
 CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
-                "each campaign's validation set of the same sensor, registration refitted on that campaign's "
-                "optimization set with the calibration's kinematics frozen (registration, sensor scale and drift "
-                "not transferred); the diagonal is the ordinary validation.",
+    "each campaign's validation set of the same sensor, registration refitted on that campaign's "
+    "optimization set with the calibration's kinematics frozen (registration, sensor scale and drift "
+    "not transferred); the diagonal is the ordinary validation.",
     "transfer_nominal": "Transfer heat-map, nominal kinematics: validation RMSE (mm), calibrated on (rows) against "
-                        "evaluated on (columns)",
+    "evaluated on (columns)",
     "transfer_paper": "Transfer heat-map, the paper's model: validation RMSE (mm), calibrated on (rows) against "
-                      "evaluated on (columns)",
+    "evaluated on (columns)",
     "transfer_loop": "Transfer heat-map, the loop closure's model: validation RMSE (mm), calibrated on (rows) "
-                     "against evaluated on (columns)",
+    "against evaluated on (columns)",
     "prediction_drift": "Drift between consecutive campaigns of one robot and sensor kind as the change of "
-                        "predicted marker position (robot frame, mm) over one fixed set of random configurations; "
-                        "flagged where the mean change exceeds the 95th percentile of its posterior null.",
+    "predicted marker position (robot frame, mm) over one fixed set of random configurations; "
+    "flagged where the mean change exceeds the 95th percentile of its posterior null.",
     "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
-                            "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
+    "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
 }

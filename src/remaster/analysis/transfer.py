@@ -30,8 +30,17 @@ from ..robot import registration
 from ..units import MM
 from .prediction import MODELS, Calibrated, Calibration, calibrated_entries
 
-TRANSFER_COLUMNS = ["robot", "sensor", "model", "calibrated_on", "evaluated_on", "points", "rmse_mm", "mean_mm",
-                    "p95_mm"]
+TRANSFER_COLUMNS = [
+    "robot",
+    "sensor",
+    "model",
+    "calibrated_on",
+    "evaluated_on",
+    "points",
+    "rmse_mm",
+    "mean_mm",
+    "p95_mm",
+]
 MIN_REGISTRATION_POINTS = 3
 
 
@@ -60,8 +69,12 @@ def _summary(errors: np.ndarray) -> dict:
     """points, rmse_mm, mean_mm, p95_mm of errors (n,) m (NaN without errors)."""
     if errors.size == 0:
         return {"points": 0, "rmse_mm": np.nan, "mean_mm": np.nan, "p95_mm": np.nan}
-    return {"points": int(errors.size), "rmse_mm": float(np.sqrt(np.mean(errors**2)) / MM),
-            "mean_mm": float(errors.mean() / MM), "p95_mm": float(np.quantile(errors, 0.95) / MM)}
+    return {
+        "points": int(errors.size),
+        "rmse_mm": float(np.sqrt(np.mean(errors**2)) / MM),
+        "mean_mm": float(errors.mean() / MM),
+        "p95_mm": float(np.quantile(errors, 0.95) / MM),
+    }
 
 
 def transfer_table(entries: Iterable[Calibrated]) -> pd.DataFrame:
@@ -86,15 +99,21 @@ def transfer_table(entries: Iterable[Calibrated]) -> pd.DataFrame:
             for target in entries:
                 if (target.robot, target.sensor.name) != (source.robot, source.sensor.name):
                     continue
-                rows.append({"robot": source.robot, "sensor": source.sensor.name, "model": model,
-                             "calibrated_on": source.campaign, "evaluated_on": target.campaign,
-                             **_summary(transfer_errors(source.models[model], target))})
+                rows.append(
+                    {
+                        "robot": source.robot,
+                        "sensor": source.sensor.name,
+                        "model": model,
+                        "calibrated_on": source.campaign,
+                        "evaluated_on": target.campaign,
+                        **_summary(transfer_errors(source.models[model], target)),
+                    }
+                )
     if not rows:
         return pd.DataFrame(columns=TRANSFER_COLUMNS)
     table = pd.DataFrame(rows, columns=TRANSFER_COLUMNS)
     table["model_order"] = table["model"].map({m: i for i, m in enumerate(MODELS)})
-    return (table.sort_values(["robot", "sensor", "model_order"], kind="stable")[TRANSFER_COLUMNS]
-            .reset_index(drop=True))
+    return table.sort_values(["robot", "sensor", "model_order"], kind="stable")[TRANSFER_COLUMNS].reset_index(drop=True)
 
 
 def transfer_stage(campaigns, summaries, laplaces, loops=None) -> pd.DataFrame:
@@ -102,8 +121,18 @@ def transfer_stage(campaigns, summaries, laplaces, loops=None) -> pd.DataFrame:
     return transfer_table(calibrated_entries(campaigns, summaries, laplaces, loops))
 
 
-def prediction_stage(campaigns, summaries, laplaces, loops, paper_samples, loop_samples, *, n_configurations: int,
-                     seed: int, draw_pairs: int) -> dict[str, pd.DataFrame]:
+def prediction_stage(
+    campaigns,
+    summaries,
+    laplaces,
+    loops,
+    paper_samples,
+    loop_samples,
+    *,
+    n_configurations: int,
+    seed: int,
+    draw_pairs: int,
+) -> dict[str, pd.DataFrame]:
     """The comparisons by prediction (arguments as `prediction.calibrated_entries`): the transfer
     table, then every table of `prediction.PREDICTION_TABLES` at `n_configurations` random
     configurations per robot (from `seed`), with `draw_pairs` posterior draw pairs."""
@@ -111,6 +140,16 @@ def prediction_stage(campaigns, summaries, laplaces, loops, paper_samples, loop_
 
     out = {"transfer": transfer_stage(campaigns, summaries, laplaces, loops)}
     for name in PREDICTION_TABLES:
-        out[name] = prediction_table(name, campaigns, summaries, laplaces, loops, paper_samples, loop_samples,
-                                     n_configurations=n_configurations, seed=seed, draw_pairs=draw_pairs)
+        out[name] = prediction_table(
+            name,
+            campaigns,
+            summaries,
+            laplaces,
+            loops,
+            paper_samples,
+            loop_samples,
+            n_configurations=n_configurations,
+            seed=seed,
+            draw_pairs=draw_pairs,
+        )
     return out

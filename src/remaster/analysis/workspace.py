@@ -59,8 +59,8 @@ from ..errors import InputError
 from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
-from ..loop.report import LoopReport
 from ..inference.model import SIGMA
+from ..loop.report import LoopReport
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import DEG, MM, shown
 from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
@@ -73,13 +73,25 @@ THEORETICAL_TABLES = {  # paper table: (configurations, with noise)
 }
 CONFIGURATIONS = {"optimization": "measured (optimization set)", "random": "random across the joint limits"}
 FRAMES = {"registered": "registration fitted", "robot": "robot frame, held joints at the controller's marks"}
-CLAIM_COLUMNS = ["model", "configurations", "frame", "noise", "mean_mm", "q2.5_mm", "q97.5_mm", "p95_mm",
-                 "p95_bound_mm", "count"]
+CLAIM_COLUMNS = [
+    "model",
+    "configurations",
+    "frame",
+    "noise",
+    "mean_mm",
+    "q2.5_mm",
+    "q97.5_mm",
+    "p95_mm",
+    "p95_bound_mm",
+    "count",
+]
 WORKSPACE_RATIO = 2.0
 MIN_RANGE_FRACTION = 0.5
 MIN_TOOL_SPREAD_DEG = 30.0
-HELD_NOTE = ("held zero-offsets ({held}) are held in the draws, as in the paper's rows: these robot-frame numbers "
-             "hold up to a rotation about base Z that only a registration fixes")
+HELD_NOTE = (
+    "held zero-offsets ({held}) are held in the draws, as in the paper's rows: these robot-frame numbers "
+    "hold up to a rotation about base Z that only a registration fixes"
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,9 +116,15 @@ def _summary(distances_m, **labels) -> dict:
     summary = metrics.interval_summary(values)
     p95 = float(np.quantile(values, 0.95)) if values.size else np.nan
     bound = float(np.quantile(np.quantile(distances, 0.95, axis=-1), 0.95)) if values.size else np.nan
-    return {**labels, "mean_mm": summary["mean"] / MM, "q2.5_mm": summary["q2.5"] / MM,
-            "q97.5_mm": summary["q97.5"] / MM, "p95_mm": p95 / MM, "p95_bound_mm": bound / MM,
-            "count": summary["count"]}
+    return {
+        **labels,
+        "mean_mm": summary["mean"] / MM,
+        "q2.5_mm": summary["q2.5"] / MM,
+        "q97.5_mm": summary["q97.5"] / MM,
+        "p95_mm": p95 / MM,
+        "p95_bound_mm": bound / MM,
+        "count": summary["count"],
+    }
 
 
 def _with_noise(points, sigma, rng: np.random.Generator):
@@ -147,20 +165,36 @@ def measured_coverage(chain: KinematicChain, q, marker) -> dict:
 
 def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
     """What the next campaign should add, from the measured coverage and the prior-dominated parameters."""
-    out = [f"joint {j + 1} over more of its range (measured: {100 * f:.0f} % of it)"
-           for j, f in enumerate(coverage["joint_range_fraction"]) if f < MIN_RANGE_FRACTION]
+    out = [
+        f"joint {j + 1} over more of its range (measured: {100 * f:.0f} % of it)"
+        for j, f in enumerate(coverage["joint_range_fraction"])
+        if f < MIN_RANGE_FRACTION
+    ]
     if coverage["tool_axis_spread_deg"] < MIN_TOOL_SPREAD_DEG:
-        out.append(f"tool orientations (every measured flange axis lies within "
-                   f"{coverage['tool_axis_spread_deg']:.0f} deg of one direction)")
+        out.append(
+            f"tool orientations (every measured flange axis lies within "
+            f"{coverage['tool_axis_spread_deg']:.0f} deg of one direction)"
+        )
     if dominated:
         out.append("poses that move " + ", ".join(dominated) + " (the data barely moved them from their prior)")
     return out
 
 
-def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, paper_summary: pd.DataFrame,
-                       laplace: LaplaceReport, loop_report: LoopReport, loop_samples: pd.DataFrame,
-                       rng: np.random.Generator, n_draws: int = 2000, n_random: int = 1000, seed: int = 0,
-                       label: str = "", loop_gp_rows: pd.DataFrame | None = None) -> WorkspaceAccuracy:
+def workspace_accuracy(
+    chain: KinematicChain,
+    sensor: SensorData,
+    robot: str,
+    paper_summary: pd.DataFrame,
+    laplace: LaplaceReport,
+    loop_report: LoopReport,
+    loop_samples: pd.DataFrame,
+    rng: np.random.Generator,
+    n_draws: int = 2000,
+    n_random: int = 1000,
+    seed: int = 0,
+    label: str = "",
+    loop_gp_rows: pd.DataFrame | None = None,
+) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
     module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
     parameters); loop_report, loop_samples: the loop closure's report (`LoopReport.read`) and its MCMC
@@ -172,8 +206,11 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
     std at each configuration, independently per configuration), and the noise is the GP's white
     part: far from the data its variance, back to its prior, is what the claim carries."""
     if loop_samples is None or loop_samples.empty or SIGMA not in loop_samples.columns:
-        raise InputError("the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
-                         file=label, key="samples")
+        raise InputError(
+            "the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
+            file=label,
+            key="samples",
+        )
     loop = loop_calibration(loop_report, loop_samples, label)
     paper = paper_calibration(paper_summary, None, label)
     rows = rng.choice(len(loop_samples), n_draws, replace=len(loop_samples) < n_draws)
@@ -206,37 +243,85 @@ def workspace_accuracy(chain: KinematicChain, sensor: SensorData, robot: str, pa
         for table, (table_where, noise) in THEORETICAL_TABLES.items():
             if table_where == where:
                 distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
-                theoretical.append({"table": table, "method": LOOP_METHOD,
-                                    **{k: v for k, v in _summary(distances).items()
-                                       if k not in ("p95_mm", "p95_bound_mm")}})
+                theoretical.append(
+                    {
+                        "table": table,
+                        "method": LOOP_METHOD,
+                        **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
+                    }
+                )
         for model, mean in (("paper", paper_points), ("loop", loop_mean)):
             for noise, reference in (("with noise", noisy), ("without noise", points)):
-                claims.append(_summary(metrics.registered_distances(mean, reference), model=model,
-                                       configurations=where, frame="registered", noise=noise))
-            claims.append(_summary(np.linalg.norm(noisy - mean, axis=-1), model=model,
-                                   configurations=where, frame="robot", noise="with noise"))
+                claims.append(
+                    _summary(
+                        metrics.registered_distances(mean, reference),
+                        model=model,
+                        configurations=where,
+                        frame="registered",
+                        noise=noise,
+                    )
+                )
+            claims.append(
+                _summary(
+                    np.linalg.norm(noisy - mean, axis=-1),
+                    model=model,
+                    configurations=where,
+                    frame="robot",
+                    noise="with noise",
+                )
+            )
     claims = pd.DataFrame(claims, columns=CLAIM_COLUMNS)
     # what no campaign can see (absorbed by a registration, or without effect) anywhere in the joint space
     nowhere = sorted(identifiable_extension(loop.predictor(chain, q_sets["random"], sensor.marker).model).dropped)
-    return WorkspaceAccuracy(pd.DataFrame(theoretical), claims,
-                             _report(chain, sensor, claims, loop, loop_report, held, tolerance, n_draws, n_random,
-                                     nowhere, (len(used), len(measured))))
+    return WorkspaceAccuracy(
+        pd.DataFrame(theoretical),
+        claims,
+        _report(
+            chain,
+            sensor,
+            claims,
+            loop,
+            loop_report,
+            held,
+            tolerance,
+            n_draws,
+            n_random,
+            nowhere,
+            (len(used), len(measured)),
+        ),
+    )
 
 
-def claim_rows(claims: pd.DataFrame, model: str, configurations: str, frame: str = "registered",
-               noise: str = "with noise") -> pd.DataFrame:
+def claim_rows(
+    claims: pd.DataFrame, model: str, configurations: str, frame: str = "registered", noise: str = "with noise"
+) -> pd.DataFrame:
     """The rows of `claims` (`CLAIM_COLUMNS`) for one model ('paper' | 'loop'), configurations
     ('optimization' | 'random'), frame and noise: one row, or none when the model was not propagated."""
-    return claims[(claims["model"] == model) & (claims["configurations"] == configurations)
-                  & (claims["frame"] == frame) & (claims["noise"] == noise)]
+    return claims[
+        (claims["model"] == model)
+        & (claims["configurations"] == configurations)
+        & (claims["frame"] == frame)
+        & (claims["noise"] == noise)
+    ]
 
 
 def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
     return float(claim_rows(claims, model, where)["mean_mm"].iloc[0])
 
 
-def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, tolerance, n_draws, n_random,
-            nowhere, measured_used: tuple[int, int]) -> dict:
+def _report(
+    chain,
+    sensor,
+    claims,
+    loop: Calibration,
+    loop_report: LoopReport,
+    held,
+    tolerance,
+    n_draws,
+    n_random,
+    nowhere,
+    measured_used: tuple[int, int],
+) -> dict:
     dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
     coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
     suggestions = _suggestions(coverage, dominated)
@@ -244,33 +329,54 @@ def _report(chain, sensor, claims, loop: Calibration, loop_report: LoopReport, h
     for model in ("paper", "loop"):
         measured, workspace = _claim(claims, model, "optimization"), _claim(claims, model, "random")
         near_only = workspace > WORKSPACE_RATIO * measured
-        holds[model] = {"measured_mean_mm": measured, "workspace_mean_mm": workspace,
-                        "ratio": workspace / measured if measured > 0 else np.inf,
-                        "holds": "near the measured poses only" if near_only else "across the joint space"}
+        holds[model] = {
+            "measured_mean_mm": measured,
+            "workspace_mean_mm": workspace,
+            "ratio": workspace / measured if measured > 0 else np.inf,
+            "holds": "near the measured poses only" if near_only else "across the joint space",
+        }
         if near_only:
-            warnings.append(f"{model} model: the workspace-wide error ({shown(workspace)} mm mean, registration fitted) "
-                            f"is {workspace / measured:.1f} x the error at the measured configurations "
-                            f"({shown(measured)} mm): the calibration holds near the measured poses only"
-                            + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else ""))
+            warnings.append(
+                f"{model} model: the workspace-wide error ({shown(workspace)} mm mean, registration fitted) "
+                f"is {workspace / measured:.1f} x the error at the measured configurations "
+                f"({shown(measured)} mm): the calibration holds near the measured poses only"
+                + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else "")
+            )
     if dominated:
-        warnings.append(f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
-                        f"though other poses would: {', '.join(dominated)}")
+        warnings.append(
+            f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
+            f"though other poses would: {', '.join(dominated)}"
+        )
     unseeable = [n for n in loop_report.prior_dominated if n in nowhere]
     if unseeable:
-        warnings.append(f"parameters no external measurement can see anywhere in the joint space (absorbed by the "
-                        f"registration or without effect), left to their prior: {', '.join(unseeable)}")
+        warnings.append(
+            f"parameters no external measurement can see anywhere in the joint space (absorbed by the "
+            f"registration or without effect), left to their prior: {', '.join(unseeable)}"
+        )
     return {
-        "campaign": loop_report.campaign, "sensor": sensor.name,
-        "loop_effects": list(loop.blocks), "draws": int(n_draws), "random_configurations": int(n_random),
-        "measured_configurations": {"used": int(measured_used[0]), "of": int(measured_used[1]),
-                                    "how": "every optimization row, or that many evenly spaced rows when there are "
-                                           "more than random configurations"},
-        "configurations": dict(CONFIGURATIONS), "frames": dict(FRAMES),
-        "held_zero_offsets": sorted(held), "held_tolerance_deg": tolerance / DEG,
+        "campaign": loop_report.campaign,
+        "sensor": sensor.name,
+        "loop_effects": list(loop.blocks),
+        "draws": int(n_draws),
+        "random_configurations": int(n_random),
+        "measured_configurations": {
+            "used": int(measured_used[0]),
+            "of": int(measured_used[1]),
+            "how": "every optimization row, or that many evenly spaced rows when there are "
+            "more than random configurations",
+        },
+        "configurations": dict(CONFIGURATIONS),
+        "frames": dict(FRAMES),
+        "held_zero_offsets": sorted(held),
+        "held_tolerance_deg": tolerance / DEG,
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
-        "holds": holds, "coverage": coverage, "prior_dominated": dominated, "unseen_anywhere": list(nowhere),
-        "next_campaign_should_add": suggestions, "warnings": warnings,
+        "holds": holds,
+        "coverage": coverage,
+        "prior_dominated": dominated,
+        "unseen_anywhere": list(nowhere),
+        "next_campaign_should_add": suggestions,
+        "warnings": warnings,
     }
 
 
@@ -284,12 +390,24 @@ def workspace_table(claims: Mapping[str, pd.DataFrame], reports: Mapping[str, di
     frames = []
     for sensor, frame in claims.items():
         holds = {m: h["holds"] for m, h in reports[sensor]["holds"].items()}
-        frames.append(pd.DataFrame({
-            "Sensor": sensor, "Model": frame["model"], "Configurations": frame["configurations"].map(CONFIGURATIONS),
-            "Frame": frame["frame"].map(FRAMES), "Noise": frame["noise"], "Mean (mm)": frame["mean_mm"],
-            "2.5% (mm)": frame["q2.5_mm"], "97.5% (mm)": frame["q97.5_mm"], "95% (mm)": frame["p95_mm"],
-            "95% bound (mm)": frame["p95_bound_mm"], "Count": frame["count"].astype(int),
-            "Holds": frame["model"].map(holds)}))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "Sensor": sensor,
+                    "Model": frame["model"],
+                    "Configurations": frame["configurations"].map(CONFIGURATIONS),
+                    "Frame": frame["frame"].map(FRAMES),
+                    "Noise": frame["noise"],
+                    "Mean (mm)": frame["mean_mm"],
+                    "2.5% (mm)": frame["q2.5_mm"],
+                    "97.5% (mm)": frame["q97.5_mm"],
+                    "95% (mm)": frame["p95_mm"],
+                    "95% bound (mm)": frame["p95_bound_mm"],
+                    "Count": frame["count"].astype(int),
+                    "Holds": frame["model"].map(holds),
+                }
+            )
+        )
     return pd.concat(frames, ignore_index=True)
 
 

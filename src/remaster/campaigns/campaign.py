@@ -22,8 +22,8 @@ import pandas as pd
 from ..errors import InputError, KinematicsError
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, KinematicChain
-from . import capacity
 from ..robot.priors import check_override
+from . import capacity
 
 SETS = ("optimization", "validation")
 SENSOR_KINDS = ("motion_capture", "laser_tracker", "other")
@@ -151,9 +151,13 @@ class Campaign:
             "description": self.description,
             "robot": self.robot,
             "sensors": {
-                name: {"kind": s.kind, "marker": [float(v) for v in s.marker],
-                       **({} if s.noise is None else {"noise": s.noise})}
-                for name, s in self.sensors.items()},
+                name: {
+                    "kind": s.kind,
+                    "marker": [float(v) for v in s.marker],
+                    **({} if s.noise is None else {"noise": s.noise}),
+                }
+                for name, s in self.sensors.items()
+            },
         }
 
 
@@ -162,18 +166,23 @@ class Campaign:
 
 def _spelling_hint(unknown, allowed) -> str:
     """' (did you mean: sensor -> sensors?)' for unknown keys close to allowed ones, else ''."""
-    guesses = [f"{k} -> {close[0]}" for k in unknown
-               if (close := difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6))]
+    guesses = [
+        f"{k} -> {close[0]}" for k in unknown if (close := difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6))
+    ]
     return f" (misspelt? {', '.join(guesses)})" if guesses else ""
 
 
-def _check_keys(section: Mapping, allowed: tuple[str, ...], where: str, source: str,
-                error: type[InputError] = InputError) -> None:
+def _check_keys(
+    section: Mapping, allowed: tuple[str, ...], where: str, source: str, error: type[InputError] = InputError
+) -> None:
     unknown = [k for k in section if k not in allowed]
     if unknown:
-        raise error(f"unknown key{'s' if len(unknown) > 1 else ''}; allowed: {', '.join(allowed)}"
-                    f"{_spelling_hint(unknown, allowed)}",
-                    file=source, key=", ".join(f"{where}/{k}" if where else str(k) for k in unknown))
+        raise error(
+            f"unknown key{'s' if len(unknown) > 1 else ''}; allowed: {', '.join(allowed)}"
+            f"{_spelling_hint(unknown, allowed)}",
+            file=source,
+            key=", ".join(f"{where}/{k}" if where else str(k) for k in unknown),
+        )
 
 
 def _mapping(value: Any, key: str, source: str, error: type[InputError] = InputError) -> Mapping:
@@ -186,8 +195,9 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def _number_list(value: Any, length: int, key: str, source: str, what: str,
-                 error: type[InputError] = InputError) -> list[float]:
+def _number_list(
+    value: Any, length: int, key: str, source: str, what: str, error: type[InputError] = InputError
+) -> list[float]:
     """A list of `length` finite numbers, or an error naming `key`."""
     if not isinstance(value, (list, tuple)) or len(value) != length or not all(_is_number(v) for v in value):
         raise error(f"must be {what}, got {value!r}", file=source, key=key)
@@ -196,8 +206,9 @@ def _number_list(value: Any, length: int, key: str, source: str, what: str,
 
 def _parse_date(value: Any, source: str) -> dt.date:
     if isinstance(value, dt.datetime):  # YAML reads '2018-06-12T10:00:00' as a datetime
-        raise InputError(f"must be an ISO date YYYY-MM-DD, got the date-time {value.isoformat()}",
-                         file=source, key="date")
+        raise InputError(
+            f"must be an ISO date YYYY-MM-DD, got the date-time {value.isoformat()}", file=source, key="date"
+        )
     if isinstance(value, dt.date):
         return value
     if isinstance(value, str) and _ISO_DATE.fullmatch(value.strip()):
@@ -222,8 +233,9 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
     checked: dict[str, Any] = {}
     if "serial" in robot:  # optional: the physical unit, so that campaigns of one robot can be compared
         if not (isinstance(robot["serial"], str) and robot["serial"].strip()):
-            raise KinematicsError(f"must be a non-empty string, got {robot['serial']!r}", file=source,
-                                  key="robot/serial")
+            raise KinematicsError(
+                f"must be a non-empty string, got {robot['serial']!r}", file=source, key="robot/serial"
+            )
         checked["serial"] = robot["serial"]
     if "priors" in robot:  # optional: this robot's tolerances for the loop closure's extension blocks
         check_override(robot["priors"], source)
@@ -238,32 +250,47 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
     else:
         frames = [k for k in ("base", "flange") if k in robot]
         if frames:
-            raise KinematicsError(f"{' and '.join(frames)} name URDF links, but there is no `urdf`",
-                                  file=source, key=f"robot/{frames[0]}")
+            raise KinematicsError(
+                f"{' and '.join(frames)} name URDF links, but there is no `urdf`", file=source, key=f"robot/{frames[0]}"
+            )
     if "dh" in robot:
         dh = _mapping(robot["dh"], "robot/dh", source, KinematicsError)
         _check_keys(dh, DH_KEYS, "robot/dh", source, KinematicsError)
         convention = dh.get("convention")
         if convention not in DH_CONVENTIONS:
-            raise KinematicsError(f"must be one of {', '.join(DH_CONVENTIONS)}, got {convention!r}",
-                                  file=source, key="robot/dh/convention")
+            raise KinematicsError(
+                f"must be one of {', '.join(DH_CONVENTIONS)}, got {convention!r}",
+                file=source,
+                key="robot/dh/convention",
+            )
         rows = dh.get("rows")
         if not isinstance(rows, (list, tuple)) or not rows:
-            raise KinematicsError(f"must be a non-empty list of [a, alpha, d, theta] rows, got {rows!r}",
-                                  file=source, key="robot/dh/rows")
-        malformed = [i for i, row in enumerate(rows) if not (
-            isinstance(row, (list, tuple)) and len(row) == 4 and all(_is_number(v) for v in row))]
+            raise KinematicsError(
+                f"must be a non-empty list of [a, alpha, d, theta] rows, got {rows!r}", file=source, key="robot/dh/rows"
+            )
+        malformed = [
+            i
+            for i, row in enumerate(rows)
+            if not (isinstance(row, (list, tuple)) and len(row) == 4 and all(_is_number(v) for v in row))
+        ]
         if malformed:
-            raise KinematicsError("each row must be 4 finite numbers [a (m), alpha (rad), d (m), theta (rad)]",
-                                  file=source, key="robot/dh/rows", rows=malformed)
+            raise KinematicsError(
+                "each row must be 4 finite numbers [a (m), alpha (rad), d (m), theta (rad)]",
+                file=source,
+                key="robot/dh/rows",
+                rows=malformed,
+            )
         checked["dh"] = {"convention": convention, "rows": [[float(v) for v in row] for row in rows]}
         if dh.get("flange") is not None:
             flange = dh["flange"]
             if not isinstance(flange, (list, tuple)) or len(flange) != 4:
-                raise KinematicsError(f"must be a 4x4 matrix (4 rows of 4 numbers), got {flange!r}",
-                                      file=source, key="robot/dh/flange")
-            checked["dh"]["flange"] = [_number_list(row, 4, "robot/dh/flange", source, "a 4x4 matrix of numbers",
-                                                    KinematicsError) for row in flange]
+                raise KinematicsError(
+                    f"must be a 4x4 matrix (4 rows of 4 numbers), got {flange!r}", file=source, key="robot/dh/flange"
+                )
+            checked["dh"]["flange"] = [
+                _number_list(row, 4, "robot/dh/flange", source, "a 4x4 matrix of numbers", KinematicsError)
+                for row in flange
+            ]
     return checked
 
 
@@ -275,11 +302,13 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
     _check_keys(spec, SENSOR_KEYS, where, source)
     kind = spec.get("kind")
     if kind not in SENSOR_KINDS:
-        raise InputError(f"unknown kind {kind!r}; use one of {', '.join(SENSOR_KINDS)}", file=source,
-                         key=f"{where}/kind")
+        raise InputError(
+            f"unknown kind {kind!r}; use one of {', '.join(SENSOR_KINDS)}", file=source, key=f"{where}/kind"
+        )
     if "marker" not in spec:
-        raise InputError("missing (the marker centre [x, y, z] in the flange frame, m)", file=source,
-                         key=f"{where}/marker")
+        raise InputError(
+            "missing (the marker centre [x, y, z] in the flange frame, m)", file=source, key=f"{where}/marker"
+        )
     marker = _number_list(spec["marker"], 3, f"{where}/marker", source, "3 finite numbers [x, y, z] (m)")
     noise = spec.get("noise")
     if noise is not None:
@@ -301,9 +330,12 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     missing = [k for k in REQUIRED_KEYS if k not in meta]
     if missing:
         unknown = [k for k in meta if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
-        raise InputError(f"missing required key{'s' if len(missing) > 1 else ''}"
-                         f"{_spelling_hint(unknown, REQUIRED_KEYS + OPTIONAL_KEYS)}",
-                         file=source, key=", ".join(missing))
+        raise InputError(
+            f"missing required key{'s' if len(missing) > 1 else ''}"
+            f"{_spelling_hint(unknown, REQUIRED_KEYS + OPTIONAL_KEYS)}",
+            file=source,
+            key=", ".join(missing),
+        )
     _check_keys(meta, REQUIRED_KEYS + OPTIONAL_KEYS, "", source)
     name = meta["name"]
     if not isinstance(name, str) or not name.strip():
@@ -332,7 +364,8 @@ def _is_text_column(series: pd.Series) -> bool:
     dtype = series.dtype
     if isinstance(dtype, pd.CategoricalDtype):
         return pd.api.types.is_object_dtype(dtype.categories.dtype) or pd.api.types.is_string_dtype(
-            dtype.categories.dtype)
+            dtype.categories.dtype
+        )
     return pd.api.types.is_object_dtype(dtype) or pd.api.types.is_string_dtype(dtype)
 
 
@@ -352,12 +385,18 @@ def _check_columns(df: pd.DataFrame, n_joints: int, source: str) -> None:
     required = KEY_COLUMNS + joints + POSITION_COLUMNS
     missing = [c for c in required if c not in df.columns]
     if missing:
-        raise InputError(f"missing column(s) (the robot has {n_joints} joints, so q1..q{n_joints} are needed)",
-                         file=source, key=", ".join(missing))
+        raise InputError(
+            f"missing column(s) (the robot has {n_joints} joints, so q1..q{n_joints} are needed)",
+            file=source,
+            key=", ".join(missing),
+        )
     extra_joints = [c for c in df.columns if _JOINT_COLUMN.fullmatch(c) and c not in joints]
     if extra_joints:
-        raise InputError(f"joint column(s) that the robot does not have: it has {n_joints} joints, "
-                         f"columns q1..q{n_joints}", file=source, key=", ".join(extra_joints))
+        raise InputError(
+            f"joint column(s) that the robot does not have: it has {n_joints} joints, columns q1..q{n_joints}",
+            file=source,
+            key=", ".join(extra_joints),
+        )
 
 
 def _check_dtypes(df: pd.DataFrame, n_joints: int, source: str) -> None:
@@ -366,12 +405,17 @@ def _check_dtypes(df: pd.DataFrame, n_joints: int, source: str) -> None:
     expectations = [
         (("set",), _is_text_column, "strings"),
         (("pose", "solution"), _is_integer_column, "integers (int64)"),
-        (joint_columns(n_joints) + POSITION_COLUMNS, lambda s: pd.api.types.is_float_dtype(s.dtype),
-         "floats (float64)"),
+        (
+            joint_columns(n_joints) + POSITION_COLUMNS,
+            lambda s: pd.api.types.is_float_dtype(s.dtype),
+            "floats (float64)",
+        ),
         ((TIME_COLUMN,), lambda s: pd.api.types.is_datetime64_any_dtype(s.dtype), "timestamps (UTC)"),
-        (tuple(c for c in df.columns if c not in known),
-         lambda s: (pd.api.types.is_numeric_dtype(s.dtype) or pd.api.types.is_datetime64_any_dtype(s.dtype)),
-         "numeric or timestamps (extra columns are carried through)"),
+        (
+            tuple(c for c in df.columns if c not in known),
+            lambda s: pd.api.types.is_numeric_dtype(s.dtype) or pd.api.types.is_datetime64_any_dtype(s.dtype),
+            "numeric or timestamps (extra columns are carried through)",
+        ),
     ]
     for columns, accepts, wanted in expectations:
         for column in columns:
@@ -394,9 +438,13 @@ def _check_joint_units(q: np.ndarray, n_joints: int, source: str, limits) -> Non
     beyond_turn = np.abs(q) > MAX_JOINT_ANGLE + JOINT_MARGIN
     if beyond_turn.any():
         bad = [c for c, b in zip(columns, beyond_turn.any(axis=0)) if b]
-        raise InputError(f"joint values beyond one turn (+-2 pi rad = +-360 deg, {margin_deg:g} deg margin), up to "
-                         f"{np.abs(q[beyond_turn]).max():.6g}: looks like degrees stored as radians (store radians)",
-                         file=source, key=", ".join(bad), rows=np.flatnonzero(beyond_turn.any(axis=1)))
+        raise InputError(
+            f"joint values beyond one turn (+-2 pi rad = +-360 deg, {margin_deg:g} deg margin), up to "
+            f"{np.abs(q[beyond_turn]).max():.6g}: looks like degrees stored as radians (store radians)",
+            file=source,
+            key=", ".join(bad),
+            rows=np.flatnonzero(beyond_turn.any(axis=1)),
+        )
     if limits is None:
         return
     lower, upper = (np.broadcast_to(np.asarray(limit, dtype=float), (n_joints,)) for limit in limits)
@@ -405,10 +453,15 @@ def _check_joint_units(q: np.ndarray, n_joints: int, source: str, limits) -> Non
         bad = np.flatnonzero(outside.any(axis=0))
         details = "; ".join(
             f"{columns[j]}: limits [{lower[j]:.4g}, {upper[j]:.4g}] rad, value {q[outside[:, j], j][0]:.6g}"
-            for j in bad)
-        raise InputError(f"joint values outside the robot's limits by more than {margin_deg:g} deg ({details}): "
-                         f"degrees stored as radians (store radians), or readings of another robot",
-                         file=source, key=", ".join(columns[j] for j in bad), rows=np.flatnonzero(outside.any(axis=1)))
+            for j in bad
+        )
+        raise InputError(
+            f"joint values outside the robot's limits by more than {margin_deg:g} deg ({details}): "
+            f"degrees stored as radians (store radians), or readings of another robot",
+            file=source,
+            key=", ".join(columns[j] for j in bad),
+            rows=np.flatnonzero(outside.any(axis=1)),
+        )
 
 
 def _check_optimization_set(sets: np.ndarray, xyz: np.ndarray, seen: np.ndarray, n_joints: int, source: str) -> None:
@@ -417,16 +470,25 @@ def _check_optimization_set(sets: np.ndarray, xyz: np.ndarray, seen: np.ndarray,
     measured = np.flatnonzero((sets == "optimization") & seen)
     needed = minimum_optimization_points(n_joints)
     if measured.size < needed:
-        raise InputError(f"the optimization set has {measured.size} configuration(s) with a measured marker; the fit "
-                         f"needs at least {needed} (3 coordinates each must outnumber the "
-                         f"{N_REGISTRATION_PARAMETERS} registration parameters, {n_joints} zero-offsets and the noise)",
-                         file=source, key="set", rows=optimization)
+        raise InputError(
+            f"the optimization set has {measured.size} configuration(s) with a measured marker; the fit "
+            f"needs at least {needed} (3 coordinates each must outnumber the "
+            f"{N_REGISTRATION_PARAMETERS} registration parameters, {n_joints} zero-offsets and the noise)",
+            file=source,
+            key="set",
+            rows=optimization,
+        )
     try:
         registration.spread_out_triple(xyz[measured])
     except InputError:
-        raise InputError(f"the measured marker positions of the optimization set all lie on one line (a triangle "
-                         f"through them is under {registration.MIN_SPREAD * 1e3:g} mm high): no sensor frame can be "
-                         f"registered from them", file=source, key="x, y, z", rows=measured) from None
+        raise InputError(
+            f"the measured marker positions of the optimization set all lie on one line (a triangle "
+            f"through them is under {registration.MIN_SPREAD * 1e3:g} mm high): no sensor frame can be "
+            f"registered from them",
+            file=source,
+            key="x, y, z",
+            rows=measured,
+        ) from None
 
 
 def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> None:
@@ -436,13 +498,19 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> No
     unknown = np.flatnonzero([not (isinstance(s, str) and s in SETS) for s in sets])
     if unknown.size:
         values = sorted({repr(sets[i]) for i in unknown})
-        raise InputError(f"unknown set value(s) {', '.join(values)}; use {' or '.join(SETS)}",
-                         file=source, key="set", rows=unknown)
+        raise InputError(
+            f"unknown set value(s) {', '.join(values)}; use {' or '.join(SETS)}", file=source, key="set", rows=unknown
+        )
     if not np.any(sets == "optimization"):
         raise InputError("no optimization rows: the calibration needs some", file=source, key="set")
     duplicated = np.flatnonzero(df.duplicated(list(KEY_COLUMNS), keep=False).to_numpy())
     if duplicated.size:
-        raise InputError("duplicate rows: each (set, pose, solution) may appear once", file=source, key="set, pose, solution", rows=duplicated)
+        raise InputError(
+            "duplicate rows: each (set, pose, solution) may appear once",
+            file=source,
+            key="set, pose, solution",
+            rows=duplicated,
+        )
 
     q = df[list(joint_columns(n_joints))].to_numpy(dtype=float, na_value=np.nan)
     bad_q = np.flatnonzero(~np.all(np.isfinite(q), axis=1))
@@ -455,8 +523,12 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> No
     nan = np.isnan(xyz)
     partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
     if partial.size:
-        raise InputError("some but not all of x, y, z are NaN (NaN in all three marks an unseen marker)",
-                         file=source, key="x, y, z", rows=partial)
+        raise InputError(
+            "some but not all of x, y, z are NaN (NaN in all three marks an unseen marker)",
+            file=source,
+            key="x, y, z",
+            rows=partial,
+        )
     infinite = np.flatnonzero(np.isinf(xyz).any(axis=1))
     if infinite.size:
         raise InputError("infinite positions", file=source, key="x, y, z", rows=infinite)
@@ -466,13 +538,18 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> No
     if seen.any() and np.median(norms[seen]) > MAX_POSITION:
         too_far |= seen & (norms > MAX_POSITION)
     if too_far.any():
-        raise InputError(f"marker positions beyond {MAX_POSITION:g} m: looks like millimetres stored "
-                         f"as metres (store metres)", file=source, key="x, y, z", rows=np.flatnonzero(too_far))
+        raise InputError(
+            f"marker positions beyond {MAX_POSITION:g} m: looks like millimetres stored as metres (store metres)",
+            file=source,
+            key="x, y, z",
+            rows=np.flatnonzero(too_far),
+        )
     _check_optimization_set(sets, xyz, seen, n_joints, source)
 
 
-def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, source: str, *,
-                          limits=None) -> pd.DataFrame:
+def validate_sensor_table(
+    df: pd.DataFrame, n_joints: int, sensor_name: str, source: str, *, limits=None
+) -> pd.DataFrame:
     """Check one sensor's table against the contract for a robot of `n_joints` joints.
 
     `limits`: the robot's (lower, upper) joint limits (rad, +-inf when unknown); readings beyond
@@ -497,12 +574,18 @@ def validate_sensor_table(df: pd.DataFrame, n_joints: int, sensor_name: str, sou
     return table
 
 
-def sensor_data(name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joints: int, source: str, *,
-                limits=None) -> SensorData:
+def sensor_data(
+    name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joints: int, source: str, *, limits=None
+) -> SensorData:
     """SensorData from a validated sensor spec (see `validate_metadata`) and its raw table;
     `limits` as in `validate_sensor_table`."""
-    return SensorData(name=name, kind=spec["kind"], marker=np.asarray(spec["marker"], dtype=float),
-                      noise=spec["noise"], table=validate_sensor_table(table, n_joints, name, source, limits=limits))
+    return SensorData(
+        name=name,
+        kind=spec["kind"],
+        marker=np.asarray(spec["marker"], dtype=float),
+        noise=spec["noise"],
+        table=validate_sensor_table(table, n_joints, name, source, limits=limits),
+    )
 
 
 def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int = 2000) -> dict[str, Any]:
@@ -510,22 +593,42 @@ def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int 
     and the rows whose marker was not seen (kept, listed by 0-based row); and whether its jobs fit
     in `memory_limit` bytes each (None: no limit) with `draws` posterior draws in the theoretical
     accuracy: InputError before any fit when they do not (`capacity.check`)."""
-    memory = capacity.check(campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0),
-                            memory_limit, draws)
+    memory = capacity.check(
+        campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0), memory_limit, draws
+    )
     sensors = {}
     for name, sensor in campaign.sensors.items():
         table = sensor.table
         sets = {}
         for set_name in SETS:
             rows = table[sensor.set_mask(set_name)]
-            sets[set_name] = {"configurations": int(len(rows)), "poses": int(rows["pose"].nunique()),
-                              "measured": int(np.count_nonzero(sensor.measured_mask[sensor.set_mask(set_name)]))}
+            sets[set_name] = {
+                "configurations": int(len(rows)),
+                "poses": int(rows["pose"].nunique()),
+                "measured": int(np.count_nonzero(sensor.measured_mask[sensor.set_mask(set_name)])),
+            }
         extra = [c for c in table.columns if c not in KEY_COLUMNS + POSITION_COLUMNS + sensor.joint_columns]
-        sensors[name] = {"kind": sensor.kind, "marker_m": sensor.marker.tolist(), "noise_m": sensor.noise,
-                         "rows": int(len(table)), "sets": sets, "missing_rows": sensor.missing_rows.tolist(),
-                         "n_missing": sensor.n_missing, "extra_columns": extra}
+        sensors[name] = {
+            "kind": sensor.kind,
+            "marker_m": sensor.marker.tolist(),
+            "noise_m": sensor.noise,
+            "rows": int(len(table)),
+            "sets": sets,
+            "missing_rows": sensor.missing_rows.tolist(),
+            "n_missing": sensor.n_missing,
+            "extra_columns": extra,
+        }
     chain = campaign.chain
-    return {"campaign": campaign.name, "date": campaign.date.isoformat(),
-            "robot": {"name": chain.name, "serial": campaign.robot.get("serial"), "joints": list(chain.joint_names),
-                      "base": chain.base_frame, "flange": chain.flange_frame},
-            "sensors": sensors, "memory": memory}
+    return {
+        "campaign": campaign.name,
+        "date": campaign.date.isoformat(),
+        "robot": {
+            "name": chain.name,
+            "serial": campaign.robot.get("serial"),
+            "joints": list(chain.joint_names),
+            "base": chain.base_frame,
+            "flange": chain.flange_frame,
+        },
+        "sensors": sensors,
+        "memory": memory,
+    }

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from ..errors import InputError
 
-BASE_BYTES = 0.5e9       # a job's resident size with a small campaign: Python, NumPy, pandas, Numba, Pinocchio
-BYTES_PER_ROW = 36e3     # the accuracy job's per-row cost (module docstring), rounded up
+BASE_BYTES = 0.5e9  # a job's resident size with a small campaign: Python, NumPy, pandas, Numba, Pinocchio
+BYTES_PER_ROW = 36e3  # the accuracy job's per-row cost (module docstring), rounded up
 GB = 1e9
 
 
@@ -30,9 +30,12 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000) -> d
     its rows, the estimate and the limit when it does not fit."""
     need = peak_estimate(rows, draws)
     if limit is not None and need > limit:
-        raise InputError(f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
-                         f"at every configuration) would need about {need / GB:.1f} GB, more than the "
-                         f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
-                         f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
-                         f"the campaign into smaller ones (by date or by pose)", file=campaign)
+        raise InputError(
+            f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
+            f"at every configuration) would need about {need / GB:.1f} GB, more than the "
+            f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
+            f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
+            f"the campaign into smaller ones (by date or by pose)",
+            file=campaign,
+        )
     return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB}

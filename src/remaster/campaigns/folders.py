@@ -43,8 +43,10 @@ def campaign_folder(files) -> Path:
     """The folder of the one campaign whose files a job declares (`campaign_folders`)."""
     folders = campaign_folders(files)
     if len(folders) != 1:
-        raise InputError(f"a job's campaign files hold {len(folders)} {CAMPAIGN_FILE} files, not one",
-                         file=", ".join(map(str, files)) or "(no input files)")
+        raise InputError(
+            f"a job's campaign files hold {len(folders)} {CAMPAIGN_FILE} files, not one",
+            file=", ".join(map(str, files)) or "(no input files)",
+        )
     return next(iter(folders.values()))
 
 
@@ -62,8 +64,9 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
     meta = validate_metadata(read_yaml(folder / CAMPAIGN_FILE), source)
     folder_name = folder.resolve().name
     if meta["name"] != folder_name:
-        raise InputError(f"is {meta['name']!r} but the folder is named {folder_name!r}; they must be equal",
-                         file=source, key="name")
+        raise InputError(
+            f"is {meta['name']!r} but the folder is named {folder_name!r}; they must be equal", file=source, key="name"
+        )
     chain = load_chain(meta["robot"], folder, repo_root, source=source, name=meta["name"])
 
     tables = {path.stem: path for path in sorted(folder.glob("*.parquet"))}
@@ -72,19 +75,34 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
             raise InputError(f"no file {sensor}.parquet in {folder}", file=source, key=f"sensors/{sensor}")
     for stem, path in tables.items():
         if stem not in meta["sensors"]:
-            raise InputError(f"no sensor {stem!r} under `sensors` in {source}: name it there or remove the file",
-                             file=str(path), key="sensors")
+            raise InputError(
+                f"no sensor {stem!r} under `sensors` in {source}: name it there or remove the file",
+                file=str(path),
+                key="sensors",
+            )
 
     sensors = {}
     for sensor, spec in meta["sensors"].items():
         path = tables[sensor]
-        sensors[sensor] = sensor_data(sensor, spec, read_parquet(path), chain.n_joints, str(path),
-                                      limits=(chain.lower, chain.upper))
+        sensors[sensor] = sensor_data(
+            sensor, spec, read_parquet(path), chain.n_joints, str(path), limits=(chain.lower, chain.upper)
+        )
         if sensors[sensor].n_missing:
-            log.info("%s: %d of %d rows without a measurement (marker not seen: %s)", path,
-                     sensors[sensor].n_missing, len(sensors[sensor].table), format_rows(sensors[sensor].missing_rows))
-    return Campaign(name=meta["name"], date=meta["date"], description=meta["description"],
-                    robot=plain(meta["robot"]), chain=chain, sensors=sensors)
+            log.info(
+                "%s: %d of %d rows without a measurement (marker not seen: %s)",
+                path,
+                sensors[sensor].n_missing,
+                len(sensors[sensor].table),
+                format_rows(sensors[sensor].missing_rows),
+            )
+    return Campaign(
+        name=meta["name"],
+        date=meta["date"],
+        description=meta["description"],
+        robot=plain(meta["robot"]),
+        chain=chain,
+        sensors=sensors,
+    )
 
 
 def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]) -> Path:
@@ -98,12 +116,15 @@ def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapp
     folder = Path(folder)
     for sensor in tables:
         if not isinstance(sensor, str) or not SENSOR_NAME_PATTERN.fullmatch(sensor):
-            raise InputError("a sensor name must be a file stem (letters, digits, _ . -)", file=str(folder),
-                             key=f"sensors/{sensor}")
+            raise InputError(
+                "a sensor name must be a file stem (letters, digits, _ . -)", file=str(folder), key=f"sensors/{sensor}"
+            )
     folder.mkdir(parents=True, exist_ok=True)
     order = [k for k in REQUIRED_KEYS[:2] + OPTIONAL_KEYS + REQUIRED_KEYS[2:] if k in metadata]
-    write_yaml(folder / CAMPAIGN_FILE, {**{k: metadata[k] for k in order},
-                                        **{k: v for k, v in metadata.items() if k not in order}})
+    write_yaml(
+        folder / CAMPAIGN_FILE,
+        {**{k: metadata[k] for k in order}, **{k: v for k, v in metadata.items() if k not in order}},
+    )
     for sensor, table in tables.items():
         write_parquet(folder / f"{sensor}.parquet", table)
     return folder
@@ -135,8 +156,9 @@ def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> 
     return config_dir / urdf if (config_dir / urdf).is_file() else None
 
 
-def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None,
-                    overwrite: bool = False) -> tuple[Path, dict[str, Any]]:
+def import_campaign(
+    config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None, overwrite: bool = False
+) -> tuple[Path, dict[str, Any]]:
     """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
     files, write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
     it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
@@ -154,8 +176,11 @@ def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str
     config_dir = config_path.parent
     chain = load_chain(spec.metadata["robot"], config_dir, repo_root, source=source, name=spec.metadata["name"])
     if chain.n_joints != len(spec.controller.joints):
-        raise InputError(f"names {len(spec.controller.joints)} joint columns but the robot has {chain.n_joints} joints",
-                         file=source, key="controller/joints")
+        raise InputError(
+            f"names {len(spec.controller.joints)} joint columns but the robot has {chain.n_joints} joints",
+            file=source,
+            key="controller/joints",
+        )
 
     def export(file: importer.FileSpec) -> importer.Export:
         return read_export(config_dir / file.file, file.delimiter)
@@ -169,8 +194,9 @@ def import_campaign(config_path: str | Path, raw_dir: str | Path, repo_root: str
 
     folder = Path(raw_dir) / metadata["name"]
     if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise InputError("the campaign folder exists already (import with overwrite / --force to replace it)",
-                         file=str(folder))
+        raise InputError(
+            "the campaign folder exists already (import with overwrite / --force to replace it)", file=str(folder)
+        )
     with tempfile.TemporaryDirectory() as tmp:
         staged = Path(tmp) / metadata["name"]
         write_campaign(staged, metadata, result.tables)

@@ -65,7 +65,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..errors import MAX_ROWS_SHOWN, InputError, format_rows
+from ..units import DEG
 from .campaign import (
+    _JOINT_COLUMN,
     KEY_COLUMNS,
     MAX_POSITION,
     OPTIONAL_KEYS,
@@ -75,13 +78,10 @@ from .campaign import (
     SETS,
     TIME_COLUMN,
     _check_keys,
-    _JOINT_COLUMN,
     _mapping,
     joint_columns,
     validate_metadata,
 )
-from ..errors import MAX_ROWS_SHOWN, InputError, format_rows
-from ..units import DEG
 
 REPORT_FILE = "import_report.json"
 ANGLE_UNITS = {"deg": DEG, "rad": 1.0}  # SI (rad) per unit
@@ -114,8 +114,12 @@ class Export:
     def column(self, name: str, config_key: str) -> pd.Series:
         """Cells of column `name`; InputError naming the file and the column if it is missing."""
         if name not in self.cells.columns:
-            raise InputError(f"missing column (named by `{config_key}` of the import configuration); the file has: "
-                             f"{', '.join(map(str, self.cells.columns))}", file=self.source, key=name)
+            raise InputError(
+                f"missing column (named by `{config_key}` of the import configuration); the file has: "
+                f"{', '.join(map(str, self.cells.columns))}",
+                file=self.source,
+                key=name,
+            )
         return self.cells[name]
 
     def fail(self, column: str, what: str, positions) -> InputError:
@@ -142,12 +146,18 @@ def parse_csv(text: str, source: str, delimiter: str = ",") -> Export:
                 header = record
                 duplicated = sorted({c for c in header if header.count(c) > 1})
                 if duplicated:
-                    raise InputError(f"duplicate column name(s) in the header ({_lines([start])})", file=source,
-                                     key=", ".join(duplicated))
+                    raise InputError(
+                        f"duplicate column name(s) in the header ({_lines([start])})",
+                        file=source,
+                        key=", ".join(duplicated),
+                    )
                 continue
             if len(record) != len(header):
-                raise InputError(f"{_lines([start])} has {len(record)} fields, the header has {len(header)} "
-                                 f"(delimiter {delimiter!r})", file=source)
+                raise InputError(
+                    f"{_lines([start])} has {len(record)} fields, the header has {len(header)} "
+                    f"(delimiter {delimiter!r})",
+                    file=source,
+                )
             rows.append(record)
             lines.append(start)
     except csv.Error as exc:
@@ -234,8 +244,13 @@ def _choice(section: Mapping, key: str, choices, where: str, source: str, defaul
 
 def _columns(section: Mapping, key: str, where: str, source: str, default=None, length: int | None = None):
     value = section.get(key, default)
-    if (not isinstance(value, (list, tuple)) or not value or not all(isinstance(v, str) and v for v in value)
-            or (length is not None and len(value) != length) or len(set(value)) != len(value)):
+    if (
+        not isinstance(value, (list, tuple))
+        or not value
+        or not all(isinstance(v, str) and v for v in value)
+        or (length is not None and len(value) != length)
+        or len(set(value)) != len(value)
+    ):
         wanted = f"{length} distinct column names" if length else "a list of distinct column names"
         raise InputError(f"must be {wanted}, got {value!r}", file=source, key=f"{where}/{key}")
     return tuple(value)
@@ -248,28 +263,38 @@ def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
     delimiter = _text(section, "delimiter", where, source, ",")
     decimal = _choice(section, "decimal", (".", ","), where, source, ".")
     if len(delimiter) != 1 or delimiter == decimal:
-        raise InputError(f"must be one character other than the decimal mark {decimal!r}, got {delimiter!r}",
-                         file=source, key=f"{where}/delimiter")
+        raise InputError(
+            f"must be one character other than the decimal mark {decimal!r}, got {delimiter!r}",
+            file=source,
+            key=f"{where}/delimiter",
+        )
     time_format = _text(section, "time_format", where, source, "iso")
     if time_format not in TIME_FORMATS and "%" not in time_format:
-        raise InputError(f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', "
-                         f"got {time_format!r}", file=source, key=f"{where}/time_format")
+        raise InputError(
+            f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', got {time_format!r}",
+            file=source,
+            key=f"{where}/time_format",
+        )
     timezone = _text(section, "timezone", where, source, "UTC")
     try:
         _zone(timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-        raise InputError(f"unknown time zone {timezone!r} (an IANA name such as Europe/Berlin)", file=source,
-                         key=f"{where}/timezone") from None
+        raise InputError(
+            f"unknown time zone {timezone!r} (an IANA name such as Europe/Berlin)", file=source, key=f"{where}/timezone"
+        ) from None
     carry = _columns(section, "carry", where, source) if section.get("carry") is not None else ()
     clash = sorted(c for c in carry if c in _RESERVED or _JOINT_COLUMN.fullmatch(c))
     if clash:
-        raise InputError(f"cannot carry column(s) {', '.join(clash)}: the contract uses these names",
-                         file=source, key=f"{where}/carry")
+        raise InputError(
+            f"cannot carry column(s) {', '.join(clash)}: the contract uses these names",
+            file=source,
+            key=f"{where}/carry",
+        )
     return FileSpec(file, delimiter, decimal, time_format, timezone, carry)
 
 
 def _zone(name: str) -> dt.tzinfo:
-    return dt.timezone.utc if name.upper() == "UTC" else zoneinfo.ZoneInfo(name)
+    return dt.UTC if name.upper() == "UTC" else zoneinfo.ZoneInfo(name)
 
 
 def parse_config(config: Any, source: str) -> ImportSpec:
@@ -278,54 +303,81 @@ def parse_config(config: Any, source: str) -> ImportSpec:
     _check_keys(config, REQUIRED_KEYS + OPTIONAL_KEYS + ("controller",), "", source)
     sensors = _mapping(config.get("sensors", {}), "sensors", source)
     for name, section in sensors.items():
-        _check_keys(_mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS,
-                    f"sensors/{name}", source)
+        _check_keys(
+            _mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS, f"sensors/{name}", source
+        )
     campaign_yaml = {k: v for k, v in config.items() if k != "controller"}
     if sensors:  # campaign.yaml's part of each sensor section; validate_metadata names what is missing
         campaign_yaml["sensors"] = {n: {k: v for k, v in s.items() if k in SENSOR_KEYS} for n, s in sensors.items()}
     meta = validate_metadata(campaign_yaml, source)
-    metadata = {"name": meta["name"], "date": meta["date"].isoformat(), "description": meta["description"],
-                "robot": meta["robot"],
-                "sensors": {n: {"kind": s["kind"], "marker": s["marker"].tolist(),
-                                **({} if s["noise"] is None else {"noise": s["noise"]})}
-                            for n, s in meta["sensors"].items()}}
+    metadata = {
+        "name": meta["name"],
+        "date": meta["date"].isoformat(),
+        "description": meta["description"],
+        "robot": meta["robot"],
+        "sensors": {
+            n: {
+                "kind": s["kind"],
+                "marker": s["marker"].tolist(),
+                **({} if s["noise"] is None else {"noise": s["noise"]}),
+            }
+            for n, s in meta["sensors"].items()
+        },
+    }
 
     if "controller" not in config:
         raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
     section = _mapping(config["controller"], "controller", source)
     _check_keys(section, CONTROLLER_KEYS, "controller", source)
     controller = ControllerSpec(
-        file=_file_spec(section, "controller", source), joints=_columns(section, "joints", "controller", source),
+        file=_file_spec(section, "controller", source),
+        joints=_columns(section, "joints", "controller", source),
         unit=_choice(section, "unit", tuple(ANGLE_UNITS), "controller", source),
-        **{k: _text(section, k, "controller", source) for k in ("set", "pose", "solution", "key", "time")})
+        **{k: _text(section, k, "controller", source) for k in ("set", "pose", "solution", "key", "time")},
+    )
     controller_carry = set(controller.file.carry)
 
     specs = {}
     for name, section in sensors.items():
         where = f"sensors/{name}"
         match = _choice(section, "match", MATCHES, where, source)
-        spec = SensorSpec(name=name, file=_file_spec(section, where, source),
-                          xyz=_columns(section, "xyz", where, source, list(POSITION_COLUMNS), 3),
-                          unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source), match=match,
-                          key=_text(section, "key", where, source, controller.key),
-                          time=_text(section, "time", where, source, controller.time),
-                          tolerance=section.get("tolerance"))
+        spec = SensorSpec(
+            name=name,
+            file=_file_spec(section, where, source),
+            xyz=_columns(section, "xyz", where, source, list(POSITION_COLUMNS), 3),
+            unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source),
+            match=match,
+            key=_text(section, "key", where, source, controller.key),
+            time=_text(section, "time", where, source, controller.time),
+            tolerance=section.get("tolerance"),
+        )
         needed = getattr(controller, match)
         if needed is None:
-            raise InputError(f"missing: sensor {name!r} is matched by {match}, so the controller log needs a "
-                             f"{match} column", file=source, key=f"controller/{match}")
+            raise InputError(
+                f"missing: sensor {name!r} is matched by {match}, so the controller log needs a {match} column",
+                file=source,
+                key=f"controller/{match}",
+            )
         if match == "time":
             tolerance = spec.tolerance
-            if not (isinstance(tolerance, (int, float)) and not isinstance(tolerance, bool)
-                    and math.isfinite(tolerance) and tolerance > 0):
-                raise InputError(f"must be a positive number of seconds for match: time, got {tolerance!r}",
-                                 file=source, key=f"{where}/tolerance")
+            if not (
+                isinstance(tolerance, (int, float))
+                and not isinstance(tolerance, bool)
+                and math.isfinite(tolerance)
+                and tolerance > 0
+            ):
+                raise InputError(
+                    f"must be a positive number of seconds for match: time, got {tolerance!r}",
+                    file=source,
+                    key=f"{where}/tolerance",
+                )
         elif spec.tolerance is not None:
             raise InputError("only applies to match: time", file=source, key=f"{where}/tolerance")
         clash = sorted(controller_carry & set(spec.file.carry))
         if clash:
-            raise InputError(f"column(s) {', '.join(clash)} carried from the controller log too", file=source,
-                             key=f"{where}/carry")
+            raise InputError(
+                f"column(s) {', '.join(clash)} carried from the controller log too", file=source, key=f"{where}/carry"
+            )
         specs[name] = spec
     return ImportSpec(source=source, metadata=metadata, controller=controller, sensors=specs)
 
@@ -383,8 +435,9 @@ def _parse_time(cell: str, spec: FileSpec) -> pd.Timestamp:
         if not math.isfinite(number):
             raise ValueError(cell)
         return pd.Timestamp(number, unit="s" if spec.time_format == "unix_s" else "ms", tz="UTC")
-    moment = dt.datetime.fromisoformat(cell) if spec.time_format == "iso" else dt.datetime.strptime(
-        cell, spec.time_format)
+    moment = (
+        dt.datetime.fromisoformat(cell) if spec.time_format == "iso" else dt.datetime.strptime(cell, spec.time_format)
+    )
     if moment.tzinfo is None:
         moment = moment.replace(tzinfo=_zone(spec.timezone))
     return pd.Timestamp(moment).tz_convert("UTC")
@@ -414,8 +467,13 @@ def _match_keys(controller_keys: np.ndarray, sensor_keys: np.ndarray) -> tuple[n
     return rows, [None if r >= 0 else "key not in the controller log" for r in rows]
 
 
-def _match_times(controller_times: pd.DatetimeIndex, sensor_times: pd.DatetimeIndex, tolerance: float,
-                 controller_lines: np.ndarray, sensor_lines: np.ndarray) -> tuple[np.ndarray, list[str | None]]:
+def _match_times(
+    controller_times: pd.DatetimeIndex,
+    sensor_times: pd.DatetimeIndex,
+    tolerance: float,
+    controller_lines: np.ndarray,
+    sensor_lines: np.ndarray,
+) -> tuple[np.ndarray, list[str | None]]:
     """Controller row (or -1) of each sensor row: the nearest controller time (earlier one on a tie)
     within `tolerance` s; when several sensor rows pick one controller row the nearest keeps it."""
     ct = controller_times.asi8
@@ -427,16 +485,20 @@ def _match_times(controller_times: pd.DatetimeIndex, sensor_times: pd.DatetimeIn
     nearest = np.where(np.abs(st - sorted_ct[left]) <= np.abs(sorted_ct[right] - st), left, right)
     gap = np.abs(st - sorted_ct[nearest]) / 1e9  # s
     rows = np.where(gap <= tolerance, order[nearest], -1)
-    reasons: list[str | None] = [None if r >= 0 else f"no controller time within {tolerance:g} s "
-                                 f"(nearest {gap[i]:.6g} s away)" for i, r in enumerate(rows)]
+    reasons: list[str | None] = [
+        None if r >= 0 else f"no controller time within {tolerance:g} s (nearest {gap[i]:.6g} s away)"
+        for i, r in enumerate(rows)
+    ]
     for row in np.unique(rows[rows >= 0]):
         claims = np.flatnonzero(rows == row)
         if claims.size > 1:
             winner = claims[np.lexsort((claims, gap[claims]))[0]]
             for loser in claims[claims != winner]:
                 rows[loser] = -1
-                reasons[loser] = (f"controller line {controller_lines[row]} already matched by line "
-                                  f"{sensor_lines[winner]}, {gap[winner]:.6g} s from it (this row: {gap[loser]:.6g} s)")
+                reasons[loser] = (
+                    f"controller line {controller_lines[row]} already matched by line "
+                    f"{sensor_lines[winner]}, {gap[winner]:.6g} s from it (this row: {gap[loser]:.6g} s)"
+                )
     return rows, reasons
 
 
@@ -478,8 +540,11 @@ def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
     duplicated = np.flatnonzero(keys.duplicated(keep=False).to_numpy())
     if duplicated.size:
         named = ", ".join(x for x in (c.set, c.pose, c.solution) if x) or "row order"
-        raise InputError(f"repeated (set, pose, solution) on {_lines(export.lines[duplicated])}: each may appear once",
-                         file=export.source, key=named)
+        raise InputError(
+            f"repeated (set, pose, solution) on {_lines(export.lines[duplicated])}: each may appear once",
+            file=export.source,
+            key=named,
+        )
     columns: dict[str, Any] = {"set": sets, "pose": pose, "solution": solution}
     scale = ANGLE_UNITS[c.unit]
     for name, column in zip(joint_columns(len(c.joints)), c.joints):
@@ -494,31 +559,50 @@ def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
     return {"columns": columns, "carry": _carried(export, c.file, "controller"), "key": key, "time": time}
 
 
-def _sensor_table(spec: SensorSpec, export: Export, controller: dict[str, Any], controller_export: Export,
-                  controller_spec: ControllerSpec) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+def _sensor_table(
+    spec: SensorSpec,
+    export: Export,
+    controller: dict[str, Any],
+    controller_export: Export,
+    controller_spec: ControllerSpec,
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
     """One sensor's contract table, its section of the report, and the export row of each table row."""
     where = f"sensors/{spec.name}"
-    xyz = np.column_stack([_numbers(export, c, f"{where}/xyz", spec.file.decimal, allow_missing=True)
-                           for c in spec.xyz]) * LENGTH_UNITS[spec.unit]
+    xyz = (
+        np.column_stack([_numbers(export, c, f"{where}/xyz", spec.file.decimal, allow_missing=True) for c in spec.xyz])
+        * LENGTH_UNITS[spec.unit]
+    )
     nan = np.isnan(xyz)
     partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
     if partial.size:
-        raise InputError(f"some but not all of x, y, z empty on {_lines(export.lines[partial])} "
-                         "(all three empty marks an unseen marker)", file=export.source, key=", ".join(spec.xyz))
+        raise InputError(
+            f"some but not all of x, y, z empty on {_lines(export.lines[partial])} "
+            "(all three empty marks an unseen marker)",
+            file=export.source,
+            key=", ".join(spec.xyz),
+        )
     too_far = np.flatnonzero(np.nan_to_num(np.abs(xyz)).max(axis=1) > MAX_POSITION)
     if too_far.size:
-        raise InputError(f"marker positions beyond {MAX_POSITION:g} m on {_lines(export.lines[too_far])} with "
-                         f"unit {spec.unit}: is the unit right?", file=export.source, key=", ".join(spec.xyz))
-    sensor_time = _times(export, spec.time, f"{where}/time", spec.file) if spec.time is not None and (
-        spec.match == "time" or controller["time"] is None) else None
+        raise InputError(
+            f"marker positions beyond {MAX_POSITION:g} m on {_lines(export.lines[too_far])} with "
+            f"unit {spec.unit}: is the unit right?",
+            file=export.source,
+            key=", ".join(spec.xyz),
+        )
+    sensor_time = (
+        _times(export, spec.time, f"{where}/time", spec.file)
+        if spec.time is not None and (spec.match == "time" or controller["time"] is None)
+        else None
+    )
     if spec.match == "key":
         matched_key = _keys(export, spec.key, f"{where}/key")
         rows, reasons = _match_keys(controller["key"], matched_key)
         label = "key"
         shown = matched_key
     else:
-        rows, reasons = _match_times(controller["time"], sensor_time, spec.tolerance, controller_export.lines,
-                                     export.lines)
+        rows, reasons = _match_times(
+            controller["time"], sensor_time, spec.tolerance, controller_export.lines, export.lines
+        )
         label = "time"
         shown = export.cells[spec.time].to_numpy(dtype=object)
 
@@ -550,14 +634,23 @@ def _sensor_table(spec: SensorSpec, export: Export, controller: dict[str, Any], 
     controller_shown = controller_export.cells[controller_label].to_numpy(dtype=object)
     unseen = measured & np.isnan(table["x"].to_numpy())
     report = {
-        "file": export.source, "match": spec.match, "rows": int(len(export.cells)), "matched": int(measured.sum()),
+        "file": export.source,
+        "match": spec.match,
+        "rows": int(len(export.cells)),
+        "matched": int(measured.sum()),
         **({"tolerance_s": spec.tolerance} if spec.match == "time" else {}),
-        "unmatched": [{"file": export.source, "line": int(export.lines[i]), label: str(shown[i]), "reason": reasons[i]}
-                      for i in np.flatnonzero(rows < 0)],
-        "not_measured": [{"file": controller_export.source, "line": int(controller_export.lines[i]),
-                          label: str(controller_shown[i])} for i in np.flatnonzero(~measured)],
-        "marker_not_seen": [{"file": export.source, "line": int(export.lines[source_row[i]]),
-                             label: str(shown[source_row[i]])} for i in np.flatnonzero(unseen)],
+        "unmatched": [
+            {"file": export.source, "line": int(export.lines[i]), label: str(shown[i]), "reason": reasons[i]}
+            for i in np.flatnonzero(rows < 0)
+        ],
+        "not_measured": [
+            {"file": controller_export.source, "line": int(controller_export.lines[i]), label: str(controller_shown[i])}
+            for i in np.flatnonzero(~measured)
+        ],
+        "marker_not_seen": [
+            {"file": export.source, "line": int(export.lines[source_row[i]]), label: str(shown[source_row[i]])}
+            for i in np.flatnonzero(unseen)
+        ],
     }
     return table, report, source_row
 
@@ -568,18 +661,31 @@ def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, E
     columns = _controller_columns(spec, controller)
     tables, sections, rows = {}, {}, {}
     for name, sensor in spec.sensors.items():
-        tables[name], sections[name], rows[name] = _sensor_table(sensor, sensors[name], columns, controller,
-                                                                 spec.controller)
-    report = {"campaign": spec.metadata["name"], "config": spec.source,
-              "controller": {"file": controller.source, "rows": int(len(controller.cells)),
-                             "joint_unit": spec.controller.unit},
-              "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
-              "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values())}
+        tables[name], sections[name], rows[name] = _sensor_table(
+            sensor, sensors[name], columns, controller, spec.controller
+        )
+    report = {
+        "campaign": spec.metadata["name"],
+        "config": spec.source,
+        "controller": {
+            "file": controller.source,
+            "rows": int(len(controller.cells)),
+            "joint_unit": spec.controller.unit,
+        },
+        "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
+        "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values()),
+    }
     return ImportResult(metadata=spec.metadata, tables=tables, report=report, sensor_rows=rows)
 
 
-def in_exports(exc: InputError, sensor: str | None, spec: ImportSpec, result: ImportResult, controller: Export,
-               sensors: Mapping[str, Export]) -> InputError:
+def in_exports(
+    exc: InputError,
+    sensor: str | None,
+    spec: ImportSpec,
+    result: ImportResult,
+    controller: Export,
+    sensors: Mapping[str, Export],
+) -> InputError:
     """A problem the campaign reader found in the built campaign (in table `sensor`, or None for
     campaign.yaml), named in the exports' terms: the configuration for campaign.yaml, else the CSV
     file, its columns and 1-based lines."""
@@ -594,8 +700,13 @@ def in_exports(exc: InputError, sensor: str | None, spec: ImportSpec, result: Im
         lines = export.lines[source_rows[source_rows >= 0]]
     else:  # everything else comes from the controller log, row for row
         export, lines = controller, controller.lines[rows]
-        names = {**dict(zip(joint_columns(len(c.joints)), c.joints)),
-                 **{k: getattr(c, k) or f"{k} (not a column: default)" for k in KEY_COLUMNS}}
+        names = {
+            **dict(zip(joint_columns(len(c.joints)), c.joints)),
+            **{k: getattr(c, k) or f"{k} (not a column: default)" for k in KEY_COLUMNS},
+        }
     where = f" on {_lines(lines)}" if len(lines) else ""
-    return InputError(f"{exc.reason} (campaign table {sensor}){where}", file=export.source,
-                      key=", ".join(names.get(k, k) for k in keys) or None)
+    return InputError(
+        f"{exc.reason} (campaign table {sensor}){where}",
+        file=export.source,
+        key=", ".join(names.get(k, k) for k in keys) or None,
+    )

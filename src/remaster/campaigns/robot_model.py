@@ -60,8 +60,14 @@ def _in_robot_section(exc: KinematicsError, source: str, note: str = "") -> Kine
     return KinematicsError(exc.reason + note, file=source, key=key, rows=exc.rows)
 
 
-def load_chain(robot_meta: Mapping[str, Any], folder: str | Path, repo_root: str | Path | None = None, *,
-               source: str | None = None, name: str = "dh_robot") -> KinematicChain:
+def load_chain(
+    robot_meta: Mapping[str, Any],
+    folder: str | Path,
+    repo_root: str | Path | None = None,
+    *,
+    source: str | None = None,
+    name: str = "dh_robot",
+) -> KinematicChain:
     """The kinematic chain of a campaign's `robot` section.
 
     `urdf` is looked for as `urdf_candidates` says (repo_root default: the current directory);
@@ -80,11 +86,15 @@ def load_chain(robot_meta: Mapping[str, Any], folder: str | Path, repo_root: str
         candidates = urdf_candidates(robot["urdf"], folder, repo_root)
         urdf_path = next((p for p in candidates if p.is_file()), None)
         if urdf_path is None:
-            raise KinematicsError(f"URDF file {robot['urdf']!r} not found (looked for "
-                                  f"{', '.join(str(p) for p in candidates)})", file=source, key="robot/urdf")
+            raise KinematicsError(
+                f"URDF file {robot['urdf']!r} not found (looked for {', '.join(str(p) for p in candidates)})",
+                file=source,
+                key="robot/urdf",
+            )
         try:
-            urdf_chain = chain_from_urdf(urdf_path.read_text(encoding="utf-8"), robot.get("base"),
-                                         robot.get("flange"), source=str(urdf_path))
+            urdf_chain = chain_from_urdf(
+                urdf_path.read_text(encoding="utf-8"), robot.get("base"), robot.get("flange"), source=str(urdf_path)
+            )
         except KinematicsError as exc:
             if exc.key not in ("base", "flange"):
                 raise
@@ -99,13 +109,20 @@ def load_chain(robot_meta: Mapping[str, Any], folder: str | Path, repo_root: str
         return urdf_chain or dh_chain
 
     if urdf_chain.n_joints != dh_chain.n_joints:
-        raise KinematicsError(f"urdf and dh describe different robots: the URDF chain has {urdf_chain.n_joints} "
-                              f"joints, the DH table {dh_chain.n_joints} rows", file=source, key="robot")
+        raise KinematicsError(
+            f"urdf and dh describe different robots: the URDF chain has {urdf_chain.n_joints} "
+            f"joints, the DH table {dh_chain.n_joints} rows",
+            file=source,
+            key="robot",
+        )
     rng = np.random.default_rng(CHAIN_CHECK_SEED)
     q = rng.uniform(-math.pi, math.pi, size=(CHAIN_CHECK_CONFIGURATIONS, urdf_chain.n_joints))
     difference = max_chain_difference(urdf_chain, dh_chain, q)
     if not difference <= CHAIN_TOLERANCE:
-        raise KinematicsError(f"urdf and dh describe different chains: flange poses differ by up to "
-                              f"{difference * 1e3:.4g} mm (tolerance {CHAIN_TOLERANCE * 1e3:g} mm)",
-                              file=source, key="robot")
+        raise KinematicsError(
+            f"urdf and dh describe different chains: flange poses differ by up to "
+            f"{difference * 1e3:.4g} mm (tolerance {CHAIN_TOLERANCE * 1e3:g} mm)",
+            file=source,
+            key="robot",
+        )
     return urdf_chain

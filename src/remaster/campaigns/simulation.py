@@ -92,16 +92,18 @@ def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elaps
     return true
 
 
-def true_marker_positions(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
-                          elapsed_s=None) -> np.ndarray:
+def true_marker_positions(
+    chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, elapsed_s=None
+) -> np.ndarray:
     """Where the sensor's marker really is, in the robot frame (n, 3)."""
     true_chain = perturbed_chain(chain, robot.link_errors) if robot.link_errors is not None else chain
     q_true = true_joint_angles(chain, robot, q_readings, elapsed_s)
     return ForwardKinematics(true_chain, q_true).points(sensor.marker + sensor.marker_error)
 
 
-def measure(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, rng: np.random.Generator,
-            elapsed_s=None) -> np.ndarray:
+def measure(
+    chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, rng: np.random.Generator, elapsed_s=None
+) -> np.ndarray:
     """The sensor's readings (n, 3) in its own frame, noise included."""
     p_sensor = true_sensor_positions(chain, robot, sensor, q_readings, elapsed_s)
     draw = rng.normal(0.0, sensor.noise, p_sensor.shape)
@@ -113,8 +115,9 @@ def measure(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
     return p_sensor + along + ratio * (draw - along)
 
 
-def true_sensor_positions(chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings,
-                          elapsed_s=None) -> np.ndarray:
+def true_sensor_positions(
+    chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, elapsed_s=None
+) -> np.ndarray:
     """Where the sensor's marker really is, in the sensor's frame as a noiseless sensor reads it (n, 3)."""
     p_robot = true_marker_positions(chain, robot, sensor, q_readings, elapsed_s)
     return (1.0 + sensor.scale_error) * spatial.transform_points(sensor.robot_to_sensor, p_robot)

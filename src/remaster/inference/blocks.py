@@ -119,8 +119,14 @@ def drift_variable(table: pd.DataFrame, column: str | None = None) -> tuple[np.n
         if "time" in table.columns:
             column = "time"
         else:
-            column = next((c for c in table.columns if "temperature" in c.lower()
-                           and pd.api.types.is_numeric_dtype(table[c].dtype)), None)
+            column = next(
+                (
+                    c
+                    for c in table.columns
+                    if "temperature" in c.lower() and pd.api.types.is_numeric_dtype(table[c].dtype)
+                ),
+                None,
+            )
             if column is None:
                 return None
     series = table[column]
@@ -134,8 +140,9 @@ def drift_variable(table: pd.DataFrame, column: str | None = None) -> tuple[np.n
     return (values, column, unit) if np.all(np.isfinite(values)) else None
 
 
-def readings(chain: KinematicChain, sensor: SensorData, set_name: str, settings: ModelSettings = ModelSettings(),
-             exclude=()) -> Readings:
+def readings(
+    chain: KinematicChain, sensor: SensorData, set_name: str, settings: ModelSettings = ModelSettings(), exclude=()
+) -> Readings:
     """The measured rows of one set but the table rows in `exclude` (flagged gross errors).
     Gravity torques are taken at the readings: zero-offsets of a fraction of a degree change
     them by well under 1 %, a compliance deflection of a few microradians."""
@@ -145,8 +152,15 @@ def readings(chain: KinematicChain, sensor: SensorData, set_name: str, settings:
     torques = gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
     payload = torques - gravity_torques(chain, q)
     drift = drift_variable(sensor.table, settings.drift_column)
-    return Readings(rows, q, measured, torques, payload, None if drift is None else drift[0][rows],
-                    None if drift is None else drift[2])
+    return Readings(
+        rows,
+        q,
+        measured,
+        torques,
+        payload,
+        None if drift is None else drift[0][rows],
+        None if drift is None else drift[2],
+    )
 
 
 # --------------------------------------------------------------------------- parameters of each block
@@ -192,15 +206,17 @@ def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) ->
     geometry and zero-offsets of `values` {parameter: SI} (absent ones 0), so that a robot
     commanded to q is where the calibrated model says."""
     joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors(chain, values))
-    turns = [spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
-             for j in range(chain.n_joints)]
+    turns = [
+        spatial.homogeneous(spatial.rot_axis(chain.joint_axes[j], values.get(f"zero_offsets.q{j + 1}", 0.0)))
+        for j in range(chain.n_joints)
+    ]
     return joints @ np.array(turns), tool
 
 
 def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
     """The parameters a block owns on this chain, in model order."""
     if block == "registration":  # the paper's parameters, named and scaled as `remaster.inference.model` does
-        names = parameter_names(chain.n_joints)[:len(REGISTRATION)]
+        names = parameter_names(chain.n_joints)[: len(REGISTRATION)]
         scale = np.array([display_scale(n) for n in names])
         return Parameters(names, scale, tuple(display_unit(n) for n in names))
     if block == "marker_offset":
@@ -209,20 +225,29 @@ def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None =
         return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
     if block == "link_geometry":
         labels = link_labels(chain)
-        return Parameters(tuple(name for _, _, name in labels), np.array([MM if c == 0 else DEG for _, c, _ in labels]),
-                          tuple("mm" if c == 0 else "deg" for _, c, _ in labels))
+        return Parameters(
+            tuple(name for _, _, name in labels),
+            np.array([MM if c == 0 else DEG for _, c, _ in labels]),
+            tuple("mm" if c == 0 else "deg" for _, c, _ in labels),
+        )
     rate = (DEG / SECONDS_PER_HOUR, "deg/h") if drift_unit != "K" else (DEG, "deg/K")
     joint_space = {  # block: ((name prefix, regressor), ...), scale, unit
         "zero_offsets": ((("q", "ones"),), DEG, "deg"),
         "joint_compliance": ((("q", "torques"), ("payload_q", "payload_torques")), MICRORAD_PER_NM, "urad/(N m)"),
         "joint_scale": ((("q", "q"),), PPM, "ppm"),
-        "drift": ((("q", "drift"),), *rate)}
+        "drift": ((("q", "drift"),), *rate),
+    }
     if block not in joint_space:
         raise ValueError(f"unknown block {block!r}; blocks are {BASE + EXTENSIONS}")
     kinds, scale, unit = joint_space[block]
     parts = [(f"{block}.{prefix}{j + 1}", j, regressor) for prefix, regressor in kinds for j in range(chain.n_joints)]
-    return Parameters(tuple(p[0] for p in parts), np.full(len(parts), scale), (unit,) * len(parts),
-                      tuple(p[1] for p in parts), tuple(p[2] for p in parts))
+    return Parameters(
+        tuple(p[0] for p in parts),
+        np.full(len(parts), scale),
+        (unit,) * len(parts),
+        tuple(p[1] for p in parts),
+        tuple(p[2] for p in parts),
+    )
 
 
 def available(block: str, data: Readings) -> bool:
@@ -246,9 +271,17 @@ class BlockModel(MeasurementModel):
     Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
     """
 
-    def __init__(self, chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str] = (),
-                 fixed: Mapping[str, float] | None = None, priors: Priors | None = None,
-                 noise: RangeTransverse | None = None):
+    def __init__(
+        self,
+        chain: KinematicChain,
+        data: Readings,
+        marker,
+        t_nr,
+        blocks: Sequence[str] = (),
+        fixed: Mapping[str, float] | None = None,
+        priors: Priors | None = None,
+        noise: RangeTransverse | None = None,
+    ):
         unknown = set(blocks) - set(EXTENSIONS)
         if unknown:
             raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
@@ -279,13 +312,20 @@ class BlockModel(MeasurementModel):
         index = {n: i for i, n in enumerate(self.all_names)}
         self._marker_index = [index[n] for n in self.all_names if self.block_of[n] == "marker_offset"]
         self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
-        self._links = ([(index[name], row, column) for row, column, name in link_labels(chain)]
-                       if "link_geometry" in self.blocks else [])
+        self._links = (
+            [(index[name], row, column) for row, column, name in link_labels(chain)]
+            if "link_geometry" in self.blocks
+            else []
+        )
         self._kernel = KernelForm.of(chain)
         self.priors = priors
         # (P,) SI prior std of the free parameters: inf for the paper's (flat), finite for the extensions'
-        self.prior_std = np.array([math.inf if priors is None or self.block_of[n] in BASE
-                                   else priors.std_of(n, data.drift_unit) for n in self.names])
+        self.prior_std = np.array(
+            [
+                math.inf if priors is None or self.block_of[n] in BASE else priors.std_of(n, data.drift_unit)
+                for n in self.names
+            ]
+        )
         self._prior_precision = np.where(np.isfinite(self.prior_std), 1.0 / self.prior_std**2, 0.0)
         # the sensor's noise shape (`remaster.noise`): None is the paper's isotropic noise
         self.noise = noise
@@ -318,16 +358,18 @@ class BlockModel(MeasurementModel):
         """{name: value} of every parameter (held ones included) from free parameters (P,)."""
         return dict(zip(self.all_names, self.full(theta).tolist()))
 
-    def on(self, data: Readings) -> "BlockModel":
+    def on(self, data: Readings) -> BlockModel:
         """The same model (blocks, registration, held parameters, priors) on other readings, e.g.
         the validation set."""
-        return BlockModel(self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed, self.priors,
-                          self.noise)
+        return BlockModel(
+            self.chain, data, self.marker, self.t_nr, self.blocks[len(BASE) :], self.fixed, self.priors, self.noise
+        )
 
-    def with_noise(self, noise: RangeTransverse | None) -> "BlockModel":
+    def with_noise(self, noise: RangeTransverse | None) -> BlockModel:
         """The same model on the same readings with another noise shape."""
-        return BlockModel(self.chain, self.data, self.marker, self.t_nr, self.blocks[len(BASE):], self.fixed,
-                          self.priors, noise)
+        return BlockModel(
+            self.chain, self.data, self.marker, self.t_nr, self.blocks[len(BASE) :], self.fixed, self.priors, noise
+        )
 
     def whitened(self, residuals) -> np.ndarray:
         """Residuals (n, 3) or (m, n, 3) in units of the noise's range std: W_i e_i (`remaster.noise`);
@@ -346,7 +388,8 @@ class BlockModel(MeasurementModel):
         if self._whitening is None:
             return jacobian
         return np.einsum("nij,njp->nip", self._whitening, jacobian.reshape(self.n_points, 3, -1)).reshape(
-            jacobian.shape)
+            jacobian.shape
+        )
 
     def log_prior(self, theta) -> np.ndarray:
         """Log of the extension blocks' Gaussian priors, up to their normalisation: scalar or (m,)."""
@@ -375,8 +418,9 @@ class BlockModel(MeasurementModel):
         every = np.asarray(every, dtype=float)
         stack = np.atleast_2d(every)
         chunk = max(1, min(self._CHUNK, self._ANGLES_PER_CALL // max(self.q.size, 1)))
-        points = np.concatenate([self._robot_points(stack[begin:begin + chunk])
-                                 for begin in range(0, len(stack), chunk)])
+        points = np.concatenate(
+            [self._robot_points(stack[begin : begin + chunk]) for begin in range(0, len(stack), chunk)]
+        )
         return points if every.ndim == 2 else points[0]
 
     # vectors per compiled call: at most _CHUNK, and at most _ANGLES_PER_CALL joint angles in all,
@@ -392,15 +436,23 @@ class BlockModel(MeasurementModel):
             errors = np.zeros((len(stack), self.chain.n_joints + 1, 2))
             for index, row, column in self._links:
                 errors[:, row, column] = stack[:, index]
-            kernel = kernel.with_transforms(*perturbed_transforms(self.chain.joint_transforms,
-                                                                  self.chain.tool_transform, errors))
+            kernel = kernel.with_transforms(
+                *perturbed_transforms(self.chain.joint_transforms, self.chain.tool_transform, errors)
+            )
         marker = self.marker + stack[:, self._marker_index] if self._marker_index else self.marker
         rotations, shifts = kernel.rotations, kernel.shifts
         starts = np.atleast_2d(kernel.start(marker))
-        return _kernels.points_linear(rotations.reshape((-1,) + rotations.shape[-3:]),
-                                      shifts.reshape((-1,) + shifts.shape[-2:]), starts, self._cos_q, self._sin_q,
-                                      stack[:, self._offset_params] @ self._offset_onehot, self._kernel_values,
-                                      self._kernel_first, np.ascontiguousarray(stack[:, self._kernel_params]))
+        return _kernels.points_linear(
+            rotations.reshape((-1,) + rotations.shape[-3:]),
+            shifts.reshape((-1,) + shifts.shape[-2:]),
+            starts,
+            self._cos_q,
+            self._sin_q,
+            stack[:, self._offset_params] @ self._offset_onehot,
+            self._kernel_values,
+            self._kernel_first,
+            np.ascontiguousarray(stack[:, self._kernel_params]),
+        )
 
     def predict_full(self, every) -> np.ndarray:
         """Predicted positions (n, 3) or (m, n, 3) in the sensor frame from every parameter
@@ -442,12 +494,18 @@ class Reduction:
     weak: dict[str, float] = field(default_factory=dict)
 
     def report(self) -> dict:
-        return {"kept": list(self.kept), "dropped": dict(self.dropped), "weakly_determined_sine": dict(self.weak),
-                "condition_number_unit_columns": self.condition_number,
-                "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
-                          "the span of the base columns; 'dropped' = the data cannot see it (held at 0 without a prior, "
-                          "left to its prior with one)",
-                "invisible_below": INVISIBLE, "absorbed_below": ABSORBED, "weak_below": COLLINEAR}
+        return {
+            "kept": list(self.kept),
+            "dropped": dict(self.dropped),
+            "weakly_determined_sine": dict(self.weak),
+            "condition_number_unit_columns": self.condition_number,
+            "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
+            "the span of the base columns; 'dropped' = the data cannot see it (held at 0 without a prior, "
+            "left to its prior with one)",
+            "invisible_below": INVISIBLE,
+            "absorbed_below": ABSORBED,
+            "weak_below": COLLINEAR,
+        }
 
 
 def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
@@ -497,9 +555,16 @@ def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
     return Reduction(tuple(ext_names[i] for i in kept), dropped, condition, weak)
 
 
-def extended_model(chain: KinematicChain, data: Readings, marker, t_nr, blocks: Sequence[str],
-                   base_held: Mapping[str, float], priors: Priors | None = None,
-                   noise: RangeTransverse | None = None) -> tuple[BlockModel, Reduction]:
+def extended_model(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    blocks: Sequence[str],
+    base_held: Mapping[str, float],
+    priors: Priors | None = None,
+    noise: RangeTransverse | None = None,
+) -> tuple[BlockModel, Reduction]:
     """The model of base + blocks, under `priors`, with the base's held parameters held. Under
     priors every extension parameter is kept, those the data cannot see included: their prior
     carries them, so what they do away from the measured configurations (a joint that never moved,

@@ -72,18 +72,22 @@ def discrepancy_summary(model: ZeroOffsetModel, theta, poses, summary: pd.DataFr
         out[f"{column}_display"] = out[column].astype(float) / scale
     out["source"] = SOURCE
     out.index.name = "parameter"
-    report = {"source": SOURCE, "poses": int(len(np.unique(poses))), "rows": int(len(poses)),
-              "std_over_paper_std": dict(zip(names, (std / paper_std).tolist()))}
+    report = {
+        "source": SOURCE,
+        "poses": int(len(np.unique(poses))),
+        "rows": int(len(poses)),
+        "std_over_paper_std": dict(zip(names, (std / paper_std).tolist())),
+    }
     return out.reset_index(), report
 
 
-def discrepancy_stage(campaign: Campaign, sensor: str, registration: Registration, laplace: LaplaceReport,
-                      summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
+def discrepancy_stage(
+    campaign: Campaign, sensor: str, registration: Registration, laplace: LaplaceReport, summary: pd.DataFrame
+) -> tuple[pd.DataFrame, dict]:
     """`discrepancy_summary` of one sensor of a campaign after its fit, at the Laplace fit's MAP
     (the model the fit had: its outliers left out)."""
     data = campaign.sensors[sensor]
-    model, _, _ = build_model(campaign.chain, data, registration.t_nr,
-                              exclude=laplace.outlier_rows)
+    model, _, _ = build_model(campaign.chain, data, registration.t_nr, exclude=laplace.outlier_rows)
     laplace.check_names(model.names)
     poses = data.table.loc[model.table_rows, "pose"].to_numpy()
     out, report = discrepancy_summary(model, laplace.theta_map, poses, summary)

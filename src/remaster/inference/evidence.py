@@ -84,8 +84,12 @@ class PosteriorMode:
 
     def sampler_start(self) -> dict:
         """What `fit.sample` reads: MAP, covariance of theta and sigma's std."""
-        return {"theta_map": self.theta.tolist(), "sigma_map": self.sigma,
-                "covariance": self.covariance[:-1, :-1].tolist(), "sigma_std": self.sigma_std}
+        return {
+            "theta_map": self.theta.tolist(),
+            "sigma_map": self.sigma,
+            "covariance": self.covariance[:-1, :-1].tolist(),
+            "sigma_std": self.sigma_std,
+        }
 
     def bic(self) -> float:
         """k ln(SS / k) + p ln k, p = free parameters + sigma: the Gaussian likelihood maximised
@@ -97,18 +101,30 @@ class PosteriorMode:
 def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
     import scipy.optimize
+
     theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
     k = 3 * model.n_points
     sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
     for _ in range(MAX_SIGMA_ROUNDS):
+
         def stacked(t, s=sigma):
             """Residuals (K,) at t (P,), or (m, K) at a stack (m, P)."""
             weighted = model.weighted_residuals(t)
-            return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), s * model.prior_residuals(t)], axis=-1)
+            return np.concatenate(
+                [weighted.reshape(weighted.shape[:-2] + (-1,)), s * model.prior_residuals(t)], axis=-1
+            )
 
         # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
-        theta = scipy.optimize.least_squares(stacked, theta, jac=lambda t: forward_differences(stacked, t),
-                                             x_scale=model.scale, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12).x
+        theta = scipy.optimize.least_squares(
+            stacked,
+            theta,
+            jac=lambda t: forward_differences(stacked, t),
+            x_scale=model.scale,
+            method="lm",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+        ).x
         previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
         if abs(sigma - previous) <= SIGMA_TOLERANCE * sigma:
             break
@@ -143,8 +159,10 @@ def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
     hessian[p, p] = 2.0 * sum_squares / sigma**2
     sign, log_det = np.linalg.slogdet(hessian)
     if sign <= 0:
-        raise np.linalg.LinAlgError("the posterior's Hessian is not positive definite at the mode: "
-                                    "a parameter without prior is not determined by the data")
+        raise np.linalg.LinAlgError(
+            "the posterior's Hessian is not positive definite at the mode: "
+            "a parameter without prior is not determined by the data"
+        )
     covariance_u = np.linalg.inv(hessian)
     # (theta, u) -> (theta, sigma): d sigma = sigma du
     jac = np.ones(p + 1)
@@ -152,13 +170,12 @@ def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
     covariance = covariance_u * np.outer(jac, jac)
     k = r.size
     has_prior = np.isfinite(model.prior_std)
-    log_likelihood = (-0.5 * k * LOG_2PI - k * math.log(sigma) - sum_squares / (2.0 * sigma**2)
-                      + model.noise_log_det)
-    log_prior = float(np.sum(-0.5 * LOG_2PI - np.log(model.prior_std[has_prior])
-                             - 0.5 * theta[has_prior] ** 2 * precision[has_prior])) - math.log(sigma)
+    log_likelihood = -0.5 * k * LOG_2PI - k * math.log(sigma) - sum_squares / (2.0 * sigma**2) + model.noise_log_det
+    log_prior = float(
+        np.sum(-0.5 * LOG_2PI - np.log(model.prior_std[has_prior]) - 0.5 * theta[has_prior] ** 2 * precision[has_prior])
+    ) - math.log(sigma)
     log_evidence = log_likelihood + log_prior + 0.5 * (p + 1) * LOG_2PI - 0.5 * log_det
-    return PosteriorMode(model, theta, float(sigma), covariance, jacobian, residuals, float(log_evidence),
-                         sum_squares)
+    return PosteriorMode(model, theta, float(sigma), covariance, jacobian, residuals, float(log_evidence), sum_squares)
 
 
 # --------------------------------------------------------------------------- cross-validation by pose
@@ -215,7 +232,11 @@ def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
     k = len(difference)
     standard_error = float(np.std(difference, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
     mean = float(np.mean(difference))
-    return {"cv_rmse_before_mm": current.rmse * 1e3, "cv_rmse_mm": candidate.rmse * 1e3,
-            "cv_gain": 1.0 - candidate.rmse / current.rmse,
-            "cv_mse_fall_mm2": mean * 1e6, "cv_mse_fall_se_mm2": standard_error * 1e6,
-            "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf}
+    return {
+        "cv_rmse_before_mm": current.rmse * 1e3,
+        "cv_rmse_mm": candidate.rmse * 1e3,
+        "cv_gain": 1.0 - candidate.rmse / current.rmse,
+        "cv_mse_fall_mm2": mean * 1e6,
+        "cv_mse_fall_se_mm2": standard_error * 1e6,
+        "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf,
+    }

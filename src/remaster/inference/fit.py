@@ -46,28 +46,37 @@ class Registration:
     kabsch_rms: float
 
     @classmethod
-    def of(cls, content: Mapping, source: str = "registration.json") -> "Registration":
+    def of(cls, content: Mapping, source: str = "registration.json") -> Registration:
         """From the JSON content of `report()`; a missing key is an InputError naming the file and the key."""
         get = report_reader(content, source, "missing in the registration report")
-        return cls(t_nr=np.asarray(get("T_NR"), dtype=float), rows=tuple(int(r) for r in get("rows")),
-                   kabsch_t_nr=np.asarray(get("kabsch_T_NR"), dtype=float),
-                   three_point_rms=float(get("three_point_rms_mm")) * 1e-3,
-                   kabsch_rms=float(get("kabsch_rms_mm")) * 1e-3)
+        return cls(
+            t_nr=np.asarray(get("T_NR"), dtype=float),
+            rows=tuple(int(r) for r in get("rows")),
+            kabsch_t_nr=np.asarray(get("kabsch_T_NR"), dtype=float),
+            three_point_rms=float(get("three_point_rms_mm")) * 1e-3,
+            kabsch_rms=float(get("kabsch_rms_mm")) * 1e-3,
+        )
 
     @classmethod
-    def read(cls, path) -> "Registration":
+    def read(cls, path) -> Registration:
         """From registration.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
 
     def report(self) -> dict:
         rotation_difference = self.t_nr[:3, :3].T @ self.kabsch_t_nr[:3, :3]
         angle = np.degrees(spatial.rotation_angle(rotation_difference))
-        return {"method": "three-point (paper)", "rows": list(self.rows), "T_NR": self.t_nr.tolist(),
-                "kabsch_T_NR": self.kabsch_t_nr.tolist(),
-                "three_point_rms_mm": self.three_point_rms * 1e3, "kabsch_rms_mm": self.kabsch_rms * 1e3,
-                "three_point_vs_kabsch": {
-                    "translation_mm": float(np.linalg.norm(self.t_nr[:3, 3] - self.kabsch_t_nr[:3, 3]) * 1e3),
-                    "rotation_deg": float(angle)}}
+        return {
+            "method": "three-point (paper)",
+            "rows": list(self.rows),
+            "T_NR": self.t_nr.tolist(),
+            "kabsch_T_NR": self.kabsch_t_nr.tolist(),
+            "three_point_rms_mm": self.three_point_rms * 1e3,
+            "kabsch_rms_mm": self.kabsch_rms * 1e3,
+            "three_point_vs_kabsch": {
+                "translation_mm": float(np.linalg.norm(self.t_nr[:3, 3] - self.kabsch_t_nr[:3, 3]) * 1e3),
+                "rotation_deg": float(angle),
+            },
+        }
 
 
 def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimization") -> Registration:
@@ -108,12 +117,14 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
     glitch of several mm from dragging the fit towards it."""
     import scipy.optimize
     import scipy.special
+
     scale = np.array([display_scale(n) for n in model.names])
     start = np.zeros(len(model.names))
     first = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), start, x_scale=scale)
     spread = 1.4826 * np.median(np.abs(first.fun))
-    robust = scipy.optimize.least_squares(lambda t: model.residuals(t).ravel(), first.x, x_scale=scale,
-                                          loss="cauchy", f_scale=max(spread, 1e-9))
+    robust = scipy.optimize.least_squares(
+        lambda t: model.residuals(t).ravel(), first.x, x_scale=scale, loss="cauchy", f_scale=max(spread, 1e-9)
+    )
     residual = np.abs(model.residuals(robust.x))
     sigma_r = 1.4826 * np.median(residual)
     threshold = math.sqrt(scipy.special.chdtri(3, alpha / model.n_points))  # chi2(3).isf, without scipy.stats' import
@@ -155,9 +166,13 @@ class PosteriorTarget:
         batch of thousands of proposals stays within memory on a campaign of any size."""
         thetas = np.asarray(thetas, dtype=float)
         size = max(1, POINTS_PER_CALL // max(self.model.n_points, 1))
-        return np.concatenate([self.model.log_posterior(part[:, :-1], part[:, -1])
-                               for part in (thetas[k:k + size] for k in range(0, len(thetas), size))]
-                              or [np.empty(0)])
+        return np.concatenate(
+            [
+                self.model.log_posterior(part[:, :-1], part[:, -1])
+                for part in (thetas[k : k + size] for k in range(0, len(thetas), size))
+            ]
+            or [np.empty(0)]
+        )
 
     def residuals(self, theta_model) -> np.ndarray:
         """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
@@ -167,30 +182,45 @@ class PosteriorTarget:
 # --------------------------------------------------------------------------- fitting
 
 METHODS = ("paper", "default", "emcee")
-METHOD_LABELS = {"paper": "Metropolis (paper)", "default": "adaptive Metropolis", "emcee": "emcee",
-                 "laplace": "least squares + Laplace"}
+METHOD_LABELS = {
+    "paper": "Metropolis (paper)",
+    "default": "adaptive Metropolis",
+    "emcee": "emcee",
+    "laplace": "least squares + Laplace",
+}
 
 
 def laplace_fit(model: ZeroOffsetModel) -> samplers.LaplaceResult:
     """Least-squares MAP of the model parameters from zero corrections, with its Laplace covariance."""
     target = PosteriorTarget(model)
-    return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale,
-                                          names=model.names)
+    return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale, names=model.names)
 
 
-def laplace_report(result: samplers.LaplaceResult, analysis: identifiability.Identifiability,
-                   excluded_rows, outlier_rows=(), model: ZeroOffsetModel | None = None) -> dict:
+def laplace_report(
+    result: samplers.LaplaceResult,
+    analysis: identifiability.Identifiability,
+    excluded_rows,
+    outlier_rows=(),
+    model: ZeroOffsetModel | None = None,
+) -> dict:
     """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, the rows
     left out (marker not seen; flagged as outliers) and the number of points fitted."""
-    return {"names": list(result.names), "theta_map": result.theta_map.tolist(),
-            "covariance": result.covariance.tolist(), "std": result.std.tolist(),
-            "sigma_map": result.sigma_map, "sigma_mean": result.sigma_mean, "sigma_std": result.sigma_std,
-            "sum_squares": 2.0 * result.cost, "n_residuals": result.n_residuals,
-            "jacobian_singular_values_step_units": result.jacobian_singular_values.tolist(),
-            "identifiability": analysis.report(),
-            "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows],
-            "excluded_rows_outliers": [int(r) for r in outlier_rows],
-            "points_fitted": None if model is None else int(model.n_points)}
+    return {
+        "names": list(result.names),
+        "theta_map": result.theta_map.tolist(),
+        "covariance": result.covariance.tolist(),
+        "std": result.std.tolist(),
+        "sigma_map": result.sigma_map,
+        "sigma_mean": result.sigma_mean,
+        "sigma_std": result.sigma_std,
+        "sum_squares": 2.0 * result.cost,
+        "n_residuals": result.n_residuals,
+        "jacobian_singular_values_step_units": result.jacobian_singular_values.tolist(),
+        "identifiability": analysis.report(),
+        "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows],
+        "excluded_rows_outliers": [int(r) for r in outlier_rows],
+        "points_fitted": None if model is None else int(model.n_points),
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,21 +248,27 @@ class LaplaceReport:
     points_fitted: int | None
 
     @classmethod
-    def of(cls, content: Mapping, source: str = "laplace.json") -> "LaplaceReport":
+    def of(cls, content: Mapping, source: str = "laplace.json") -> LaplaceReport:
         """From the JSON content; a missing key is an InputError naming the file and the key."""
         get = report_reader(content, source, "missing in the Laplace report")
-        return cls(names=tuple(get("names")), theta_map=np.asarray(get("theta_map"), dtype=float),
-                   std=np.asarray(get("std"), dtype=float), covariance=np.asarray(get("covariance"), dtype=float),
-                   sigma_map=float(get("sigma_map")), sigma_mean=float(get("sigma_mean")),
-                   sigma_std=float(get("sigma_std")), parameters=tuple(get("identifiability", "parameters")),
-                   held={n: float(v) for n, v in get("identifiability", "held_at_controller_value").items()},
-                   null_directions=tuple(dict(d) for d in get("identifiability", "null_directions")),
-                   outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
-                   marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
-                   points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]))
+        return cls(
+            names=tuple(get("names")),
+            theta_map=np.asarray(get("theta_map"), dtype=float),
+            std=np.asarray(get("std"), dtype=float),
+            covariance=np.asarray(get("covariance"), dtype=float),
+            sigma_map=float(get("sigma_map")),
+            sigma_mean=float(get("sigma_mean")),
+            sigma_std=float(get("sigma_std")),
+            parameters=tuple(get("identifiability", "parameters")),
+            held={n: float(v) for n, v in get("identifiability", "held_at_controller_value").items()},
+            null_directions=tuple(dict(d) for d in get("identifiability", "null_directions")),
+            outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
+            marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
+            points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]),
+        )
 
     @classmethod
-    def read(cls, path) -> "LaplaceReport":
+    def read(cls, path) -> LaplaceReport:
         """From laplace.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
 
@@ -252,8 +288,9 @@ class LaplaceReport:
         return theta, covariance
 
 
-def sample(model: ZeroOffsetModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator,
-           progress=None) -> list[samplers.Chain]:
+def sample(
+    model: ZeroOffsetModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator, progress=None
+) -> list[samplers.Chain]:
     """Chains of one method on the model's posterior.
 
     paper: the paper's Metropolis from Theta = 0, sigma = 1 mm; default: adaptive Metropolis from
@@ -265,19 +302,44 @@ def sample(model: ZeroOffsetModel, laplace: LaplaceReport, method: str, settings
     start, covariance = laplace.start()
     if method == "paper":
         paper_start = np.append(np.zeros(len(model.names)), 1e-3)
-        return samplers.run_chains(samplers.metropolis_paper, target, rng, settings["chains"], paper_start,
-                                   n_samples=settings["samples"], burn_in=settings["burn_in"],
-                                   half_width=settings["half_width"], progress=progress)
+        return samplers.run_chains(
+            samplers.metropolis_paper,
+            target,
+            rng,
+            settings["chains"],
+            paper_start,
+            n_samples=settings["samples"],
+            burn_in=settings["burn_in"],
+            half_width=settings["half_width"],
+            progress=progress,
+        )
     if method == "default":
         spread = np.sqrt(np.diag(covariance))
         starts = start + 3.0 * spread * rng.standard_normal((settings["chains"], len(start)))
         starts[:, -1] = np.abs(starts[:, -1])
-        return samplers.run_chains(samplers.metropolis_adaptive, target, rng, settings["chains"], starts,
-                                   covariance=covariance, n_samples=settings["samples"],
-                                   burn_in=settings["burn_in"], progress=progress)
+        return samplers.run_chains(
+            samplers.metropolis_adaptive,
+            target,
+            rng,
+            settings["chains"],
+            starts,
+            covariance=covariance,
+            n_samples=settings["samples"],
+            burn_in=settings["burn_in"],
+            progress=progress,
+        )
     if method == "emcee":
-        return [samplers.run_emcee(target, rng, start, np.sqrt(np.diag(covariance)), n_walkers=settings["walkers"],
-                                   n_steps=settings["steps"], burn_in=settings["burn_in"])]
+        return [
+            samplers.run_emcee(
+                target,
+                rng,
+                start,
+                np.sqrt(np.diag(covariance)),
+                n_walkers=settings["walkers"],
+                n_steps=settings["steps"],
+                burn_in=settings["burn_in"],
+            )
+        ]
     raise ValueError(f"unknown sampling method {method!r}; use one of {METHODS}")
 
 
@@ -333,12 +395,18 @@ def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
     frame = samples_frame(chains)
     names = list(chains[0].names)
     report = diagnostics.chain_report(chains_of(frame, names), names)
-    return {"method": chains[0].method, "chains": len(chains), "walkers": chains[0].n_walkers,
-            "kept_per_chain": chains[0].n_steps, "acceptance_rate": [c.acceptance_rate for c in chains],
-            "seconds": seconds, "min_ess": float(report["ess"].min()),
-            "min_ess_per_second": float(report["ess"].min() / seconds) if seconds > 0 else None,
-            "max_rhat": float(report["rhat"].max()),
-            "parameters": report.reset_index().to_dict(orient="records")}
+    return {
+        "method": chains[0].method,
+        "chains": len(chains),
+        "walkers": chains[0].n_walkers,
+        "kept_per_chain": chains[0].n_steps,
+        "acceptance_rate": [c.acceptance_rate for c in chains],
+        "seconds": seconds,
+        "min_ess": float(report["ess"].min()),
+        "min_ess_per_second": float(report["ess"].min() / seconds) if seconds > 0 else None,
+        "max_rhat": float(report["rhat"].max()),
+        "parameters": report.reset_index().to_dict(orient="records"),
+    }
 
 
 def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool:
@@ -346,8 +414,15 @@ def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool
     return diagnostics_report["max_rhat"] <= max_rhat and diagnostics_report["min_ess"] >= min_ess
 
 
-def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dict], laplace: LaplaceReport,
-                tolerance: float, max_rhat: float, min_ess: float, floor: float = 0.1) -> pd.DataFrame:
+def cross_check(
+    samples: dict[str, pd.DataFrame],
+    sampler_reports: dict[str, dict],
+    laplace: LaplaceReport,
+    tolerance: float,
+    max_rhat: float,
+    min_ess: float,
+    floor: float = 0.1,
+) -> pd.DataFrame:
     """Every method's posterior mean and std per parameter and its disagreement with the default
     sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
     parameter, then mean_<method>, std_<method>, z_<method>, checked_<method> (SI).
@@ -369,8 +444,9 @@ def cross_check(samples: dict[str, pd.DataFrame], sampler_reports: dict[str, dic
     lap_std = np.append(laplace.std, laplace.sigma_std)
     results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
     table = diagnostics.cross_check(results, names, tolerance=None, reference="default", floor=floor)
-    enforced = ["default", "laplace"] + [m for m in samples if m != "default" and
-                                         converged(sampler_reports[m], max_rhat, min_ess)]
+    enforced = ["default", "laplace"] + [
+        m for m in samples if m != "default" and converged(sampler_reports[m], max_rhat, min_ess)
+    ]
     diagnostics.check_agreement(table.loc[:, [c for c in table.columns if c[1] in enforced]], tolerance)
     flat = pd.DataFrame(index=table.index)
     for method in results:
@@ -384,8 +460,14 @@ def moments(samples: pd.DataFrame) -> pd.DataFrame:
     """Per column of posterior samples (draws, parameters): mean, std (ddof 1) and the 95 %
     interval q2.5, q97.5, in the samples' units; one row per parameter. The one summary of
     samples that the paper's fit and the loop closure's refit share."""
-    return pd.DataFrame({"mean": samples.mean(), "std": samples.std(ddof=1),
-                         "q2.5": samples.quantile(0.025), "q97.5": samples.quantile(0.975)})
+    return pd.DataFrame(
+        {
+            "mean": samples.mean(),
+            "std": samples.std(ddof=1),
+            "q2.5": samples.quantile(0.025),
+            "q97.5": samples.quantile(0.975),
+        }
+    )
 
 
 def mode_summary(laplace: LaplaceReport) -> pd.DataFrame:
@@ -421,12 +503,21 @@ def remastering(summary: pd.DataFrame, joint_names, campaign: str, sensor: str) 
     for j, joint in enumerate(joint_names):
         row = summary.loc[f"zero_offsets.q{j + 1}"]
         held = row["status"] != "estimated"
-        joints.append({"joint": joint, "correction_deg": float(row["mean_display"]),
-                       "std_deg": None if held else float(row["std_display"]),
-                       "interval_95_deg": None if held else [float(row["q2.5_display"]), float(row["q97.5_display"])],
-                       "status": row["status"]})
-    return {"campaign": campaign, "sensor": sensor, "convention": "controller zero += correction (deg)",
-            "joints": joints}
+        joints.append(
+            {
+                "joint": joint,
+                "correction_deg": float(row["mean_display"]),
+                "std_deg": None if held else float(row["std_display"]),
+                "interval_95_deg": None if held else [float(row["q2.5_display"]), float(row["q97.5_display"])],
+                "status": row["status"],
+            }
+        )
+    return {
+        "campaign": campaign,
+        "sensor": sensor,
+        "convention": "controller zero += correction (deg)",
+        "joints": joints,
+    }
 
 
 # --------------------------------------------------------------------------- workflow stages
@@ -447,14 +538,23 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
     model, _, _ = _model(campaign, sensor, registration)
     outliers = flag_outliers(model, outlier_alpha)
     if len(outliers):
-        log.warning("%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers),
-                    outliers.tolist())
+        log.warning(
+            "%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers), outliers.tolist()
+        )
     model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
     return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
 
 
-def sampling_stage(campaign: Campaign, sensor: str, registration: Registration, laplace: LaplaceReport, method: str,
-                   settings: dict, rng: np.random.Generator, progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+def sampling_stage(
+    campaign: Campaign,
+    sensor: str,
+    registration: Registration,
+    laplace: LaplaceReport,
+    method: str,
+    settings: dict,
+    rng: np.random.Generator,
+    progress=None,
+) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
     model, _, _ = _model(campaign, sensor, registration, exclude=laplace.outlier_rows)
     laplace.check_names(model.names)

@@ -27,7 +27,8 @@ from .. import spatial
 from ..robot.kinematics import KinematicChain, link_error_transforms
 from . import samplers
 from .blocks import link_labels
-from .model import REGISTRATION as REGISTRATION_PARTS, correction_parameters, correction_transforms
+from .model import REGISTRATION as REGISTRATION_PARTS
+from .model import correction_parameters, correction_transforms
 
 REGISTRATION = tuple(f"registration.{p}" for p in REGISTRATION_PARTS)  # x, y, z, then the ZYX Euler angles
 MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
@@ -39,8 +40,11 @@ JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Lap
 def _link_index(names, chain: KinematicChain, row: int) -> dict[str, int]:
     """{'length'|'twist': position in names} of the free link-geometry parameters of fixed
     transform `row` (0: F_1, N: the tool), named as `blocks.link_labels` names them."""
-    return {("length", "twist")[column]: names.index(name) for link, column, name in link_labels(chain)
-            if link == row and name in names}
+    return {
+        ("length", "twist")[column]: names.index(name)
+        for link, column, name in link_labels(chain)
+        if link == row and name in names
+    }
 
 
 def _link_errors(theta, index: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -135,8 +139,15 @@ class MarkerTurn:
         in_plane = relative - (relative @ axis) * axis
         radius = float(np.linalg.norm(in_plane))
         radial = in_plane / radius if radius > 0 else np.zeros(3)
-        return cls(np.asarray(index), np.asarray(marker, dtype=float), np.asarray(centre, dtype=float), axis,
-                   radial, np.cross(axis, radial), radius)
+        return cls(
+            np.asarray(index),
+            np.asarray(marker, dtype=float),
+            np.asarray(centre, dtype=float),
+            axis,
+            radial,
+            np.cross(axis, radial),
+            radius,
+        )
 
     def fold(self, theta) -> np.ndarray:
         """Vectors (..., P) with the offset in x, y, z -> the same with it in radial, tangential, axial."""
@@ -145,8 +156,14 @@ class MarkerTurn:
         along = relative @ self.axis
         in_plane = relative - along[..., None] * self.axis
         angle = np.arctan2(in_plane @ self.tangential, in_plane @ self.radial)
-        theta[..., self.index] = np.stack([np.linalg.norm(in_plane, axis=-1) - self.radius, self.radius * angle,
-                                           along - (self.marker - self.centre) @ self.axis], axis=-1)
+        theta[..., self.index] = np.stack(
+            [
+                np.linalg.norm(in_plane, axis=-1) - self.radius,
+                self.radius * angle,
+                along - (self.marker - self.centre) @ self.axis,
+            ],
+            axis=-1,
+        )
         return theta
 
     def unfold(self, turned) -> tuple[np.ndarray, np.ndarray]:
@@ -155,8 +172,11 @@ class MarkerTurn:
         turned = np.array(turned, dtype=float)
         radial, arc, axial = np.moveaxis(turned[..., self.index], -1, 0)
         rho, angle = self.radius + radial, arc / self.radius
-        point = (self.centre + ((self.marker - self.centre) @ self.axis + axial)[..., None] * self.axis
-                 + rho[..., None] * (np.cos(angle)[..., None] * self.radial + np.sin(angle)[..., None] * self.tangential))
+        point = (
+            self.centre
+            + ((self.marker - self.centre) @ self.axis + axial)[..., None] * self.axis
+            + rho[..., None] * (np.cos(angle)[..., None] * self.radial + np.sin(angle)[..., None] * self.tangential)
+        )
         turned[..., self.index] = point - self.marker
         with np.errstate(divide="ignore", invalid="ignore"):
             return turned, np.where(rho > 0, np.log(np.abs(rho) / self.radius), -np.inf)
@@ -192,15 +212,23 @@ class Gauge:
                 folds.append(turn)
         first = _link_index(names, chain, 0)
         if set(REGISTRATION) <= set(names) and first:
-            folds.append(BaseFold(np.array([names.index(n) for n in REGISTRATION]), first, chain.joint_transforms[0],
-                                  np.asarray(t_nr, dtype=float)))
+            folds.append(
+                BaseFold(
+                    np.array([names.index(n) for n in REGISTRATION]),
+                    first,
+                    chain.joint_transforms[0],
+                    np.asarray(t_nr, dtype=float),
+                )
+            )
         return cls(tuple(folds), names) if folds else None
 
     @property
     def folded_names(self) -> tuple[str, ...]:
         out = list(self.names)
         for fold in self.folds:
-            for i, name in zip(fold.index, TURNED if isinstance(fold, MarkerTurn) else (out[i] + "~" for i in fold.index)):
+            for i, name in zip(
+                fold.index, TURNED if isinstance(fold, MarkerTurn) else (out[i] + "~" for i in fold.index)
+            ):
                 out[i] = name
         return tuple(out)
 
@@ -227,7 +255,7 @@ class Gauge:
         steps = JACOBIAN_STEP * np.asarray(scale, dtype=float)
         shifted = folded + np.concatenate([np.diag(steps), -np.diag(steps)])
         model, _ = self.unfold(shifted)
-        jacobian = ((model[:len(steps)] - model[len(steps):]) / (2 * steps)[:, None]).T
+        jacobian = ((model[: len(steps)] - model[len(steps) :]) / (2 * steps)[:, None]).T
         inverse = np.linalg.inv(jacobian)
         return folded, inverse @ covariance @ inverse.T
 
@@ -267,8 +295,9 @@ class FoldedTarget:
 LAPLACE_CHECK_DRAWS = 256  # per option: the log-weights' spread to a few per cent, ~5 % of a refit's evaluations
 
 
-def laplace_mismatch(target: samplers.Target, mean, covariance, rng: np.random.Generator,
-                     draws: int = LAPLACE_CHECK_DRAWS) -> float:
+def laplace_mismatch(
+    target: samplers.Target, mean, covariance, rng: np.random.Generator, draws: int = LAPLACE_CHECK_DRAWS
+) -> float:
     """How far a posterior is from its Gaussian approximation N(mean (P,), covariance (P, P)):
     the standard deviation of log p(x) - log N(x) over draws from it (0 for a Gaussian posterior;
     an independence sampler's acceptance falls fast as it grows past 1). inf when a draw falls
@@ -279,8 +308,9 @@ def laplace_mismatch(target: samplers.Target, mean, covariance, rng: np.random.G
     return float(np.std(log_weights)) if np.all(np.isfinite(log_weights)) else np.inf
 
 
-def sampling_coordinates(target: samplers.Target, model, mean, covariance, rng: np.random.Generator
-                         ) -> tuple[samplers.Target, np.ndarray, np.ndarray, Gauge | None, dict]:
+def sampling_coordinates(
+    target: samplers.Target, model, mean, covariance, rng: np.random.Generator
+) -> tuple[samplers.Target, np.ndarray, np.ndarray, Gauge | None, dict]:
     """The coordinates in which `target` (a `fit.PosteriorTarget` of a block model) is closest to
     its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own,
     every fold, or every fold but the marker's turn (which straightens the marker's trade with the
@@ -300,6 +330,9 @@ def sampling_coordinates(target: samplers.Target, model, mean, covariance, rng: 
         mismatch[label] = laplace_mismatch(folded, *laplace[label], rng)
     chosen = min(mismatch, key=mismatch.get)
     gauge = options[chosen]
-    report = {"chosen": chosen, "folds": [type(f).__name__ for f in gauge.folds] if gauge else [],
-              "laplace_log_weight_std": mismatch}
+    report = {
+        "chosen": chosen,
+        "folds": [type(f).__name__ for f in gauge.folds] if gauge else [],
+        "laplace_log_weight_std": mismatch,
+    }
     return (target if gauge is None else FoldedTarget(target, gauge)), *laplace[chosen], gauge, report

@@ -49,9 +49,11 @@ class Identifiability:
             "null_directions": [dict(d) for d in self.null_directions],
             "held_at_controller_value": dict(self.held),
             "condition_number_free": self.condition_number,
-            "note": ("each held parameter is not identifiable from these data: its posterior under a flat prior "
-                     "is improper, so it is held at the controller's value (zero correction) rather than "
-                     "reported with a spurious uncertainty"),
+            "note": (
+                "each held parameter is not identifiable from these data: its posterior under a flat prior "
+                "is improper, so it is held at the controller's value (zero correction) rather than "
+                "reported with a spurious uncertainty"
+            ),
         }
 
 

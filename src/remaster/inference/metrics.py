@@ -38,8 +38,9 @@ def relative_errors(p_ref, p_robot, groups) -> np.ndarray:
     p_robot = np.asarray(p_robot, dtype=float)
     groups = np.asarray(groups)
     if p_ref.shape != p_robot.shape or p_ref.ndim != 2 or p_ref.shape[1] != 3 or groups.shape != p_ref.shape[:1]:
-        raise ValueError(f"p_ref {p_ref.shape} and p_robot {p_robot.shape} must be (n, 3) and groups (n,), "
-                         f"got groups {groups.shape}")
+        raise ValueError(
+            f"p_ref {p_ref.shape} and p_robot {p_robot.shape} must be (n, 3) and groups (n,), got groups {groups.shape}"
+        )
     usable = np.all(np.isfinite(p_ref), axis=1) & np.all(np.isfinite(p_robot), axis=1)
     parts = [np.empty(0)]
     for label in np.unique(groups[usable]):
@@ -89,8 +90,9 @@ def probable_tcps(chain: KinematicChain, q, marker, draws_offsets, draws_sigma, 
     return tcps
 
 
-def theoretical_errors(chain: KinematicChain, q, marker, reference_offsets, draws_offsets, draws_sigma,
-                       rng: np.random.Generator) -> np.ndarray:
+def theoretical_errors(
+    chain: KinematicChain, q, marker, reference_offsets, draws_offsets, draws_sigma, rng: np.random.Generator
+) -> np.ndarray:
     """Theoretical positioning errors (m), shape (m * n,), draw-major: the distance between the
     TCP given by reference_offsets (N,) (the MLE, or zeros for Vernier) and the TCP of each of m
     posterior draws (m, N), at each configuration q (n, N), all in the robot frame (the

@@ -116,7 +116,7 @@ class MeasurementModel:
         theta = np.asarray(theta, dtype=float)
         steps = step * np.eye(len(theta))
         both = self.residuals(np.concatenate([theta + steps, theta - steps]))
-        plus, minus = both[: len(theta)], both[len(theta):]
+        plus, minus = both[: len(theta)], both[len(theta) :]
         return ((plus - minus) / (2 * step)).reshape(len(theta), -1).T
 
 
@@ -130,8 +130,16 @@ class ZeroOffsetModel(MeasurementModel):
     table_rows (n,): which row of the sensor's table each point is (default 0..n-1).
     """
 
-    def __init__(self, chain: KinematicChain, q, measured, marker, t_nr, fixed: Mapping[str, float] | None = None,
-                 table_rows=None):
+    def __init__(
+        self,
+        chain: KinematicChain,
+        q,
+        measured,
+        marker,
+        t_nr,
+        fixed: Mapping[str, float] | None = None,
+        table_rows=None,
+    ):
         self.chain = chain
         self.q = np.asarray(q, dtype=float)
         self.table_rows = np.arange(len(self.q)) if table_rows is None else np.asarray(table_rows, dtype=int)
@@ -166,9 +174,16 @@ class ZeroOffsetModel(MeasurementModel):
         """E(Theta) of eq. cost_function: scalar or (m,). Compiled: this is the hot path."""
         every = self.full(theta)
         fk = self._fk
-        energy = _kernels.registered_sum_squares(fk.kernel_rotations, fk.kernel_shifts, self._start, fk.kernel_cos_q,
-                                                 fk.kernel_sin_q, every.reshape(-1, every.shape[-1]), self.t_nr,
-                                                 self._measured_t)
+        energy = _kernels.registered_sum_squares(
+            fk.kernel_rotations,
+            fk.kernel_shifts,
+            self._start,
+            fk.kernel_cos_q,
+            fk.kernel_sin_q,
+            every.reshape(-1, every.shape[-1]),
+            self.t_nr,
+            self._measured_t,
+        )
         return energy if every.ndim == 2 else energy[0]
 
     def metropolis_block(self, theta, log_prob: float, steps, log_u):
@@ -180,7 +195,20 @@ class ZeroOffsetModel(MeasurementModel):
         steps = np.ascontiguousarray(steps, dtype=float)
         states, log_probs = np.empty_like(steps), np.empty(len(steps))
         accepted, nan_at = _kernels.metropolis_walk(
-            fk.kernel_rotations, fk.kernel_shifts, self._start, fk.kernel_cos_q, fk.kernel_sin_q, self.t_nr,
-            self._measured_t, self.fixed_values, self._free_index, np.asarray(theta, dtype=float), float(log_prob),
-            steps, np.asarray(log_u, dtype=float), states, log_probs)
+            fk.kernel_rotations,
+            fk.kernel_shifts,
+            self._start,
+            fk.kernel_cos_q,
+            fk.kernel_sin_q,
+            self.t_nr,
+            self._measured_t,
+            self.fixed_values,
+            self._free_index,
+            np.asarray(theta, dtype=float),
+            float(log_prob),
+            steps,
+            np.asarray(log_u, dtype=float),
+            states,
+            log_probs,
+        )
         return states, log_probs, int(accepted), int(nan_at)

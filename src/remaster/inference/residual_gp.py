@@ -33,13 +33,13 @@ from dataclasses import dataclass
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
 
-SUBSET = 600          # rows for the hyperparameters (exact marginal likelihood)
-INDUCING = 400        # inducing inputs for prediction and the evidence
-CHUNK = 8192          # rows per block when accumulating over all n
-STILL = 1e-6          # rad: a joint whose range is below this is not turned by the data
+SUBSET = 600  # rows for the hyperparameters (exact marginal likelihood)
+INDUCING = 400  # inducing inputs for prediction and the evidence
+CHUNK = 8192  # rows per block when accumulating over all n
+STILL = 1e-6  # rad: a joint whose range is below this is not turned by the data
 RELEVANT_RANGE = 0.5  # lengthscales crossed over the measured range: the residual depends on that joint
 LENGTH_BOUNDS = (0.02, 50.0)  # rad
-JITTER = 1e-8         # relative to s^2, for the inducing covariance's Cholesky factor
+JITTER = 1e-8  # relative to s^2, for the inducing covariance's Cholesky factor
 LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -57,13 +57,19 @@ class Hyperparameters:
         return np.isfinite(self.lengthscales)
 
     def report(self) -> dict:
-        return {"lengthscales_rad": [None if not np.isfinite(v) else float(v) for v in self.lengthscales],
-                "signal_std_m": self.signal_std, "noise_std_m": self.noise_std}
+        return {
+            "lengthscales_rad": [None if not np.isfinite(v) else float(v) for v in self.lengthscales],
+            "signal_std_m": self.signal_std,
+            "noise_std_m": self.noise_std,
+        }
 
     @classmethod
-    def from_report(cls, report: dict) -> "Hyperparameters":
-        return cls(np.array([np.inf if v is None else float(v) for v in report["lengthscales_rad"]]),
-                   float(report["signal_std_m"]), float(report["noise_std_m"]))
+    def from_report(cls, report: dict) -> Hyperparameters:
+        return cls(
+            np.array([np.inf if v is None else float(v) for v in report["lengthscales_rad"]]),
+            float(report["signal_std_m"]),
+            float(report["noise_std_m"]),
+        )
 
 
 def kernel(qa, qb, hyper: Hyperparameters) -> np.ndarray:
@@ -86,6 +92,7 @@ def _negative_log_ml(log_params: np.ndarray, distances: np.ndarray, y: np.ndarra
     """-log p(y) of the exact GP and its gradient in (log l_j..., log s, log noise); distances
     (J, n, n) the per-joint 1 - cos differences, y (n, 3)."""
     import scipy.linalg
+
     n_len = len(distances)
     weights = np.exp(-2.0 * log_params[:n_len])
     signal2, noise2 = math.exp(2.0 * log_params[n_len]), math.exp(2.0 * log_params[n_len + 1])
@@ -115,6 +122,7 @@ def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparamete
     (n, N) rad and residuals (n, 3) m; from `start` when given (one start), else from a smooth
     and a wiggly start."""
     import scipy.optimize
+
     q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
     rows = evenly_spaced(len(q), subset)
     q_s, y_s = q[rows], y[rows]
@@ -125,20 +133,29 @@ def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparamete
     distances = 1.0 - np.cos(q_s[:, None, turned] - q_s[None, :, turned])  # (n, n, J)
     distances = np.ascontiguousarray(np.moveaxis(distances, -1, 0))
     span = np.clip(spread[turned], LENGTH_BOUNDS[0], LENGTH_BOUNDS[1])
-    bounds = ([tuple(np.log(LENGTH_BOUNDS))] * int(turned.sum()) + [(math.log(1e-4), math.log(10.0)),
-                                                                     (math.log(1e-3), math.log(10.0))])
+    bounds = [tuple(np.log(LENGTH_BOUNDS))] * int(turned.sum()) + [
+        (math.log(1e-4), math.log(10.0)),
+        (math.log(1e-3), math.log(10.0)),
+    ]
     if start is None:  # a smooth and a wiggly start: the likelihood can have both modes
-        starts = [np.concatenate([np.log(np.maximum(f * span, LENGTH_BOUNDS[0])), [math.log(0.7)] * 2])
-                  for f in (1.0, 0.25)]
+        starts = [
+            np.concatenate([np.log(np.maximum(f * span, LENGTH_BOUNDS[0])), [math.log(0.7)] * 2]) for f in (1.0, 0.25)
+        ]
     else:
-        lengths = np.clip(np.where(np.isfinite(start.lengthscales), start.lengthscales, span.max() if span.size else 1.0),
-                          *LENGTH_BOUNDS)[turned]
-        starts = [np.concatenate([np.log(lengths), np.log(np.clip([start.signal_std / unit, start.noise_std / unit],
-                                                                  1e-3, 10.0))])]
+        lengths = np.clip(
+            np.where(np.isfinite(start.lengthscales), start.lengthscales, span.max() if span.size else 1.0),
+            *LENGTH_BOUNDS,
+        )[turned]
+        starts = [
+            np.concatenate(
+                [np.log(lengths), np.log(np.clip([start.signal_std / unit, start.noise_std / unit], 1e-3, 10.0))]
+            )
+        ]
     best = None
     for x0 in starts:
-        result = scipy.optimize.minimize(_negative_log_ml, x0, args=(distances, y_s), jac=True,
-                                         method="L-BFGS-B", bounds=bounds)
+        result = scipy.optimize.minimize(
+            _negative_log_ml, x0, args=(distances, y_s), jac=True, method="L-BFGS-B", bounds=bounds
+        )
         if best is None or result.fun < best.fun:
             best = result
     lengths = np.full(q.shape[1], np.inf)
@@ -153,6 +170,7 @@ class ResidualGP:
 
     def __init__(self, q, residuals, hyper: Hyperparameters, inducing: int = INDUCING):
         import scipy.linalg
+
         q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
         self.hyper = hyper
         self.inducing = q[evenly_spaced(len(q), inducing)]
@@ -161,17 +179,20 @@ class ResidualGP:
         k_mm[np.diag_indices(m)] += JITTER * hyper.signal_std**2
         gram, projected = np.zeros((m, m)), np.zeros((m, y.shape[1]))
         for begin in range(0, len(q), CHUNK):
-            k_mn = kernel(self.inducing, q[begin:begin + CHUNK], hyper)
+            k_mn = kernel(self.inducing, q[begin : begin + CHUNK], hyper)
             gram += k_mn @ k_mn.T
-            projected += k_mn @ y[begin:begin + CHUNK]
+            projected += k_mn @ y[begin : begin + CHUNK]
         a = noise2 * k_mm + gram
         a[np.diag_indices(m)] += JITTER * hyper.signal_std**2 * noise2
         self._k_factor = scipy.linalg.cho_factor(k_mm, lower=True)
         self._a_factor = scipy.linalg.cho_factor(a, lower=True)
         self.weights = scipy.linalg.cho_solve(self._a_factor, projected)  # (m, 3): mean = K*m weights
         n, outputs = y.shape
-        log_det = (2.0 * np.sum(np.log(np.diag(self._a_factor[0]))) - 2.0 * np.sum(np.log(np.diag(self._k_factor[0])))
-                   + (n - m) * math.log(noise2))
+        log_det = (
+            2.0 * np.sum(np.log(np.diag(self._a_factor[0])))
+            - 2.0 * np.sum(np.log(np.diag(self._k_factor[0])))
+            + (n - m) * math.log(noise2)
+        )
         quadratic = (float(np.sum(y * y)) - float(np.sum(projected * self.weights))) / noise2
         self.log_likelihood = -0.5 * (quadratic + outputs * log_det + n * outputs * LOG_2PI)
         self.n_rows = n
@@ -184,6 +205,7 @@ class ResidualGP:
         """Posterior variance of each component of g (n*,) m^2 at readings q (n*, N), without the
         noise: s^2 far from the data."""
         import scipy.linalg
+
         k_sm = kernel(np.asarray(q, dtype=float), self.inducing, self.hyper)
         explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
         left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)
@@ -260,5 +282,9 @@ def from_results(frame: pd.DataFrame, section: dict | None) -> ResidualGP | None
     if not section or not section.get("added") or frame is None or frame.empty:
         return None
     q = frame[[c for c in frame.columns if c.startswith("q")]].to_numpy(float)
-    return ResidualGP(q, frame[["rx", "ry", "rz"]].to_numpy(float), Hyperparameters.from_report(section["hyperparameters"]),
-                      int(section["inducing"]))
+    return ResidualGP(
+        q,
+        frame[["rx", "ry", "rz"]].to_numpy(float),
+        Hyperparameters.from_report(section["hyperparameters"]),
+        int(section["inducing"]),
+    )

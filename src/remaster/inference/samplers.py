@@ -142,8 +142,10 @@ class Chain:
         """Human-readable: method, acceptance, and per parameter mean, std, tau, ESS, MCSE."""
         from ..diagnostics import chain_report  # diagnostics never imports samplers: no cycle
 
-        head = (f"{self.method}: {self.n_steps} kept steps x {self.n_walkers} walker(s), "
-                f"acceptance {self.acceptance_rate:.3f}")
+        head = (
+            f"{self.method}: {self.n_steps} kept steps x {self.n_walkers} walker(s), "
+            f"acceptance {self.acceptance_rate:.3f}"
+        )
         table = chain_report([self])[["mean", "std", "tau", "ess", "mcse"]]
         return head + "\n" + table.to_string(float_format=lambda v: f"{v:.6g}")
 
@@ -235,19 +237,29 @@ class _Progress:
 def _start(target: Target, start) -> _Walker:
     theta = np.array(start, dtype=float)
     if theta.shape != (len(target.names),):
-        raise SamplingError(f"start must have shape ({len(target.names)},) for parameters "
-                            f"{list(target.names)}, got {theta.shape}")
+        raise SamplingError(
+            f"start must have shape ({len(target.names)},) for parameters {list(target.names)}, got {theta.shape}"
+        )
     lp = float(target.log_prob(theta))
     if not np.isfinite(lp):
         values = ", ".join(f"{n}={v:.6g}" for n, v in zip(target.names, theta))
-        raise SamplingError(f"log_prob(start) = {lp}: the start is outside the support "
-                            f"(noise.sigma must be > 0) or the model fails there; start: {values}")
+        raise SamplingError(
+            f"log_prob(start) = {lp}: the start is outside the support "
+            f"(noise.sigma must be > 0) or the model fails there; start: {values}"
+        )
     return _Walker(theta, lp)
 
 
-def _walk(target: Target, rng: np.random.Generator, walker: _Walker, n_steps: int,
-          draw_steps: Callable[[np.random.Generator, int], np.ndarray], store: bool,
-          progress: _Progress, thin: int = 1) -> tuple[np.ndarray | None, np.ndarray | None, int]:
+def _walk(
+    target: Target,
+    rng: np.random.Generator,
+    walker: _Walker,
+    n_steps: int,
+    draw_steps: Callable[[np.random.Generator, int], np.ndarray],
+    store: bool,
+    progress: _Progress,
+    thin: int = 1,
+) -> tuple[np.ndarray | None, np.ndarray | None, int]:
     """Advance `walker` in place by n_steps Metropolis steps with symmetric increments.
 
     draw_steps(rng, m) -> (m, P) increments in SI. Increments and log-uniforms are drawn a block
@@ -316,6 +328,7 @@ def _check_counts(n_samples: int, burn_in: int) -> int:
 def _uniform_steps(half_widths: np.ndarray):
     def draw(rng: np.random.Generator, m: int) -> np.ndarray:
         return rng.uniform(-1.0, 1.0, (m, len(half_widths))) * half_widths
+
     return draw
 
 
@@ -324,6 +337,7 @@ def _gaussian_steps(covariance: np.ndarray):
 
     def draw(rng: np.random.Generator, m: int) -> np.ndarray:
         return rng.standard_normal((m, len(factor))) @ factor.T
+
     return draw
 
 
@@ -331,9 +345,16 @@ def _gaussian_steps(covariance: np.ndarray):
 # Samplers
 
 
-def metropolis_paper(target: Target, rng: np.random.Generator, start, n_samples: int = 200_000,
-                     burn_in: int = 175_000, half_width: float = PAPER_HALF_WIDTH,
-                     progress: Callable[[int, int, float], None] | None = None, trace_every: int = 100) -> Chain:
+def metropolis_paper(
+    target: Target,
+    rng: np.random.Generator,
+    start,
+    n_samples: int = 200_000,
+    burn_in: int = 175_000,
+    half_width: float = PAPER_HALF_WIDTH,
+    progress: Callable[[int, int, float], None] | None = None,
+    trace_every: int = 100,
+) -> Chain:
     """The paper's Metropolis: every parameter perturbed at once by U(-h, h) * scale.
 
     start (P,) SI (paper: Theta = 0, sigma = 1 mm); half_width h in step units (paper 0.0125 mm
@@ -342,8 +363,12 @@ def metropolis_paper(target: Target, rng: np.random.Generator, start, n_samples:
     state of the burn-in is kept in settings["burn_in_trace"] (k, P), for the trace figure.
     """
     scale = np.asarray(target.scale, dtype=float)
-    settings = {"n_samples": n_samples, "burn_in": burn_in, "half_width": half_width,
-                "proposal_half_widths": half_width * scale}
+    settings = {
+        "n_samples": n_samples,
+        "burn_in": burn_in,
+        "half_width": half_width,
+        "proposal_half_widths": half_width * scale,
+    }
     kept = _check_counts(n_samples, burn_in)
     walker = _start(target, start)
     draw = _uniform_steps(half_width * scale)
@@ -385,8 +410,8 @@ class _WindowMoments:
         """First stage of the estimation window."""
         end = len(self.level)
         level = np.array(self.level)
-        recent = level[end - max(1, end // 8):].mean()
-        low = np.flatnonzero(level[end // 2:] < recent - 3 * math.sqrt(len(self.shift) / 2))
+        recent = level[end - max(1, end // 8) :].mean()
+        low = np.flatnonzero(level[end // 2 :] < recent - 3 * math.sqrt(len(self.shift) / 2))
         return min(end // 2 + (low[-1] + 1 if low.size else 0), end - 1)
 
     def covariance(self) -> tuple[np.ndarray, int]:
@@ -398,8 +423,9 @@ class _WindowMoments:
         return (second - np.outer(mean, mean)) * n / max(n - 1, 1), self.moves[end] - self.moves[begin]
 
 
-def _blended(previous: np.ndarray, prior: np.ndarray, prior_weight: float, estimate: np.ndarray,
-             moves: int) -> np.ndarray:
+def _blended(
+    previous: np.ndarray, prior: np.ndarray, prior_weight: float, estimate: np.ndarray, moves: int
+) -> np.ndarray:
     """(w0 t C0 + n_eff S) / (w0 + n_eff): the window estimate S shrunk towards the SHAPE of C0.
 
     n_eff = accepted moves / P approximates the effective sample size of a well-tuned random walk
@@ -421,11 +447,19 @@ def _blended(previous: np.ndarray, prior: np.ndarray, prior_weight: float, estim
     return blend
 
 
-def metropolis_adaptive(target: Target, rng: np.random.Generator, start, covariance=None,
-                        n_samples: int = 60_000, burn_in: int = 20_000, initial_std: float = PAPER_HALF_WIDTH,
-                        covariance_weight: float | None = None, stage: int | None = None,
-                        target_acceptance: float = 0.234,
-                        progress: Callable[[int, int, float], None] | None = None) -> Chain:
+def metropolis_adaptive(
+    target: Target,
+    rng: np.random.Generator,
+    start,
+    covariance=None,
+    n_samples: int = 60_000,
+    burn_in: int = 20_000,
+    initial_std: float = PAPER_HALF_WIDTH,
+    covariance_weight: float | None = None,
+    stage: int | None = None,
+    target_acceptance: float = 0.234,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> Chain:
     """Gaussian random-walk Metropolis, proposal N(0, lambda 2.38^2 / P C), adapted during burn-in.
 
     start (P,) SI; covariance (P, P) SI, the initial C0 (e.g. `LaplaceResult.full_covariance()`),
@@ -479,14 +513,30 @@ def metropolis_adaptive(target: Target, rng: np.random.Generator, start, covaria
         c = _blended(c, prior, weight, estimate, moves)
     proposal = math.exp(log_lambda) * OPTIMAL_RW_SCALE / p * c
     samples, log_probs, accepted = _walk(target, rng, walker, kept, _gaussian_steps(proposal), True, tracker)
-    settings = {"n_samples": n_samples, "burn_in": burn_in, "stage": stage, "stage_acceptance": np.array(acceptance),
-                "covariance_weight": weight, "scale_factor": math.exp(log_lambda), "proposal_covariance": proposal}
+    settings = {
+        "n_samples": n_samples,
+        "burn_in": burn_in,
+        "stage": stage,
+        "stage_acceptance": np.array(acceptance),
+        "covariance_weight": weight,
+        "scale_factor": math.exp(log_lambda),
+        "proposal_covariance": proposal,
+    }
     return Chain(samples, log_probs, accepted / kept, tuple(target.names), "metropolis_adaptive", settings)
 
 
-def metropolis_independence(target: Target, rng: np.random.Generator, start, mean, covariance,
-                             n_samples: int = 20_000, burn_in: int = 2_000, dof: float = 10.0,
-                             inflation: float = 1.2, batch: int = BLOCK) -> Chain:
+def metropolis_independence(
+    target: Target,
+    rng: np.random.Generator,
+    start,
+    mean,
+    covariance,
+    n_samples: int = 20_000,
+    burn_in: int = 2_000,
+    dof: float = 10.0,
+    inflation: float = 1.2,
+    batch: int = BLOCK,
+) -> Chain:
     """Independence Metropolis-Hastings with a multivariate Student-t proposal t_dof(mean,
     inflation^2 covariance), e.g. from a Laplace approximation.
 
@@ -533,13 +583,25 @@ def metropolis_independence(target: Target, rng: np.random.Generator, start, mea
             if step >= burn_in:
                 samples[step - burn_in] = theta
                 log_probs[step - burn_in] = lp
-    settings = {"n_samples": n_samples, "burn_in": burn_in, "dof": dof, "inflation": inflation,
-                "proposal_covariance": covariance}
+    settings = {
+        "n_samples": n_samples,
+        "burn_in": burn_in,
+        "dof": dof,
+        "inflation": inflation,
+        "proposal_covariance": covariance,
+    }
     return Chain(samples, log_probs, accepted / kept, tuple(target.names), "metropolis_independence", settings)
 
 
-def run_emcee(target: Target, rng: np.random.Generator, start, spread, n_walkers: int = 32,
-              n_steps: int = 5_000, burn_in: int = 1_000) -> Chain:
+def run_emcee(
+    target: Target,
+    rng: np.random.Generator,
+    start,
+    spread,
+    n_walkers: int = 32,
+    n_steps: int = 5_000,
+    burn_in: int = 1_000,
+) -> Chain:
     """emcee's affine-invariant ensemble (stretch move), log_prob_many over all walkers per call.
 
     start (P,) SI; spread (P,) or scalar SI: walkers start at start + spread * N(0, 1), redrawn
@@ -562,8 +624,9 @@ def run_emcee(target: Target, rng: np.random.Generator, start, spread, n_walkers
             break
         walkers[bad] = centre + spread * rng.standard_normal((int(bad.sum()), p))
     else:
-        raise SamplingError(f"{int(bad.sum())} of {n_walkers} initial walkers stay outside the support "
-                            f"after 100 redraws: reduce spread")
+        raise SamplingError(
+            f"{int(bad.sum())} of {n_walkers} initial walkers stay outside the support after 100 redraws: reduce spread"
+        )
     seed = int(rng.integers(2**32))
     initial = emcee.State(walkers, random_state=np.random.RandomState(seed).get_state())
     sampler = emcee.EnsembleSampler(n_walkers, p, target.log_prob_many, vectorize=True)
@@ -574,13 +637,20 @@ def run_emcee(target: Target, rng: np.random.Generator, start, spread, n_walkers
     sampler.run_mcmc(state, kept, progress=False, skip_initial_state_check=bool(burn_in))
     accepted = sampler.backend.accepted - accepted_before
     settings = {"n_steps": n_steps, "burn_in": burn_in, "n_walkers": n_walkers, "spread": spread.copy()}
-    return Chain(sampler.get_chain(discard=burn_in, flat=True), sampler.get_log_prob(discard=burn_in, flat=True),
-                 float(accepted.sum() / (kept * n_walkers)), tuple(target.names), "emcee", settings,
-                 n_walkers=n_walkers)
+    return Chain(
+        sampler.get_chain(discard=burn_in, flat=True),
+        sampler.get_log_prob(discard=burn_in, flat=True),
+        float(accepted.sum() / (kept * n_walkers)),
+        tuple(target.names),
+        "emcee",
+        settings,
+        n_walkers=n_walkers,
+    )
 
 
-def run_chains(sampler_fn: Callable[..., Chain], target: Target, rng: np.random.Generator, n_chains: int,
-               starts, **kw) -> list[Chain]:
+def run_chains(
+    sampler_fn: Callable[..., Chain], target: Target, rng: np.random.Generator, n_chains: int, starts, **kw
+) -> list[Chain]:
     """n_chains >= 2 independent runs of sampler_fn(target, child_rng, start, **kw).
 
     starts: (n_chains, P) one start each (overdispersed starts make R-hat meaningful) or (P,)
@@ -609,9 +679,17 @@ def _undetermined(vt: np.ndarray, small: np.ndarray, names: Sequence[str]) -> li
     return out
 
 
-def least_squares_laplace(residuals: Callable[[np.ndarray], np.ndarray], theta0, scale, rng=None,
-                          names: Sequence[str] | None = None, jacobian=None, n_restarts: int = 0,
-                          restart_spread: float = 1.0, rcond: float = 1e-6) -> LaplaceResult:
+def least_squares_laplace(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    theta0,
+    scale,
+    rng=None,
+    names: Sequence[str] | None = None,
+    jacobian=None,
+    n_restarts: int = 0,
+    restart_spread: float = 1.0,
+    rcond: float = 1e-6,
+) -> LaplaceResult:
     """Minimise the sum of squared residuals(theta) (k,) over theta (P-1,) SI; Laplace covariance.
 
     scale (P-1,) SI step units: used as scipy's x_scale and to make singular values unit-free.
@@ -624,6 +702,7 @@ def least_squares_laplace(residuals: Callable[[np.ndarray], np.ndarray], theta0,
     """
     import scipy.optimize
     from scipy.special import gammaln
+
     theta0 = np.asarray(theta0, dtype=float)
     scale = np.broadcast_to(np.asarray(scale, dtype=float), theta0.shape)
     names = tuple(names) if names is not None else tuple(f"theta[{i}]" for i in range(len(theta0)))
@@ -633,8 +712,12 @@ def least_squares_laplace(residuals: Callable[[np.ndarray], np.ndarray], theta0,
             raise ValueError("n_restarts > 0 needs rng")
         starts += list(theta0 + restart_spread * scale * rng.standard_normal((n_restarts, len(theta0))))
     jac = "2-point" if jacobian is None else jacobian
-    fits = [scipy.optimize.least_squares(residuals, x, jac=jac, x_scale=scale, method="trf",
-                                         xtol=1e-12, ftol=1e-12, gtol=1e-12) for x in starts]
+    fits = [
+        scipy.optimize.least_squares(
+            residuals, x, jac=jac, x_scale=scale, method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12
+        )
+        for x in starts
+    ]
     fit = min(fits, key=lambda f: f.cost)
     r = np.asarray(residuals(fit.x), dtype=float).ravel()
     k, m = r.size, len(theta0)
@@ -651,13 +734,23 @@ def least_squares_laplace(residuals: Callable[[np.ndarray], np.ndarray], theta0,
         raise NotIdentifiable(
             f"the data do not determine {int(small.sum())} parameter combination(s) (singular values of "
             f"J in step units {singular[small]} < {rcond:g} x {singular[0]:.3g}): {text}. "
-            f"Fix one parameter of each combination or add data that separates them.", combos)
+            f"Fix one parameter of each combination or add data that separates them.",
+            combos,
+        )
     s2 = sum_squares / (k - m)
     inverse = (vt.T / singular**2) @ vt
     covariance = s2 * inverse * np.outer(scale, scale)
     nu = k - m + 1
     sigma_mean = math.sqrt(sum_squares / 2) * math.exp(gammaln((nu - 1) / 2) - gammaln(nu / 2))
     sigma_std = math.sqrt(max(sum_squares / (nu - 2) - sigma_mean**2, 0.0))
-    return LaplaceResult(theta_map=fit.x.copy(), covariance=covariance, sigma_map=math.sqrt(sum_squares / k),
-                         sigma_mean=sigma_mean, sigma_std=sigma_std, cost=float(fit.cost),
-                         jacobian_singular_values=singular, n_residuals=k, names=names)
+    return LaplaceResult(
+        theta_map=fit.x.copy(),
+        covariance=covariance,
+        sigma_map=math.sqrt(sum_squares / k),
+        sigma_mean=sigma_mean,
+        sigma_std=sigma_std,
+        cost=float(fit.cost),
+        jacobian_singular_values=singular,
+        n_residuals=k,
+        names=names,
+    )

@@ -25,14 +25,15 @@ from ..units import MM
 
 CLOSURE_RATIO = 1.2
 MAIN_CAUSE_SHARE = 0.5  # an effect that removes less than this share of the structured residual is not "the cause"
-SAME_READING = 1e-9     # rad: rows whose readings agree to this are one configuration measured again
+SAME_READING = 1e-9  # rad: rows whose readings agree to this are one configuration measured again
 
 
 def configuration_groups(q) -> tuple[np.ndarray, np.ndarray]:
     """(group (n,), counts (G,)): rows of readings q (n, N) that agree to SAME_READING share a
     group, one configuration measured counts[group] times."""
-    _, group, counts = np.unique(np.round(np.asarray(q, dtype=float) / SAME_READING), axis=0, return_inverse=True,
-                                 return_counts=True)
+    _, group, counts = np.unique(
+        np.round(np.asarray(q, dtype=float) / SAME_READING), axis=0, return_inverse=True, return_counts=True
+    )
     return group.ravel(), counts
 
 
@@ -61,15 +62,27 @@ def noise_floor(stated: float | None, repeats: float | None) -> float | None:
 def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> dict:
     """Closed or not, the structured residual left per axis (mm) and the sentence the report shows."""
     if floor is None:
-        return {"closed": None, "structured_mm": None, "rms_per_axis_mm": rms_per_axis / MM,
-                "text": "unknown: the campaign states no sensor noise and repeats no configuration"}
+        return {
+            "closed": None,
+            "structured_mm": None,
+            "rms_per_axis_mm": rms_per_axis / MM,
+            "text": "unknown: the campaign states no sensor noise and repeats no configuration",
+        }
     structured = math.sqrt(max(rms_per_axis**2 - floor**2, 0.0))
     closed = rms_per_axis <= ratio * floor
-    text = ("closed: the residual is at the sensor's noise" if closed else
-            f"not closed: {structured / MM:.3g} mm of structured residual left per axis "
-            f"({rms_per_axis / floor:.1f} x the noise floor)")
-    return {"closed": bool(closed), "structured_mm": structured / MM, "rms_per_axis_mm": rms_per_axis / MM,
-            "ratio_to_floor": rms_per_axis / floor, "text": text}
+    text = (
+        "closed: the residual is at the sensor's noise"
+        if closed
+        else f"not closed: {structured / MM:.3g} mm of structured residual left per axis "
+        f"({rms_per_axis / floor:.1f} x the noise floor)"
+    )
+    return {
+        "closed": bool(closed),
+        "structured_mm": structured / MM,
+        "rms_per_axis_mm": rms_per_axis / MM,
+        "ratio_to_floor": rms_per_axis / floor,
+        "text": text,
+    }
 
 
 def share(before: float, after: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> float | None:

@@ -67,16 +67,19 @@ from .selection import Selection, Signature, accuracy, select
 from .settings import LoopSettings
 
 
-def before_after_table(before: dict, after: dict, sigma_before: float, sigma_after: float,
-                       parameters: tuple[int, int]) -> pd.DataFrame:
+def before_after_table(
+    before: dict, after: dict, sigma_before: float, sigma_after: float, parameters: tuple[int, int]
+) -> pd.DataFrame:
     """The report's table: accuracy on both sets, sigma and parameter count, before (zero-offset
     model) and after (with the effects added)."""
-    rows = [("sigma (mm)", sigma_before / MM, sigma_after / MM),
-            ("free parameters", parameters[0], parameters[1])]
+    rows = [("sigma (mm)", sigma_before / MM, sigma_after / MM), ("free parameters", parameters[0], parameters[1])]
     for set_name in SETS:
-        for key, label in (("rmse_mm", "post-registration RMSE (mm)"), ("rms_per_axis_mm", "RMS per axis (mm)"),
-                           ("mean_error_mm", "mean post-registration error (mm)"),
-                           ("relative_mean_mm", "mean relative error (mm)")):
+        for key, label in (
+            ("rmse_mm", "post-registration RMSE (mm)"),
+            ("rms_per_axis_mm", "RMS per axis (mm)"),
+            ("mean_error_mm", "mean post-registration error (mm)"),
+            ("relative_mean_mm", "mean relative error (mm)"),
+        ):
             rows.append((f"{set_name}: {label}", before[set_name][key], after[set_name][key]))
     return pd.DataFrame(rows, columns=["Quantity", "Before (zero-offsets)", "After (with effects)"])
 
@@ -108,8 +111,15 @@ class LoopClosure:
         write_parquet(gp, self.gp)
 
 
-def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mapping[str, float],
-               rng: np.random.Generator, settings: LoopSettings, exclude=()) -> LoopClosure:
+def close_loop(
+    chain: KinematicChain,
+    sensor: SensorData,
+    t_nr,
+    base_held: Mapping[str, float],
+    rng: np.random.Generator,
+    settings: LoopSettings,
+    exclude=(),
+) -> LoopClosure:
     """Diagnose, decide and refit on the optimization set, then report before and after on both
     sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
     parameters (identifiability analysis); exclude: table rows the fit left out as gross errors
@@ -118,8 +128,9 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
     poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
     frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
     tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
-    selection = select(chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings,
-                       tracker=tracker)
+    selection = select(
+        chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings, tracker=tracker
+    )
     base, final = selection.base, selection.final
 
     samples, mcmc = None, None
@@ -142,17 +153,21 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
     warnings = list(closed["warnings"])
     if closed["closed"] is False and not selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
-        warnings.append("no candidate effect explains what is left" + (
-            f"; it depends on {', '.join(where)} (residual GP relevance)" if where else ""))
+        warnings.append(
+            "no candidate effect explains what is left"
+            + (f"; it depends on {', '.join(where)} (residual GP relevance)" if where else "")
+        )
     if mcmc is not None and not mcmc["converged"]:
-        warnings.append(f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
-                        f"{mcmc['criteria']['min_ess']} after {len(mcmc['attempts'])} runs (last: R-hat "
-                        f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable")
+        warnings.append(
+            f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
+            f"{mcmc['criteria']['min_ess']} after {len(mcmc['attempts'])} runs (last: R-hat "
+            f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable"
+        )
     report = LoopReport(
         sensor=sensor.name,
         evidence="Laplace log evidence under the extension priors (nats), gain = log Z(with the candidate) - "
-                 "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
-                 "gain for reference. The validation set is not used to select.",
+        "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
+        "gain for reference. The validation set is not used to select.",
         selection_data="optimization set only",
         settings=settings.report(),
         effects_added=tuple(selection.added),
@@ -161,26 +176,46 @@ def close_loop(chain: KinematicChain, sensor: SensorData, t_nr, base_held: Mappi
         rounds=tuple({"round": r["round"], "model": r["model"], "added": r["added"]} for r in selection.rounds),
         validation_rmse_before_mm=before["validation"]["rmse_mm"],
         validation_rmse_after_mm=after["validation"]["rmse_mm"],
-        sigma_before_mm=sigma_before / MM, sigma_after_mm=sigma_after / MM,
-        before=before, after=after,
+        sigma_before_mm=sigma_before / MM,
+        sigma_after_mm=sigma_after / MM,
+        before=before,
+        after=after,
         identifiability=final.reduction.report(),
         prior_dominated=tuple(dominated["parameter"].tolist()),
         warnings=tuple(warnings),
-        refit={"mode": {"names": list(final.model.names), "theta": final.theta.tolist(),
-                        "std": final.mode.std.tolist(), "sigma_mm": final.mode.sigma / MM,
-                        "log_evidence": final.mode.log_evidence, "bic": final.mode.bic()},
-               "mcmc": mcmc,
-               "parameters": after_table.replace({np.nan: None}).to_dict(orient="records")},
+        refit={
+            "mode": {
+                "names": list(final.model.names),
+                "theta": final.theta.tolist(),
+                "std": final.mode.std.tolist(),
+                "sigma_mm": final.mode.sigma / MM,
+                "log_evidence": final.mode.log_evidence,
+                "bic": final.mode.bic(),
+            },
+            "mcmc": mcmc,
+            "parameters": after_table.replace({np.nan: None}).to_dict(orient="records"),
+        },
         zero_offset_shifts=tuple(zero_offset_shifts(before_table, after_table)),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
-        noise_model=selection.noise or {"offered": False, "chosen": "isotropic", "why": (
-            "not a laser tracker" if sensor.kind != "laser_tracker" else "tracker_noise disabled in the config"
-            if settings.tracker_noise is None else frame_problem)},
+        noise_model=selection.noise
+        or {
+            "offered": False,
+            "chosen": "isotropic",
+            "why": (
+                "not a laser tracker"
+                if sensor.kind != "laser_tracker"
+                else "tracker_noise disabled in the config"
+                if settings.tracker_noise is None
+                else frame_problem
+            ),
+        },
     )
     table = before_after_table(before, after, sigma_before, sigma_after, counts)
-    residuals = {"before": {s: base.residuals(data[s]) for s in SETS},
-                 "after": {s: data[s].measured - predicted[s] for s in SETS}}
+    residuals = {
+        "before": {s: base.residuals(data[s]) for s in SETS},
+        "after": {s: data[s].measured - predicted[s] for s in SETS},
+    }
     gp = residual_gp.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
     return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
 
@@ -200,18 +235,33 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
     final = rounds[-1]
     warnings = []
     if final["closed"] is False:
-        minor = [f"{name} ({100 * value:.0f} %)" for name, value in shares.items()
-                 if value is not None and value < closure.MAIN_CAUSE_SHARE]
-        warnings.append(f"loop {final['text']}"
-                        + (f"; effects added that explain only a small share of what was left, not its cause: "
-                           f"{', '.join(minor)}" if minor else ""))
-    return {"stated_noise_mm": None if stated_noise is None else stated_noise / MM,
-            "repeatability_mm": None if repeats is None else repeats / MM, "repeated_configurations": repeated,
-            "noise_floor_mm": None if floor is None else floor / MM, "ratio": ratio,
-            "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
-            "rounds": rounds, "share_of_structured_residual": shares,
-            "main_causes": [n for n, v in shares.items() if v is not None and v >= closure.MAIN_CAUSE_SHARE],
-            "closed": final["closed"], "verdict": final["text"], "warnings": warnings}
+        minor = [
+            f"{name} ({100 * value:.0f} %)"
+            for name, value in shares.items()
+            if value is not None and value < closure.MAIN_CAUSE_SHARE
+        ]
+        warnings.append(
+            f"loop {final['text']}"
+            + (
+                f"; effects added that explain only a small share of what was left, not its cause: {', '.join(minor)}"
+                if minor
+                else ""
+            )
+        )
+    return {
+        "stated_noise_mm": None if stated_noise is None else stated_noise / MM,
+        "repeatability_mm": None if repeats is None else repeats / MM,
+        "repeated_configurations": repeated,
+        "noise_floor_mm": None if floor is None else floor / MM,
+        "ratio": ratio,
+        "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
+        "rounds": rounds,
+        "share_of_structured_residual": shares,
+        "main_causes": [n for n, v in shares.items() if v is not None and v >= closure.MAIN_CAUSE_SHARE],
+        "closed": final["closed"],
+        "verdict": final["text"],
+        "warnings": warnings,
+    }
 
 
 def gp_report(selection: Selection, standard_errors: float) -> dict | None:
@@ -230,14 +280,19 @@ def gp_report(selection: Selection, standard_errors: float) -> dict | None:
     structured = fall["cv_mse_fall_in_se"] > standard_errors
     before = float(np.sum(selection.final.cv.mse * selection.final.cv.points))
     after = float(np.sum(candidate.mse * candidate.points))
-    return {"added": selection.gp_added, "hyperparameters": candidate.gp.hyper.report(),
-            "relevance": dict(zip(columns, relevance.tolist())), "structure_found": bool(structured),
-            "depends_on": [columns[j] for j in order if structured and relevance[j] >= residual_gp.RELEVANT_RANGE],
-            "most_relevant_joint": columns[int(order[0])] if structured else None,
-            "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
-            "frame": "robot (the residual rotated back by the final fit's registration)",
-            "rows": int(len(candidate.q)), "inducing": int(len(candidate.gp.inducing)),
-            "rotation_robot_to_sensor": selection.rotation.tolist()}
+    return {
+        "added": selection.gp_added,
+        "hyperparameters": candidate.gp.hyper.report(),
+        "relevance": dict(zip(columns, relevance.tolist())),
+        "structure_found": bool(structured),
+        "depends_on": [columns[j] for j in order if structured and relevance[j] >= residual_gp.RELEVANT_RANGE],
+        "most_relevant_joint": columns[int(order[0])] if structured else None,
+        "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
+        "frame": "robot (the residual rotated back by the final fit's registration)",
+        "rows": int(len(candidate.q)),
+        "inducing": int(len(candidate.gp.inducing)),
+        "rotation_robot_to_sensor": selection.rotation.tolist(),
+    }
 
 
 def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
@@ -249,13 +304,21 @@ def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:
     return out
 
 
-def loop_closure_stage(campaign: Campaign, sensor: str, registration: fit.Registration, laplace: fit.LaplaceReport,
-                       rng: np.random.Generator, settings: LoopSettings) -> LoopClosure:
+def loop_closure_stage(
+    campaign: Campaign,
+    sensor: str,
+    registration: fit.Registration,
+    laplace: fit.LaplaceReport,
+    rng: np.random.Generator,
+    settings: LoopSettings,
+) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
     Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
     if campaign.robot.get("priors"):
-        settings = replace(settings, priors=priors_from(settings.priors_config, campaign.robot,
-                                                        f"{campaign.name}/campaign.yaml"))
-    result = close_loop(campaign.chain, campaign.sensors[sensor], registration.t_nr, laplace.held, rng,
-                        settings, laplace.outlier_rows)
+        settings = replace(
+            settings, priors=priors_from(settings.priors_config, campaign.robot, f"{campaign.name}/campaign.yaml")
+        )
+    result = close_loop(
+        campaign.chain, campaign.sensors[sensor], registration.t_nr, laplace.held, rng, settings, laplace.outlier_rows
+    )
     return replace(result, report=replace(result.report, campaign=campaign.name))

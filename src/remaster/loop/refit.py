@@ -27,8 +27,9 @@ PROPOSAL_INFLATION = 1.1
 PRIOR_DOMINATED = 0.5
 
 
-def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
-          ) -> tuple[list[samplers.Chain], dict]:
+def refit(
+    mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
+) -> tuple[list[samplers.Chain], dict]:
     """Chains of the model's posterior by independence Metropolis from its Laplace approximation
     (`samplers.metropolis_independence`), in the coordinates where that approximation fits best
     (`gauge.sampling_coordinates`: the model's exact symmetries folded out), run longer (samples
@@ -39,29 +40,49 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
     mean = np.append(mode.theta, mode.sigma)
     covariance = mode.covariance
     # the model's exact symmetries are curved ridges in its own parameters, straight in folded ones
-    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(target, mode.model, mean, covariance,
-                                                                               rng)
+    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(target, mode.model, mean, covariance, rng)
     run, criteria = dict(settings.mcmc), settings.convergence
     attempts = []
-    for attempt in range(int(criteria["max_doublings"]) + 1):
+    for _ in range(int(criteria["max_doublings"]) + 1):
         started = time.perf_counter()
-        chains = samplers.run_chains(samplers.metropolis_independence, target, rng, int(run["chains"]), mean,
-                                     mean=mean, covariance=covariance, n_samples=int(run["samples"]),
-                                     burn_in=int(run["burn_in"]), dof=PROPOSAL_DOF_PER_PARAMETER * len(mean),
-                                     inflation=PROPOSAL_INFLATION)
+        chains = samplers.run_chains(
+            samplers.metropolis_independence,
+            target,
+            rng,
+            int(run["chains"]),
+            mean,
+            mean=mean,
+            covariance=covariance,
+            n_samples=int(run["samples"]),
+            burn_in=int(run["burn_in"]),
+            dof=PROPOSAL_DOF_PER_PARAMETER * len(mean),
+            inflation=PROPOSAL_INFLATION,
+        )
         if folds is not None:
             chains = [folds.back(c) for c in chains]
         report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
         done = fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
-        attempts.append({"samples": int(run["samples"]), "burn_in": int(run["burn_in"]),
-                         "max_rhat": report["max_rhat"], "min_ess": report["min_ess"],
-                         "acceptance_rate": report["acceptance_rate"], "seconds": report["seconds"],
-                         "converged": done})
+        attempts.append(
+            {
+                "samples": int(run["samples"]),
+                "burn_in": int(run["burn_in"]),
+                "max_rhat": report["max_rhat"],
+                "min_ess": report["min_ess"],
+                "acceptance_rate": report["acceptance_rate"],
+                "seconds": report["seconds"],
+                "converged": done,
+            }
+        )
         if done:
             break
         run = {**run, "samples": 2 * int(run["samples"]), "burn_in": 2 * int(run["burn_in"])}
-    return chains, {**report, "converged": done, "attempts": attempts, "coordinates": coordinates,
-                    "criteria": {"max_rhat": criteria["max_rhat"], "min_ess": criteria["min_ess"]}}
+    return chains, {
+        **report,
+        "converged": done,
+        "attempts": attempts,
+        "coordinates": coordinates,
+        "criteria": {"max_rhat": criteria["max_rhat"], "min_ess": criteria["min_ess"]},
+    }
 
 
 def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.DataFrame:
@@ -82,20 +103,36 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
         source = "posterior mode + Laplace"
     free = {n: (m, s, lo, hi) for n, m, s, lo, hi in zip(names, mean, std, low, high)}
     prior = dict(zip(model.names, model.prior_std))
-    reasons = {**{n: "held: not identifiable" for n in model.fixed},
-               **{n: f"held: {why}" for n, why in fitted.reduction.dropped.items() if n in model.fixed}}
+    reasons = {
+        **{n: "held: not identifiable" for n in model.fixed},
+        **{n: f"held: {why}" for n, why in fitted.reduction.dropped.items() if n in model.fixed},
+    }
     rows = []
     for name, scale, unit in list(zip(model.all_names, model.all_scale, model.all_unit)) + [(SIGMA, MM, "mm")]:
         m, s, lo, hi = free.get(name, (model.fixed.get(name, 0.0), np.nan, np.nan, np.nan))
         tau = prior.get(name, np.inf)
         ratio = s / tau if np.isfinite(tau) and np.isfinite(s) else np.nan
-        rows.append({"parameter": name, "block": model.block_of.get(name, "noise"), "mean": m, "std": s,
-                     "q2.5": lo, "q97.5": hi, "unit": unit, "mean_display": m / scale, "std_display": s / scale,
-                     "q2.5_display": lo / scale, "q97.5_display": hi / scale,
-                     "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
-                     "posterior_to_prior_std": ratio, "prior_dominated": bool(ratio > PRIOR_DOMINATED),
-                     "status": "estimated" if name in free else reasons.get(name, "held"),
-                     "unseen_by_data": fitted.reduction.dropped.get(name, ""), "source": source})
+        rows.append(
+            {
+                "parameter": name,
+                "block": model.block_of.get(name, "noise"),
+                "mean": m,
+                "std": s,
+                "q2.5": lo,
+                "q97.5": hi,
+                "unit": unit,
+                "mean_display": m / scale,
+                "std_display": s / scale,
+                "q2.5_display": lo / scale,
+                "q97.5_display": hi / scale,
+                "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
+                "posterior_to_prior_std": ratio,
+                "prior_dominated": bool(ratio > PRIOR_DOMINATED),
+                "status": "estimated" if name in free else reasons.get(name, "held"),
+                "unseen_by_data": fitted.reduction.dropped.get(name, ""),
+                "source": source,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -105,8 +142,16 @@ def zero_offset_shifts(before: pd.DataFrame, after: pd.DataFrame) -> list[dict]:
     out = []
     for name in [n for n in after.index if n.startswith("zero_offsets.")]:
         first, last = float(before.loc[name, "mean"]) / DEG, float(after.loc[name, "mean"]) / DEG
-        row = {"parameter": name, "before_deg": first, "after_deg": last, "shift_deg": last - first,
-               "std_before_deg": None, "std_after_deg": None, "shift_in_std_before": None, "shift_in_std_after": None}
+        row = {
+            "parameter": name,
+            "before_deg": first,
+            "after_deg": last,
+            "shift_deg": last - first,
+            "std_before_deg": None,
+            "std_after_deg": None,
+            "shift_in_std_before": None,
+            "shift_in_std_after": None,
+        }
         if after.loc[name, "status"] == "estimated":
             row["std_before_deg"] = float(before.loc[name, "std"]) / DEG
             row["std_after_deg"] = float(after.loc[name, "std"]) / DEG

@@ -116,13 +116,17 @@ class LoopReport:
         return write_json(path, self.to_json())
 
     @classmethod
-    def of(cls, content: Mapping, source: str = "loop_closure.json") -> "LoopReport":
+    def of(cls, content: Mapping, source: str = "loop_closure.json") -> LoopReport:
         """From the JSON content; a missing key (or one of the nested keys the properties read) is an
         InputError naming the file and the key."""
         get = report_reader(content, source, "missing in the loop-closure report")
-        for path in (("settings", "payload_mass_kg"), ("settings", "payload_com_m"),
-                     ("settings", "priors", "std_display_units", "held_zero_offset_deg"),
-                     ("identifiability", "dropped"), ("refit", "parameters")):
+        for path in (
+            ("settings", "payload_mass_kg"),
+            ("settings", "payload_com_m"),
+            ("settings", "priors", "std_display_units", "held_zero_offset_deg"),
+            ("identifiability", "dropped"),
+            ("refit", "parameters"),
+        ):
             get(*path)
         if not isinstance(get("refit", "parameters"), list):
             raise InputError("not a list of parameters", file=source, key="refit/parameters")
@@ -139,6 +143,6 @@ class LoopReport:
         return cls(**values, source=source)
 
     @classmethod
-    def read(cls, path) -> "LoopReport":
+    def read(cls, path) -> LoopReport:
         """From loop_closure.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))

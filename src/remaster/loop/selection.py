@@ -37,10 +37,15 @@ def accuracy(measured, predicted, poses) -> dict:
     error = np.asarray(measured) - np.asarray(predicted)
     norms = metrics.post_registration_errors(measured, predicted)
     relative = metrics.interval_summary(metrics.relative_errors(measured, predicted, poses))
-    return {"points": int(len(norms)), "rmse_mm": float(np.sqrt(np.mean(norms**2)) / MM),
-            "rms_per_axis_mm": float(np.sqrt(np.mean(error**2)) / MM), "mean_error_mm": float(norms.mean() / MM),
-            "error_q97.5_mm": float(np.quantile(norms, 0.975) / MM), "relative_pairs": relative["count"],
-            "relative_mean_mm": relative["mean"] / MM if relative["count"] else None}
+    return {
+        "points": int(len(norms)),
+        "rmse_mm": float(np.sqrt(np.mean(norms**2)) / MM),
+        "rms_per_axis_mm": float(np.sqrt(np.mean(error**2)) / MM),
+        "mean_error_mm": float(norms.mean() / MM),
+        "error_q97.5_mm": float(np.quantile(norms, 0.975) / MM),
+        "relative_pairs": relative["count"],
+        "relative_mean_mm": relative["mean"] / MM if relative["count"] else None,
+    }
 
 
 # --------------------------------------------------------------------------- one fit
@@ -77,9 +82,17 @@ class Fitted:
         return accuracy(model.measured, model.predict(self.theta), poses)
 
 
-def fit_blocks(chain: KinematicChain, data: Readings, marker, t_nr, extensions: Sequence[str],
-               base_held: Mapping[str, float], folds: np.ndarray, priors: Priors,
-               start: Mapping[str, float] | None = None) -> Fitted:
+def fit_blocks(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    extensions: Sequence[str],
+    base_held: Mapping[str, float],
+    folds: np.ndarray,
+    priors: Priors,
+    start: Mapping[str, float] | None = None,
+) -> Fitted:
     """Base + extensions under their priors on the optimization readings, from `start`
     ({name: value}; 0 for the others), with its cross-validation over `folds` (n,)."""
     model, reduction = blocks.extended_model(chain, data, marker, t_nr, extensions, base_held, priors)
@@ -108,12 +121,16 @@ class Signature:
 
 def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
     """A candidate's scores against the current fit (JSON-ready), and whether it passes."""
-    out = {"log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
-           "bic_gain": current.mode.bic() - candidate.mode.bic(),
-           **evidence.cv_gain(current.cv, candidate.cv),
-           "sigma_mm": candidate.mode.sigma / MM, "parameters": list(candidate.reduction.kept),
-           "dropped": dict(candidate.reduction.dropped), "weak": dict(candidate.reduction.weak),
-           "condition_number": candidate.reduction.condition_number}
+    out = {
+        "log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
+        "bic_gain": current.mode.bic() - candidate.mode.bic(),
+        **evidence.cv_gain(current.cv, candidate.cv),
+        "sigma_mm": candidate.mode.sigma / MM,
+        "parameters": list(candidate.reduction.kept),
+        "dropped": dict(candidate.reduction.dropped),
+        "weak": dict(candidate.reduction.weak),
+        "condition_number": candidate.reduction.condition_number,
+    }
     out["passed"] = passes(out, settings)
     return out
 
@@ -121,8 +138,10 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
 def passes(scores: Mapping, settings: LoopSettings) -> bool:
     """The selection's rule, for a parametric candidate and the residual GP alike: the evidence gain
     exceeds min_log_evidence_gain AND the cross-validated fall exceeds cv_standard_errors."""
-    return bool(scores["log_evidence_gain"] > settings.min_log_evidence_gain
-                and scores["cv_mse_fall_in_se"] > settings.cv_standard_errors)
+    return bool(
+        scores["log_evidence_gain"] > settings.min_log_evidence_gain
+        and scores["cv_mse_fall_in_se"] > settings.cv_standard_errors
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,8 +172,16 @@ class Selection:
         return predicted + self.gp.gp.mean(data.q) @ self.rotation.T if self.gp_added else predicted
 
 
-def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mapping[str, float], poses,
-           settings: LoopSettings, tracker: bool = False) -> Selection:
+def select(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    base_held: Mapping[str, float],
+    poses,
+    settings: LoopSettings,
+    tracker: bool = False,
+) -> Selection:
     """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2) on the optimization readings;
     poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
     sensor is a laser tracker, whose range/transverse noise is then offered."""
@@ -169,18 +196,30 @@ def select(chain: KinematicChain, data: Readings, marker, t_nr, base_held: Mappi
         scores, fits, signatures[number] = {}, {}, {}
         for candidate in remaining:
             try:
-                fitted = fit_blocks(chain, data, marker, t_nr, tuple(added) + (candidate,), base_held, folds,
-                                    settings.priors, current.values())
+                fitted = fit_blocks(
+                    chain,
+                    data,
+                    marker,
+                    t_nr,
+                    tuple(added) + (candidate,),
+                    base_held,
+                    folds,
+                    settings.priors,
+                    current.values(),
+                )
             except np.linalg.LinAlgError as exc:
                 scores[candidate] = {"skipped": f"not identifiable: {exc}"}
                 continue
             if not fitted.reduction.kept:
-                scores[candidate] = {"skipped": "no parameter of this block is visible in these data",
-                                     "dropped": dict(fitted.reduction.dropped)}
+                scores[candidate] = {
+                    "skipped": "no parameter of this block is visible in these data",
+                    "dropped": dict(fitted.reduction.dropped),
+                }
                 continue
             fits[candidate] = fitted
-            signature = signatures[number][candidate] = Signature(residual,
-                                                                  fitted.model.predict(fitted.theta) - prediction)
+            signature = signatures[number][candidate] = Signature(
+                residual, fitted.model.predict(fitted.theta) - prediction
+            )
             scores[candidate] = {**score(current, fitted, settings), "explained_fraction": signature.explained}
         passing = [c for c in fits if scores[c]["passed"]]
         best = max(passing, key=lambda c: scores[c]["log_evidence_gain"]) if passing else None
@@ -215,19 +254,22 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
     integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. Returns
     the chosen fit and a JSON-ready report."""
     import scipy.optimize
+
     prior = settings.tracker_noise
     median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
 
     def mode_at(log_growth: float) -> evidence.PosteriorMode:
-        return evidence.posterior_mode(current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))),
-                                       current.theta)
+        return evidence.posterior_mode(
+            current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))), current.theta
+        )
 
     def objective(log_growth: float) -> float:
         return -(mode_at(log_growth).log_evidence + noise.log_growth_prior(log_growth, median, log_std))
 
     centre, width = math.log(median), NOISE_SEARCH_WIDTH * log_std
-    best = scipy.optimize.minimize_scalar(objective, bounds=(centre - width, centre + width), method="bounded",
-                                          options={"xatol": 0.05})
+    best = scipy.optimize.minimize_scalar(
+        objective, bounds=(centre - width, centre + width), method="bounded", options={"xatol": 0.05}
+    )
     step = 0.1  # in log g: the posterior of log g is wider than this wherever the data leave g free
     curvature = (objective(best.x + step) - 2.0 * best.fun + objective(best.x - step)) / step**2
     curvature = max(curvature, 1.0 / log_std**2)  # the prior alone curves this much; a noisy difference may not
@@ -237,34 +279,51 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
     growth = math.exp(best.x)
     distance = np.linalg.norm(current.model.measured, axis=1)
     chosen = bool(gain > settings.min_log_evidence_gain)
-    report = {"offered": True, "compared": "range/transverse (laser tracker) against isotropic",
-              **noise.RangeTransverse(growth).report(),
-              "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
-              "growth_std_log": 1.0 / math.sqrt(curvature), "log_evidence_isotropic": current.mode.log_evidence,
-              "log_evidence_range_transverse": float(log_evidence), "log_evidence_gain": float(gain),
-              "sigma_isotropic_mm": current.mode.sigma / MM, "sigma_range_mm": mode.sigma / MM,
-              "sigma_transverse_at_median_distance_mm": mode.sigma * math.sqrt(1.0 + (growth * float(
-                  np.median(distance))) ** 2) / MM, "median_distance_m": float(np.median(distance)),
-              "chosen": "range_transverse" if chosen else "isotropic",
-              "note": "sigma of the chosen range/transverse model is the range std; the transverse std grows with "
-                      "the distance from the sensor frame's origin, which must be the tracker head"}
+    report = {
+        "offered": True,
+        "compared": "range/transverse (laser tracker) against isotropic",
+        **noise.RangeTransverse(growth).report(),
+        "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
+        "growth_std_log": 1.0 / math.sqrt(curvature),
+        "log_evidence_isotropic": current.mode.log_evidence,
+        "log_evidence_range_transverse": float(log_evidence),
+        "log_evidence_gain": float(gain),
+        "sigma_isotropic_mm": current.mode.sigma / MM,
+        "sigma_range_mm": mode.sigma / MM,
+        "sigma_transverse_at_median_distance_mm": mode.sigma
+        * math.sqrt(1.0 + (growth * float(np.median(distance))) ** 2)
+        / MM,
+        "median_distance_m": float(np.median(distance)),
+        "chosen": "range_transverse" if chosen else "isotropic",
+        "note": "sigma of the chosen range/transverse model is the range std; the transverse std grows with "
+        "the distance from the sensor frame's origin, which must be the tracker head",
+    }
     if not chosen:
         return current, report
     return Fitted(mode, current.reduction, evidence.cross_validate(mode, folds)), report
 
 
-def _score_gp(current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
-              ) -> tuple[residual_gp.Candidate, dict]:
+def _score_gp(
+    current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
+) -> tuple[residual_gp.Candidate, dict]:
     """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
     parametric candidates' rule: evidence gain and pose-grouped cross-validated fall."""
     residual = current.residuals()
-    gp = residual_gp.candidate(data.q, residual @ rotation, current.cv.held_out @ rotation, folds,
-                               int(settings.residual_gp["subset"]), int(settings.residual_gp["inducing"]))
+    gp = residual_gp.candidate(
+        data.q,
+        residual @ rotation,
+        current.cv.held_out @ rotation,
+        folds,
+        int(settings.residual_gp["subset"]),
+        int(settings.residual_gp["inducing"]),
+    )
     signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
-    scores = {"log_evidence_gain": gp.log_evidence_gain,
-              **evidence.cv_gain(current.cv, evidence.CrossValidation(gp.mse, gp.points)),
-              "sigma_mm": gp.gp.hyper.noise_std / MM, "parameters": ["lengthscales", "signal_std", "noise_std"],
-              "explained_fraction": signature.explained}
+    scores = {
+        "log_evidence_gain": gp.log_evidence_gain,
+        **evidence.cv_gain(current.cv, evidence.CrossValidation(gp.mse, gp.points)),
+        "sigma_mm": gp.gp.hyper.noise_std / MM,
+        "parameters": ["lengthscales", "signal_std", "noise_std"],
+        "explained_fraction": signature.explained,
+    }
     scores["passed"] = passes(scores, settings)
     return gp, scores
-

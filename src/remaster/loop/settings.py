@@ -46,12 +46,21 @@ class LoopSettings:
 
     def report(self) -> dict:
         """The settings as loop_closure.json records them (JSON-ready)."""
-        return {"candidates": list(self.candidates), "min_log_evidence_gain": self.min_log_evidence_gain,
-                "cv_folds": self.cv_folds, "cv_standard_errors": self.cv_standard_errors,
-                "payload_mass_kg": self.model.payload_mass, "payload_com_m": list(self.model.payload_com),
-                "drift_column": self.model.drift_column, "priors": self.priors.report(), "mcmc": self.mcmc,
-                "convergence": self.convergence, "residual_gp": self.residual_gp, "closure_ratio": self.closure_ratio,
-                "tracker_noise": self.tracker_noise}
+        return {
+            "candidates": list(self.candidates),
+            "min_log_evidence_gain": self.min_log_evidence_gain,
+            "cv_folds": self.cv_folds,
+            "cv_standard_errors": self.cv_standard_errors,
+            "payload_mass_kg": self.model.payload_mass,
+            "payload_com_m": list(self.model.payload_com),
+            "drift_column": self.model.drift_column,
+            "priors": self.priors.report(),
+            "mcmc": self.mcmc,
+            "convergence": self.convergence,
+            "residual_gp": self.residual_gp,
+            "closure_ratio": self.closure_ratio,
+            "tracker_noise": self.tracker_noise,
+        }
 
 
 def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping) -> LoopSettings:
@@ -60,16 +69,24 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping)
     schema has filled them: a missing key is a KeyError (validate the configuration first)."""
     payload = config["payload"]
     priors_config = with_defaults(priors_config)
-    return LoopSettings(candidates=blocks.EXTENSIONS, min_log_evidence_gain=float(config["min_log_evidence_gain"]),
-                        cv_folds=int(config["cv_folds"]), cv_standard_errors=float(config["cv_standard_errors"]),
-                        model=ModelSettings(payload_mass=float(payload["mass"]), payload_com=tuple(payload["com"])),
-                        priors=priors_from(priors_config), priors_config=dict(priors_config),
-                        mcmc=dict(config["mcmc"]) if config["mcmc"] else None,
-                        convergence={"max_rhat": convergence["max_rhat"], "min_ess": convergence["min_ess"],
-                                     "max_doublings": int(config["max_doublings"])},
-                        residual_gp=_gp_settings(config["residual_gp"]),
-                        closure_ratio=float(config["closure_ratio"]),
-                        tracker_noise=_tracker_noise_settings(config["tracker_noise"]))
+    return LoopSettings(
+        candidates=blocks.EXTENSIONS,
+        min_log_evidence_gain=float(config["min_log_evidence_gain"]),
+        cv_folds=int(config["cv_folds"]),
+        cv_standard_errors=float(config["cv_standard_errors"]),
+        model=ModelSettings(payload_mass=float(payload["mass"]), payload_com=tuple(payload["com"])),
+        priors=priors_from(priors_config),
+        priors_config=dict(priors_config),
+        mcmc=dict(config["mcmc"]) if config["mcmc"] else None,
+        convergence={
+            "max_rhat": convergence["max_rhat"],
+            "min_ess": convergence["min_ess"],
+            "max_doublings": int(config["max_doublings"]),
+        },
+        residual_gp=_gp_settings(config["residual_gp"]),
+        closure_ratio=float(config["closure_ratio"]),
+        tracker_noise=_tracker_noise_settings(config["tracker_noise"]),
+    )
 
 
 def _gp_settings(section: Mapping) -> dict | None:

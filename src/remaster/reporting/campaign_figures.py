@@ -18,34 +18,70 @@ from ..loop import frames
 from ..loop.report import LoopReport
 from . import figures, figures_accuracy, figures_loop
 
-SENSOR_FIGURES = ("zero_offset_trace", "zero_offset_histograms", "tcp_scatter", "post_registration_histograms",
-                  "loop_signatures", "loop_residuals", "loop_residual_joints", "workspace_accuracy")
+SENSOR_FIGURES = (
+    "zero_offset_trace",
+    "zero_offset_histograms",
+    "tcp_scatter",
+    "post_registration_histograms",
+    "loop_signatures",
+    "loop_residuals",
+    "loop_residual_joints",
+    "workspace_accuracy",
+)
 
 
-def sensor_figures(campaign: str, sensor: str, files: Mapping[str, str], burn_in: int
-                   ) -> Iterator[tuple[str, plt.Figure]]:
+def sensor_figures(
+    campaign: str, sensor: str, files: Mapping[str, str], burn_in: int
+) -> Iterator[tuple[str, plt.Figure]]:
     """(figure name, figure) for every figure of one sensor (SENSOR_FIGURES, in order); `campaign`:
     its folder name (titles); `burn_in`: the paper sampler's, marked on its trace."""
 
     def title(what: str) -> str:
         return figures.sensor_title(campaign, sensor, what)
 
-    yield "zero_offset_trace", figures.zero_offset_trace(result_files.read_parquet(files["trace"]), burn_in,
-                                                         title("paper Metropolis trace"))
-    yield "zero_offset_histograms", figures.zero_offset_histograms(result_files.read_parquet(files["samples"]),
-                                                                   title("zero-offset posterior"))
-    yield "tcp_scatter", figures_accuracy.tcp_scatter(result_files.read_csv(files["tcp_scatter"]),
-                                                      title("TCPs of one configuration"))
-    yield "post_registration_histograms", figures_accuracy.post_registration_histograms(
-        result_files.read_csv(files["configuration_errors"]), title("post-registration error"))
-    yield "loop_signatures", figures_loop.signatures(
-        frames.signatures_of_round(result_files.read_parquet(files["signatures"]), 1), title("residual vs candidate effects"))
-    yield "loop_residuals", figures_loop.residual_histograms(
-        frames.residuals_of(result_files.read_parquet(files["loop_residuals"])), title("before and after the loop"))
-    yield "loop_residual_joints", figures_loop.residual_by_joint(
-        result_files.read_parquet(files["residual_gp"]), LoopReport.read(files["loop"]).residual_gp, title("where the residual lives"))
-    yield "workspace_accuracy", figures_loop.workspace_claims(result_files.read_csv(files["claims"]),
-                                                              title("where the calibration holds"))
+    yield (
+        "zero_offset_trace",
+        figures.zero_offset_trace(result_files.read_parquet(files["trace"]), burn_in, title("paper Metropolis trace")),
+    )
+    yield (
+        "zero_offset_histograms",
+        figures.zero_offset_histograms(result_files.read_parquet(files["samples"]), title("zero-offset posterior")),
+    )
+    yield (
+        "tcp_scatter",
+        figures_accuracy.tcp_scatter(result_files.read_csv(files["tcp_scatter"]), title("TCPs of one configuration")),
+    )
+    yield (
+        "post_registration_histograms",
+        figures_accuracy.post_registration_histograms(
+            result_files.read_csv(files["configuration_errors"]), title("post-registration error")
+        ),
+    )
+    yield (
+        "loop_signatures",
+        figures_loop.signatures(
+            frames.signatures_of_round(result_files.read_parquet(files["signatures"]), 1),
+            title("residual vs candidate effects"),
+        ),
+    )
+    yield (
+        "loop_residuals",
+        figures_loop.residual_histograms(
+            frames.residuals_of(result_files.read_parquet(files["loop_residuals"])), title("before and after the loop")
+        ),
+    )
+    yield (
+        "loop_residual_joints",
+        figures_loop.residual_by_joint(
+            result_files.read_parquet(files["residual_gp"]),
+            LoopReport.read(files["loop"]).residual_gp,
+            title("where the residual lives"),
+        ),
+    )
+    yield (
+        "workspace_accuracy",
+        figures_loop.workspace_claims(result_files.read_csv(files["claims"]), title("where the calibration holds")),
+    )
 
 
 def campaign_figure(campaign: str, configuration_errors: Mapping[str, str]) -> plt.Figure:

@@ -74,35 +74,60 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
     paper_rows = _paper_rows(files)
     metrics = {s: {t: result_files.read_csv(files[f"metrics_{t}"][s]) for t in accuracy.TABLE_NAMES} for s in sensors}
 
-    frames = {"zero_offsets": tables.zero_offsets_table(summaries),
-              "registration_params": tables.registration_params_table(summaries, laplaces),
-              **{name: accuracy.paper_table(rows) for name, rows in paper_rows.items()}}
+    frames = {
+        "zero_offsets": tables.zero_offsets_table(summaries),
+        "registration_params": tables.registration_params_table(summaries, laplaces),
+        **{name: accuracy.paper_table(rows) for name, rows in paper_rows.items()},
+    }
     captions = {**tables.CAPTIONS}
     if beside_paper:
         for name, rows in paper_rows.items():
             frames[f"{name}_vs_paper"] = accuracy.paper_comparison(name, rows)
             captions[f"{name}_vs_paper"] = tables.CAPTIONS[name] + " Beside the paper's published values."
-    frames.update({
-        "sensor_comparison": accuracy.sensor_comparison(summaries, metrics),
-        "iso9283": iso9283.iso9283_table({s: campaign.sensors[s] for s in sensors}, errors),
-        "loop_closure": tables_loop.campaign_table(_each(files, "loop_table", result_files.read_csv), loops),
-        "loop_closure_test": tables_loop.closure_table(loops),
-        "loop_candidates": tables_loop.candidates_table(loops),
-        "workspace_accuracy": workspace.workspace_table(claims, workspaces),
-        "workspace_warnings": workspace.warnings_table(workspaces),
-        "controller_offsets": calibrated.offsets_table(offsets),
-        "calibrated_files": calibrated.files_table(label, sensors, "dh" in campaign.robot),
-        "uncertainty_budget": budget.budget_table(campaign, _each(files, "registration", Registration.read),
-                                                  laplaces, loops)})
-    cert = certificate.certificate(summary, {
-        s: certificate.CertificateInputs(laplaces[s], errors[s], result_files.read_parquet(files["loop_residuals"][s]),
-                                         claims[s], workspaces[s], loops[s], offsets[s]) for s in sensors})
-    frames.update({f"certificate_{part}": table for part, table in
-                   (("verdict", cert.verdicts), ("accuracy", cert.accuracy), ("corrections", cert.corrections))})
+    frames.update(
+        {
+            "sensor_comparison": accuracy.sensor_comparison(summaries, metrics),
+            "iso9283": iso9283.iso9283_table({s: campaign.sensors[s] for s in sensors}, errors),
+            "loop_closure": tables_loop.campaign_table(_each(files, "loop_table", result_files.read_csv), loops),
+            "loop_closure_test": tables_loop.closure_table(loops),
+            "loop_candidates": tables_loop.candidates_table(loops),
+            "workspace_accuracy": workspace.workspace_table(claims, workspaces),
+            "workspace_warnings": workspace.warnings_table(workspaces),
+            "controller_offsets": calibrated.offsets_table(offsets),
+            "calibrated_files": calibrated.files_table(label, sensors, "dh" in campaign.robot),
+            "uncertainty_budget": budget.budget_table(
+                campaign, _each(files, "registration", Registration.read), laplaces, loops
+            ),
+        }
+    )
+    cert = certificate.certificate(
+        summary,
+        {
+            s: certificate.CertificateInputs(
+                laplaces[s],
+                errors[s],
+                result_files.read_parquet(files["loop_residuals"][s]),
+                claims[s],
+                workspaces[s],
+                loops[s],
+                offsets[s],
+            )
+            for s in sensors
+        },
+    )
+    frames.update(
+        {
+            f"certificate_{part}": table
+            for part, table in (
+                ("verdict", cert.verdicts),
+                ("accuracy", cert.accuracy),
+                ("corrections", cert.corrections),
+            )
+        }
+    )
     return CampaignTables([Table(name, frame, captions[name]) for name, frame in frames.items()], cert)
 
 
 def certificate_record(cert: certificate.Certificate) -> dict:
     """certificate.json: the campaign, the certificate's heading and its warnings."""
     return {"campaign": cert.campaign, "heading": cert.heading, "warnings": cert.warnings}
-

@@ -22,8 +22,8 @@ from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation er
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
 from ..inference.fit import LaplaceReport
-from ..loop.report import LoopReport
 from ..labels import sensor_label
+from ..loop.report import LoopReport
 from ..units import MM
 
 COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
@@ -79,9 +79,15 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
         mean, u, count = mean_with_uncertainty(errors_mm, poses)
     else:
         mean, u, count = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm)
-    return {"Sensor": sensor_label(sensor), "Where": where, "Model": model, "mean (mm)": mean,
-            "U(mean) (mm)": COVERAGE_FACTOR * u, "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
-            "points": count}
+    return {
+        "Sensor": sensor_label(sensor),
+        "Where": where,
+        "Model": model,
+        "mean (mm)": mean,
+        "U(mean) (mm)": COVERAGE_FACTOR * u,
+        "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
+        "points": count,
+    }
 
 
 def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
@@ -90,36 +96,68 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     errors = inputs.configuration_errors
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
     where = "validation set (measured)"
-    rows = [_row(sensor, where, label, validation.loc[validation["method"] == method, "error_mm"],
-                 validation.loc[validation["method"] == method, "pose"])
-            for method, label in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets"))]
+    rows = [
+        _row(
+            sensor,
+            where,
+            label,
+            validation.loc[validation["method"] == method, "error_mm"],
+            validation.loc[validation["method"] == method, "pose"],
+        )
+        for method, label in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets"))
+    ]
     residuals = inputs.loop_residuals
     after = residuals[(residuals["set"] == "validation") & (residuals["when"] == "after")]
     if len(after):
         norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
         pose_of_row = dict(zip(validation["row"], validation["pose"]))
         poses = after["row"].map(pose_of_row).to_numpy() if "row" in after else None  # older results: no rows
-        rows.append(_row(sensor, where, "loop-closed (" + ", ".join(inputs.loop.effects_added) + ")"
-                         if inputs.loop.effects_added else "loop-closed (no effect added)", norms, poses))
+        rows.append(
+            _row(
+                sensor,
+                where,
+                "loop-closed (" + ", ".join(inputs.loop.effects_added) + ")"
+                if inputs.loop.effects_added
+                else "loop-closed (no effect added)",
+                norms,
+                poses,
+            )
+        )
     claims = inputs.workspace_accuracy
-    for configurations, label in (("optimization", "claimed at the measured configurations"),
-                                  ("random", "claimed across the joint space")):
+    for configurations, label in (
+        ("optimization", "claimed at the measured configurations"),
+        ("random", "claimed across the joint space"),
+    ):
         for model, name in (("paper", "remastered zero-offsets"), ("loop", "loop-closed")):
             claim = claim_rows(claims, model, configurations)
             if len(claim):
-                rows.append({"Sensor": sensor_label(sensor), "Where": label, "Model": name,
-                             "mean (mm)": float(claim["mean_mm"].iloc[0]), "U(mean) (mm)": np.nan,
-                             "p95 (mm)": float(claim["p95_bound_mm"].iloc[0]), "points": int(claim["count"].iloc[0])})
+                rows.append(
+                    {
+                        "Sensor": sensor_label(sensor),
+                        "Where": label,
+                        "Model": name,
+                        "mean (mm)": float(claim["mean_mm"].iloc[0]),
+                        "U(mean) (mm)": np.nan,
+                        "p95 (mm)": float(claim["p95_bound_mm"].iloc[0]),
+                        "points": int(claim["count"].iloc[0]),
+                    }
+                )
     return rows
 
 
 def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     """The paper model's zero-offset corrections (what a controller takes) with U = k std."""
     offsets = inputs.controller_offsets[inputs.controller_offsets["model"] == "paper"]
-    return [{"Sensor": sensor_label(sensor), "Joint": r["joint"],
-             "Correction (deg)": r["correction_deg"] if r["status"] == "estimated" else np.nan,
-             "U(Correction) (deg)": COVERAGE_FACTOR * r["std_deg"] if r["status"] == "estimated" else np.nan,
-             "Status": r["status"]} for _, r in offsets.iterrows()]
+    return [
+        {
+            "Sensor": sensor_label(sensor),
+            "Joint": r["joint"],
+            "Correction (deg)": r["correction_deg"] if r["status"] == "estimated" else np.nan,
+            "U(Correction) (deg)": COVERAGE_FACTOR * r["std_deg"] if r["status"] == "estimated" else np.nan,
+            "Status": r["status"],
+        }
+        for _, r in offsets.iterrows()
+    ]
 
 
 def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
@@ -129,12 +167,18 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     workspace = by.get(("claimed across the joint space", "loop-closed"), {})
     holds = inputs.workspace.get("holds", {}).get("loop", {}).get("holds", "")
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
-    return {"Sensor": sensor_label(sensor), "Before: mean (mm)": before.get("mean (mm)", np.nan),
-            "U(Before: mean) (mm)": before.get("U(mean) (mm)", np.nan),
-            "After: mean (mm)": after["mean (mm)"], "U(After: mean) (mm)": after["U(mean) (mm)"],
-            "After: p95 (mm)": after["p95 (mm)"], "After: model": after["Model"],
-            "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
-            "Loop": inputs.loop.closure.get("verdict", ""), "Holds": holds}
+    return {
+        "Sensor": sensor_label(sensor),
+        "Before: mean (mm)": before.get("mean (mm)", np.nan),
+        "U(Before: mean) (mm)": before.get("U(mean) (mm)", np.nan),
+        "After: mean (mm)": after["mean (mm)"],
+        "U(After: mean) (mm)": after["U(mean) (mm)"],
+        "After: p95 (mm)": after["p95 (mm)"],
+        "After: model": after["Model"],
+        "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
+        "Loop": inputs.loop.closure.get("verdict", ""),
+        "Holds": holds,
+    }
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
@@ -146,8 +190,10 @@ def valid_for(sensor: str, inputs: CertificateInputs) -> str:
     if coverage.get("tool_axis_spread_deg") is not None:
         parts.append(f"every measured tool axis within {coverage['tool_axis_spread_deg']:.0f} deg of one direction")
     where = "; ".join(parts) if parts else "coverage not recorded"
-    return (f"{sensor_label(sensor)}: valid with this tool plate and marker, in this sensor set-up (registration), "
-            f"over the joint ranges measured: {where}")
+    return (
+        f"{sensor_label(sensor)}: valid with this tool plate and marker, in this sensor set-up (registration), "
+        f"over the joint ranges measured: {where}"
+    )
 
 
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
@@ -158,8 +204,10 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     label = sensor_label(sensor)
     out = []
     if inputs.laplace.outlier_rows:
-        out.append(f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
-                   f"(rows {list(inputs.laplace.outlier_rows)})")
+        out.append(
+            f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
+            f"(rows {list(inputs.laplace.outlier_rows)})"
+        )
     out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings]
     out += [f"{label}: {w}" for w in inputs.workspace.get("warnings", [])]
     if inputs.workspace.get("held_note"):
@@ -172,35 +220,63 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
     sensor's results."""
     robot = summary["robot"]
     serial = robot.get("serial")
-    heading = [f"Robot {robot['name']}" + (f", serial {serial}" if serial else ", no serial given")
-               + f" ({len(robot['joints'])} joints); measured {summary['date']}; sensors: "
-               + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items()) + "."]
+    heading = [
+        f"Robot {robot['name']}"
+        + (f", serial {serial}" if serial else ", no serial given")
+        + f" ({len(robot['joints'])} joints); measured {summary['date']}; sensors: "
+        + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items())
+        + "."
+    ]
     accuracy, corrections, verdicts, warnings = [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
-        heading.append(f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the fit, "
-                       f"{len(laplace.outlier_rows)} flagged as gross errors, {len(laplace.marker_not_seen_rows)} "
-                       f"not seen by the sensor (both left out and listed in fit/laplace.json).")
+        heading.append(
+            f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the fit, "
+            f"{len(laplace.outlier_rows)} flagged as gross errors, {len(laplace.marker_not_seen_rows)} "
+            f"not seen by the sensor (both left out and listed in fit/laplace.json)."
+        )
         rows = accuracy_rows(sensor, inputs)
         accuracy += rows
         corrections += correction_rows(sensor, inputs)
         verdicts.append({"Campaign": summary["campaign"], **_verdict(sensor, inputs, rows)})
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
-    heading.append("Errors are post-registration distances (mm). The validation set was read only for this "
-                   f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
-                   "pose; the claims are the loop-closed posterior propagated with the sensor's noise, and a "
-                   "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
-                   "probability. Corrections: add to the controller's zero (true angle = reading + correction).")
-    return Certificate(summary["campaign"], heading, pd.DataFrame(accuracy), pd.DataFrame(corrections),
-                       pd.DataFrame(verdicts), warnings)
+    heading.append(
+        "Errors are post-registration distances (mm). The validation set was read only for this "
+        f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
+        "pose; the claims are the loop-closed posterior propagated with the sensor's noise, and a "
+        "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
+        "probability. Corrections: add to the controller's zero (true angle = reading + correction)."
+    )
+    return Certificate(
+        summary["campaign"],
+        heading,
+        pd.DataFrame(accuracy),
+        pd.DataFrame(corrections),
+        pd.DataFrame(verdicts),
+        warnings,
+    )
 
 
 def to_markdown(cert: Certificate) -> str:
     """The certificate as a Markdown page (numbers rounded as every table is)."""
     from .tables import to_markdown as table
 
-    parts = [f"# Calibration certificate: {cert.campaign}", "", *cert.heading, "", "## Verdict", "",
-             table(cert.verdicts), "## Accuracy before and after", "", table(cert.accuracy),
-             "## Zero-offset corrections to apply", "", table(cert.corrections), "## Valid for, and warnings", ""]
+    parts = [
+        f"# Calibration certificate: {cert.campaign}",
+        "",
+        *cert.heading,
+        "",
+        "## Verdict",
+        "",
+        table(cert.verdicts),
+        "## Accuracy before and after",
+        "",
+        table(cert.accuracy),
+        "## Zero-offset corrections to apply",
+        "",
+        table(cert.corrections),
+        "## Valid for, and warnings",
+        "",
+    ]
     parts += [f"- {w}" for w in cert.warnings] or ["- none"]
     return "\n".join(parts) + "\n"

@@ -18,8 +18,12 @@ from ..labels import paper_order, sensor_label  # noqa: E402
 from .figures import error_histogram_axes, finished  # noqa: E402
 
 # fig. accuracy's colours, drawn widest cloud first so that every kind stays visible
-TCP_STYLE = {"probable + noise": ("tab:blue", 4, 0.35), "probable": ("gold", 4, 0.6),
-             "MLE": ("tab:green", 60, 1.0), "Vernier": ("tab:red", 60, 1.0)}
+TCP_STYLE = {
+    "probable + noise": ("tab:blue", 4, 0.35),
+    "probable": ("gold", 4, 0.6),
+    "MLE": ("tab:green", 60, 1.0),
+    "Vernier": ("tab:red", 60, 1.0),
+}
 METHOD_COLOURS = {"Vernier": "tab:red", "Bayesian": "tab:green"}  # a registration variant of Vernier is not drawn
 COMPONENT_COLOURS = {"x": "tab:blue", "y": "tab:orange", "z": "tab:purple"}
 
@@ -32,8 +36,15 @@ def tcp_scatter(scatter: pd.DataFrame, title: str) -> plt.Figure:
     for kind, (colour, size, alpha) in TCP_STYLE.items():
         points = scatter[scatter["kind"] == kind]
         if len(points):
-            ax.scatter(points["x_mm"], points["y_mm"], s=size, color=colour, alpha=alpha, lw=0,
-                       label=f"{kind} TCP" if kind in ("MLE", "Vernier") else f"{kind} TCPs")
+            ax.scatter(
+                points["x_mm"],
+                points["y_mm"],
+                s=size,
+                color=colour,
+                alpha=alpha,
+                lw=0,
+                label=f"{kind} TCP" if kind in ("MLE", "Vernier") else f"{kind} TCPs",
+            )
     ax.set_xlabel("X (mm, from the MLE TCP)")
     ax.set_ylabel("Y (mm, from the MLE TCP)")
     ax.set_aspect("equal", adjustable="datalim")
@@ -63,8 +74,9 @@ def post_registration_histograms(errors: pd.DataFrame, title: str, registration:
     return finished(fig, title)
 
 
-def residual_plots(errors: dict[str, pd.DataFrame], title: str, method: str = "Bayesian",
-                   set_name: str = "optimization") -> plt.Figure:
+def residual_plots(
+    errors: dict[str, pd.DataFrame], title: str, method: str = "Bayesian", set_name: str = "optimization"
+) -> plt.Figure:
     """Residual components (measured - predicted, sensor frame, mm) against the configuration
     index and against the marker's distance from the robot base, one row per sensor.
 
@@ -77,11 +89,20 @@ def residual_plots(errors: dict[str, pd.DataFrame], title: str, method: str = "B
         part = frame[(frame["method"] == method) & (frame["set"] == set_name)]
         if len(part):
             part = part[part["registration"] == part["registration"].iloc[0]]
-        for ax, abscissa, label in ((row[0], "configuration", "configuration index"),
-                                    (row[1], "distance_from_base_mm", "distance from base (mm)")):
+        for ax, abscissa, label in (
+            (row[0], "configuration", "configuration index"),
+            (row[1], "distance_from_base_mm", "distance from base (mm)"),
+        ):
             for component, colour in COMPONENT_COLOURS.items():
-                ax.scatter(part[abscissa], part[f"residual_{component}_mm"], s=6, color=colour, alpha=0.7,
-                           lw=0, label=component)
+                ax.scatter(
+                    part[abscissa],
+                    part[f"residual_{component}_mm"],
+                    s=6,
+                    color=colour,
+                    alpha=0.7,
+                    lw=0,
+                    label=component,
+                )
             ax.axhline(0.0, color="k", lw=0.6)
             ax.set_xlabel(label, fontsize=8)
             ax.set_ylabel(f"{sensor_label(sensor)} residual (mm)", fontsize=8)

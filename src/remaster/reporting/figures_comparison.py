@@ -36,8 +36,9 @@ def _campaign_axis(campaigns: pd.DataFrame) -> tuple[list[int], list[str]]:
     return shown, [f"{campaigns['campaign'].iloc[i]}\n{campaigns['date'].iloc[i]}" for i in shown]
 
 
-def _over_time(table: pd.DataFrame, title: str, parameters: list[str], mean: str, std: str, units: dict[str, str],
-               label) -> plt.Figure:
+def _over_time(
+    table: pd.DataFrame, title: str, parameters: list[str], mean: str, std: str, units: dict[str, str], label
+) -> plt.Figure:
     """One panel per parameter: `mean` of each campaign, in date order (one slot per campaign, so
     campaigns of one day stay apart; the dates are in the labels), one series per sensor with
     +-`std` bars (open markers, no bar, where not estimated); y label from `units`, panel title
@@ -50,22 +51,37 @@ def _over_time(table: pd.DataFrame, title: str, parameters: list[str], mean: str
     many = len(campaigns) > 6  # labels turned upright so they do not overlap
 
     if many:  # wider panels, two a row, room below each for the upright labels
-        fig, axes = _grid(len(parameters), panel_width=max(3.2, 0.12 * len(campaigns)), panel_height=3.8,
-                          max_columns=2)
+        fig, axes = _grid(len(parameters), panel_width=max(3.2, 0.12 * len(campaigns)), panel_height=3.8, max_columns=2)
     else:
         fig, axes = _grid(len(parameters))
-    axes = list(axes)[:len(parameters)]
+    axes = list(axes)[: len(parameters)]
     for ax, name in zip(axes, parameters):
         for i, sensor in enumerate(sensors):
             rows = table[(table["parameter"] == name) & (table["sensor"] == sensor)]
             x = rows["campaign"].map(slot).to_numpy(dtype=float) + offsets[sensor]
             estimated = (rows["status"] == "estimated").to_numpy()
             color, marker = f"C{i}", MARKERS[i % len(MARKERS)]
-            ax.errorbar(x[estimated], rows[mean][estimated], yerr=rows[std][estimated], fmt=marker,
-                        color=color, ms=4, capsize=2, lw=0.8, label=sensor_label(sensor))
+            ax.errorbar(
+                x[estimated],
+                rows[mean][estimated],
+                yerr=rows[std][estimated],
+                fmt=marker,
+                color=color,
+                ms=4,
+                capsize=2,
+                lw=0.8,
+                label=sensor_label(sensor),
+            )
             if (~estimated).any():
-                ax.plot(x[~estimated], rows[mean][~estimated], marker, mfc="none", color=color, ms=5,
-                        label=f"{sensor_label(sensor)} (held)")
+                ax.plot(
+                    x[~estimated],
+                    rows[mean][~estimated],
+                    marker,
+                    mfc="none",
+                    color=color,
+                    ms=5,
+                    label=f"{sensor_label(sensor)} (held)",
+                )
         ax.set_xticks(ticks, tick_labels, fontsize=6, rotation=90 if many else 0)
         ax.set_xlim(-0.6, len(campaigns) - 0.4)
         ax.set_title(label(name), fontsize=9)
@@ -93,8 +109,15 @@ def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure
         raise ValueError("no zero-offsets to draw")
     _one_robot(table)
     parameters = sorted(table["parameter"].unique(), key=lambda n: int(n.rsplit("q", 1)[1]))
-    return _over_time(table, title, parameters, "mean_deg", "std_deg", dict.fromkeys(parameters, "deg"),
-                      lambda name: name.replace("zero_offsets.", "zero-offset "))
+    return _over_time(
+        table,
+        title,
+        parameters,
+        "mean_deg",
+        "std_deg",
+        dict.fromkeys(parameters, "deg"),
+        lambda name: name.replace("zero_offsets.", "zero-offset "),
+    )
 
 
 def loop_effects_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
@@ -113,8 +136,14 @@ def loop_effects_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure
     if effects.empty:
         fig, ax = plt.subplots(figsize=(6.4, 1.2))
         ax.axis("off")
-        ax.text(0.5, 0.5, f"{title}: the loop closure estimated no effect in any campaign", ha="center",
-                va="center", fontsize=9)
+        ax.text(
+            0.5,
+            0.5,
+            f"{title}: the loop closure estimated no effect in any campaign",
+            ha="center",
+            va="center",
+            fontsize=9,
+        )
         return fig
     first = effects.drop_duplicates("parameter")
     rank = first["block"].map({block: i for i, block in enumerate(EXTENSIONS)}).fillna(len(EXTENSIONS))
@@ -145,13 +174,23 @@ def transfer_figure(table: pd.DataFrame, title: str) -> plt.Figure:
     top = float(finite.max()) if finite.size else 1.0
     for ax, sensor in zip(axes, sensors):
         rows = table[table["sensor"] == sensor]
-        grid = (rows.pivot(index="calibrated_on", columns="evaluated_on", values="rmse_mm")
-                .reindex(index=campaigns, columns=campaigns).to_numpy(dtype=float))
+        grid = (
+            rows.pivot(index="calibrated_on", columns="evaluated_on", values="rmse_mm")
+            .reindex(index=campaigns, columns=campaigns)
+            .to_numpy(dtype=float)
+        )
         image = ax.imshow(grid, cmap="viridis", vmin=0.0, vmax=top if top > 0 else 1.0)
         for (i, j), value in np.ndenumerate(grid):
             if np.isfinite(value):  # dark text on the light end of the scale
-                ax.text(j, i, f"{value:.3g}", ha="center", va="center", fontsize=7,
-                        color="black" if value > 0.6 * top else "white")
+                ax.text(
+                    j,
+                    i,
+                    f"{value:.3g}",
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                    color="black" if value > 0.6 * top else "white",
+                )
         ax.set_xticks(range(len(campaigns)), campaigns, fontsize=6, rotation=90 if len(campaigns) > 3 else 0)
         ax.set_yticks(range(len(campaigns)), campaigns, fontsize=6)
         ax.set_xlabel("evaluated on", fontsize=8)
@@ -178,13 +217,17 @@ def _suptitle(fig: plt.Figure, title: str, fontsize: float) -> None:
 # figure -> (the comparison table it draws, how, title)
 OVER_TIME_FIGURES = {
     "zero_offsets_over_time": ("zero_offsets_over_time", zero_offsets_over_time_figure, "Zero-offsets over time"),
-    "loop_effects_over_time": ("loop_parameters_over_time", loop_effects_over_time_figure,
-                               "Loop-closure effects over time"),
+    "loop_effects_over_time": (
+        "loop_parameters_over_time",
+        loop_effects_over_time_figure,
+        "Loop-closure effects over time",
+    ),
 }
 
 
-def comparison_figures(tables: Mapping[str, pd.DataFrame], robots: Mapping[str, str], models: Iterable[str]
-                       ) -> Iterator[tuple[str, plt.Figure]]:
+def comparison_figures(
+    tables: Mapping[str, pd.DataFrame], robots: Mapping[str, str], models: Iterable[str]
+) -> Iterator[tuple[str, plt.Figure]]:
     """(file stem, figure) for every cross-campaign figure of every robot (`robots`: file-name slug ->
     robot identity): the OVER_TIME_FIGURES and the transfer heat-map of each model of `models`.
     `tables`: the comparison tables by name, with 'transfer'. Drawn one at a time."""

@@ -61,8 +61,9 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
     for ax, set_name in zip(axes[0], SETS):
         for when, color in (("before", "tab:red"), ("after", "tab:blue")):
             values = norms[when][set_name]
-            ax.hist(values, bins=bins, color=color, alpha=0.6,
-                    label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm")
+            ax.hist(
+                values, bins=bins, color=color, alpha=0.6, label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm"
+            )
         ax.set_xscale("log")
         error_histogram_axes(ax, set_name)
     return finished(fig, title)
@@ -83,9 +84,16 @@ def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
                 continue
             r = row.iloc[0]
             color = "tab:red" if model == "paper" else "tab:blue"
-            ax.errorbar(k + offset, r["mean_mm"], yerr=[[r["mean_mm"] - r["q2.5_mm"]], [r["q97.5_mm"] - r["mean_mm"]]],
-                        fmt="o", color=color, mfc=color if fill else "white", capsize=3,
-                        label=("registration fitted" if fill else "robot frame, held joints at tolerance") if k == 0 else None)
+            ax.errorbar(
+                k + offset,
+                r["mean_mm"],
+                yerr=[[r["mean_mm"] - r["q2.5_mm"]], [r["q97.5_mm"] - r["mean_mm"]]],
+                fmt="o",
+                color=color,
+                mfc=color if fill else "white",
+                capsize=3,
+                label=("registration fitted" if fill else "robot frame, held joints at tolerance") if k == 0 else None,
+            )
     ax.set_xticks(range(len(labels)), labels, fontsize=8)
     ax.set_yscale("log")
     ax.set_ylabel("claimed error (mm)", fontsize=8)

@@ -22,103 +22,103 @@ from ..units import shown, shown_to
 
 CAPTIONS = {
     "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position against its measurement, per axis: "
-                          "the stated sensor noise, the registration's and the zero-offsets' posterior uncertainty "
-                          "(Laplace covariance through the Jacobian; two blocks of equal size contribute equally by "
-                          "construction) and their correlation, what the paper's model lacks (its sigma beyond the "
-                          "noise), combined in quadrature and expanded (k = 2); and what is left after the loop closure.",
+    "the stated sensor noise, the registration's and the zero-offsets' posterior uncertainty "
+    "(Laplace covariance through the Jacobian; two blocks of equal size contribute equally by "
+    "construction) and their correlation, what the paper's model lacks (its sigma beyond the "
+    "noise), combined in quadrature and expanded (k = 2); and what is left after the loop closure.",
     "iso9283": "ISO 9283 pose characteristics on the validation set (registration from the optimization set): "
-               "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
-               "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
-               f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
-               f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
+    "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
+    "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
+    f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
+    f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
-                           "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
-                           "optimization set; never picked by these validation numbers), its 95th percentile, what the "
-                           "loop-closed model claims across the joint space (the bound on its 95th percentile, "
-                           "95 % posterior probability), whether the loop is closed against the "
-                           "sensor's noise, and where the calibration holds.",
+    "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
+    "optimization set; never picked by these validation numbers), its 95th percentile, what the "
+    "loop-closed model claims across the joint space (the bound on its 95th percentile, "
+    "95 % posterior probability), whether the loop is closed against the "
+    "sensor's noise, and where the calibration holds.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
-                            "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
-                            "and as the posteriors claim it at the measured configurations and across the joint "
-                            "space (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
-                            "95th percentile stays below with 95 % posterior probability).",
+    "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
+    "and as the posteriors claim it at the measured configurations and across the joint "
+    "space (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
+    "95th percentile stays below with 95 % posterior probability).",
     "certificate_corrections": "Zero-offset corrections to add to the controller's zero (the paper's model), with "
-                               "their expanded uncertainty U (k = 2); held joints get none.",
+    "their expanded uncertainty U (k = 2); held joints get none.",
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
     "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
     "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
     "zero_offset_histograms": "Posterior of the zero-offsets (default sampler)",
     "relative_accuracy": "Relative Cartesian accuracy (eq. dist_equation) before (Vernier) and after (Bayesian) "
-                         "remastering, optimization set.",
+    "remastering, optimization set.",
     "post_registration_accuracy": "Post-registration absolute position error (eq. post_reg_accuracy) before and "
-                                  "after remastering, optimization set.",
+    "after remastering, optimization set.",
     "theoretical_accuracy_optimization_configs": "Theoretical absolute position error from the uncertainty of the "
-                                                 "zero-offsets, unmodeled effects and noise, at the optimization "
-                                                 "configurations. Loop-closed: the loop-closed model's posterior (all its parameters and sigma) "
-                                                 "propagated the same way.",
+    "zero-offsets, unmodeled effects and noise, at the optimization "
+    "configurations. Loop-closed: the loop-closed model's posterior (all its parameters and sigma) "
+    "propagated the same way.",
     "theoretical_accuracy_random_configs": "Theoretical absolute position error from the uncertainty of the "
-                                           "zero-offsets, unmodeled effects and noise, at random configurations "
-                                           "across the joint space. Loop-closed: its posterior propagated the same way. In every row the "
-                                           "parameters no data can see (joint 1's zero-offset, link lengths the "
-                                           "registration absorbs) are held: robot-frame errors up to a rotation "
-                                           "about base Z; see the workspace table for the claims with them.",
+    "zero-offsets, unmodeled effects and noise, at random configurations "
+    "across the joint space. Loop-closed: its posterior propagated the same way. In every row the "
+    "parameters no data can see (joint 1's zero-offset, link lengths the "
+    "registration absorbs) are held: robot-frame errors up to a rotation "
+    "about base Z; see the workspace table for the claims with them.",
     "theoretical_accuracy_zero_offsets_only": "Theoretical absolute position error from the uncertainty of the "
-                                              "zero-offsets alone, at random configurations (Loop-closed: every "
-                                              "parameter of its effects, without the noise term).",
+    "zero-offsets alone, at random configurations (Loop-closed: every "
+    "parameter of its effects, without the noise term).",
     "workspace_accuracy": "Where each calibration holds: claimed error (mm) of the paper's and the loop-closed model "
-                          "at the measured configurations and at random configurations across the joint limits, "
-                          "propagated from the loop-closed posterior (every draw of its parameters under their "
-                          "priors, with its noise); registration fitted over the configurations, or in the robot "
-                          "frame with held zero-offsets drawn from the controller marks' tolerance. 95%: the "
-                          "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
-                          "percentile stays below it with 95 % posterior probability. Holds: "
-                          "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
+    "at the measured configurations and at random configurations across the joint limits, "
+    "propagated from the loop-closed posterior (every draw of its parameters under their "
+    "priors, with its noise); registration fitted over the configurations, or in the robot "
+    "frame with held zero-offsets drawn from the controller marks' tolerance. 95%: the "
+    "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
+    "percentile stays below it with 95 % posterior probability. Holds: "
+    "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
     "workspace_warnings": "What the report warns about each calibration: workspace-wide error against the measured "
-                          "configurations, parameters the data barely moved from their prior, and what the next "
-                          "campaign should add.",
+    "configurations, parameters the data barely moved from their prior, and what the next "
+    "campaign should add.",
     "validation_accuracy": "Accuracy on the validation set with the optimization set's parameters.",
     "sensor_comparison": "The sensors side by side: estimates, differences in units of their combined "
-                         "uncertainty, and accuracy.",
+    "uncertainty, and accuracy.",
     "tcp_scatter": "TCPs of one configuration: Vernier (red), MLE (green), probable (yellow), probable with the "
-                   "Gaussian error (blue), X-Y, mm from the MLE TCP",
+    "Gaussian error (blue), X-Y, mm from the MLE TCP",
     "post_registration_histograms": "Post-registration errors, Vernier against Bayesian",
     "residuals": "Residuals after remastering against configuration and distance from the base",
     "loop_closure": "Loop closure: what zero-offset remastering leaves, and what is left after the effects the "
-                    "optimization set supports are added (posterior under the extension priors; the validation "
-                    "set, read only here, with the optimization fit's parameters).",
+    "optimization set supports are added (posterior under the extension priors; the validation "
+    "set, read only here, with the optimization fit's parameters).",
     "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
-                       "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
-                       "gain for reference, and the share of the residual it explains, per round; for a laser "
-                       "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
-                       "noise, or why it was not offered).",
+    "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
+    "gain for reference, and the share of the residual it explains, per round; for a laser "
+    "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
+    "noise, or why it was not offered).",
     "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
-                          "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
-                          "and the loop-closed model; held joints get none.",
+    "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
+    "and the loop-closed model; held joints get none.",
     "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
-                        "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "
-                        "campaign given as a DH table, the calibrated DH tables.",
+    "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "
+    "campaign given as a DH table, the calibrated DH tables.",
     "loop_closure_test": "Is the loop closed? After each step, the pose-grouped cross-validated RMS per axis on the "
-                         "optimization set against the noise floor (the sensor's stated noise, or the spread of "
-                         "repeated configurations), the share of the structured residual (above the floor) the step "
-                         "removed, and the joints what is left depends on (residual GP relevance).",
+    "optimization set against the noise floor (the sensor's stated noise, or the spread of "
+    "repeated configurations), the share of the structured residual (above the floor) the step "
+    "removed, and the joints what is left depends on (residual GP relevance).",
     "loop_residual_joints": "What the parametric effects leave, in the robot frame, against the joint the residual "
-                            "GP finds most relevant",
+    "GP finds most relevant",
     "loop_signatures": "The residual against each candidate effect's signature, first round",
     "loop_residuals": "Post-registration errors before and after the loop closure",
     "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg; std from the "
-                              "pose-clustered sandwich, which includes what the model lacks)",
+    "pose-clustered sandwich, which includes what the model lacks)",
     "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
-                               "sensor kind, in units of their combined uncertainty (pose-clustered sandwich "
-                               "stds, which include what the model lacks); flagged where significant.",
+    "sensor kind, in units of their combined uncertainty (pose-clustered sandwich "
+    "stds, which include what the model lacks); flagged where significant.",
     "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty "
-                        "(pose-clustered sandwich stds).",
+    "(pose-clustered sandwich stds).",
     "loop_parameters_over_time": "Loop closure over time: the zero-offsets refitted with the effects the loop "
-                                 "closure added, and those effects' parameters, per campaign and sensor (display "
-                                 "units in column unit).",
+    "closure added, and those effects' parameters, per campaign and sensor (display "
+    "units in column unit).",
     "loop_parameter_drift": "Drift of the loop-closure parameters between consecutive campaigns of the same robot "
-                            "and sensor kind, in units of their combined uncertainty; flagged where significant.",
+    "and sensor kind, in units of their combined uncertainty; flagged where significant.",
     "loop_parameter_agreement": "Agreement of the sensors of each campaign on the loop-closure parameters (each "
-                                "sensor's own marker offset and scale left out).",
+    "sensor's own marker offset and scale left out).",
     "loop_effects_over_time": "Parameters of the effects the loop closure added, over time",
 }
 HELD = "held"  # marks a parameter not identifiable from the data, held at the controller's value
@@ -171,10 +171,10 @@ def _uncertainty_columns(columns) -> dict[str, str]:
         for partner in partners:
             if partner.lower() in lowered and lowered[partner.lower()] != std:
                 out[lowered[partner.lower()]] = std
-        unit = std[_STD.search(std).end():]  # e.g. " (deg)" or "_deg"
+        unit = std[_STD.search(std).end() :]  # e.g. " (deg)" or "_deg"
         for name in names:
             match = _QUANTILE.match(name)
-            if match and name[match.end():] == unit:
+            if match and name[match.end() :] == unit:
                 out.setdefault(name, std)
     return out
 
@@ -212,8 +212,11 @@ def formatted(table: pd.DataFrame) -> list[list[str]]:
             if number is None or math.isnan(number):
                 cells.append("" if _missing(value) or number is not None else str(value))
                 continue
-            std = number if is_uncertainty(column) else (
-                _number(row[position[partners[column]]]) if column in partners else None)
+            std = (
+                number
+                if is_uncertainty(column)
+                else (_number(row[position[partners[column]]]) if column in partners else None)
+            )
             decimals = _decimals_of_std(std)
             cells.append(shown(number) if decimals is None else shown_to(number, decimals))
         rows.append(cells)
@@ -237,9 +240,16 @@ def _latex_escape(text: str) -> str:
 def to_latex(table: pd.DataFrame, caption: str, label: str) -> str:
     """A LaTeX table environment with a tabular of every column (numbers as `formatted` gives them)."""
     columns = "|" + "|".join("c" for _ in table.columns) + "|"
-    lines = [r"\begin{table}", r"\centering", rf"\caption{{{_latex_escape(caption)}}}", rf"\label{{tab:{label}}}",
-             rf"\begin{{tabular}}{{{columns}}}", r"\hline",
-             " & ".join(_latex_escape(str(c)) for c in table.columns) + r" \\", r"\hline"]
+    lines = [
+        r"\begin{table}",
+        r"\centering",
+        rf"\caption{{{_latex_escape(caption)}}}",
+        rf"\label{{tab:{label}}}",
+        rf"\begin{{tabular}}{{{columns}}}",
+        r"\hline",
+        " & ".join(_latex_escape(str(c)) for c in table.columns) + r" \\",
+        r"\hline",
+    ]
     lines += [" & ".join(_latex_escape(cell) for cell in cells) + r" \\" for cells in formatted(table)]
     lines += [r"\hline", r"\end{tabular}", r"\end{table}"]
     return "\n".join(lines) + "\n"
@@ -249,9 +259,11 @@ def write_table(stem: str | PurePath, table: pd.DataFrame, caption: str, label: 
     """Write a table as <stem>.csv (full precision: only the text forms are rounded), <stem>.md and
     <stem>.tex; returns the three paths."""
     stem = PurePath(stem)
-    return [write_csv(stem.with_suffix(".csv"), table),
-            write_text(stem.with_suffix(".md"), f"**{caption}**\n\n" + to_markdown(table)),
-            write_text(stem.with_suffix(".tex"), to_latex(table, caption, label))]
+    return [
+        write_csv(stem.with_suffix(".csv"), table),
+        write_text(stem.with_suffix(".md"), f"**{caption}**\n\n" + to_markdown(table)),
+        write_text(stem.with_suffix(".tex"), to_latex(table, caption, label)),
+    ]
 
 
 def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
@@ -274,9 +286,15 @@ def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-REGISTRATION_ROWS = (("registration.x", "x (mm)"), ("registration.y", "y (mm)"), ("registration.z", "z (mm)"),
-                     (SIGMA, "sigma (mm)"), ("registration.alpha", "alpha (deg)"),
-                     ("registration.beta", "beta (deg)"), ("registration.gamma", "gamma (deg)"))
+REGISTRATION_ROWS = (
+    ("registration.x", "x (mm)"),
+    ("registration.y", "y (mm)"),
+    ("registration.z", "z (mm)"),
+    (SIGMA, "sigma (mm)"),
+    ("registration.alpha", "alpha (deg)"),
+    ("registration.beta", "beta (deg)"),
+    ("registration.gamma", "gamma (deg)"),
+)
 
 
 def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
@@ -292,9 +310,11 @@ def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str
             row[f"{sensor_name} MLE"] = display_value(name, summary.loc[name, "mean"])
             row[f"{sensor_name} Std"] = display_value(name, summary.loc[name, "std"])
         rows.append(row)
-    counts = (("points fitted", lambda f: f.points_fitted),
-              ("points not seen (left out)", lambda f: len(f.marker_not_seen_rows)),
-              ("points flagged as outliers (left out)", lambda f: len(f.outlier_rows)))
+    counts = (
+        ("points fitted", lambda f: f.points_fitted),
+        ("points not seen (left out)", lambda f: len(f.marker_not_seen_rows)),
+        ("points flagged as outliers (left out)", lambda f: len(f.outlier_rows)),
+    )
     for label, count in counts if fits else ():
         row = {"Parameter": label}
         for sensor in summaries:

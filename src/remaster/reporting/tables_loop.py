@@ -29,15 +29,29 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     for sensor, report in reports.items():
         test, gp = report.closure, report.residual_gp
         shares = test["share_of_structured_residual"]
-        where = ("GP not tried" if gp is None else ", ".join(gp["depends_on"]) if gp["structure_found"]
-                 else "no structure the GP can predict")
+        where = (
+            "GP not tried"
+            if gp is None
+            else ", ".join(gp["depends_on"])
+            if gp["structure_found"]
+            else "no structure the GP can predict"
+        )
         for k, step in enumerate(test["rounds"]):
             last = k == len(test["rounds"]) - 1
-            rows.append({"Sensor": sensor, "After": step["after"], "CV RMS per axis (mm)": step["rms_per_axis_mm"],
-                         "Noise floor (mm)": test["noise_floor_mm"], "Ratio": step.get("ratio_to_floor"),
-                         "Share removed (%)": (100.0 * shares[step["after"]]
-                                               if shares.get(step["after"]) is not None else None),
-                         "Verdict": step["text"], "Residual depends on": where if last else ""})
+            rows.append(
+                {
+                    "Sensor": sensor,
+                    "After": step["after"],
+                    "CV RMS per axis (mm)": step["rms_per_axis_mm"],
+                    "Noise floor (mm)": test["noise_floor_mm"],
+                    "Ratio": step.get("ratio_to_floor"),
+                    "Share removed (%)": (
+                        100.0 * shares[step["after"]] if shares.get(step["after"]) is not None else None
+                    ),
+                    "Verdict": step["text"],
+                    "Residual depends on": where if last else "",
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -53,26 +67,56 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     for sensor, report in reports.items():
         for name, rounds in report.candidates.items():
             for entry in rounds:
-                added = (entry["round"] <= len(report.effects_added)
-                         and report.effects_added[entry["round"] - 1] == name)
+                added = entry["round"] <= len(report.effects_added) and report.effects_added[entry["round"] - 1] == name
                 skipped = "skipped" in entry
-                rows.append({"Sensor": sensor, "Round": entry["round"], "Candidate": name,
-                             "Log evidence gain": entry.get("log_evidence_gain", nan),
-                             "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
-                             "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
-                             "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
-                             "BIC gain": entry.get("bic_gain", nan),
-                             "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
-                             "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else ""})
+                rows.append(
+                    {
+                        "Sensor": sensor,
+                        "Round": entry["round"],
+                        "Candidate": name,
+                        "Log evidence gain": entry.get("log_evidence_gain", nan),
+                        "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
+                        "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
+                        "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
+                        "BIC gain": entry.get("bic_gain", nan),
+                        "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
+                        "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else "",
+                    }
+                )
         noise_model = report.noise_model or {}
         if noise_model.get("offered"):
-            rows.append({"Sensor": sensor, "Round": nan, "Candidate": "noise: range/transverse",
-                         "Log evidence gain": noise_model["log_evidence_gain"], "CV RMSE (mm)": nan, "CV fall (%)": nan,
-                         "CV fall / SE": nan, "BIC gain": nan, "Explained (%)": nan,
-                         "Added": "yes" if noise_model["chosen"] == "range_transverse" else ""})
+            rows.append(
+                {
+                    "Sensor": sensor,
+                    "Round": nan,
+                    "Candidate": "noise: range/transverse",
+                    "Log evidence gain": noise_model["log_evidence_gain"],
+                    "CV RMSE (mm)": nan,
+                    "CV fall (%)": nan,
+                    "CV fall / SE": nan,
+                    "BIC gain": nan,
+                    "Explained (%)": nan,
+                    "Added": "yes" if noise_model["chosen"] == "range_transverse" else "",
+                }
+            )
         elif noise_model.get("why") and noise_model["why"] != "not a laser tracker":
-            rows.append({"Sensor": sensor, "Round": nan, "Candidate": "noise: range/transverse",
-                         **{k: nan for k in ("Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "CV fall / SE",
-                                             "BIC gain", "Explained (%)")},
-                         "Added": f"not offered: {noise_model['why']}"})
+            rows.append(
+                {
+                    "Sensor": sensor,
+                    "Round": nan,
+                    "Candidate": "noise: range/transverse",
+                    **{
+                        k: nan
+                        for k in (
+                            "Log evidence gain",
+                            "CV RMSE (mm)",
+                            "CV fall (%)",
+                            "CV fall / SE",
+                            "BIC gain",
+                            "Explained (%)",
+                        )
+                    },
+                    "Added": f"not offered: {noise_model['why']}",
+                }
+            )
     return pd.DataFrame(rows)

@@ -194,16 +194,21 @@ class SRSInverseKinematics:
         tol = geometry_tolerance
         shoulder, dist = _line_intersection(self.points[0], self.axes[0], self.points[1], self.axes[1])
         if shoulder is None or dist > tol:
-            raise ValueError(f"chain {chain.name!r} is not S-R-S: axes 1 and 2 do not intersect "
-                             f"({'parallel' if shoulder is None else f'{dist:.3g} m apart'})")
+            raise ValueError(
+                f"chain {chain.name!r} is not S-R-S: axes 1 and 2 do not intersect "
+                f"({'parallel' if shoulder is None else f'{dist:.3g} m apart'})"
+            )
         wrist, dist = _line_intersection(self.points[4], self.axes[4], self.points[5], self.axes[5])
         if wrist is None or dist > tol:
-            raise ValueError(f"chain {chain.name!r} is not S-R-S: axes 5 and 6 do not intersect "
-                             f"({'parallel' if wrist is None else f'{dist:.3g} m apart'})")
+            raise ValueError(
+                f"chain {chain.name!r} is not S-R-S: axes 5 and 6 do not intersect "
+                f"({'parallel' if wrist is None else f'{dist:.3g} m apart'})"
+            )
         dist = _distance_to_line(wrist, self.points[6], self.axes[6])
         if dist > tol:
-            raise ValueError(f"chain {chain.name!r} is not S-R-S: axis 7 misses the intersection of "
-                             f"axes 5 and 6 by {dist:.3g} m")
+            raise ValueError(
+                f"chain {chain.name!r} is not S-R-S: axis 7 misses the intersection of axes 5 and 6 by {dist:.3g} m"
+            )
         if np.linalg.norm(np.cross(self.axes[5], self.axes[6])) < 1e-9:
             raise ValueError(f"chain {chain.name!r} is not S-R-S: axes 6 and 7 are parallel")
         if _distance_to_line(wrist, self.points[3], self.axes[3]) < 1e-6:
@@ -230,8 +235,9 @@ class SRSInverseKinematics:
 
     # ------------------------------------------------------------------ solve
 
-    def solve(self, pose, q3: float = 0.0, within_limits: bool = True, tolerance: float = 1e-9,
-              return_branches: bool = False):
+    def solve(
+        self, pose, q3: float = 0.0, within_limits: bool = True, tolerance: float = 1e-9, return_branches: bool = False
+    ):
         """All joint configurations (k, 7) (rad) whose flange pose is `pose` (4, 4, base frame, m).
 
         q3 (rad) fixes the redundancy and is returned as given. Solutions are sorted by branch
@@ -287,8 +293,9 @@ class SRSInverseKinematics:
         labels = np.array(labels, dtype=int)
         # Safety net: keep what reproduces the pose.
         poses = ForwardKinematics(chain, wrapped).flange_poses()
-        error = np.maximum(np.abs(poses[:, :3, 3] - g[:3, 3]).max(axis=1),
-                           np.abs(poses[:, :3, :3] - g[:3, :3]).max(axis=(1, 2)))
+        error = np.maximum(
+            np.abs(poses[:, :3, 3] - g[:3, 3]).max(axis=1), np.abs(poses[:, :3, :3] - g[:3, :3]).max(axis=(1, 2))
+        )
         keep = np.isfinite(error) & (error <= tolerance)
         wrapped, labels = wrapped[keep], labels[keep]
 

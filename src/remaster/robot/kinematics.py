@@ -118,9 +118,13 @@ def _link_inertia(link: ET.Element) -> LinkInertia | None:
     inertia = np.zeros((3, 3))
     if inertia_el is not None:
         get = lambda k: _number(inertia_el.get(k), 0.0, f"{where}/inertia/{k}")  # noqa: E731
-        inertia = np.array([[get("ixx"), get("ixy"), get("ixz")],
-                            [get("ixy"), get("iyy"), get("iyz")],
-                            [get("ixz"), get("iyz"), get("izz")]])
+        inertia = np.array(
+            [
+                [get("ixx"), get("ixy"), get("ixz")],
+                [get("ixy"), get("iyy"), get("iyz")],
+                [get("ixz"), get("iyz"), get("izz")],
+            ]
+        )
     rotation = pose[:3, :3]
     return LinkInertia(mass, pose[:3, 3], rotation @ inertia @ rotation.T)
 
@@ -146,12 +150,12 @@ def _moved(part: LinkInertia | None, transform: np.ndarray) -> LinkInertia | Non
     if part is None:
         return None
     rotation = transform[:3, :3]
-    return LinkInertia(part.mass, spatial.transform_points(transform, part.com),
-                       rotation @ part.inertia @ rotation.T)
+    return LinkInertia(part.mass, spatial.transform_points(transform, part.com), rotation @ part.inertia @ rotation.T)
 
 
-def chain_from_urdf(xml_text: str, base: str | None = None, flange: str | None = None,
-                    source: str = "URDF") -> KinematicChain:
+def chain_from_urdf(
+    xml_text: str, base: str | None = None, flange: str | None = None, source: str = "URDF"
+) -> KinematicChain:
     """Chain from URDF text between links `base` (default: the root) and `flange` (default: the
     single leaf). `source` names the file in error messages. Fixed joints fold into the fixed
     transforms; revolute and continuous joints are the chain's joints; any other joint type on
@@ -167,8 +171,10 @@ def chain_from_urdf(xml_text: str, base: str | None = None, flange: str | None =
 
 def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
     if "<!ENTITY" in xml_text:
-        raise KinematicsError("declares XML entities (<!ENTITY ...>): refused, a URDF needs none and their "
-                              "expansion can exhaust memory", file=source)
+        raise KinematicsError(
+            "declares XML entities (<!ENTITY ...>): refused, a URDF needs none and their expansion can exhaust memory",
+            file=source,
+        )
     try:
         root = ET.fromstring(xml_text)
     except ET.ParseError as exc:
@@ -185,12 +191,15 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         child_name, parent_name = child.get("link"), parent.get("link")
         for link_name in (child_name, parent_name):
             if link_name not in links:
-                raise KinematicsError(f"refers to link {link_name!r}, which is not defined",
-                                      file=source, key=f"joint {joint.get('name')}")
+                raise KinematicsError(
+                    f"refers to link {link_name!r}, which is not defined", file=source, key=f"joint {joint.get('name')}"
+                )
         if child_name in parent_of:
             raise KinematicsError(
                 f"link {child_name!r} has two parent joints ({parent_of[child_name].get('name')!r} and "
-                f"{joint.get('name')!r}): not a tree, so not a serial chain", file=source)
+                f"{joint.get('name')!r}): not a tree, so not a serial chain",
+                file=source,
+            )
         parent_of[child_name] = joint
 
     roots = [name for name in links if name not in parent_of]
@@ -202,20 +211,23 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         parents = {j.find("parent").get("link") for j in parent_of.values()}
         leaves = [name for name in links if name not in parents]
         if len(leaves) != 1:
-            raise KinematicsError(f"the URDF has several leaf links {sorted(leaves)}: name the flange",
-                                  file=source, key="flange")
+            raise KinematicsError(
+                f"the URDF has several leaf links {sorted(leaves)}: name the flange", file=source, key="flange"
+            )
         flange = leaves[0]
     for key, frame in (("base", base), ("flange", flange)):
         if frame not in links:
-            raise KinematicsError(f"frame {frame!r} is not a link of the URDF (links: {', '.join(sorted(links))})",
-                                  file=source, key=key)
+            raise KinematicsError(
+                f"frame {frame!r} is not a link of the URDF (links: {', '.join(sorted(links))})", file=source, key=key
+            )
 
     path: list[ET.Element] = []
     link = flange
     while link != base:
         if link not in parent_of:
-            raise KinematicsError(f"flange {flange!r} is not below base {base!r} in the URDF tree",
-                                  file=source, key="flange")
+            raise KinematicsError(
+                f"flange {flange!r} is not below base {base!r} in the URDF tree", file=source, key="flange"
+            )
         path.append(parent_of[link])
         link = parent_of[link].find("parent").get("link")
     path.reverse()
@@ -249,12 +261,16 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
                 body_inertia = _combine(body_inertia, _moved(subtree_inertia(child), pending))
             continue
         if kind not in ("revolute", "continuous"):
-            raise KinematicsError(f"joint type {kind!r} is not supported (revolute, continuous and fixed are)",
-                                  file=source, key=where)
+            raise KinematicsError(
+                f"joint type {kind!r} is not supported (revolute, continuous and fixed are)", file=source, key=where
+            )
         if names:
             inertias.append(body_inertia)
-        axis = _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None,
-                       3, 0.0, f"{where}/axis") if joint.find("axis") is not None else np.array([1.0, 0, 0])
+        axis = (
+            _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None, 3, 0.0, f"{where}/axis")
+            if joint.find("axis") is not None
+            else np.array([1.0, 0, 0])
+        )
         norm = np.linalg.norm(axis)
         if norm < 1e-12:
             raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
@@ -263,8 +279,9 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
             hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
             if lo > hi:
-                raise KinematicsError(f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source,
-                                      key=f"{where}/limit")
+                raise KinematicsError(
+                    f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
+                )
         else:
             lo, hi = -np.inf, np.inf
         names.append(name)
@@ -280,18 +297,26 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
     has_mass = any(i is not None and i.mass > 0 for i in inertias)
     empty = LinkInertia(0.0, np.zeros(3), np.zeros((3, 3)))
     return KinematicChain(
-        name=root.get("name", "robot"), joint_names=tuple(names), joint_transforms=np.array(transforms),
-        joint_axes=np.array(axes), tool_transform=pending, lower=np.array(lower), upper=np.array(upper),
-        base_frame=base, flange_frame=flange,
+        name=root.get("name", "robot"),
+        joint_names=tuple(names),
+        joint_transforms=np.array(transforms),
+        joint_axes=np.array(axes),
+        tool_transform=pending,
+        lower=np.array(lower),
+        upper=np.array(upper),
+        base_frame=base,
+        flange_frame=flange,
         inertias=tuple(i if i is not None else empty for i in inertias) if has_mass else None,
-        urdf_xml=xml_text)
+        urdf_xml=xml_text,
+    )
 
 
 # --------------------------------------------------------------------------- DH
 
 
-def chain_from_dh(rows, convention: str = "standard", flange=None, name: str = "dh_robot",
-                  source: str = "DH table") -> KinematicChain:
+def chain_from_dh(
+    rows, convention: str = "standard", flange=None, name: str = "dh_robot", source: str = "DH table"
+) -> KinematicChain:
     """Chain from DH rows [a (m), alpha (rad), d (m), theta offset (rad)], one per revolute joint.
 
     standard: T_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i);
@@ -300,21 +325,26 @@ def chain_from_dh(rows, convention: str = "standard", flange=None, name: str = "
     last joint.
     """
     if convention not in DH_CONVENTIONS:
-        raise KinematicsError(f"unknown DH convention {convention!r}; use one of {DH_CONVENTIONS}",
-                              file=source, key="dh/convention")
+        raise KinematicsError(
+            f"unknown DH convention {convention!r}; use one of {DH_CONVENTIONS}", file=source, key="dh/convention"
+        )
     try:
         table = np.asarray(rows, dtype=float)
     except (TypeError, ValueError):
         raise KinematicsError("rows must be numbers [a, alpha, d, theta]", file=source, key="dh/rows") from None
     if table.ndim != 2 or table.shape[1] != 4 or table.shape[0] == 0:
-        raise KinematicsError(f"rows must be a list of [a, alpha, d, theta], got shape {table.shape}",
-                              file=source, key="dh/rows")
+        raise KinematicsError(
+            f"rows must be a list of [a, alpha, d, theta], got shape {table.shape}", file=source, key="dh/rows"
+        )
     bad = np.flatnonzero(~np.all(np.isfinite(table), axis=1))
     if bad.size:
         raise KinematicsError("non-finite DH values", file=source, key="dh/rows", rows=bad)
     tool = np.eye(4) if flange is None else np.asarray(flange, dtype=float)
-    if tool.shape != (4, 4) or not np.allclose(tool[3], [0, 0, 0, 1]) or not np.allclose(
-            tool[:3, :3] @ tool[:3, :3].T, np.eye(3), atol=1e-9):
+    if (
+        tool.shape != (4, 4)
+        or not np.allclose(tool[3], [0, 0, 0, 1])
+        or not np.allclose(tool[:3, :3] @ tool[:3, :3].T, np.eye(3), atol=1e-9)
+    ):
         raise KinematicsError("flange must be a 4x4 rigid homogeneous transform", file=source, key="dh/flange")
 
     def screw_z(theta, d):
@@ -334,9 +364,14 @@ def chain_from_dh(rows, convention: str = "standard", flange=None, name: str = "
             after = screw_z(0.0, d)
     n = len(table)
     return KinematicChain(
-        name=name, joint_names=tuple(f"joint{i + 1}" for i in range(n)), joint_transforms=np.array(transforms),
-        joint_axes=np.tile([0.0, 0.0, 1.0], (n, 1)), tool_transform=after @ tool,
-        lower=np.full(n, -np.inf), upper=np.full(n, np.inf))
+        name=name,
+        joint_names=tuple(f"joint{i + 1}" for i in range(n)),
+        joint_transforms=np.array(transforms),
+        joint_axes=np.tile([0.0, 0.0, 1.0], (n, 1)),
+        tool_transform=after @ tool,
+        lower=np.full(n, -np.inf),
+        upper=np.full(n, np.inf),
+    )
 
 
 # --------------------------------------------------------------------------- forward kinematics
@@ -411,18 +446,18 @@ class KernelForm:
     bases: np.ndarray
 
     @classmethod
-    def of(cls, chain: KinematicChain) -> "KernelForm":
+    def of(cls, chain: KinematicChain) -> KernelForm:
         bases = np.array([_basis_with_z(a) for a in chain.joint_axes])
         return cls.with_bases(bases, chain.joint_transforms, chain.tool_transform)
 
     @classmethod
-    def with_bases(cls, bases, joint_transforms, tool_transform) -> "KernelForm":
+    def with_bases(cls, bases, joint_transforms, tool_transform) -> KernelForm:
         before = np.concatenate([np.eye(3)[None], np.swapaxes(bases[:-1], -1, -2)])
         rotations = np.ascontiguousarray(before @ joint_transforms[..., :3, :3] @ bases)
         shifts = np.ascontiguousarray((before @ joint_transforms[..., :3, 3, None])[..., 0])
         return cls(rotations, shifts, np.asarray(tool_transform, dtype=float), bases)
 
-    def with_transforms(self, joint_transforms, tool_transform) -> "KernelForm":
+    def with_transforms(self, joint_transforms, tool_transform) -> KernelForm:
         """The same axes with other fixed transforms (N, 4, 4) and (4, 4), or stacks of them
         (m, N, 4, 4) and (m, 4, 4): rotations (m, N, 3, 3), shifts (m, N, 3)."""
         return self.with_bases(self.bases, joint_transforms, tool_transform)
@@ -456,8 +491,7 @@ class ForwardKinematics:
         self._axis_k = spatial.skew(chain.joint_axes)  # (N, 3, 3)
         self._axis_k2 = self._axis_k @ self._axis_k
         readings = self._axis_rotations(self.cos_q, self.sin_q)  # (n, N, 3, 3)
-        self._moved = np.ascontiguousarray(
-            np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
+        self._moved = np.ascontiguousarray(np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
         self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
         self.kernel = KernelForm.of(chain)
         self.kernel_rotations, self.kernel_shifts = self.kernel.rotations, self.kernel.shifts
@@ -470,8 +504,7 @@ class ForwardKinematics:
 
     def _axis_rotations(self, cos, sin) -> np.ndarray:
         """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""
-        return (np.eye(3) + sin[..., None, None] * self._axis_k
-                + (1.0 - cos)[..., None, None] * self._axis_k2)
+        return np.eye(3) + sin[..., None, None] * self._axis_k + (1.0 - cos)[..., None, None] * self._axis_k2
 
     def _trig(self, zero_offsets):
         if zero_offsets is None:
@@ -489,8 +522,15 @@ class ForwardKinematics:
         """
         offsets = np.zeros(self.chain.n_joints) if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
         stack = np.atleast_2d(offsets)
-        out = _kernels.points(self.kernel_rotations, self.kernel_shifts, self.flange_point(point_in_flange),
-                              self.kernel_cos_q, self.kernel_sin_q, np.cos(stack), np.sin(stack))
+        out = _kernels.points(
+            self.kernel_rotations,
+            self.kernel_shifts,
+            self.flange_point(point_in_flange),
+            self.kernel_cos_q,
+            self.kernel_sin_q,
+            np.cos(stack),
+            np.sin(stack),
+        )
         return out if offsets.ndim == 2 else out[0]
 
     def points_numpy(self, point_in_flange, zero_offsets=None) -> np.ndarray:
@@ -513,8 +553,7 @@ class ForwardKinematics:
         k2 = k @ k
         pose = np.broadcast_to(np.eye(4), cos.shape[:-1] + (4, 4)).copy()
         for j in range(self.chain.n_joints):
-            rotation = (np.eye(3) + sin[..., j, None, None] * k[j]
-                        + (1.0 - cos[..., j, None, None]) * k2[j])
+            rotation = np.eye(3) + sin[..., j, None, None] * k[j] + (1.0 - cos[..., j, None, None]) * k2[j]
             pose = pose @ self.chain.joint_transforms[j]
             pose[..., :3, :3] = pose[..., :3, :3] @ rotation
         return pose @ self.chain.tool_transform
@@ -530,8 +569,7 @@ class ForwardKinematics:
         pose = np.broadcast_to(np.eye(4), cos.shape[:-1] + (4, 4))
         for j in range(self.chain.n_joints):
             pose = pose @ self.chain.joint_transforms[j]
-            rotation = (np.eye(3) + sin[..., j, None, None] * k[j]
-                        + (1.0 - cos[..., j, None, None]) * k2[j])
+            rotation = np.eye(3) + sin[..., j, None, None] * k[j] + (1.0 - cos[..., j, None, None]) * k2[j]
             pose = pose.copy()
             pose[..., :3, :3] = pose[..., :3, :3] @ rotation
             frames[..., j, :, :] = pose
@@ -577,8 +615,9 @@ def pinocchio_model(chain: KinematicChain):
         parent = model.addJoint(parent, joint, placement, name)
         if chain.inertias is not None:
             body = chain.inertias[j]
-            model.appendBodyToJoint(parent, pin.Inertia(body.mass, body.com.copy(), body.inertia.copy()),
-                                    pin.SE3.Identity())
+            model.appendBodyToJoint(
+                parent, pin.Inertia(body.mass, body.com.copy(), body.inertia.copy()), pin.SE3.Identity()
+            )
     tool = pin.SE3(chain.tool_transform[:3, :3].copy(), chain.tool_transform[:3, 3].copy())
     model.addFrame(pin.Frame("flange", parent, 0, tool, pin.FrameType.OP_FRAME))
     return model

@@ -196,8 +196,9 @@ def choose_poses(counts, n_poses: int, n_configurations: int) -> np.ndarray:
         if k <= n_configurations:
             feasible[i, 1:, k:] |= feasible[i + 1, :-1, : n_configurations + 1 - k]
     if not feasible[0, n_poses, n_configurations]:
-        raise InputError(f"no {n_poses} of the {m} usable poses give exactly {n_configurations} configurations",
-                         key="plan")
+        raise InputError(
+            f"no {n_poses} of the {m} usable poses give exactly {n_configurations} configurations", key="plan"
+        )
     chosen, p, c = [], n_poses, n_configurations
     for i in range(m):
         k = counts[i]
@@ -207,8 +208,14 @@ def choose_poses(counts, n_poses: int, n_configurations: int) -> np.ndarray:
     return np.array(chosen)
 
 
-def usable_solutions(chain: KinematicChain, pose, sights, model: CollisionModel, q3: float = 0.0,
-                     solver: SRSInverseKinematics | None = None) -> tuple[np.ndarray, dict[str, int]]:
+def usable_solutions(
+    chain: KinematicChain,
+    pose,
+    sights,
+    model: CollisionModel,
+    q3: float = 0.0,
+    solver: SRSInverseKinematics | None = None,
+) -> tuple[np.ndarray, dict[str, int]]:
     """Every inverse-kinematics solution of one flange pose that passes every check, (k, N), and
     how many were discarded for each reason."""
     solver = solver or SRSInverseKinematics(chain)
@@ -229,8 +236,16 @@ def usable_solutions(chain: KinematicChain, pose, sights, model: CollisionModel,
     return every[keep], reasons
 
 
-def _usable_poses(chain: KinematicChain, poses, sights, model: CollisionModel, q3: float,
-                  solver: SRSInverseKinematics, poses_out: list, discarded: dict) -> None:
+def _usable_poses(
+    chain: KinematicChain,
+    poses,
+    sights,
+    model: CollisionModel,
+    q3: float,
+    solver: SRSInverseKinematics,
+    poses_out: list,
+    discarded: dict,
+) -> None:
     """Append the usable solutions (k, N) of each flange pose (4, 4) that has any to `poses_out`,
     and add what was discarded, and why, to `discarded`."""
     for pose in poses:
@@ -243,10 +258,21 @@ def _usable_poses(chain: KinematicChain, poses, sights, model: CollisionModel, q
             discarded["unreachable_poses"] += 1
 
 
-def plan_set(chain: KinematicChain, set_name: str, target, sights, rng: np.random.Generator, *,
-             candidates: int = 60, n_poses: int | None = None, n_configurations: int | None = None,
-             workspace: Workspace = Workspace(), model: CollisionModel = CollisionModel(), q3: float = 0.0,
-             max_batches: int = 20) -> Plan:
+def plan_set(
+    chain: KinematicChain,
+    set_name: str,
+    target,
+    sights,
+    rng: np.random.Generator,
+    *,
+    candidates: int = 60,
+    n_poses: int | None = None,
+    n_configurations: int | None = None,
+    workspace: Workspace = Workspace(),
+    model: CollisionModel = CollisionModel(),
+    q3: float = 0.0,
+    max_batches: int = 20,
+) -> Plan:
     """Plan one set (optimization or validation).
 
     Without target sizes: one Latin hypercube of `candidates` poses, every usable pose kept.
@@ -270,8 +296,11 @@ def plan_set(chain: KinematicChain, set_name: str, target, sights, rng: np.rando
         except InputError:
             continue
     else:
-        raise InputError(f"{set_name}: {max_batches} batches of {candidates} candidates did not give "
-                         f"{n_poses} poses with {n_configurations} configurations", key="plan")
+        raise InputError(
+            f"{set_name}: {max_batches} batches of {candidates} candidates did not give "
+            f"{n_poses} poses with {n_configurations} configurations",
+            key="plan",
+        )
     return Plan(_toured_table(chain, set_name, poses), discarded, drawn)
 
 
@@ -300,8 +329,16 @@ def cube_orientation(centres, target, tool_angle: float = 0.0) -> np.ndarray:
     return pointing_pose(np.mean(np.atleast_2d(centres), axis=0), target, tool_angle)[:3, :3]
 
 
-def plan_cubes(chain: KinematicChain, set_name: str, cubes, rotation, sights, *,
-               model: CollisionModel = CollisionModel(), q3: float = 0.0) -> Plan:
+def plan_cubes(
+    chain: KinematicChain,
+    set_name: str,
+    cubes,
+    rotation,
+    sights,
+    *,
+    model: CollisionModel = CollisionModel(),
+    q3: float = 0.0,
+) -> Plan:
     """Plan one set from ISO 9283 cube poses.
 
     `cubes` is a sequence of (centre (3,) m, edge m); each cube gives its five ISO 9283 points
@@ -312,10 +349,20 @@ def plan_cubes(chain: KinematicChain, set_name: str, cubes, rotation, sights, *,
     `plan_set`; a pose with none is counted as unreachable. The design is fixed: no randomness.
     """
     rotation = np.asarray(rotation, dtype=float)
-    points = np.concatenate([iso9283_points(centre, edge) for centre, edge in cubes]) if len(cubes) else np.zeros((0, 3))
+    points = (
+        np.concatenate([iso9283_points(centre, edge) for centre, edge in cubes]) if len(cubes) else np.zeros((0, 3))
+    )
     poses, discarded = [], {"unreachable_poses": 0}
-    _usable_poses(chain, [spatial.homogeneous(rotation, p) for p in points], sights, model, q3,
-                  SRSInverseKinematics(chain), poses, discarded)
+    _usable_poses(
+        chain,
+        [spatial.homogeneous(rotation, p) for p in points],
+        sights,
+        model,
+        q3,
+        SRSInverseKinematics(chain),
+        poses,
+        discarded,
+    )
     return Plan(_toured_table(chain, set_name, poses), discarded, len(points))
 
 
@@ -333,9 +380,13 @@ def _toured_table(chain: KinematicChain, set_name: str, poses) -> pd.DataFrame:
         solution = solution_counts.get(pose, 0)
         solution_counts[pose] = solution + 1
         rows.append((pose, solution))
-    table = pd.DataFrame({"set": pd.Series([set_name] * len(order), dtype=object),
-                          "pose": np.array([r[0] for r in rows], dtype=np.int64),
-                          "solution": np.array([r[1] for r in rows], dtype=np.int64)})
+    table = pd.DataFrame(
+        {
+            "set": pd.Series([set_name] * len(order), dtype=object),
+            "pose": np.array([r[0] for r in rows], dtype=np.int64),
+            "solution": np.array([r[1] for r in rows], dtype=np.int64),
+        }
+    )
     for j in range(chain.n_joints):
         table[f"q{j + 1}"] = q[order, j] if len(order) else np.zeros(0)
     return table

@@ -64,16 +64,23 @@ class Priors:
             return self.std("link_length_mm" if name.endswith(".length") else "link_twist_deg")
         if block == "drift":
             return self.std("drift_deg_per_kelvin" if drift_unit == "K" else "drift_deg_per_hour")
-        key = {"marker_offset": "marker_offset_mm", "joint_compliance": "joint_compliance_urad_per_Nm",
-               "joint_scale": "joint_scale_ppm", "sensor_scale": "sensor_scale_ppm"}.get(block)
+        key = {
+            "marker_offset": "marker_offset_mm",
+            "joint_compliance": "joint_compliance_urad_per_Nm",
+            "joint_scale": "joint_scale_ppm",
+            "sensor_scale": "sensor_scale_ppm",
+        }.get(block)
         if key is None:
             raise ValueError(f"no prior for parameter {name!r}")
         return self.std(key)
 
     def report(self) -> dict:
-        return {"arm_class": self.arm_class, "source": self.source,
-                "std_display_units": dict(self.values),
-                "meaning": {k: text for k, (_, text) in KEYS.items()}}
+        return {
+            "arm_class": self.arm_class,
+            "source": self.source,
+            "std_display_units": dict(self.values),
+            "meaning": {k: text for k, (_, text) in KEYS.items()},
+        }
 
 
 def _checked_values(values: Mapping, where: str, source: str) -> dict[str, float]:
@@ -82,11 +89,15 @@ def _checked_values(values: Mapping, where: str, source: str) -> dict[str, float
         if key == CLASS_KEY:
             continue
         if key not in KEYS:
-            raise InputError(f"unknown prior; allowed: {CLASS_KEY}, {', '.join(KEYS)}", file=source,
-                             key=f"{where}/{key}")
+            raise InputError(
+                f"unknown prior; allowed: {CLASS_KEY}, {', '.join(KEYS)}", file=source, key=f"{where}/{key}"
+            )
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-            raise InputError(f"must be a positive number (a standard deviation in the unit its name gives), "
-                             f"got {value!r}", file=source, key=f"{where}/{key}")
+            raise InputError(
+                f"must be a positive number (a standard deviation in the unit its name gives), got {value!r}",
+                file=source,
+                key=f"{where}/{key}",
+            )
         out[key] = float(value)
     return out
 
@@ -97,8 +108,9 @@ def check_override(override, source: str) -> None:
         raise InputError(f"must be a mapping of priors, got {override!r}", file=source, key="robot/priors")
     arm_class = override.get(CLASS_KEY)
     if arm_class is not None and arm_class not in CLASSES:
-        raise InputError(f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file=source,
-                         key=f"robot/priors/{CLASS_KEY}")
+        raise InputError(
+            f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file=source, key=f"robot/priors/{CLASS_KEY}"
+        )
     _checked_values(override, "robot/priors", source)
 
 
@@ -111,11 +123,13 @@ def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: 
     override = dict(override or {})
     arm_class = override.get(CLASS_KEY) or config.get(CLASS_KEY)
     if arm_class not in CLASSES:  # a campaign's class is checked above: this one is the config's
-        raise InputError(f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file="config",
-                         key=f"priors/{CLASS_KEY}")
+        raise InputError(
+            f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file="config", key=f"priors/{CLASS_KEY}"
+        )
     if not isinstance(config.get(arm_class), Mapping):
-        raise InputError(f"must be a mapping of priors, got {config.get(arm_class)!r}", file="config",
-                         key=f"priors/{arm_class}")
+        raise InputError(
+            f"must be a mapping of priors, got {config.get(arm_class)!r}", file="config", key=f"priors/{arm_class}"
+        )
     values = _checked_values(config[arm_class], f"priors/{arm_class}", "config")
     missing = [k for k in KEYS if k not in values]
     if missing:
@@ -127,12 +141,28 @@ def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: 
 # Defaults (config.yaml repeats them with their reasons; these serve library calls without a config).
 DEFAULTS = {
     CLASS_KEY: "collaborative",
-    "industrial": {"link_length_mm": 1.0, "link_twist_deg": 0.1, "marker_offset_mm": 1.0,
-                   "joint_compliance_urad_per_Nm": 50.0, "joint_scale_ppm": 1000.0, "sensor_scale_ppm": 500.0,
-                   "drift_deg_per_hour": 0.05, "drift_deg_per_kelvin": 0.02, "held_zero_offset_deg": 0.5},
-    "collaborative": {"link_length_mm": 1.0, "link_twist_deg": 0.1, "marker_offset_mm": 1.0,
-                      "joint_compliance_urad_per_Nm": 200.0, "joint_scale_ppm": 1000.0, "sensor_scale_ppm": 500.0,
-                      "drift_deg_per_hour": 0.05, "drift_deg_per_kelvin": 0.02, "held_zero_offset_deg": 0.5},
+    "industrial": {
+        "link_length_mm": 1.0,
+        "link_twist_deg": 0.1,
+        "marker_offset_mm": 1.0,
+        "joint_compliance_urad_per_Nm": 50.0,
+        "joint_scale_ppm": 1000.0,
+        "sensor_scale_ppm": 500.0,
+        "drift_deg_per_hour": 0.05,
+        "drift_deg_per_kelvin": 0.02,
+        "held_zero_offset_deg": 0.5,
+    },
+    "collaborative": {
+        "link_length_mm": 1.0,
+        "link_twist_deg": 0.1,
+        "marker_offset_mm": 1.0,
+        "joint_compliance_urad_per_Nm": 200.0,
+        "joint_scale_ppm": 1000.0,
+        "sensor_scale_ppm": 500.0,
+        "drift_deg_per_hour": 0.05,
+        "drift_deg_per_kelvin": 0.02,
+        "held_zero_offset_deg": 0.5,
+    },
 }
 
 

@@ -56,12 +56,18 @@ def three_point(points_robot, points_sensor) -> np.ndarray:
     sensor = _checked(points_sensor, "points_sensor", 3)
     for name, p in (("points_robot", robot), ("points_sensor", sensor)):
         if len(p) != 3:
-            raise InputError(f"the three-point registration takes exactly 3 points, got {len(p)} (choose three with "
-                             f"spread_out_triple, or use kabsch for all of them)", key=name)
+            raise InputError(
+                f"the three-point registration takes exactly 3 points, got {len(p)} (choose three with "
+                f"spread_out_triple, or use kabsch for all of them)",
+                key=name,
+            )
     for name, p in (("points_robot", robot), ("points_sensor", sensor)):
         if triangle_height(p) < MIN_SPREAD:
-            raise InputError(f"the three registration points are (nearly) collinear: triangle height "
-                             f"{triangle_height(p) * 1e3:.3f} mm < {MIN_SPREAD * 1e3:.1f} mm", key=name)
+            raise InputError(
+                f"the three registration points are (nearly) collinear: triangle height "
+                f"{triangle_height(p) * 1e3:.3f} mm < {MIN_SPREAD * 1e3:.1f} mm",
+                key=name,
+            )
     return _frame_on(sensor) @ spatial.invert(_frame_on(robot))
 
 
@@ -104,7 +110,7 @@ def _first_farthest(q: np.ndarray, candidates: np.ndarray) -> tuple[int, int]:
     best, pair = -1.0, (0, 0)
     block = max(1, _PAIRS_PER_BLOCK // max(len(points), 1))
     for start in range(0, len(points), block):
-        distances = np.linalg.norm(points[start:start + block, None] - points[None], axis=-1)
+        distances = np.linalg.norm(points[start : start + block, None] - points[None], axis=-1)
         a, b = np.unravel_index(np.argmax(distances), distances.shape)
         if distances[a, b] > best:  # strictly: an earlier block keeps a tie
             best, pair = float(distances[a, b]), (start + int(a), int(b))
