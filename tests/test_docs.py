@@ -131,9 +131,9 @@ def test_readme_is_short_and_keeps_ci_test_command():
     ci = [
         line.strip()
         for line in (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()
-        if line.strip().startswith("python3 -m venv")
+        if line.strip().startswith("python3 -m venv") and "pytest" in line
     ]
-    assert ci and all(line in lines for line in ci), "the README must show .ci/run's command verbatim"
+    assert len(ci) == 1 and ci[0] in lines, "the README must show .ci/run's test command verbatim"
     assert "python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/snakemake -j2" in lines
 
 
