@@ -47,8 +47,20 @@ def sacct_records(ids: set[str]) -> dict[str, dict[str, str]]:
     the job's own snakemake and its script), and step 0's alone."""
     if not ids:
         return {}
-    query = subprocess.run(["sacct", "-P", "-n", "--units=M", "-j", ",".join(sorted(ids, key=int)),
-                            "-o", "JobIDRaw,State,ElapsedRaw,MaxRSS,ReqMem,ExitCode"], capture_output=True, text=True)
+    query = subprocess.run(
+        [
+            "sacct",
+            "-P",
+            "-n",
+            "--units=M",
+            "-j",
+            ",".join(sorted(ids, key=int)),
+            "-o",
+            "JobIDRaw,State,ElapsedRaw,MaxRSS,ReqMem,ExitCode",
+        ],
+        capture_output=True,
+        text=True,
+    )
     if query.returncode != 0:
         print(f"summarize-run: sacct failed, no peak memory recorded: {query.stderr.strip()}")
         return {}
@@ -72,8 +84,11 @@ def seconds(start: str, end: str) -> float:
 
 
 def spread(values: list[float]) -> dict[str, float]:
-    return {"total": round(sum(values), 1), "median": round(statistics.median(values), 1),
-            "max": round(max(values), 1)} if values else {}
+    return (
+        {"total": round(sum(values), 1), "median": round(statistics.median(values), 1), "max": round(max(values), 1)}
+        if values
+        else {}
+    )
 
 
 def command_output(*command: str) -> str:
@@ -85,32 +100,48 @@ def command_output(*command: str) -> str:
 
 def markdown(summary: dict) -> str:
     """The summary as a short Markdown page: the run in a few lines, then a table of the rules."""
-    lines = [f"# SLURM, one node: measured {summary['date'][:10]} at {summary['commit']}", "",
-             f"- {summary['what']}",
-             f"- node: {summary['machine']['node']}; {summary['versions']['slurm']}, snakemake "
-             f"{summary['versions']['snakemake']}, snakemake-executor-plugin-slurm "
-             f"{summary['versions']['snakemake-executor-plugin-slurm']}; job status by {summary['status_query']}",
-             f"- campaigns: {', '.join(summary['campaigns'])}; `--jobs {summary['jobs_option']}`",
-             f"- wall time **{summary['wall_time_s']:.0f} s**, snakemake exit status {summary['exit_status']}, "
-             f"steps {summary['snakemake_steps_done']}",
-             f"- SLURM jobs: {summary['slurm_jobs']} ({', '.join(f'{n} {s}' for s, n in summary['slurm_states'].items())}); "
-             f"job elapsed time: {summary['job_elapsed_s'].get('total')} s in all, median "
-             f"{summary['job_elapsed_s'].get('median')} s, max {summary['job_elapsed_s'].get('max')} s; "
-             f"the node's cores busy {100 * (summary['node_busy_fraction'] or 0):.0f} % of the wall time",
-             "", "| rule | SLURM jobs | elapsed s (median / max) | peak MB, all steps (job's step) | asked MB (--mem) |",
-             "|---|---|---|---|---|"]
+    lines = [
+        f"# SLURM, one node: measured {summary['date'][:10]} at {summary['commit']}",
+        "",
+        f"- {summary['what']}",
+        f"- node: {summary['machine']['node']}; {summary['versions']['slurm']}, snakemake "
+        f"{summary['versions']['snakemake']}, snakemake-executor-plugin-slurm "
+        f"{summary['versions']['snakemake-executor-plugin-slurm']}; job status by {summary['status_query']}",
+        f"- campaigns: {', '.join(summary['campaigns'])}; `--jobs {summary['jobs_option']}`",
+        f"- wall time **{summary['wall_time_s']:.0f} s**, snakemake exit status {summary['exit_status']}, "
+        f"steps {summary['snakemake_steps_done']}",
+        f"- SLURM jobs: {summary['slurm_jobs']} ({', '.join(f'{n} {s}' for s, n in summary['slurm_states'].items())}); "
+        f"job elapsed time: {summary['job_elapsed_s'].get('total')} s in all, median "
+        f"{summary['job_elapsed_s'].get('median')} s, max {summary['job_elapsed_s'].get('max')} s; "
+        f"the node's cores busy {100 * (summary['node_busy_fraction'] or 0):.0f} % of the wall time",
+        "",
+        "| rule | SLURM jobs | elapsed s (median / max) | peak MB, all steps (job's step) | asked MB (--mem) |",
+        "|---|---|---|---|---|",
+    ]
     for rule, entry in summary["per_rule"].items():
         elapsed = entry["elapsed_s"]
-        lines.append(f"| {rule} | {entry['slurm_jobs']} | {elapsed.get('median', '')} / {elapsed.get('max', '')} | "
-                     f"{entry.get('max_rss_mb', '')} ({entry.get('max_job_step_rss_mb', '')}) | "
-                     f"{', '.join(map(str, entry['requested_mem_mb']))} |")
+        lines.append(
+            f"| {rule} | {entry['slurm_jobs']} | {elapsed.get('median', '')} / {elapsed.get('max', '')} | "
+            f"{entry.get('max_rss_mb', '')} ({entry.get('max_job_step_rss_mb', '')}) | "
+            f"{', '.join(map(str, entry['requested_mem_mb']))} |"
+        )
     return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    for name in ("results", "checkout", "started", "ended", "status", "jobs", "campaigns", "accounting",
-                 "command", "out"):
+    for name in (
+        "results",
+        "checkout",
+        "started",
+        "ended",
+        "status",
+        "jobs",
+        "campaigns",
+        "accounting",
+        "command",
+        "out",
+    ):
         parser.add_argument(f"--{name}", required=True)
     args = parser.parse_args()
     results, checkout = Path(args.results), Path(args.checkout)
@@ -124,8 +155,9 @@ def main() -> None:
     per_rule: dict[str, dict[str, list]] = {}
     states: dict[str, int] = {}
     for job_id, rule in rule_of.items():
-        entry = per_rule.setdefault(rule, {"elapsed": [], "wait": [], "rss": [], "step_rss": [], "req_mem": set(),
-                                           "states": []})
+        entry = per_rule.setdefault(
+            rule, {"elapsed": [], "wait": [], "rss": [], "step_rss": [], "req_mem": set(), "states": []}
+        )
         record = completion.get(job_id, {})
         state = accounting.get(job_id, {}).get("state") or record.get("JobState", "UNKNOWN")
         states[state] = states.get(state, 0) + 1
@@ -146,9 +178,12 @@ def main() -> None:
 
     rules = {}
     for rule, entry in sorted(per_rule.items()):
-        rules[rule] = {"slurm_jobs": len(entry["states"]), "elapsed_s": spread(entry["elapsed"]),
-                       "queue_wait_s_median": round(statistics.median(entry["wait"]), 1) if entry["wait"] else None,
-                       "requested_mem_mb": sorted(entry["req_mem"])}
+        rules[rule] = {
+            "slurm_jobs": len(entry["states"]),
+            "elapsed_s": spread(entry["elapsed"]),
+            "queue_wait_s_median": round(statistics.median(entry["wait"]), 1) if entry["wait"] else None,
+            "requested_mem_mb": sorted(entry["req_mem"]),
+        }
         if entry["rss"]:
             rules[rule]["max_rss_mb"] = round(max(entry["rss"]), 1)
             rules[rule]["max_job_step_rss_mb"] = round(max(entry["step_rss"]), 1)
@@ -159,18 +194,24 @@ def main() -> None:
     log = (results / "snakemake.log").read_text(errors="replace") if (results / "snakemake.log").exists() else ""
     steps = re.findall(r"(\d+) of (\d+) steps \((\d+%)\) done", log)
     elapsed = [e for entry in per_rule.values() for e in entry["elapsed"]]
-    campaigns = ([c for c in args.campaigns.split(",") if c] or
-                 sorted(p.parent.name for p in (checkout / "data" / "raw").glob("*/campaign.yaml")))
+    campaigns = [c for c in args.campaigns.split(",") if c] or sorted(
+        p.parent.name for p in (checkout / "data" / "raw").glob("*/campaign.yaml")
+    )
     summary = {
         "what": "run-local.sh: the workflow through snakemake-executor-plugin-slurm on a one-node SLURM "
-                "cluster on this machine (setup-local-node.sh), from an empty results folder",
+        "cluster on this machine (setup-local-node.sh), from an empty results folder",
         "date": dt.datetime.now().astimezone().isoformat(timespec="seconds"),
         "commit": command_output("git", "-C", str(checkout), "rev-parse", "--short", "HEAD"),
-        "machine": {"cpus": os.cpu_count(), "node": command_output("sinfo", "-h", "-N", "-o", "%N %P %c CPUs %m MB"),
-                    "python": platform.python_version()},
-        "versions": {"slurm": command_output("sinfo", "--version"),
-                     "snakemake": metadata.version("snakemake"),
-                     "snakemake-executor-plugin-slurm": metadata.version("snakemake-executor-plugin-slurm")},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "node": command_output("sinfo", "-h", "-N", "-o", "%N %P %c CPUs %m MB"),
+            "python": platform.python_version(),
+        },
+        "versions": {
+            "slurm": command_output("sinfo", "--version"),
+            "snakemake": metadata.version("snakemake"),
+            "snakemake-executor-plugin-slurm": metadata.version("snakemake-executor-plugin-slurm"),
+        },
         "campaigns": campaigns,
         "jobs_option": int(args.jobs),
         "status_query": "sacct (slurmdbd + MariaDB)" if args.accounting == "1" else "squeue (no slurmdbd)",
@@ -186,8 +227,22 @@ def main() -> None:
     }
     Path(args.out).write_text(json.dumps(summary, indent=2) + "\n")
     Path(args.out).with_suffix(".md").write_text(markdown(summary))
-    print(json.dumps({k: summary[k] for k in ("wall_time_s", "exit_status", "snakemake_steps_done", "slurm_jobs",
-                                              "slurm_states", "job_elapsed_s", "node_busy_fraction")}))
+    print(
+        json.dumps(
+            {
+                k: summary[k]
+                for k in (
+                    "wall_time_s",
+                    "exit_status",
+                    "snakemake_steps_done",
+                    "slurm_jobs",
+                    "slurm_states",
+                    "job_elapsed_s",
+                    "node_busy_fraction",
+                )
+            }
+        )
+    )
 
 
 if __name__ == "__main__":
