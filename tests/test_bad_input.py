@@ -272,32 +272,38 @@ def tiny(tmp_path_factory, iiwa):
     return root
 
 
+@pytest.mark.workflow
 def test_config_misspelt_key(tmp_path):
     assert_refused(dry_run(tmp_path, {"raw_dri": "data/raw"}), "'raw_dri' was unexpected")
 
 
+@pytest.mark.workflow
 def test_config_raw_dir_that_does_not_exist(tmp_path):
     result = dry_run(tmp_path, {"raw_dir": str(tmp_path / "nowhere")})
     assert_refused(result, "bad-config.yaml", f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory")
 
 
+@pytest.mark.workflow
 def test_config_relative_path_leading_outside_the_repository(tmp_path):
     result = dry_run(tmp_path, {"results_dir": "../results"})
     assert_refused(result, "results_dir: '../results' leads outside the repository", "absolute path")
 
 
+@pytest.mark.workflow
 def test_config_results_inside_raw_data(tmp_path, tiny):
     result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tiny / "raw" / "results")})
     assert_refused(result, "results_dir:", "overlaps raw_dir")
     assert not (tiny / "raw" / "results").exists()
 
 
+@pytest.mark.workflow
 def test_config_results_dir_that_is_a_file(tmp_path, tiny):
     (tmp_path / "results.txt").write_text("not a folder")
     result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results.txt")})
     assert_refused(result, "results_dir:", "exists and is not a directory")
 
 
+@pytest.mark.workflow
 def test_config_burn_in_not_shorter_than_the_run(tmp_path):
     result = dry_run(tmp_path, {"fit": {"emcee": {"steps": 500, "burn_in": 500}}})
     assert_refused(result, "fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500")
@@ -305,6 +311,7 @@ def test_config_burn_in_not_shorter_than_the_run(tmp_path):
     assert_refused(result, "loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000")
 
 
+@pytest.mark.workflow
 def test_config_campaign_that_is_not_there(tmp_path):
     assert_refused(
         dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
@@ -312,11 +319,13 @@ def test_config_campaign_that_is_not_there(tmp_path):
     )
 
 
+@pytest.mark.workflow
 def test_config_raw_dir_without_any_campaign(tmp_path):
     (tmp_path / "empty").mkdir()
     assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
 
 
+@pytest.mark.workflow
 def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path, tiny):
     """The decision's other half: raw_dir and results_dir outside the repository, given as absolute paths."""
     result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT})
@@ -324,6 +333,7 @@ def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path, tiny)
     assert "campaign_summary" in result.stdout and not (tmp_path / "results").exists()
 
 
+@pytest.mark.workflow
 def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
     """A campaign whose joints were stored in degrees: `snakemake -j1` exits non-zero, the log of
     the failing job says why, and the failing job leaves no output file."""

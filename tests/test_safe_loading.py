@@ -69,6 +69,7 @@ def test_scenario_with_a_python_tag_is_refused_by_the_cli(tmp_path, capsys):
     assert not marker.exists() and not (tmp_path / "raw").exists() and not (tmp_path / "truth").exists()
 
 
+@pytest.mark.workflow
 def test_config_with_a_python_tag_is_refused_by_the_workflow(tmp_path):
     """Snakemake reads config files with PyYAML's FullLoader, which has no constructor for
     object/apply (refused before remaster's Snakefile runs) and turns python/name into an object
