@@ -101,7 +101,12 @@ def command_output(*command: str) -> str:
 def markdown(summary: dict) -> str:
     """The summary as a short Markdown page: the run in a few lines, then a table of the rules."""
     lines = [
-        f"# SLURM, one node: measured {summary['date'][:10]} at {summary['commit']}",
+        f"# SLURM, one node: measured {summary['date'][:10]} at {summary['commit']}"
+        + (
+            f" with uncommitted changes ({', '.join(summary['uncommitted_changes'])})"
+            if summary["uncommitted_changes"]
+            else ""
+        ),
         "",
         f"- {summary['what']}",
         f"- node: {summary['machine']['node']}; {summary['versions']['slurm']}, snakemake "
@@ -202,6 +207,7 @@ def main() -> None:
         "cluster on this machine (setup-local-node.sh), from an empty results folder",
         "date": dt.datetime.now().astimezone().isoformat(timespec="seconds"),
         "commit": command_output("git", "-C", str(checkout), "rev-parse", "--short", "HEAD"),
+        "uncommitted_changes": command_output("git", "-C", str(checkout), "status", "--porcelain", "-uno").splitlines(),
         "machine": {
             "cpus": os.cpu_count(),
             "node": command_output("sinfo", "-h", "-N", "-o", "%N %P %c CPUs %m MB"),
