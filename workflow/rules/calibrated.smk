@@ -7,13 +7,13 @@ import re
 from remaster.analysis.calibrated import DH_FILES as CALIBRATED_DH_FILES
 from remaster.analysis.calibrated import FILES as CALIBRATED_FILES
 
-CALIBRATED = f"{RESULTS}/{{campaign}}/{{sensor}}/calibrated"
+CALIBRATED = f"{SENSOR}/{layout.CALIBRATED}"
 DH_CAMPAIGNS = [c for c in CAMPAIGNS if gives_dh(c)]
 
 
 CALIBRATED_INPUTS = dict(
     campaign=campaign_files,
-    summary=f"{FIT}/summary.csv",
+    summary=f"{SENSOR}/{layout.SUMMARY}",
     laplace=rules.prepare.output.laplace,
     loop=rules.loop_closure.output.report,
     samples=rules.loop_closure.output.samples,

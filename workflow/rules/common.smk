@@ -6,6 +6,7 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
+from remaster import layout
 from remaster.campaigns.robot_model import robot_files, robot_section
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
@@ -94,6 +95,9 @@ def list_campaigns():
 
 
 CAMPAIGNS = list_campaigns()
+# a sensor's results folder, `remaster.layout`'s (the command line reads from it): {campaign} and
+# {sensor} are the wildcards
+SENSOR = f"{RESULTS}/{layout.SENSOR_FOLDER}"
 
 
 def campaign_files(wildcards):
@@ -242,25 +246,26 @@ def audited_results(campaign):
     files += [str(Path(t).with_suffix(e)) for t in part["tables"].values() for e in (".md", ".tex")]
     files += [str(Path(f).with_suffix(".pdf")) for f in part["figures"].values()]
     for s in sensors_of(campaign):
-        base = f"{RESULTS}/{campaign}/{s}"
-        files += [
-            f"{base}/remastering.json",
-            f"{base}/registration.json",
-            f"{base}/fit/summary.csv",
-            f"{base}/loop_closure.json",
-            f"{base}/loop_closure/workspace.json",
-            f"{base}/loop_closure/residual_gp.parquet",
-            f"{base}/fit/summary_discrepancy.csv",
-            *[f"{base}/calibrated/{name}" for name in CALIBRATED_FILES],
-            *[f"{base}/calibrated/{name}" for name in (CALIBRATED_DH_FILES if gives_dh(campaign) else ())],
-            f"{base}/fit/discrepancy.json",
-            f"{base}/loop_closure/workspace_accuracy.csv",
-            f"{base}/loop_closure/theoretical_accuracy.csv",
-            f"{base}/fit/laplace.json",
-            f"{base}/fit/cross_check.csv",
-            *[f"{base}/fit/samples_{m}.parquet" for m in FIT_METHODS],
-            *[f"{base}/metrics/{n}.csv" for n in ACCURACY_FILES],
+        base = f"{RESULTS}/{layout.SENSOR_FOLDER.format(campaign=campaign, sensor=s)}"
+        names = [
+            layout.REMASTERING,
+            layout.REGISTRATION,
+            layout.SUMMARY,
+            layout.LOOP_CLOSURE,
+            f"{layout.LOOP}/workspace.json",
+            layout.LOOP_GP,
+            layout.SUMMARY_DISCREPANCY,
+            *[f"{layout.CALIBRATED}/{name}" for name in CALIBRATED_FILES],
+            *[f"{layout.CALIBRATED}/{name}" for name in (CALIBRATED_DH_FILES if gives_dh(campaign) else ())],
+            layout.DISCREPANCY,
+            f"{layout.LOOP}/workspace_accuracy.csv",
+            f"{layout.LOOP}/theoretical_accuracy.csv",
+            layout.LAPLACE,
+            layout.CROSS_CHECK,
+            *[layout.SAMPLES.format(method=m) for m in FIT_METHODS],
+            *[f"{layout.METRICS}/{n}.csv" for n in ACCURACY_FILES],
         ]
+        files += [f"{base}/{name}" for name in names]
     return files
 
 

@@ -20,8 +20,8 @@ rule comparison:
     input:
         **{f"metadata__{c}": f"{RAW}/{c}/campaign.yaml" for c in CAMPAIGNS},
         **every_pair_inputs(
-            summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary_discrepancy.csv",
-            loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
+            summary=f"{SENSOR}/{layout.SUMMARY_DISCREPANCY}",
+            loop=f"{SENSOR}/{layout.LOOP_CLOSURE}",
         ),
     output:
         **{t: multiext(f"{COMPARISON}/{t}", ".csv", ".md", ".tex") for t in COMPARISON_TABLES},
@@ -39,11 +39,11 @@ rule comparison:
 rule comparison_prediction:
     input:
         **every_pair_inputs(
-            summary=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/summary.csv",
-            laplace=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/laplace.json",
-            loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
-            paper_samples=f"{RESULTS}/{{campaign}}/{{sensor}}/fit/samples_default.parquet",
-            loop_samples=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure/samples.parquet",
+            summary=f"{SENSOR}/{layout.SUMMARY}",
+            laplace=f"{SENSOR}/{layout.LAPLACE}",
+            loop=f"{SENSOR}/{layout.LOOP_CLOSURE}",
+            paper_samples=f"{SENSOR}/{layout.DEFAULT_SAMPLES}",
+            loop_samples=f"{SENSOR}/{layout.LOOP_SAMPLES}",
         ),
         campaigns=ALL_CAMPAIGN_FILES,
     output:

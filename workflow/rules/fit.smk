@@ -4,8 +4,7 @@
 # Optimization, Quantifying Positional Accuracy and Validation).
 from remaster.analysis.accuracy import TABLE_NAMES
 
-FIT = f"{RESULTS}/{{campaign}}/{{sensor}}/fit"
-ACC = f"{RESULTS}/{{campaign}}/{{sensor}}/metrics"
+ACC = f"{SENSOR}/{layout.METRICS}"
 ACCURACY_FILES = list(TABLE_NAMES) + ["configuration_errors", "tcp_scatter", "remastering_parameters"]
 
 
@@ -15,8 +14,8 @@ rule prepare:
         # the campaign's check comes first: one too large for the memory a job may use stops here
         summary=f"{RESULTS}/{{campaign}}/campaign/summary.json",
     output:
-        registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
-        laplace=f"{FIT}/laplace.json",
+        registration=f"{SENSOR}/{layout.REGISTRATION}",
+        laplace=f"{SENSOR}/{layout.LAPLACE}",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/prepare.log",
     resources:
@@ -34,9 +33,9 @@ rule sample:
         registration=rules.prepare.output.registration,
         laplace=rules.prepare.output.laplace,
     output:
-        samples=f"{FIT}/samples_{{method}}.parquet",
-        trace=f"{FIT}/trace_{{method}}.parquet",
-        diagnostics=f"{FIT}/diagnostics_{{method}}.json",
+        samples=f"{SENSOR}/{layout.SAMPLES}",
+        trace=f"{SENSOR}/{layout.TRACE}",
+        diagnostics=f"{SENSOR}/{layout.DIAGNOSTICS}",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/sample_{{method}}.log",
     wildcard_constraints:
@@ -53,18 +52,18 @@ rule sample:
 
 rule fit_summary:
     input:
-        **{f"samples__{m}": f"{FIT}/samples_{m}.parquet" for m in FIT_METHODS},
-        **{f"diagnostics__{m}": f"{FIT}/diagnostics_{m}.json" for m in FIT_METHODS},
+        **{f"samples__{m}": f"{SENSOR}/{layout.SAMPLES.format(method=m)}" for m in FIT_METHODS},
+        **{f"diagnostics__{m}": f"{SENSOR}/{layout.DIAGNOSTICS.format(method=m)}" for m in FIT_METHODS},
         campaign=campaign_files,
         registration=rules.prepare.output.registration,
         laplace=rules.prepare.output.laplace,
     output:
         **{f"metrics__{name}": f"{ACC}/{name}.csv" for name in ACCURACY_FILES},
-        cross_check=f"{FIT}/cross_check.csv",
-        summary=f"{FIT}/summary.csv",
-        with_discrepancy=f"{FIT}/summary_discrepancy.csv",
-        discrepancy=f"{FIT}/discrepancy.json",
-        remastering=f"{RESULTS}/{{campaign}}/{{sensor}}/remastering.json",
+        cross_check=f"{SENSOR}/{layout.CROSS_CHECK}",
+        summary=f"{SENSOR}/{layout.SUMMARY}",
+        with_discrepancy=f"{SENSOR}/{layout.SUMMARY_DISCREPANCY}",
+        discrepancy=f"{SENSOR}/{layout.DISCREPANCY}",
+        remastering=f"{SENSOR}/{layout.REMASTERING}",
         accuracy=f"{ACC}/report.json",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/fit_summary.log",

@@ -1,7 +1,7 @@
 # Stage 4: close the loop per campaign and sensor: diagnose the residual against candidate effects,
 # add the supported ones, refit, and report before and after.
 
-LOOP = f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure"
+LOOP = f"{SENSOR}/{layout.LOOP}"
 
 
 rule loop_closure:
@@ -10,12 +10,12 @@ rule loop_closure:
         registration=rules.prepare.output.registration,
         laplace=rules.prepare.output.laplace,
     output:
-        report=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
-        table=f"{LOOP}/before_after.csv",
-        signatures=f"{LOOP}/signatures.parquet",
-        residuals=f"{LOOP}/residuals.parquet",
-        samples=f"{LOOP}/samples.parquet",
-        gp=f"{LOOP}/residual_gp.parquet",
+        report=f"{SENSOR}/{layout.LOOP_CLOSURE}",
+        table=f"{SENSOR}/{layout.LOOP_TABLE}",
+        signatures=f"{SENSOR}/{layout.LOOP_SIGNATURES}",
+        residuals=f"{SENSOR}/{layout.LOOP_RESIDUALS}",
+        samples=f"{SENSOR}/{layout.LOOP_SAMPLES}",
+        gp=f"{SENSOR}/{layout.LOOP_GP}",
     log:
         f"{RESULTS}/logs/{{campaign}}/{{sensor}}/loop_closure.log",
     resources:

@@ -32,14 +32,14 @@ TABLE_INPUTS = dict(
     summary=rules.campaign_summary.output.summary,
 )
 SENSOR_TABLE_INPUTS = sensor_inputs(
-    summary=f"{FIT}/summary.csv",
-    laplace=f"{FIT}/laplace.json",
-    registration=f"{RESULTS}/{{campaign}}/{{sensor}}/registration.json",
+    summary=f"{SENSOR}/{layout.SUMMARY}",
+    laplace=f"{SENSOR}/{layout.LAPLACE}",
+    registration=f"{SENSOR}/{layout.REGISTRATION}",
     configuration_errors=f"{ACC}/configuration_errors.csv",
     loop_theoretical=f"{LOOP}/theoretical_accuracy.csv",
-    loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
-    loop_table=f"{LOOP}/before_after.csv",
-    loop_residuals=f"{LOOP}/residuals.parquet",
+    loop=f"{SENSOR}/{layout.LOOP_CLOSURE}",
+    loop_table=f"{SENSOR}/{layout.LOOP_TABLE}",
+    loop_residuals=f"{SENSOR}/{layout.LOOP_RESIDUALS}",
     claims=f"{LOOP}/workspace_accuracy.csv",
     workspace=f"{LOOP}/workspace.json",
     offsets=f"{CALIBRATED}/controller_offsets.csv",
@@ -95,14 +95,14 @@ rule tables_beside_paper:
 
 rule figures:
     input:
-        trace=f"{FIT}/trace_paper.parquet",
-        samples=f"{FIT}/samples_default.parquet",
+        trace=f"{SENSOR}/{layout.TRACE.format(method='paper')}",
+        samples=f"{SENSOR}/{layout.DEFAULT_SAMPLES}",
         tcp_scatter=f"{ACC}/tcp_scatter.csv",
         configuration_errors=f"{ACC}/configuration_errors.csv",
-        signatures=f"{LOOP}/signatures.parquet",
-        loop_residuals=f"{LOOP}/residuals.parquet",
-        residual_gp=f"{LOOP}/residual_gp.parquet",
-        loop=f"{RESULTS}/{{campaign}}/{{sensor}}/loop_closure.json",
+        signatures=f"{SENSOR}/{layout.LOOP_SIGNATURES}",
+        loop_residuals=f"{SENSOR}/{layout.LOOP_RESIDUALS}",
+        residual_gp=f"{SENSOR}/{layout.LOOP_GP}",
+        loop=f"{SENSOR}/{layout.LOOP_CLOSURE}",
         claims=f"{LOOP}/workspace_accuracy.csv",
     output:
         **{name: multiext(f"{FIGURES}/{name}_{{sensor}}", ".png", ".pdf") for name in SENSOR_FIGURES},
