@@ -171,9 +171,9 @@ def main() -> None:
         if "StartTime" in record:
             elapsed = seconds(record["StartTime"], record["EndTime"])
             entry["wait"].append(seconds(record["SubmitTime"], record["StartTime"]))
-            mem = re.search(r"mem=(\d+)M", record.get("Tres", ""))
+            mem = re.search(r"mem=([\d.]+)([MGT])", record.get("Tres", ""))
             if mem:
-                entry["req_mem"].add(int(mem.group(1)))
+                entry["req_mem"].add(round(float(mem.group(1)) * {"M": 1, "G": 1024, "T": 1024**2}[mem.group(2)]))
         if accounting.get(job_id, {}).get("elapsed"):
             elapsed = float(accounting[job_id]["elapsed"])
             entry["rss"].append(accounting[job_id]["max_rss_mb"])
