@@ -156,12 +156,20 @@ def largest_sensor_rows(campaign):
     return max((pyarrow.parquet.read_metadata(p).num_rows for p in Path(RAW, campaign).glob("*.parquet")), default=0)
 
 
-def campaign_mem_mb(wildcards):
+# What a job's own Snakemake (the script's parent in the job) adds to the script's peak: measured on a
+# one-node SLURM (docs/cluster.md) at 515-525 MB beside the script, with a margin for clusters that
+# limit the whole job.
+SNAKEMAKE_IN_JOB_MB = 768
+
+
+def campaign_mem_mb(wildcards, attempt):
     """Memory (MB) a campaign's job may need at its peak: the campaign check's own estimate
-    (`remaster.campaigns.capacity.peak_estimate`), so a cluster reserves what the job uses."""
+    (`remaster.campaigns.capacity.peak_estimate`) and the job's Snakemake, half as much again on
+    each retry, so a cluster reserves what the job uses."""
     from remaster.campaigns import capacity
 
-    return int(capacity.peak_estimate(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"]) / 1e6) + 1
+    need = capacity.peak_estimate(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"]) / 1e6
+    return int((need + SNAKEMAKE_IN_JOB_MB) * (1 + 0.5 * (attempt - 1))) + 1
 
 
 def runtime_minutes(minutes_per_thousand_rows, at_least=5):
