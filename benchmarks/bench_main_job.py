@@ -50,8 +50,12 @@ def planned_jobs(checkout: Path, campaigns: list[str]) -> int:
     """Jobs a run from empty results plans (`snakemake -n`), the `all` target aside."""
     with tempfile.TemporaryDirectory() as results:
         out = snakemake(checkout, results, campaigns, "-n", "--quiet", "rules")
-    counts = re.findall(r"^(\S+)\s+(\d+)$", out.stdout, flags=re.MULTILINE)
-    return sum(int(n) for rule, n in counts if rule not in ("total", "all"))
+    # the job-stats table (Snakemake prints it twice with --quiet rules): rows up to its "total"
+    table = re.search(r"^job\s+count\n(?:-+\s+-+\n)?(.*?)^total\s+(\d+)$", out.stdout, flags=re.MULTILINE | re.DOTALL)
+    if table is None:
+        sys.exit(f"no job table in the dry run of {checkout}:\n{out.stdout[-2000:]}{out.stderr[-2000:]}")
+    counts = re.findall(r"^(\S+)\s+(\d+)$", table.group(1), flags=re.MULTILINE)
+    return sum(int(n) for rule, n in counts if rule != "all")
 
 
 def timed_run(checkout: Path, campaigns: list[str]) -> float:

@@ -255,6 +255,32 @@ def test_chain_summary_names_method_and_parameters(target):
     assert all(name in text for name in NAMES)
 
 
+def test_emcee_runs_on_until_its_criteria_hold_and_no_longer(target):
+    """The ensemble doubles its kept steps while `enough` fails (150 -> 300 -> 600 kept steps when
+    600 are asked for), stops at max_doublings when it never holds, and without a test keeps its
+    first length; the chain is the same ensemble continued, so its first kept steps are the short
+    run's."""
+    seen = []
+
+    def enough(paths):
+        seen.append(paths.shape[0])
+        return paths.shape[0] >= 600
+
+    def run(**kw):
+        return samplers.run_emcee(
+            target, np.random.default_rng(3), START, 0.05 * MM, n_walkers=12, n_steps=200, burn_in=50, **kw
+        )
+
+    grown = run(enough=enough, max_doublings=5)
+    assert seen == [150, 300, 600] and grown.n_steps == 600 and grown.settings["doublings"] == 2
+    assert grown.settings["n_steps"] == 650
+    capped = run(enough=lambda paths: False, max_doublings=1)
+    assert capped.n_steps == 300
+    fixed = run()
+    assert fixed.n_steps == 150
+    np.testing.assert_array_equal(grown.samples[: len(fixed.samples)], fixed.samples)
+
+
 # --------------------------------------------------------------------------------------------
 # Least squares and the Laplace approximation
 

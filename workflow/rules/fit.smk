@@ -44,7 +44,8 @@ rule sample:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(10, at_least=15),
     params:
-        settings=lambda wc: config["fit"][wc.method],
+        # emcee runs until the cross-check's convergence criteria hold (fit/emcee/max_doublings)
+        settings=lambda wc: {**config["fit"][wc.method], "convergence": config["fit"]["cross_check"]},
         seed=config["seed"],
     script:
         "../scripts/sample.py"

@@ -338,9 +338,30 @@ def sample(
                 n_walkers=settings["walkers"],
                 n_steps=settings["steps"],
                 burn_in=settings["burn_in"],
+                enough=_converged_ensemble(target.names, settings.get("convergence")),
+                max_doublings=settings.get("max_doublings", 0),
             )
         ]
     raise ValueError(f"unknown sampling method {method!r}; use one of {METHODS}")
+
+
+def _converged_ensemble(names, criteria: Mapping | None):
+    """The test that an ensemble's kept paths (n_steps, n_walkers, P) meet the cross-check's
+    criteria (max_rhat, min_ess), judged as `sampler_diagnostics` judges it (the walkers' two
+    halves as two chains); None without criteria."""
+    if criteria is None:
+        return None
+
+    def enough(paths: np.ndarray) -> bool:
+        half = paths.shape[1] // 2
+        report = diagnostics.chain_report([paths[:, :half], paths[:, half:]], list(names))
+        return converged(
+            {"max_rhat": float(report["rhat"].max()), "min_ess": float(report["ess"].min())},
+            criteria["max_rhat"],
+            criteria["min_ess"],
+        )
+
+    return enough
 
 
 def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:

@@ -601,6 +601,8 @@ def run_emcee(
     n_walkers: int = 32,
     n_steps: int = 5_000,
     burn_in: int = 1_000,
+    enough: Callable[[np.ndarray], bool] | None = None,
+    max_doublings: int = 0,
 ) -> Chain:
     """emcee's affine-invariant ensemble (stretch move), log_prob_many over all walkers per call.
 
@@ -608,6 +610,10 @@ def run_emcee(
     where the log-posterior is -inf (e.g. sigma <= 0). n_steps total per walker including
     burn_in. emcee's own generator is a RandomState seeded from `rng`, so runs are reproducible
     and the global NumPy state is neither used nor changed.
+
+    enough: a test of the kept walkers' paths (n_steps, n_walkers, P), e.g. the convergence
+    criteria; while it fails, the same ensemble runs on for as many kept steps again (the run
+    doubles), at most max_doublings times. So a run is as long as its criteria need, not longer.
     """
     import emcee
 
@@ -634,9 +640,20 @@ def run_emcee(
     accepted_before = sampler.backend.accepted.copy() if burn_in else np.zeros(n_walkers)
     # the state is emcee's own after burn-in: its walker-independence check is for user starts,
     # and would reject an ensemble still contracting towards a far posterior
-    sampler.run_mcmc(state, kept, progress=False, skip_initial_state_check=bool(burn_in))
+    state = sampler.run_mcmc(state, kept, progress=False, skip_initial_state_check=bool(burn_in))
+    doublings = 0
+    while enough is not None and doublings < max_doublings and not enough(sampler.get_chain(discard=burn_in)):
+        state = sampler.run_mcmc(state, kept * 2**doublings, progress=False)
+        doublings += 1
+    kept *= 2**doublings
     accepted = sampler.backend.accepted - accepted_before
-    settings = {"n_steps": n_steps, "burn_in": burn_in, "n_walkers": n_walkers, "spread": spread.copy()}
+    settings = {
+        "n_steps": burn_in + kept,
+        "burn_in": burn_in,
+        "n_walkers": n_walkers,
+        "spread": spread.copy(),
+        "doublings": doublings,
+    }
     return Chain(
         sampler.get_chain(discard=burn_in, flat=True),
         sampler.get_log_prob(discard=burn_in, flat=True),
