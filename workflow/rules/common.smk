@@ -234,7 +234,7 @@ def report_layout():
                 },
             },
             "figures": {
-                **{f"{f}_{s}": f"{RESULTS}/{c}/figures/{f}_{s}.png" for f in REPORT_FIGURES for s in sensors_of(c)},
+                **{f"{f}_{s}": f"{RESULTS}/{c}/figures/{f}_{s}.png" for f in SENSOR_FIGURES for s in sensors_of(c)},
                 "residuals": f"{RESULTS}/{c}/figures/residuals.png",
             },
         }

@@ -16,16 +16,6 @@ REPORT_TABLES = [
     "controller_offsets",
     "calibrated_files",
 ]
-REPORT_FIGURES = [
-    "zero_offset_trace",
-    "zero_offset_histograms",
-    "tcp_scatter",
-    "post_registration_histograms",
-    "loop_signatures",
-    "loop_residuals",
-    "loop_residual_joints",
-    "workspace_accuracy",
-]
 
 
 # the certificate's tables first, in the report's order
