@@ -33,3 +33,9 @@ def by_pair(inputs: Mapping[str, str], kind: str) -> dict[tuple[str, str], str]:
 def sensors(inputs: Mapping[str, str], kind: str) -> list[str]:
     """The sensors that have an input of `kind`, in order."""
     return list(by_sensor(inputs, kind))
+
+
+def by_kind(inputs: Mapping[str, str]) -> dict[str, dict[str, str]]:
+    """kind -> sensor -> file, for every input named `<kind>__<sensor>` (unnamed-by-sensor ones left out)."""
+    kinds = dict.fromkeys(name.split(SEPARATOR)[0] for name in inputs if SEPARATOR in name)
+    return {kind: by_sensor(inputs, kind) for kind in kinds}

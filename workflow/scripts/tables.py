@@ -14,13 +14,11 @@ snakemake: Snakemake = globals()["snakemake"]
 
 i, out = snakemake.input, snakemake.output
 with files.log_to(snakemake.log[0]):
-    named = dict(i.items())
-    kinds = {name.split(stage_inputs.SEPARATOR)[0] for name in named if stage_inputs.SEPARATOR in name}
     result = campaign_tables.campaign_tables(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         snakemake.wildcards.campaign,
         files.read_json(i.summary),
-        {kind: stage_inputs.by_sensor(named, kind) for kind in kinds},
+        stage_inputs.by_kind(dict(i.items())),
         beside_paper=snakemake.params.beside_paper,
     )
     for table in result.tables:
