@@ -2,6 +2,7 @@
 # (paths, burn-in shorter than the run) and lists the campaigns to process. Every refusal names the
 # config file(s) and the key (docs/bad-input.md).
 import os
+import re
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -132,11 +133,6 @@ def sensor_inputs(**patterns):
         }
 
     return files
-
-
-def every_campaign_sensor(pattern):
-    """`pattern` for every (campaign, sensor) pair of the run."""
-    return [pattern.format(campaign=c, sensor=s) for c in CAMPAIGNS for s in sensors_of(c)]
 
 
 def every_pair_inputs(**patterns):
