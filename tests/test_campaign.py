@@ -401,3 +401,15 @@ def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_pa
         r"the 0\.1 GB a job may use \(max_job_memory_gb",
     ):
         campaigns.summarize(data, memory_limit=0.1e9)
+
+
+def test_a_job_asks_for_its_peak_and_its_own_snakemake_and_more_on_a_retry():
+    """The memory a workflow job asks a cluster for: the peak estimate plus the job's Snakemake
+    (measured on SLURM at about 520 MB beside the script: the 8 jobs SLURM killed at the estimate
+    alone), half as much again on each retry."""
+    from remaster.campaigns import capacity
+
+    first = capacity.job_request_mb(1_000)
+    assert first == int((0.5e9 + 36e6 + 768e6) / 1e6) + 1 == 1305  # the UR5 campaign's request
+    assert capacity.job_request_mb(1_000, attempt=2) == int(1.5 * (0.5e9 + 36e6 + 768e6) / 1e6) + 1
+    assert capacity.job_request_mb(100_000) > capacity.peak_estimate(100_000) / 1e6 + 520  # above the measured cost

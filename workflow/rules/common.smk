@@ -152,20 +152,12 @@ def largest_sensor_rows(campaign):
     return max((pyarrow.parquet.read_metadata(p).num_rows for p in Path(RAW, campaign).glob("*.parquet")), default=0)
 
 
-# What a job's own Snakemake (the script's parent in the job) adds to the script's peak: measured on a
-# one-node SLURM (docs/cluster.md) at 515-525 MB beside the script, with a margin for clusters that
-# limit the whole job.
-SNAKEMAKE_IN_JOB_MB = 768
-
-
 def campaign_mem_mb(wildcards, attempt):
-    """Memory (MB) a campaign's job may need at its peak: the campaign check's own estimate
-    (`remaster.campaigns.capacity.peak_estimate`) and the job's Snakemake, half as much again on
+    """Memory (MB) a campaign's job asks for (`remaster.campaigns.capacity.job_request_mb`), more on
     each retry, so a cluster reserves what the job uses."""
     from remaster.campaigns import capacity
 
-    need = capacity.peak_estimate(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"]) / 1e6
-    return int((need + SNAKEMAKE_IN_JOB_MB) * (1 + 0.5 * (attempt - 1))) + 1
+    return capacity.job_request_mb(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"], attempt)
 
 
 def runtime_minutes(minutes_per_thousand_rows, at_least=5):

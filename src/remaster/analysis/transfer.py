@@ -136,20 +136,11 @@ def prediction_stage(
     """The comparisons by prediction (arguments as `prediction.calibrated_entries`): the transfer
     table, then every table of `prediction.PREDICTION_TABLES` at `n_configurations` random
     configurations per robot (from `seed`), with `draw_pairs` posterior draw pairs."""
-    from .prediction import PREDICTION_TABLES, prediction_table
+    from .prediction import PREDICTION_TABLES
 
     out = {"transfer": transfer_stage(campaigns, summaries, laplaces, loops)}
-    for name in PREDICTION_TABLES:
-        out[name] = prediction_table(
-            name,
-            campaigns,
-            summaries,
-            laplaces,
-            loops,
-            paper_samples,
-            loop_samples,
-            n_configurations=n_configurations,
-            seed=seed,
-            draw_pairs=draw_pairs,
-        )
+    # one set of calibrated entries (with their posterior samples) for every prediction table
+    entries = calibrated_entries(campaigns, summaries, laplaces, loops, paper_samples, loop_samples)
+    for name, table in PREDICTION_TABLES.items():
+        out[name] = table(entries, n_configurations, seed, draw_pairs)
     return out

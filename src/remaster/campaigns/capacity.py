@@ -39,3 +39,15 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000) -> d
             file=campaign,
         )
     return {"largest_sensor_rows": int(rows), "estimated_peak_gb": need / GB}
+
+
+# What a workflow job's own Snakemake (the script's parent in the job) adds to the script's peak:
+# measured on a one-node SLURM (docs/cluster.md) at 515-525 MB beside the script; with a margin for
+# clusters that limit the whole job.
+SNAKEMAKE_IN_JOB = 768e6
+
+
+def job_request_mb(rows: int, draws: int = 2000, attempt: int = 1) -> int:
+    """Memory (MB) a workflow job of a campaign of `rows` rows (its largest sensor) asks for: the
+    peak estimate and the job's own Snakemake, half as much again on each retry (`attempt` 1, 2, ...)."""
+    return int((peak_estimate(rows, draws) + SNAKEMAKE_IN_JOB) * (1 + 0.5 * (attempt - 1)) / 1e6) + 1
