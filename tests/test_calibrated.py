@@ -44,7 +44,7 @@ def pinocchio_points(xml, chain, q):
 def random_values(chain, rng):
     values = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.5 * DEG) for j in range(chain.n_joints)}
     for _, column, name in blocks.link_labels(chain):
-        values[name] = rng.normal(0.0, 1e-3 if column == 0 else 0.1 * DEG)
+        values[name] = rng.normal(0.0, 1e-3 if column < 3 else 0.1 * DEG)
     return values
 
 
@@ -119,22 +119,36 @@ def dh_points(table, q):
     return prediction.robot_points(chain, q, MARKER, {})
 
 
-def without_first_twist(values):
-    """A standard table has no base transform: joint 1's tilt is the one link error it cannot hold."""
-    return {k: v for k, v in values.items() if k != "link_geometry.F1.twist"}
+def dh_form_values(chain, dh_chain, rows, convention, flange, rng):
+    """Link geometry of `chain` (remaster's chain of the DH robot, URDF or DH) that makes it the
+    robot of the DH table `rows` with every row perturbed (a, d by 1 mm, alpha by 0.1 deg; theta
+    too but for a standard table's joint 1, which has no base transform to hold it): an error of
+    DH form, written in the six-parameter link geometry as small_motion_of(F_j^-1 F'_j)."""
+    noise = rng.normal(0.0, 1.0, (6, 4)) * [1e-3, 0.1 * DEG, 1e-3, 0.1 * DEG]
+    if convention == "standard":
+        noise[0, 3] = 0.0
+    true = kinematics.chain_from_dh(np.array(rows, dtype=float) + noise, convention, flange)
+    change = dh_table._frame_change(chain, dh_chain)  # remaster's body frames -> the DH table's
+    joints = change[:-1] @ true.joint_transforms @ np.linalg.inv(change[1:])
+    tool = change[-1] @ true.tool_transform
+    motions = kinematics.small_motion_of(
+        np.linalg.inv(np.concatenate([chain.joint_transforms, chain.tool_transform[None]]))
+        @ np.concatenate([joints, tool[None]])
+    )
+    return {name: float(motions[row, column]) for row, column, name in blocks.link_labels(chain)}
 
 
 @pytest.mark.parametrize("source", ["standard", "modified", "standard with a flange", "urdf with a dh table"])
 def test_the_calibrated_dh_table_is_the_calibrated_model(source, rng):
-    """Zero-offsets and link geometry in DH rows of the campaign's convention: read back as a chain,
-    the table gives remaster's calibrated predictions to 1e-9 m, and says it is exact."""
+    """Link-geometry errors of DH form (a perturbed DH table, in the six-parameter form) in DH rows
+    of the campaign's convention: read back as a chain, the table gives remaster's calibrated
+    predictions to 1e-9 m, and says it is exact."""
     convention = "modified" if source == "modified" else "standard"
     flange = FLANGE if source == "standard with a flange" else None
     dh = {"convention": convention, "rows": UR5_DH, **({"flange": flange.tolist()} if flange is not None else {})}
     chain = ur5_urdf_chain() if source.startswith("urdf") else kinematics.chain_from_dh(UR5_DH, convention, flange)
-    values = random_values(chain, rng)
-    if convention == "standard":
-        values = without_first_twist(values)
+    dh_chain = kinematics.chain_from_dh(UR5_DH, convention, flange)
+    values = dh_form_values(chain, dh_chain, UR5_DH, convention, flange, rng)
     q = rng.uniform(-2.5, 2.5, (30, 6))
     table = dh_table.calibrated_dh(chain, dh, values, q)
     assert table["exact"] and table["not_dh_form"] == []
@@ -162,7 +176,7 @@ def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng)
     rows = np.array(UR5_DH)
     rows[2, 3] = 0.3  # joint 3 with a theta offset
     chain = kinematics.chain_from_dh(rows, "standard")
-    values = {"link_geometry.F3.twist": 0.2 * DEG, "link_geometry.F1.twist": 0.1 * DEG, "zero_offsets.q2": 0.01}
+    values = {"link_geometry.F3.rx": 0.2 * DEG, "link_geometry.F1.rx": 0.1 * DEG, "zero_offsets.q2": 0.01}
     q = rng.uniform(-2.5, 2.5, (40, 6))
     table = dh_table.calibrated_dh(chain, {"convention": "standard", "rows": rows.tolist()}, values, q)
     assert not table["exact"]

@@ -255,17 +255,31 @@ def test_rotation_angle_is_the_angle_turned_even_near_zero(angle, rng):
     assert spatial.rotation_angle(spatial.rot_axis(axis, angle)) == pytest.approx(angle, rel=1e-9)
 
 
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 3e-5, 0.2, 2.0])
+def test_a_rotation_vector_turns_by_its_length_about_its_direction(angle, rng):
+    """Rodrigues against `rot_axis`, across the series/closed-form switch at 1e-4 rad."""
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    np.testing.assert_allclose(
+        spatial.rotation_vector_to_matrix(angle * axis), spatial.rot_axis(axis, angle), atol=1e-15
+    )
+
+
 @pytest.mark.parametrize("robot", ["iiwa", "ur5_dh"])
-def test_a_link_error_is_a_transform_after_the_link(robot, request, rng):
-    """F' = F D: `link_error_transforms` is the same link error as `perturbed_transforms`, as a
-    transform on the right (the form the sampler's folds use)."""
+def test_a_link_error_moves_the_frame_it_leads_to_in_its_own_axes(robot, request, rng):
+    """F' = F D(xi): the translation lands in F's child frame (F's rotation carries it to the
+    parent), the rotation turns the child frame about its own axes; a stack gives each set's own."""
     chain = request.getfixturevalue(robot)
-    errors = rng.normal(0.0, 1e-3, (chain.n_joints + 1, 2))
+    errors = rng.normal(0.0, 1e-3, (2, chain.n_joints + 1, 6))
     joints, tool = kinematics.perturbed_transforms(chain.joint_transforms, chain.tool_transform, errors)
-    fixed = list(chain.joint_transforms) + [chain.tool_transform]
-    for transform, perturbed, (length, twist) in zip(fixed, list(joints) + [tool], errors):
-        if np.linalg.norm(transform[:3, 3]) == 0:
-            length = 0.0  # no length error without a translation
-        np.testing.assert_allclose(
-            transform @ kinematics.link_error_transforms(transform, length, twist), perturbed, atol=1e-15
-        )
+    fixed = np.concatenate([chain.joint_transforms, chain.tool_transform[None]])
+    moved = np.concatenate([joints, tool[:, None]], axis=1)
+    for k in range(2):
+        for transform, perturbed, xi in zip(fixed, moved[k], errors[k]):
+            np.testing.assert_allclose(perturbed[:3, 3], transform[:3, 3] + transform[:3, :3] @ xi[:3], atol=1e-15)
+            turn = transform[:3, :3].T @ perturbed[:3, :3]
+            np.testing.assert_allclose(
+                turn, spatial.rot_axis(xi[3:] / np.linalg.norm(xi[3:]), np.linalg.norm(xi[3:])), atol=1e-15
+            )
+    with pytest.raises(ValueError, match=rf"\(\.\.\., {chain.n_joints + 1}, 6\)"):
+        kinematics.perturbed_transforms(chain.joint_transforms, chain.tool_transform, errors[0, :, :2])

@@ -25,7 +25,7 @@ SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
 TWIN = REPO / "data" / "raw" / "kuka-twin"
 SENSOR = "laser_tracker"
 ALLOWED = (
-    "allowed: arm_class, link_length_mm, link_twist_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
+    "allowed: arm_class, link_translation_mm, link_rotation_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
     "joint_scale_ppm, sensor_scale_ppm, drift_deg_per_hour, drift_deg_per_kelvin, held_zero_offset_deg"
 )
 POSITIVE = "must be a positive number (a standard deviation in the unit its name gives), got "
@@ -34,8 +34,8 @@ POSITIVE = "must be a positive number (a standard deviation in the unit its name
 KNOWN = {
     "arm_class": "industrial",
     "industrial": {
-        "link_length_mm": 1.0,
-        "link_twist_deg": 0.1,
+        "link_translation_mm": 1.0,
+        "link_rotation_deg": 0.1,
         "marker_offset_mm": 2.0,
         "joint_compliance_urad_per_Nm": 50,
         "joint_scale_ppm": 1000,
@@ -45,8 +45,8 @@ KNOWN = {
         "held_zero_offset_deg": 0.5,
     },
     "collaborative": {
-        "link_length_mm": 1.0,
-        "link_twist_deg": 0.1,
+        "link_translation_mm": 1.0,
+        "link_rotation_deg": 0.1,
         "marker_offset_mm": 2.0,
         "joint_compliance_urad_per_Nm": 200,
         "joint_scale_ppm": 1000,
@@ -75,10 +75,10 @@ def test_std_of_gives_si_values_of_known_priors():
     priors = priors_from(KNOWN)
     assert priors.arm_class == "industrial" and priors.source == "config"
     expected = {
-        "link_geometry.F2.length": 1e-3,  # 1 mm
-        "link_geometry.tool.length": 1e-3,
-        "link_geometry.F2.twist": 0.1 * math.pi / 180,  # 0.1 deg = 1.745e-3 rad
-        "link_geometry.tool.twist": 1.7453292519943296e-3,
+        "link_geometry.F2.x": 1e-3,  # 1 mm
+        "link_geometry.tool.z": 1e-3,
+        "link_geometry.F2.rx": 0.1 * math.pi / 180,  # 0.1 deg = 1.745e-3 rad
+        "link_geometry.tool.rz": 1.7453292519943296e-3,
         "marker_offset.x": 2e-3,  # 2 mm
         "marker_offset.z": 2e-3,
         "joint_compliance.q3": 50e-6,  # 50 urad/(N m)
@@ -105,8 +105,8 @@ def test_std_of_the_configs_section_in_si():
     priors = priors_from(SECTION)
     values = SECTION[SECTION["arm_class"]]
     assert priors.arm_class == SECTION["arm_class"] and priors.values == pytest.approx(values)
-    assert priors.std_of("link_geometry.F1.length") == pytest.approx(values["link_length_mm"] / 1000)
-    assert priors.std_of("link_geometry.F1.twist") == pytest.approx(math.radians(values["link_twist_deg"]))
+    assert priors.std_of("link_geometry.F1.y") == pytest.approx(values["link_translation_mm"] / 1000)
+    assert priors.std_of("link_geometry.F1.ry") == pytest.approx(math.radians(values["link_rotation_deg"]))
     assert priors.std_of("marker_offset.y") == pytest.approx(values["marker_offset_mm"] / 1000)
     assert priors.std_of("joint_compliance.q2") == pytest.approx(values["joint_compliance_urad_per_Nm"] / 1e6)
     assert priors.std_of("joint_scale.q1") == pytest.approx(values["joint_scale_ppm"] / 1e6)
@@ -153,11 +153,11 @@ def test_config_yaml_repeats_the_defaults():
 
 
 def test_with_defaults_lays_a_partial_section_over_the_defaults():
-    merged = with_defaults({"arm_class": "industrial", "industrial": {"link_length_mm": 3.0}})
+    merged = with_defaults({"arm_class": "industrial", "industrial": {"link_translation_mm": 3.0}})
     assert merged["arm_class"] == "industrial"
-    assert merged["industrial"] == {**DEFAULTS["industrial"], "link_length_mm": 3.0}
+    assert merged["industrial"] == {**DEFAULTS["industrial"], "link_translation_mm": 3.0}
     assert merged["collaborative"] == DEFAULTS["collaborative"]
-    assert priors_from(merged).std_of("link_geometry.F3.length") == pytest.approx(3e-3)
+    assert priors_from(merged).std_of("link_geometry.F3.z") == pytest.approx(3e-3)
 
 
 # --------------------------------------------------------------------------- a campaign's own priors
@@ -165,11 +165,11 @@ def test_with_defaults_lays_a_partial_section_over_the_defaults():
 
 def test_campaign_override_changes_only_its_key_and_class():
     source = "data/raw/demo/campaign.yaml"
-    robot = {"urdf": "x.urdf", "priors": {"arm_class": "industrial", "link_length_mm": 2.5}}
+    robot = {"urdf": "x.urdf", "priors": {"arm_class": "industrial", "link_translation_mm": 2.5}}
     priors = priors_from(section("collaborative"), robot, source)
     assert priors.arm_class == "industrial"
-    assert priors.values == {**SECTION["industrial"], "link_length_mm": 2.5}
-    assert priors.std_of("link_geometry.F2.length") == pytest.approx(2.5e-3)
+    assert priors.values == {**SECTION["industrial"], "link_translation_mm": 2.5}
+    assert priors.std_of("link_geometry.F2.x") == pytest.approx(2.5e-3)
     assert priors.std_of("joint_compliance.q1") == pytest.approx(
         SECTION["industrial"]["joint_compliance_urad_per_Nm"] * 1e-6
     )
@@ -225,16 +225,16 @@ def test_a_campaign_folder_with_priors_is_read_and_overrides(tmp_path):
 BAD_CAMPAIGN_PRIORS = {
     # case: (robot/priors as written in campaign.yaml, key, message after "<file>: <key>: ")
     "unknown key": ("{link_lenght_mm: 2.0}", "robot/priors/link_lenght_mm", f"unknown prior; {ALLOWED}"),
-    "negative": ("{link_length_mm: -1.0}", "robot/priors/link_length_mm", POSITIVE + "-1.0"),
+    "negative": ("{link_translation_mm: -1.0}", "robot/priors/link_translation_mm", POSITIVE + "-1.0"),
     "zero": ("{joint_scale_ppm: 0}", "robot/priors/joint_scale_ppm", POSITIVE + "0"),
     "text": ("{marker_offset_mm: one}", "robot/priors/marker_offset_mm", POSITIVE + "'one'"),
     "no value": ("{drift_deg_per_kelvin: }", "robot/priors/drift_deg_per_kelvin", POSITIVE + "None"),
     "nan": ("{drift_deg_per_hour: .nan}", "robot/priors/drift_deg_per_hour", POSITIVE + "nan"),
     "yes": ("{sensor_scale_ppm: yes}", "robot/priors/sensor_scale_ppm", POSITIVE + "True"),
     # YAML 1.1 (PyYAML) reads 1e-3 (no point in the mantissa) as text; 1.0e-3 is a number
-    "1e-3": ("{link_length_mm: 1e-3}", "robot/priors/link_length_mm", POSITIVE + "'1e-3'"),
+    "1e-3": ("{link_translation_mm: 1e-3}", "robot/priors/link_translation_mm", POSITIVE + "'1e-3'"),
     "unknown class": (
-        "{arm_class: heavy, link_length_mm: 2.0}",
+        "{arm_class: heavy, link_translation_mm: 2.0}",
         "robot/priors/arm_class",
         "must be one of industrial, collaborative, got 'heavy'",
     ),
@@ -254,15 +254,15 @@ def test_bad_campaign_priors_name_file_and_key(tmp_path, case):
 
 def test_campaign_prior_written_1_0e_3_is_a_number(tmp_path):
     """The way out of the `1e-3` case above: with a point in the mantissa YAML reads a number."""
-    folder, _ = twin_campaign(tmp_path, yaml_text="{link_length_mm: 1.0e-3}")
-    assert folders.read_campaign(folder, repo_root=REPO).robot["priors"] == {"link_length_mm": 1e-3}
+    folder, _ = twin_campaign(tmp_path, yaml_text="{link_translation_mm: 1.0e-3}")
+    assert folders.read_campaign(folder, repo_root=REPO).robot["priors"] == {"link_translation_mm": 1e-3}
 
 
 BAD_OVERRIDES = {
     # case: (robot.priors as a library caller gives it, key, message after "<source>: <key>: ")
     "unknown key": ({"joint_scale": 2.0}, "robot/priors/joint_scale", f"unknown prior; {ALLOWED}"),
     "zero": ({"joint_scale_ppm": 0.0}, "robot/priors/joint_scale_ppm", POSITIVE + "0.0"),
-    "text": ({"link_twist_deg": "0.1"}, "robot/priors/link_twist_deg", POSITIVE + "'0.1'"),
+    "text": ({"link_rotation_deg": "0.1"}, "robot/priors/link_rotation_deg", POSITIVE + "'0.1'"),
     "bool": ({"sensor_scale_ppm": False}, "robot/priors/sensor_scale_ppm", POSITIVE + "False"),
     "unknown class": (
         {"arm_class": "Industrial"},
@@ -270,9 +270,9 @@ BAD_OVERRIDES = {
         "must be one of industrial, collaborative, got 'Industrial'",
     ),
     "not a mapping": (
-        [("link_length_mm", 2.0)],
+        [("link_translation_mm", 2.0)],
         "robot/priors",
-        "must be a mapping of priors, got [('link_length_mm', 2.0)]",
+        "must be a mapping of priors, got [('link_translation_mm', 2.0)]",
     ),
 }
 
@@ -297,8 +297,8 @@ BAD_CONFIG_PRIORS = {
         f"unknown prior; {ALLOWED}",
     ),
     "negative": (
-        section("collaborative", collaborative={"link_twist_deg": -0.1}),
-        "priors/collaborative/link_twist_deg",
+        section("collaborative", collaborative={"link_rotation_deg": -0.1}),
+        "priors/collaborative/link_rotation_deg",
         POSITIVE + "-0.1",
     ),
     "zero": (
@@ -344,11 +344,11 @@ def test_bad_config_priors_name_the_config_and_key(case):
 
 def test_a_campaigns_class_with_a_bad_config_value_names_the_config():
     """The campaign picks the class; the bad value is the config's, and the message says so."""
-    config = section("collaborative", industrial={"link_length_mm": -2})
+    config = section("collaborative", industrial={"link_translation_mm": -2})
     assert priors_from(config).arm_class == "collaborative"  # the class in use is fine
     with pytest.raises(InputError) as info:
         priors_from(config, {"priors": {"arm_class": "industrial"}}, "demo/campaign.yaml")
-    assert str(info.value) == f"config: priors/industrial/link_length_mm: {POSITIVE}-2"
+    assert str(info.value) == f"config: priors/industrial/link_translation_mm: {POSITIVE}-2"
 
 
 # --------------------------------------------------------------------------- the config schema
@@ -377,14 +377,14 @@ BAD_SCHEMA_PRIORS = {
         "['priors']['industrial']['joint_scale_ppm']",
     ),
     "zero": (
-        {"collaborative": {"link_twist_deg": 0}},
+        {"collaborative": {"link_rotation_deg": 0}},
         "0 is less than or equal to the minimum of 0",
-        "['priors']['collaborative']['link_twist_deg']",
+        "['priors']['collaborative']['link_rotation_deg']",
     ),
     "text": (
-        {"industrial": {"link_length_mm": "one"}},
+        {"industrial": {"link_translation_mm": "one"}},
         "'one' is not of type 'number'",
-        "['priors']['industrial']['link_length_mm']",
+        "['priors']['industrial']['link_translation_mm']",
     ),
     "unknown key": (
         {"industrial": {"link_lenght_mm": 1.0}},

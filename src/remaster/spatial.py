@@ -52,6 +52,38 @@ def rot_axis(axis, angle) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
 
 
+def rotation_vector_to_matrix(vector) -> np.ndarray:
+    """Rotation exp([phi]x) of rotation vectors phi (..., 3) rad: the angle |phi| about phi's
+    direction (Rodrigues), shape (..., 3, 3); the identity for phi = 0."""
+    vector = np.asarray(vector, dtype=float)
+    angle = np.linalg.norm(vector, axis=-1)
+    k = skew(vector)
+    # sin(a)/a and (1 - cos a)/a^2 by their series below 1e-4 rad, where the quotients lose digits
+    small = angle < 1e-4
+    safe = np.where(small, 1.0, angle)
+    first = np.where(small, 1.0 - angle**2 / 6.0, np.sin(safe) / safe)
+    second = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    return np.eye(3) + first[..., None, None] * k + second[..., None, None] * (k @ k)
+
+
+def matrix_to_rotation_vector(rotation) -> np.ndarray:
+    """Rotation vectors (..., 3) rad of rotations (..., 3, 3) turning by less than pi: the inverse
+    of `rotation_vector_to_matrix`."""
+    rotation = np.asarray(rotation, dtype=float)
+    v = 0.5 * np.stack(
+        [
+            rotation[..., 2, 1] - rotation[..., 1, 2],
+            rotation[..., 0, 2] - rotation[..., 2, 0],
+            rotation[..., 1, 0] - rotation[..., 0, 1],
+        ],
+        axis=-1,
+    )  # sin(angle) times the axis
+    sine = np.linalg.norm(v, axis=-1)
+    angle = np.arctan2(sine, 0.5 * (np.trace(rotation, axis1=-2, axis2=-1) - 1.0))
+    ratio = np.where(sine < 1e-8, 1.0 + angle**2 / 6.0, angle / np.where(sine < 1e-8, 1.0, sine))
+    return ratio[..., None] * v
+
+
 def euler_zyx_to_matrix(yaw, pitch, roll) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll), the ZYX convention of the paper, shape (..., 3, 3)."""
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)

@@ -1,20 +1,16 @@
 """Sampling coordinates with the measurement's exact symmetries folded out.
 
-Three changes of an extended model's parameters move no predicted point at all:
-- a link error before joint 1 (link_geometry.F1.*) moves the whole arm rigidly, and the
-  registration moves it back;
-- a link error of the tool transform (link_geometry.tool.*) moves the marker in the last joint's
-  frame, and the marker offset moves it back;
-- turning the marker about the last joint's axis is turning that joint's zero-offset.
-The data see only the combinations; the priors decide the rest. Each trade is a rotation, so in the
-model's own parameters (Euler angles, flange-frame x, y, z) it is a curved ridge, as long as the
-prior and as thin as the data: a Laplace approximation cannot follow it, and an independence
-proposal drawn from one is nearly always refused off it. In the folded coordinates, the
-registration that includes the base link's error, the marker where it really sits in the nominal
-tool frame, and that marker in cylindrical coordinates about the last joint's axis, each ridge is
-straight and the posterior is close to Gaussian. `Gauge` maps parameter vectors both ways with the
-log-Jacobian that keeps the posterior the same; `FoldedTarget` is a sampler target in the folded
-coordinates, and `Gauge.back` returns its chains in the model's own parameters.
+Turning the marker about the last joint's axis is turning that joint's zero-offset: the data see
+only the combination, the marker's prior decides the rest. The trade is a rotation, so in the
+model's own parameters (flange-frame x, y, z) it is a curved ridge, as long as the prior and as thin
+as the data: a Laplace approximation cannot follow it, and an independence proposal drawn from one
+is nearly always refused off it. In cylindrical coordinates about the last joint's axis the ridge is
+straight and the posterior is close to Gaussian. (The link-geometry errors that the registration or
+the marker absorb at every configuration, those of the base link and of the tool, are not
+parameters of the model at all: `blocks.structural_redundancy` holds them.) `Gauge` maps parameter
+vectors both ways with the log-Jacobian that keeps the posterior the same; `FoldedTarget` is a
+sampler target in the folded coordinates, and `Gauge.back` returns its chains in the model's own
+parameters.
 """
 
 from __future__ import annotations
@@ -23,33 +19,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .. import spatial
-from ..robot.kinematics import KinematicChain, link_error_transforms
+from ..robot.kinematics import KinematicChain
 from . import samplers
-from .blocks import link_labels
-from .model import REGISTRATION as REGISTRATION_PARTS
-from .model import correction_parameters, correction_transforms
 
-REGISTRATION = tuple(f"registration.{p}" for p in REGISTRATION_PARTS)  # x, y, z, then the ZYX Euler angles
 MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
 TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
 MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates
-
-
-def _link_index(names, chain: KinematicChain, row: int) -> dict[str, int]:
-    """{'length'|'twist': position in names} of the free link-geometry parameters of fixed
-    transform `row` (0: F_1, N: the tool), named as `blocks.link_labels` names them."""
-    return {
-        ("length", "twist")[column]: names.index(name)
-        for link, column, name in link_labels(chain)
-        if link == row and name in names
-    }
-
-
-def _link_errors(theta, index: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
-    zero = np.zeros(theta.shape[:-1])
-    return tuple(theta[..., index[k]] if k in index else zero for k in ("length", "twist"))
 
 
 def last_axis(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
@@ -57,63 +33,6 @@ def last_axis(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
     (The chain is F_1 R_1(q_1) ... F_N R_N(q_N) F_tool: the axis passes through joint N's origin.)"""
     rotation, shift = chain.tool_transform[:3, :3], chain.tool_transform[:3, 3]
     return -rotation.T @ shift, rotation.T @ chain.joint_axes[-1]
-
-
-@dataclass(frozen=True)
-class BaseFold:
-    """The registration that includes the base link's error: C(p~) = C(p) T_nr F_1 D_1 F_1^-1 T_nr^-1,
-    so that predictions depend on p~ alone. index (6,): the registration's positions; links:
-    {'length'|'twist': position} of link_geometry.F1.*."""
-
-    index: np.ndarray
-    links: dict
-    first: np.ndarray
-    t_nr: np.ndarray
-
-    def _move(self, theta) -> np.ndarray:
-        errors = link_error_transforms(self.first, *_link_errors(theta, self.links))
-        return self.t_nr @ self.first @ errors @ spatial.invert(self.first) @ spatial.invert(self.t_nr)
-
-    def _with(self, theta, transform) -> np.ndarray:
-        out = np.array(theta, dtype=float)
-        out[..., self.index] = correction_parameters(transform)
-        return out
-
-    def fold(self, theta) -> np.ndarray:
-        return self._with(theta, correction_transforms(theta[..., self.index]) @ self._move(theta))
-
-    def unfold(self, folded) -> tuple[np.ndarray, np.ndarray]:
-        theta = self._with(folded, correction_transforms(folded[..., self.index]) @ spatial.invert(self._move(folded)))
-        # a fixed rotation applied on the right keeps the Haar measure cos(beta) d alpha d beta d gamma
-        pitch = self.index[4]
-        return theta, np.log(np.cos(folded[..., pitch])) - np.log(np.cos(theta[..., pitch]))
-
-
-@dataclass(frozen=True)
-class ToolFold:
-    """The marker where it sits in the nominal tool frame: m~ = D_tool (m + d) - m, so that
-    predictions depend on the offset m~ alone. index (3,): the marker offset's positions; links:
-    {'length'|'twist': position} of link_geometry.tool.*; marker (3,) m nominal, flange frame."""
-
-    index: np.ndarray
-    links: dict
-    tool: np.ndarray
-    marker: np.ndarray
-
-    def _moved(self, theta, transform) -> np.ndarray:
-        out = np.array(theta, dtype=float)
-        point = self.marker + theta[..., self.index]
-        out[..., self.index] = (transform[..., :3, :3] @ point[..., None])[..., 0] + transform[..., :3, 3] - self.marker
-        return out
-
-    def _errors(self, theta) -> np.ndarray:
-        return link_error_transforms(self.tool, *_link_errors(theta, self.links))
-
-    def fold(self, theta) -> np.ndarray:
-        return self._moved(theta, self._errors(theta))
-
-    def unfold(self, folded) -> tuple[np.ndarray, np.ndarray]:  # a rigid motion: Jacobian 1
-        return self._moved(folded, spatial.invert(self._errors(folded))), np.zeros(folded.shape[:-1])
 
 
 @dataclass(frozen=True)
@@ -199,27 +118,13 @@ class Gauge:
         from the axis."""
         names = tuple(names)
         folds = []
-        marker_free = set(MARKER) <= set(names)
-        index = np.array([names.index(n) for n in MARKER]) if marker_free else None
-        tool = _link_index(names, chain, chain.n_joints)
-        if marker_free and tool:
-            folds.append(ToolFold(index, tool, chain.tool_transform, np.asarray(marker, dtype=float)))
-        if marker_free and turn_marker:
+        if set(MARKER) <= set(names) and turn_marker:
+            index = np.array([names.index(n) for n in MARKER])
             turn = MarkerTurn.about(index, marker, *last_axis(chain))
             in_plane = np.column_stack([turn.radial, turn.tangential])
             spread = np.sqrt(np.linalg.eigvalsh(in_plane.T @ covariance[np.ix_(index, index)] @ in_plane).max())
             if turn.radius > MIN_RADIUS_IN_STD * spread:
                 folds.append(turn)
-        first = _link_index(names, chain, 0)
-        if set(REGISTRATION) <= set(names) and first:
-            folds.append(
-                BaseFold(
-                    np.array([names.index(n) for n in REGISTRATION]),
-                    first,
-                    chain.joint_transforms[0],
-                    np.asarray(t_nr, dtype=float),
-                )
-            )
         return cls(tuple(folds), names) if folds else None
 
     @property

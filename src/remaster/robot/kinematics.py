@@ -398,36 +398,42 @@ def _basis_with_z(axis) -> np.ndarray:
     return np.column_stack([x, np.cross(axis, x), axis])
 
 
+LINK_MOTION = ("x", "y", "z", "rx", "ry", "rz")  # the six small-motion parameters of a fixed transform
+
+
+def small_motion(motion) -> np.ndarray:
+    """D (..., 4, 4) of small-motion parameters (..., 6): a translation (x, y, z) m and a rotation
+    vector (rx, ry, rz) rad, D = [exp([r]x), t]. The link-geometry error of a fixed transform F is
+    F' = F D: a rigid motion of the frame F leads to, in that frame's own axes."""
+    motion = np.asarray(motion, dtype=float)
+    return spatial.homogeneous(spatial.rotation_vector_to_matrix(motion[..., 3:]), motion[..., :3])
+
+
+def small_motion_of(transform) -> np.ndarray:
+    """Small-motion parameters (..., 6) of rigid transforms (..., 4, 4) turning by less than pi:
+    the inverse of `small_motion`, e.g. of F^-1 F' for a fixed transform F and its perturbed F'."""
+    transform = np.asarray(transform, dtype=float)
+    return np.concatenate([transform[..., :3, 3], spatial.matrix_to_rotation_vector(transform[..., :3, :3])], axis=-1)
+
+
 def perturbed_transforms(joint_transforms, tool_transform, link_errors) -> tuple[np.ndarray, np.ndarray]:
-    """(F_1..F_N (..., N, 4, 4), F_tool (..., 4, 4)) with link-geometry errors (..., N + 1, 2), one
-    set or a stack: for each fixed transform a length error (m) along its translation (none for a
-    link of zero length) and a twist error (rad), a rotation about the x axis of the frame it leads
-    to, which tilts the next joint axis. A rotation about the joint axis itself would be a
-    zero-offset, so it is not a link error."""
+    """(F'_1..F'_N (..., N, 4, 4), F'_tool (..., 4, 4)) with link-geometry errors (..., N + 1, 6),
+    one set or a stack: F'_j = F_j D(xi_j) (`small_motion`), for F_1..F_N and F_tool in that order.
+    Six parameters per fixed transform make the error model complete (any rigid error of any fixed
+    transform is one); which of them the zero-offsets, registration and marker absorb is decided
+    from the identification Jacobian (`inference.blocks`), not here."""
     errors = np.asarray(link_errors, dtype=float)
     transforms = np.concatenate([np.asarray(joint_transforms, dtype=float), np.asarray(tool_transform)[None]])
-    if errors.shape[-2:] != (len(transforms), 2):
-        raise ValueError(f"link_errors must have shape (..., {len(transforms)}, 2), got {errors.shape}")
-    out = np.broadcast_to(transforms, errors.shape[:-1] + (4, 4)).copy()
-    reach = np.linalg.norm(transforms[:, :3, 3], axis=1)
-    stretch = np.divide(errors[..., 0], reach, out=np.zeros(errors.shape[:-1]), where=reach > 0)
-    out[..., :3, 3] *= (1.0 + stretch)[..., None]
-    out[..., :3, :3] = out[..., :3, :3] @ spatial.rot_x(errors[..., 1])
+    if errors.shape[-2:] != (len(transforms), len(LINK_MOTION)):
+        raise ValueError(
+            f"link_errors must have shape (..., {len(transforms)}, {len(LINK_MOTION)}), got {errors.shape}"
+        )
+    out = transforms @ small_motion(errors)
     return out[..., :-1, :, :], out[..., -1, :, :]
 
 
-def link_error_transforms(transform, length, twist) -> np.ndarray:
-    """D (..., 4, 4) with F' = F D for a fixed transform F (4, 4) and its link errors (...,) m and
-    rad, as `perturbed_transforms` applies them: a stretch along F's translation and a
-    turn about the x axis of the frame it leads to."""
-    shift = np.asarray(transform, dtype=float)[:3, 3]
-    reach = np.linalg.norm(shift)
-    stretch = np.asarray(length, dtype=float) / reach if reach > 0 else np.zeros_like(length, dtype=float)
-    return spatial.homogeneous(spatial.rot_x(twist), stretch[..., None] * (transform[:3, :3].T @ shift))
-
-
 def perturbed_chain(chain: KinematicChain, link_errors) -> KinematicChain:
-    """The chain with link-geometry errors (N + 1, 2) (`perturbed_transforms`)."""
+    """The chain with link-geometry errors (N + 1, 6) (`perturbed_transforms`)."""
     joints, tool = perturbed_transforms(chain.joint_transforms, chain.tool_transform, link_errors)
     return replace(chain, joint_transforms=joints, tool_transform=tool)
 

@@ -28,8 +28,8 @@ MICRO = 1e-6
 
 # config key: (SI size of one display unit, what it is the std of)
 KEYS = {
-    "link_length_mm": (MM, "length error of each fixed link transform (link_geometry.*.length)"),
-    "link_twist_deg": (DEG, "twist error about each link frame's x axis (link_geometry.*.twist)"),
+    "link_translation_mm": (MM, "translation error of each fixed link transform, per axis of its frame (link_geometry.*.x/y/z)"),
+    "link_rotation_deg": (DEG, "rotation error of each fixed link transform, per axis of its frame (link_geometry.*.rx/ry/rz)"),
     "marker_offset_mm": (MM, "marker position error per axis, flange frame (marker_offset.*)"),
     "joint_compliance_urad_per_Nm": (MICRO, "compliance of each joint and its payload term (joint_compliance.*)"),
     "joint_scale_ppm": (MICRO, "scale (gear-ratio) error of each joint reading (joint_scale.*)"),
@@ -61,7 +61,7 @@ class Priors:
         if block in ("registration", "zero_offsets", "noise"):
             return math.inf
         if block == "link_geometry":
-            return self.std("link_length_mm" if name.endswith(".length") else "link_twist_deg")
+            return self.std("link_rotation_deg" if name.rsplit(".", 1)[-1].startswith("r") else "link_translation_mm")
         if block == "drift":
             return self.std("drift_deg_per_kelvin" if drift_unit == "K" else "drift_deg_per_hour")
         key = {
@@ -142,8 +142,8 @@ def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: 
 DEFAULTS = {
     CLASS_KEY: "collaborative",
     "industrial": {
-        "link_length_mm": 1.0,
-        "link_twist_deg": 0.1,
+        "link_translation_mm": 1.0,
+        "link_rotation_deg": 0.1,
         "marker_offset_mm": 1.0,
         "joint_compliance_urad_per_Nm": 50.0,
         "joint_scale_ppm": 1000.0,
@@ -153,8 +153,8 @@ DEFAULTS = {
         "held_zero_offset_deg": 0.5,
     },
     "collaborative": {
-        "link_length_mm": 1.0,
-        "link_twist_deg": 0.1,
+        "link_translation_mm": 1.0,
+        "link_rotation_deg": 0.1,
         "marker_offset_mm": 1.0,
         "joint_compliance_urad_per_Nm": 200.0,
         "joint_scale_ppm": 1000.0,
