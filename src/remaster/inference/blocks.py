@@ -13,7 +13,7 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 | `joint_scale`      | q1..qN (1), times the reading q_j                      | ppm          |
 | `marker_offset`    | x, y, z (m) added to the marker, flange frame          | mm           |
 | `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
-| `link_geometry`    | F<j>.length (m), F<j>.twist (rad), tool.*              | mm, deg      |
+| `link_geometry`    | F<j>.x, .y, .z (m), F<j>.rx, .ry, .rz (rad), tool.*    | mm, deg      |
 | `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
 
 Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
@@ -22,8 +22,18 @@ Gravity torques come once per dataset from Pinocchio (`remaster.robot.gravity`),
 payload m0 that is a setting. A true payload m differs from it by a torque of a different shape
 than the arm's own, which c alone cannot follow (1.5 kg off leaves several um on a laser
 tracker); c' on the payload's part of the torque absorbs it exactly: c'_j = c_j (m / m0 - 1).
-Link geometry is the simulator's parametrisation (`kinematics.perturbed_transforms`): a length error
-along each fixed transform's translation and a twist about the x axis of the frame it leads to.
+Link geometry is complete: each fixed transform F_j of the chain (and the tool's) gets a small rigid
+motion of its own frame, six parameters (`kinematics.perturbed_transforms`), the local form of the
+product-of-exponentials model (Okamura & Park 1996; Chen, Yang & Lin 2001). It is continuous (no
+singularity at parallel axes, unlike DH; no Hayati parameter needed) and complete (any error of a
+fixed transform is one). It is made minimal by the identification Jacobian itself
+(`structural_redundancy`): at configurations spread over the joint limits, a parameter whose column
+lies in the span of the zero-offsets, the registration and the parameters kept before it (the
+marker offset, a sensor scale) is absorbed by them at every configuration; it is not a parameter of
+the error model and is held at 0 (all six of F_1 against the registration, the tool's against the
+marker, each rotation about a joint's own axis against its zero-offset, a translation along two
+parallel axes once). What is left is a parameter of the robot; what this campaign's data cannot
+determine (a joint it never moved) keeps its prior.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
 vector, a predict function and the paper's log-posterior (both it and `ZeroOffsetModel` are a
@@ -45,7 +55,7 @@ from .. import _kernels, spatial
 from ..campaigns.campaign import SensorData
 from ..noise import RangeTransverse
 from ..robot.gravity import gravity_torques
-from ..robot.kinematics import KernelForm, KinematicChain, perturbed_transforms
+from ..robot.kinematics import LINK_MOTION, KernelForm, KinematicChain, perturbed_transforms
 from ..robot.priors import Priors
 from ..units import DEG, MM, SECONDS_PER_HOUR
 from .identifiability import JACOBIAN_STEP
@@ -65,6 +75,13 @@ INVISIBLE = 1e-6
 # tangential offset by the last zero-offset): held at 0, as the paper's joint 1 is. Any larger
 # sine is kept: its Gaussian prior, not a threshold, decides how far the data may move it.
 ABSORBED = 1e-6
+# Configurations over the joint limits at which structural redundancy is decided
+# (`structural_redundancy`): a Halton sequence, the same every run, enough to move every joint
+# through many combinations of the others for chains of up to a dozen joints.
+STRUCTURAL_CONFIGURATIONS = 96
+# Link-geometry parameters that can be absorbed by the geometry alone; the marker offset and a
+# sensor scale are physical quantities of the set-up, never dropped for structure.
+GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry")
 # Below this sine a kept parameter is weakly determined (its std alone would grow more than a
 # thousandfold): reported, so that a reader knows its prior is doing the work.
 COLLINEAR = 1e-3
@@ -180,22 +197,18 @@ class Parameters:
 
 
 def link_labels(chain: KinematicChain) -> list[tuple[int, int, str]]:
-    """(link row 0..N, column 0 length / 1 twist, parameter name) of the link-geometry block;
-    no length parameter for a fixed transform without translation."""
-    out = []
-    transforms = list(chain.joint_transforms) + [chain.tool_transform]
-    for i, transform in enumerate(transforms):
-        label = "tool" if i == chain.n_joints else f"F{i + 1}"
-        if np.linalg.norm(transform[:3, 3]) > 0:
-            out.append((i, 0, f"link_geometry.{label}.length"))
-        out.append((i, 1, f"link_geometry.{label}.twist"))
-    return out
+    """(fixed transform 0..N (N: the tool), component 0..5 of `kinematics.LINK_MOTION`, parameter
+    name) of the link-geometry block: link_geometry.F<j>.x .. .rz, link_geometry.tool.x .. .rz."""
+    labels = [f"F{i + 1}" for i in range(chain.n_joints)] + ["tool"]
+    return [
+        (i, c, f"link_geometry.{label}.{part}") for i, label in enumerate(labels) for c, part in enumerate(LINK_MOTION)
+    ]
 
 
 def link_errors(chain: KinematicChain, values: Mapping[str, float]) -> np.ndarray:
-    """(N + 1, 2) length (m) and twist (rad) errors of F_1..F_N, F_tool from parameter values
-    {name: SI} (absent ones 0): the `kinematics.perturbed_transforms` form of the block."""
-    errors = np.zeros((chain.n_joints + 1, 2))
+    """(N + 1, 6) small motions of F_1..F_N, F_tool (m, rad) from parameter values {name: SI}
+    (absent ones 0): the `kinematics.perturbed_transforms` form of the block."""
+    errors = np.zeros((chain.n_joints + 1, len(LINK_MOTION)))
     for row, column, name in link_labels(chain):
         errors[row, column] = values.get(name, 0.0)
     return errors
@@ -227,8 +240,8 @@ def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None =
         labels = link_labels(chain)
         return Parameters(
             tuple(name for _, _, name in labels),
-            np.array([MM if c == 0 else DEG for _, c, _ in labels]),
-            tuple("mm" if c == 0 else "deg" for _, c, _ in labels),
+            np.array([MM if c < 3 else DEG for _, c, _ in labels]),
+            tuple("mm" if c < 3 else "deg" for _, c, _ in labels),
         )
     rate = (DEG / SECONDS_PER_HOUR, "deg/h") if drift_unit != "K" else (DEG, "deg/K")
     joint_space = {  # block: ((name prefix, regressor), ...), scale, unit
@@ -433,7 +446,7 @@ class BlockModel(MeasurementModel):
         """Marker positions (m, n, 3) in the robot frame for parameter vectors (m, P_all)."""
         kernel = self._kernel
         if self._links:
-            errors = np.zeros((len(stack), self.chain.n_joints + 1, 2))
+            errors = np.zeros((len(stack), self.chain.n_joints + 1, len(LINK_MOTION)))
             for index, row, column in self._links:
                 errors[:, row, column] = stack[:, index]
             kernel = kernel.with_transforms(
@@ -484,28 +497,97 @@ class Reduction:
     """Which extension parameters the data can see at all. kept: free extension parameters (each
     under its prior); dropped: {name: why} the data cannot see ('invisible' with its relative size,
     or 'absorbed' exactly by the base and the parameters kept before it, with the sine of its angle
-    to their span): held at 0 without priors, carried by their prior with them (`extended_model`); weak: {name: sine} of kept parameters the data barely separate (sine below
-    COLLINEAR: their prior decides them); condition_number of the whole model's free Jacobian with
-    unit-length columns (so independent of units)."""
+    to their span): held at 0 without priors, carried by their prior with them (`extended_model`);
+    structural: the dropped link-geometry parameters absorbed at EVERY configuration (not
+    parameters of the error model: always held at 0); weak: {name: sine} of kept parameters the
+    data barely separate (sine below COLLINEAR: their prior decides them); condition_number of the
+    whole model's free Jacobian with unit-length columns (so independent of units)."""
 
     kept: tuple[str, ...]
     dropped: dict[str, str]
     condition_number: float
     weak: dict[str, float] = field(default_factory=dict)
+    structural: tuple[str, ...] = ()
 
     def report(self) -> dict:
         return {
             "kept": list(self.kept),
             "dropped": dict(self.dropped),
+            "structurally_absorbed": list(self.structural),
             "weakly_determined_sine": dict(self.weak),
             "condition_number_unit_columns": self.condition_number,
             "method": "Gram-Schmidt (QR) of the extension's unit-length Jacobian columns in model order, from "
             "the span of the base columns; 'dropped' = the data cannot see it (held at 0 without a prior, "
-            "left to its prior with one)",
+            "left to its prior with one); 'structurally_absorbed' = link-geometry parameters the zero-offsets, "
+            f"registration and the parameters before them absorb at {STRUCTURAL_CONFIGURATIONS} configurations "
+            "spread over the joint limits (held at 0 always)",
             "invisible_below": INVISIBLE,
             "absorbed_below": ABSORBED,
             "weak_below": COLLINEAR,
         }
+
+
+def spread_configurations(chain: KinematicChain, count: int = STRUCTURAL_CONFIGURATIONS) -> np.ndarray:
+    """(count, N) configurations spread over the joint limits, [-pi, pi] for a joint without finite
+    ones: an unscrambled Halton sequence (deterministic, no generator), its first point (the lower
+    corner) skipped."""
+    from scipy.stats import qmc
+
+    unit = qmc.Halton(d=chain.n_joints, scramble=False).random(count + 1)[1:]
+    lower = np.where(np.isfinite(chain.lower), chain.lower, -np.pi)
+    upper = np.where(np.isfinite(chain.upper), chain.upper, np.pi)
+    return lower + unit * (upper - lower)
+
+
+def _range_basis(columns: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (3n, r) of the span of columns (3n, k), rank-deficient ones included (a
+    zero-offset the registration absorbs): singular vectors above ABSORBED x the largest."""
+    if columns.shape[1] == 0:
+        return np.zeros((columns.shape[0], 0))
+    norms = np.linalg.norm(columns, axis=0)
+    unit = columns[:, norms > 0] / norms[norms > 0]
+    u, singular, _ = np.linalg.svd(unit, full_matrices=False)
+    return u[:, singular > ABSORBED * singular[0]] if singular.size else u[:, :0]
+
+
+def structural_redundancy(model: BlockModel) -> dict[str, str]:
+    """{name: why} of the model's free link-geometry parameters that the zero-offsets (all of
+    them, free), the registration and the geometric parameters before them (marker offset, sensor
+    scale, earlier link parameters kept) absorb at every configuration: Gram-Schmidt of their
+    unit-length Jacobian columns at `spread_configurations`, in model order; a column whose sine to
+    that span is below ABSORBED is absorbed, and `why` names the parameters that absorb it."""
+    if not any(model.block_of[n] == "link_geometry" for n in model.names):
+        return {}
+    q = spread_configurations(model.chain)
+    zeros = np.zeros_like(q)
+    probe_data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), zeros, zeros)
+    geometric = [b for b in model.blocks[len(BASE) :] if b in GEOMETRIC]
+    probe = BlockModel(model.chain, probe_data, model.marker, model.t_nr, geometric)
+    jacobian = probe.jacobian(np.zeros(len(probe.names)), JACOBIAN_STEP)
+    lengths = np.linalg.norm(jacobian, axis=0)
+    is_link = np.array([probe.block_of[n] == "link_geometry" for n in probe.names])
+    candidates = set(n for n in model.names if model.block_of[n] == "link_geometry")
+    kept = list(np.flatnonzero(~is_link))
+    span = _range_basis(jacobian[:, kept])
+    out = {}
+    for i in np.flatnonzero(is_link):
+        name = probe.names[i]
+        if name not in candidates:
+            continue
+        unit = jacobian[:, i] / lengths[i] if lengths[i] > 0 else jacobian[:, i]
+        outside = unit - span @ (span.T @ unit)
+        outside = outside - span @ (span.T @ outside)  # twice: one pass loses orthogonality to rounding
+        sine = float(np.linalg.norm(outside))
+        if sine > ABSORBED:
+            kept.append(i)
+            span = np.column_stack([span, outside / sine])
+            continue
+        basis = jacobian[:, kept]
+        weights = np.linalg.lstsq(basis, jacobian[:, i], rcond=None)[0] * np.linalg.norm(basis, axis=0)
+        largest = np.argsort(-np.abs(weights))[:3]
+        by = ", ".join(probe.names[kept[k]] for k in largest if abs(weights[k]) > 1e-3 * max(lengths[i], 1e-300))
+        out[name] = f"absorbed at every configuration by {by or 'nothing: no effect'} (sine {sine:.1e})"
+    return out
 
 
 def identifiable_extension(model: BlockModel, theta=None) -> Reduction:
@@ -565,11 +647,19 @@ def extended_model(
     priors: Priors | None = None,
     noise: RangeTransverse | None = None,
 ) -> tuple[BlockModel, Reduction]:
-    """The model of base + blocks, under `priors`, with the base's held parameters held. Under
-    priors every extension parameter is kept, those the data cannot see included: their prior
-    carries them, so what they do away from the measured configurations (a joint that never moved,
-    a tool that never turned) stays in the posterior. Without priors (flat), the parameters the
-    data cannot see at all are held at 0. The reduction reports which are which."""
-    reduction = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, base_held))
-    held = dict(base_held) if priors is not None else {**dict(base_held), **{n: 0.0 for n in reduction.dropped}}
+    """The model of base + blocks, under `priors`, with the base's held parameters held and the
+    link-geometry parameters absorbed at every configuration held at 0 (`structural_redundancy`:
+    they are not parameters of the robot). Under priors every other extension parameter is kept,
+    those the data cannot see included: their prior carries them, so what they do away from the
+    measured configurations (a joint that never moved, a tool that never turned) stays in the
+    posterior. Without priors (flat), the parameters the data cannot see at all are held at 0 too.
+    The reduction reports which are which."""
+    structural = structural_redundancy(BlockModel(chain, data, marker, t_nr, blocks, base_held))
+    held = {**dict(base_held), **{n: 0.0 for n in structural}}
+    found = identifiable_extension(BlockModel(chain, data, marker, t_nr, blocks, held))
+    reduction = Reduction(
+        found.kept, {**structural, **found.dropped}, found.condition_number, found.weak, tuple(structural)
+    )
+    if priors is None:
+        held = {**held, **{n: 0.0 for n in found.dropped}}
     return BlockModel(chain, data, marker, t_nr, blocks, held, priors, noise), reduction
