@@ -29,10 +29,10 @@ singularity at parallel axes, unlike DH; no Hayati parameter needed) and complet
 fixed transform is one). It is made minimal by the identification Jacobian itself
 (`structural_redundancy`): at configurations spread over the joint limits, a parameter whose column
 lies in the span of the zero-offsets, the registration and the parameters kept before it (the
-marker offset, a sensor scale) is absorbed by them at every configuration; it is not a parameter of
-the error model and is held at 0 (all six of F_1 against the registration, the tool's against the
-marker, each rotation about a joint's own axis against its zero-offset, a translation along two
-parallel axes once). What is left is a parameter of the robot; what this campaign's data cannot
+marker offset, whether the model estimates it or not, and a sensor scale) is absorbed by them at
+every configuration; it is not a parameter of the error model and is held at 0 (all six of F_1
+against the registration, the tool's against the marker, each rotation about a joint's own axis
+against its zero-offset, a translation along two parallel axes once). What is left is a parameter of the robot; what this campaign's data cannot
 determine (a joint it never moved) keeps its prior.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
@@ -552,8 +552,9 @@ def _range_basis(columns: np.ndarray) -> np.ndarray:
 
 def structural_redundancy(model: BlockModel) -> dict[str, str]:
     """{name: why} of the model's free link-geometry parameters that the zero-offsets (all of
-    them, free), the registration and the geometric parameters before them (marker offset, sensor
-    scale, earlier link parameters kept) absorb at every configuration: Gram-Schmidt of their
+    them, free), the registration, the marker offset (always: the tool's link error that only moves
+    the marker is the marker's offset, in a model that has one or not) and the geometric parameters
+    before them (sensor scale, earlier link parameters kept) absorb at every configuration: Gram-Schmidt of their
     unit-length Jacobian columns at `spread_configurations`, in model order; a column whose sine to
     that span is below ABSORBED is absorbed, and `why` names the parameters that absorb it."""
     if not any(model.block_of[n] == "link_geometry" for n in model.names):
@@ -561,7 +562,9 @@ def structural_redundancy(model: BlockModel) -> dict[str, str]:
     q = spread_configurations(model.chain)
     zeros = np.zeros_like(q)
     probe_data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), zeros, zeros)
-    geometric = [b for b in model.blocks[len(BASE) :] if b in GEOMETRIC]
+    # the marker offset always takes part: where the marker sits on the tool is the marker's
+    # parameter, not the tool link's, whether or not this model estimates it
+    geometric = [b for b in model.blocks[len(BASE) :] if b in GEOMETRIC] + ["marker_offset"]
     probe = BlockModel(model.chain, probe_data, model.marker, model.t_nr, geometric)
     jacobian = probe.jacobian(np.zeros(len(probe.names)), JACOBIAN_STEP)
     lengths = np.linalg.norm(jacobian, axis=0)
