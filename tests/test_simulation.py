@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from remaster import files, spatial
-from remaster.campaigns import folders, scenario
-from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, perturbed_chain, true_joint_angles
+from remaster.campaigns import folders, scenario, simulation
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_joint_angles
 from remaster.errors import InputError
 from remaster.robot import kinematics, planning
 from remaster.robot.gravity import gravity_torques
@@ -77,7 +77,7 @@ def test_every_effect_changes_the_measurement_as_modelled(iiwa, rng):
     errors = np.zeros((8, 2))
     errors[3, 0] = 1e-3  # the link before joint 4 (the elbow) 1 mm longer
     errors[5, 1] = 1e-3  # joint 6's axis tilted by a 1 mrad twist
-    perturbed = perturbed_chain(iiwa, errors)
+    perturbed = simulation.true_chain(iiwa, TrueRobot(zero_offsets=np.zeros(7), link_errors=errors))
     reach = [np.linalg.norm(f[:3, 3]) for f in (iiwa.joint_transforms[3], perturbed.joint_transforms[3])]
     assert reach[1] - reach[0] == pytest.approx(1e-3, abs=1e-15)
     tilt = iiwa.joint_transforms[5][:3, :3].T @ perturbed.joint_transforms[5][:3, :3]

@@ -7,6 +7,7 @@ plus a ground-truth record; everything random comes from one Generator seeded by
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ from ..errors import InputError
 from ..robot import planning, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import SECONDS_PER_HOUR
-from .simulation import Sensor, TrueRobot, looking_at, measure, true_marker_positions
+from .simulation import DHErrors, Sensor, TrueRobot, looking_at, measure, same_frames_as_dh, true_marker_positions
 
 
 @dataclass(frozen=True)
@@ -38,23 +39,99 @@ def _vector(mapping: dict, key: str, n: int, scale: float = 1.0, where: str = "t
     return array * scale
 
 
+def _std(mapping: dict, key: str, where: str) -> float:
+    value = mapping.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+        raise InputError(f"needs a standard deviation >= 0, got {value!r}", key=f"{where}/{key}")
+    return float(value)
+
+
+def _own_draw(sizes: dict, where: str, rng: np.random.Generator) -> np.random.Generator:
+    """The generator of an effect's random parameters: its own seed's when it has one, so that one
+    robot's links stay the same across its campaigns, else the scenario's."""
+    if "seed" not in sizes:
+        return rng
+    seed = sizes["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"must be an integer >= 0, got {seed!r}", key=f"{where}/seed")
+    return np.random.default_rng(seed)
+
+
+def _checked_keys(mapping, known: tuple[str, ...], where: str, hint: str = "") -> dict:
+    if not isinstance(mapping, dict):
+        raise InputError(f"must be a mapping with keys {', '.join(known)}, got {mapping!r}", key=where)
+    unknown = [k for k in mapping if k not in known]
+    if unknown:
+        raise InputError(f"unknown key (known: {', '.join(known)}){hint}", key=f"{where}/{unknown[0]}")
+    return mapping
+
+
+LINK_MOTION_KEYS = ("translation_std", "rotation_std", "seed")  # m, rad
+LEGACY_LINK_KEYS = ("length_std", "twist_std", "seed")  # m, rad: truth files before rigid link motions
+DH_ERROR_KEYS = ("std", "seed")  # std: [a (m), alpha (rad), d (m), theta (rad)]
+TRUTH_KEYS = (
+    "zero_offsets_deg",
+    "joint_compliance",
+    "payload",
+    "link_errors",
+    "dh_errors",
+    "joint_scale",
+    "drift_deg_per_hour",
+    "cyclic_error",
+)
+
+
+def _link_truth(sizes, n_joints: int, rng: np.random.Generator) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(legacy link errors (N + 1, 2), rigid link motions (N + 1, 6)) of `truth/link_errors`: the
+    legacy stretch and twist when it names length_std/twist_std, rigid motions otherwise."""
+    where = "truth/link_errors"
+    _checked_keys(sizes, tuple(dict.fromkeys(LINK_MOTION_KEYS + LEGACY_LINK_KEYS)), where)
+    legacy = [k for k in ("length_std", "twist_std") if k in sizes]
+    rigid = [k for k in ("translation_std", "rotation_std") if k in sizes]
+    if legacy and rigid:
+        raise InputError(
+            "either rigid link motions {translation_std, rotation_std, seed} (m, rad) or the legacy "
+            "{length_std, twist_std, seed}, not both",
+            key=f"{where}/{legacy[0]}",
+        )
+    draw = _own_draw(sizes, where, rng)
+    count = n_joints + 1  # F_1 .. F_N, F_tool
+    if legacy:
+        length, twist = _std(sizes, "length_std", where), _std(sizes, "twist_std", where)
+        return np.column_stack([draw.normal(0.0, length, count), draw.normal(0.0, twist, count)]), None
+    translation, rotation = _std(sizes, "translation_std", where), _std(sizes, "rotation_std", where)
+    return None, np.hstack([draw.normal(0.0, translation, (count, 3)), draw.normal(0.0, rotation, (count, 3))])
+
+
+def _dh_truth(sizes, robot_spec: dict, n_joints: int, rng: np.random.Generator) -> DHErrors:
+    """The true DH table of `truth/dh_errors` for a robot given by a DH table."""
+    where = "truth/dh_errors"
+    _checked_keys(sizes, DH_ERROR_KEYS, where)
+    dh = robot_spec.get("dh") if isinstance(robot_spec, dict) else None
+    if not isinstance(dh, dict) or "rows" not in dh:
+        raise InputError("DH errors need a robot given by a DH table (robot/dh)", key=where)
+    rows = np.asarray(dh["rows"], dtype=float)
+    if rows.shape != (n_joints, 4):
+        raise InputError(f"robot/dh/rows must be {n_joints} rows of [a, alpha, d, theta]", key=where)
+    std = _vector(sizes, "std", 4, where=where)
+    if std is None or not np.all(std >= 0):
+        raise InputError("needs std: [a (m), alpha (rad), d (m), theta (rad)], each >= 0", key=f"{where}/std")
+    errors = _own_draw(sizes, where, rng).normal(0.0, std, (n_joints, 4))
+    flange = np.eye(4) if dh.get("flange") is None else np.asarray(dh["flange"], dtype=float)
+    return DHErrors(rows, errors, str(dh.get("convention", "standard")), flange)
+
+
 def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot:
-    """The true robot of a scenario's `truth` block; random link errors are drawn from rng."""
-    truth = spec.get("truth", {})
+    """The true robot of a scenario's `truth` block; random link and DH errors are drawn from
+    their own seed when they have one, else from rng."""
+    truth = _checked_keys(spec.get("truth", {}), TRUTH_KEYS, "truth")
     offsets = _vector(truth, "zero_offsets_deg", n_joints, np.pi / 180.0)
     if offsets is None:
         raise InputError("a scenario needs the true zero-offsets", key="truth/zero_offsets_deg")
-    link_errors = None
+    link_errors = link_motions = None
     if truth.get("link_errors"):
-        sizes = truth["link_errors"]
-        # a seed of their own keeps one robot's links the same across its campaigns
-        draw = np.random.default_rng(sizes["seed"]) if "seed" in sizes else rng
-        link_errors = np.column_stack(
-            [
-                draw.normal(0.0, float(sizes["length_std"]), n_joints + 1),
-                draw.normal(0.0, float(sizes["twist_std"]), n_joints + 1),
-            ]
-        )
+        link_errors, link_motions = _link_truth(truth["link_errors"], n_joints, rng)
+    dh_errors = _dh_truth(truth["dh_errors"], spec.get("robot"), n_joints, rng) if truth.get("dh_errors") else None
     payload = truth.get("payload") or {}
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
     cyclic = None
@@ -77,6 +154,8 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
         joint_scale=_vector(truth, "joint_scale", n_joints),
         drift_rate=drift,
         cyclic_error=cyclic,
+        link_motions=link_motions,
+        dh_errors=dh_errors,
     )
 
 
@@ -123,6 +202,97 @@ def estimated_sensor_origin(
 
 LATIN_HYPERCUBE = "latin_hypercube"  # the paper's design, the default
 ISO9283_CUBES = "iso9283_cubes"
+RANDOM_JOINTS = "random_joints"  # joint-space draws: any joint held, any arm (no inverse kinematics)
+DESIGNS = (LATIN_HYPERCUBE, ISO9283_CUBES, RANDOM_JOINTS)
+PLAN_KEYS = (
+    "design",
+    "reference_sensor",
+    "candidates",
+    "q3",
+    "held_joints",
+    "tool_angle",
+    "collision",
+    "seconds_per_configuration",
+    "sets",
+)
+SET_KEYS = {LATIN_HYPERCUBE: ("poses", "configurations"), ISO9283_CUBES: ("cubes",), RANDOM_JOINTS: ("configurations",)}
+RANDOM_CANDIDATES = 200  # configurations per batch of the random_joints design unless plan/candidates says
+
+
+@dataclass(frozen=True)
+class Holding:
+    """Which joints a scenario's campaign holds. q3: joint 3's angle (rad) for the inverse-kinematics
+    designs, or planning.FREE (drawn for each pose); held: {joint (0-based): angle (rad)} of the
+    random_joints design, every other joint moving."""
+
+    q3: float | str
+    held: dict[int, float]
+
+    def record(self, design: str) -> dict:
+        """The truth file's note of it (only for campaigns that do not hold joint 3 at a number
+        the default way, so that earlier truth files stay as they were)."""
+        held = {f"q{j + 1}": angle for j, angle in sorted(self.held.items())}
+        if design != RANDOM_JOINTS:
+            held = {"q3": self.q3} if self.q3 != planning.FREE else {}
+        return {"design": design, "held_joints_rad": held}
+
+
+def _angle(value, chain: KinematicChain, joint: int, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise InputError(f"must be an angle (rad) or {planning.FREE!r}, got {value!r}", key=key)
+    if not chain.lower[joint] <= value <= chain.upper[joint]:
+        raise InputError(
+            f"{value:g} rad is outside joint {joint + 1}'s limits [{chain.lower[joint]:g}, {chain.upper[joint]:g}] rad",
+            key=key,
+        )
+    return float(value)
+
+
+def holding(plan_spec: dict, chain: KinematicChain, design: str) -> Holding:
+    """The joints a scenario's `plan` holds: `q3` (an angle in rad, or 'free'; 0 by default for the
+    inverse-kinematics designs, free for random_joints) and `held_joints` {q<j>: angle (rad)}. The
+    inverse kinematics of the latin_hypercube and iso9283_cubes designs can hold joint 3 only."""
+    spec = plan_spec.get("held_joints") or {}
+    if not isinstance(spec, dict):
+        raise InputError("must be a mapping {q<j>: angle (rad)}, e.g. {q1: 0.0, q7: 0.0}", key="plan/held_joints")
+    held = {}
+    for name, value in spec.items():
+        key = f"plan/held_joints/{name}"
+        match = re.fullmatch(r"q([1-9][0-9]*)", str(name))
+        if match is None or int(match.group(1)) > chain.n_joints:
+            raise InputError(f"names no joint of the robot (q1 .. q{chain.n_joints})", key=key)
+        joint = int(match.group(1)) - 1
+        held[joint] = _angle(value, chain, joint, key)
+    q3 = plan_spec.get("q3")
+    if q3 is not None and 2 in held:
+        raise InputError("joint 3 is held twice, by plan/q3 and by plan/held_joints/q3: keep one", key="plan/q3")
+    if q3 is not None and q3 != planning.FREE:
+        q3 = held[2] = _angle(q3, chain, 2, "plan/q3")
+    if design == RANDOM_JOINTS:
+        return Holding(planning.FREE, held)
+    if chain.n_joints != 7:
+        raise InputError(
+            f"the {design} design needs a 7-axis S-R-S arm's inverse kinematics; plan this "
+            f"{chain.n_joints}-axis arm with design: {RANDOM_JOINTS}",
+            key="plan/design",
+        )
+    others = [j for j in held if j != 2]
+    if others:
+        raise InputError(
+            f"the {design} design's inverse kinematics holds joint 3 only; to hold joint {others[0] + 1} "
+            f"plan with design: {RANDOM_JOINTS}",
+            key=f"plan/held_joints/q{others[0] + 1}",
+        )
+    return Holding(held.get(2, planning.FREE if q3 == planning.FREE else 0.0), {})
+
+
+def _sets(plan_spec: dict, design: str) -> dict:
+    sets = plan_spec.get("sets")
+    if not isinstance(sets, dict) or not sets:
+        raise InputError("a plan needs its sets, e.g. {optimization: ..., validation: ...}", key="plan/sets")
+    for name, size in sets.items():
+        _checked_keys(size, SET_KEYS[design], f"plan/sets/{name}", f" for design {design}")
+    return sets
 
 
 def _cubes(size: dict, where: str) -> list[tuple[np.ndarray, float]]:
@@ -156,26 +326,55 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
     """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
     rng = np.random.default_rng(spec["seed"] if seed is None else seed)
     robot = true_robot(spec, chain.n_joints, rng)
+    if robot.dh_errors is not None and robot.joint_compliance is not None and chain.inertias is not None:
+        if not same_frames_as_dh(chain, robot.dh_errors):
+            raise InputError(
+                "DH errors rebuild the joint frames from the DH table, and the URDF's mass data are in "
+                "other frames: simulate joint compliance and DH errors in separate scenarios",
+                key="truth/dh_errors",
+            )
     sensors = sensors_of(spec)
-    plan_spec = spec["plan"]
-    reference = sensors[plan_spec["reference_sensor"]]
-    target = estimated_sensor_origin(chain, robot, reference, rng)
+    plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
+    design = plan_spec.get("design", LATIN_HYPERCUBE)
+    if design not in DESIGNS:
+        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
+    held = holding(plan_spec, chain, design)
+    sets = _sets(plan_spec, design)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
-    design = plan_spec.get("design", LATIN_HYPERCUBE)
-    if design not in (LATIN_HYPERCUBE, ISO9283_CUBES):
-        raise InputError(f"unknown design {design!r} (known: {LATIN_HYPERCUBE}, {ISO9283_CUBES})", key="plan/design")
-    q3 = float(plan_spec.get("q3", 0.0))
+    target = None
+    if design != RANDOM_JOINTS:  # the inverse-kinematics designs point the tool at the reference sensor
+        if plan_spec.get("reference_sensor") not in sensors:
+            raise InputError(f"must name one of the sensors ({', '.join(sensors)})", key="plan/reference_sensor")
+        target = estimated_sensor_origin(chain, robot, sensors[plan_spec["reference_sensor"]], rng)
     if design == ISO9283_CUBES:
-        cubes = {set_name: _cubes(size, f"plan/sets/{set_name}") for set_name, size in plan_spec["sets"].items()}
+        cubes = {set_name: _cubes(size, f"plan/sets/{set_name}") for set_name, size in sets.items()}
         rotation = planning.cube_orientation(
             [centre for each in cubes.values() for centre, _ in each], target, float(plan_spec.get("tool_angle", 0.0))
         )
     tables = []
     discarded = {}
-    for set_name, size in plan_spec["sets"].items():
+    for set_name, size in sets.items():
         if design == ISO9283_CUBES:
-            plan = planning.plan_cubes(chain, set_name, cubes[set_name], rotation, sights, model=collision, q3=q3)
+            plan = planning.plan_cubes(
+                chain, set_name, cubes[set_name], rotation, sights, model=collision, q3=held.q3, rng=rng
+            )
+        elif design == RANDOM_JOINTS:
+            count = size.get("configurations")
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise InputError(
+                    f"must be a whole number > 0, got {count!r}", key=f"plan/sets/{set_name}/configurations"
+                )
+            plan = planning.plan_random(
+                chain,
+                set_name,
+                sights,
+                rng,
+                n_configurations=count,
+                held=held.held,
+                candidates=int(plan_spec.get("candidates", RANDOM_CANDIDATES)),
+                model=collision,
+            )
         else:
             plan = planning.plan_set(
                 chain,
@@ -187,10 +386,11 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
                 n_poses=size.get("poses"),
                 n_configurations=size.get("configurations"),
                 model=collision,
-                q3=q3,
+                q3=held.q3,
             )
         tables.append(plan.table)
-        discarded[set_name] = {"candidate_poses": plan.candidates, **plan.discarded}
+        drawn = "candidate_configurations" if design == RANDOM_JOINTS else "candidate_poses"
+        discarded[set_name] = {drawn: plan.candidates, **plan.discarded}
     readings = pd.concat(tables, ignore_index=True)
     q = readings[[f"q{j + 1}" for j in range(chain.n_joints)]].to_numpy()
     elapsed = np.arange(len(readings)) * float(plan_spec["seconds_per_configuration"])
@@ -232,8 +432,12 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         "zero_offsets_deg": np.degrees(robot.zero_offsets).tolist(),
         "effects": _effects_record(robot),
         "sensors": truth_sensors,
-        "planning": {"estimated_reference_sensor_origin_m": target.tolist(), "discarded": discarded},
+        "planning": {"discarded": discarded},
     }
+    if target is not None:  # first, as truth files have always had it
+        truth["planning"] = {"estimated_reference_sensor_origin_m": target.tolist(), **truth["planning"]}
+    if design == RANDOM_JOINTS or held.q3 == planning.FREE or "held_joints" in plan_spec:
+        truth["planning"].update(held.record(design))
     if design == ISO9283_CUBES:
         # the Latin-hypercube truth files stay as they were; a cube campaign records its one orientation
         truth["planning"].update(design=design, flange_rotation=rotation.tolist())
@@ -246,6 +450,7 @@ def robot_from_truth(truth: dict) -> TrueRobot:
     effects = truth.get("effects", {})
     compliance, links = effects.get("joint_compliance"), effects.get("link_geometry")
     cyclic, drift = effects.get("cyclic_error"), effects.get("drift")
+    motions, dh = effects.get("link_motions"), effects.get("dh_errors")
     return TrueRobot(
         zero_offsets=np.radians(truth["zero_offsets_deg"]),
         joint_compliance=np.array(compliance["compliance_rad_per_Nm"]) if compliance else None,
@@ -258,6 +463,12 @@ def robot_from_truth(truth: dict) -> TrueRobot:
             [np.radians(cyclic["amplitude_deg"]), cyclic["cycles_per_turn"], np.radians(cyclic["phase_deg"])]
         )
         if cyclic
+        else None,
+        link_motions=np.hstack([motions["translations_m"], motions["rotations_rpy_rad"]]) if motions else None,
+        dh_errors=DHErrors(
+            np.array(dh["nominal_rows"]), np.array(dh["errors"]), dh["convention"], np.array(dh["flange"])
+        )
+        if dh
         else None,
     )
 
@@ -291,6 +502,23 @@ def _effects_record(robot: TrueRobot) -> dict:
             "length_errors_m": robot.link_errors[:, 0].tolist(),
             "twist_errors_rad": robot.link_errors[:, 1].tolist(),
             "links": "F_1 .. F_N, F_tool (the fixed transform before each joint, then the tool)",
+        }
+    if robot.link_motions is not None:
+        effects["link_motions"] = {
+            "translations_m": robot.link_motions[:, :3].tolist(),
+            "rotations_rpy_rad": robot.link_motions[:, 3:].tolist(),
+            "transforms": "F_1 .. F_N, F_tool (the fixed transform before each joint, then the tool)",
+            "convention": "F'_j = Trans(t_j) Rz(yaw_j) Ry(pitch_j) Rx(roll_j) F_j, rows [roll, pitch, yaw]: "
+            "a motion in the frame F_j starts from",
+        }
+    if robot.dh_errors is not None:
+        dh = robot.dh_errors
+        effects["dh_errors"] = {
+            "convention": dh.convention,
+            "nominal_rows": np.asarray(dh.nominal_rows, dtype=float).tolist(),
+            "errors": np.asarray(dh.errors, dtype=float).tolist(),
+            "flange": np.asarray(dh.flange, dtype=float).tolist(),
+            "columns": "a (m), alpha (rad), d (m), theta (rad); a theta error adds to the joint's zero-offset",
         }
     if robot.joint_scale is not None:
         effects["joint_scale"] = {"scale": robot.joint_scale.tolist()}

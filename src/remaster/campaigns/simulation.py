@@ -10,32 +10,63 @@ readings); the true joint angles are
 
 and a sensor at pose T_NR measures (1 + scale) T_NR p_marker(q_true) + noise in its own frame.
 The ground truth goes to a separate file that the pipeline never reads.
+
+The true chain's geometry (`true_chain`) is written here, apart from the fit's link-geometry
+model (`remaster.inference`, `kinematics.perturbed_chain`), so that a simulated campaign tests
+that model against a world it did not make: a DH robot's table with errors, rebuilt; then an
+arbitrary small rigid motion of every fixed transform, applied on the side of the frame it starts
+from; then, for truth files written before those, the legacy stretch-and-twist link errors.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .. import spatial
 from ..robot.gravity import gravity_torques
-from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain  # noqa: F401 (re-exported)
+from ..robot.kinematics import ForwardKinematics, KinematicChain, chain_from_dh
+
+
+@dataclass(frozen=True, eq=False)
+class DHErrors:
+    """A DH robot's true table: the nominal rows (N, 4) [a (m), alpha (rad), d (m), theta (rad)]
+    plus `errors` (N, 4) in the same units, in `convention` ('standard' or 'modified'), with the
+    nominal fixed flange transform (4, 4) after the last joint. A theta error is a zero-offset
+    in all but name: it adds to the joint's angle."""
+
+    nominal_rows: np.ndarray
+    errors: np.ndarray
+    convention: str = "standard"
+    flange: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def true_rows(self) -> np.ndarray:
+        return np.asarray(self.nominal_rows, dtype=float) + np.asarray(self.errors, dtype=float)
 
 
 @dataclass(frozen=True)
 class TrueRobot:
     """What the robot really is. Angles in rad, lengths in m, compliance in rad/(N m), drift in
-    rad/s; arrays of shape (N,) unless stated; None means the effect is absent."""
+    rad/s; arrays of shape (N,) unless stated; None means the effect is absent.
+
+    link_motions (N + 1, 6): for F_1..F_N, F_tool a translation t (m, 3) then roll, pitch, yaw
+    r (rad, 3), F'_j = Trans(t) Rz(yaw) Ry(pitch) Rx(roll) F_j (`moved_transforms`).
+    link_errors (N + 1, 2): the legacy truth, a length error (m) along each fixed transform's
+    translation and a twist (rad) about the x axis of the frame it leads to (`stretched_transforms`).
+    dh_errors: a DH robot's true table (`DHErrors`), applied first."""
 
     zero_offsets: np.ndarray
     joint_compliance: np.ndarray | None = None
     payload_mass: float = 0.0
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    link_errors: np.ndarray | None = None  # (N + 1, 2): length (m) and twist (rad) errors of F_1..F_N, F_tool
+    link_errors: np.ndarray | None = None
     joint_scale: np.ndarray | None = None
     drift_rate: np.ndarray | None = None
     cyclic_error: np.ndarray | None = None  # (N, 3): amplitude (rad), cycles per turn, phase (rad) of a gear's error
+    link_motions: np.ndarray | None = None
+    dh_errors: DHErrors | None = None
 
 
 @dataclass(frozen=True)
@@ -72,6 +103,73 @@ def looking_at(position, target) -> np.ndarray:
     return spatial.homogeneous(np.column_stack([x, np.cross(z, x), z]), position)
 
 
+def moved_transforms(transforms, motions) -> np.ndarray:
+    """Fixed transforms (k, 4, 4) each moved by a small rigid motion (k, 6) [t (m, 3), roll,
+    pitch, yaw (rad)]: F' = Trans(t) Rz(yaw) Ry(pitch) Rx(roll) F, the motion written in the frame
+    F starts from (the previous joint's), where the fit writes its errors in the frame F leads
+    to, and as angles rather than a rotation vector: the same kind of error, made by other code."""
+    motions = np.asarray(motions, dtype=float)
+    moves = spatial.homogeneous(spatial.rpy_to_matrix(motions[:, 3], motions[:, 4], motions[:, 5]), motions[:, :3])
+    return moves @ np.asarray(transforms, dtype=float)
+
+
+def stretched_transforms(transforms, link_errors) -> np.ndarray:
+    """Fixed transforms (k, 4, 4) with the legacy two-parameter link errors (k, 2): a length error
+    (m) along each translation (none for a transform without one) and a twist (rad) about the x
+    axis of the frame it leads to. Truth files written before rigid link motions hold these; the
+    arithmetic is that of the fit's former model, so their campaigns regenerate bit for bit."""
+    errors = np.asarray(link_errors, dtype=float)
+    out = np.array(transforms, dtype=float)
+    reach = np.linalg.norm(out[:, :3, 3], axis=1)
+    stretch = np.divide(errors[:, 0], reach, out=np.zeros(len(errors)), where=reach > 0)
+    out[:, :3, 3] *= (1.0 + stretch)[:, None]
+    out[:, :3, :3] = out[:, :3, :3] @ spatial.rot_x(errors[:, 1])
+    return out
+
+
+def dh_chain(dh: DHErrors, nominal: KinematicChain) -> KinematicChain:
+    """The chain of a DH table with errors, with the nominal chain's names and limits (the
+    controller's), and its mass data only when its joint frames are the DH table's own."""
+    rebuilt = chain_from_dh(dh.true_rows, dh.convention, dh.flange, name=nominal.name)
+    if rebuilt.n_joints != nominal.n_joints:
+        raise ValueError(f"the DH table has {rebuilt.n_joints} rows, the chain {nominal.n_joints} joints")
+    return replace(
+        nominal,
+        joint_transforms=rebuilt.joint_transforms,
+        joint_axes=rebuilt.joint_axes,
+        tool_transform=rebuilt.tool_transform,
+        inertias=nominal.inertias if same_frames_as_dh(nominal, dh) else None,
+        urdf_xml=None,
+    )
+
+
+def same_frames_as_dh(chain: KinematicChain, dh: DHErrors, tolerance: float = 1e-9) -> bool:
+    """Whether the chain's joint frames are those of the nominal DH table (then mass data given in
+    them stay valid on the true table)."""
+    nominal = chain_from_dh(dh.nominal_rows, dh.convention, dh.flange)
+    return nominal.n_joints == chain.n_joints and bool(
+        np.allclose(nominal.joint_transforms, chain.joint_transforms, rtol=0.0, atol=tolerance)
+        and np.allclose(nominal.joint_axes, chain.joint_axes, rtol=0.0, atol=tolerance)
+    )
+
+
+def true_chain(chain: KinematicChain, robot: TrueRobot) -> KinematicChain:
+    """The robot's true geometry: the nominal chain, or the DH table with its errors, then the
+    rigid link motions, then the legacy link errors; the nominal chain itself when it has none."""
+    if robot.dh_errors is None and robot.link_motions is None and robot.link_errors is None:
+        return chain
+    base = dh_chain(robot.dh_errors, chain) if robot.dh_errors is not None else chain
+    transforms = np.concatenate([base.joint_transforms, base.tool_transform[None]])
+    for errors, apply in ((robot.link_motions, moved_transforms), (robot.link_errors, stretched_transforms)):
+        if errors is not None:
+            if np.shape(errors)[0] != len(transforms):
+                raise ValueError(
+                    f"link errors need one row per fixed transform ({len(transforms)}), got {np.shape(errors)}"
+                )
+            transforms = apply(transforms, errors)
+    return replace(base, joint_transforms=transforms[:-1], tool_transform=transforms[-1])
+
+
 def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elapsed_s=None) -> np.ndarray:
     """True joint angles (n, N) for controller readings (n, N) at times `elapsed_s` (n,) s."""
     q = np.asarray(q_readings, dtype=float)
@@ -86,8 +184,7 @@ def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elaps
             raise ValueError("a drifting robot needs the time of each reading")
         true = true + np.asarray(elapsed_s, dtype=float)[:, None] * robot.drift_rate
     if robot.joint_compliance is not None:
-        true_chain = perturbed_chain(chain, robot.link_errors) if robot.link_errors is not None else chain
-        tau = gravity_torques(true_chain, true, robot.payload_mass, robot.payload_com)
+        tau = gravity_torques(true_chain(chain, robot), true, robot.payload_mass, robot.payload_com)
         true = true + robot.joint_compliance * tau
     return true
 
@@ -96,9 +193,8 @@ def true_marker_positions(
     chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, elapsed_s=None
 ) -> np.ndarray:
     """Where the sensor's marker really is, in the robot frame (n, 3)."""
-    true_chain = perturbed_chain(chain, robot.link_errors) if robot.link_errors is not None else chain
     q_true = true_joint_angles(chain, robot, q_readings, elapsed_s)
-    return ForwardKinematics(true_chain, q_true).points(sensor.marker + sensor.marker_error)
+    return ForwardKinematics(true_chain(chain, robot), q_true).points(sensor.marker + sensor.marker_error)
 
 
 def measure(

@@ -10,6 +10,11 @@ by a nearest-neighbour tour in joint space.
 A second design, ISO 9283 cube poses (`plan_cubes`), keeps the positions of the standard's cube
 test and one flange orientation for every pose, so the tool axis never changes direction; it
 goes through the same checks and tour and gives a table of the same format.
+
+Both hold the 7-axis arm's redundancy, joint 3, at one angle (`q3`, 0 by default), or draw it
+uniformly within its limits for each pose (`q3=FREE`). A third design, random joint-space
+configurations (`plan_random`), moves every joint within its limits or holds any of them, as
+campaigns that hold joints 1 and 7 do, and needs no inverse kinematics (6-axis arms too).
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ from .. import spatial
 from ..errors import InputError
 from .ik import SRSInverseKinematics
 from .kinematics import ForwardKinematics, KinematicChain
+
+FREE = "free"  # q3 drawn uniformly within joint 3's limits for each pose, not held
 
 
 @dataclass(frozen=True)
@@ -236,20 +243,37 @@ def usable_solutions(
     return every[keep], reasons
 
 
+def joint_range(chain: KinematicChain, joint: int) -> tuple[float, float]:
+    """The range (rad) a joint (0-based) is drawn from: its limits, within (-pi, pi] where a
+    limit is unknown (a DH table's)."""
+    return max(float(chain.lower[joint]), -np.pi), min(float(chain.upper[joint]), np.pi)
+
+
+def _q3_values(chain: KinematicChain, q3, count: int, rng: np.random.Generator | None) -> np.ndarray:
+    """Joint 3's angle (rad) for each of `count` poses: `q3` held, or with q3 = FREE drawn
+    uniformly within its limits from rng."""
+    if not (isinstance(q3, str) and q3 == FREE):
+        return np.full(count, float(q3))
+    if rng is None:
+        raise ValueError("a free q3 is drawn at random: pass a Generator")
+    return rng.uniform(*joint_range(chain, 2), count)
+
+
 def _usable_poses(
     chain: KinematicChain,
     poses,
     sights,
     model: CollisionModel,
-    q3: float,
+    q3s,
     solver: SRSInverseKinematics,
     poses_out: list,
     discarded: dict,
 ) -> None:
     """Append the usable solutions (k, N) of each flange pose (4, 4) that has any to `poses_out`,
-    and add what was discarded, and why, to `discarded`."""
-    for pose in poses:
-        solutions, reasons = usable_solutions(chain, pose, sights, model, q3, solver)
+    joint 3 held at that pose's value of q3s (rad), and add what was discarded, and why, to
+    `discarded`."""
+    for pose, q3 in zip(poses, q3s):
+        solutions, reasons = usable_solutions(chain, pose, sights, model, float(q3), solver)
         for reason, count in reasons.items():
             discarded[reason] = discarded.get(reason, 0) + count
         if len(solutions):
@@ -270,14 +294,15 @@ def plan_set(
     n_configurations: int | None = None,
     workspace: Workspace = Workspace(),
     model: CollisionModel = CollisionModel(),
-    q3: float = 0.0,
+    q3: float | str = 0.0,
     max_batches: int = 20,
 ) -> Plan:
     """Plan one set (optimization or validation).
 
     Without target sizes: one Latin hypercube of `candidates` poses, every usable pose kept.
     With n_poses and n_configurations: further hypercubes of `candidates` poses are drawn until
-    a subset of exactly that size exists, and the earliest such subset is kept.
+    a subset of exactly that size exists, and the earliest such subset is kept. q3 (rad) holds
+    joint 3; FREE draws it for each pose after the batch's poses.
     """
     solver = SRSInverseKinematics(chain)
     poses, discarded = [], {"unreachable_poses": 0}
@@ -285,7 +310,8 @@ def plan_set(
     for _ in range(max_batches):
         batch = candidate_poses(candidates, target, rng, workspace)
         drawn += len(batch)
-        _usable_poses(chain, batch, sights, model, q3, solver, poses, discarded)
+        q3s = _q3_values(chain, q3, len(batch), rng)
+        _usable_poses(chain, batch, sights, model, q3s, solver, poses, discarded)
         if n_poses is None:
             break
         counts = [len(s) for s in poses]
@@ -337,7 +363,8 @@ def plan_cubes(
     sights,
     *,
     model: CollisionModel = CollisionModel(),
-    q3: float = 0.0,
+    q3: float | str = 0.0,
+    rng: np.random.Generator | None = None,
 ) -> Plan:
     """Plan one set from ISO 9283 cube poses.
 
@@ -346,7 +373,8 @@ def plan_cubes(
     rotation `rotation` (3, 3), the same for the whole campaign (`cube_orientation`), so the data
     never turn the tool axis: the design of a cube test, and what a calibration fitted on it
     lacks. Every usable inverse-kinematics solution of each pose is kept, after the checks of
-    `plan_set`; a pose with none is counted as unreachable. The design is fixed: no randomness.
+    `plan_set`; a pose with none is counted as unreachable. The design is fixed: no randomness,
+    unless q3 = FREE, drawn for each pose from `rng`.
     """
     rotation = np.asarray(rotation, dtype=float)
     points = (
@@ -358,12 +386,61 @@ def plan_cubes(
         [spatial.homogeneous(rotation, p) for p in points],
         sights,
         model,
-        q3,
+        _q3_values(chain, q3, len(points), rng),
         SRSInverseKinematics(chain),
         poses,
         discarded,
     )
     return Plan(_toured_table(chain, set_name, poses), discarded, len(points))
+
+
+def plan_random(
+    chain: KinematicChain,
+    set_name: str,
+    sights,
+    rng: np.random.Generator,
+    *,
+    n_configurations: int,
+    held: dict[int, float] | None = None,
+    candidates: int = 200,
+    model: CollisionModel = CollisionModel(),
+    max_batches: int = 50,
+) -> Plan:
+    """Plan one set of random joint-space configurations: every joint drawn uniformly within its
+    range (`joint_range`), except the `held` ones {joint (0-based): angle (rad)}, in batches of
+    `candidates`, until `n_configurations` pass the checks of `plan_set` (floor, self-collision,
+    every sight line); the first that pass are kept, each its own pose. A real campaign that
+    holds joints the inverse kinematics cannot hold (joints 1 and 7 of a 7-axis arm), or of an
+    arm without an analytic inverse, is planned this way.
+    """
+    held = dict(held or {})
+    ranges = np.array([joint_range(chain, j) for j in range(chain.n_joints)])
+    kept, discarded, drawn = [], {"floor": 0, "self_collision": 0, "occluded": 0}, 0
+    for _ in range(max_batches):
+        q = rng.uniform(ranges[:, 0], ranges[:, 1], (candidates, chain.n_joints))
+        for joint, angle in held.items():
+            q[:, joint] = angle
+        drawn += candidates
+        keep = np.ones(candidates, dtype=bool)
+        above, apart = collision_free(chain, q, model)
+        for name, ok in (("floor", above), ("self_collision", apart)):
+            discarded[name] += int((keep & ~ok).sum())
+            keep &= ok
+        for sight in sights:
+            seen = marker_visible(chain, q, sight, model)
+            discarded["occluded"] += int((keep & ~seen).sum())
+            keep &= seen
+        kept.extend(q[keep])
+        if len(kept) >= n_configurations:
+            break
+    else:
+        raise InputError(
+            f"{set_name}: {max_batches} batches of {candidates} random configurations gave {len(kept)} "
+            f"that pass the checks, not {n_configurations}",
+            key="plan",
+        )
+    poses = [row[None] for row in kept[:n_configurations]]
+    return Plan(_toured_table(chain, set_name, poses), discarded, drawn)
 
 
 def _toured_table(chain: KinematicChain, set_name: str, poses) -> pd.DataFrame:
