@@ -174,3 +174,52 @@ def test_cube_plan_has_one_flange_orientation_and_the_designed_positions(iiwa):
     above, apart = planning.collision_free(iiwa, q, planning.CollisionModel())
     assert above.all() and apart.all() and planning.marker_visible(iiwa, q, sights[0], planning.CollisionModel()).all()
     np.testing.assert_array_equal(planning.nearest_neighbour_tour(q, start=np.zeros(7)), np.arange(len(q)))
+
+
+def test_a_free_q3_is_drawn_for_each_pose_within_its_limits(iiwa):
+    sights = [planning.SightLine(SENSOR, MARKER)]
+    plan = planning.plan_set(
+        iiwa, "optimization", SENSOR, sights, np.random.default_rng(3), candidates=30, q3=planning.FREE
+    )
+    table = plan.table
+    assert table["q3"].groupby(table["pose"]).nunique().eq(1).all()  # the solutions of a pose share it
+    per_pose = table.groupby("pose")["q3"].first().to_numpy()
+    assert len(np.unique(per_pose)) == len(per_pose) >= 10
+    assert np.all(np.abs(per_pose) <= iiwa.upper[2]) and np.degrees(per_pose.std()) > 40.0
+    q = table[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    poses = kinematics.flange_poses(iiwa, q)
+    for _, group in table.groupby("pose"):
+        same = poses[group.index]
+        np.testing.assert_allclose(same, np.broadcast_to(same[0], same.shape), atol=1e-9)
+    with pytest.raises(ValueError, match="Generator"):
+        planning.plan_cubes(
+            iiwa, "validation", [(np.array([0.0, 0.35, 0.68]), 0.2)], np.eye(3), sights, q3=planning.FREE
+        )
+
+
+def test_random_joint_plans_hold_the_held_joints_and_pass_every_check(iiwa):
+    sights = [planning.SightLine(SENSOR, MARKER)]
+    model = planning.CollisionModel()
+    plan = planning.plan_random(
+        iiwa, "validation", sights, np.random.default_rng(4), n_configurations=30, held={0: 0.0, 6: 0.5}
+    )
+    table = plan.table
+    q = table[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    assert len(q) == 30 and table["pose"].tolist() == list(range(30)) and (table["solution"] == 0).all()
+    np.testing.assert_array_equal(q[:, 0], 0.0)
+    np.testing.assert_array_equal(q[:, 6], 0.5)
+    assert np.all(iiwa.within_limits(q))
+    above, apart = planning.collision_free(iiwa, q, model)
+    assert above.all() and apart.all() and planning.marker_visible(iiwa, q, sights[0], model).all()
+    # whole batches of 200 drawn; those not discarded are at least the 30 kept
+    assert plan.candidates % 200 == 0 and plan.candidates - sum(plan.discarded.values()) >= 30
+    np.testing.assert_array_equal(planning.nearest_neighbour_tour(q, start=np.zeros(7)), np.arange(30))
+    with pytest.raises(InputError, match="did not|gave"):
+        planning.plan_random(
+            iiwa, "validation", sights, np.random.default_rng(4), n_configurations=30, candidates=5, max_batches=2
+        )
+
+
+def test_joint_ranges_are_the_limits_or_a_turn(iiwa, ur5_dh):
+    assert planning.joint_range(iiwa, 1) == (iiwa.lower[1], iiwa.upper[1])
+    assert planning.joint_range(ur5_dh, 0) == (-np.pi, np.pi)

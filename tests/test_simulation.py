@@ -220,3 +220,88 @@ def test_an_unknown_plan_design_is_refused(iiwa):
     spec["plan"]["sets"]["validation"]["cubes"][1] = {"centre": [0.1, 0.3], "edge": 0.2}
     with pytest.raises(InputError, match="plan/sets/validation/cubes/1"):
         scenario.simulate(spec, iiwa)
+
+
+def test_a_rigid_motion_of_the_first_transform_moves_the_whole_arm_in_the_base_frame(iiwa, rng):
+    """F'_1 = Trans(t) RPY(r) F_1 is written in the frame F_1 starts from, the base: a translation
+    shifts every marker by t, a yaw turns every marker about the base z axis."""
+    q = rng.uniform(iiwa.lower, iiwa.upper, (20, 7))
+    sensor = Sensor("lt", "laser_tracker", np.eye(4), 0.0, np.array([-0.1, 0.0, 0.02]))
+    nominal = simulation.true_marker_positions(iiwa, TrueRobot(zero_offsets=np.zeros(7)), sensor, q)
+    motions = np.zeros((8, 6))
+    motions[0, :3] = [1e-3, -2e-3, 0.5e-3]
+    shifted = simulation.true_marker_positions(iiwa, TrueRobot(np.zeros(7), link_motions=motions), sensor, q)
+    np.testing.assert_allclose(shifted - nominal, np.broadcast_to([1e-3, -2e-3, 0.5e-3], nominal.shape), atol=1e-15)
+    motions = np.zeros((8, 6))
+    motions[0, 5] = 2e-3  # yaw
+    turned = simulation.true_marker_positions(iiwa, TrueRobot(np.zeros(7), link_motions=motions), sensor, q)
+    np.testing.assert_allclose(turned, nominal @ spatial.rot_z(2e-3).T, atol=1e-15)
+
+
+def test_truth_records_rigid_link_motions_and_keeps_the_legacy_form(iiwa):
+    rigid = scenario.simulate(
+        small_scenario(link_errors={"translation_std": 1e-4, "rotation_std": 1e-4, "seed": 3}), iiwa
+    )
+    assert "link_motions" in rigid.truth["effects"] and "link_geometry" not in rigid.truth["effects"]
+    robot = scenario.robot_from_truth(rigid.truth)
+    assert robot.link_motions.shape == (8, 6) and robot.link_errors is None
+    legacy = scenario.simulate(small_scenario(), iiwa)  # kuka-twin's {length_std, twist_std, seed}
+    robot = scenario.robot_from_truth(legacy.truth)
+    assert robot.link_errors.shape == (8, 2) and robot.link_motions is None
+    draw = np.random.default_rng(14)
+    expected = np.column_stack([draw.normal(0.0, 1.2e-4, 8), draw.normal(0.0, 1.2e-4, 8)])
+    np.testing.assert_array_equal(robot.link_errors, expected)
+
+
+BAD_PLANS = [
+    (
+        {"held_joints": {"q1": 0.0}},
+        "plan/held_joints/q1: the latin_hypercube design's inverse kinematics holds joint 3 only",
+    ),
+    ({"q3": "sometimes"}, "plan/q3: must be an angle"),
+    ({"q3": 0.0, "held_joints": {"q3": 0.1}}, "plan/q3: joint 3 is held twice"),
+    ({"held_joints": {"q9": 0.0}}, r"plan/held_joints/q9: names no joint of the robot \(q1 .. q7\)"),
+    ({"design": "random_joints", "held_joints": {"q2": 3.0}}, "plan/held_joints/q2: 3 rad is outside joint 2's limits"),
+    ({"q_3": 0.0}, "plan/q_3: unknown key"),
+    ({"design": "random_joints"}, "plan/sets/optimization/poses: unknown key .* for design random_joints"),
+]
+
+
+@pytest.mark.parametrize(("plan", "message"), BAD_PLANS)
+def test_bad_plan_keys_are_refused_by_name(iiwa, plan, message):
+    spec = small_scenario()
+    spec["plan"].update(plan)
+    with pytest.raises(InputError, match=message):
+        scenario.simulate(spec, iiwa)
+
+
+BAD_TRUTHS = [
+    ({"link_errors": {"length_std": 1e-4, "rotation_std": 1e-4}}, "truth/link_errors/length_std: either rigid"),
+    ({"link_errors": {"translation_std": 1e-4, "size": 1}}, "truth/link_errors/size: unknown key"),
+    ({"link_errors": {"translation_std": -1.0, "rotation_std": 1e-4}}, "truth/link_errors/translation_std"),
+    ({"dh_errors": {"std": [1e-4, 1e-4, 1e-4, 1e-4]}}, r"truth/dh_errors: DH errors need a robot given by a DH table"),
+    ({"link_error": {}}, "truth/link_error: unknown key"),
+]
+
+
+@pytest.mark.parametrize(("truth", "message"), BAD_TRUTHS)
+def test_bad_truth_keys_are_refused_by_name(iiwa, truth, message):
+    spec = small_scenario()
+    spec["truth"].pop("link_errors")
+    spec["truth"].update(truth)
+    with pytest.raises(InputError, match=message):
+        scenario.simulate(spec, iiwa)
+
+
+def test_dh_errors_with_compliance_on_a_urdf_in_other_frames_are_refused(iiwa):
+    spec = small_scenario(dh_errors={"std": [1e-4, 1e-4, 1e-4, 1e-4], "seed": 1})
+    spec["robot"]["dh"] = {"convention": "standard", "rows": [[0.0, np.pi / 2, 0.36, 0.0]] * 7}
+    with pytest.raises(InputError, match="truth/dh_errors: DH errors rebuild the joint frames"):
+        scenario.simulate(spec, iiwa)
+
+
+def test_a_six_axis_arm_needs_the_random_joints_design(ur5_dh):
+    spec = small_scenario()
+    spec["truth"] = {"zero_offsets_deg": [0.1] * 6}
+    with pytest.raises(InputError, match="plan/design: the latin_hypercube design needs a 7-axis"):
+        scenario.simulate(spec, ur5_dh)
