@@ -11,10 +11,11 @@ import pytest
 from remaster import files
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import SETS, sensor_data
-from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_chain
 from remaster.inference import blocks, fit
 from remaster.loop import loop_closure
 from remaster.reporting import figures_loop, tables_loop
+from remaster.robot import kinematics
 from remaster.robot.gravity import gravity_torques
 
 from .conftest import REPO, loop_report, loop_settings
@@ -31,7 +32,7 @@ EFFECTS = {
     "joint_scale": ({"joint_scale": [3e-4, -4e-4, 0.0, 5e-4, -3e-4, 4e-4, 3e-4]}, {}),
     "marker_offset": ({}, {"marker_error": [4e-4, 3e-4, -5e-4]}),
     "sensor_scale": ({}, {"scale_error": 2e-4}),
-    "link_geometry": ({"link_errors": {"length_std": 3.5e-4, "twist_std": 3.5e-4, "seed": 14}}, {}),
+    "link_geometry": ({"link_errors": {"translation_std": 2e-4, "rotation_std": 2e-4, "seed": 14}}, {}),
     "drift": ({"drift_deg_per_hour": [0.03, -0.03, 0.0, 0.04, -0.02, 0.03, 0.02]}, {}),
 }
 _campaigns = {}
@@ -146,7 +147,9 @@ def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, eff
     n, offsets = 40, np.radians(OFFSETS_DEG)
     q = rng.uniform(np.maximum(iiwa.lower, -2.0), np.minimum(iiwa.upper, 2.0), (n, 7))
     elapsed = 70.0 * np.arange(n)
-    link_errors = rng.normal(0.0, 5e-4, (8, 2))
+    # rigid motions of every fixed transform, written by the simulator in the frame each starts from
+    # and as roll-pitch-yaw: the block's values are the same motions in its own form, D = F^-1 M F
+    link_motions = rng.normal(0.0, 5e-4, (8, 6))
     truth = {
         "joint_compliance": {
             "joint_compliance": np.array(COMPLIANCE),
@@ -154,7 +157,7 @@ def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, eff
             "payload_com": np.array(PAYLOAD["com"]),
         },
         "joint_scale": {"joint_scale": np.array(EFFECTS["joint_scale"][0]["joint_scale"])},
-        "link_geometry": {"link_errors": link_errors},
+        "link_geometry": {"link_motions": link_motions},
         "drift": {"drift_rate": np.full(7, 2e-6)},
     }.get(effect, {})
     robot = TrueRobot(zero_offsets=offsets, **truth)
@@ -187,13 +190,21 @@ def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, eff
                 zip(("marker_offset.x", "marker_offset.y", "marker_offset.z"), sensor.marker_error)
             ),
             "sensor_scale": lambda: {"sensor_scale.s": sensor.scale_error},
-            "link_geometry": lambda: {name: link_errors[row, column] for row, column, name in blocks.link_labels(iiwa)},
+            "link_geometry": lambda: link_values(iiwa, true_chain(iiwa, robot)),
             "drift": lambda: {f"drift.q{j + 1}": 2e-6 for j in range(7)},
         }[effect]()
     )
     assert np.abs(model.residuals(model.vector(values))).max() < 1e-12
     without = {name: value for name, value in values.items() if name.startswith("zero_offsets.")}
     assert np.abs(model.residuals(model.vector(without))).max() > 1e-4  # the effect's values matter
+
+
+def link_values(chain, true):
+    """The link-geometry block's values that make `chain` the `true` chain: small_motion_of(F^-1 F')."""
+    nominal = np.concatenate([chain.joint_transforms, chain.tool_transform[None]])
+    moved = np.concatenate([true.joint_transforms, true.tool_transform[None]])
+    motions = kinematics.small_motion_of(np.linalg.inv(nominal) @ moved)
+    return {name: motions[row, column] for row, column, name in blocks.link_labels(chain)}
 
 
 def test_parameters_the_data_cannot_see_are_held(iiwa):
@@ -215,8 +226,9 @@ def test_parameters_the_data_cannot_see_are_held(iiwa):
     assert dropped["joint_compliance.payload_q6"].startswith("absorbed")  # the payload is all joint 6 holds
     assert dropped["joint_scale.q3"].startswith("invisible")
     assert dropped["marker_offset.y"].startswith("absorbed")
-    assert dropped["link_geometry.F1.length"].startswith("absorbed")
-    assert dropped["link_geometry.F1.twist"].startswith("absorbed")
+    for part in kinematics.LINK_MOTION:  # the base link's whole error is the registration's
+        assert dropped[f"link_geometry.F1.{part}"].startswith("absorbed at every configuration")
+    assert "zero_offsets.q3" in dropped["link_geometry.F3.rz"]  # a turn about joint 3's own axis
     assert "joint_compliance.q2" not in dropped and "marker_offset.x" not in dropped and "drift.q1" not in dropped
 
 
@@ -231,7 +243,8 @@ def test_an_undeclared_effect_is_named_and_removed(iiwa, effect):
     for score in ("log_evidence_gain", "bic_gain"):
         first_round = {name: scores[0].get(score, -np.inf) for name, scores in report.candidates.items()}
         assert max(first_round, key=first_round.get) == effect, score
-    assert report.effects_added == (effect,)
+    # the tool's own rigid error moves the marker on the flange: the marker offset's to take
+    assert report.effects_added == ((effect, "marker_offset") if effect == "link_geometry" else (effect,))
     assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE
     assert report.before["validation"]["rms_per_axis_mm"] * 1e-3 > 4 * NOISE  # there was something to find
     assert report.sigma_after == pytest.approx(NOISE, rel=0.25)
@@ -361,7 +374,7 @@ def test_the_selection_does_not_read_the_validation_set(iiwa):
     table.loc[validation, ["x", "y", "z"]] += np.random.default_rng(5).normal(0.0, 2e-3, (validation.sum(), 3))
     moved = dataclasses.replace(sensor, table=table)
     first, second = closed(iiwa, sensor).report, closed(iiwa, moved).report
-    assert first.effects_added == second.effects_added == ("link_geometry",)
+    assert first.effects_added == second.effects_added == ("link_geometry", "marker_offset")
     assert first.candidates == second.candidates
     assert first.refit["mode"] == second.refit["mode"]
     assert second.after["validation"]["rmse_mm"] > 10 * first.after["validation"]["rmse_mm"]
