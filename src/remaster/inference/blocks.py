@@ -54,7 +54,7 @@ import pandas as pd
 from .. import _kernels, spatial
 from ..campaigns.campaign import SensorData
 from ..noise import RangeTransverse
-from ..robot.gravity import gravity_torques
+from ..robot.gravity import Payload, assumed_payload, loaded_torques
 from ..robot.kinematics import LINK_MOTION, KernelForm, KinematicChain, perturbed_transforms
 from ..robot.priors import Priors
 from ..units import DEG, MM, SECONDS_PER_HOUR
@@ -91,13 +91,20 @@ COLLINEAR = 1e-3
 class ModelSettings:
     """Settings of the extension blocks. payload_mass (kg) at payload_com (m, flange frame): the
     tool plate for the gravity torques (an error in the mass is absorbed by the compliance
-    block's payload terms); drift_column: the table column the drift is a rate of
-    (None: `time` if the table has one, else the first column whose name contains
-    'temperature')."""
+    block's payload terms) when the chain's URDF carries none; a URDF that carries the tool (a
+    link with mass below the last joint's own link) gives it instead, and the configured payload
+    is not added on top (`payload`, `robot.gravity` for the rule); drift_column: the table column
+    the drift is a rate of (None: `time` if the table has one, else the first column whose name
+    contains 'temperature')."""
 
     payload_mass: float = 1.0
     payload_com: tuple[float, float, float] = (0.0, 0.0, 0.02)
     drift_column: str | None = None
+
+    def payload(self, chain: KinematicChain) -> Payload:
+        """The payload the gravity torques of `readings` assume on `chain` (`Payload.report()`
+        says which and why): the URDF's tool when it carries one, else this payload."""
+        return assumed_payload(chain, self.payload_mass, self.payload_com)
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,8 +173,9 @@ def readings(
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table.loc[rows, list(sensor.joint_columns)].to_numpy(dtype=float)
     measured = sensor.table.loc[rows, ["x", "y", "z"]].to_numpy(dtype=float)
-    torques = gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
-    payload = torques - gravity_torques(chain, q)
+    # a URDF that carries the tool gives it; the configured payload only when it does not
+    loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
+    torques, payload = loaded.torques, loaded.payload_torques
     drift = drift_variable(sensor.table, settings.drift_column)
     return Readings(
         rows,

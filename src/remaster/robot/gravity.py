@@ -2,13 +2,34 @@
 
 They drive joint compliance: a joint of compliance c (rad/(N m)) deflects by c * tau, where tau
 is the torque gravity exerts on it (the negative of the torque the motor must supply to hold).
+
+Which payload the torques assume (`loaded_torques`). A URDF may already carry the tool: links
+rigidly attached below the arm's last link (the child link of the last movable joint), such as a
+tool plate or the flange mounted on it by fixed joints, with their mass. `chain_from_urdf` folds
+them into the last body, so Pinocchio's torques already include them. The rule:
+
+- the URDF carries a tool when any link rigidly attached below the last joint's own link has a
+  mass > 0. Then the tool is those links, with the URDF's masses: the torques are the URDF's
+  alone, the payload's part of them is the part of those links, and the configured payload
+  (`loop_closure/payload`) is NOT added: adding it would count the tool twice, and the fitted
+  payload compliance, which absorbs a payload other than the assumed one (c'_j = c_j (m / m0 - 1)),
+  would come out as minus the joint's own (m = 0 on top of the URDF: the assumed m0 all extra);
+- otherwise (the bundled iiwa URDF ends with a massless flange; a DH table has no masses) the
+  configured payload is added at the flange, as before.
+
+`Payload` says which of the two the torques assume, for the reports.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
 import numpy as np
 
-from .kinematics import KinematicChain, pinocchio_model
+from . import kinematics
+from .kinematics import KinematicChain, LinkInertia, pinocchio_model
 
 STANDARD_GRAVITY = 9.80665  # m/s^2
 
@@ -22,7 +43,8 @@ def gravity_torques(
 ) -> np.ndarray:
     """Torques (n, N) in N m that gravity exerts on each joint at configurations q (n, N).
 
-    payload_mass (kg) at payload_com (m, in the flange frame) models a tool plate. The base
+    payload_mass (kg) at payload_com (m, in the flange frame) is added on top of the chain's own
+    masses (a URDF's tool links included: `loaded_torques` decides whether to add one). The base
     frame's z axis points up unless `gravity` says otherwise. A chain without mass data (a DH
     table) feels the payload only.
     """
@@ -36,3 +58,146 @@ def gravity_torques(
         model.appendBodyToJoint(chain.n_joints, pin.Inertia(payload_mass, com, np.zeros((3, 3))), pin.SE3.Identity())
     data = model.createData()
     return -np.array([pin.computeGeneralizedGravity(model, data, qi) for qi in q]).reshape(len(q), chain.n_joints)
+
+
+@dataclass(frozen=True)
+class Payload:
+    """The payload the gravity torques assume. source: 'urdf' (the URDF's tool links, `links`,
+    with their masses) or 'configuration' (the configured payload added at the flange); mass (kg);
+    com (3,) m: in the flange frame for the configured payload, in the last joint's frame for the
+    URDF's tool; configured_mass (kg): the configured payload, also when it was not added."""
+
+    source: str
+    mass: float
+    com: tuple[float, float, float]
+    links: tuple[str, ...] = ()
+    configured_mass: float = 0.0
+
+    def report(self) -> dict:
+        """JSON-ready, with a sentence saying which payload the torques assume and why."""
+        if self.source == "urdf":
+            why = (
+                f"the URDF carries the tool (links {', '.join(self.links)}: {self.mass:.3g} kg below the last "
+                f"joint's link): the gravity torques use the URDF's masses, and the configured payload "
+                f"({self.configured_mass:.3g} kg) is not added on top of it"
+            )
+            frame = "last joint"
+        else:
+            why = (
+                f"the URDF carries no tool below the last joint's link: the configured payload "
+                f"({self.mass:.3g} kg) is added at the flange"
+            )
+            frame = "flange"
+        return {
+            "source": self.source,
+            "mass_kg": self.mass,
+            "com_m": list(self.com),
+            "com_frame": frame,
+            "links": list(self.links),
+            "configured_mass_kg": self.configured_mass,
+            "note": why,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedTorques:
+    """torques (n, N) N m: gravity's torque on each joint, payload included; payload_torques (n, N):
+    the payload's part of it; payload: which payload they assume."""
+
+    torques: np.ndarray
+    payload_torques: np.ndarray
+    payload: Payload
+
+
+@dataclass(frozen=True, eq=False)
+class UrdfTool:
+    """The tool a URDF carries below the arm's last link: links (names with mass > 0), its mass
+    properties in the last joint's frame, and the chain without it (the last body reduced to that
+    joint's own link)."""
+
+    links: tuple[str, ...]
+    inertia: LinkInertia
+    bare_chain: KinematicChain
+
+
+def urdf_tool(chain: KinematicChain) -> UrdfTool | None:
+    """The tool the chain's URDF carries (`module docstring`: the rule), or None when it carries
+    none: no URDF, no mass data, or no link with mass rigidly attached below the last movable
+    joint's own link."""
+    if chain.urdf_xml is None or chain.inertias is None:
+        return None
+    root = ET.fromstring(chain.urdf_xml)  # already parsed once by chain_from_urdf: entities refused there
+    links = {link.get("name"): link for link in root.findall("link")}
+    joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    last = joints.get(chain.joint_names[-1])
+    if last is None:
+        return None
+    own_link = last.find("child").get("link")
+    fixed_children: dict[str, list[str]] = {}
+    for joint in root.findall("joint"):
+        if joint.get("type") == "fixed":
+            fixed_children.setdefault(joint.find("parent").get("link"), []).append(joint.find("child").get("link"))
+    below, stack = [], list(fixed_children.get(own_link, []))
+    while stack:  # every link rigidly attached below the last joint's own link
+        name = stack.pop()
+        below.append(name)
+        stack += fixed_children.get(name, [])
+    massive = []
+    for name in sorted(below):
+        part = kinematics._link_inertia(links[name])  # the parser chain_from_urdf used: the same numbers
+        if part is not None and part.mass > 0.0:
+            massive.append(name)
+    if not massive:
+        return None
+    own = kinematics._link_inertia(links[own_link])
+    empty = LinkInertia(0.0, np.zeros(3), np.zeros((3, 3)))
+    own = own if own is not None else empty
+    body = chain.inertias[-1]
+    bare = dataclasses.replace(chain, inertias=chain.inertias[:-1] + (own,))
+    mass = body.mass - own.mass
+    com = (body.mass * body.com - own.mass * own.com) / mass
+    return UrdfTool(tuple(massive), LinkInertia(mass, com, np.zeros((3, 3))), bare)
+
+
+def assumed_payload(chain: KinematicChain, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> Payload:
+    """The payload `loaded_torques` assumes on this chain with this configured payload (kg, m
+    flange frame): the URDF's tool when it carries one, else the configured payload."""
+    return _assumed(chain, urdf_tool(chain), payload_mass, payload_com)
+
+
+def _assumed(chain, tool: UrdfTool | None, payload_mass: float, payload_com) -> Payload:
+    if tool is not None:
+        com = tuple(float(c) for c in tool.inertia.com)
+        return Payload("urdf", float(tool.inertia.mass), com, tool.links, float(payload_mass))
+    com = tuple(float(c) for c in payload_com)
+    return Payload("configuration", float(payload_mass), com, (), float(payload_mass))
+
+
+def loaded_torques(chain: KinematicChain, q, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> LoadedTorques:
+    """Gravity torques at q (n, N) with the payload the rule of the module docstring gives: the
+    URDF's tool when it carries one (payload_mass is then not added), else payload_mass (kg) at
+    payload_com (m, flange frame) added at the flange; and the payload's part of them."""
+    tool = urdf_tool(chain)
+    payload = _assumed(chain, tool, payload_mass, payload_com)
+    if tool is not None:
+        torques = gravity_torques(chain, q)
+        return LoadedTorques(torques, torques - gravity_torques(tool.bare_chain, q), payload)
+    torques = gravity_torques(chain, q, payload_mass, payload_com)
+    return LoadedTorques(torques, torques - gravity_torques(chain, q), payload)
+
+
+def tool_report(chain: KinematicChain) -> dict | None:
+    """What a fit's report says of the URDF's tool: None when the URDF carries none (the loop
+    closure's gravity torques then add the configured payload), else the tool's links, mass and
+    centre of mass and that the configured payload is not added on top of it."""
+    tool = urdf_tool(chain)
+    if tool is None:
+        return None
+    return {
+        "links": list(tool.links),
+        "mass_kg": float(tool.inertia.mass),
+        "com_m": tool.inertia.com.tolist(),
+        "com_frame": "last joint",
+        "note": "the URDF carries the tool: the loop closure's gravity torques use its masses and do not add "
+        "the configured payload (loop_closure/payload) on top of it",
+    }
