@@ -12,7 +12,6 @@ from remaster import files
 from remaster.campaigns import folders
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
-from remaster.diagnostics import SamplerDisagreement
 from remaster.errors import InputError
 from remaster.inference import fit
 
@@ -90,11 +89,25 @@ def test_samplers_agree_and_unseen_points_are_excluded(iiwa):
     assert {"z_default", "z_emcee", "z_laplace", "z_paper"} <= set(table.columns)
     assert table["checked_emcee"].all() and table["checked_laplace"].all()
     assert (table.loc[table["checked_paper"], "z_paper"].abs() <= 4.0).all()
-    # a method shifted by several posterior std is caught
+    assert not table["disagrees_emcee"].any() and (table["disagreement"] == "").all()
+    assert fit.disagreeing(table) == {}
+    # a method shifted by several posterior std is caught, marked on its parameter and nowhere
+    # else, and the table comes back (the campaign's report is made anyway)
     shifted = samples["emcee"].copy()
     shifted["zero_offsets.q3"] += 5 * shifted["zero_offsets.q3"].std()
-    with pytest.raises(SamplerDisagreement, match="zero_offsets.q3"):
-        fit.cross_check({**samples, "emcee": shifted}, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100)
+    marked = fit.cross_check({**samples, "emcee": shifted}, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100)
+    assert marked.loc[marked["disagrees_emcee"], "parameter"].tolist() == ["zero_offsets.q3"]
+    assert marked.set_index("parameter").loc["zero_offsets.q3", "z_emcee"] > 4.0
+    assert fit.disagreeing(marked) == {"zero_offsets.q3": ["emcee"]}
+    assert [o[:3] for o in marked.attrs["disagreements"]] == [("zero_offsets.q3", "emcee", "default")]
+    # as cross_check.csv holds it: the empty marks come back as NaN, the disagreement as written
+    written = marked.astype({"disagreement": object}).replace("", np.nan)
+    assert fit.disagreeing(written) == {"zero_offsets.q3": ["emcee"]}
+    # a sampler without diagnostics is shown, not checked: its shift is no disagreement
+    unreported = fit.cross_check(
+        {**samples, "emcee": shifted}, {"paper": reports["paper"]}, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100
+    )
+    assert not unreported["checked_emcee"].any() and fit.disagreeing(unreported) == {}
 
 
 def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):

@@ -136,7 +136,12 @@ def split_rhat(chains: Sequence) -> np.ndarray:
 def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.DataFrame:
     """Per parameter, over all chains pooled: mean, std, q2.5, q97.5 (SI), tau (mean over chains,
     steps), ess (sum over chains), rhat (split, across chains), mcse = std / sqrt(ess), and
-    tau_reliable (every chain at least 50 tau long)."""
+    tau_reliable (every chain at least 50 tau long).
+
+    Never raises on what a failed run leaves: a parameter that never moves has rhat NaN (no
+    spread to compare) and ess = the number of walkers; NaN samples give NaN statistics; chains
+    too short for a split R-hat (under 4 states) have rhat NaN, empty ones NaN everywhere and
+    ess 0. A NaN rhat or ess is not convergence (`inference.fit.converged`)."""
     if names is None:
         names = getattr(chains[0], "names", None)
     walkers = [_walkers(c) for c in chains]
@@ -144,23 +149,28 @@ def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.Dat
     p = pooled.shape[1]
     names = list(names) if names is not None else [f"theta[{i}]" for i in range(p)]
     autocorr = [autocorrelation(w) for w in walkers]
-    ess = np.sum([a.ess for a in autocorr], axis=0)
-    std = pooled.std(axis=0, ddof=1)
-    q_low, q_high = np.quantile(pooled, [0.025, 0.975], axis=0)
-    table = pd.DataFrame(
-        {
-            "mean": pooled.mean(axis=0),
-            "std": std,
-            "q2.5": q_low,
-            "q97.5": q_high,
-            "tau": np.mean([a.tau for a in autocorr], axis=0),
-            "ess": ess,
-            "rhat": split_rhat(walkers),
-            "mcse": std / np.sqrt(ess),
-            "tau_reliable": np.all([a.reliable for a in autocorr], axis=0),
-        },
-        index=pd.Index(names, name="parameter"),
-    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ess = np.sum([np.where(a.n > 0, a.ess, 0.0) for a in autocorr], axis=0)
+        if len(pooled) >= 2:
+            std = pooled.std(axis=0, ddof=1)
+            q_low, q_high = np.quantile(pooled, [0.025, 0.975], axis=0)
+        else:
+            std = q_low = q_high = np.full(p, np.nan)
+        shortest = min(len(w) * w.shape[1] for w in walkers)
+        table = pd.DataFrame(
+            {
+                "mean": pooled.mean(axis=0) if len(pooled) else np.full(p, np.nan),
+                "std": std,
+                "q2.5": q_low,
+                "q97.5": q_high,
+                "tau": np.mean([a.tau for a in autocorr], axis=0),
+                "ess": ess,
+                "rhat": split_rhat(walkers) if shortest >= 4 else np.full(p, np.nan),
+                "mcse": std / np.sqrt(ess),
+                "tau_reliable": np.all([a.reliable for a in autocorr], axis=0),
+            },
+            index=pd.Index(names, name="parameter"),
+        )
     return table
 
 
@@ -224,8 +234,9 @@ def cross_check(
     return table
 
 
-def check_agreement(table: pd.DataFrame, tolerance: float | None = None) -> None:
-    """Raise SamplerDisagreement if any |z| of a `cross_check` table exceeds tolerance (or is NaN).
+def disagreements(table: pd.DataFrame, tolerance: float | None = None) -> list[tuple[str, str, str, float]]:
+    """[(parameter, method, reference, z)] for every |z| of a `cross_check` table beyond
+    tolerance, or NaN (a mean or an error that could not be computed is no agreement).
 
     tolerance defaults to the one the table was made with (4 if none).
     """
@@ -241,7 +252,16 @@ def check_agreement(table: pd.DataFrame, tolerance: float | None = None) -> None
         for name, value in z[method].items():
             if not abs(value) <= tolerance:  # NaN counts as a disagreement
                 offenders.append((str(name), str(method), str(reference), float(value)))
+    return offenders
+
+
+def check_agreement(table: pd.DataFrame, tolerance: float | None = None) -> None:
+    """Raise SamplerDisagreement if any |z| of a `cross_check` table exceeds tolerance (or is NaN)
+    (`disagreements`). tolerance defaults to the one the table was made with (4 if none)."""
+    tolerance = tolerance if tolerance is not None else (table.attrs.get("tolerance") or 4.0)
+    offenders = disagreements(table, tolerance)
     if offenders:
+        z = table["z"]
         lines = [
             f"  {name}: {method} mean {table.loc[name, ('mean', method)]:.6g} vs {ref} "
             f"{table.loc[name, ('mean', ref)]:.6g} (z = {value:+.2f})"

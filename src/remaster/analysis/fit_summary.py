@@ -18,7 +18,7 @@ from . import accuracy
 
 @dataclass(frozen=True)
 class FitSummary:
-    """cross_check: `fit.cross_check` table; summary: `fit.posterior_summary` with a parameter
+    """cross_check: `fit.cross_check` table (disagreements marked, not raised); summary: `fit.posterior_summary` with a parameter
     column; with_discrepancy and discrepancy: `discrepancy.discrepancy_stage`'s table and report;
     remastering: `fit.remastering`'s JSON-ready content; accuracy: `accuracy.accuracy_tables`."""
 
@@ -45,9 +45,11 @@ def fit_summary_stage(
     n_random: int,
     default_method: str = "default",
 ) -> FitSummary:
-    """Cross-check every sampler (`samples`, `sampler_reports`: method -> samples, diagnostics):
-    a disagreement stops here (SamplerDisagreement), so nothing is summarized from samplers that
-    disagree; then summarize the default method's samples. `campaign_label`: the campaign's folder
+    """Cross-check every sampler (`samples`, `sampler_reports`: method -> samples, diagnostics),
+    then summarize the default method's samples. A disagreement between the samplers does not stop
+    the campaign: the cross-check table marks it (its `disagreement` column; `fit.cross_check`),
+    every result is made from the default sampler as usual, and the certificate says that the fit
+    is not confirmed by a second sampler and on which parameters. `campaign_label`: the campaign's folder
     name, as the remastering file names it; rng draws the accuracy metrics' posterior rows,
     random configurations and noise (`accuracy.accuracy_tables`)."""
     checked = fit.cross_check(dict(samples), dict(sampler_reports), laplace, **cross_check_settings)

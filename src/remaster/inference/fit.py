@@ -4,7 +4,10 @@
    of the optimization set chosen far apart (nominal forward kinematics gives their robot-frame
    positions); a least-squares (Kabsch) registration over every point is reported beside it.
 2. Identifiability: the Jacobian of the full model at zero corrections; each undetermined
-   combination gets one parameter held at the controller's value (`remaster.inference.identifiability`).
+   combination gets one parameter held at the controller's value, by the same unit-free test the
+   Laplace fit applies, so that the fit cannot stop on a combination the analysis passed
+   (`remaster.inference.identifiability`); laplace.json states each held parameter and the
+   combination it stood for.
 3. The posterior over the free parameters and sigma, as a `PosteriorTarget` that every sampler
    takes.
 Points whose marker was not seen are excluded from the fit and listed.
@@ -25,7 +28,7 @@ from .. import diagnostics, spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..errors import report_reader
 from ..files import read_json
-from ..robot import registration
+from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
 from . import identifiability, samplers
@@ -204,7 +207,9 @@ def laplace_report(
     model: ZeroOffsetModel | None = None,
 ) -> dict:
     """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, the rows
-    left out (marker not seen; flagged as outliers) and the number of points fitted."""
+    left out (marker not seen; flagged as outliers), the number of points fitted, and the tool
+    the chain's URDF carries (`gravity.tool_report`: the loop closure's gravity torques take it
+    instead of the configured payload; None when it carries none or no model is given)."""
     return {
         "names": list(result.names),
         "theta_map": result.theta_map.tolist(),
@@ -220,6 +225,7 @@ def laplace_report(
         "excluded_rows_marker_not_seen": [int(r) for r in excluded_rows],
         "excluded_rows_outliers": [int(r) for r in outlier_rows],
         "points_fitted": None if model is None else int(model.n_points),
+        "urdf_tool": None if model is None else gravity.tool_report(model.chain),
     }
 
 
@@ -231,7 +237,8 @@ class LaplaceReport:
     parameters: every parameter in order, held ones included; held: {name: value} held at the
     controller's value; null_directions: the data's blind combinations ({name: weight} each);
     outlier_rows and marker_not_seen_rows: table rows left out of the fit;
-    points_fitted (None when not recorded)."""
+    points_fitted (None when not recorded); held_statements: one sentence per held parameter,
+    saying what the data cannot tell apart (empty in reports written before they were recorded)."""
 
     names: tuple[str, ...]
     theta_map: np.ndarray
@@ -246,6 +253,7 @@ class LaplaceReport:
     outlier_rows: tuple[int, ...]
     marker_not_seen_rows: tuple[int, ...]
     points_fitted: int | None
+    held_statements: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> LaplaceReport:
@@ -265,6 +273,7 @@ class LaplaceReport:
             outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
             marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
             points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]),
+            held_statements=tuple(str(x) for x in (content.get("identifiability") or {}).get("statements") or ()),
         )
 
     @classmethod
@@ -294,9 +303,11 @@ def sample(
     """Chains of one method on the model's posterior.
 
     paper: the paper's Metropolis from Theta = 0, sigma = 1 mm; default: adaptive Metropolis from
-    overdispersed starts around the least-squares MAP, proposal seeded by the Laplace covariance;
-    emcee: walkers in a Laplace-sized ball around the MAP (one ensemble, its walkers split in
-    two halves for R-hat).
+    overdispersed starts drawn from the Laplace approximation (`overdispersed_starts`), proposal
+    seeded by the Laplace covariance, run on until the convergence criteria hold
+    (settings["convergence"]: max_rhat, min_ess; its kept part doubled at most
+    settings["max_doublings"] times); emcee: walkers in a Laplace-sized ball around the MAP (one
+    ensemble, its walkers split in two halves for R-hat), doubled the same way.
     """
     target = PosteriorTarget(model)
     start, covariance = laplace.start()
@@ -314,15 +325,14 @@ def sample(
             progress=progress,
         )
     if method == "default":
-        spread = np.sqrt(np.diag(covariance))
-        starts = start + 3.0 * spread * rng.standard_normal((settings["chains"], len(start)))
-        starts[:, -1] = np.abs(starts[:, -1])
         return samplers.run_chains(
             samplers.metropolis_adaptive,
             target,
             rng,
             settings["chains"],
-            starts,
+            overdispersed_starts(start, covariance, settings["chains"], rng),
+            enough=_converged_chains(target.names, settings.get("convergence")),
+            max_doublings=settings.get("max_doublings", 0),
             covariance=covariance,
             n_samples=settings["samples"],
             burn_in=settings["burn_in"],
@@ -345,6 +355,51 @@ def sample(
     raise ValueError(f"unknown sampling method {method!r}; use one of {METHODS}")
 
 
+OVERDISPERSION = 3.0  # the default sampler's chains start this many Laplace std from the MAP
+
+
+def overdispersed_starts(start, covariance, n_chains: int, rng: np.random.Generator) -> np.ndarray:
+    """(n_chains, P) starts start + OVERDISPERSION L z, L L^T = covariance (the Laplace
+    approximation's), z ~ N(0, I): three std out along the posterior's own shape. Drawn
+    independently per coordinate, three std out in a direction the parameters' correlation makes
+    narrow would be hundreds of std from the posterior, a start the adaptive burn-in spends its
+    steps coming back from. sigma (last) stays positive."""
+    start = np.asarray(start, dtype=float)
+    covariance = np.asarray(covariance, dtype=float)
+    try:
+        factor = np.linalg.cholesky(covariance)
+    except np.linalg.LinAlgError:  # not positive definite by round-off: the marginal std alone
+        factor = np.diag(np.sqrt(np.clip(np.diag(covariance), 0.0, None)))
+    starts = start + OVERDISPERSION * rng.standard_normal((n_chains, len(start))) @ factor.T
+    starts[:, -1] = np.abs(starts[:, -1])
+    return starts
+
+
+def _converged_chains(names, criteria: Mapping | None):
+    """The test that chains meet the cross-check's criteria (max_rhat, min_ess), judged as
+    `sampler_diagnostics` judges them; None without criteria."""
+    if criteria is None:
+        return None
+
+    def enough(chains) -> bool:
+        report = diagnostics.chain_report(chains, list(names))
+        return converged(_extremes(report), criteria["max_rhat"], criteria["min_ess"])
+
+    return enough
+
+
+def _extremes(report: pd.DataFrame) -> dict:
+    """{'max_rhat', 'min_ess'} of a `diagnostics.chain_report`, NaN when any parameter's is NaN
+    (a parameter whose chains never move has no R-hat: that is not convergence, and a max that
+    skipped it would say it is)."""
+    rhat = report["rhat"].to_numpy(dtype=float)
+    ess = report["ess"].to_numpy(dtype=float)
+    return {
+        "max_rhat": float(np.max(rhat)) if rhat.size else math.nan,
+        "min_ess": float(np.min(ess)) if ess.size else math.nan,
+    }
+
+
 def _converged_ensemble(names, criteria: Mapping | None):
     """The test that an ensemble's kept paths (n_steps, n_walkers, P) meet the cross-check's
     criteria (max_rhat, min_ess), judged as `sampler_diagnostics` judges it (the walkers' two
@@ -355,11 +410,7 @@ def _converged_ensemble(names, criteria: Mapping | None):
     def enough(paths: np.ndarray) -> bool:
         half = paths.shape[1] // 2
         report = diagnostics.chain_report([paths[:, :half], paths[:, half:]], list(names))
-        return converged(
-            {"max_rhat": float(report["rhat"].max()), "min_ess": float(report["ess"].min())},
-            criteria["max_rhat"],
-            criteria["min_ess"],
-        )
+        return converged(_extremes(report), criteria["max_rhat"], criteria["min_ess"])
 
     return enough
 
@@ -412,32 +463,50 @@ def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
 
 
 def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
-    """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second."""
+    """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second, and
+    how often the run doubled to meet its criteria. min_ess and max_rhat are NaN (null in the
+    file) when a parameter's is: `converged` then says no, as it must for a chain that never
+    moved."""
     frame = samples_frame(chains)
     names = list(chains[0].names)
     report = diagnostics.chain_report(chains_of(frame, names), names)
+    extremes = _extremes(report)
     return {
         "method": chains[0].method,
         "chains": len(chains),
         "walkers": chains[0].n_walkers,
         "kept_per_chain": chains[0].n_steps,
+        "doublings": int(chains[0].settings.get("doublings", 0)),
         "acceptance_rate": [c.acceptance_rate for c in chains],
         "seconds": seconds,
-        "min_ess": float(report["ess"].min()),
-        "min_ess_per_second": float(report["ess"].min() / seconds) if seconds > 0 else None,
-        "max_rhat": float(report["rhat"].max()),
+        "min_ess": extremes["min_ess"],
+        "min_ess_per_second": extremes["min_ess"] / seconds if seconds > 0 else None,
+        "max_rhat": extremes["max_rhat"],
+        "rhat_undefined": [n for n, r in report["rhat"].items() if not np.isfinite(r)],
         "parameters": report.reset_index().to_dict(orient="records"),
     }
 
 
-def converged(diagnostics_report: dict, max_rhat: float, min_ess: float) -> bool:
-    """A sampler's own verdict: every R-hat below max_rhat and every ESS above min_ess."""
-    return diagnostics_report["max_rhat"] <= max_rhat and diagnostics_report["min_ess"] >= min_ess
+def converged(diagnostics_report: Mapping | None, max_rhat: float, min_ess: float) -> bool:
+    """A sampler's own verdict: every R-hat below max_rhat and every ESS above min_ess. A value
+    that is missing, None (NaN as a JSON file holds it) or NaN is not a pass: no diagnostics,
+    no verdict of convergence."""
+    report = diagnostics_report or {}
+    rhat, ess = _number(report.get("max_rhat")), _number(report.get("min_ess"))
+    return rhat <= max_rhat and ess >= min_ess  # False for NaN
+
+
+def _number(value) -> float:
+    """value as a float, NaN for None or anything that is not a number."""
+    try:
+        return float(value) if value is not None else math.nan
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def cross_check(
     samples: dict[str, pd.DataFrame],
-    sampler_reports: dict[str, dict],
+    sampler_reports: Mapping[str, Mapping | None],
     laplace: LaplaceReport,
     tolerance: float,
     max_rhat: float,
@@ -446,16 +515,21 @@ def cross_check(
 ) -> pd.DataFrame:
     """Every method's posterior mean and std per parameter and its disagreement with the default
     sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
-    parameter, then mean_<method>, std_<method>, z_<method>, checked_<method> (SI).
+    parameter, then mean_<method>, std_<method>, z_<method>, checked_<method>, disagrees_<method>
+    (SI), and `disagreement`: the methods that disagree on the parameter ("" where none does).
 
-    The agreement is enforced (SamplerDisagreement) among the methods that converged by their
-    own diagnostics and the least-squares/Laplace solution; a method that did not converge (the
+    The agreement is checked among the methods that converged by their own diagnostics and the
+    least-squares/Laplace solution: disagrees_<method> is True where such a method is more than
+    `tolerance` errors from the default sampler (or its z is NaN). A disagreement is marked, not
+    raised: the campaign's results and report are made anyway, and the certificate says that the
+    fit is not confirmed by a second sampler (`disagreeing`). A method that did not converge (the
     paper's sampler usually: its chain does not travel far enough in 2e5 small steps) is shown
-    with its disagreement and marked, since its means carry a bias its MCSE does not measure.
-    `floor`: the combined error is at least this fraction of the posterior std, because
+    with its z and checked_<method> False, since its means carry a bias its MCSE does not
+    measure. `floor`: the combined error is at least this fraction of the posterior std, because
     autocorrelation times from chains of a few dozen tau underestimate the Monte Carlo error
     (seen: 1 false alarm in a 50-campaign fleet at 0.05); a difference of 0.1 std in a posterior
-    mean is far below what the posterior itself leaves uncertain.
+    mean is far below what the posterior itself leaves uncertain. A method without diagnostics
+    counts as not converged.
     """
     names = list(laplace.names) + [SIGMA]
     results = {}
@@ -466,15 +540,39 @@ def cross_check(
     results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
     table = diagnostics.cross_check(results, names, tolerance=None, reference="default", floor=floor)
     enforced = ["default", "laplace"] + [
-        m for m in samples if m != "default" and converged(sampler_reports[m], max_rhat, min_ess)
+        m for m in samples if m != "default" and converged(sampler_reports.get(m), max_rhat, min_ess)
     ]
-    diagnostics.check_agreement(table.loc[:, [c for c in table.columns if c[1] in enforced]], tolerance)
+    offenders = diagnostics.disagreements(table.loc[:, [c for c in table.columns if c[1] in enforced]], tolerance)
     flat = pd.DataFrame(index=table.index)
     for method in results:
         for quantity in ("mean", "std", "z"):
             flat[f"{quantity}_{method}"] = table[(quantity, method)]
         flat[f"checked_{method}"] = method in enforced
-    return flat.reset_index()
+        flat[f"disagrees_{method}"] = [(name, method) in {(o[0], o[1]) for o in offenders} for name in flat.index]
+    flat["disagreement"] = [", ".join(o[1] for o in offenders if o[0] == name) for name in flat.index]
+    if offenders:
+        log.warning(
+            "the samplers disagree beyond %g combined Monte Carlo errors (the fit is not confirmed by a second "
+            "sampler): %s",
+            tolerance,
+            "; ".join(f"{name}: {method} vs {reference} (z = {z:+.2f})" for name, method, reference, z in offenders),
+        )
+    out = flat.reset_index()
+    out.attrs["disagreements"] = offenders
+    return out
+
+
+def disagreeing(table: pd.DataFrame | None) -> dict[str, list[str]] | None:
+    """{parameter: [methods]} on which a `cross_check` table (as made, or read back from
+    cross_check.csv) records a disagreement; {} when every checked method agrees; None when there
+    is no table or it predates the `disagreement` column (the agreement was then enforced)."""
+    if table is None or "disagreement" not in table.columns or "parameter" not in table.columns:
+        return None
+    out = {}
+    for name, methods in zip(table["parameter"], table["disagreement"]):
+        if isinstance(methods, str) and methods.strip():
+            out[str(name)] = [m.strip() for m in methods.split(",") if m.strip()]
+    return out
 
 
 def moments(samples: pd.DataFrame) -> pd.DataFrame:
@@ -563,6 +661,8 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
             "%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers), outliers.tolist()
         )
     model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
+    for statement in analysis.statements():
+        log.info("%s: %s", sensor, statement)
     return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
 
 

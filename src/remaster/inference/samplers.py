@@ -41,6 +41,11 @@ OPTIMAL_RW_SCALE = 2.38**2  # Roberts, Gelman & Gilks (1997): proposal = 2.38^2 
 BLOCK = 4096  # random draws are made this many steps at a time: vectorised, bounded memory
 PROGRESS_REPORTS = 10  # progress is reported about every 10 % of the steps
 MAX_LOG_LAMBDA = math.log(1e12)  # the adaptive global scale stays within 1e-12 .. 1e12
+# A singular value of the Jacobian in step units (J * scale: mm and deg) below RCOND x the largest
+# is an undetermined combination: its variance would be 1e12 times the best-determined one's.
+# `least_squares_laplace` refuses it and `identifiability.analyse` holds it, by the same test
+# (`undetermined_directions`), so that no combination is left between the two.
+RCOND = 1e-6
 
 
 class SamplingError(RemasterError, ValueError):
@@ -665,13 +670,63 @@ def run_emcee(
     )
 
 
+def extend(
+    target: Target,
+    rng: np.random.Generator,
+    chain: Chain,
+    n_steps: int,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> Chain:
+    """`chain` (a random-walk Metropolis chain: the adaptive or the paper's) run on for n_steps
+    more steps from its last state with its own proposal, frozen since its burn-in, so the longer
+    chain is the same time-homogeneous Markov chain, only longer. settings["n_samples"] counts
+    the steps added, settings["doublings"] how many times it was extended."""
+    if "proposal_covariance" in chain.settings and chain.method == "metropolis_adaptive":
+        draw = _gaussian_steps(np.asarray(chain.settings["proposal_covariance"], dtype=float))
+    elif "proposal_half_widths" in chain.settings:
+        draw = _uniform_steps(np.asarray(chain.settings["proposal_half_widths"], dtype=float))
+    else:
+        raise ValueError(f"a {chain.method} chain cannot be extended: only random-walk Metropolis chains can")
+    if n_steps < 1:
+        raise ValueError(f"n_steps must be at least 1, got {n_steps}")
+    walker = _Walker(chain.samples[-1].copy(), float(chain.log_prob[-1]))
+    samples, log_probs, accepted = _walk(target, rng, walker, n_steps, draw, True, _Progress(progress, n_steps))
+    kept = chain.n_steps
+    accepted_before = round(chain.acceptance_rate * kept)  # the rate is a count over kept steps
+    settings = {
+        **chain.settings,
+        "n_samples": chain.settings.get("n_samples", kept) + n_steps,
+        "doublings": chain.settings.get("doublings", 0) + 1,
+    }
+    return Chain(
+        np.concatenate([chain.samples, samples]),
+        np.concatenate([chain.log_prob, log_probs]),
+        (accepted_before + accepted) / (kept + n_steps),
+        chain.names,
+        chain.method,
+        settings,
+    )
+
+
 def run_chains(
-    sampler_fn: Callable[..., Chain], target: Target, rng: np.random.Generator, n_chains: int, starts, **kw
+    sampler_fn: Callable[..., Chain],
+    target: Target,
+    rng: np.random.Generator,
+    n_chains: int,
+    starts,
+    *,
+    enough: Callable[[list[Chain]], bool] | None = None,
+    max_doublings: int = 0,
+    **kw,
 ) -> list[Chain]:
     """n_chains >= 2 independent runs of sampler_fn(target, child_rng, start, **kw).
 
     starts: (n_chains, P) one start each (overdispersed starts make R-hat meaningful) or (P,)
     shared. Child generators come from rng.spawn, so chain i is the same whatever n_chains.
+
+    enough: a test of the chains together (R-hat needs them all), e.g. the convergence criteria;
+    while it fails, every chain runs on (`extend`, its own generator) for as many kept steps
+    again, so the kept part doubles, at most max_doublings times (as `run_emcee` does).
     """
     if n_chains < 2:
         raise ValueError(f"run_chains needs n_chains >= 2 for between-chain diagnostics, got {n_chains}")
@@ -680,11 +735,28 @@ def run_chains(
         starts = np.broadcast_to(starts, (n_chains, len(starts)))
     if len(starts) != n_chains:
         raise ValueError(f"starts has {len(starts)} rows for {n_chains} chains")
-    return [sampler_fn(target, child, start, **kw) for child, start in zip(rng.spawn(n_chains), starts)]
+    children = rng.spawn(n_chains)
+    chains = [sampler_fn(target, child, start, **kw) for child, start in zip(children, starts)]
+    doublings = 0
+    while enough is not None and doublings < max_doublings and not enough(chains):
+        chains = [extend(target, child, c, c.n_steps, kw.get("progress")) for child, c in zip(children, chains)]
+        doublings += 1
+    return chains
 
 
 # --------------------------------------------------------------------------------------------
 # Least squares and the Laplace approximation
+
+
+def undetermined_directions(jacobian, scale, rcond: float = RCOND) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit-free identifiability test: (singular values (P,) of J * scale, largest first;
+    V^T (P, P) in step units; small (P,) bool, the singular values below rcond x the largest).
+    jacobian (k, P) SI; scale (P,) SI size of one step unit. A Jacobian without any non-zero
+    entry has every direction undetermined."""
+    j = np.asarray(jacobian, dtype=float) * np.asarray(scale, dtype=float)
+    _, singular, vt = np.linalg.svd(j, full_matrices=False)
+    small = singular < rcond * singular[0] if singular.size and singular[0] > 0 else np.ones(singular.size, bool)
+    return singular, vt, small
 
 
 def _undetermined(vt: np.ndarray, small: np.ndarray, names: Sequence[str]) -> list[dict[str, float]]:
@@ -705,7 +777,7 @@ def least_squares_laplace(
     jacobian=None,
     n_restarts: int = 0,
     restart_spread: float = 1.0,
-    rcond: float = 1e-6,
+    rcond: float = RCOND,
 ) -> LaplaceResult:
     """Minimise the sum of squared residuals(theta) (k,) over theta (P-1,) SI; Laplace covariance.
 
@@ -743,8 +815,7 @@ def least_squares_laplace(
         raise ValueError(f"{k} residuals cannot determine {m} parameters and sigma (need k > P + 1)")
     j = np.asarray(jacobian(fit.x) if jacobian is not None else fit.jac, dtype=float).reshape(k, m)
     # SVD of J in step units: a unit-free conditioning test; cov = D (J_s^T J_s)^-1 D s^2.
-    _, singular, vt = np.linalg.svd(j * scale, full_matrices=False)
-    small = singular < rcond * singular[0]
+    singular, vt, small = undetermined_directions(j, scale, rcond)
     if small.any():
         combos = _undetermined(vt, small, names)
         text = "; ".join(" + ".join(f"{w:+.3g}*{n}" for n, w in c.items()) for c in combos)
