@@ -1,6 +1,8 @@
 """The calibration certificate: numbers from the result files, an honest uncertainty of a mean
 error, corrections with U (k = 2), and the warnings a user must read."""
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
@@ -155,4 +157,83 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     text = certificate.to_markdown(cert)
     assert (
         text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
+    )
+
+
+def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
+    """A cross_check.csv as `fit.cross_check` writes it: every parameter, `disagreement` the
+    methods that disagree on it ("" where none)."""
+    names = ["zero_offsets.q2", "noise.sigma"]
+    return pd.DataFrame(
+        {
+            "parameter": names,
+            "z_emcee": [5.2 if "emcee" in disagree.get(n, "") else 0.3 for n in names],
+            "disagrees_emcee": ["emcee" in disagree.get(n, "") for n in names],
+            "disagreement": [disagree.get(n, "") for n in names],
+        }
+    )
+
+
+def test_samplers_that_disagree_are_in_the_verdict_and_the_warnings(tmp_path):
+    """A disagreement no longer stops the campaign: the certificate is made, its verdict says the
+    fit is not confirmed by a second sampler and names the parameter and the method, and so do its
+    warnings; agreeing samplers confirm it; no cross-check read says so."""
+    from remaster import files
+
+    path = files.write_csv(tmp_path / "cross_check.csv", _cross_check({"zero_offsets.q2": "emcee, laplace"}))
+    inputs = dataclasses.replace(_inputs(), cross_check=files.read_csv(path))
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
+    verdict = cert.verdicts.iloc[0]["Samplers"]
+    assert verdict == (
+        "the fit is not confirmed by a second sampler: they disagree on zero_offsets.q2 (emcee, laplace)"
+    )
+    warning = next(w for w in cert.warnings if "not confirmed" in w)
+    assert (
+        warning.startswith("Laser Tracker: the fit is not confirmed by a second sampler")
+        and "zero_offsets.q2" in warning
+    )
+    assert "not confirmed by a second sampler" in certificate.to_markdown(cert)
+    # agreeing samplers, as read back from a file whose `disagreement` column is empty (NaN)
+    path = files.write_csv(tmp_path / "agree.csv", _cross_check({}))
+    agreed = certificate.certificate(
+        SUMMARY, {"laser_tracker": dataclasses.replace(inputs, cross_check=files.read_csv(path))}
+    )
+    assert agreed.verdicts.iloc[0]["Samplers"] == certificate.CONFIRMED
+    assert not any("not confirmed" in w for w in agreed.warnings)
+    unchecked = certificate.certificate(SUMMARY, {"laser_tracker": _inputs()})
+    assert unchecked.verdicts.iloc[0]["Samplers"] == certificate.NOT_CHECKED
+
+
+def test_certificate_rows_take_missing_values_without_a_crash():
+    """None and NaN where numbers or sections are expected: blanks in the certificate, no crash."""
+    inputs = _inputs()
+    offsets = inputs.controller_offsets.copy().astype(object)
+    offsets.loc[1, "std_deg"] = None
+    offsets.loc[1, "correction_deg"] = np.nan
+    workspace = {"holds": None, "coverage": {"joint_range_fraction": [0.5, None]}, "warnings": None}
+    loop = dataclasses.replace(inputs.loop, closure={}, warnings=[])
+    inputs = dataclasses.replace(inputs, controller_offsets=offsets, workspace=workspace, loop=loop)
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
+    corrections = cert.corrections.set_index("Joint")
+    assert np.isnan(corrections.loc["j2", "U(Correction) (deg)"]) and np.isnan(
+        corrections.loc["j2", "Correction (deg)"]
+    )
+    verdict = cert.verdicts.iloc[0]
+    assert verdict["Holds"] == "" and verdict["Loop"] == ""
+    assert "q1 50 %, q2 nan %" in cert.warnings[0]
+    assert certificate.to_markdown(cert).startswith("# Calibration certificate: c")
+    # no validation rows at all: the verdict's after-values are blank, not an IndexError
+    empty = dataclasses.replace(inputs, configuration_errors=inputs.configuration_errors.iloc[:0])
+    verdict = certificate.certificate(SUMMARY, {"laser_tracker": empty}).verdicts.iloc[0]
+    assert np.isnan(verdict["Before: mean (mm)"]) and np.isnan(verdict["After: p95 (mm)"])
+
+
+def test_a_held_registration_parameter_is_a_warning():
+    inputs = _inputs()
+    laplace = dataclasses.replace(inputs.laplace, held={"zero_offsets.q1": 0.0, "registration.y": 0.0})
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
+    assert any("registration.y held" in w for w in cert.warnings)
+    assert not any(
+        "registration" in w and "held" in w
+        for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings
     )

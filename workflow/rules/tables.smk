@@ -43,6 +43,7 @@ SENSOR_TABLE_INPUTS = sensor_inputs(
     claims=f"{LOOP}/workspace_accuracy.csv",
     workspace=f"{LOOP}/workspace.json",
     offsets=f"{CALIBRATED}/controller_offsets.csv",
+    cross_check=f"{SENSOR}/{layout.CROSS_CHECK}",
     **{f"metrics_{t}": f"{ACC}/{t}.csv" for t in TABLE_NAMES},
 )
 TABLE_OUTPUTS = dict(

@@ -7,7 +7,8 @@ for each sensor (`remaster.stage_inputs.by_sensor`). Kinds: summary (fit/summary
 registration, metrics_<table> (metrics/<table>.csv), configuration_errors, loop_theoretical
 (loop_closure/theoretical_accuracy.csv), loop (loop_closure.json), loop_table
 (loop_closure/before_after.csv), loop_residuals, claims (workspace_accuracy.csv), workspace
-(workspace.json), offsets (calibrated/controller_offsets.csv).
+(workspace.json), offsets (calibrated/controller_offsets.csv), cross_check (fit/cross_check.csv,
+for the certificate's word on the samplers; optional).
 """
 
 from __future__ import annotations
@@ -71,6 +72,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
     claims = _each(files, "claims", result_files.read_csv)
     workspaces = _each(files, "workspace", result_files.read_json)
     offsets = _each(files, "offsets", result_files.read_csv)
+    cross_checks = _each(files, "cross_check", result_files.read_csv) if "cross_check" in files else {}
     paper_rows = _paper_rows(files)
     metrics = {s: {t: result_files.read_csv(files[f"metrics_{t}"][s]) for t in accuracy.TABLE_NAMES} for s in sensors}
 
@@ -111,6 +113,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
                 workspaces[s],
                 loops[s],
                 offsets[s],
+                cross_checks.get(s),
             )
             for s in sensors
         },

@@ -21,7 +21,7 @@ import pandas as pd
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
-from ..inference.fit import LaplaceReport
+from ..inference.fit import LaplaceReport, disagreeing
 from ..labels import sensor_label
 from ..loop.report import LoopReport
 from ..units import MM
@@ -36,7 +36,8 @@ class CertificateInputs:
     """One sensor's results the certificate reads. laplace: fit/laplace.json; configuration_errors:
     metrics/configuration_errors.csv; loop_residuals: loop_closure/residuals.parquet (m);
     workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
-    loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv."""
+    loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv; cross_check:
+    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read."""
 
     laplace: LaplaceReport
     configuration_errors: pd.DataFrame
@@ -45,6 +46,13 @@ class CertificateInputs:
     workspace: dict
     loop: LoopReport
     controller_offsets: pd.DataFrame
+    cross_check: pd.DataFrame | None = None
+
+
+# What the verdict says of the samplers' cross-check (`second_sampler`)
+CONFIRMED = "confirmed by a second sampler"
+NOT_CONFIRMED = "the fit is not confirmed by a second sampler"
+NOT_CHECKED = "not cross-checked"
 
 
 @dataclass(frozen=True)
@@ -152,41 +160,68 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
         {
             "Sensor": sensor_label(sensor),
             "Joint": r["joint"],
-            "Correction (deg)": r["correction_deg"] if r["status"] == "estimated" else np.nan,
-            "U(Correction) (deg)": COVERAGE_FACTOR * r["std_deg"] if r["status"] == "estimated" else np.nan,
+            "Correction (deg)": _number(r["correction_deg"]) if r["status"] == "estimated" else np.nan,
+            "U(Correction) (deg)": COVERAGE_FACTOR * _number(r["std_deg"]) if r["status"] == "estimated" else np.nan,
             "Status": r["status"],
         }
         for _, r in offsets.iterrows()
     ]
 
 
+def _number(value) -> float:
+    """value as a float; NaN for None, NaN or anything else that is not a number (a missing value
+    is a blank in the certificate, never a crash)."""
+    try:
+        return float(value) if value is not None else np.nan
+    except (TypeError, ValueError):
+        return np.nan
+
+
+def second_sampler(inputs: CertificateInputs) -> tuple[str, dict[str, list[str]]]:
+    """(what the verdict says of the samplers' cross-check, {parameter: [methods]} that disagree):
+    CONFIRMED, NOT_CONFIRMED (with the disagreements) or NOT_CHECKED (no cross-check read). A
+    cross-check written before disagreements were marked raised on any: it agreed."""
+    if inputs.cross_check is None:
+        return NOT_CHECKED, {}
+    disagree = disagreeing(inputs.cross_check)
+    if disagree:
+        return NOT_CONFIRMED, disagree
+    return CONFIRMED, {}
+
+
+def _disagreement_text(disagree: dict[str, list[str]]) -> str:
+    return ", ".join(f"{name} ({', '.join(methods)})" for name, methods in disagree.items())
+
+
 def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     by = {(r["Where"], r["Model"]): r for r in rows}
     before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
-    after = [r for (where, model), r in by.items() if where == "validation set (measured)"][-1]
+    after = ([r for (where, model), r in by.items() if where == "validation set (measured)"] or [{}])[-1]
     workspace = by.get(("claimed across the joint space", "loop-closed"), {})
-    holds = inputs.workspace.get("holds", {}).get("loop", {}).get("holds", "")
+    holds = ((((inputs.workspace or {}).get("holds") or {}).get("loop")) or {}).get("holds") or ""
+    samplers, disagree = second_sampler(inputs)
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
         "Sensor": sensor_label(sensor),
         "Before: mean (mm)": before.get("mean (mm)", np.nan),
         "U(Before: mean) (mm)": before.get("U(mean) (mm)", np.nan),
-        "After: mean (mm)": after["mean (mm)"],
-        "U(After: mean) (mm)": after["U(mean) (mm)"],
-        "After: p95 (mm)": after["p95 (mm)"],
-        "After: model": after["Model"],
+        "After: mean (mm)": after.get("mean (mm)", np.nan),
+        "U(After: mean) (mm)": after.get("U(mean) (mm)", np.nan),
+        "After: p95 (mm)": after.get("p95 (mm)", np.nan),
+        "After: model": after.get("Model", ""),
         "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
-        "Loop": inputs.loop.closure.get("verdict", ""),
+        "Loop": (inputs.loop.closure or {}).get("verdict") or "",
         "Holds": holds,
+        "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
     }
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
     """What the calibration was measured over: each joint's share of its range the measured
     configurations cover, and how far the tool axis turned (`workspace.json` coverage)."""
-    coverage = inputs.workspace.get("coverage", {})
-    fractions = coverage.get("joint_range_fraction", [])
-    parts = [", ".join(f"q{j + 1} {100 * f:.0f} %" for j, f in enumerate(fractions))] if fractions else []
+    coverage = (inputs.workspace or {}).get("coverage") or {}
+    fractions = coverage.get("joint_range_fraction") or []
+    parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
     if coverage.get("tool_axis_spread_deg") is not None:
         parts.append(f"every measured tool axis within {coverage['tool_axis_spread_deg']:.0f} deg of one direction")
     where = "; ".join(parts) if parts else "coverage not recorded"
@@ -200,18 +235,33 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, the loop
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
     refit short of the convergence criteria), the workspace warnings (near the measured poses
-    only, prior-dominated parameters, what the next campaign should add) and the held joints."""
+    only, prior-dominated parameters, what the next campaign should add), the held joints, any
+    held registration parameter, and samplers that disagree (the fit not confirmed)."""
     label = sensor_label(sensor)
     out = []
+    _, disagree = second_sampler(inputs)
+    if disagree:
+        out.append(
+            f"{label}: {NOT_CONFIRMED}: the samplers' posterior means disagree beyond the cross-check's "
+            f"tolerance on {_disagreement_text(disagree)} (fit/cross_check.csv); the results are the "
+            "default sampler's"
+        )
     if inputs.laplace.outlier_rows:
         out.append(
             f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
             f"(rows {list(inputs.laplace.outlier_rows)})"
         )
-    out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings]
-    out += [f"{label}: {w}" for w in inputs.workspace.get("warnings", [])]
-    if inputs.workspace.get("held_note"):
-        out.append(f"{label}: {inputs.workspace['held_note']}")
+    held_registration = [n for n in inputs.laplace.held if not n.startswith("zero_offsets.")]
+    if held_registration:
+        out.append(
+            f"{label}: the data do not determine the registration fully: {', '.join(held_registration)} held "
+            "(fit/laplace.json, identifiability)"
+        )
+    out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings or ()]
+    workspace = inputs.workspace or {}
+    out += [f"{label}: {w}" for w in workspace.get("warnings") or ()]
+    if workspace.get("held_note"):
+        out.append(f"{label}: {workspace['held_note']}")
     return out
 
 

@@ -36,7 +36,8 @@ CAPTIONS = {
     "optimization set; never picked by these validation numbers), its 95th percentile, what the "
     "loop-closed model claims across the joint space (the bound on its 95th percentile, "
     "95 % posterior probability), whether the loop is closed against the "
-    "sensor's noise, and where the calibration holds.",
+    "sensor's noise, where the calibration holds, and whether a second sampler confirms the fit "
+    "(Samplers: the samplers' cross-check, with the parameters they disagree on).",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
     "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
     "and as the posteriors claim it at the measured configurations and across the joint "
