@@ -382,3 +382,46 @@ def test_the_prepare_stage_finishes_on_the_arms_real_calibrations_meet(kind, tmp
         assert set(laplace.held) == HELD.get(kind, {"zero_offsets.q1"})
         assert [s.split(" ")[0] for s in laplace.held_statements] == list(laplace.held)
         assert np.all(np.isfinite(laplace.std))
+
+
+def test_the_fit_summary_goes_on_when_the_samplers_disagree():
+    """The bundled twin's laser tracker with emcee's samples shifted by 5 posterior std on joint
+    3: the fit summary stage (cross-check, summary, discrepancy, remastering, accuracy) finishes,
+    its cross-check marks joint 3 and emcee, and the summary is the default sampler's."""
+    from remaster.analysis import fit_summary
+    from remaster.campaigns import folders
+
+    from .conftest import REPO
+
+    campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
+    registration, content = fit.prepare_stage(campaign, "laser_tracker", 0.01)
+    registration = fit.Registration.of(registration)
+    laplace = fit.LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
+    model, _, _ = fit.build_model(
+        campaign.chain, campaign.sensors["laser_tracker"], registration.t_nr, exclude=laplace.outlier_rows
+    )
+    samples, reports = {}, {}
+    for method, settings in (
+        ("default", {"chains": 2, "samples": 12000, "burn_in": 2000}),
+        ("emcee", {"walkers": 32, "steps": 1500, "burn_in": 500}),
+    ):
+        chains = fit.sample(model, laplace, method, settings, np.random.default_rng(3))
+        samples[method], reports[method] = fit.samples_frame(chains), fit.sampler_diagnostics(chains, 1.0)
+    samples["emcee"]["zero_offsets.q3"] += 5 * samples["emcee"]["zero_offsets.q3"].std()
+    result = fit_summary.fit_summary_stage(
+        campaign,
+        "kuka-twin",
+        "laser_tracker",
+        registration,
+        laplace,
+        samples,
+        reports,
+        {"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1},
+        np.random.default_rng(4),
+        n_draws=50,
+        n_random=20,
+    )
+    assert fit.disagreeing(result.cross_check) == {"zero_offsets.q3": ["emcee"]}
+    summary = result.summary.set_index("parameter")
+    assert summary.loc["zero_offsets.q3", "mean"] == pytest.approx(samples["default"]["zero_offsets.q3"].mean())
+    assert len(result.remastering["joints"]) == 7 and "report" in result.accuracy
