@@ -44,7 +44,7 @@ rule sample:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(10, at_least=15),
     params:
-        # emcee runs until the cross-check's convergence criteria hold (fit/emcee/max_doublings)
+        # emcee and the default sampler run until the cross-check's convergence criteria hold (fit/<method>/max_doublings)
         settings=lambda wc: {**config["fit"][wc.method], "convergence": config["fit"]["cross_check"]},
         seed=config["seed"],
     script:
