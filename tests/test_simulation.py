@@ -112,7 +112,7 @@ def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_pat
 
 def test_truth_records_every_effect(iiwa):
     out = scenario.simulate(small_scenario(joint_scale=[1e-4] * 7, drift_deg_per_hour=[0.01] + [0.0] * 6), iiwa)
-    assert set(out.truth["effects"]) == {"joint_compliance", "link_geometry", "joint_scale", "drift"}
+    assert set(out.truth["effects"]) == {"joint_compliance", "link_motions", "joint_scale", "drift"}
     np.testing.assert_allclose(out.truth["zero_offsets_deg"], [0.477, -0.192, 0.139, 0.099, 0.392, -0.114, 0.936])
     assert "truth" not in out.metadata and "effects" not in str(out.metadata)
 
@@ -245,7 +245,8 @@ def test_truth_records_rigid_link_motions_and_keeps_the_legacy_form(iiwa):
     assert "link_motions" in rigid.truth["effects"] and "link_geometry" not in rigid.truth["effects"]
     robot = scenario.robot_from_truth(rigid.truth)
     assert robot.link_motions.shape == (8, 6) and robot.link_errors is None
-    legacy = scenario.simulate(small_scenario(), iiwa)  # kuka-twin's {length_std, twist_std, seed}
+    legacy_sizes = {"length_std": 1.2e-4, "twist_std": 1.2e-4, "seed": 14}  # the twin's until its rigid truth
+    legacy = scenario.simulate(small_scenario(link_errors=legacy_sizes), iiwa)
     robot = scenario.robot_from_truth(legacy.truth)
     assert robot.link_errors.shape == (8, 2) and robot.link_motions is None
     draw = np.random.default_rng(14)

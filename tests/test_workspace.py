@@ -215,31 +215,21 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
 
 
-MOTION_CAPTURE_LOOP = pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "known: the noise of the bundled twin's motion capture puts joint 3's compliance 2.8 std from its true 0 "
-        "(its payload term, posterior correlation -0.97, the other way; with a tenth of the noise the same seed "
-        "gives about the same z, so a fluctuation, not a missing effect), and at random configurations, where "
-        "joint 3 moves, the true 95 % quantile is about twice the claim, above the bound too "
-        "(benchmarks/bench_claim_coverage.py: over 20 new seeds the bound covers the truth 19 times)"
-    ),
-)
-
-
 @pytest.mark.parametrize(
     "sensor, model",
     [
         ("laser_tracker", "paper"),
         ("laser_tracker", "loop"),
         ("motion_capture", "paper"),
-        pytest.param("motion_capture", "loop", marks=MOTION_CAPTURE_LOOP),
+        ("motion_capture", "loop"),
     ],
 )
 def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, model):
     """At the robot's random configurations, the claimed error distribution (registration fitted)
     reaches at least the true 95 % quantile; in the robot frame, with joint 1 at the controller
-    marks' tolerance, too."""
+    marks' tolerance, too. (The loop-closed motion-capture claim used to miss it, by half, where
+    joint 3, never measured, moves: the two-parameter link model could not hold the twin's link
+    errors there and its posterior did not know; the complete model leaves them to their priors.)"""
     result, campaign, laplace = claims_of("kuka-twin", sensor, tmp_path_factory)
     q = prediction.robot_configurations(campaign.chain, comparison.robot_identity(campaign), RANDOM, SEED)
     truth = true_points(campaign, sensor, q)
@@ -267,8 +257,10 @@ def test_the_twins_loop_rows_and_notes(tmp_path_factory):
     rows = result.theoretical.set_index("table")
     assert set(rows.index) == set(workspace.THEORETICAL_TABLES) and (rows["method"] == workspace.LOOP_METHOD).all()
     assert samples[SIGMA].mean() < 2 * campaign.sensors["laser_tracker"].noise  # closed to the sensor's noise
-    assert result.report["holds"]["loop"]["holds"] == "across the joint space"
-    assert "link_geometry.F1.length" in result.report["unseen_anywhere"]  # absorbed by any registration
+    # joint 3 never moved: the link errors it would have shown keep their priors, and the claim
+    # across the joint space is wide enough to say so
+    assert result.report["holds"]["loop"]["holds"] == "near the measured poses only"
+    assert "link_geometry.F1.x" in result.report["unseen_anywhere"]  # absorbed by any registration
 
 
 # --------------------------------------------------------------------------- kuka-cubes: one tool orientation
@@ -311,17 +303,18 @@ def on_twin(calibration) -> np.ndarray:
     return transfer.transfer_errors(calibration, target)
 
 
-def test_priors_make_the_cubes_calibration_transfer(tmp_path_factory):
-    """With flat priors the effects fitted on one tool orientation predict the twin's poses much
-    worse than with priors of tolerance size (the marker offset that stands in for joint 7's
-    unseen zero-offset is held at 0 without its prior); with them, much better than nominal."""
+def test_the_cubes_calibration_transfers_no_worse_with_priors(tmp_path_factory):
+    """One tool orientation (kuka-cubes) sees nothing of the marker's place on the plate (its error is
+    a constant the registration takes) nor of link errors its poses do not excite: the effects fitted
+    there, under priors of tolerance size, predict the twin's poses no worse than a flat fit (which
+    holds what the data cannot see at 0) and better than the nominal robot; how far from the truth
+    they are there, the cubes' own workspace-wide claim says beforehand (next test)."""
     fitted("kuka-cubes", "laser_tracker", tmp_path_factory)
     with_priors = np.sqrt(np.mean(on_twin(cubes_calibration(priors_from(CONFIG["priors"]))) ** 2))
     flat = np.sqrt(np.mean(on_twin(cubes_calibration(None)) ** 2))
     nominal = np.sqrt(np.mean(on_twin(prediction.Calibration("nominal")) ** 2))
-    assert "marker_offset" in fitted("kuka-cubes", "laser_tracker", None)[2].effects_added
-    assert flat > 3 * with_priors, (flat, with_priors)
-    assert with_priors < 0.5 * nominal, (with_priors, nominal)
+    assert with_priors <= flat * (1 + 1e-6), (flat, with_priors)
+    assert with_priors < 0.9 * nominal, (with_priors, nominal)
 
 
 def test_the_cubes_calibration_warned_before_the_transfer_proved_it(tmp_path_factory):
