@@ -28,8 +28,14 @@ MICRO = 1e-6
 
 # config key: (SI size of one display unit, what it is the std of)
 KEYS = {
-    "link_translation_mm": (MM, "translation error of each fixed link transform, per axis of its frame (link_geometry.*.x/y/z)"),
-    "link_rotation_deg": (DEG, "rotation error of each fixed link transform, per axis of its frame (link_geometry.*.rx/ry/rz)"),
+    "link_translation_mm": (
+        MM,
+        "translation error of each fixed link transform, per axis of its frame (link_geometry.*.x/y/z)",
+    ),
+    "link_rotation_deg": (
+        DEG,
+        "rotation error of each fixed link transform, per axis of its frame (link_geometry.*.rx/ry/rz)",
+    ),
     "marker_offset_mm": (MM, "marker position error per axis, flange frame (marker_offset.*)"),
     "joint_compliance_urad_per_Nm": (MICRO, "compliance of each joint and its payload term (joint_compliance.*)"),
     "joint_scale_ppm": (MICRO, "scale (gear-ratio) error of each joint reading (joint_scale.*)"),
