@@ -121,3 +121,17 @@ def test_the_payload_compliance_of_a_urdf_tool_comes_out_zero_not_minus_the_join
         assert fitted == pytest.approx([compliance, 0.0], abs=1e-12)
         before = np.linalg.lstsq(np.column_stack([old[:, j], old[:, j] - true[:, j]]), deflection, rcond=None)[0]
         assert before == pytest.approx([compliance, -compliance], rel=1e-6)
+
+
+def test_predictions_take_the_torques_the_fit_took(rng):
+    """`remaster predict` and the fit's readings assume the same payload: on a URDF that carries its
+    tool, the predictor's compliance torques are the readings' (the plate once, not plus 1 kg)."""
+    from remaster.analysis import prediction
+
+    chain = with_tool_plate("iiwa_link_ee")
+    q = rng.uniform(chain.lower, chain.upper, (5, 7))
+    settings = blocks.ModelSettings(payload_mass=1.0)
+    predictor = prediction.Predictor(chain, q, np.zeros(3), ("joint_compliance",), settings)
+    loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
+    np.testing.assert_array_equal(predictor.model.data.torques, loaded.torques)
+    np.testing.assert_array_equal(predictor.model.data.payload_torques, loaded.payload_torques)

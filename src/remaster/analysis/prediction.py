@@ -43,7 +43,7 @@ from ..inference import metrics
 from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters, link_errors
 from ..inference.fit import LaplaceReport
 from ..loop.report import LoopReport
-from ..robot.gravity import gravity_torques
+from ..robot.gravity import loaded_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
 from ..units import MM
 from . import comparison
@@ -125,12 +125,11 @@ class Predictor:
     ):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         kept = tuple(b for b in EXTENSIONS if b in blocks and b not in SETUP_BLOCKS)
-        torques = (
-            gravity_torques(chain, q, settings.payload_mass, settings.payload_com)
-            if "joint_compliance" in kept
-            else np.zeros_like(q)
-        )
-        payload = torques - gravity_torques(chain, q) if "joint_compliance" in kept else np.zeros_like(q)
+        if "joint_compliance" in kept:  # the torques the fit's readings had: a URDF's own tool counted once
+            loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
+            torques, payload = loaded.torques, loaded.payload_torques
+        else:
+            torques = payload = np.zeros_like(q)
         data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), torques, payload)
         self.model = BlockModel(chain, data, marker, np.eye(4), kept)
 

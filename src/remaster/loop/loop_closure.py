@@ -169,7 +169,8 @@ def close_loop(
         "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
         "gain for reference. The validation set is not used to select.",
         selection_data="optimization set only",
-        settings=settings.report(),
+        # which payload the compliance's torques assume: the configured one, or a URDF's own tool
+        settings={**settings.report(), "payload_assumed": settings.model.payload(chain).report()},
         effects_added=tuple(selection.added),
         explained_fraction_when_added=explained,
         candidates=_per_candidate(selection.rounds),
