@@ -32,8 +32,8 @@ lies in the span of the zero-offsets, the registration and the parameters kept b
 marker offset, whether the model estimates it or not, and a sensor scale) is absorbed by them at
 every configuration; it is not a parameter of the error model and is held at 0 (all six of F_1
 against the registration, the tool's against the marker, each rotation about a joint's own axis
-against its zero-offset, a translation along two parallel axes once). What is left is a parameter of the robot; what this campaign's data cannot
-determine (a joint it never moved) keeps its prior.
+against its zero-offset, a translation along two parallel axes once). What is left is a parameter
+of the robot; what this campaign's data cannot determine (a joint it never moved) keeps its prior.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
 vector, a predict function and the paper's log-posterior (both it and `ZeroOffsetModel` are a
@@ -79,8 +79,9 @@ ABSORBED = 1e-6
 # (`structural_redundancy`): a Halton sequence, the same every run, enough to move every joint
 # through many combinations of the others for chains of up to a dozen joints.
 STRUCTURAL_CONFIGURATIONS = 96
-# Link-geometry parameters that can be absorbed by the geometry alone; the marker offset and a
-# sensor scale are physical quantities of the set-up, never dropped for structure.
+# The blocks that take part in deciding structural redundancy (`structural_redundancy`): only
+# link-geometry parameters are dropped for structure; the marker offset and a sensor scale are
+# quantities of the set-up, part of the span they are tested against.
 GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry")
 # Below this sine a kept parameter is weakly determined (its std alone would grow more than a
 # thousandfold): reported, so that a reader knows its prior is doing the work.
@@ -562,9 +563,10 @@ def structural_redundancy(model: BlockModel) -> dict[str, str]:
     """{name: why} of the model's free link-geometry parameters that the zero-offsets (all of
     them, free), the registration, the marker offset (always: the tool's link error that only moves
     the marker is the marker's offset, in a model that has one or not) and the geometric parameters
-    before them (sensor scale, earlier link parameters kept) absorb at every configuration: Gram-Schmidt of their
-    unit-length Jacobian columns at `spread_configurations`, in model order; a column whose sine to
-    that span is below ABSORBED is absorbed, and `why` names the parameters that absorb it."""
+    before them (sensor scale, earlier link parameters kept) absorb at every configuration:
+    Gram-Schmidt of their unit-length Jacobian columns at `spread_configurations`, in model order;
+    a column whose sine to that span is below ABSORBED is absorbed, and `why` names the parameters
+    that absorb it."""
     if not any(model.block_of[n] == "link_geometry" for n in model.names):
         return {}
     q = spread_configurations(model.chain)
