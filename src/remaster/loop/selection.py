@@ -25,6 +25,16 @@ from .settings import LoopSettings
 GP = "residual_gp"
 NOISE_SEARCH_WIDTH = 3.0  # prior stds of log g either side of its median searched for the mode
 MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
+# Blocks a candidate is offered with when the model lacks them: the link geometry is complete only
+# with the marker offset, which holds the tool link's error that only moves the marker
+# (`blocks.structural_redundancy`); offered alone, neither explains a rigid error of the tool.
+COMPANIONS = {"link_geometry": ("marker_offset",)}
+
+
+def with_companions(candidate: str, added, remaining) -> tuple[str, ...]:
+    """The blocks a candidate brings into the model: itself and its companions not yet added (and
+    still offered)."""
+    return (candidate,) + tuple(c for c in COMPANIONS.get(candidate, ()) if c not in added and c in remaining)
 
 
 # --------------------------------------------------------------------------- accuracy measures
@@ -201,7 +211,7 @@ def select(
                     data,
                     marker,
                     t_nr,
-                    tuple(added) + (candidate,),
+                    tuple(added) + with_companions(candidate, added, remaining),
                     base_held,
                     folds,
                     settings.priors,
@@ -227,8 +237,9 @@ def select(
         if best is None:
             break
         current = fits[best]
-        added.append(best)
-        remaining.remove(best)
+        for block in with_companions(best, added, remaining):
+            added.append(block)
+            remaining.remove(block)
     noise_choice = None
     if tracker and settings.tracker_noise is not None:
         current, noise_choice = choose_noise(current, folds, settings)
