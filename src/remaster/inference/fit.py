@@ -348,7 +348,7 @@ def sample(
                 n_walkers=settings["walkers"],
                 n_steps=settings["steps"],
                 burn_in=settings["burn_in"],
-                enough=_converged_ensemble(target.names, settings.get("convergence")),
+                enough=converged_ensemble(target.names, settings.get("convergence")),
                 max_doublings=settings.get("max_doublings", 0),
             )
         ]
@@ -400,7 +400,7 @@ def _extremes(report: pd.DataFrame) -> dict:
     }
 
 
-def _converged_ensemble(names, criteria: Mapping | None):
+def converged_ensemble(names, criteria: Mapping | None):
     """The test that an ensemble's kept paths (n_steps, n_walkers, P) meet the cross-check's
     criteria (max_rhat, min_ess), judged as `sampler_diagnostics` judges it (the walkers' two
     halves as two chains); None without criteria."""

@@ -23,8 +23,9 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    is tried last by the same two tests; fitted or not, it says which joints what is left depends on.
    After every step the closure test (`remaster.loop.closure`) compares the cross-validated residual
    with the sensor's noise and says what share of the structured residual the step removed.
-3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation, run
-   longer until it meets the project's convergence criteria, or reported as not converged) so
+3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation; where
+   that misses the project's convergence criteria, emcee's ensemble run longer until it meets
+   them, or reported as not converged) so
    that every parameter carries uncertainty; say which parameters the data barely moved from
    their prior.
 4. Only then the VALIDATION set: accuracy before (zero-offset model) and after (the selected
