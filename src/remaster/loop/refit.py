@@ -57,8 +57,8 @@ def refit(
     (`gauge.sampling_coordinates`: the model's exact symmetries folded out). When that run misses
     the criteria (every R-hat <= max_rhat and every ESS >= min_ess), the Laplace approximation is
     too far from the posterior for an independence sampler, and emcee's ensemble (2 P + 2 walkers,
-    at least MIN_WALKERS) runs from the same mode, as many steps as the first run, doubled until
-    the criteria hold, at most max_doublings times. Returns the chains, in the model's own
+    at least MIN_WALKERS) runs from the same mode, a burn-in as long as the first run, then as many
+    steps again, doubled until the criteria hold, at most max_doublings times. Returns the chains, in the model's own
     parameters, and a JSON-ready report: the last run's diagnostics, every attempt (with its
     sampler), the coordinates, and `converged`."""
     target = fit.PosteriorTarget(mode.model)
@@ -91,7 +91,10 @@ def refit(
         # times the independence sampler's steps left R-hat 1.3-2.2 converge in 12-60 s)
         started = time.perf_counter()
         walkers = max(MIN_WALKERS, 2 * len(mean) + 2)
-        steps, burn_in = int(run["samples"]), int(run["burn_in"])
+        # the ensemble starts in the Laplace ball and must first spread along the ridges: a burn-in
+        # as long as the first run's samples (with the first run's 500 steps it was still drifting
+        # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
+        steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
         ensemble = samplers.run_emcee(
             target,
             rng,
