@@ -198,7 +198,7 @@ def _fit_two_parameter_model(chain, q, marker, points) -> np.ndarray:
         robot = simulation.TrueRobot(zero_offsets=x[:n], link_errors=x[n:].reshape(n + 1, 2))
         return (kinematics.marker_positions(simulation.true_chain(chain, robot), q + x[:n], marker) - points).ravel()
 
-    fit = least_squares(residual, np.zeros(n + 2 * (n + 1)), x_scale=1e-3, xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    fit = least_squares(residual, np.zeros(n + 2 * (n + 1)), x_scale=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     return fit.fun
 
 
