@@ -196,3 +196,32 @@ def test_a_campaign_without_a_dh_table_gets_none_and_a_clear_refusal():
     with pytest.raises(InputError, match="no DH table") as refusal:
         calibrated.calibrated_dh_tables(campaign, "laser_tracker", pd.DataFrame(), {})
     assert refusal.value.key == "robot/dh"
+
+
+def test_a_model_dh_can_hold_whose_transforms_are_not_each_of_dh_form_gets_an_exact_table(rng):
+    """Link errors of DH form, written into the six-parameter model and then moved between
+    neighbouring transforms (a shift along a joint's own axis traded from one side of the joint to
+    the other: the same robot): no transform is of DH form alone, the least-squares table holds the
+    model exactly and says how it was found."""
+    dh_chain = kinematics.chain_from_dh(UR5_DH, "standard")
+    values = dh_form_values(dh_chain, dh_chain, UR5_DH, "standard", None, rng)
+    # F3 Rot(z, q3) F4 = (F3 Tz(s)) Rot(z, q3) (Tz(-s) F4): 0.5 mm along joint 3's own axis moved
+    # from one side of the joint to the other, the same robot, with F3 and F4 off the DH form
+    shift = spatial.translation(z=0.5e-3)
+    errors = blocks.link_errors(dh_chain, values)
+    nominal = dh_chain.joint_transforms
+    d3 = kinematics.small_motion(errors[2]) @ shift
+    d4 = np.linalg.inv(nominal[3]) @ np.linalg.inv(shift) @ nominal[3] @ kinematics.small_motion(errors[3])
+    moved = dict(values)
+    for row, motion in ((2, kinematics.small_motion_of(d3)), (3, kinematics.small_motion_of(d4))):
+        for column, part in enumerate(kinematics.LINK_MOTION):
+            moved[f"link_geometry.F{row + 1}.{part}"] = float(motion[column])
+    q = rng.uniform(-2.5, 2.5, (40, 6))
+    np.testing.assert_allclose(
+        prediction.robot_points(dh_chain, q, MARKER, moved, ("link_geometry",)),
+        prediction.robot_points(dh_chain, q, MARKER, values, ("link_geometry",)),
+        atol=1e-12,
+    )
+    table = dh_table.calibrated_dh(dh_chain, {"convention": "standard", "rows": UR5_DH}, moved, q)
+    assert table["exact"] and table["not_dh_form"] == [] and "least squares" in table["method"]
+    assert table["max_position_difference_m"] < 1e-9
