@@ -217,17 +217,16 @@ def sampling_coordinates(
     target: samplers.Target, model, mean, covariance, rng: np.random.Generator
 ) -> tuple[samplers.Target, np.ndarray, np.ndarray, Gauge | None, dict]:
     """The coordinates in which `target` (a `fit.PosteriorTarget` of a block model) is closest to
-    its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own,
-    every fold, or every fold but the marker's turn (which straightens the marker's trade with the
-    last joint but bends its trade with the registration, the one a campaign whose tool never
-    turns has). Returns the target, mean and covariance in the chosen coordinates, the gauge
-    (None: the model's own) and a JSON-ready report of each option's mismatch."""
+    its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own, or
+    the marker turned about the last joint's axis where that applies (it straightens the marker's
+    trade with the last joint but bends its trade with the registration, the one a campaign whose
+    tool never turns has: the mismatch decides). Returns the target, mean and covariance in the
+    chosen coordinates, the gauge (None: the model's own) and a JSON-ready report of each option's
+    mismatch."""
     options = {"model parameters": None}
-    for label, turn in (("folded", True), ("folded, marker not turned", False)):
-        gauge = Gauge.of(target.names, model.chain, model.marker, model.t_nr, covariance, turn_marker=turn)
-        kinds = [type(f) for f in gauge.folds] if gauge is not None else None
-        if kinds and all(kinds != [type(f) for f in g.folds] for g in options.values() if g is not None):
-            options[label] = gauge
+    folded = Gauge.of(target.names, model.chain, model.marker, model.t_nr, covariance)
+    if folded is not None:
+        options["folded"] = folded
     mismatch, laplace = {}, {}
     for label, gauge in options.items():
         laplace[label] = (mean, covariance) if gauge is None else gauge.laplace(mean, covariance, target.scale)
