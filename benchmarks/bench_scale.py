@@ -137,7 +137,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
             config["accuracy"]["random_configurations"],
         ),
     )
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     record(
         "loop closure",
         measured(

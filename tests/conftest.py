@@ -56,7 +56,7 @@ def loop_settings(config=None, **changes):
     from remaster.loop.settings import settings_from
 
     config = validated_config(config)
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     return dataclasses.replace(settings, **changes)
 
 

@@ -140,7 +140,9 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         registered = fit.registration_stage(campaign, sensor)
         _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
         laplace = fit.LaplaceReport.of(_laplace_content[key])
-        settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+        settings = settings_from(
+            config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]
+        )
         result = loop_closure.loop_closure_stage(
             campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings
         )

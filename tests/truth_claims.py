@@ -76,7 +76,7 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     config = files.read_yaml(REPO / "config.yaml")
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     result = loop_closure.loop_closure_stage(
         campaign, sensor, registered, laplace, np.random.default_rng(seed), settings
     )

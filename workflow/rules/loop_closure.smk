@@ -25,6 +25,7 @@ rule loop_closure:
         settings=config["loop_closure"],
         priors=config["priors"],
         convergence=config["fit"]["cross_check"],
+        outliers=config["outliers"],
         seed=config["seed"],
     script:
         "../scripts/loop_closure.py"

@@ -19,6 +19,6 @@ with files.log_to(snakemake.log[0]):
         fit.Registration.read(i.registration),
         fit.LaplaceReport.read(i.laplace),
         seeding.generator(p.seed, w.campaign, w.sensor, "loop_closure"),
-        settings.settings_from(p.settings, p.priors, p.convergence),
+        settings.settings_from(p.settings, p.priors, p.convergence, p.outliers),
     )
     result.write(**{name: out[name] for name in ("report", "table", "signatures", "residuals", "samples", "gp")})

@@ -313,6 +313,50 @@ def _cubes(size: dict, where: str) -> list[tuple[np.ndarray, float]]:
     return out
 
 
+GROSS_ERROR_KEYS = ("optimization", "validation", "size_mm")
+
+
+def inject_gross_errors(xyz, sets, spec, rng: np.random.Generator, where: str) -> tuple[np.ndarray, dict]:
+    """Gross errors of a sensor, independent of any fit: `spec` {optimization: count, validation:
+    count, size_mm: [low, high]} puts that many glitches on distinct measured rows of each set
+    (rows drawn uniformly), each a displacement of a size uniform in [low, high] mm in a uniformly
+    random direction. xyz (n, 3) m measured positions (NaN: not seen), sets (n,) each row's set.
+    Returns the new positions and the truth file's record: {'rows': {set: [rows]}, 'size_mm',
+    'glitches': [{'row', 'set', 'displacement_m'}]}."""
+    spec = _checked_keys(spec, GROSS_ERROR_KEYS, f"{where}/gross_errors")
+    size = spec.get("size_mm", [2.0, 5.0])
+    if (
+        not isinstance(size, (list, tuple))
+        or len(size) != 2
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in size)
+        or not 0 < size[0] <= size[1]
+    ):
+        raise InputError(
+            f"needs [low, high] mm with 0 < low <= high, got {size!r}", key=f"{where}/gross_errors/size_mm"
+        )
+    xyz = np.array(xyz, dtype=float)
+    sets = np.asarray(sets)
+    rows, glitches = {}, []
+    for set_name in ("optimization", "validation"):
+        count = spec.get(set_name, 0)
+        measured = np.flatnonzero((sets == set_name) & np.all(np.isfinite(xyz), axis=1))
+        if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= len(measured):
+            raise InputError(
+                f"needs a whole number of rows from 0 to the set's {len(measured)} measured rows, got {count!r}",
+                key=f"{where}/gross_errors/{set_name}",
+            )
+        chosen = np.sort(rng.choice(measured, size=count, replace=False))
+        direction = rng.normal(size=(count, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        displacement = direction * rng.uniform(size[0], size[1], (count, 1)) * 1e-3
+        xyz[chosen] += displacement
+        rows[set_name] = chosen.tolist()
+        glitches += [
+            {"row": int(r), "set": set_name, "displacement_m": d.tolist()} for r, d in zip(chosen, displacement)
+        ]
+    return xyz, {"rows": rows, "size_mm": [float(v) for v in size], "glitches": glitches}
+
+
 def copies(spec: dict, count: int | None, seed: int | None = None):
     """(scenario, seed) pairs: the scenario itself, or `count` copies named <name>-001, ... with
     consecutive seeds from `seed` (default the scenario's), for a simulated fleet."""
@@ -402,6 +446,9 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         xyz = measure(chain, robot, sensor, q, rng, elapsed)
         unseen = rng.choice(len(xyz), size=int(spec["sensors"][name].get("missing", 0)), replace=False)
         xyz[np.sort(unseen)] = np.nan
+        glitches = spec["sensors"][name].get("gross_errors")
+        if glitches is not None:
+            xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
         table = readings.copy()
         table[["x", "y", "z"]] = xyz
         table["time"] = times
@@ -415,6 +462,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
             "T_NR": sensor.robot_to_sensor.tolist(),
             "pose_in_robot": sensor.pose_in_robot.tolist(),
             "unseen_rows": sorted(int(i) for i in unseen),
+            **({"gross_errors": glitched} if glitches is not None else {}),
             "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
         }
     metadata = {

@@ -60,28 +60,47 @@ from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import closure
+from . import closure, gross
 from .frames import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .report import LoopReport
 from .selection import Selection, Signature, accuracy, select
 from .settings import LoopSettings
 
+MEASURES = (
+    ("rmse_mm", "post-registration RMSE (mm)"),
+    ("rms_per_axis_mm", "RMS per axis (mm)"),
+    ("mean_error_mm", "mean post-registration error (mm)"),
+    ("relative_mean_mm", "mean relative error (mm)"),
+)
+
 
 def before_after_table(
-    before: dict, after: dict, sigma_before: float, sigma_after: float, parameters: tuple[int, int]
+    before: dict,
+    after: dict,
+    sigma_before: float,
+    sigma_after: float,
+    parameters: tuple[int, int],
+    kept: Mapping[str, Mapping[str, dict]] | None = None,
+    flagged: Mapping[str, np.ndarray] | None = None,
 ) -> pd.DataFrame:
-    """The report's table: accuracy on both sets, sigma and parameter count, before (zero-offset
-    model) and after (with the effects added)."""
+    """The report's table: accuracy on both sets (without the rows flagged as gross errors), sigma
+    and parameter count, before (zero-offset model) and after (with the effects added); then, for
+    a set with flagged rows, the same measures with them (kept: {set: {'before', 'after'}})."""
     rows = [("sigma (mm)", sigma_before / MM, sigma_after / MM), ("free parameters", parameters[0], parameters[1])]
     for set_name in SETS:
-        for key, label in (
-            ("rmse_mm", "post-registration RMSE (mm)"),
-            ("rms_per_axis_mm", "RMS per axis (mm)"),
-            ("mean_error_mm", "mean post-registration error (mm)"),
-            ("relative_mean_mm", "mean relative error (mm)"),
-        ):
+        for key, label in MEASURES:
             rows.append((f"{set_name}: {label}", before[set_name][key], after[set_name][key]))
+    for set_name, pair in (kept or {}).items():
+        count = len((flagged or {}).get(set_name, ()))
+        for key, label in MEASURES:
+            rows.append(
+                (
+                    f"{set_name} with its {count} rows flagged as gross errors: {label}",
+                    pair["before"][key],
+                    pair["after"][key],
+                )
+            )
     return pd.DataFrame(rows, columns=["Quantity", "Before (zero-offsets)", "After (with effects)"])
 
 
@@ -123,16 +142,44 @@ def close_loop(
 ) -> LoopClosure:
     """Diagnose, decide and refit on the optimization set, then report before and after on both
     sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
-    parameters (identifiability analysis); exclude: table rows the fit left out as gross errors
-    (left out here too); rng feeds the MCMC refit only."""
-    data = {s: blocks.readings(chain, sensor, s, settings.model, exclude) for s in SETS}
-    poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
-    frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
-    tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
-    selection = select(
-        chain, data["optimization"], sensor.marker, t_nr, base_held, poses["optimization"], settings, tracker=tracker
-    )
+    parameters (identifiability analysis); exclude: table rows the prepare stage's provisional
+    screen left out as gross errors: the first fit leaves them out, then every row of both sets is
+    screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
+    finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
+    every = {s: blocks.readings(chain, sensor, s, settings.model) for s in SETS}
+    every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
+    provisional = np.sort(np.asarray(exclude, dtype=int))
+    excluded, screens, history, settled = provisional, {}, [], False
+    for _ in range(gross.MAX_ROUNDS):
+        data = {s: blocks.readings(chain, sensor, s, settings.model, excluded) for s in SETS}
+        poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
+        frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
+        tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
+        selection = select(
+            chain,
+            data["optimization"],
+            sensor.marker,
+            t_nr,
+            base_held,
+            poses["optimization"],
+            settings,
+            tracker=tracker,
+        )
+        screens["optimization"] = _screen(selection, data, every, every_poses, "optimization", settings)
+        found = screens["optimization"].gross
+        history.append({"fitted_without": excluded.tolist(), "found": found.tolist()})
+        if np.array_equal(found, excluded):
+            settled = True
+            break
+        if any(np.array_equal(found, np.asarray(h["fitted_without"], dtype=int)) for h in history):
+            break  # the screen turns in a cycle: the last fit stands, and the report says so
+        excluded = found
     base, final = selection.base, selection.final
+    # the validation set is screened here, with the final model, after every choice has been made
+    screens["validation"] = _screen(selection, data, every, every_poses, "validation", settings)
+    flagged = {"optimization": excluded, "validation": screens["validation"].gross}
+    data["validation"] = blocks.readings(chain, sensor, "validation", settings.model, flagged["validation"])
+    poses["validation"] = sensor.table.loc[data["validation"].rows, "pose"].to_numpy()
 
     samples, mcmc = None, None
     if settings.mcmc is not None:
@@ -146,6 +193,15 @@ def close_loop(
     before = {s: base.accuracy(data[s], poses[s]) for s in SETS}
     predicted = {s: selection.prediction(data[s]) for s in SETS}
     after = {s: accuracy(data[s].measured, predicted[s], poses[s]) for s in SETS}
+    # every before/after also with the rows flagged as gross errors, where a set has any
+    kept = {
+        s: {
+            "before": base.accuracy(every[s], every_poses[s]),
+            "after": accuracy(every[s].measured, selection.prediction(every[s]), every_poses[s]),
+        }
+        for s in SETS
+        if len(flagged[s])
+    }
     counts = (len(base.model.names) + 1, len(final.model.names) + 1)
     dominated = after_table[after_table["prior_dominated"]]
     explained = {r["added"]: r["scores"][r["added"]]["explained_fraction"] for r in selection.rounds if r["added"]}
@@ -158,6 +214,7 @@ def close_loop(
             "no candidate effect explains what is left"
             + (f"; it depends on {', '.join(where)} (residual GP relevance)" if where else "")
         )
+    warnings += gross_warnings(flagged, screens, settled)
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(
             f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
@@ -212,14 +269,80 @@ def close_loop(
                 else frame_problem
             ),
         },
+        gross_errors=gross_report(flagged, screens, provisional, history, settled, kept, settings.gross_errors),
     )
-    table = before_after_table(before, after, sigma_before, sigma_after, counts)
+    table = before_after_table(before, after, sigma_before, sigma_after, counts, kept, flagged)
     residuals = {
         "before": {s: base.residuals(data[s]) for s in SETS},
         "after": {s: data[s].measured - predicted[s] for s in SETS},
     }
     gp = residual_gp.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
     return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
+
+
+def _screen(selection: Selection, data, every, every_poses, set_name: str, settings: LoopSettings) -> gross.Screen:
+    """Every measured row of one set judged by the selection's final model (`remaster.loop.gross`)."""
+    level = settings.gross_errors
+    return gross.screen(
+        selection,
+        data["optimization"],
+        every[set_name],
+        every_poses[set_name],
+        set_name,
+        float(level["alpha"]),
+        float(level["max_share"]),
+    )
+
+
+def gross_report(
+    flagged: Mapping[str, np.ndarray],
+    screens: Mapping[str, gross.Screen],
+    provisional: np.ndarray,
+    history: list[dict],
+    settled: bool,
+    kept: Mapping[str, Mapping[str, dict]],
+    level: Mapping[str, float],
+) -> dict:
+    """loop_closure.json's `gross_errors`: the table rows flagged in each set ('optimization': the
+    rows the final model was fitted without; 'validation'), the level, the rule, each set's screen
+    (`gross.Screen.report`), the prepare stage's provisional rows and which of them the final model
+    restored (or which it added), the screen's rounds, and the accuracy with the flagged rows."""
+    final = set(flagged["optimization"].tolist())
+    return {
+        "optimization": [int(r) for r in flagged["optimization"]],
+        "validation": [int(r) for r in flagged["validation"]],
+        "alpha": float(level["alpha"]),
+        "max_share": float(level["max_share"]),
+        "method": gross.METHOD,
+        "isolated": gross.ISOLATED,
+        "screens": {s: screen.report() for s, screen in screens.items()},
+        "provisional": [int(r) for r in provisional],
+        "restored": sorted(int(r) for r in provisional if int(r) not in final),
+        "added": sorted(int(r) for r in final - set(provisional.tolist())),
+        "rounds": history,
+        "settled": settled,
+        "with_flagged_rows": {s: dict(pair) for s, pair in kept.items()},
+    }
+
+
+def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gross.Screen], settled: bool) -> list[str]:
+    """What the screen with the final model says beyond its lists (which the certificate gives with
+    the accuracy with and without the rows): a set whose many rows beyond the threshold are a
+    systematic departure, and a screen that did not settle."""
+    out = []
+    for set_name in SETS:
+        screen = screens[set_name]
+        if screen.systematic:
+            out.append(
+                f"{set_name} set: {int(screen.beyond.sum())} of {len(screen.rows)} rows beyond the gross-error "
+                f"threshold of the final model: a systematic departure, not gross errors (none left out)"
+            )
+    if not settled:
+        out.append(
+            "the gross-error screen did not settle: the final model, fitted without rows "
+            f"{[int(r) for r in flagged['optimization']]}, finds rows {screens['optimization'].gross.tolist()}"
+        )
+    return out
 
 
 def closure_report(selection: Selection, data: Readings, stated_noise: float | None, ratio: float) -> dict:

@@ -10,7 +10,7 @@ InputError naming the file and the key.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import Any
 
@@ -22,6 +22,8 @@ from ..units import DEG, MM
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
 OPTIONAL = ("campaign",)  # written when known (`loop_closure_stage` sets it; `close_loop` alone does not)
+# the gross errors of a report written before the final model screened the rows: none listed
+NOT_SCREENED = {"optimization": [], "validation": [], "screened": False}
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,8 +40,13 @@ class LoopReport:
     from their prior; warnings; refit: {'mode', 'mcmc', 'parameters'} (the MCMC refit, and the
     parameter table as records); zero_offset_shifts: how far each zero-offset moved; closure: the
     closure test's verdict and numbers; residual_gp: the residual GP's section (None when not
-    tried); noise_model: the laser tracker's noise model chosen or why not offered; source: the
-    file it was read from (not written)."""
+    tried); noise_model: the laser tracker's noise model chosen or why not offered; gross_errors:
+    the screen of every row with the final model (`remaster.loop.gross`): 'optimization' and
+    'validation' the table rows (ints) flagged as gross errors and left out (the optimization rows
+    are the ones the final model was fitted without), with the level, the rule, each set's screen,
+    the provisional rows and those restored, and the accuracy with the flagged rows
+    (`loop_closure.gross_report`; a file written before the screen reads as none flagged, with
+    'screened' False); source: the file it was read from (not written)."""
 
     sensor: str
     evidence: str
@@ -63,6 +70,7 @@ class LoopReport:
     closure: Mapping[str, Any]
     residual_gp: Mapping[str, Any] | None
     noise_model: Mapping[str, Any]
+    gross_errors: Mapping[str, Any] = field(default_factory=lambda: dict(NOT_SCREENED))
     campaign: str | None = None
     source: str = "loop_closure.json"
 
@@ -138,6 +146,8 @@ class LoopReport:
         for f in fields(cls):
             if f.name in NOT_WRITTEN or (f.name in OPTIONAL and f.name not in content):
                 continue
+            if f.name == "gross_errors" and f.name not in content:
+                continue  # written before the screen with the final model: the default says so
             value = get(f.name)
             values[f.name] = tuple(value) if f.name in sequences else float(value) if f.name in numbers else value
         return cls(**values, source=source)

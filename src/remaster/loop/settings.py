@@ -29,7 +29,8 @@ class LoopSettings:
     (`remaster.inference.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the
     noise floor at which the loop counts as closed (`remaster.loop.closure`); tracker_noise:
     {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
-    noise model (`remaster.noise`), None not to offer it."""
+    noise model (`remaster.noise`), None not to offer it; gross_errors: {'alpha', 'max_share'} of the
+    screen of every row with the final model (`remaster.loop.gross`, from the config's `outliers`)."""
 
     candidates: tuple[str, ...]
     min_log_evidence_gain: float
@@ -43,6 +44,7 @@ class LoopSettings:
     residual_gp: dict | None
     closure_ratio: float
     tracker_noise: dict | None
+    gross_errors: dict
 
     def report(self) -> dict:
         """The settings as loop_closure.json records them (JSON-ready)."""
@@ -60,12 +62,14 @@ class LoopSettings:
             "residual_gp": self.residual_gp,
             "closure_ratio": self.closure_ratio,
             "tracker_noise": self.tracker_noise,
+            "gross_errors": self.gross_errors,
         }
 
 
-def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping) -> LoopSettings:
-    """LoopSettings from the workflow's `loop_closure` section, its `priors` section and the
-    convergence criteria of the fit's cross-check (`fit/cross_check`: max_rhat, min_ess), as the
+def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping, outliers: Mapping) -> LoopSettings:
+    """LoopSettings from the workflow's `loop_closure` section, its `priors` section, the
+    convergence criteria of the fit's cross-check (`fit/cross_check`: max_rhat, min_ess) and the
+    `outliers` section (alpha, max_share: the gross-error screen with the final model), as the
     schema has filled them: a missing key is a KeyError (validate the configuration first)."""
     payload = config["payload"]
     priors_config = with_defaults(priors_config)
@@ -86,6 +90,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping)
         residual_gp=_gp_settings(config["residual_gp"]),
         closure_ratio=float(config["closure_ratio"]),
         tracker_noise=_tracker_noise_settings(config["tracker_noise"]),
+        gross_errors={"alpha": float(outliers["alpha"]), "max_share": float(outliers["max_share"])},
     )
 
 

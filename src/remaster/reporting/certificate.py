@@ -231,6 +231,61 @@ def valid_for(sensor: str, inputs: CertificateInputs) -> str:
     )
 
 
+def _mean_with_and_without(errors: pd.DataFrame, method: str, rows) -> tuple[float, float]:
+    """(mean error_mm of a method's validation rows (optimization registration), the same without
+    the table rows `rows`)."""
+    mine = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS) & (errors["method"] == method)]
+    values = mine["error_mm"].to_numpy(dtype=float)
+    kept = ~mine["row"].isin(list(rows)).to_numpy() if "row" in mine else np.ones(len(mine), dtype=bool)
+    return (
+        float(np.nanmean(values)) if np.isfinite(values).any() else np.nan,
+        float(np.nanmean(values[kept])) if np.isfinite(values[kept]).any() else np.nan,
+    )
+
+
+def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
+    """The rows the loop closure's final model flagged as gross errors (loop_closure.json
+    `gross_errors`), in each set: the optimization rows left out of the loop's fit, the validation
+    rows with every validation mean error before/after with them and without them; and the
+    zero-offset model's provisional rows (fit/laplace.json) that the final model restored. A
+    report written before that screen: the provisional rows only, as before."""
+    found = inputs.loop.gross_errors or {}
+    provisional = list(inputs.laplace.outlier_rows)
+    if not found.get("screened", True):
+        return (
+            [f"{label}: {len(provisional)} points flagged as gross errors and left out (rows {provisional})"]
+            if provisional
+            else []
+        )
+    out = []
+    optimization, validation = list(found.get("optimization", [])), list(found.get("validation", []))
+    if optimization:
+        out.append(
+            f"{label}: optimization set: {len(optimization)} rows flagged as gross errors by the final model and "
+            f"left out of the loop closure's fit (rows {optimization}; loop_closure.json gross_errors)"
+        )
+    restored = [r for r in provisional if r not in optimization]
+    if restored:
+        out.append(
+            f"{label}: the zero-offset model's provisional screen left rows {restored} out of its own fit; the "
+            "final model finds them within the threshold and restored them in the loop closure"
+        )
+    if validation:
+        parts = []
+        for method, name in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets")):
+            with_them, without = _mean_with_and_without(inputs.configuration_errors, method, validation)
+            parts.append(f"{name} {with_them:.3g} / {without:.3g}")
+        kept = ((found.get("with_flagged_rows") or {}).get("validation") or {}).get("after") or {}
+        after = (inputs.loop.after or {}).get("validation") or {}
+        if kept.get("mean_error_mm") is not None and after.get("mean_error_mm") is not None:
+            parts.append(f"loop-closed {kept['mean_error_mm']:.3g} / {after['mean_error_mm']:.3g}")
+        out.append(
+            f"{label}: validation set: {len(validation)} rows flagged as gross errors by the final model (rows "
+            f"{validation}); validation mean error with them / without them (mm): {'; '.join(parts)}"
+        )
+    return out
+
+
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, the loop
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
@@ -246,11 +301,7 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
             f"tolerance on {_disagreement_text(disagree)} (fit/cross_check.csv); the results are the "
             "default sampler's"
         )
-    if inputs.laplace.outlier_rows:
-        out.append(
-            f"{label}: {len(inputs.laplace.outlier_rows)} points flagged as gross errors and left out "
-            f"(rows {list(inputs.laplace.outlier_rows)})"
-        )
+    out += gross_error_warnings(label, inputs)
     held_registration = [n for n in inputs.laplace.held if not n.startswith("zero_offsets.")]
     if held_registration:
         out.append(
@@ -280,10 +331,17 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
     accuracy, corrections, verdicts, warnings = [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
+        found = inputs.loop.gross_errors or {}
+        flagged = (
+            f"{len(found.get('optimization', []))} optimization and {len(found.get('validation', []))} validation "
+            "rows flagged as gross errors by the loop closure's final model (left out, listed in "
+            "loop_closure.json), "
+            if found.get("screened", True)
+            else f"{len(laplace.outlier_rows)} flagged as gross errors, "
+        )
         heading.append(
-            f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the fit, "
-            f"{len(laplace.outlier_rows)} flagged as gross errors, {len(laplace.marker_not_seen_rows)} "
-            f"not seen by the sensor (both left out and listed in fit/laplace.json)."
+            f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the zero-offset fit, {flagged}"
+            f"{len(laplace.marker_not_seen_rows)} not seen by the sensor (left out and listed in fit/laplace.json)."
         )
         rows = accuracy_rows(sensor, inputs)
         accuracy += rows
