@@ -17,9 +17,10 @@ judged by the model the loop closure chose, at the same family-wise level `outli
   (externally studentized), dof = 3 n - tr H. Row i is beyond the threshold when d_i^2 exceeds that
   law's quantile at 1 - alpha / n_set: Bonferroni over the n_set measured rows of its set, so a
   clean set has at most probability alpha of any row beyond it;
-- with the residual Gaussian process added, e_i is the residual after the GP's mean (not whitened),
-  C_i = s_gp^2 I for a fitted row and (s_gp^2 + v_i) I + J_i Sigma J_i^T for a new one (v_i the GP's
-  posterior variance there), against chi2_3.
+- with the residual Gaussian process added, e_i is the residual after the GP's mean (not whitened)
+  and C_i = s_cv^2 I for a fitted row, (s_cv^2 + v_i) I for another, s_cv the GP's pose-grouped
+  cross-validated RMS per axis (what it leaves at poses it was not fitted on, at least its noise
+  std) and v_i its posterior variance at the row, against chi2_3.
 
 A row beyond the threshold is a gross error only when it is isolated: (1) not every measured
 configuration of its pose is beyond it (an error shared by a pose's configurations is where the
@@ -57,7 +58,7 @@ METHOD = (
     "the loop closure's final model at its mode: residual whitened by its noise model, standardized by its "
     "covariance s^2 (I - H_i) for fitted rows (Beta law) and s^2 (I + H_i) for rows not fitted (F law), "
     "s^2 the whitened sum of squares over 3n - tr H; with the residual GP added, the residual after its mean "
-    "against chi2_3 with its noise and posterior variance; Bonferroni over each set's measured rows"
+    "against chi2_3 at the GP's cross-validated RMS per axis (plus its posterior variance for rows not fitted); Bonferroni over each set's measured rows"
 )
 
 
@@ -210,26 +211,26 @@ def screen(selection, fitted: Readings, data: Readings, poses, set_name: str, al
     covariance = mode.covariance[:-1, :-1]
     n = len(data.rows)
     if selection.gp_added:
-        gp = selection.gp.gp
+        # the GP's noise is what it leaves where it was fitted; at new poses it leaves more, which
+        # its pose-grouped cross-validation measures: that scale, per axis, for every row
+        candidate = selection.gp
+        held_out = float(np.sum(candidate.mse * candidate.points) / np.sum(candidate.points)) / 3.0
+        scale = math.sqrt(max(held_out, candidate.gp.hyper.noise_std**2))
         e = data.measured - selection.prediction(data)
-        jacobian = model.jacobian(final.theta, JACOBIAN_STEP).reshape(n, 3, -1)
-        spread = np.einsum("nip,pq,njq->nij", jacobian, covariance, jacobian)
-        noise2 = gp.hyper.noise_std**2
-        new = (noise2 + gp.variance(data.q))[:, None, None] * np.eye(3) + spread
-        cov = np.where(is_fitted[:, None, None], noise2 * np.eye(3), new)
-        threshold = np.full(n, chi2_threshold(alpha, n))
+        # a row it was not fitted on: plus the GP's own posterior variance there (far from its rows)
+        variance = scale**2 + np.where(is_fitted, 0.0, candidate.gp.variance(data.q))
         return Screen(
             set_name,
             data.rows,
             np.asarray(poses),
             is_fitted,
             np.linalg.norm(e, axis=1),
-            _quadratic(e, cov),
-            threshold,
+            np.sum(e**2, axis=1) / variance,
+            np.full(n, chi2_threshold(alpha, n)),
             alpha,
             max_share,
-            float(gp.hyper.noise_std),
-            "chi2_3 (residual GP)",
+            scale,
+            "chi2_3 at the residual GP's cross-validated RMS per axis",
         )
     raw = model.residuals(final.theta)
     e = model.whitened(raw)

@@ -28,9 +28,15 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    them, or reported as not converged) so
    that every parameter carries uncertainty; say which parameters the data barely moved from
    their prior.
-4. Only then the VALIDATION set: accuracy before (zero-offset model) and after (the selected
-   model), each with the optimization fit's parameters and registration. Nothing is selected,
-   tuned or stopped on it.
+   Before the refit, gross errors are screened with the final model (`remaster.loop.gross`): every
+   optimization row, the prepare stage's provisionally excluded ones included, at the level
+   `outliers/alpha`; when the rows it finds are not those the loop was fitted without, steps 1-2 run
+   again without them, until they are (bounded), so the model, its closure test and its refit are
+   computed without exactly the rows listed.
+4. Only then the VALIDATION set: its rows screened the same way with the final model, then
+   accuracy before (zero-offset model) and after (the selected model), each with the optimization
+   fit's parameters and registration, without the rows flagged as gross errors (and, in the table
+   and `gross_errors`, with them). Nothing is selected, tuned or stopped on it.
 
 The steps live in `selection` (1, 2), `refit` (3) and here (4, the report); `settings` reads the
 configuration, `report` is loop_closure.json typed, `frames` the long tables of signatures and
