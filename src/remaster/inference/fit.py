@@ -117,7 +117,12 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
     from the model than an isotropic Gaussian of the robust scale sigma_r (1.4826 MAD of the
     residual components) allows for any of the n points at family-wise level `alpha`:
     |E_i| > sigma_r sqrt(chi2_3 quantile at 1 - alpha / n) (Bonferroni). The robust loss keeps one
-    glitch of several mm from dragging the fit towards it."""
+    glitch of several mm from dragging the fit towards it.
+
+    Provisional: judged by the zero-offset model, whose residuals are not Gaussian where it lacks an
+    effect, so it flags good rows there and can miss a glitch behind the model's error. Its rows
+    stay out of the paper model's fit only; the loop closure screens every row again with its final
+    model (`remaster.loop.gross`), and that screen's rows are the gross errors listed."""
     import scipy.optimize
     import scipy.special
 
@@ -653,12 +658,16 @@ def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=
 
 def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outlier_alpha: float) -> dict:
     """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor,
-    JSON-ready. Flagged outliers are left out of this and every later fit, and listed."""
+    JSON-ready. The screen is provisional (`flag_outliers`): its rows are left out of the paper
+    model's fit and listed; the loop closure starts without them and screens every row again."""
     model, _, _ = _model(campaign, sensor, registration)
     outliers = flag_outliers(model, outlier_alpha)
     if len(outliers):
         log.warning(
-            "%s: %d points flagged as gross errors and left out: rows %s", sensor, len(outliers), outliers.tolist()
+            "%s: %d points flagged provisionally as gross errors (zero-offset model) and left out of its fit: rows %s",
+            sensor,
+            len(outliers),
+            outliers.tolist(),
         )
     model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
     for statement in analysis.statements():

@@ -301,7 +301,8 @@ REGISTRATION_ROWS = (
 def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
     the paper's row order; with `fits` (sensor -> `fit.LaplaceReport`), three more rows: points
-    fitted, points without a measurement and points flagged as gross errors (both left out)."""
+    fitted, points without a measurement and points flagged as gross errors by the zero-offset
+    model's provisional screen (both left out of this fit; the final list is the loop closure's)."""
     summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
     for name, label in REGISTRATION_ROWS:
@@ -314,7 +315,7 @@ def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str
     counts = (
         ("points fitted", lambda f: f.points_fitted),
         ("points not seen (left out)", lambda f: len(f.marker_not_seen_rows)),
-        ("points flagged as outliers (left out)", lambda f: len(f.outlier_rows)),
+        ("points flagged provisionally as gross errors (left out)", lambda f: len(f.outlier_rows)),
     )
     for label, count in counts if fits else ():
         row = {"Parameter": label}
