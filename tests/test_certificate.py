@@ -1,5 +1,5 @@
 """The calibration certificate: numbers from the result files, an honest uncertainty of a mean
-error, corrections with U (k = 2), and the warnings a user must read."""
+error (CR2, t), both models' corrections with U (95 %), and the warnings a user must read."""
 
 import dataclasses
 
@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from remaster.inference.fit import LaplaceReport
+from remaster.inference.uncertainty import coverage_factor
 from remaster.reporting import certificate
 
 from .conftest import loop_report
@@ -14,16 +15,17 @@ from .conftest import loop_report
 
 def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
     """Configurations of one pose share most of their error: a naive std / sqrt(n) would be too
-    small by sqrt(configurations per pose); the clustered u gives U = 2u about 95 % coverage."""
+    small by sqrt(configurations per pose); the clustered u (CR2) with k = t(poses - 1) gives about
+    95 % coverage."""
     rng = np.random.default_rng(5)
     covered, naive_covered = [], []
     poses = np.repeat(np.arange(30), 4)
     for _ in range(2000):
         errors = 2.0 + rng.normal(0, 1.0, 30)[poses] + rng.normal(0, 0.3, len(poses))
-        mean, u, count = certificate.mean_with_uncertainty(errors, poses)
-        covered.append(abs(mean - 2.0) <= 2 * u)
+        mean, u, count, dof = certificate.mean_with_uncertainty(errors, poses)
+        covered.append(abs(mean - 2.0) <= coverage_factor(dof) * u)
         naive_covered.append(abs(mean - 2.0) <= 2 * errors.std(ddof=1) / np.sqrt(count))
-    assert 0.925 <= np.mean(covered) <= 0.97  # binomial sd 0.5 %, and t(29) vs 2: about 94.5 %
+    assert dof == 29 and 0.935 <= np.mean(covered) <= 0.965  # binomial sd 0.5 %; equal poses: exactly t(29)
     assert np.mean(naive_covered) < 0.8
     assert np.isnan(certificate.mean_with_uncertainty([1.0, 2.0], [0, 0])[1])  # one pose: no u
 
@@ -110,8 +112,26 @@ def _inputs(outliers=(), closed=True):
                 "std_deg": np.nan,
                 "status": "held: not identifiable",
             },
-            {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009, "status": "estimated"},
-            {"joint": "j2", "model": "loop", "correction_deg": 0.2, "std_deg": 0.0001, "status": "estimated"},
+            {
+                "joint": "j2",
+                "model": "paper",
+                "correction_deg": 0.19,
+                "std_deg": 0.009,
+                "u_between_deg": 0.0,
+                "U_deg": 0.018,
+                "k": 2.0,
+                "status": "estimated",
+            },
+            {
+                "joint": "j2",
+                "model": "loop",
+                "correction_deg": 0.2,
+                "std_deg": 0.0001,
+                "u_between_deg": 0.002,
+                "U_deg": 0.0045,
+                "k": 2.26,
+                "status": "estimated",
+            },
         ]
     )
     return certificate.CertificateInputs(laplace, errors, residuals, claims, workspace, loop, offsets)
@@ -135,12 +155,18 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     loop = accuracy.loc[("validation set (measured)", "loop-closed (joint_compliance)")]
     pose_means = 0.02 + 0.001 * np.arange(10)  # the loop's rows found their poses through the table's rows
     assert np.isclose(loop["mean (mm)"], pose_means.mean())
-    assert np.isclose(loop["U(mean) (mm)"], 2 * pose_means.std(ddof=1) / np.sqrt(10))
+    # equal poses: CR2 is the spread of the pose means / sqrt(10), with k = t_0.975(9)
+    assert np.isclose(loop["U(mean) (mm)"], 2.262157 * pose_means.std(ddof=1) / np.sqrt(10))
     # a claim's p95 is the bound on this arm's own 95th percentile, not the pooled quantile (2 x mean)
     assert accuracy.loc[("claimed across the joint space", "loop-closed"), "p95 (mm)"] == 1.5
-    corrections = cert.corrections.set_index("Joint")
-    assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model
-    assert np.isnan(corrections.loc["j1", "Correction (deg)"]) and corrections.loc["j1", "Status"].startswith("held")
+    # both models, the loop-closed one first, each U as controller_offsets.csv gives it
+    corrections = cert.corrections
+    assert corrections["Model"].str.startswith("loop-closed").tolist() == [True, False, False]
+    loop_j2, paper_j2 = corrections.iloc[0], corrections.iloc[2]
+    assert loop_j2["U(Correction) (deg)"] == 0.0045 and loop_j2["u_between (deg)"] == 0.002
+    assert paper_j2["U(Correction) (deg)"] == 0.018 and paper_j2["Model"].startswith("zero-offsets only")
+    held = corrections.iloc[1]
+    assert np.isnan(held["Correction (deg)"]) and held["Status"].startswith("held")
     verdict = cert.verdicts.iloc[0]
     assert (
         verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
@@ -155,9 +181,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
         "over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis within 18 deg of one direction"
     )
     text = certificate.to_markdown(cert)
-    assert (
-        text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
-    )
+    assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
 
 
 def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
@@ -208,16 +232,14 @@ def test_certificate_rows_take_missing_values_without_a_crash():
     """None and NaN where numbers or sections are expected: blanks in the certificate, no crash."""
     inputs = _inputs()
     offsets = inputs.controller_offsets.copy().astype(object)
-    offsets.loc[1, "std_deg"] = None
+    offsets.loc[1, "U_deg"] = None
     offsets.loc[1, "correction_deg"] = np.nan
     workspace = {"holds": None, "coverage": {"joint_range_fraction": [0.5, None]}, "warnings": None}
     loop = dataclasses.replace(inputs.loop, closure={}, warnings=[])
     inputs = dataclasses.replace(inputs, controller_offsets=offsets, workspace=workspace, loop=loop)
     cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
-    corrections = cert.corrections.set_index("Joint")
-    assert np.isnan(corrections.loc["j2", "U(Correction) (deg)"]) and np.isnan(
-        corrections.loc["j2", "Correction (deg)"]
-    )
+    paper_j2 = cert.corrections.iloc[2]
+    assert np.isnan(paper_j2["U(Correction) (deg)"]) and np.isnan(paper_j2["Correction (deg)"])
     verdict = cert.verdicts.iloc[0]
     assert verdict["Holds"] == "" and verdict["Loop"] == ""
     assert "q1 50 %, q2 nan %" in cert.warnings[0]

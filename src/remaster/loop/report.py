@@ -21,7 +21,9 @@ from ..files import read_json, write_json
 from ..units import DEG, MM
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
-OPTIONAL = ("campaign",)  # written when known (`loop_closure_stage` sets it; `close_loop` alone does not)
+# written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
+# between_design (reports written before it was computed lack it)
+OPTIONAL = ("campaign", "between_design")
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,8 +40,10 @@ class LoopReport:
     from their prior; warnings; refit: {'mode', 'mcmc', 'parameters'} (the MCMC refit, and the
     parameter table as records); zero_offset_shifts: how far each zero-offset moved; closure: the
     closure test's verdict and numbers; residual_gp: the residual GP's section (None when not
-    tried); noise_model: the laser tracker's noise model chosen or why not offered; source: the
-    file it was read from (not written)."""
+    tried); noise_model: the laser tracker's noise model chosen or why not offered; between_design:
+    {'paper', 'loop': `jackknife.zero_offset_jackknife`} the zero-offsets' spread across designs of
+    the zero-offset model and the final model (None when not computed); source: the file it was
+    read from (not written)."""
 
     sensor: str
     evidence: str
@@ -64,6 +68,7 @@ class LoopReport:
     residual_gp: Mapping[str, Any] | None
     noise_model: Mapping[str, Any]
     campaign: str | None = None
+    between_design: Mapping[str, Any] | None = None
     source: str = "loop_closure.json"
 
     # ----------------------------------------------------------------------- what the later stages use

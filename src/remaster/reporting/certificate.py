@@ -3,12 +3,12 @@
 Per sensor: the points used, flagged and not seen; the error before and after, on the validation
 set (read only for this final before/after, never for a choice) and as the loop-closed model
 claims it across the joint space; the zero-offset corrections to type into the controller with
-their expanded uncertainty (k = 2); what the calibration is valid for and the warnings. Every
+their expanded uncertainty (95 %); what the calibration is valid for and the warnings. Every
 number comes from the run's result files (`CertificateInputs`); nothing is typed.
 
 The uncertainty of a mean error is pose-clustered: configurations of one pose (the IK solutions
-of one target) share most of their error, so the standard uncertainty is the spread of the pose
-means over the square root of the number of poses, and U = 2 u.
+of one target) share most of their error, so the standard uncertainty is the cluster-robust CR2
+one (Bell-McCaffrey, `uncertainty.cr2_mean`) and U = k u with k = t_0.975(poses - 1).
 """
 
 from __future__ import annotations
@@ -22,11 +22,11 @@ from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation er
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
 from ..inference.fit import LaplaceReport, disagreeing
+from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
 from ..loop.report import LoopReport
 from ..units import MM
 
-COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
 # the controller's zero-offsets with the registration that fits them best; the remastered ones
 BEFORE, AFTER = VERNIER_LEAST_SQUARES, "Bayesian"
 
@@ -58,8 +58,8 @@ NOT_CHECKED = "not cross-checked"
 @dataclass(frozen=True)
 class Certificate:
     """heading: lines naming the campaign, robot, date and sensors; accuracy: one row per sensor
-    and model (mm); corrections: per sensor and joint, the paper model's correction with U (k = 2)
-    (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
+    and model (mm); corrections: per sensor, model (loop-closed, zero-offsets only) and joint, the
+    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
 
     campaign: str
     heading: list[str]
@@ -69,13 +69,14 @@ class Certificate:
     warnings: list[str]
 
 
-def mean_with_uncertainty(errors, poses) -> tuple[float, float, int]:
-    """(mean, standard uncertainty of the mean, count) of errors (n,) clustered by pose (n,): u is
-    the std of the pose means over sqrt(number of poses); NaN when fewer than two poses."""
-    frame = pd.DataFrame({"error": np.asarray(errors, dtype=float), "pose": np.asarray(poses)}).dropna()
-    means = frame.groupby("pose")["error"].mean()
-    u = float(means.std(ddof=1) / np.sqrt(len(means))) if len(means) > 1 else np.nan
-    return float(frame["error"].mean()), u, int(len(frame))
+def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
+    """(mean, standard uncertainty of the mean, count, degrees of freedom) of errors (n,) clustered
+    by pose (n,): u by CR2 (`uncertainty.cr2_mean`), with G - 1 degrees of freedom for G poses; u
+    NaN when fewer than two poses."""
+    errors, poses = np.asarray(errors, dtype=float), np.asarray(poses)
+    seen = np.isfinite(errors) & pd.notna(poses)
+    mean, u, clusters = cr2_mean(errors[seen], poses[seen])
+    return mean, u, int(seen.sum()), clusters - 1
 
 
 def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
@@ -84,15 +85,17 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
     errors_mm = errors_mm[seen]
     if poses is not None:
         poses = np.asarray(poses)[seen]
-        mean, u, count = mean_with_uncertainty(errors_mm, poses)
+        mean, u, count, dof = mean_with_uncertainty(errors_mm, poses)
     else:
-        mean, u, count = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm)
+        mean, u, count, dof = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm), 0
+    k = coverage_factor(dof)
     return {
         "Sensor": sensor_label(sensor),
         "Where": where,
         "Model": model,
         "mean (mm)": mean,
-        "U(mean) (mm)": COVERAGE_FACTOR * u,
+        "U(mean) (mm)": k * u,
+        "k": k,
         "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
         "points": count,
     }
@@ -153,19 +156,35 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     return rows
 
 
+# the corrections' models as the certificate names them, the one to type in first
+CORRECTION_MODELS = (
+    ("loop", "loop-closed, with its other effects (loop.urdf, loop_effects.yaml)"),
+    ("paper", "zero-offsets only (paper.urdf)"),
+)
+
+
 def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
-    """The paper model's zero-offset corrections (what a controller takes) with U = k std."""
-    offsets = inputs.controller_offsets[inputs.controller_offsets["model"] == "paper"]
-    return [
-        {
-            "Sensor": sensor_label(sensor),
-            "Joint": r["joint"],
-            "Correction (deg)": _number(r["correction_deg"]) if r["status"] == "estimated" else np.nan,
-            "U(Correction) (deg)": COVERAGE_FACTOR * _number(r["std_deg"]) if r["status"] == "estimated" else np.nan,
-            "Status": r["status"],
-        }
-        for _, r in offsets.iterrows()
-    ]
+    """Both models' zero-offset corrections (calibrated/controller_offsets.csv) with U = k u_c, u_c
+    the posterior std and the between-design component together and k from t at their effective
+    degrees of freedom (`calibrated.controller_offsets`): the loop-closed model's first."""
+    offsets = inputs.controller_offsets
+    rows = []
+    for model, label in CORRECTION_MODELS:
+        for _, r in offsets[offsets["model"] == model].iterrows():
+            estimated = r["status"] == "estimated"
+            rows.append(
+                {
+                    "Sensor": sensor_label(sensor),
+                    "Model": label,
+                    "Joint": r["joint"],
+                    "Correction (deg)": _number(r["correction_deg"]) if estimated else np.nan,
+                    "U(Correction) (deg)": _number(r.get("U_deg")) if estimated else np.nan,
+                    "u_between (deg)": _number(r.get("u_between_deg")) if estimated else np.nan,
+                    "k": _number(r.get("k")) if estimated else np.nan,
+                    "Status": r["status"],
+                }
+            )
+    return rows
 
 
 def _number(value) -> float:
@@ -292,10 +311,16 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "
-        f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
-        "pose; the claims are the loop-closed posterior propagated with the sensor's noise, and a "
+        "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose (CR2, k from "
+        "t with poses - 1 degrees of freedom); the claims are the loop-closed posterior propagated with the sensor's noise, and a "
         "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
-        "probability. Corrections: add to the controller's zero (true angle = reading + correction)."
+        "probability. Corrections: add to the controller's zero (true angle = reading + correction). "
+        "Type in the loop-closed model's corrections where the controller takes its other effects too "
+        "(loop.urdf, loop_effects.yaml): once those are modelled its zero-offsets are the joints' own; a "
+        "controller that takes zero-offsets alone gets the zero-offset model's, which also absorb what "
+        "it lacks at the measured poses. Each U (95 %) holds the posterior std and how far the "
+        "correction moves with the poses measured (u_between, a jackknife over pose groups), k from t "
+        "at their effective degrees of freedom."
     )
     return Certificate(
         summary["campaign"],
