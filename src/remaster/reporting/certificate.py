@@ -320,7 +320,8 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         "controller that takes zero-offsets alone gets the zero-offset model's, which also absorb what "
         "it lacks at the measured poses. Each U (95 %) holds the posterior std and how far the "
         "correction moves with the poses measured (u_between, a jackknife over pose groups), k from t "
-        "at their effective degrees of freedom."
+        "at their effective degrees of freedom; a loop-closed correction whose U is large is traded "
+        "against the link geometry, and only their combination (loop.urdf's joint origins) is determined."
     )
     return Certificate(
         summary["campaign"],
