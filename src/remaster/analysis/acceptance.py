@@ -176,7 +176,8 @@ def check(measured, claim: Claim, level: float, registration_share: float, rng: 
     replicates, replicates_refit = np.concatenate(replicates), np.concatenate(replicates_refit)
     excess = observed**2 - float(np.median(replicates**2))
     excess_refit = observed_refit**2 - float(np.median(replicates_refit**2))
-    removed = 1.0 - max(excess_refit, 0.0) / excess if excess > 0 else None
+    # the share of the excess the refit removes, in [0, 1]; None when there is no excess to remove
+    removed = min(1.0, max(0.0, 1.0 - max(excess_refit, 0.0) / excess)) if excess > 0 else None
     p, p_refit = p_value(observed, replicates), p_value(observed_refit, replicates_refit)
     return {
         "effects": list(claim.effects),
