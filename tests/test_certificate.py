@@ -259,3 +259,44 @@ def test_a_held_registration_parameter_is_a_warning():
         "registration" in w and "held" in w
         for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings
     )
+
+
+def _acceptance(verdict, diagnosis, recommended):
+    from remaster.analysis.acceptance import Acceptance
+
+    checks = {m: {"passed": verdict == "pass", "p_value": 0.0} for m in ("loop", "paper")}
+    text = "fail: ... the added effects did not hold on new poses" if diagnosis else "pass"
+    return Acceptance(
+        "laser_tracker",
+        verdict,
+        diagnosis,
+        text,
+        recommended,
+        None,
+        checks,
+        0.01,
+        0.95,
+        100,
+        20,
+        (),
+        (text,) if diagnosis else (),
+    )
+
+
+def test_the_acceptance_test_gives_the_verdict_its_after_and_its_warning():
+    """A failure on the validation set is a line of the verdict and a warning, and 'After' is the model
+    the acceptance test recommends: the paper's when the loop's added effects did not hold."""
+    inputs = _inputs()
+    untested = certificate.certificate(SUMMARY, {"laser_tracker": inputs}).verdicts.iloc[0]
+    assert untested["Acceptance"] == certificate.NOT_TESTED and untested["After: model"].startswith("loop-closed")
+    passed = dataclasses.replace(inputs, acceptance=_acceptance("pass", None, "loop"))
+    verdict = certificate.certificate(SUMMARY, {"laser_tracker": passed}).verdicts.iloc[0]
+    assert verdict["Acceptance"] == "pass" and verdict["After: mean (mm)"] == untested["After: mean (mm)"]
+    failed = dataclasses.replace(inputs, acceptance=_acceptance("fail", "effects_did_not_hold", "paper"))
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": failed})
+    verdict = cert.verdicts.iloc[0]
+    assert verdict["Acceptance"] == "fail: the added effects did not hold on new poses"
+    paper = np.mean([1.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])  # the paper model's validation errors
+    assert verdict["After: model"] == "remastered zero-offsets" and verdict["After: mean (mm)"] == paper
+    assert any(w.startswith("Laser Tracker: fail: ") and "did not hold" in w for w in cert.warnings)
+    assert "| fail: the added effects did not hold on new poses |" in certificate.to_markdown(cert)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..analysis.acceptance import DIAGNOSES, Acceptance
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
@@ -37,7 +38,9 @@ class CertificateInputs:
     metrics/configuration_errors.csv; loop_residuals: loop_closure/residuals.parquet (m);
     workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
     loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv; cross_check:
-    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read."""
+    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read;
+    acceptance: acceptance.json (`analysis.acceptance`: the validation set as the acceptance test),
+    None when not read."""
 
     laplace: LaplaceReport
     configuration_errors: pd.DataFrame
@@ -47,6 +50,7 @@ class CertificateInputs:
     loop: LoopReport
     controller_offsets: pd.DataFrame
     cross_check: pd.DataFrame | None = None
+    acceptance: Acceptance | None = None
 
 
 # What the verdict says of the samplers' cross-check (`second_sampler`)
@@ -212,10 +216,33 @@ def _disagreement_text(disagree: dict[str, list[str]]) -> str:
     return ", ".join(f"{name} ({', '.join(methods)})" for name, methods in disagree.items())
 
 
+NOT_TESTED = "not tested"  # the acceptance column without acceptance.json
+
+
+def acceptance_text(acceptance: Acceptance | None) -> str:
+    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`analysis.acceptance`), or
+    NOT_TESTED."""
+    if acceptance is None:
+        return NOT_TESTED
+    if acceptance.passed:
+        return "pass"
+    return f"fail: {DIAGNOSES.get(acceptance.diagnosis, acceptance.diagnosis or 'no diagnosis')}"
+
+
+def _after(rows: dict, acceptance: Acceptance | None) -> dict:
+    """The validation row the certificate calls "after": the acceptance test's recommended model (the
+    paper's when the loop's added effects did not hold on new poses), else the last validation row
+    (the loop-closed model)."""
+    validation = [r for (where, _), r in rows.items() if where == "validation set (measured)"]
+    if acceptance is not None and acceptance.recommended == "paper":
+        return rows.get(("validation set (measured)", "remastered zero-offsets"), {})
+    return (validation or [{}])[-1]
+
+
 def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     by = {(r["Where"], r["Model"]): r for r in rows}
     before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
-    after = ([r for (where, model), r in by.items() if where == "validation set (measured)"] or [{}])[-1]
+    after = _after(by, inputs.acceptance)
     workspace = by.get(("claimed across the joint space", "loop-closed"), {})
     holds = ((((inputs.workspace or {}).get("holds") or {}).get("loop")) or {}).get("holds") or ""
     samplers, disagree = second_sampler(inputs)
@@ -232,6 +259,7 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
         "Holds": holds,
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
+        "Acceptance": acceptance_text(inputs.acceptance),
     }
 
 
@@ -255,7 +283,8 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
     refit short of the convergence criteria), the workspace warnings (near the measured poses
     only, prior-dominated parameters, what the next campaign should add), the held joints, any
-    held registration parameter, and samplers that disagree (the fit not confirmed)."""
+    held registration parameter, samplers that disagree (the fit not confirmed), and the acceptance
+    test's diagnosis of a failure on the validation set."""
     label = sensor_label(sensor)
     out = []
     _, disagree = second_sampler(inputs)
@@ -277,6 +306,7 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
             "(fit/laplace.json, identifiability)"
         )
     out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings or ()]
+    out += [f"{label}: {w}" for w in (inputs.acceptance.warnings if inputs.acceptance is not None else ())]
     workspace = inputs.workspace or {}
     out += [f"{label}: {w}" for w in workspace.get("warnings") or ()]
     if workspace.get("held_note"):

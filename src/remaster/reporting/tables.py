@@ -40,7 +40,10 @@ CAPTIONS = {
     "loop-closed model claims across the joint space (the bound on its 95th percentile, "
     "95 % posterior probability), whether the loop is closed against the "
     "sensor's noise, where the calibration holds, and whether a second sampler confirms the fit "
-    "(Samplers: the samplers' cross-check, with the parameters they disagree on).",
+    "(Samplers: the samplers' cross-check, with the parameters they disagree on), and the acceptance test "
+    "(Acceptance: the validation errors checked against the loop-closed model's claim at the validation "
+    "configurations, noise included; a failure with its diagnosis). After is the model the acceptance test "
+    "recommends: the paper's when the added effects did not hold on new poses.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
     "optimization set; U the expanded uncertainty (95 %) of the mean, clustered by pose: CR2, k = t(poses - 1)), "
     "and as the posteriors claim it at the measured configurations and across the joint "
