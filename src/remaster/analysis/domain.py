@@ -97,13 +97,30 @@ class MeasuredDomain:
                 parts.append(f"q{j + 1} {low / DEG:.0f} to {high / DEG:.0f} deg ({100 * fraction:.0f} % of its range)")
         return ", ".join(parts)
 
-    def held_text(self) -> str:
-        """'q3' or 'q3, q7' (held joints), '' when none."""
-        return ", ".join(f"q{j + 1}" for j in np.flatnonzero(self.held))
+    def short_text(self) -> str:
+        """What falls short of the claims across the limits: 'q3 held at 0 deg; tool axes within 18 deg
+        of one direction' (joints under FULL_RANGE_FRACTION with their share, then the tool axes)."""
+        parts = [
+            f"q{j + 1} held at {low / DEG:.0f} deg"
+            if low == high
+            else f"q{j + 1} over {100 * fraction:.0f} % of its range"
+            for j, (low, high, fraction) in enumerate(zip(self.lower, self.upper, self.range_fraction))
+            if fraction < FULL_RANGE_FRACTION
+        ]
+        if self.tool_axis_spread_deg < MIN_TOOL_SPREAD_DEG:
+            parts.append(f"tool axes within {self.tool_axis_spread_deg:.0f} deg of one direction")
+        return "; ".join(parts)
 
     def holds(self) -> str:
-        """Where the claims hold: ACROSS, or INSIDE naming the measured ranges."""
-        return ACROSS if self.covers_the_limits else f"{INSIDE}: {self.ranges_text()}"
+        """Where the claims hold: ACROSS, or INSIDE naming the measured ranges in degrees:
+        'inside the measured ranges: q1 -161..167, q2 -118..118, q3 held at 0, ... deg'."""
+        if self.covers_the_limits:
+            return ACROSS
+        ranges = ", ".join(
+            f"q{j + 1} held at {low / DEG:.0f}" if low == high else f"q{j + 1} {low / DEG:.0f}..{high / DEG:.0f}"
+            for j, (low, high) in enumerate(zip(self.lower, self.upper))
+        )
+        return f"{INSIDE}: {ranges} deg"
 
     def report(self) -> dict:
         """JSON-ready: per joint the interval (deg), its share of the range and whether it was held;
@@ -125,5 +142,6 @@ class MeasuredDomain:
             "min_tool_spread_deg": MIN_TOOL_SPREAD_DEG,
             "covers_the_limits": self.covers_the_limits,
             "ranges": self.ranges_text(),
+            "short_of_the_limits": self.short_text(),
             "holds": self.holds(),
         }

@@ -70,6 +70,7 @@ from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
+from ..loop.refit import PRIOR_DOMINATED
 from ..loop.report import LoopReport
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM, shown
@@ -178,7 +179,11 @@ def _suggestions(domain: MeasuredDomain, dominated: list[str]) -> list[str]:
             f"{domain.tool_axis_spread_deg:.0f} deg of one direction)"
         )
     if dominated:
-        out.append("poses that move " + ", ".join(dominated) + " (the data barely moved them from their prior)")
+        out.append(
+            "poses that move "
+            + ", ".join(dominated)
+            + f" (the data barely moved them from their prior: posterior std / prior std > {PRIOR_DOMINATED:g})"
+        )
     return out
 
 
@@ -354,19 +359,13 @@ def _report(
         }
     if not domain.covers_the_limits:
         warnings.append(
-            f"the claims hold {INSIDE} ({domain.ranges_text()}; every measured tool axis within "
-            f"{domain.tool_axis_spread_deg:.0f} deg of one direction): there the loop-closed model's p95 bound "
+            f"the claims hold {INSIDE} only ({domain.short_text()}): there the loop-closed model's p95 bound "
             f"is {shown(_claim(claims, 'loop', 'domain', 'p95_bound_mm'))} mm (registration fitted, with noise); "
             f"across the joint limits, with the priors of what the data did not reach, "
             f"{shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} mm"
         )
-    if suggestions:
+    if suggestions:  # one line: the joints, the tool orientations and the prior-dominated parameters
         warnings.append(f"the next campaign must add: {'; '.join(suggestions)}")
-    if dominated:
-        warnings.append(
-            f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
-            f"though other poses would: {', '.join(dominated)}"
-        )
     unseeable = [n for n in loop_report.prior_dominated if n in nowhere]
     if unseeable:
         warnings.append(
