@@ -88,13 +88,22 @@ def _inputs(outliers=(), closed=True):
                 ("loop", "optimization", 0.02),
                 ("paper", "random", 1.1),
                 ("loop", "random", 0.5),
+                ("paper", "domain", 1.05),
+                ("loop", "domain", 0.03),
             )
         ]
     )
     workspace = {
-        "holds": {"loop": {"holds": "near the measured poses only"}},
+        "holds": {"loop": {"holds": "inside the measured ranges"}},
+        "domain": {
+            "ranges": "q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+            "held_joints": ["q2"],
+            "tool_axis_spread_deg": 17.6,
+            "covers_the_limits": False,
+            "holds": "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+        },
         "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
-        "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"],
+        "warnings": ["the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)"],
     }
     verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
     refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
@@ -158,7 +167,9 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     # equal poses: CR2 is the spread of the pose means / sqrt(10), with k = t_0.975(9)
     assert np.isclose(loop["U(mean) (mm)"], 2.262157 * pose_means.std(ddof=1) / np.sqrt(10))
     # a claim's p95 is the bound on this arm's own 95th percentile, not the pooled quantile (2 x mean)
-    assert accuracy.loc[("claimed across the joint space", "loop-closed"), "p95 (mm)"] == 1.5
+    limits = "claimed across the joint limits (priors where the data did not reach)"
+    assert accuracy.loc[(limits, "loop-closed"), "p95 (mm)"] == 1.5
+    assert accuracy.loc[("claimed inside the measured ranges", "loop-closed"), "p95 (mm)"] == 3 * 0.03
     # both models, the loop-closed one first, each U as controller_offsets.csv gives it
     corrections = cert.corrections
     assert corrections["Model"].str.startswith("loop-closed").tolist() == [True, False, False]
@@ -172,14 +183,33 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
         verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
         and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
     )
-    assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
+    assert verdict["Holds"] == "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg"
+    assert verdict["After: model"].startswith("loop-closed")
+    assert verdict["Inside the measured ranges: p95 (mm)"] == 3 * 0.03
+    assert verdict["Across the joint limits: p95 (mm)"] == 1.5
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
     assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
     assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
-    assert any("25 x" in w for w in cert.warnings)
+    assert "Laser Tracker: the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)" in (
+        cert.warnings
+    )
     assert cert.warnings[0].endswith(
+        "over the joint ranges measured: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg; every measured "
+        "tool axis within 18 deg of one direction; beyond them, the claim across the joint limits carries the "
+        "priors of what the data did not reach"
+    )
+    # a workspace.json written before the measured domain: the shares of each range, no domain claims
+    older = dataclasses.replace(
+        _inputs(),
+        workspace={k: v for k, v in _inputs().workspace.items() if k != "domain"},
+        workspace_accuracy=_inputs().workspace_accuracy.query("configurations != 'domain'"),
+    )
+    old_cert = certificate.certificate(SUMMARY, {"laser_tracker": older})
+    assert old_cert.warnings[0].endswith(
         "over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis within 18 deg of one direction"
     )
+    assert old_cert.verdicts.iloc[0]["Holds"] == "inside the measured ranges"
+    assert np.isnan(old_cert.verdicts.iloc[0]["Inside the measured ranges: p95 (mm)"])
     text = certificate.to_markdown(cert)
     assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
 
@@ -256,7 +286,7 @@ def test_a_held_registration_parameter_is_a_warning():
     cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
     assert any("registration.y held" in w for w in cert.warnings)
     assert not any(
-        "registration" in w and "held" in w
+        "do not determine the registration" in w
         for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings
     )
 

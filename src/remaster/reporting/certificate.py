@@ -2,8 +2,9 @@
 
 Per sensor: the points used, flagged and not seen; the error before and after, on the validation
 set (read only for this final before/after, never for a choice) and as the loop-closed model
-claims it across the joint space; the zero-offset corrections to type into the controller with
-their expanded uncertainty (95 %); what the calibration is valid for and the warnings. Every
+claims it inside the measured joint ranges and across the joint limits; the zero-offset corrections
+to type into the controller with their expanded uncertainty (95 %); what the calibration is valid
+for and the warnings. Every
 number comes from the run's result files (`CertificateInputs`); nothing is typed.
 
 The uncertainty of a mean error is pose-clustered: configurations of one pose (the IK solutions
@@ -105,9 +106,18 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
     }
 
 
+# the claims' rows: configurations of workspace_accuracy.csv -> where (`workspace.CONFIGURATIONS`)
+CLAIMED = {
+    "optimization": "claimed at the measured configurations",
+    "domain": "claimed inside the measured ranges",
+    "random": "claimed across the joint limits (priors where the data did not reach)",
+}
+
+
 def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     """Before -> after on the validation set (registration from the optimization set), then what
-    the loop-closed posterior claims at the measured configurations and across the joint space."""
+    the loop-closed posterior claims at the measured configurations, at random configurations inside
+    the measured joint ranges and across the joint limits."""
     errors = inputs.configuration_errors
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
     where = "validation set (measured)"
@@ -139,10 +149,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
             )
         )
     claims = inputs.workspace_accuracy
-    for configurations, label in (
-        ("optimization", "claimed at the measured configurations"),
-        ("random", "claimed across the joint space"),
-    ):
+    for configurations, label in CLAIMED.items():
         for model, name in (("paper", "remastered zero-offsets"), ("loop", "loop-closed")):
             claim = claim_rows(claims, model, configurations)
             if len(claim):
@@ -243,8 +250,13 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     by = {(r["Where"], r["Model"]): r for r in rows}
     before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
     after = _after(by, inputs.acceptance)
-    workspace = by.get(("claimed across the joint space", "loop-closed"), {})
-    holds = ((((inputs.workspace or {}).get("holds") or {}).get("loop")) or {}).get("holds") or ""
+    inside = by.get((CLAIMED["domain"], "loop-closed"), {})
+    limits = by.get((CLAIMED["random"], "loop-closed"), {})
+    workspace = inputs.workspace or {}
+    # where the claims hold, naming the measured ranges (`domain.MeasuredDomain.holds`); older files: the loop's
+    holds = (workspace.get("domain") or {}).get("holds") or (
+        ((workspace.get("holds") or {}).get("loop") or {}).get("holds") or ""
+    )
     samplers, disagree = second_sampler(inputs)
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
@@ -255,7 +267,8 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "U(After: mean) (mm)": after.get("U(mean) (mm)", np.nan),
         "After: p95 (mm)": after.get("p95 (mm)", np.nan),
         "After: model": after.get("Model", ""),
-        "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
+        "Inside the measured ranges: p95 (mm)": inside.get("p95 (mm)", np.nan),
+        "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan),
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
         "Holds": holds,
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
@@ -264,27 +277,39 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
-    """What the calibration was measured over: each joint's share of its range the measured
-    configurations cover, and how far the tool axis turned (`workspace.json` coverage)."""
-    coverage = (inputs.workspace or {}).get("coverage") or {}
-    fractions = coverage.get("joint_range_fraction") or []
-    parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
-    if coverage.get("tool_axis_spread_deg") is not None:
-        parts.append(f"every measured tool axis within {coverage['tool_axis_spread_deg']:.0f} deg of one direction")
+    """What the calibration was measured over (`workspace.json`): each joint's measured range in
+    degrees (the held joints at their value) and how far the tool axis turned; from older files,
+    each joint's share of its range."""
+    workspace = inputs.workspace or {}
+    domain = workspace.get("domain") or {}
+    coverage = workspace.get("coverage") or {}
+    if domain.get("ranges"):
+        parts = [str(domain["ranges"])]
+    else:
+        fractions = coverage.get("joint_range_fraction") or []
+        parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
+    spread = domain.get("tool_axis_spread_deg", coverage.get("tool_axis_spread_deg"))
+    if spread is not None:
+        parts.append(f"every measured tool axis within {_number(spread):.0f} deg of one direction")
     where = "; ".join(parts) if parts else "coverage not recorded"
+    beyond = (
+        "; beyond them, the claim across the joint limits carries the priors of what the data did not reach"
+        if domain and not domain.get("covers_the_limits")
+        else ""
+    )
     return (
         f"{sensor_label(sensor)}: valid with this tool plate and marker, in this sensor set-up (registration), "
-        f"over the joint ranges measured: {where}"
+        f"over the joint ranges measured: {where}{beyond}"
     )
 
 
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, the loop
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
-    refit short of the convergence criteria), the workspace warnings (near the measured poses
-    only, prior-dominated parameters, what the next campaign should add), the held joints, any
-    held registration parameter, samplers that disagree (the fit not confirmed), and the acceptance
-    test's diagnosis of a failure on the validation set."""
+    refit short of the convergence criteria), the workspace warnings (the claims hold inside the
+    measured ranges only, what the next campaign must add, prior-dominated parameters), the held
+    joints, any held registration parameter, samplers that disagree (the fit not confirmed), and the
+    acceptance test's diagnosis of a failure on the validation set."""
     label = sensor_label(sensor)
     out = []
     _, disagree = second_sampler(inputs)

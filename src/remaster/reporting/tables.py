@@ -37,17 +37,19 @@ CAPTIONS = {
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
     "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
     "optimization set; never picked by these validation numbers), its 95th percentile, what the "
-    "loop-closed model claims across the joint space (the bound on its 95th percentile, "
-    "95 % posterior probability), whether the loop is closed against the "
-    "sensor's noise, where the calibration holds, and whether a second sampler confirms the fit "
+    "loop-closed model claims inside the measured joint ranges and across the joint limits (the "
+    "bound on its 95th percentile, 95 % posterior probability; across the limits the parameters "
+    "the data did not reach spread by their priors), whether the loop is closed against the "
+    "sensor's noise, where the calibration holds (across the joint limits, or inside the measured "
+    "ranges, named), whether a second sampler confirms the fit "
     "(Samplers: the samplers' cross-check, with the parameters they disagree on), and the acceptance test "
     "(Acceptance: the validation errors checked against the loop-closed model's claim at the validation "
     "configurations, noise included; a failure with its diagnosis). After is the model the acceptance test "
     "recommends: the paper's when the added effects did not hold on new poses.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
     "optimization set; U the expanded uncertainty (95 %) of the mean, clustered by pose: CR2, k = t(poses - 1)), "
-    "and as the posteriors claim it at the measured configurations and across the joint "
-    "space (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
+    "and as the posteriors claim it at the measured configurations, inside the measured joint "
+    "ranges and across the joint limits (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
     "95th percentile stays below with 95 % posterior probability).",
     "certificate_corrections": "Zero-offset corrections to add to the controller's zero: the loop-closed model's, "
     "to type in with its other effects, and the zero-offset model's, for a controller that takes "
@@ -76,16 +78,19 @@ CAPTIONS = {
     "zero-offsets alone, at random configurations (Loop-closed: every "
     "parameter of its effects, without the noise term).",
     "workspace_accuracy": "Where each calibration holds: claimed error (mm) of the paper's and the loop-closed model "
-    "at the measured configurations and at random configurations across the joint limits, "
+    "at the measured configurations, at random configurations inside the measured joint ranges "
+    "and at random configurations across the joint limits (there the parameters the data did not "
+    "reach spread by their priors), "
     "propagated from the loop-closed posterior (every draw of its parameters under their "
     "priors, with its noise); registration fitted over the configurations, or in the robot "
     "frame with held zero-offsets drawn from the controller marks' tolerance. 95%: the "
     "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
-    "percentile stays below it with 95 % posterior probability. Holds: "
-    "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
-    "workspace_warnings": "What the report warns about each calibration: workspace-wide error against the measured "
-    "configurations, parameters the data barely moved from their prior, and what the next "
-    "campaign should add.",
+    "percentile stays below it with 95 % posterior probability. Holds: 'across the joint limits' "
+    "when every joint's measured range covers 90 % of its limits and the measured tool axes "
+    "spread 30 deg, else 'inside the measured ranges'.",
+    "workspace_warnings": "What the report warns about each calibration: where its claims hold (the measured "
+    "ranges) against the claim across the joint limits, what the next campaign must add, and "
+    "parameters the data barely moved from their prior.",
     "validation_accuracy": "Accuracy on the validation set with the optimization set's parameters.",
     "sensor_comparison": "The sensors side by side: estimates, differences in units of their combined "
     "uncertainty, and accuracy.",
