@@ -99,6 +99,27 @@ def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
     assert np.isnan(offsets.loc["a1", "std_deg"]) and offsets.loc["a1", "status"].startswith("held")
 
 
+def test_controller_offsets_carry_the_between_design_component():
+    """posterior std 0.03 deg, jackknife std 0.05 over 10 groups: u_between = 0.04, u_c = 0.05 set
+    by the jackknife, dof = K - 1 = 9, k = t_0.975(9) = 2.262; no jackknife: k normal, U = 1.96 std."""
+    table = pd.DataFrame(
+        {
+            "parameter": ["zero_offsets.q1"],
+            "mean": [0.3 * DEG],
+            "std": [0.03 * DEG],
+            "q2.5": [0.24 * DEG],
+            "q97.5": [0.36 * DEG],
+            "status": ["estimated"],
+        }
+    )
+    between = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
+    row = calibrated.controller_offsets(["a1"], table, "loop", between).iloc[0]
+    assert row["u_between_deg"] == 0.04 and row["dof"] == pytest.approx(9.0)
+    assert row["k"] == pytest.approx(2.262157, abs=1e-6) and row["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
+    alone = calibrated.controller_offsets(["a1"], table, "loop").iloc[0]
+    assert np.isnan(alone["u_between_deg"]) and alone["U_deg"] == pytest.approx(1.959964 * 0.03, rel=1e-6)
+
+
 def test_a_dh_robot_gets_a_urdf_of_its_own_that_pinocchio_reads_as_calibrated(ur5_dh, rng):
     values = random_values(ur5_dh, rng)
     xml, left = calibrated.calibrated_urdf(ur5_dh, values)

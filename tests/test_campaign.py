@@ -192,6 +192,16 @@ def test_dh_only_and_agreeing_urdf_and_dh(tmp_path):
     assert max_chain_difference(campaign.chain, dh_chain, q) < 1e-12
 
 
+def test_a_stated_mpe_is_read_in_metres_and_written_back(tmp_path):
+    """sensors/<name>/mpe: the instrument's maximum permissible error (m), optional; None without it."""
+    meta = metadata()
+    meta["sensors"][SENSOR]["mpe"] = 2.5e-5
+    campaign = read_campaign(make_campaign(tmp_path, meta), repo_root=REPO)
+    assert campaign.sensors[SENSOR].mpe == 2.5e-5
+    assert campaign.to_metadata()["sensors"][SENSOR]["mpe"] == 2.5e-5
+    assert validate_metadata(metadata(), source="campaign.yaml")["sensors"][SENSOR]["mpe"] is None
+
+
 def test_validation_needs_no_files():
     meta = validate_metadata(metadata(), source="campaign.yaml")
     assert meta["date"] == dt.date(2018, 6, 12) and meta["sensors"][SENSOR]["noise"] == 3e-5
@@ -255,6 +265,8 @@ METADATA_ERRORS = {
     "marker text": (set_key(["sensors", SENSOR, "marker"], ["a", 0.0, 0.1]), f"sensors/{SENSOR}/marker", InputError),
     "noise zero": (set_key(["sensors", SENSOR, "noise"], 0.0), f"sensors/{SENSOR}/noise", InputError),
     "noise negative": (set_key(["sensors", SENSOR, "noise"], -1e-5), f"sensors/{SENSOR}/noise", InputError),
+    "mpe zero": (set_key(["sensors", SENSOR, "mpe"], 0.0), f"sensors/{SENSOR}/mpe", InputError),
+    "mpe text": (set_key(["sensors", SENSOR, "mpe"], "15 um"), f"sensors/{SENSOR}/mpe", InputError),
 }
 
 

@@ -1,5 +1,5 @@
 """The calibration certificate: numbers from the result files, an honest uncertainty of a mean
-error, corrections with U (k = 2), and the warnings a user must read."""
+error (CR2, t), both models' corrections with U (95 %), and the warnings a user must read."""
 
 import dataclasses
 
@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from remaster.inference.fit import LaplaceReport
+from remaster.inference.uncertainty import coverage_factor
 from remaster.reporting import certificate
 
 from .conftest import loop_report
@@ -14,16 +15,17 @@ from .conftest import loop_report
 
 def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
     """Configurations of one pose share most of their error: a naive std / sqrt(n) would be too
-    small by sqrt(configurations per pose); the clustered u gives U = 2u about 95 % coverage."""
+    small by sqrt(configurations per pose); the clustered u (CR2) with k = t(poses - 1) gives about
+    95 % coverage."""
     rng = np.random.default_rng(5)
     covered, naive_covered = [], []
     poses = np.repeat(np.arange(30), 4)
     for _ in range(2000):
         errors = 2.0 + rng.normal(0, 1.0, 30)[poses] + rng.normal(0, 0.3, len(poses))
-        mean, u, count = certificate.mean_with_uncertainty(errors, poses)
-        covered.append(abs(mean - 2.0) <= 2 * u)
+        mean, u, count, dof = certificate.mean_with_uncertainty(errors, poses)
+        covered.append(abs(mean - 2.0) <= coverage_factor(dof) * u)
         naive_covered.append(abs(mean - 2.0) <= 2 * errors.std(ddof=1) / np.sqrt(count))
-    assert 0.925 <= np.mean(covered) <= 0.97  # binomial sd 0.5 %, and t(29) vs 2: about 94.5 %
+    assert dof == 29 and 0.935 <= np.mean(covered) <= 0.965  # binomial sd 0.5 %; equal poses: exactly t(29)
     assert np.mean(naive_covered) < 0.8
     assert np.isnan(certificate.mean_with_uncertainty([1.0, 2.0], [0, 0])[1])  # one pose: no u
 
@@ -86,13 +88,22 @@ def _inputs(outliers=(), closed=True):
                 ("loop", "optimization", 0.02),
                 ("paper", "random", 1.1),
                 ("loop", "random", 0.5),
+                ("paper", "domain", 1.05),
+                ("loop", "domain", 0.03),
             )
         ]
     )
     workspace = {
-        "holds": {"loop": {"holds": "near the measured poses only"}},
+        "holds": {"loop": {"holds": "inside the measured ranges"}},
+        "domain": {
+            "ranges": "q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+            "held_joints": ["q2"],
+            "tool_axis_spread_deg": 17.6,
+            "covers_the_limits": False,
+            "holds": "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+        },
         "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
-        "warnings": ["loop model: the workspace-wide error is 25 x the error at the measured configurations"],
+        "warnings": ["the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)"],
     }
     verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
     refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
@@ -110,8 +121,26 @@ def _inputs(outliers=(), closed=True):
                 "std_deg": np.nan,
                 "status": "held: not identifiable",
             },
-            {"joint": "j2", "model": "paper", "correction_deg": 0.19, "std_deg": 0.009, "status": "estimated"},
-            {"joint": "j2", "model": "loop", "correction_deg": 0.2, "std_deg": 0.0001, "status": "estimated"},
+            {
+                "joint": "j2",
+                "model": "paper",
+                "correction_deg": 0.19,
+                "std_deg": 0.009,
+                "u_between_deg": 0.0,
+                "U_deg": 0.018,
+                "k": 2.0,
+                "status": "estimated",
+            },
+            {
+                "joint": "j2",
+                "model": "loop",
+                "correction_deg": 0.2,
+                "std_deg": 0.0001,
+                "u_between_deg": 0.002,
+                "U_deg": 0.0045,
+                "k": 2.26,
+                "status": "estimated",
+            },
         ]
     )
     return certificate.CertificateInputs(laplace, errors, residuals, claims, workspace, loop, offsets)
@@ -135,29 +164,54 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     loop = accuracy.loc[("validation set (measured)", "loop-closed (joint_compliance)")]
     pose_means = 0.02 + 0.001 * np.arange(10)  # the loop's rows found their poses through the table's rows
     assert np.isclose(loop["mean (mm)"], pose_means.mean())
-    assert np.isclose(loop["U(mean) (mm)"], 2 * pose_means.std(ddof=1) / np.sqrt(10))
+    # equal poses: CR2 is the spread of the pose means / sqrt(10), with k = t_0.975(9)
+    assert np.isclose(loop["U(mean) (mm)"], 2.262157 * pose_means.std(ddof=1) / np.sqrt(10))
     # a claim's p95 is the bound on this arm's own 95th percentile, not the pooled quantile (2 x mean)
-    assert accuracy.loc[("claimed across the joint space", "loop-closed"), "p95 (mm)"] == 1.5
-    corrections = cert.corrections.set_index("Joint")
-    assert corrections.loc["j2", "U(Correction) (deg)"] == 2 * 0.009 and len(corrections) == 2  # the paper's model
-    assert np.isnan(corrections.loc["j1", "Correction (deg)"]) and corrections.loc["j1", "Status"].startswith("held")
+    limits = "claimed across the joint limits (priors where the data did not reach)"
+    assert accuracy.loc[(limits, "loop-closed"), "p95 (mm)"] == 1.5
+    assert accuracy.loc[("claimed inside the measured ranges", "loop-closed"), "p95 (mm)"] == 3 * 0.03
+    # both models, the loop-closed one first, each U as controller_offsets.csv gives it
+    corrections = cert.corrections
+    assert corrections["Model"].str.startswith("loop-closed").tolist() == [True, False, False]
+    loop_j2, paper_j2 = corrections.iloc[0], corrections.iloc[2]
+    assert loop_j2["U(Correction) (deg)"] == 0.0045 and loop_j2["u_between (deg)"] == 0.002
+    assert paper_j2["U(Correction) (deg)"] == 0.018 and paper_j2["Model"].startswith("zero-offsets only")
+    held = corrections.iloc[1]
+    assert np.isnan(held["Correction (deg)"]) and held["Status"].startswith("held")
     verdict = cert.verdicts.iloc[0]
     assert (
         verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
         and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
     )
-    assert verdict["Holds"] == "near the measured poses only" and verdict["After: model"].startswith("loop-closed")
+    assert verdict["Holds"] == "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg"
+    assert verdict["After: model"].startswith("loop-closed")
+    assert verdict["Inside the measured ranges: p95 (mm)"] == 3 * 0.03
+    assert verdict["Across the joint limits: p95 (mm)"] == 1.5
     assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
     assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
     assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
-    assert any("25 x" in w for w in cert.warnings)
+    assert "Laser Tracker: the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)" in (
+        cert.warnings
+    )
     assert cert.warnings[0].endswith(
+        "over the joint ranges measured: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg; every measured "
+        "tool axis within 18 deg of one direction; beyond them, the claim across the joint limits carries the "
+        "priors of what the data did not reach"
+    )
+    # a workspace.json written before the measured domain: the shares of each range, no domain claims
+    older = dataclasses.replace(
+        _inputs(),
+        workspace={k: v for k, v in _inputs().workspace.items() if k != "domain"},
+        workspace_accuracy=_inputs().workspace_accuracy.query("configurations != 'domain'"),
+    )
+    old_cert = certificate.certificate(SUMMARY, {"laser_tracker": older})
+    assert old_cert.warnings[0].endswith(
         "over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis within 18 deg of one direction"
     )
+    assert old_cert.verdicts.iloc[0]["Holds"] == "inside the measured ranges"
+    assert np.isnan(old_cert.verdicts.iloc[0]["Inside the measured ranges: p95 (mm)"])
     text = certificate.to_markdown(cert)
-    assert (
-        text.startswith("# Calibration certificate: c") and "| Laser Tracker | j2 | 0.190 | 0.018 | estimated |" in text
-    )
+    assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
 
 
 def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
@@ -208,16 +262,14 @@ def test_certificate_rows_take_missing_values_without_a_crash():
     """None and NaN where numbers or sections are expected: blanks in the certificate, no crash."""
     inputs = _inputs()
     offsets = inputs.controller_offsets.copy().astype(object)
-    offsets.loc[1, "std_deg"] = None
+    offsets.loc[1, "U_deg"] = None
     offsets.loc[1, "correction_deg"] = np.nan
     workspace = {"holds": None, "coverage": {"joint_range_fraction": [0.5, None]}, "warnings": None}
     loop = dataclasses.replace(inputs.loop, closure={}, warnings=[])
     inputs = dataclasses.replace(inputs, controller_offsets=offsets, workspace=workspace, loop=loop)
     cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
-    corrections = cert.corrections.set_index("Joint")
-    assert np.isnan(corrections.loc["j2", "U(Correction) (deg)"]) and np.isnan(
-        corrections.loc["j2", "Correction (deg)"]
-    )
+    paper_j2 = cert.corrections.iloc[2]
+    assert np.isnan(paper_j2["U(Correction) (deg)"]) and np.isnan(paper_j2["Correction (deg)"])
     verdict = cert.verdicts.iloc[0]
     assert verdict["Holds"] == "" and verdict["Loop"] == ""
     assert "q1 50 %, q2 nan %" in cert.warnings[0]
@@ -234,6 +286,47 @@ def test_a_held_registration_parameter_is_a_warning():
     cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
     assert any("registration.y held" in w for w in cert.warnings)
     assert not any(
-        "registration" in w and "held" in w
+        "do not determine the registration" in w
         for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings
     )
+
+
+def _acceptance(verdict, diagnosis, recommended):
+    from remaster.analysis.acceptance import Acceptance
+
+    checks = {m: {"passed": verdict == "pass", "p_value": 0.0} for m in ("loop", "paper")}
+    text = "fail: ... the added effects did not hold on new poses" if diagnosis else "pass"
+    return Acceptance(
+        "laser_tracker",
+        verdict,
+        diagnosis,
+        text,
+        recommended,
+        None,
+        checks,
+        0.01,
+        0.95,
+        100,
+        20,
+        (),
+        (text,) if diagnosis else (),
+    )
+
+
+def test_the_acceptance_test_gives_the_verdict_its_after_and_its_warning():
+    """A failure on the validation set is a line of the verdict and a warning, and 'After' is the model
+    the acceptance test recommends: the paper's when the loop's added effects did not hold."""
+    inputs = _inputs()
+    untested = certificate.certificate(SUMMARY, {"laser_tracker": inputs}).verdicts.iloc[0]
+    assert untested["Acceptance"] == certificate.NOT_TESTED and untested["After: model"].startswith("loop-closed")
+    passed = dataclasses.replace(inputs, acceptance=_acceptance("pass", None, "loop"))
+    verdict = certificate.certificate(SUMMARY, {"laser_tracker": passed}).verdicts.iloc[0]
+    assert verdict["Acceptance"] == "pass" and verdict["After: mean (mm)"] == untested["After: mean (mm)"]
+    failed = dataclasses.replace(inputs, acceptance=_acceptance("fail", "effects_did_not_hold", "paper"))
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": failed})
+    verdict = cert.verdicts.iloc[0]
+    assert verdict["Acceptance"] == "fail: the added effects did not hold on new poses"
+    paper = np.mean([1.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])  # the paper model's validation errors
+    assert verdict["After: model"] == "remastered zero-offsets" and verdict["After: mean (mm)"] == paper
+    assert any(w.startswith("Laser Tracker: fail: ") and "did not hold" in w for w in cert.warnings)
+    assert "| fail: the added effects did not hold on new poses |" in certificate.to_markdown(cert)

@@ -262,6 +262,23 @@ def test_nothing_is_added_when_nothing_is_missing(iiwa):
     assert all(shift["shift_deg"] == 0.0 for shift in report["zero_offset_shifts"])
 
 
+def test_the_jackknife_of_a_complete_model_agrees_with_its_posterior(iiwa):
+    """Nothing missing and independent noise: the zero-offsets' spread across pose groups is what
+    their posterior std says (the jackknife variance has 9 degrees of freedom: a std ratio within
+    0.45-1.8 for each of 12 parameters), so the between-design component is small beside it; each
+    estimate is the mode without one group, close to the full mode."""
+    result = closed(iiwa, simulated(iiwa, "none"))
+    between = result.report.between_design
+    for model in ("paper", "loop"):
+        assert between[model]["groups"] == 10
+        parameters = between[model]["parameters"]
+        assert set(parameters) == {f"zero_offsets.q{j}" for j in range(2, 8)}  # q1 held against the registration
+        for name, p in parameters.items():
+            assert 0.45 <= p["jackknife_std_deg"] / p["posterior_std_deg"] <= 1.8, name
+            assert p["u_between_deg"] <= 1.5 * p["posterior_std_deg"], name
+            assert len(p["estimates_deg"]) == 10
+
+
 def test_two_effects_are_both_found(iiwa):
     truth = {"joint_compliance": COMPLIANCE, "payload": PAYLOAD}
     report = closed(iiwa, simulated(iiwa, "compliance+sensor_scale", truth, {"scale_error": 2e-4})).report

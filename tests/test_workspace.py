@@ -8,7 +8,7 @@ import pytest
 import scipy.optimize
 
 from remaster import files, spatial
-from remaster.analysis import accuracy, comparison, prediction, transfer, workspace
+from remaster.analysis import accuracy, comparison, domain, prediction, transfer, workspace
 from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
@@ -102,15 +102,16 @@ def test_loop_rows_follow_the_papers_rows():
     assert table["Mean (mm)"].iloc[-1] == 0.02
 
 
-def test_a_calibration_that_holds_near_its_poses_only_says_what_to_add(iiwa, rng):
-    """Readings with joint 3 fixed and the flange always pointing one way: both are named."""
+def test_a_calibration_that_holds_inside_its_ranges_only_says_what_to_add(iiwa, rng):
+    """Readings with joint 3 fixed and the flange always pointing one way: both are named, and
+    every joint short of the range the claims across the limits need."""
     q = rng.uniform(-0.12, 0.12, (40, 7))
     q[:, 2] = 0.0
-    coverage = workspace.measured_coverage(iiwa, q, np.zeros(3))
-    assert coverage["joint_range_fraction"][2] == 0.0
-    assert coverage["tool_axis_spread_deg"] < workspace.MIN_TOOL_SPREAD_DEG
-    suggestions = workspace._suggestions(coverage, ["link_geometry.F3.length"])
-    assert any(s.startswith("joint 3 over more of its range") for s in suggestions)
+    measured = domain.MeasuredDomain.of(iiwa, q)
+    assert measured.held[2] and measured.tool_axis_spread_deg < domain.MIN_TOOL_SPREAD_DEG
+    suggestions = workspace._suggestions(measured, ["link_geometry.F3.length"])
+    assert "joint 3 over more of its range (measured: held at 0 deg)" in suggestions
+    assert sum(s.startswith("joint ") for s in suggestions) == 7  # 0.24 rad of each range: all short
     assert any(s.startswith("tool orientations") for s in suggestions)
     assert any("link_geometry.F3.length" in s for s in suggestions)
 
@@ -217,6 +218,7 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
 
 
+@pytest.mark.parametrize("where", ["random", "domain"], ids=["across the limits", "inside the measured ranges"])
 @pytest.mark.parametrize(
     "sensor, model",
     [
@@ -226,14 +228,22 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
         ("motion_capture", "loop"),
     ],
 )
-def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, model):
-    """At the robot's random configurations, the claimed error distribution (registration fitted)
-    reaches at least the true 95 % quantile; in the robot frame, with joint 1 at the controller
-    marks' tolerance, too. (The loop-closed motion-capture claim used to miss it, by half, where
-    joint 3, never measured, moves: the two-parameter link model could not hold the twin's link
-    errors there and its posterior did not know; the complete model leaves them to their priors.)"""
+def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, model, where):
+    """At the robot's random configurations across the joint limits, and at random configurations
+    inside the measured joint ranges (joint 3 held at 0, as in every twin campaign), the claimed
+    error distribution (registration fitted) reaches at least the true 95 % quantile; in the robot
+    frame, with joint 1 at the controller marks' tolerance, too. (The loop-closed motion-capture
+    claim used to miss it, by half, where joint 3, never measured, moves: the two-parameter link
+    model could not hold the twin's link errors there and its posterior did not know; the complete
+    model leaves them to their priors.)"""
     result, campaign, laplace = claims_of("kuka-twin", sensor, tmp_path_factory)
-    q = prediction.robot_configurations(campaign.chain, comparison.robot_identity(campaign), RANDOM, SEED)
+    robot = comparison.robot_identity(campaign)
+    if where == "random":
+        q = prediction.robot_configurations(campaign.chain, robot, RANDOM, SEED)
+    else:  # the domain's configurations, rebuilt from the campaign's readings: joint 3 at 0 in every one
+        measured = workspace.fit_domain(campaign.chain, campaign.sensors[sensor], laplace.outlier_rows)
+        q = measured.configurations(robot, RANDOM, SEED)
+        assert (q[:, 2] == 0.0).all()
     truth = true_points(campaign, sensor, q)
     _, _, report, samples = fitted("kuka-twin", sensor, tmp_path_factory)
     calibration = (
@@ -244,12 +254,12 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     points = calibration.predictor(campaign.chain, q, campaign.sensors[sensor].marker).points(calibration.values)
     registered = metrics.registered_distances(points, truth[None])[0]
     robot_frame = np.linalg.norm(points - truth, axis=1)
-    assert claim(result.claims, model, frame="robot")["p95_mm"] >= np.quantile(robot_frame, 0.95) / 1e-3
+    assert claim(result.claims, model, where, frame="robot")["p95_mm"] >= np.quantile(robot_frame, 0.95) / 1e-3
     # the paper's tables say nothing of joint 1 (held): the robot-frame truth is far beyond the registered one
     assert np.quantile(robot_frame, 0.95) > 2 * np.quantile(registered, 0.95)
     true_p95 = np.quantile(registered, 0.95) / 1e-3
-    assert claim(result.claims, model)["p95_mm"] >= true_p95
-    assert claim(result.claims, model)["p95_bound_mm"] >= true_p95  # the certificate's claim
+    assert claim(result.claims, model, where)["p95_mm"] >= true_p95
+    assert claim(result.claims, model, where)["p95_bound_mm"] >= true_p95  # the certificate's claim
 
 
 def test_the_twins_loop_rows_and_notes(tmp_path_factory):
@@ -259,9 +269,14 @@ def test_the_twins_loop_rows_and_notes(tmp_path_factory):
     rows = result.theoretical.set_index("table")
     assert set(rows.index) == set(workspace.THEORETICAL_TABLES) and (rows["method"] == workspace.LOOP_METHOD).all()
     assert samples[SIGMA].mean() < 2 * campaign.sensors["laser_tracker"].noise  # closed to the sensor's noise
-    # joint 3 never moved: the link errors it would have shown keep their priors, and the claim
-    # across the joint space is wide enough to say so
-    assert result.report["holds"]["loop"]["holds"] == "near the measured poses only"
+    # joint 3 never moved: the claims hold inside the measured ranges, the next campaign must move it
+    assert result.report["holds"]["loop"]["holds"] == domain.INSIDE
+    assert result.report["domain"]["held_joints"] == ["q3"]
+    assert ", q3 held at 0, " in result.report["domain"]["holds"]
+    assert any(w.startswith("the next campaign must add: joint 3 over more") for w in result.report["warnings"])
+    # across the limits the link errors joint 3 would have shown keep their priors: a wider claim
+    inside, limits = (claim(result.claims, "loop", where)["p95_bound_mm"] for where in ("domain", "random"))
+    assert limits > 2 * inside
     assert "link_geometry.F1.x" in result.report["unseen_anywhere"]  # absorbed by any registration
 
 
@@ -322,10 +337,10 @@ def test_the_cubes_calibration_transfers_no_worse_with_priors(tmp_path_factory):
 def test_the_cubes_calibration_warned_before_the_transfer_proved_it(tmp_path_factory):
     """kuka-cubes' own workspace-wide claim (registration fitted, random configurations) reaches
     the 95 % quantile its loop-closed calibration then shows on the twin's validation rows, and its
-    report says it holds near the measured poses only and asks for tool orientations."""
+    report says its claims hold inside the measured ranges only and asks for tool orientations."""
     result, campaign, _ = claims_of("kuka-cubes", "laser_tracker", tmp_path_factory)
     _, _, report, samples = fitted("kuka-cubes", "laser_tracker", tmp_path_factory)
     observed = on_twin(prediction.loop_calibration(report, samples))
     assert claim(result.claims, "loop")["p95_mm"] >= np.quantile(observed, 0.95) / 1e-3
-    assert result.report["holds"]["loop"]["holds"] == "near the measured poses only"
+    assert result.report["holds"]["loop"]["holds"] == domain.INSIDE
     assert any("tool orientations" in s for s in result.report["next_campaign_should_add"])

@@ -1,5 +1,9 @@
 """A calibration held to a simulated truth it did not make: what `remaster predict` says against where
-the true robot puts the marker, at random configurations across the joint limits.
+the true robot puts the marker, at random configurations across the joint limits and at random
+configurations inside the measured joint ranges (`domain.MeasuredDomain`); and the workspace claims
+(`workspace.workspace_accuracy`: the loop-closed model, registration fitted, with noise, the bound on
+one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
+percentile of the registered error there.
 
 Used by tests/test_truth_claims.py (small campaigns) and benchmarks/bench_truth_claims.py (campaigns
 of the paper's size). The campaign goes through the pipeline's own stages in-process (registration,
@@ -18,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from remaster import files
-from remaster.analysis import compensation
+from remaster.analysis import comparison, compensation, prediction, workspace
 from remaster.campaigns import folders, scenario
-from remaster.campaigns.simulation import true_sensor_positions
-from remaster.inference import fit
+from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
+from remaster.inference import fit, metrics
 from remaster.loop import loop_closure
 from remaster.loop.report import LoopReport
 from remaster.loop.settings import settings_from
@@ -30,12 +34,29 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 @dataclass(frozen=True)
+class Claim:
+    """The workspace claim of the loop-closed model at one set of configurations (registration
+    fitted, with noise), mm: p95 (pooled) and p95_bound (one arm's 95th percentile, the
+    certificate's), against the true 95th percentile of the registered error of its posterior
+    mean there (noise-free)."""
+
+    p95_mm: float
+    p95_bound_mm: float
+    true_p95_mm: float
+
+    @property
+    def covers(self) -> bool:
+        return self.p95_bound_mm >= self.true_p95_mm
+
+
+@dataclass(frozen=True)
 class TruthCheck:
     """effects: what the loop added; validation_rms_per_axis_mm (after the loop) and noise_mm (the
     sensor's per-axis std); error_mm (n,): the true error of `remaster predict`'s position at each
-    random configuration, and bound_mm (n,) its per-command 95 % bound; q (n, N) those
-    configurations; moved_fraction (N,): the share of each joint's range the optimization set
-    spanned."""
+    random configuration across the joint limits, and bound_mm (n,) its per-command 95 % bound; q
+    (n, N) those configurations; moved_fraction (N,): the share of each joint's range the
+    optimization set spanned; domain_error_mm, domain_bound_mm, domain_q: the same at random
+    configurations inside the measured joint ranges; claims: {'domain', 'random': Claim}."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -44,11 +65,20 @@ class TruthCheck:
     bound_mm: np.ndarray
     q: np.ndarray
     moved_fraction: np.ndarray
+    domain_error_mm: np.ndarray
+    domain_bound_mm: np.ndarray
+    domain_q: np.ndarray
+    claims: dict[str, Claim]
 
     @property
     def held_fraction(self) -> float:
-        """Share of the random configurations whose true error is within its bound."""
+        """Share of the random configurations across the limits whose true error is within its bound."""
         return float(np.mean(self.error_mm <= self.bound_mm))
+
+    @property
+    def domain_held_fraction(self) -> float:
+        """Share of the random configurations inside the measured ranges whose true error is within its bound."""
+        return float(np.mean(self.domain_error_mm <= self.domain_bound_mm))
 
     def summary(self) -> dict:
         return {
@@ -58,6 +88,13 @@ class TruthCheck:
             "true_error_p95_mm": float(np.quantile(self.error_mm, 0.95)),
             "bound_median_mm": float(np.median(self.bound_mm)),
             "bound_held_fraction": self.held_fraction,
+            "domain_true_error_p95_mm": float(np.quantile(self.domain_error_mm, 0.95)),
+            "domain_bound_median_mm": float(np.median(self.domain_bound_mm)),
+            "domain_bound_held_fraction": self.domain_held_fraction,
+            "claims": {
+                where: {"true_p95_mm": c.true_p95_mm, "p95_mm": c.p95_mm, "p95_bound_mm": c.p95_bound_mm}
+                for where, c in self.claims.items()
+            },
             "joint_range_moved": [round(float(f), 3) for f in self.moved_fraction],
         }
 
@@ -65,7 +102,9 @@ class TruthCheck:
 def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000, seed: int = 5) -> TruthCheck:
     """Simulate `spec`, calibrate its `sensor` as the pipeline does, and hold `remaster predict`
     (loop model, sensor frame) to the truth at `n_random` configurations uniform within the joint
-    limits."""
+    limits and `n_random` inside the measured joint ranges; and the loop model's workspace claims
+    (`draws` posterior draws, `n_random` configurations each) inside the measured ranges and across
+    the limits to the true 95th percentile there."""
     simulated = scenario.simulate(spec, chain)
     root = Path(tempfile.mkdtemp())
     folder = root / spec["name"]
@@ -101,6 +140,43 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     error = np.linalg.norm(predicted[["x", "y", "z"]].to_numpy() - true, axis=1) / 1e-3
     optimization = campaign.sensors[sensor].q("optimization")
     moved = np.ptp(optimization, axis=0) / (upper - lower)
+    true_robot = scenario.robot_from_truth(truth)
+    # inside the measured domain: the workspace claims' own configurations there
+    identity = comparison.robot_identity(campaign)
+    q_domain = workspace.fit_domain(campaign.chain, campaign.sensors[sensor], laplace.outlier_rows).configurations(
+        identity, n_random, seed
+    )
+    at_domain = compensation.predict(robot, q_domain, "sensor", draws, rng)
+    true_domain = true_sensor_positions(campaign.chain, true_robot, device, q_domain, np.zeros(len(q_domain)))
+    domain_error = np.linalg.norm(at_domain[["x", "y", "z"]].to_numpy() - true_domain, axis=1) / 1e-3
+    claims = workspace.workspace_accuracy(
+        campaign.chain,
+        campaign.sensors[sensor],
+        identity,
+        results["summary"],
+        laplace,
+        report,
+        result.samples,
+        np.random.default_rng(seed),
+        n_draws=draws,
+        n_random=n_random,
+        seed=seed,
+    ).claims
+    loop = prediction.loop_calibration(report, result.samples)
+    held_to_truth = {}
+    for where, configurations in (
+        ("domain", q_domain),
+        ("random", prediction.robot_configurations(campaign.chain, identity, n_random, seed)),
+    ):
+        mean = loop.predictor(campaign.chain, configurations, campaign.sensors[sensor].marker).points(loop.values)
+        true_points = true_marker_positions(
+            campaign.chain, true_robot, device, configurations, np.zeros(len(configurations))
+        )
+        registered = metrics.registered_distances(mean, true_points[None])[0]
+        row = workspace.claim_rows(claims, "loop", where).iloc[0]
+        held_to_truth[where] = Claim(
+            float(row["p95_mm"]), float(row["p95_bound_mm"]), float(np.quantile(registered, 0.95) / 1e-3)
+        )
     return TruthCheck(
         tuple(report.effects_added),
         float(report.after["validation"]["rms_per_axis_mm"]),
@@ -109,4 +185,8 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         predicted["bound95_mm"].to_numpy(),
         q,
         moved,
+        domain_error,
+        at_domain["bound95_mm"].to_numpy(),
+        q_domain,
+        held_to_truth,
     )

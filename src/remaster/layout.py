@@ -38,6 +38,9 @@ LOOP_RESIDUALS = f"{LOOP}/residuals.parquet"
 LOOP_SAMPLES = f"{LOOP}/samples.parquet"
 LOOP_GP = f"{LOOP}/residual_gp.parquet"
 
+# the validation set as the acceptance test, after the loop closure
+ACCEPTANCE = "acceptance.json"
+
 # the later stages' folders
 METRICS = "metrics"
 CALIBRATED = "calibrated"

@@ -248,6 +248,7 @@ def audited_results(campaign):
             layout.REGISTRATION,
             layout.SUMMARY,
             layout.LOOP_CLOSURE,
+            layout.ACCEPTANCE,
             f"{layout.LOOP}/workspace.json",
             layout.LOOP_GP,
             layout.SUMMARY_DISCREPANCY,

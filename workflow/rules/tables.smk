@@ -44,6 +44,7 @@ SENSOR_TABLE_INPUTS = sensor_inputs(
     workspace=f"{LOOP}/workspace.json",
     offsets=f"{CALIBRATED}/controller_offsets.csv",
     cross_check=f"{SENSOR}/{layout.CROSS_CHECK}",
+    acceptance=f"{SENSOR}/{layout.ACCEPTANCE}",
     **{f"metrics_{t}": f"{ACC}/{t}.csv" for t in TABLE_NAMES},
 )
 TABLE_OUTPUTS = dict(

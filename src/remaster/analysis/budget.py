@@ -1,35 +1,51 @@
 """An uncertainty budget per campaign and sensor, GUM style: where the uncertainty of a remastered
 position comes from.
 
-The measurand is a marker position the remastered robot predicts at the measured configurations,
-compared with a measurement of it (per axis, mm). Its components, each a standard uncertainty u
-per axis, combined in quadrature (GUM, uncorrelated components; the registration and the
-zero-offsets are correlated through the fit, so their joint row is propagated with their full
-covariance and the correlation term is shown):
+The measurand is a marker position the remastered robot (the zero-offset model) predicts at the
+measured configurations, compared with a measurement of it (per axis, mm). Each row is a standard
+uncertainty u per axis with its type (A: from these data; B: stated), distribution and degrees of
+freedom:
 
-- sensor noise: the campaign's stated per-axis noise;
-- registration and zero-offsets: the Laplace covariance of the paper model's fit propagated
-  through its Jacobian, u^2 = mean over the points and axes of diag(J C J^T);
-- what the model lacks: the fit's sigma beyond the stated noise, sqrt(sigma^2 - noise^2) (with no
-  stated noise, sigma is noise and what the model lacks together); the same after the loop
-  closure, from its refit's sigma.
+- measurement noise: the campaign's stated per-axis noise (B, normal, dof inf); with none stated,
+  the fit's sigma instead, which holds the noise and what the model lacks together and is called so
+  (A, dof 3n - P - 1: 3n residual components, P parameters and sigma);
+- instrument MPE: the sensor's stated maximum permissible error of a coordinate (campaign.yaml
+  sensors/<name>/mpe), rectangular, u = MPE / sqrt(3) (B, dof inf); 'not stated' without it. A
+  stated noise is part of what the MPE bounds, so counting both is on the safe side;
+- fitted parameters: the registration and the zero-offsets together, the Laplace covariance of the
+  fit propagated through its Jacobian with its correlations, u^2 = mean over the points and axes of
+  diag(J C J^T) (A, dof 3n - P - 1). One row: two blocks that the fit makes share it equally by
+  construction are not two findings;
+- model discrepancy: the fit's sigma beyond the stated noise, sqrt(sigma^2 - noise^2), the RMS per
+  axis of an error that depends on the configuration and repeats with it. Systematic: it is not
+  combined in quadrature nor expanded by k; its 95 % bound over the measured configurations, b95 =
+  the 95th percentile of the fit's |residual| per axis (the noise inside it, on the safe side), is
+  added linearly to U (GUM F.2.4.5, an uncorrected systematic error). Without a stated noise it
+  cannot be told from the noise and stays inside the first row. After the loop closure, what the
+  loop-closed model still lacks is given the same way, for reference.
 
-U = k u_c with k = 2. SI inside; the table is in mm.
+u_c is the root sum of squares of the random rows, nu_eff its Welch-Satterthwaite degrees of
+freedom, U = k u_c with k = t_0.975(nu_eff) (`remaster.inference.uncertainty`), and U + b95 the
+bound with the systematic term. SI inside; the table is in mm.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport, Registration, build_model
+from ..inference.uncertainty import COVERAGE, coverage_factor, welch_satterthwaite
 from ..labels import sensor_label
 from ..loop.report import LoopReport
 from ..units import MM
 
-COVERAGE_FACTOR = 2.0
-BLOCKS = (("registration", "registration."), ("zero-offsets", "zero_offsets."))
+FITTED_BLOCKS = ("registration.", "zero_offsets.")
+BOUND_QUANTILE = 0.95  # of the systematic term over the measured configurations
+COLUMNS = ["Component", "Type", "Distribution", "u per axis (mm)", "dof", "share of u_c^2 (%)", "source"]
 
 
 def propagated(jacobian: np.ndarray, covariance: np.ndarray, columns) -> float:
@@ -40,73 +56,134 @@ def propagated(jacobian: np.ndarray, covariance: np.ndarray, columns) -> float:
 
 
 def budget_rows(
-    jacobian: np.ndarray, laplace: LaplaceReport, stated_noise: float | None, loop_sigma: float | None = None
+    jacobian: np.ndarray,
+    laplace: LaplaceReport,
+    stated_noise: float | None,
+    residuals: np.ndarray | None = None,
+    loop_sigma: float | None = None,
+    mpe: float | None = None,
 ) -> list[dict]:
-    """The budget's rows (Component, u per axis (mm), share of u_c^2 (%), source) of one fit.
-    jacobian (3n, P) of the residuals at the MAP; stated_noise and loop_sigma in m (or None)."""
+    """The budget's rows (`COLUMNS`) of one fit (module docstring). jacobian (3n, P) of the
+    residuals at the MAP; residuals (n, 3) m at the MAP (for the systematic term's bound; None:
+    no bound); stated_noise, loop_sigma and mpe in m (or None)."""
     names = laplace.names
-    parts = {label: [i for i, n in enumerate(names) if n.startswith(prefix)] for label, prefix in BLOCKS}
-    u = {label: propagated(jacobian, laplace.covariance, columns) for label, columns in parts.items() if columns}
-    together = propagated(jacobian, laplace.covariance, [i for columns in parts.values() for i in columns])
+    columns = [i for i, n in enumerate(names) if n.startswith(FITTED_BLOCKS)]
+    fitted = propagated(jacobian, laplace.covariance, columns)
     sigma = laplace.sigma_mean
-    lacks = np.sqrt(max(sigma**2 - stated_noise**2, 0.0)) if stated_noise is not None else None
-    noise = stated_noise if stated_noise is not None else sigma
-    combined = np.sqrt(noise**2 + (lacks or 0.0) ** 2 + together**2)
-    rows = [
-        (
-            "sensor noise",
-            noise,
-            "stated in campaign.yaml"
-            if stated_noise is not None
-            else "not stated: the fit's sigma, which holds what the model lacks too",
+    dof_fit = max(jacobian.shape[0] - len(names) - 1, 1)
+    random: list[tuple] = []  # (component, type, distribution, u m, dof, source)
+    if stated_noise is not None:
+        random.append(("measurement noise", "B", "normal", stated_noise, math.inf, "stated in campaign.yaml"))
+    else:
+        random.append(
+            (
+                "residual scatter: noise and model discrepancy together",
+                "A",
+                "normal",
+                sigma,
+                dof_fit,
+                "no noise stated: the fit's sigma, which cannot tell the sensor's noise from what the model lacks",
+            )
         )
-    ]
-    rows += [(label, value, "the fit's Laplace covariance through its Jacobian") for label, value in u.items()]
-    correlation = together**2 - sum(v**2 for v in u.values())
-    rows.append(
-        (
-            "registration x zero-offsets correlation",
-            np.sign(correlation) * np.sqrt(abs(correlation)),
-            "signed: their joint variance minus the two alone",
+    instrument = (
+        ("instrument MPE", "B", "rectangular", mpe / math.sqrt(3.0), math.inf, "MPE stated in campaign.yaml / sqrt(3)")
+        if mpe is not None
+        else (
+            "instrument MPE",
+            "B",
+            "rectangular",
+            math.nan,
+            math.nan,
+            "not stated in campaign.yaml (sensors/<name>/mpe)",
         )
     )
-    if lacks is not None:
-        rows.append(("what the model lacks", lacks, "the fit's sigma beyond the stated noise"))
+    random.append(instrument)
+    random.append(
+        (
+            "fitted parameters (registration and zero-offsets)",
+            "A",
+            "normal",
+            fitted,
+            dof_fit,
+            "the fit's Laplace covariance, correlations included, through its Jacobian",
+        )
+    )
+    used = [r for r in random if np.isfinite(r[3])]
+    combined = math.sqrt(sum(r[3] ** 2 for r in used))
+    nu = welch_satterthwaite([r[3] for r in used], [r[4] for r in used])
+    k = coverage_factor(nu)
     out = [
-        {
-            "Component": c,
-            "u per axis (mm)": v / MM,
-            "share of u_c^2 (%)": 100 * np.sign(v) * v**2 / combined**2,
-            "source": s,
-        }
-        for c, v, s in rows
+        _row(c, t, d, u, dof, 100 * u**2 / combined**2 if np.isfinite(u) else math.nan, src)
+        for c, t, d, u, dof, src in random
     ]
+    systematic = math.sqrt(max(sigma**2 - stated_noise**2, 0.0)) if stated_noise is not None else None
+    if systematic is not None:
+        out.append(
+            _row(
+                "model discrepancy",
+                "systematic",
+                "depends on the configuration",
+                systematic,
+                math.nan,
+                math.nan,
+                "the fit's sigma beyond the stated noise (RMS per axis over the measured configurations); "
+                "not in u_c: its bound is added to U",
+            )
+        )
+    out.append(_row("combined u_c", "", "", combined, nu, 100.0, "root sum of squares of the random components"))
     out.append(
-        {
-            "Component": "combined u_c",
-            "u per axis (mm)": combined / MM,
-            "share of u_c^2 (%)": 100.0,
-            "source": "root sum of squares",
-        }
+        _row(
+            f"expanded U (k = {k:.2f})",
+            "",
+            "",
+            k * combined,
+            nu,
+            math.nan,
+            f"{100 * COVERAGE:.0f} %: k = t at the effective degrees of freedom (Welch-Satterthwaite)",
+        )
     )
-    out.append(
-        {
-            "Component": f"expanded U (k = {COVERAGE_FACTOR:g})",
-            "u per axis (mm)": COVERAGE_FACTOR * combined / MM,
-            "share of u_c^2 (%)": np.nan,
-            "source": "about 95 % for a normal distribution",
-        }
-    )
+    if systematic is not None and residuals is not None:
+        bound = float(np.quantile(np.abs(np.asarray(residuals)), BOUND_QUANTILE))
+        out.append(
+            _row(
+                "model discrepancy, 95 % bound",
+                "systematic",
+                "",
+                bound,
+                math.nan,
+                math.nan,
+                "95th percentile of the fit's |residual| per axis over the measured configurations (noise inside)",
+            )
+        )
+        out.append(
+            _row(
+                "U + model discrepancy bound",
+                "",
+                "",
+                k * combined + bound,
+                math.nan,
+                math.nan,
+                "the systematic term added linearly (GUM F.2.4.5): what the zero-offset model's prediction "
+                "misses by at 95 % of the measured configurations",
+            )
+        )
     if loop_sigma is not None and stated_noise is not None:
         out.append(
-            {
-                "Component": "what the model lacks after the loop closure",
-                "u per axis (mm)": np.sqrt(max(loop_sigma**2 - stated_noise**2, 0.0)) / MM,
-                "share of u_c^2 (%)": np.nan,
-                "source": "the loop-closed refit's sigma beyond the stated noise",
-            }
+            _row(
+                "model discrepancy after the loop closure",
+                "systematic",
+                "depends on the configuration",
+                math.sqrt(max(loop_sigma**2 - stated_noise**2, 0.0)),
+                math.nan,
+                math.nan,
+                "the loop-closed refit's sigma beyond the stated noise, for reference (not in U)",
+            )
         )
     return out
+
+
+def _row(component, kind, distribution, u, dof, share, source) -> dict:
+    return dict(zip(COLUMNS, (component, kind, distribution, u / MM, dof, share, source)))
 
 
 def budget_table(
@@ -122,6 +199,13 @@ def budget_table(
         data = campaign.sensors[sensor]
         model, _, _ = build_model(campaign.chain, data, registrations[sensor].t_nr, exclude=laplace.outlier_rows)
         laplace.check_names(model.names)
-        rows = budget_rows(model.jacobian(laplace.theta_map), laplace, data.noise, loops[sensor].sigma_after)
+        rows = budget_rows(
+            model.jacobian(laplace.theta_map),
+            laplace,
+            data.noise,
+            model.residuals(laplace.theta_map),
+            loops[sensor].sigma_after,
+            data.mpe,
+        )
         out += [{"Sensor": sensor_label(sensor), **row} for row in rows]
     return pd.DataFrame(out)

@@ -17,8 +17,12 @@ given as a DH table gets the calibrated DH table too (`dh_table`), exact or sayi
 
 **Controller offsets.** Per joint: the correction to add to the controller's zero (true angle =
 reading + correction), in degrees (KUKA and most industrial controllers) and radians (UR), with its
-std and 95 % interval, for the paper's model and the loop-closed model; held joints get none and
-say why.
+posterior std and 95 % interval, for the paper's model and the loop-closed model; held joints get
+none and say why. Each correction's expanded uncertainty holds how far it moves with the poses
+measured too: u_between, the zero-offsets' spread across designs beyond the posterior's
+(loop_closure.json between_design, `remaster.loop.jackknife`), u_c = sqrt(std^2 + u_between^2), its
+effective degrees of freedom (Welch-Satterthwaite, `uncertainty.with_between`) and U = k u_c with
+k = t_0.975(dof). A report without between_design gives u_between NaN and U = k std at k normal.
 
 SI inside (m, rad).
 """
@@ -37,6 +41,7 @@ from ..campaigns.campaign import Campaign
 from ..errors import InputError
 from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
+from ..inference.uncertainty import coverage_factor, with_between
 from ..loop.report import LoopReport
 from ..robot.kinematics import KinematicChain, origin_transform
 from ..units import DEG
@@ -54,6 +59,10 @@ OFFSET_COLUMNS = [
     "q97.5_deg",
     "correction_rad",
     "std_rad",
+    "u_between_deg",
+    "U_deg",
+    "dof",
+    "k",
     "status",
 ]
 
@@ -158,25 +167,39 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
     return out
 
 
-def controller_offsets(joint_names, table: pd.DataFrame, model: str) -> pd.DataFrame:
+def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Mapping | None = None) -> pd.DataFrame:
     """`OFFSET_COLUMNS` per joint of one model from its parameter table (parameter, mean, std,
-    q2.5, q97.5 SI, status)."""
+    q2.5, q97.5 SI, status) and its between-design component (`jackknife.zero_offset_jackknife`:
+    groups, parameters {name: u_between_deg, jackknife_std_deg}; None when not computed)."""
     table = by_parameter(table)
+    spread = (between or {}).get("parameters") or {}
     rows = []
     for j, joint in enumerate(joint_names):
-        r = table.loc[f"zero_offsets.q{j + 1}"]
+        name = f"zero_offsets.q{j + 1}"
+        r = table.loc[name]
         estimated = str(r["status"]) == "estimated"
         value = float(r["mean"])
+        std = float(r["std"]) / DEG if estimated else np.nan
+        if estimated and name in spread:
+            u_b, u_j = float(spread[name]["u_between_deg"]), float(spread[name]["jackknife_std_deg"])
+            u_c, dof = (float(v) for v in with_between(std, u_b, u_j, int(between["groups"])))
+        else:  # held, or no between-design component computed: the posterior alone
+            u_b, u_c, dof = np.nan, std, np.inf if estimated else np.nan
+        k = coverage_factor(dof)
         rows.append(
             {
                 "joint": joint,
                 "model": model,
                 "correction_deg": value / DEG,
-                "std_deg": float(r["std"]) / DEG if estimated else np.nan,
+                "std_deg": std,
                 "q2.5_deg": float(r["q2.5"]) / DEG if estimated else np.nan,
                 "q97.5_deg": float(r["q97.5"]) / DEG if estimated else np.nan,
                 "correction_rad": value,
                 "std_rad": float(r["std"]) if estimated else np.nan,
+                "u_between_deg": u_b,
+                "U_deg": k * u_c,
+                "dof": dof,
+                "k": k,
                 "status": str(r["status"]),
             }
         )
@@ -219,8 +242,12 @@ def calibrated_stage(
             else "not added"
         ),
     }
+    between = loop_report.between_design or {}
     offsets = pd.concat(
-        [controller_offsets(chain.joint_names, summary, "paper"), controller_offsets(chain.joint_names, table, "loop")],
+        [
+            controller_offsets(chain.joint_names, summary, "paper", between.get("paper")),
+            controller_offsets(chain.joint_names, table, "loop", between.get("loop")),
+        ],
         ignore_index=True,
     )
     return CalibratedFiles(paper_urdf, loop_urdf, effects_yaml(loop, table, left, extra), offsets)
@@ -269,8 +296,8 @@ DH_FILES = {
 
 def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """One campaign's controller offsets, every sensor ({sensor: `OFFSET_COLUMNS` frame}), display
-    columns: Sensor, Model, Joint, Correction (deg), Std (deg), 95 % interval (deg), Correction (rad),
-    Status."""
+    columns: Sensor, Model, Joint, Correction (deg), Std (deg), 95 % interval (deg), u_between (deg),
+    U(Correction) (deg) with its dof and k, Correction (rad), Status."""
     frames = [
         pd.DataFrame(
             {
@@ -281,6 +308,10 @@ def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
                 "Std (deg)": f["std_deg"],
                 "2.5% (deg)": f["q2.5_deg"],
                 "97.5% (deg)": f["q97.5_deg"],
+                "u_between (deg)": f["u_between_deg"],
+                "U(Correction) (deg)": f["U_deg"],
+                "dof": f["dof"],
+                "k": f["k"],
                 "Correction (rad)": f["correction_rad"],
                 "Status": f["status"],
             }

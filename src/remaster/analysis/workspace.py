@@ -2,11 +2,17 @@
 error of the paper's and the loop-closed model (issue: calibrations that hold beyond the measured
 poses).
 
-Configurations: the optimization set's (every row, the marker seen or not: the joint readings are
-valid either way; beyond as many rows as there are random configurations, that many evenly spaced
-rows, so that the posterior draws' points (draws x rows x 3) stay within a job's memory on a
-campaign of any size) and the robot's one fixed set of random configurations across the joint
-limits (`prediction.robot_configurations`, shared with the comparison by prediction).
+Configurations, three sets:
+
+- 'optimization': the optimization set's (every row, the marker seen or not: the joint readings are
+  valid either way; beyond as many rows as there are random configurations, that many evenly spaced
+  rows, so that the posterior draws' points (draws x rows x 3) stay within a job's memory on a
+  campaign of any size);
+- 'domain': random configurations inside the measured domain, each joint uniform in the interval
+  the fit's readings spanned, a held joint at its value (`domain.MeasuredDomain`);
+- 'random': the robot's one fixed set of random configurations across the joint limits
+  (`prediction.robot_configurations`, shared with the comparison by prediction), where the
+  parameters the data did not determine spread by their priors.
 
 Two kinds of claim:
 
@@ -35,13 +41,17 @@ Two kinds of claim:
   corrects the loop-closed model and its variance (its prior's far from the measured
   configurations) is drawn at every configuration, with the GP's noise as the noise.
 
-The report warns when the workspace-wide mean error exceeds `WORKSPACE_RATIO` times the error at
-the measured configurations ("holds near the measured poses only") and says what the next
-campaign should add: the joints whose measured range covers less than `MIN_RANGE_FRACTION` of their
-limits, more tool orientations when every measured flange axis lies within `MIN_TOOL_SPREAD_DEG` of
-one direction, and the parameters the data barely moved from their prior but random configurations
-would show (`blocks.identifiable_extension` there); those no external measurement sees anywhere (a
-base height absorbed by the registration) are listed apart.
+Where the claims hold is the measured domain's verdict (`domain.MeasuredDomain.holds`): "across the
+joint limits" only when every joint's interval covers `domain.FULL_RANGE_FRACTION` of its range and
+the tool axes spread `domain.MIN_TOOL_SPREAD_DEG`; otherwise "inside the measured ranges", and the
+claim across the limits is shown apart, as the claim with the priors of what the data did not reach.
+(Comparing the model's own claim at random configurations with its own claim at the measured ones
+cannot see what the model cannot represent: that ratio is kept as information only.) The report
+says what the next campaign must add: the joints whose measured range covers less than
+`FULL_RANGE_FRACTION` of their limits, more tool orientations when every measured flange axis lies
+within `MIN_TOOL_SPREAD_DEG` of one direction, and the parameters the data barely moved from their
+prior but random configurations would show (`blocks.identifiable_extension` there); those no
+external measurement sees anywhere (a base height absorbed by the registration) are listed apart.
 
 SI inside (m, rad); the returned tables are in mm.
 """
@@ -60,9 +70,11 @@ from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
+from ..loop.refit import PRIOR_DOMINATED
 from ..loop.report import LoopReport
-from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM, shown
+from .domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
 from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
 
 LOOP_METHOD = "Loop-closed"
@@ -71,7 +83,11 @@ THEORETICAL_TABLES = {  # paper table: (configurations, with noise)
     "theoretical_accuracy_random_configs": ("random", True),
     "theoretical_accuracy_zero_offsets_only": ("random", False),
 }
-CONFIGURATIONS = {"optimization": "measured (optimization set)", "random": "random across the joint limits"}
+CONFIGURATIONS = {
+    "optimization": "measured (optimization set)",
+    "domain": "random inside the measured joint ranges",
+    "random": "random across the joint limits (priors where the data did not reach)",
+}
 FRAMES = {"registered": "registration fitted", "robot": "robot frame, held joints at the controller's marks"}
 CLAIM_COLUMNS = [
     "model",
@@ -85,9 +101,6 @@ CLAIM_COLUMNS = [
     "p95_bound_mm",
     "count",
 ]
-WORKSPACE_RATIO = 2.0
-MIN_RANGE_FRACTION = 0.5
-MIN_TOOL_SPREAD_DEG = 30.0
 HELD_NOTE = (
     "held zero-offsets ({held}) are held in the draws, as in the paper's rows: these robot-frame numbers "
     "hold up to a rotation about base Z that only a registration fixes"
@@ -149,35 +162,36 @@ def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, 
     return [{**d, **{n: float(held[n]) + s for n, s in zip(names, row)}} for d, row in zip(draws, shifts)]
 
 
-def measured_coverage(chain: KinematicChain, q, marker) -> dict:
-    """How much of the joint space configurations q (n, N) rad cover: per joint the fraction of
-    its range (limits, +-pi where unlimited) between the lowest and highest reading, and the
-    largest angle (deg) between a flange z axis and their mean direction."""
-    lower, upper = metrics.joint_space_bounds(chain)
-    q = np.asarray(q, dtype=float)
-    fraction = (q.max(axis=0) - q.min(axis=0)) / (upper - lower)
-    axes = ForwardKinematics(chain, q).flange_poses()[:, :3, 2]
-    mean = axes.mean(axis=0)
-    mean /= np.linalg.norm(mean)
-    spread = np.degrees(np.arccos(np.clip(axes @ mean, -1.0, 1.0))).max()
-    return {"joint_range_fraction": [float(f) for f in fraction], "tool_axis_spread_deg": float(spread)}
-
-
-def _suggestions(coverage: dict, dominated: list[str]) -> list[str]:
-    """What the next campaign should add, from the measured coverage and the prior-dominated parameters."""
+def _suggestions(domain: MeasuredDomain, dominated: list[str]) -> list[str]:
+    """What the next campaign must add, from the measured domain and the prior-dominated parameters:
+    the joints short of `FULL_RANGE_FRACTION` of their range, tool orientations when the measured
+    axes spread less than `MIN_TOOL_SPREAD_DEG`, poses that move the prior-dominated parameters."""
     out = [
-        f"joint {j + 1} over more of its range (measured: {100 * f:.0f} % of it)"
-        for j, f in enumerate(coverage["joint_range_fraction"])
-        if f < MIN_RANGE_FRACTION
+        f"joint {j + 1} over more of its range (measured: "
+        + (f"held at {low / DEG:.0f} deg" if held else f"{100 * f:.0f} % of it")
+        + ")"
+        for j, (f, held, low) in enumerate(zip(domain.range_fraction, domain.held, domain.lower))
+        if f < FULL_RANGE_FRACTION
     ]
-    if coverage["tool_axis_spread_deg"] < MIN_TOOL_SPREAD_DEG:
+    if domain.tool_axis_spread_deg < MIN_TOOL_SPREAD_DEG:
         out.append(
             f"tool orientations (every measured flange axis lies within "
-            f"{coverage['tool_axis_spread_deg']:.0f} deg of one direction)"
+            f"{domain.tool_axis_spread_deg:.0f} deg of one direction)"
         )
     if dominated:
-        out.append("poses that move " + ", ".join(dominated) + " (the data barely moved them from their prior)")
+        out.append(
+            "poses that move "
+            + ", ".join(dominated)
+            + f" (the data barely moved them from their prior: posterior std / prior std > {PRIOR_DOMINATED:g})"
+        )
     return out
+
+
+def fit_domain(chain: KinematicChain, sensor: SensorData, outlier_rows=()) -> MeasuredDomain:
+    """The measured domain of the readings the fit used: the optimization rows whose marker was seen,
+    less the rows flagged as gross errors (every optimization row when that leaves none)."""
+    rows = np.setdiff1d(sensor.measured_rows("optimization"), np.asarray(outlier_rows, dtype=int))
+    return MeasuredDomain.of(chain, sensor.q()[rows] if len(rows) else sensor.q("optimization"))
 
 
 def workspace_accuracy(
@@ -222,7 +236,12 @@ def workspace_accuracy(
     tolerance = loop_report.held_zero_offset_std
     measured = sensor.q("optimization")
     used = residual_gp.evenly_spaced(len(measured), n_random)
-    q_sets = {"optimization": measured[used], "random": robot_configurations(chain, robot, n_random, seed)}
+    domain = fit_domain(chain, sensor, laplace.outlier_rows)
+    q_sets = {  # the domain's last: the other sets' draws come from rng as they did before it
+        "optimization": measured[used],
+        "random": robot_configurations(chain, robot, n_random, seed),
+        "domain": domain.configurations(robot, n_random, seed),
+    }
     gp = residual_gp.from_results(loop_gp_rows, loop_report.residual_gp)
     if gp is not None:
         sigma = np.full(n_draws, gp.hyper.noise_std)
@@ -236,20 +255,20 @@ def workspace_accuracy(
         # (a registration removes joint 1's; one held only because the tool never turned stays)
         points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng)) + corrections
         noisy = _with_noise(points, sigma, rng)
-        # the paper's tables' convention: what the data cannot see, held
-        seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) + corrections
-        seen_noisy = _with_noise(seen, sigma, rng)
         paper_points = paper.predictor(chain, q, sensor.marker).points(paper.values)
-        for table, (table_where, noise) in THEORETICAL_TABLES.items():
-            if table_where == where:
-                distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
-                theoretical.append(
-                    {
-                        "table": table,
-                        "method": LOOP_METHOD,
-                        **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
-                    }
-                )
+        tables = {table: noise for table, (at, noise) in THEORETICAL_TABLES.items() if at == where}
+        if tables:  # the paper's tables' convention: what the data cannot see, held
+            seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) + corrections
+            seen_noisy = _with_noise(seen, sigma, rng)
+        for table, noise in tables.items():
+            distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
+            theoretical.append(
+                {
+                    "table": table,
+                    "method": LOOP_METHOD,
+                    **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
+                }
+            )
         for model, mean in (("paper", paper_points), ("loop", loop_mean)):
             for noise, reference in (("with noise", noisy), ("without noise", points)):
                 claims.append(
@@ -277,7 +296,7 @@ def workspace_accuracy(
         pd.DataFrame(theoretical),
         claims,
         _report(
-            chain,
+            domain,
             sensor,
             claims,
             loop,
@@ -296,7 +315,7 @@ def claim_rows(
     claims: pd.DataFrame, model: str, configurations: str, frame: str = "registered", noise: str = "with noise"
 ) -> pd.DataFrame:
     """The rows of `claims` (`CLAIM_COLUMNS`) for one model ('paper' | 'loop'), configurations
-    ('optimization' | 'random'), frame and noise: one row, or none when the model was not propagated."""
+    ('optimization' | 'domain' | 'random'), frame and noise: one row, or none when the model was not propagated."""
     return claims[
         (claims["model"] == model)
         & (claims["configurations"] == configurations)
@@ -305,12 +324,13 @@ def claim_rows(
     ]
 
 
-def _claim(claims: pd.DataFrame, model: str, where: str) -> float:
-    return float(claim_rows(claims, model, where)["mean_mm"].iloc[0])
+def _claim(claims: pd.DataFrame, model: str, where: str, column: str = "mean_mm") -> float:
+    rows = claim_rows(claims, model, where)
+    return float(rows[column].iloc[0]) if len(rows) else np.nan
 
 
 def _report(
-    chain,
+    domain: MeasuredDomain,
     sensor,
     claims,
     loop: Calibration,
@@ -323,30 +343,29 @@ def _report(
     measured_used: tuple[int, int],
 ) -> dict:
     dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
-    coverage = measured_coverage(chain, sensor.q("optimization"), sensor.marker)
-    suggestions = _suggestions(coverage, dominated)
+    suggestions = _suggestions(domain, dominated)
+    where = ACROSS if domain.covers_the_limits else INSIDE
     warnings, holds = [], {}
     for model in ("paper", "loop"):
-        measured, workspace = _claim(claims, model, "optimization"), _claim(claims, model, "random")
-        near_only = workspace > WORKSPACE_RATIO * measured
+        measured = _claim(claims, model, "optimization")
+        inside, limits = _claim(claims, model, "domain"), _claim(claims, model, "random")
         holds[model] = {
             "measured_mean_mm": measured,
-            "workspace_mean_mm": workspace,
-            "ratio": workspace / measured if measured > 0 else np.inf,
-            "holds": "near the measured poses only" if near_only else "across the joint space",
+            "domain_mean_mm": inside,
+            "limits_mean_mm": limits,
+            # information only: the model's claim against itself cannot see what it cannot represent
+            "limits_over_measured": limits / measured if measured > 0 else np.inf,
+            "holds": where,
         }
-        if near_only:
-            warnings.append(
-                f"{model} model: the workspace-wide error ({shown(workspace)} mm mean, registration fitted) "
-                f"is {workspace / measured:.1f} x the error at the measured configurations "
-                f"({shown(measured)} mm): the calibration holds near the measured poses only"
-                + (f"; the next campaign should add {'; '.join(suggestions)}" if suggestions else "")
-            )
-    if dominated:
+    if not domain.covers_the_limits:
         warnings.append(
-            f"parameters these data barely moved from their prior (posterior std / prior std > 0.5), "
-            f"though other poses would: {', '.join(dominated)}"
+            f"the claims hold {INSIDE} only ({domain.short_text()}): there the loop-closed model's p95 bound "
+            f"is {shown(_claim(claims, 'loop', 'domain', 'p95_bound_mm'))} mm (registration fitted, with noise); "
+            f"across the joint limits, with the priors of what the data did not reach, "
+            f"{shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} mm"
         )
+    if suggestions:  # one line: the joints, the tool orientations and the prior-dominated parameters
+        warnings.append(f"the next campaign must add: {'; '.join(suggestions)}")
     unseeable = [n for n in loop_report.prior_dominated if n in nowhere]
     if unseeable:
         warnings.append(
@@ -372,7 +391,11 @@ def _report(
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
         "holds": holds,
-        "coverage": coverage,
+        "domain": domain.report(),
+        "coverage": {
+            "joint_range_fraction": [float(f) for f in domain.range_fraction],
+            "tool_axis_spread_deg": domain.tool_axis_spread_deg,
+        },
         "prior_dominated": dominated,
         "unseen_anywhere": list(nowhere),
         "next_campaign_should_add": suggestions,

@@ -32,7 +32,7 @@ REQUIRED_KEYS = ("name", "date", "robot", "sensors")
 OPTIONAL_KEYS = ("description",)
 ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors")
 DH_KEYS = ("convention", "rows", "flange")
-SENSOR_KEYS = ("kind", "marker", "noise")
+SENSOR_KEYS = ("kind", "marker", "noise", "mpe")
 
 KEY_COLUMNS = ("set", "pose", "solution")
 POSITION_COLUMNS = ("x", "y", "z")
@@ -71,7 +71,9 @@ class SensorData:
     name: the sensor's name (the Parquet file's stem); kind: one of SENSOR_KINDS;
     marker: (3,) nominal marker centre in the flange frame (m); noise: stated per-axis noise (m)
     or None; table: the validated table, rows in stored order (RangeIndex = row numbers),
-    `time` (if any) as UTC timestamps, extra columns untouched.
+    `time` (if any) as UTC timestamps, extra columns untouched; mpe: the instrument's stated
+    maximum permissible error of a coordinate (m, a bound: rectangular in the uncertainty budget)
+    or None.
     """
 
     name: str
@@ -79,6 +81,7 @@ class SensorData:
     marker: np.ndarray
     noise: float | None
     table: pd.DataFrame = field(repr=False)
+    mpe: float | None = None
 
     @property
     def joint_columns(self) -> tuple[str, ...]:
@@ -155,6 +158,7 @@ class Campaign:
                     "kind": s.kind,
                     "marker": [float(v) for v in s.marker],
                     **({} if s.noise is None else {"noise": s.noise}),
+                    **({} if s.mpe is None else {"mpe": s.mpe}),
                 }
                 for name, s in self.sensors.items()
             },
@@ -310,19 +314,25 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
             "missing (the marker centre [x, y, z] in the flange frame, m)", file=source, key=f"{where}/marker"
         )
     marker = _number_list(spec["marker"], 3, f"{where}/marker", source, "3 finite numbers [x, y, z] (m)")
-    noise = spec.get("noise")
-    if noise is not None:
-        if not _is_number(noise) or noise <= 0:
-            raise InputError(f"must be a positive number (m), got {noise!r}", file=source, key=f"{where}/noise")
-        noise = float(noise)
-    return {"kind": kind, "marker": np.array(marker), "noise": noise}
+    noise, mpe = (_positive_length(spec.get(key), f"{where}/{key}", source) for key in ("noise", "mpe"))
+    return {"kind": kind, "marker": np.array(marker), "noise": noise, "mpe": mpe}
+
+
+def _positive_length(value: Any, key: str, source: str) -> float | None:
+    """An optional positive length (m) of campaign.yaml as a float, None when not given."""
+    if value is None:
+        return None
+    if not _is_number(value) or value <= 0:
+        raise InputError(f"must be a positive number (m), got {value!r}", file=source, key=key)
+    return float(value)
 
 
 def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     """Check campaign.yaml's content (as loaded) against the contract; return a normalised copy.
 
     Returns {'name': str, 'date': datetime.date, 'description': str, 'robot': dict (see
-    `validate_robot`), 'sensors': {name: {'kind': str, 'marker': (3,) m, 'noise': float | None}}}.
+    `validate_robot`), 'sensors': {name: {'kind': str, 'marker': (3,) m, 'noise': float | None,
+    'mpe': float | None}}}.
     Does not look at files: the folder name, URDF file and Parquet files are checked by
     `folders.read_campaign`.
     """
@@ -585,6 +595,7 @@ def sensor_data(
         marker=np.asarray(spec["marker"], dtype=float),
         noise=spec["noise"],
         table=validate_sensor_table(table, n_joints, name, source, limits=limits),
+        mpe=spec.get("mpe"),
     )
 
 
@@ -612,6 +623,7 @@ def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int 
             "kind": sensor.kind,
             "marker_m": sensor.marker.tolist(),
             "noise_m": sensor.noise,
+            "mpe_m": sensor.mpe,
             "rows": int(len(table)),
             "sets": sets,
             "missing_rows": sensor.missing_rows.tolist(),

@@ -17,7 +17,18 @@ from ..errors import InputError
 from ..robot import planning, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import SECONDS_PER_HOUR
-from .simulation import DHErrors, Sensor, TrueRobot, looking_at, measure, same_frames_as_dh, true_marker_positions
+from .simulation import (
+    DHErrors,
+    Sensor,
+    TrueRobot,
+    frame_distortion,
+    looking_at,
+    measure,
+    same_frames_as_dh,
+    sensor_move,
+    sensor_side,
+    true_marker_positions,
+)
 
 
 @dataclass(frozen=True)
@@ -174,6 +185,47 @@ def sensors_of(spec: dict) -> dict[str, Sensor]:
             transverse_growth_per_m=float(s.get("transverse_growth_per_m", 0.0)),
         )
     return out
+
+
+MOVE_KEYS = ("translation_m", "rotation_deg")
+DISTORTION_KEYS = ("scale", "shear")
+
+
+def sensor_side_of(sensor_spec: dict, where: str) -> tuple[np.ndarray | None, np.ndarray | None, dict]:
+    """(move (4, 4) or None, distortion (3, 3) or None, the truth's record of them) of one sensor's
+    scenario keys `moved_between_sets` {translation_m: [x, y, z] (m), rotation_deg: [rx, ry, rz]}
+    (the validation set's readings moved, `simulation.sensor_move`) and `frame_distortion`
+    {scale: [sx, sy, sz], shear: [xy, xz, yz]} (every reading, `simulation.frame_distortion`)."""
+    move = distortion = None
+    record = {}
+    if sensor_spec.get("moved_between_sets"):
+        key = f"{where}/moved_between_sets"
+        spec = _checked_keys(sensor_spec["moved_between_sets"], MOVE_KEYS, key)
+        translation = _vector(spec, "translation_m", 3, where=key)
+        rotation = _vector(spec, "rotation_deg", 3, np.pi / 180.0, where=key)
+        translation = np.zeros(3) if translation is None else translation
+        rotation = np.zeros(3) if rotation is None else rotation
+        move = sensor_move(translation, rotation)
+        record["moved_between_sets"] = {
+            "translation_m": translation.tolist(),
+            "rotation_deg": np.degrees(rotation).tolist(),
+            "transform": move.tolist(),
+            "applied_to": "validation",
+            "convention": "m' = R m + t in the sensor frame, R = Rz(rz) Ry(ry) Rx(rx)",
+        }
+    if sensor_spec.get("frame_distortion"):
+        key = f"{where}/frame_distortion"
+        spec = _checked_keys(sensor_spec["frame_distortion"], DISTORTION_KEYS, key)
+        scale = _vector(spec, "scale", 3, where=key)
+        shear = _vector(spec, "shear", 3, where=key)
+        distortion = frame_distortion(np.zeros(3) if scale is None else scale, np.zeros(3) if shear is None else shear)
+        record["frame_distortion"] = {
+            "scale": [] if scale is None else scale.tolist(),
+            "shear_xy_xz_yz": [] if shear is None else shear.tolist(),
+            "matrix": distortion.tolist(),
+            "convention": "m' = (I + D) m about the sensor frame's origin, every reading",
+        }
+    return move, distortion, record
 
 
 # Three configurations spread over the workspace, marker towards +x, for the paper's initial
@@ -444,6 +496,8 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
     out_tables, truth_sensors = {}, {}
     for name, sensor in sensors.items():
         xyz = measure(chain, robot, sensor, q, rng, elapsed)
+        move, distortion, sensor_record = sensor_side_of(spec["sensors"][name], f"sensors/{name}")
+        xyz = sensor_side(xyz, readings["set"].to_numpy() == "validation", move, distortion)
         unseen = rng.choice(len(xyz), size=int(spec["sensors"][name].get("missing", 0)), replace=False)
         xyz[np.sort(unseen)] = np.nan
         glitches = spec["sensors"][name].get("gross_errors")
@@ -464,6 +518,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
             "unseen_rows": sorted(int(i) for i in unseen),
             **({"gross_errors": glitched} if glitches is not None else {}),
             "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
+            **sensor_record,
         }
     metadata = {
         "name": spec["name"],

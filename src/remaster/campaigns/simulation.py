@@ -217,3 +217,39 @@ def true_sensor_positions(
     """Where the sensor's marker really is, in the sensor's frame as a noiseless sensor reads it (n, 3)."""
     p_robot = true_marker_positions(chain, robot, sensor, q_readings, elapsed_s)
     return (1.0 + sensor.scale_error) * spatial.transform_points(sensor.robot_to_sensor, p_robot)
+
+
+# --------------------------------------------------------------------------- sensor-side phenomena
+# What happens to the sensor, not to the robot: written apart from the fit's parametrization (no
+# block of the fit is a move between the sets or a distorted frame), so a campaign that has them
+# tests whether the acceptance check notices what the model cannot represent.
+
+
+def sensor_move(translation_m, rotation_rad) -> np.ndarray:
+    """M (4, 4): a rigid move of the sensor's readings, m' = R m + t in its own frame, with
+    R = Rz(rz) Ry(ry) Rx(rx) of rotation_rad (3,) [rx, ry, rz] and t = translation_m (3,)."""
+    rx, ry, rz = np.asarray(rotation_rad, dtype=float)
+    return spatial.homogeneous(spatial.rpy_to_matrix(rx, ry, rz), np.asarray(translation_m, dtype=float))
+
+
+def frame_distortion(scales, shear) -> np.ndarray:
+    """I + D (3, 3): an anisotropic linear distortion of the sensor's frame about its origin; D's
+    diagonal the per-axis scale errors scales (3,) [sx, sy, sz] (1), its upper triangle the shears
+    shear (3,) [xy, xz, yz] (1): x' = (1 + sx) x + xy y + xz z, y' = (1 + sy) y + yz z, z' = (1 + sz) z."""
+    sx, sy, sz = np.asarray(scales, dtype=float)
+    xy, xz, yz = np.asarray(shear, dtype=float)
+    return np.eye(3) + np.array([[sx, xy, xz], [0.0, sy, yz], [0.0, 0.0, sz]])
+
+
+def sensor_side(readings, moved_rows, move=None, distortion=None) -> np.ndarray:
+    """Sensor readings (n, 3) m (noise included) as a sensor that moved and reads through a
+    distorted frame gives them: the rows where moved_rows (n,) is true moved by `move` (4, 4,
+    `sensor_move`; the sensor bumped between the sets), then every row mapped by `distortion`
+    (3, 3, `frame_distortion`) about the sensor's origin. Either None: absent."""
+    out = np.array(readings, dtype=float)
+    if move is not None:
+        rows = np.asarray(moved_rows, dtype=bool)
+        out[rows] = spatial.transform_points(move, out[rows])
+    if distortion is not None:
+        out = out @ np.asarray(distortion, dtype=float).T
+    return out

@@ -68,6 +68,7 @@ from ..robot.priors import priors_from
 from ..units import MM
 from . import closure, gross
 from .frames import residuals_frame, signatures_frame
+from .jackknife import zero_offset_jackknife
 from .refit import parameter_table, refit, zero_offset_shifts
 from .report import LoopReport
 from .selection import Selection, Signature, accuracy, select
@@ -213,6 +214,11 @@ def close_loop(
     explained = {r["added"]: r["scores"][r["added"]]["explained_fraction"] for r in selection.rounds if r["added"]}
     closed = closure_report(selection, data["optimization"], sensor.noise, settings.closure_ratio)
     gp_section = gp_report(selection, settings.cv_standard_errors)
+    # how far the zero-offsets move with the poses measured (the certificate's between-design component)
+    between = {
+        name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
+        for name, fitted in (("paper", base), ("loop", final))
+    }
     warnings = list(closed["warnings"])
     if closed["closed"] is False and not selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
@@ -276,6 +282,7 @@ def close_loop(
             ),
         },
         gross_errors=gross_report(flagged, screens, provisional, history, settled, kept, settings.gross_errors),
+        between_design=between,
     )
     table = before_after_table(before, after, sigma_before, sigma_after, counts, kept, flagged)
     residuals = {

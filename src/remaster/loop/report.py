@@ -21,7 +21,9 @@ from ..files import read_json, write_json
 from ..units import DEG, MM
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
-OPTIONAL = ("campaign",)  # written when known (`loop_closure_stage` sets it; `close_loop` alone does not)
+# written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
+# between_design (reports written before it was computed lack it)
+OPTIONAL = ("campaign", "between_design")
 # the gross errors of a report written before the final model screened the rows: none listed
 NOT_SCREENED = {"optimization": [], "validation": [], "screened": False}
 
@@ -46,7 +48,9 @@ class LoopReport:
     are the ones the final model was fitted without), with the level, the rule, each set's screen,
     the provisional rows and those restored, and the accuracy with the flagged rows
     (`loop_closure.gross_report`; a file written before the screen reads as none flagged, with
-    'screened' False); source: the file it was read from (not written)."""
+    'screened' False); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`} the
+    zero-offsets' spread across designs of the zero-offset model and the final model (None when
+    not computed); source: the file it was read from (not written)."""
 
     sensor: str
     evidence: str
@@ -72,6 +76,7 @@ class LoopReport:
     noise_model: Mapping[str, Any]
     gross_errors: Mapping[str, Any] = field(default_factory=lambda: dict(NOT_SCREENED))
     campaign: str | None = None
+    between_design: Mapping[str, Any] | None = None
     source: str = "loop_closure.json"
 
     # ----------------------------------------------------------------------- what the later stages use

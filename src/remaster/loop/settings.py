@@ -20,7 +20,8 @@ from ..robot.priors import Priors, priors_from, with_defaults
 class LoopSettings:
     """candidates: extension blocks to try; min_log_evidence_gain: the Laplace evidence (nats) an
     effect needs; cv_folds, cv_standard_errors: the pose-grouped cross-validation and the number
-    of its standard errors the fall must exceed; model: payload and drift column; priors: the
+    of its standard errors the fall must exceed; jackknife_groups: the pose groups of the
+    zero-offsets' delete-a-group jackknife (`remaster.loop.jackknife`); model: payload and drift column; priors: the
     extension blocks' Gaussian priors; priors_config: the config's `priors` section, which a
     campaign's own `robot.priors` is laid over; mcmc: {'chains', 'samples', 'burn_in'} of the final
     refit's first attempt, None for Laplace only; convergence: {'max_rhat', 'min_ess',
@@ -36,6 +37,7 @@ class LoopSettings:
     min_log_evidence_gain: float
     cv_folds: int
     cv_standard_errors: float
+    jackknife_groups: int
     model: ModelSettings
     priors: Priors
     priors_config: dict
@@ -53,6 +55,7 @@ class LoopSettings:
             "min_log_evidence_gain": self.min_log_evidence_gain,
             "cv_folds": self.cv_folds,
             "cv_standard_errors": self.cv_standard_errors,
+            "jackknife_groups": self.jackknife_groups,
             "payload_mass_kg": self.model.payload_mass,
             "payload_com_m": list(self.model.payload_com),
             "drift_column": self.model.drift_column,
@@ -78,6 +81,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
         min_log_evidence_gain=float(config["min_log_evidence_gain"]),
         cv_folds=int(config["cv_folds"]),
         cv_standard_errors=float(config["cv_standard_errors"]),
+        jackknife_groups=int(config["jackknife_groups"]),
         model=ModelSettings(payload_mass=float(payload["mass"]), payload_com=tuple(payload["com"])),
         priors=priors_from(priors_config),
         priors_config=dict(priors_config),

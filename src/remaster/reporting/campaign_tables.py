@@ -8,7 +8,8 @@ registration, metrics_<table> (metrics/<table>.csv), configuration_errors, loop_
 (loop_closure/theoretical_accuracy.csv), loop (loop_closure.json), loop_table
 (loop_closure/before_after.csv), loop_residuals, claims (workspace_accuracy.csv), workspace
 (workspace.json), offsets (calibrated/controller_offsets.csv), cross_check (fit/cross_check.csv,
-for the certificate's word on the samplers; optional).
+for the certificate's word on the samplers; optional), acceptance (acceptance.json, the validation set as
+the acceptance test, for the certificate's verdict; optional).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import pandas as pd
 
 from .. import files as result_files
 from ..analysis import accuracy, budget, calibrated, iso9283, workspace
+from ..analysis.acceptance import Acceptance
 from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport, Registration
 from ..loop.report import LoopReport
@@ -73,6 +75,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
     workspaces = _each(files, "workspace", result_files.read_json)
     offsets = _each(files, "offsets", result_files.read_csv)
     cross_checks = _each(files, "cross_check", result_files.read_csv) if "cross_check" in files else {}
+    acceptances = _each(files, "acceptance", Acceptance.read) if "acceptance" in files else {}
     paper_rows = _paper_rows(files)
     metrics = {s: {t: result_files.read_csv(files[f"metrics_{t}"][s]) for t in accuracy.TABLE_NAMES} for s in sensors}
 
@@ -114,6 +117,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
                 loops[s],
                 offsets[s],
                 cross_checks.get(s),
+                acceptances.get(s),
             )
             for s in sensors
         },

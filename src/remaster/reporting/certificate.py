@@ -2,13 +2,14 @@
 
 Per sensor: the points used, flagged and not seen; the error before and after, on the validation
 set (read only for this final before/after, never for a choice) and as the loop-closed model
-claims it across the joint space; the zero-offset corrections to type into the controller with
-their expanded uncertainty (k = 2); what the calibration is valid for and the warnings. Every
+claims it inside the measured joint ranges and across the joint limits; the zero-offset corrections
+to type into the controller with their expanded uncertainty (95 %); what the calibration is valid
+for and the warnings. Every
 number comes from the run's result files (`CertificateInputs`); nothing is typed.
 
 The uncertainty of a mean error is pose-clustered: configurations of one pose (the IK solutions
-of one target) share most of their error, so the standard uncertainty is the spread of the pose
-means over the square root of the number of poses, and U = 2 u.
+of one target) share most of their error, so the standard uncertainty is the cluster-robust CR2
+one (Bell-McCaffrey, `uncertainty.cr2_mean`) and U = k u with k = t_0.975(poses - 1).
 """
 
 from __future__ import annotations
@@ -18,15 +19,16 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..analysis.acceptance import DIAGNOSES, Acceptance
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
 from ..inference.fit import LaplaceReport, disagreeing
+from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
 from ..loop.report import LoopReport
 from ..units import MM
 
-COVERAGE_FACTOR = 2.0  # k of the expanded uncertainty U = k u (about 95 % for a normal distribution)
 # the controller's zero-offsets with the registration that fits them best; the remastered ones
 BEFORE, AFTER = VERNIER_LEAST_SQUARES, "Bayesian"
 
@@ -37,7 +39,9 @@ class CertificateInputs:
     metrics/configuration_errors.csv; loop_residuals: loop_closure/residuals.parquet (m);
     workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
     loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv; cross_check:
-    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read."""
+    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read;
+    acceptance: acceptance.json (`analysis.acceptance`: the validation set as the acceptance test),
+    None when not read."""
 
     laplace: LaplaceReport
     configuration_errors: pd.DataFrame
@@ -47,6 +51,7 @@ class CertificateInputs:
     loop: LoopReport
     controller_offsets: pd.DataFrame
     cross_check: pd.DataFrame | None = None
+    acceptance: Acceptance | None = None
 
 
 # What the verdict says of the samplers' cross-check (`second_sampler`)
@@ -58,8 +63,8 @@ NOT_CHECKED = "not cross-checked"
 @dataclass(frozen=True)
 class Certificate:
     """heading: lines naming the campaign, robot, date and sensors; accuracy: one row per sensor
-    and model (mm); corrections: per sensor and joint, the paper model's correction with U (k = 2)
-    (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
+    and model (mm); corrections: per sensor, model (loop-closed, zero-offsets only) and joint, the
+    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
 
     campaign: str
     heading: list[str]
@@ -69,13 +74,14 @@ class Certificate:
     warnings: list[str]
 
 
-def mean_with_uncertainty(errors, poses) -> tuple[float, float, int]:
-    """(mean, standard uncertainty of the mean, count) of errors (n,) clustered by pose (n,): u is
-    the std of the pose means over sqrt(number of poses); NaN when fewer than two poses."""
-    frame = pd.DataFrame({"error": np.asarray(errors, dtype=float), "pose": np.asarray(poses)}).dropna()
-    means = frame.groupby("pose")["error"].mean()
-    u = float(means.std(ddof=1) / np.sqrt(len(means))) if len(means) > 1 else np.nan
-    return float(frame["error"].mean()), u, int(len(frame))
+def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
+    """(mean, standard uncertainty of the mean, count, degrees of freedom) of errors (n,) clustered
+    by pose (n,): u by CR2 (`uncertainty.cr2_mean`), with G - 1 degrees of freedom for G poses; u
+    NaN when fewer than two poses."""
+    errors, poses = np.asarray(errors, dtype=float), np.asarray(poses)
+    seen = np.isfinite(errors) & pd.notna(poses)
+    mean, u, clusters = cr2_mean(errors[seen], poses[seen])
+    return mean, u, int(seen.sum()), clusters - 1
 
 
 def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
@@ -84,23 +90,34 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
     errors_mm = errors_mm[seen]
     if poses is not None:
         poses = np.asarray(poses)[seen]
-        mean, u, count = mean_with_uncertainty(errors_mm, poses)
+        mean, u, count, dof = mean_with_uncertainty(errors_mm, poses)
     else:
-        mean, u, count = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm)
+        mean, u, count, dof = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm), 0
+    k = coverage_factor(dof)
     return {
         "Sensor": sensor_label(sensor),
         "Where": where,
         "Model": model,
         "mean (mm)": mean,
-        "U(mean) (mm)": COVERAGE_FACTOR * u,
+        "U(mean) (mm)": k * u,
+        "k": k,
         "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
         "points": count,
     }
 
 
+# the claims' rows: configurations of workspace_accuracy.csv -> where (`workspace.CONFIGURATIONS`)
+CLAIMED = {
+    "optimization": "claimed at the measured configurations",
+    "domain": "claimed inside the measured ranges",
+    "random": "claimed across the joint limits (priors where the data did not reach)",
+}
+
+
 def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     """Before -> after on the validation set (registration from the optimization set), then what
-    the loop-closed posterior claims at the measured configurations and across the joint space."""
+    the loop-closed posterior claims at the measured configurations, at random configurations inside
+    the measured joint ranges and across the joint limits."""
     errors = inputs.configuration_errors
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
     where = "validation set (measured)"
@@ -132,10 +149,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
             )
         )
     claims = inputs.workspace_accuracy
-    for configurations, label in (
-        ("optimization", "claimed at the measured configurations"),
-        ("random", "claimed across the joint space"),
-    ):
+    for configurations, label in CLAIMED.items():
         for model, name in (("paper", "remastered zero-offsets"), ("loop", "loop-closed")):
             claim = claim_rows(claims, model, configurations)
             if len(claim):
@@ -153,19 +167,35 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     return rows
 
 
+# the corrections' models as the certificate names them, the one to type in first
+CORRECTION_MODELS = (
+    ("loop", "loop-closed, with its other effects (loop.urdf, loop_effects.yaml)"),
+    ("paper", "zero-offsets only (paper.urdf)"),
+)
+
+
 def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
-    """The paper model's zero-offset corrections (what a controller takes) with U = k std."""
-    offsets = inputs.controller_offsets[inputs.controller_offsets["model"] == "paper"]
-    return [
-        {
-            "Sensor": sensor_label(sensor),
-            "Joint": r["joint"],
-            "Correction (deg)": _number(r["correction_deg"]) if r["status"] == "estimated" else np.nan,
-            "U(Correction) (deg)": COVERAGE_FACTOR * _number(r["std_deg"]) if r["status"] == "estimated" else np.nan,
-            "Status": r["status"],
-        }
-        for _, r in offsets.iterrows()
-    ]
+    """Both models' zero-offset corrections (calibrated/controller_offsets.csv) with U = k u_c, u_c
+    the posterior std and the between-design component together and k from t at their effective
+    degrees of freedom (`calibrated.controller_offsets`): the loop-closed model's first."""
+    offsets = inputs.controller_offsets
+    rows = []
+    for model, label in CORRECTION_MODELS:
+        for _, r in offsets[offsets["model"] == model].iterrows():
+            estimated = r["status"] == "estimated"
+            rows.append(
+                {
+                    "Sensor": sensor_label(sensor),
+                    "Model": label,
+                    "Joint": r["joint"],
+                    "Correction (deg)": _number(r["correction_deg"]) if estimated else np.nan,
+                    "U(Correction) (deg)": _number(r.get("U_deg")) if estimated else np.nan,
+                    "u_between (deg)": _number(r.get("u_between_deg")) if estimated else np.nan,
+                    "k": _number(r.get("k")) if estimated else np.nan,
+                    "Status": r["status"],
+                }
+            )
+    return rows
 
 
 def _number(value) -> float:
@@ -193,12 +223,40 @@ def _disagreement_text(disagree: dict[str, list[str]]) -> str:
     return ", ".join(f"{name} ({', '.join(methods)})" for name, methods in disagree.items())
 
 
+NOT_TESTED = "not tested"  # the acceptance column without acceptance.json
+
+
+def acceptance_text(acceptance: Acceptance | None) -> str:
+    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`analysis.acceptance`), or
+    NOT_TESTED."""
+    if acceptance is None:
+        return NOT_TESTED
+    if acceptance.passed:
+        return "pass"
+    return f"fail: {DIAGNOSES.get(acceptance.diagnosis, acceptance.diagnosis or 'no diagnosis')}"
+
+
+def _after(rows: dict, acceptance: Acceptance | None) -> dict:
+    """The validation row the certificate calls "after": the acceptance test's recommended model (the
+    paper's when the loop's added effects did not hold on new poses), else the last validation row
+    (the loop-closed model)."""
+    validation = [r for (where, _), r in rows.items() if where == "validation set (measured)"]
+    if acceptance is not None and acceptance.recommended == "paper":
+        return rows.get(("validation set (measured)", "remastered zero-offsets"), {})
+    return (validation or [{}])[-1]
+
+
 def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     by = {(r["Where"], r["Model"]): r for r in rows}
     before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
-    after = ([r for (where, model), r in by.items() if where == "validation set (measured)"] or [{}])[-1]
-    workspace = by.get(("claimed across the joint space", "loop-closed"), {})
-    holds = ((((inputs.workspace or {}).get("holds") or {}).get("loop")) or {}).get("holds") or ""
+    after = _after(by, inputs.acceptance)
+    inside = by.get((CLAIMED["domain"], "loop-closed"), {})
+    limits = by.get((CLAIMED["random"], "loop-closed"), {})
+    workspace = inputs.workspace or {}
+    # where the claims hold, naming the measured ranges (`domain.MeasuredDomain.holds`); older files: the loop's
+    holds = (workspace.get("domain") or {}).get("holds") or (
+        ((workspace.get("holds") or {}).get("loop") or {}).get("holds") or ""
+    )
     samplers, disagree = second_sampler(inputs)
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
@@ -209,25 +267,39 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "U(After: mean) (mm)": after.get("U(mean) (mm)", np.nan),
         "After: p95 (mm)": after.get("p95 (mm)", np.nan),
         "After: model": after.get("Model", ""),
-        "Across the joint space: p95 (mm)": workspace.get("p95 (mm)", np.nan),
+        "Inside the measured ranges: p95 (mm)": inside.get("p95 (mm)", np.nan),
+        "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan),
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
         "Holds": holds,
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
+        "Acceptance": acceptance_text(inputs.acceptance),
     }
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
-    """What the calibration was measured over: each joint's share of its range the measured
-    configurations cover, and how far the tool axis turned (`workspace.json` coverage)."""
-    coverage = (inputs.workspace or {}).get("coverage") or {}
-    fractions = coverage.get("joint_range_fraction") or []
-    parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
-    if coverage.get("tool_axis_spread_deg") is not None:
-        parts.append(f"every measured tool axis within {coverage['tool_axis_spread_deg']:.0f} deg of one direction")
+    """What the calibration was measured over (`workspace.json`): each joint's measured range in
+    degrees (the held joints at their value) and how far the tool axis turned; from older files,
+    each joint's share of its range."""
+    workspace = inputs.workspace or {}
+    domain = workspace.get("domain") or {}
+    coverage = workspace.get("coverage") or {}
+    if domain.get("ranges"):
+        parts = [str(domain["ranges"])]
+    else:
+        fractions = coverage.get("joint_range_fraction") or []
+        parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
+    spread = domain.get("tool_axis_spread_deg", coverage.get("tool_axis_spread_deg"))
+    if spread is not None:
+        parts.append(f"every measured tool axis within {_number(spread):.0f} deg of one direction")
     where = "; ".join(parts) if parts else "coverage not recorded"
+    beyond = (
+        "; beyond them, the claim across the joint limits carries the priors of what the data did not reach"
+        if domain and not domain.get("covers_the_limits")
+        else ""
+    )
     return (
         f"{sensor_label(sensor)}: valid with this tool plate and marker, in this sensor set-up (registration), "
-        f"over the joint ranges measured: {where}"
+        f"over the joint ranges measured: {where}{beyond}"
     )
 
 
@@ -289,9 +361,10 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, the loop
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
-    refit short of the convergence criteria), the workspace warnings (near the measured poses
-    only, prior-dominated parameters, what the next campaign should add), the held joints, any
-    held registration parameter, and samplers that disagree (the fit not confirmed)."""
+    refit short of the convergence criteria), the workspace warnings (the claims hold inside the
+    measured ranges only, what the next campaign must add, prior-dominated parameters), the held
+    joints, any held registration parameter, samplers that disagree (the fit not confirmed), and the
+    acceptance test's diagnosis of a failure on the validation set."""
     label = sensor_label(sensor)
     out = []
     _, disagree = second_sampler(inputs)
@@ -309,6 +382,7 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
             "(fit/laplace.json, identifiability)"
         )
     out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings or ()]
+    out += [f"{label}: {w}" for w in (inputs.acceptance.warnings if inputs.acceptance is not None else ())]
     workspace = inputs.workspace or {}
     out += [f"{label}: {w}" for w in workspace.get("warnings") or ()]
     if workspace.get("held_note"):
@@ -350,10 +424,17 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "
-        f"before/after; U is the expanded uncertainty (k = {COVERAGE_FACTOR:g}) of a mean, clustered by "
-        "pose; the claims are the loop-closed posterior propagated with the sensor's noise, and a "
+        "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose (CR2, k from "
+        "t with poses - 1 degrees of freedom); the claims are the loop-closed posterior propagated with the sensor's noise, and a "
         "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
-        "probability. Corrections: add to the controller's zero (true angle = reading + correction)."
+        "probability. Corrections: add to the controller's zero (true angle = reading + correction). "
+        "Type in the loop-closed model's corrections where the controller takes its other effects too "
+        "(loop.urdf, loop_effects.yaml): once those are modelled its zero-offsets are the joints' own; a "
+        "controller that takes zero-offsets alone gets the zero-offset model's, which also absorb what "
+        "it lacks at the measured poses. Each U (95 %) holds the posterior std and how far the "
+        "correction moves with the poses measured (u_between, a jackknife over pose groups), k from t "
+        "at their effective degrees of freedom; a loop-closed correction whose U is large is traded "
+        "against the link geometry, and only their combination (loop.urdf's joint origins) is determined."
     )
     return Certificate(
         summary["campaign"],

@@ -70,14 +70,17 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
 
 
 def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
-    """Claimed error (mm, log axis) of each model, mean with its 95 % interval, at the measured and
-    at random configurations, registration fitted (filled) and in the robot frame with the held
-    zero-offsets at the controller's tolerance (open). claims: `workspace.CLAIM_COLUMNS` rows."""
-    fig, ax = plt.subplots(figsize=(6.0, 3.0))
+    """Claimed error (mm, log axis) of each model, mean with its 95 % interval, at the measured
+    configurations, at random ones inside the measured joint ranges and across the joint limits,
+    registration fitted (filled) and in the robot frame with the held zero-offsets at the
+    controller's tolerance (open). claims: `workspace.CLAIM_COLUMNS` rows (older files without the
+    'domain' rows: those ticks empty)."""
+    fig, ax = plt.subplots(figsize=(7.0, 3.0))
     chosen = claims[claims["noise"] == "with noise"]
     labels = []
-    for k, (model, where) in enumerate([(m, w) for m in ("paper", "loop") for w in ("optimization", "random")]):
-        labels.append(f"{model}\n{'measured' if where == 'optimization' else 'random'}")
+    names = {"optimization": "measured", "domain": "in ranges", "random": "limits"}
+    for k, (model, where) in enumerate([(m, w) for m in ("paper", "loop") for w in names]):
+        labels.append(f"{model}\n{names[where]}")
         for offset, frame, fill in ((-0.12, "registered", True), (0.12, "robot", False)):
             row = chosen[(chosen["model"] == model) & (chosen["configurations"] == where) & (chosen["frame"] == frame)]
             if row.empty:

@@ -247,8 +247,9 @@ def build(
                 "Overview",
                 [
                     "Every campaign's verdict (its certificate, below): the error before and "
-                    "after on the validation set, what the calibration claims across the joint "
-                    "space, whether the loop is closed and where the calibration holds."
+                    "after on the validation set, what the calibration claims inside the measured "
+                    "joint ranges and across the joint limits, whether the loop is closed and where "
+                    "the calibration holds."
                 ],
                 [("The run at a glance", glance)],
             )

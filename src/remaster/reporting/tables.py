@@ -21,11 +21,14 @@ from ..labels import paper_order, sensor_label
 from ..units import shown, shown_to
 
 CAPTIONS = {
-    "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position against its measurement, per axis: "
-    "the stated sensor noise, the registration's and the zero-offsets' posterior uncertainty "
-    "(Laplace covariance through the Jacobian; two blocks of equal size contribute equally by "
-    "construction) and their correlation, what the paper's model lacks (its sigma beyond the "
-    "noise), combined in quadrature and expanded (k = 2); and what is left after the loop closure.",
+    "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position (zero-offset model) against its "
+    "measurement, per axis, each row with its type (A from these data, B stated), distribution and degrees "
+    "of freedom: the stated noise (with none stated, the residual scatter that holds noise and model "
+    "discrepancy together), the instrument's maximum permissible error (rectangular, u = MPE / sqrt(3)), "
+    "the fitted parameters (registration and zero-offsets together, correlations included); u_c, its "
+    "Welch-Satterthwaite degrees of freedom and U = k u_c with k from t (95 %); the model discrepancy is "
+    "systematic: not in u_c, its 95 % bound over the measured configurations added to U; and the "
+    "discrepancy left after the loop closure.",
     "iso9283": "ISO 9283 pose characteristics on the validation set (registration from the optimization set): "
     "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
     "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
@@ -34,17 +37,25 @@ CAPTIONS = {
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
     "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
     "optimization set; never picked by these validation numbers), its 95th percentile, what the "
-    "loop-closed model claims across the joint space (the bound on its 95th percentile, "
-    "95 % posterior probability), whether the loop is closed against the "
-    "sensor's noise, where the calibration holds, and whether a second sampler confirms the fit "
-    "(Samplers: the samplers' cross-check, with the parameters they disagree on).",
+    "loop-closed model claims inside the measured joint ranges and across the joint limits (the "
+    "bound on its 95th percentile, 95 % posterior probability; across the limits the parameters "
+    "the data did not reach spread by their priors), whether the loop is closed against the "
+    "sensor's noise, where the calibration holds (across the joint limits, or inside the measured "
+    "ranges, named), whether a second sampler confirms the fit "
+    "(Samplers: the samplers' cross-check, with the parameters they disagree on), and the acceptance test "
+    "(Acceptance: the validation errors checked against the loop-closed model's claim at the validation "
+    "configurations, noise included; a failure with its diagnosis). After is the model the acceptance test "
+    "recommends: the paper's when the added effects did not hold on new poses.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
-    "optimization set; U the expanded uncertainty, k = 2, of the mean, clustered by pose), "
-    "and as the posteriors claim it at the measured configurations and across the joint "
-    "space (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
+    "optimization set; U the expanded uncertainty (95 %) of the mean, clustered by pose: CR2, k = t(poses - 1)), "
+    "and as the posteriors claim it at the measured configurations, inside the measured joint "
+    "ranges and across the joint limits (registration fitted, with the sensor's noise; their p95 is the bound this arm's "
     "95th percentile stays below with 95 % posterior probability).",
-    "certificate_corrections": "Zero-offset corrections to add to the controller's zero (the paper's model), with "
-    "their expanded uncertainty U (k = 2); held joints get none.",
+    "certificate_corrections": "Zero-offset corrections to add to the controller's zero: the loop-closed model's, "
+    "to type in with its other effects, and the zero-offset model's, for a controller that takes "
+    "zero-offsets alone; U (95 %) holds the posterior std and the between-design component u_between "
+    "(how far a correction moves with the poses measured: jackknife over pose groups), k from t at "
+    "their effective degrees of freedom; held joints get none.",
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
     "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
     "zero_offset_trace": "Trace of the zero-offsets in the paper's Metropolis sampler, samples after the dashed line kept",
@@ -67,16 +78,19 @@ CAPTIONS = {
     "zero-offsets alone, at random configurations (Loop-closed: every "
     "parameter of its effects, without the noise term).",
     "workspace_accuracy": "Where each calibration holds: claimed error (mm) of the paper's and the loop-closed model "
-    "at the measured configurations and at random configurations across the joint limits, "
+    "at the measured configurations, at random configurations inside the measured joint ranges "
+    "and at random configurations across the joint limits (there the parameters the data did not "
+    "reach spread by their priors), "
     "propagated from the loop-closed posterior (every draw of its parameters under their "
     "priors, with its noise); registration fitted over the configurations, or in the robot "
     "frame with held zero-offsets drawn from the controller marks' tolerance. 95%: the "
     "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
-    "percentile stays below it with 95 % posterior probability. Holds: "
-    "'near the measured poses only' when the workspace mean exceeds twice the measured one.",
-    "workspace_warnings": "What the report warns about each calibration: workspace-wide error against the measured "
-    "configurations, parameters the data barely moved from their prior, and what the next "
-    "campaign should add.",
+    "percentile stays below it with 95 % posterior probability. Holds: 'across the joint limits' "
+    "when every joint's measured range covers 90 % of its limits and the measured tool axes "
+    "spread 30 deg, else 'inside the measured ranges'.",
+    "workspace_warnings": "What the report warns about each calibration: where its claims hold (the measured "
+    "ranges) against the claim across the joint limits, what the next campaign must add, and "
+    "parameters the data barely moved from their prior.",
     "validation_accuracy": "Accuracy on the validation set with the optimization set's parameters.",
     "sensor_comparison": "The sensors side by side: estimates, differences in units of their combined "
     "uncertainty, and accuracy.",
@@ -93,8 +107,9 @@ CAPTIONS = {
     "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
     "noise, or why it was not offered).",
     "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
-    "correction), in degrees and radians, with std and 95 % interval, for the paper's model "
-    "and the loop-closed model; held joints get none.",
+    "correction), in degrees and radians, with posterior std and 95 % interval, the between-design "
+    "component u_between and U (95 %, k from t at dof), for the paper's model and the loop-closed "
+    "model; held joints get none.",
     "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
     "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "
     "campaign given as a DH table, the calibrated DH tables.",

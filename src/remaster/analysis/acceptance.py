@@ -1,0 +1,532 @@
+"""The validation set as the acceptance test: does what the validation set measured lie within what
+the calibration claims at its configurations, noise included? Read after every choice was made
+(the loop closure's effects, its refit, the paper's fit); nothing here selects or tunes anything
+but the verdict and which model to recommend.
+
+**The check** (a posterior predictive check, one per model: the loop-closed model and the paper's):
+
+- statistic T: the RMS per axis of the validation residuals, sqrt(mean over rows and axes of
+  e_i^2), e_i = y_i - p_ref(q_i), y the measured positions (sensor frame), p_ref the model's
+  prediction at its posterior mean with the optimization set's registration as fitted (a residual
+  GP, when the loop added one, at its mean);
+- its replicates, one per posterior draw d (whole rows of the posterior: the registration, every
+  parameter, sigma; the loop's residual GP drawn from its marginal at each configuration):
+  T_d = RMS of (p_d(q) + n_d - p_ref(q)), n_d ~ N(0, sigma_d^2 I3) or the tracker's range /
+  transverse shape when the loop chose it (the GP's noise std with a GP);
+- p = share of replicates with T_d >= T; the model FAILS when p < `level` (config
+  `acceptance/level`). Under a correct model p is uniform and a model fails at the rate `level`.
+
+**Diagnosis of a failure of the loop-closed model**, in this order:
+
+(a) the registration refitted on the validation rows, the model's parameters fixed: the rigid
+    transform M (closed form, Kabsch) that best maps the model's predictions onto the validation
+    readings, the refit registration being M T_opt. The same refit applied to every replicate
+    (it absorbs six degrees of freedom there too) gives the refit check. When the refit check
+    passes, or removes at least `registration_share` of the excess mean square (T^2 - median
+    T_d^2), the diagnosis is "the sensor or the robot's base moved between the sets", with the
+    move M: its translation (mm, sensor frame), its rotation angle (deg), and the displacement at
+    the validation points' centre;
+(b) else, when the loop added effects and its validation RMS exceeds the paper model's: "the
+    added effects did not hold on new poses"; the recommended model is the paper's;
+(c) else "the calibration is not confirmed".
+
+Validation rows another stage flagged as gross errors (`LoopReport.gross_errors['validation']`,
+when the report carries it) are left out and listed. SI inside; the report is in mm and degrees
+where the names say so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+import pandas as pd
+
+from .. import noise, spatial
+from ..campaigns.campaign import SensorData
+from ..errors import InputError, report_reader
+from ..files import read_json, write_json
+from ..inference import blocks, residual_gp
+from ..inference.blocks import BlockModel, ModelSettings, Readings
+from ..inference.fit import LaplaceReport
+from ..inference.model import SIGMA
+from ..loop.report import LoopReport
+from ..robot.kinematics import KinematicChain
+from ..units import DEG, MM
+
+MODELS = ("loop", "paper")
+GP = "residual_gp"
+PASS, FAIL = "pass", "fail"
+MOVED, NOT_HELD, NOT_CONFIRMED = "sensor_moved", "effects_did_not_hold", "not_confirmed"
+DIAGNOSES = {
+    MOVED: "the sensor or the robot's base moved between the sets",
+    NOT_HELD: "the added effects did not hold on new poses",
+    NOT_CONFIRMED: "the calibration is not confirmed",
+}
+STATISTIC = (
+    "RMS per axis of the validation residuals (measured - the model's prediction at its posterior mean, "
+    "optimization registration as fitted), against its replicates from posterior draws with their noise"
+)
+
+
+# --------------------------------------------------------------------------- the check itself
+
+
+def rms(residuals) -> np.ndarray:
+    """RMS per axis of residuals (..., n, 3): sqrt of the mean square over rows and axes."""
+    return np.sqrt(np.mean(np.asarray(residuals, dtype=float) ** 2, axis=(-2, -1)))
+
+
+def kabsch_many(reference, targets) -> np.ndarray:
+    """Rigid transforms (m, 4, 4) that map reference points (n, 3) onto each of targets (m, n, 3)
+    in least squares (closed form, as `robot.registration.kabsch`, for a stack of targets)."""
+    reference = np.asarray(reference, dtype=float)
+    targets = np.asarray(targets, dtype=float)
+    centre_a, centre_b = reference.mean(axis=0), targets.mean(axis=1)
+    covariance = np.einsum("ni,mnj->mij", reference - centre_a, targets - centre_b[:, None, :])
+    u, _, vt = np.linalg.svd(covariance)
+    d = np.sign(np.linalg.det(np.swapaxes(vt, -1, -2) @ np.swapaxes(u, -1, -2)))
+    flip = np.ones((len(targets), 3))
+    flip[:, 2] = d
+    rotation = np.swapaxes(vt, -1, -2) @ (flip[:, :, None] * np.swapaxes(u, -1, -2))
+    out = np.tile(np.eye(4), (len(targets), 1, 1))
+    out[:, :3, :3] = rotation
+    out[:, :3, 3] = centre_b - np.einsum("mij,j->mi", rotation, centre_a)
+    return out
+
+
+def refit_residuals(reference, targets) -> tuple[np.ndarray, np.ndarray]:
+    """(residuals (m, n, 3) of targets (m, n, 3) after the rigid transform that best maps reference
+    (n, 3) onto each, those transforms (m, 4, 4))."""
+    moves = kabsch_many(reference, targets)
+    mapped = np.einsum("mij,nj->mni", moves[:, :3, :3], reference) + moves[:, None, :3, 3]
+    return np.asarray(targets) - mapped, moves
+
+
+def p_value(observed: float, replicates) -> float:
+    """Share of replicates at or above the observed statistic (one-sided: a larger error fails)."""
+    return float(np.mean(np.asarray(replicates, dtype=float) >= observed))
+
+
+def move_report(move, points) -> dict:
+    """A rigid move M (4, 4) of the sensor's readings (m' = R m + t, sensor frame) in mm and deg:
+    its translation, its rotation (angle and rotation vector), and the displacement it gives the
+    centre of points (n, 3) m."""
+    move = np.asarray(move, dtype=float)
+    centre = np.asarray(points, dtype=float).mean(axis=0)
+    at_centre = spatial.transform_points(move, centre[None])[0] - centre
+    return {
+        "translation_mm": (move[:3, 3] / MM).tolist(),
+        "translation_norm_mm": float(np.linalg.norm(move[:3, 3]) / MM),
+        "rotation_deg": float(spatial.rotation_angle(move[:3, :3]) / DEG),
+        "rotation_vector_deg": (spatial.matrix_to_rotation_vector(move[:3, :3]) / DEG).tolist(),
+        "displacement_at_centre_mm": (at_centre / MM).tolist(),
+        "displacement_at_centre_norm_mm": float(np.linalg.norm(at_centre) / MM),
+        "transform": move.tolist(),
+        "convention": "validation readings = M (the model's prediction with the optimization registration), "
+        "sensor frame; the refit registration is M T_opt",
+    }
+
+
+@dataclass(frozen=True, eq=False)
+class Claim:
+    """What a model claims at the validation readings: reference (n, 3) m its prediction at the
+    posterior mean (sensor frame, a residual GP's mean added); model: the parametric model on those
+    readings; theta (m, P) its posterior draws' free parameters, sigma (m,) m their noise std;
+    gp_std (n,) m the residual GP's marginal std at each reading (None without one), gp_mean (n, 3)
+    m its mean (sensor frame) or 0; effects: the model's blocks; source: where the draws come from."""
+
+    reference: np.ndarray
+    model: BlockModel
+    theta: np.ndarray
+    sigma: np.ndarray
+    effects: tuple[str, ...]
+    source: str
+    gp_std: np.ndarray | None = None
+    gp_mean: np.ndarray | float = 0.0
+
+    def replicates(self, rows, rng: np.random.Generator) -> np.ndarray:
+        """Replicated validation readings (k, n, 3) m of the draws `rows` (k,): each draw's
+        prediction, its GP draw when there is a GP, and its noise."""
+        points = self.model.predict(self.theta[rows]) + self.gp_mean
+        if self.gp_std is not None:
+            points = points + self.gp_std[None, :, None] * rng.standard_normal(points.shape)
+        return points + _noise_draws(self.sigma[rows], self.model.measured, points.shape, rng, self.model.noise)
+
+
+CHUNK_VALUES = 2**21  # draws x rows x 3 values replicated at once: 16 MB per array whatever the campaign's size
+
+
+def check(measured, claim: Claim, level: float, registration_share: float, rng: np.random.Generator) -> dict:
+    """The check of one model on validation readings measured (n, 3) m (JSON-ready, mm): observed
+    and replicated statistic, p-value and pass, and the same with the registration refitted on the
+    validation rows (`refit`: its move, and the share of the excess mean square it removes). The
+    replicates are made a chunk of draws at a time (rng: their GP draws and noise)."""
+    measured = np.asarray(measured, dtype=float)
+    observed = float(rms(measured - claim.reference))
+    refit_obs, moves = refit_residuals(claim.reference, measured[None])
+    observed_refit = float(rms(refit_obs[0]))
+    chunk = max(1, CHUNK_VALUES // measured.size)
+    replicates, replicates_refit = [], []
+    for begin in range(0, len(claim.theta), chunk):
+        replicated = claim.replicates(np.arange(begin, min(begin + chunk, len(claim.theta))), rng)
+        replicates.append(rms(replicated - claim.reference))
+        replicates_refit.append(rms(refit_residuals(claim.reference, replicated)[0]))
+    replicates, replicates_refit = np.concatenate(replicates), np.concatenate(replicates_refit)
+    excess = observed**2 - float(np.median(replicates**2))
+    excess_refit = observed_refit**2 - float(np.median(replicates_refit**2))
+    # the share of the excess the refit removes, in [0, 1]; None when there is no excess to remove
+    removed = min(1.0, max(0.0, 1.0 - max(excess_refit, 0.0) / excess)) if excess > 0 else None
+    p, p_refit = p_value(observed, replicates), p_value(observed_refit, replicates_refit)
+    return {
+        "effects": list(claim.effects),
+        "draws_from": claim.source,
+        "draws": int(len(replicates)),
+        "observed_rms_per_axis_mm": observed / MM,
+        "replicate_median_mm": float(np.median(replicates) / MM),
+        "replicate_q95_mm": float(np.quantile(replicates, 0.95) / MM),
+        "p_value": p,
+        "passed": bool(p >= level),
+        "refit": {
+            "observed_rms_per_axis_mm": observed_refit / MM,
+            "replicate_median_mm": float(np.median(replicates_refit) / MM),
+            "replicate_q95_mm": float(np.quantile(replicates_refit, 0.95) / MM),
+            "p_value": p_refit,
+            "passed": bool(p_refit >= level),
+            "excess_mean_square_mm2": excess / MM**2,
+            "excess_mean_square_after_refit_mm2": excess_refit / MM**2,
+            "excess_removed": removed,
+            "explains": bool(p_refit >= level or (removed is not None and removed >= registration_share)),
+            "move": move_report(moves[0], measured),
+        },
+    }
+
+
+# --------------------------------------------------------------------------- the models' claims
+
+
+def _noise_draws(sigma, measured, shape, rng: np.random.Generator, tracker: noise.RangeTransverse | None):
+    """Noise (m, n, 3) m with std sigma (m,) per draw: isotropic, or the tracker's range/transverse
+    shape at the measured points (n, 3) (transverse std k_i sigma about the direction from the head)."""
+    z = rng.standard_normal(shape)
+    if tracker is not None:
+        u = measured / np.linalg.norm(measured, axis=1, keepdims=True)
+        along = np.sum(z * u, axis=-1, keepdims=True) * u
+        z = along + tracker.ratios(measured)[:, None] * (z - along)
+    return np.asarray(sigma, dtype=float)[:, None, None] * z
+
+
+def _rows(count: int, available: int, rng: np.random.Generator) -> np.ndarray:
+    return rng.choice(available, count, replace=available < count)
+
+
+def _checked_samples(samples: pd.DataFrame, names: Sequence[str], label: str) -> pd.DataFrame:
+    missing = [n for n in list(names) + [SIGMA] if n not in samples.columns]
+    if missing:
+        raise InputError("missing column(s) of the posterior samples", file=label, key=", ".join(missing))
+    return samples[list(names) + [SIGMA]].astype(float).reset_index(drop=True)
+
+
+def paper_claim(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    laplace: LaplaceReport,
+    samples: pd.DataFrame | None,
+    count: int,
+    rng: np.random.Generator,
+    label: str = "",
+) -> Claim:
+    """The paper's model (registration + zero-offsets, held ones at their value) at the validation
+    readings: draws from its posterior samples (the default sampler's), or from its Laplace
+    approximation when none are given."""
+    model = BlockModel(chain, data, marker, t_nr, (), laplace.held)
+    if samples is not None and not samples.empty:
+        table = _checked_samples(samples, model.names, label)
+        chosen = table.iloc[_rows(count, len(table), rng)]
+        theta, sigma = chosen[list(model.names)].to_numpy(), chosen[SIGMA].to_numpy()
+        mean = table[list(model.names)].mean().to_numpy()
+        source = "the paper model's posterior samples (default sampler)"
+    else:
+        laplace.check_names(model.names)
+        theta = rng.multivariate_normal(laplace.theta_map, laplace.covariance, count)
+        sigma = np.abs(laplace.sigma_map + laplace.sigma_std * rng.standard_normal(count))
+        mean = laplace.theta_map
+        source = "the paper model's Laplace approximation (no samples given)"
+    return Claim(model.predict(mean), model, theta, sigma, (), source)
+
+
+def loop_model(chain: KinematicChain, data: Readings, marker, t_nr, report: LoopReport) -> BlockModel:
+    """The loop closure's final parametric model on some readings: its effects (the residual GP
+    apart), its held parameters at their values, its noise shape."""
+    table = report.parameters
+    held = table[(table["status"].astype(str) != "estimated") & (table["block"] != "noise")]
+    effects = tuple(b for b in report.effects_added if b != GP)
+    chosen = (report.noise_model or {}).get("chosen")
+    shape = None
+    if chosen == "range_transverse":
+        shape = noise.RangeTransverse(float(report.noise_model["transverse_growth_per_m"]))
+    fixed = dict(zip(held["parameter"].astype(str), held["mean"].astype(float)))
+    return BlockModel(chain, data, marker, t_nr, effects, fixed, None, shape)
+
+
+def loop_claim(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    report: LoopReport,
+    samples: pd.DataFrame | None,
+    gp_rows: pd.DataFrame | None,
+    count: int,
+    rng: np.random.Generator,
+    label: str = "",
+) -> Claim:
+    """The loop-closed model at the validation readings: its MCMC refit's draws (the Laplace
+    approximation's diagonal when the refit ran without MCMC), plus its residual GP when it added
+    one (mean at the reference; drawn from its marginal at each configuration, its noise std the
+    noise, as `workspace` propagates it)."""
+    model = loop_model(chain, data, marker, t_nr, report)
+    names = list(model.names)
+    if samples is not None and not samples.empty:
+        table = _checked_samples(samples, names, label)
+        chosen = table.iloc[_rows(count, len(table), rng)]
+        theta, sigma = chosen[names].to_numpy(), chosen[SIGMA].to_numpy()
+        mean = table[names].mean().to_numpy()
+        source = "the loop closure's MCMC refit"
+    else:
+        mode = report.refit["mode"]
+        if list(mode["names"]) != names:
+            raise InputError("the refit's parameters are not the model's", file=label, key="refit/mode/names")
+        mean, std = np.asarray(mode["theta"], dtype=float), np.asarray(mode["std"], dtype=float)
+        theta = mean + std * rng.standard_normal((count, len(mean)))
+        sigma = np.full(count, float(mode["sigma_mm"]) * MM)
+        source = "the loop closure's Laplace approximation (independent parameters; no MCMC samples)"
+    reference = model.predict(mean)
+    gp = residual_gp.from_results(gp_rows, report.residual_gp) if GP in report.effects_added else None
+    if gp is None:
+        return Claim(reference, model, theta, sigma, tuple(report.effects_added), source)
+    rotation = np.asarray(report.residual_gp["rotation_robot_to_sensor"], dtype=float)
+    correction = gp.mean(data.q) @ rotation.T
+    return Claim(
+        reference + correction,
+        model,
+        theta,
+        np.full(count, gp.hyper.noise_std),
+        tuple(report.effects_added),
+        source + " with its residual GP",
+        np.sqrt(gp.variance(data.q)),
+        correction,
+    )
+
+
+# --------------------------------------------------------------------------- verdict and diagnosis
+
+
+def diagnose(checks: Mapping[str, Mapping], effects_added: Sequence[str]) -> tuple[str, str | None, str]:
+    """(verdict, diagnosis or None, recommended model) from both models' checks: the loop-closed
+    model's check is the verdict; a failure is diagnosed in the order of the module docstring."""
+    loop, paper = checks["loop"], checks["paper"]
+    if loop["passed"]:
+        return PASS, None, "loop"
+    if loop["refit"]["explains"]:
+        return FAIL, MOVED, "loop"
+    if effects_added and loop["observed_rms_per_axis_mm"] > paper["observed_rms_per_axis_mm"]:
+        return FAIL, NOT_HELD, "paper"
+    return FAIL, NOT_CONFIRMED, "loop"
+
+
+def _diagnosis_text(diagnosis: str | None, checks: Mapping, level: float) -> str:
+    loop, paper = checks["loop"], checks["paper"]
+    head = (
+        f"validation RMS per axis {loop['observed_rms_per_axis_mm']:.3g} mm against the loop-closed model's claim "
+        f"{loop['replicate_median_mm']:.3g} mm (95 %: {loop['replicate_q95_mm']:.3g} mm), p = {loop['p_value']:.3g}"
+    )
+    if diagnosis is None:
+        return f"pass: {head} >= {level:g}"
+    text = f"fail: {head} < {level:g}: {DIAGNOSES[diagnosis]}"
+    if diagnosis == MOVED:
+        move = loop["refit"]["move"]
+        text += (
+            f" (the registration refitted on the validation rows moves the readings by "
+            f"{move['translation_norm_mm']:.3g} mm and {move['rotation_deg']:.3g} deg, "
+            f"{move['displacement_at_centre_norm_mm']:.3g} mm at the points' centre; the refit leaves "
+            f"{loop['refit']['observed_rms_per_axis_mm']:.3g} mm, p = {loop['refit']['p_value']:.3g})"
+        )
+    elif diagnosis == NOT_HELD:
+        text += (
+            f" (the paper's model validates at {paper['observed_rms_per_axis_mm']:.3g} mm, p = "
+            f"{paper['p_value']:.3g}): the recommended model is the paper's"
+        )
+    return text
+
+
+@dataclass(frozen=True)
+class Acceptance:
+    """acceptance.json of one sensor. verdict 'pass' | 'fail' (the loop-closed model's check);
+    diagnosis: None or one of DIAGNOSES, diagnosis_text its sentence with the numbers; recommended:
+    'loop' | 'paper', the model whose validation error is the certificate's "after"; move: the
+    registration refit's move (mm, deg) when the diagnosis is a moved sensor, else None; checks:
+    {'loop', 'paper': `check`}; level, registration_share, draws: the settings; validation_rows:
+    rows used; gross_errors_left_out: validation rows flagged by the gross-error screen and left
+    out; warnings: plain text; source: the file it was read from (not written)."""
+
+    sensor: str
+    verdict: str
+    diagnosis: str | None
+    diagnosis_text: str
+    recommended: str
+    move: Mapping | None
+    checks: Mapping[str, Mapping]
+    level: float
+    registration_share: float
+    draws: int
+    validation_rows: int
+    gross_errors_left_out: tuple[int, ...]
+    warnings: tuple[str, ...]
+    statistic: str = STATISTIC
+    campaign: str | None = None
+    source: str = field(default="acceptance.json", compare=False)
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict == PASS
+
+    def to_json(self) -> dict:
+        out = {}
+        for f in fields(self):
+            if f.name == "source":
+                continue
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    def write(self, path):
+        """Write acceptance.json (`files.write_json`); returns its path."""
+        return write_json(path, self.to_json())
+
+    @classmethod
+    def of(cls, content: Mapping, source: str = "acceptance.json") -> Acceptance:
+        """From the JSON content; a missing key is an InputError naming the file and the key."""
+        get = report_reader(content, source, "missing in the acceptance report")
+        values = {}
+        for f in fields(cls):
+            if f.name == "source" or (f.name in ("statistic", "campaign") and f.name not in content):
+                continue
+            value = get(f.name)
+            values[f.name] = tuple(value) if f.name in ("gross_errors_left_out", "warnings") else value
+        if values["verdict"] not in (PASS, FAIL):
+            raise InputError(f"verdict must be {PASS!r} or {FAIL!r}", file=source, key="verdict")
+        if values["recommended"] not in MODELS:
+            raise InputError(f"recommended must be one of {MODELS}", file=source, key="recommended")
+        return cls(**values, source=source)
+
+    @classmethod
+    def read(cls, path) -> Acceptance:
+        return cls.of(read_json(path), source=str(path))
+
+
+def accept(
+    chain: KinematicChain,
+    sensor: SensorData,
+    t_nr,
+    laplace: LaplaceReport,
+    paper_samples: pd.DataFrame | None,
+    loop: LoopReport,
+    loop_samples: pd.DataFrame | None,
+    loop_gp_rows: pd.DataFrame | None,
+    rng: np.random.Generator,
+    level: float,
+    draws: int,
+    registration_share: float,
+    label: str = "",
+) -> Acceptance:
+    """The acceptance check of one sensor (module docstring). t_nr (4, 4): the fit's initial
+    registration (registration.json); laplace: the paper's fit; paper_samples: its default
+    sampler's samples (None: its Laplace approximation); loop, loop_samples, loop_gp_rows: the
+    loop closure's report, MCMC samples and residual-GP training rows; rng draws the posterior rows
+    and the noise; level: the p-value below which a model fails; draws: replicates per model;
+    registration_share: the share of the excess a refit registration must remove to explain it."""
+    flagged = sorted(int(r) for r in ((getattr(loop, "gross_errors", None) or {}).get("validation") or ()))
+    settings = ModelSettings(
+        payload_mass=loop.payload_mass,
+        payload_com=loop.payload_com,
+        drift_column=(loop.settings or {}).get("drift_column"),
+    )
+    data = blocks.readings(chain, sensor, "validation", settings, flagged)
+    if len(data.rows) < 3:
+        raise InputError("fewer than 3 measured validation rows: nothing to accept on", file=label, key="validation")
+    claims = {
+        "loop": loop_claim(chain, data, sensor.marker, t_nr, loop, loop_samples, loop_gp_rows, draws, rng, label),
+        "paper": paper_claim(chain, data, sensor.marker, t_nr, laplace, paper_samples, draws, rng, label),
+    }
+    checks = {m: check(data.measured, claims[m], level, registration_share, rng) for m in MODELS}
+    effects = [b for b in loop.effects_added]
+    verdict, diagnosis, recommended = diagnose(checks, effects)
+    warnings = []
+    if diagnosis is not None:
+        warnings.append(f"acceptance test on the validation set: {_diagnosis_text(diagnosis, checks, level)}")
+    elif effects and checks["loop"]["observed_rms_per_axis_mm"] > checks["paper"]["observed_rms_per_axis_mm"]:
+        warnings.append(
+            f"the loop-closed model ({', '.join(effects)}) validates worse than the paper's "
+            f"({checks['loop']['observed_rms_per_axis_mm']:.3g} against "
+            f"{checks['paper']['observed_rms_per_axis_mm']:.3g} mm RMS per axis), though within its claim"
+        )
+    if not checks["paper"]["passed"] and recommended == "paper":
+        warnings.append(
+            f"the recommended paper's model also fails its own check (p = {checks['paper']['p_value']:.3g})"
+        )
+    if flagged:
+        warnings.append(
+            f"{len(flagged)} validation rows flagged as gross errors left out of the check (rows {flagged})"
+        )
+    return Acceptance(
+        sensor=sensor.name,
+        verdict=verdict,
+        diagnosis=diagnosis,
+        diagnosis_text=_diagnosis_text(diagnosis, checks, level),
+        recommended=recommended,
+        move=checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
+        checks=checks,
+        level=float(level),
+        registration_share=float(registration_share),
+        draws=int(draws),
+        validation_rows=int(len(data.rows)),
+        gross_errors_left_out=tuple(flagged),
+        warnings=tuple(warnings),
+        campaign=loop.campaign,
+    )
+
+
+def acceptance_stage(
+    campaign,
+    sensor: str,
+    t_nr,
+    laplace: LaplaceReport,
+    paper_samples: pd.DataFrame | None,
+    loop: LoopReport,
+    loop_samples: pd.DataFrame | None,
+    loop_gp_rows: pd.DataFrame | None,
+    rng: np.random.Generator,
+    settings: Mapping,
+) -> Acceptance:
+    """`accept` for one sensor of a campaign with the config's `acceptance` section (level, draws,
+    registration_share)."""
+    result = accept(
+        campaign.chain,
+        campaign.sensors[sensor],
+        t_nr,
+        laplace,
+        paper_samples,
+        loop,
+        loop_samples,
+        loop_gp_rows,
+        rng,
+        float(settings["level"]),
+        int(settings["draws"]),
+        float(settings["registration_share"]),
+        label=f"{campaign.name}/{sensor}",
+    )
+    return replace(result, campaign=campaign.name)

@@ -1,0 +1,147 @@
+"""The measured domain of a calibration: where its data reached in joint space and in tool
+orientation, and so where its claims hold (docs/methods.md, "Where a calibration holds").
+
+- **Joint intervals**: per joint, [min, max] of the readings the fit used (the optimization set's
+  rows whose marker was seen and that were not flagged as gross errors), rad. A joint whose readings
+  span less than `HELD_WIDTH` is *held*: an interval of zero width, at its value.
+- **Tool orientations**: the largest angle between a measured flange z axis and their mean direction
+  (nominal kinematics), deg.
+- **Domain configurations** (`MeasuredDomain.configurations`): random configurations uniform inside
+  the joint intervals (a held joint at its value), from the generator of (seed, 'domain', robot
+  slug): as the robot's random configurations across the limits (`prediction.robot_configurations`),
+  the same for the same robot, seed and intervals.
+
+Where the claims hold (`MeasuredDomain.holds`): "across the joint limits" when every joint's interval
+covers at least `FULL_RANGE_FRACTION` of its range (limits, +-pi where unlimited) and the measured tool
+axes spread at least `MIN_TOOL_SPREAD_DEG` (joints that each moved far, but in combinations that
+kept the tool pointing one way, leave the other orientations unmeasured: kuka-cubes); otherwise
+"inside the measured ranges", naming them. The claim across the limits is still made, apart: there
+the parameters the data did not determine spread by their priors.
+
+SI inside (rad); degrees only in the texts and in `report()`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import seeding
+from ..inference import metrics
+from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..units import DEG
+from . import comparison
+
+FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
+MIN_TOOL_SPREAD_DEG = 30.0  # and the spread of the measured tool axes
+HELD_WIDTH = 0.01 * DEG  # readings spanning less: the joint was held (a controller's jitter, not a motion)
+ACROSS, INSIDE = "across the joint limits", "inside the measured ranges"
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredDomain:
+    """lower, upper (N,) rad: each joint's measured interval; limits_lower, limits_upper (N,) rad:
+    its limits (+-pi where unlimited); tool_axis_spread_deg: the largest angle between a measured
+    flange z axis and their mean direction."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    limits_lower: np.ndarray
+    limits_upper: np.ndarray
+    tool_axis_spread_deg: float
+
+    @classmethod
+    def of(cls, chain: KinematicChain, q) -> MeasuredDomain:
+        """The domain of readings q (n, N) rad, n >= 1."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        lower, upper = metrics.joint_space_bounds(chain)
+        axes = ForwardKinematics(chain, q).flange_poses()[:, :3, 2]
+        mean = axes.mean(axis=0)
+        mean /= np.linalg.norm(mean)
+        spread = float(np.degrees(np.arccos(np.clip(axes @ mean, -1.0, 1.0))).max())
+        low, high = q.min(axis=0), q.max(axis=0)
+        held = high - low < HELD_WIDTH
+        centre = 0.5 * (low + high)  # a held joint: one value
+        return cls(np.where(held, centre, low), np.where(held, centre, high), lower, upper, spread)
+
+    @property
+    def held(self) -> np.ndarray:
+        """Boolean (N,): the joints whose readings never moved (interval of zero width)."""
+        return self.upper - self.lower == 0.0
+
+    @property
+    def range_fraction(self) -> np.ndarray:
+        """(N,) the share of each joint's range its interval covers."""
+        return (self.upper - self.lower) / (self.limits_upper - self.limits_lower)
+
+    @property
+    def covers_the_limits(self) -> bool:
+        return bool(
+            self.range_fraction.min() >= FULL_RANGE_FRACTION and self.tool_axis_spread_deg >= MIN_TOOL_SPREAD_DEG
+        )
+
+    def configurations(self, robot: str, n: int, seed: int) -> np.ndarray:
+        """n configurations (n, N) rad uniform inside the intervals, held joints at their value,
+        from the generator of (seed, 'domain', robot slug)."""
+        rng = seeding.generator(seed, "domain", comparison.robot_slug(robot))
+        return self.lower + (self.upper - self.lower) * rng.uniform(size=(n, len(self.lower)))
+
+    def ranges_text(self) -> str:
+        """Each joint's interval in degrees: 'q1 -161 to 167 deg (96 % of its range), ..., q3 held at 0 deg'."""
+        parts = []
+        for j, (low, high, fraction) in enumerate(zip(self.lower, self.upper, self.range_fraction)):
+            if low == high:
+                parts.append(f"q{j + 1} held at {low / DEG:.0f} deg")
+            else:
+                parts.append(f"q{j + 1} {low / DEG:.0f} to {high / DEG:.0f} deg ({100 * fraction:.0f} % of its range)")
+        return ", ".join(parts)
+
+    def short_text(self) -> str:
+        """What falls short of the claims across the limits: 'q3 held at 0 deg; tool axes within 18 deg
+        of one direction' (joints under FULL_RANGE_FRACTION with their share, then the tool axes)."""
+        parts = [
+            f"q{j + 1} held at {low / DEG:.0f} deg"
+            if low == high
+            else f"q{j + 1} over {100 * fraction:.0f} % of its range"
+            for j, (low, high, fraction) in enumerate(zip(self.lower, self.upper, self.range_fraction))
+            if fraction < FULL_RANGE_FRACTION
+        ]
+        if self.tool_axis_spread_deg < MIN_TOOL_SPREAD_DEG:
+            parts.append(f"tool axes within {self.tool_axis_spread_deg:.0f} deg of one direction")
+        return "; ".join(parts)
+
+    def holds(self) -> str:
+        """Where the claims hold: ACROSS, or INSIDE naming the measured ranges in degrees:
+        'inside the measured ranges: q1 -161..167, q2 -118..118, q3 held at 0, ... deg'."""
+        if self.covers_the_limits:
+            return ACROSS
+        ranges = ", ".join(
+            f"q{j + 1} held at {low / DEG:.0f}" if low == high else f"q{j + 1} {low / DEG:.0f}..{high / DEG:.0f}"
+            for j, (low, high) in enumerate(zip(self.lower, self.upper))
+        )
+        return f"{INSIDE}: {ranges} deg"
+
+    def report(self) -> dict:
+        """JSON-ready: per joint the interval (deg), its share of the range and whether it was held;
+        the tool axes' spread, the thresholds, and where the claims hold."""
+        return {
+            "joints": [
+                {
+                    "joint": f"q{j + 1}",
+                    "lower_deg": float(low / DEG),
+                    "upper_deg": float(high / DEG),
+                    "range_fraction": float(fraction),
+                    "held": bool(low == high),
+                }
+                for j, (low, high, fraction) in enumerate(zip(self.lower, self.upper, self.range_fraction))
+            ],
+            "held_joints": [f"q{j + 1}" for j in np.flatnonzero(self.held)],
+            "tool_axis_spread_deg": self.tool_axis_spread_deg,
+            "full_range_fraction": FULL_RANGE_FRACTION,
+            "min_tool_spread_deg": MIN_TOOL_SPREAD_DEG,
+            "covers_the_limits": self.covers_the_limits,
+            "ranges": self.ranges_text(),
+            "short_of_the_limits": self.short_text(),
+            "holds": self.holds(),
+        }

@@ -1,0 +1,88 @@
+"""The between-design component of the zero-offsets: how far a model's zero-offsets move with the
+choice of poses measured, estimated from the data by a delete-a-group jackknife over poses.
+
+The posterior std of a zero-offset says how well these data fix it if the model's residual were
+independent noise; what the model still lacks makes the estimate depend on which poses were
+measured, so that two campaigns of one arm differ by more than either posterior allows. The
+jackknife sees that: the model is refitted at its posterior mode (from the full fit's mode, same
+blocks, held parameters, priors and noise shape) leaving out one group of whole poses at a time, the
+groups of whole poses assigned as the cross-validation assigns its folds (`evidence.pose_folds`, K = loop_closure/jackknife_groups), and
+the spread of the K estimates gives u_J (`uncertainty.jackknife_variance`). The component beyond
+the posterior's own std is u_between = sqrt(max(u_J^2 - u_p^2, 0)), u_p the Laplace std of the full
+fit (`uncertainty.between_design`). The residual GP, when added, is not refitted: it is the
+parametric model's zero-offsets that are certified.
+
+SI inside (rad); the report is JSON-ready in degrees where its keys say so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..inference import evidence
+from ..inference.blocks import Readings
+from ..inference.uncertainty import between_design, jackknife_variance
+from ..units import DEG
+from .selection import Fitted
+
+ZERO_OFFSET_PREFIX = "zero_offsets."
+MIN_GROUPS = 3  # two groups give a spread of one difference: no estimate of a variance worth the name
+
+
+def subset(data: Readings, keep: np.ndarray) -> Readings:
+    """The readings of the rows where keep (n,) is True."""
+    return replace(
+        data,
+        rows=data.rows[keep],
+        q=data.q[keep],
+        measured=data.measured[keep],
+        torques=data.torques[keep],
+        payload_torques=data.payload_torques[keep],
+        drift=None if data.drift is None else data.drift[keep],
+    )
+
+
+def leave_group_out(fitted: Fitted, folds: np.ndarray) -> np.ndarray:
+    """(K, P) the model's mode refitted without each fold of folds (n,) in turn (sorted fold
+    labels), from the full fit's mode."""
+    data = fitted.model.data
+    estimates = []
+    for fold in np.unique(folds):
+        model = fitted.model.on(subset(data, folds != fold))
+        estimates.append(evidence.posterior_mode(model, fitted.theta).theta)
+    return np.array(estimates)
+
+
+def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
+    """The between-design component of the model's free zero-offsets (module docstring) over
+    `groups` pose-grouped folds of its optimization readings (one pose per group when there are
+    fewer poses; not computed below MIN_GROUPS); poses (n,) their pose labels.
+    JSON-ready: groups, method, and per zero-offset parameter posterior_std_deg (Laplace),
+    jackknife_std_deg, u_between_deg, dof (of the combined u, `uncertainty.between_design`) and
+    the K estimates_deg."""
+    groups = min(groups, len(np.unique(poses)))  # a campaign of fewer poses: one pose per group
+    if groups < MIN_GROUPS:
+        return {"groups": groups, "method": f"not computed: fewer than {MIN_GROUPS} poses", "parameters": {}}
+    folds = evidence.pose_folds(poses, groups)
+    estimates = leave_group_out(fitted, folds)
+    u_jackknife = np.sqrt(jackknife_variance(estimates))
+    u_posterior = fitted.mode.std
+    u_between, dof = between_design(u_posterior, u_jackknife, groups)
+    out = {}
+    for i, name in enumerate(fitted.model.names):
+        if name.startswith(ZERO_OFFSET_PREFIX):
+            out[name] = {
+                "posterior_std_deg": float(u_posterior[i] / DEG),
+                "jackknife_std_deg": float(u_jackknife[i] / DEG),
+                "u_between_deg": float(u_between[i] / DEG),
+                "dof": float(dof[i]) if np.isfinite(dof[i]) else None,  # None: infinite
+                "estimates_deg": (estimates[:, i] / DEG).tolist(),
+            }
+    return {
+        "groups": int(len(np.unique(folds))),
+        "method": "delete-a-group jackknife over pose-grouped folds (assigned as the cross-validation assigns its folds), the mode "
+        "refitted without each; u_between = sqrt(max(u_jackknife^2 - u_posterior^2, 0))",
+        "parameters": out,
+    }
