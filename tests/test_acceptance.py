@@ -245,7 +245,7 @@ def accepted(spec: dict, sensor: str, seed: int = 5) -> tuple[Acceptance, scenar
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     loop = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(seed), settings)
     loop.report.write(folder.parent / "loop.json")
     report = LoopReport.read(folder.parent / "loop.json")
@@ -356,7 +356,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, "laser_tracker")
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"])
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     loop = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(5), settings
     )
