@@ -120,6 +120,10 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     the measured joint ranges and across the joint limits."""
     errors = inputs.configuration_errors
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
+    # every model's validation rows without those the final model flagged as gross errors (the
+    # loop's residuals leave them out already); the warnings give the numbers with them
+    flagged = ((inputs.loop.gross_errors or {}).get("validation")) or []
+    validation = validation[~validation["row"].isin(flagged)]
     where = "validation set (measured)"
     rows = [
         _row(
