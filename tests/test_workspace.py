@@ -272,7 +272,7 @@ def test_the_twins_loop_rows_and_notes(tmp_path_factory):
     # joint 3 never moved: the claims hold inside the measured ranges, the next campaign must move it
     assert result.report["holds"]["loop"]["holds"] == domain.INSIDE
     assert result.report["domain"]["held_joints"] == ["q3"]
-    assert ", q3 held at 0, " in result.report["domain"]["holds"]
+    assert result.report["domain"]["holds"].startswith(domain.INSIDE + " (q3 held at 0 deg")
     assert any(w.startswith("the next campaign must add: joint 3 over more") for w in result.report["warnings"])
     # across the limits the link errors joint 3 would have shown keep their priors: a wider claim
     inside, limits = (claim(result.claims, "loop", where)["p95_bound_mm"] for where in ("domain", "random"))

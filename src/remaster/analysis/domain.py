@@ -112,15 +112,12 @@ class MeasuredDomain:
         return "; ".join(parts)
 
     def holds(self) -> str:
-        """Where the claims hold: ACROSS, or INSIDE naming the measured ranges in degrees:
-        'inside the measured ranges: q1 -161..167, q2 -118..118, q3 held at 0, ... deg'."""
+        """Where the claims hold: ACROSS, or INSIDE with what falls short of the limits (the ranges
+        themselves are the certificate's "Valid for", `ranges_text`): 'inside the measured ranges
+        (q3 held at 0 deg; tool axes within 18 deg of one direction)'."""
         if self.covers_the_limits:
             return ACROSS
-        ranges = ", ".join(
-            f"q{j + 1} held at {low / DEG:.0f}" if low == high else f"q{j + 1} {low / DEG:.0f}..{high / DEG:.0f}"
-            for j, (low, high) in enumerate(zip(self.lower, self.upper))
-        )
-        return f"{INSIDE}: {ranges} deg"
+        return f"{INSIDE} ({self.short_text()})"
 
     def report(self) -> dict:
         """JSON-ready: per joint the interval (deg), its share of the range and whether it was held;

@@ -41,7 +41,7 @@ CAPTIONS = {
     "bound on its 95th percentile, 95 % posterior probability; across the limits the parameters "
     "the data did not reach spread by their priors), whether the loop is closed against the "
     "sensor's noise, where the calibration holds (across the joint limits, or inside the measured "
-    "ranges, named), whether a second sampler confirms the fit "
+    "ranges, with what falls short of the limits), whether a second sampler confirms the fit "
     "(Samplers: the samplers' cross-check, with the parameters they disagree on), and the acceptance test "
     "(Acceptance: the validation errors checked against the loop-closed model's claim at the validation "
     "configurations, noise included; a failure with its diagnosis). After is the model the acceptance test "
