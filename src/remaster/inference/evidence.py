@@ -225,6 +225,44 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     return CrossValidation(np.array(mse), np.array(points), held)
 
 
+def time_folds(order, poses, n_folds: int) -> np.ndarray:
+    """(n,) fold of each point: K blocks contiguous in time, each of whole poses. order (n,): when
+    each row was measured (s, or the table row where the campaign has no time column: the row
+    order is then taken as the measurement order); poses (n,) labels. The poses, in the order of
+    their first row, are cut into K runs of about n / K rows, so the held-out block is measured
+    after (or before) everything the fit keeps but for the blocks on its other side: prediction in
+    time rather than interpolation among poses measured minutes apart."""
+    order, poses = np.asarray(order, dtype=float), np.asarray(poses)
+    labels, inverse = np.unique(poses, return_inverse=True)
+    if len(labels) < n_folds:
+        raise ValueError(f"{len(labels)} poses cannot make {n_folds} time blocks of whole poses")
+    first = np.full(len(labels), np.inf)
+    np.minimum.at(first, inverse.ravel(), order)
+    sequence = np.argsort(first, kind="stable")
+    counts = np.bincount(inverse.ravel(), minlength=len(labels))[sequence]
+    # a pose goes to the block its middle row falls in; poses of very unequal sizes that would
+    # leave a block empty are cut by count instead
+    middle = np.cumsum(counts) - counts / 2.0
+    block = np.minimum((middle * n_folds / counts.sum()).astype(int), n_folds - 1)
+    if len(np.unique(block)) < n_folds:
+        block = np.arange(len(labels)) * n_folds // len(labels)
+    fold_of = np.empty(len(labels), dtype=int)
+    fold_of[sequence] = block
+    return fold_of[inverse.ravel()]
+
+
+def t_threshold(normal_standard_errors: float, n_folds: int) -> float:
+    """The fall (in standard errors over n_folds folds) a candidate needs: the one-sided level of
+    `normal_standard_errors` under a normal law, 1 - Phi(z), held at Student's t with K - 1 degrees
+    of freedom (the standard error is estimated from K paired differences). K = 5 at z = 2
+    (level 2.3 %): 2.87."""
+    import scipy.stats
+
+    if n_folds < 2:
+        return math.inf
+    return float(scipy.stats.t.isf(scipy.stats.norm.sf(normal_standard_errors), n_folds - 1))
+
+
 def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
     """Paired comparison over the same folds: the fall of the held-out mean squared residual,
     its standard error over folds, their ratio, and both pooled RMSEs (mm)."""
@@ -239,4 +277,5 @@ def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
         "cv_mse_fall_mm2": mean * 1e6,
         "cv_mse_fall_se_mm2": standard_error * 1e6,
         "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf,
+        "cv_folds": k,
     }

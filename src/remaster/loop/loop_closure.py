@@ -71,7 +71,7 @@ from .frames import residuals_frame, signatures_frame
 from .jackknife import zero_offset_jackknife
 from .refit import parameter_table, refit, zero_offset_shifts
 from .report import LoopReport
-from .selection import Selection, Signature, accuracy, select
+from .selection import BASE_STEP, GP, Selection, Signature, accuracy, cv_threshold, select
 from .settings import LoopSettings
 
 MEASURES = (
@@ -211,9 +211,13 @@ def close_loop(
     }
     counts = (len(base.model.names) + 1, len(final.model.names) + 1)
     dominated = after_table[after_table["prior_dominated"]]
-    explained = {r["added"]: r["scores"][r["added"]]["explained_fraction"] for r in selection.rounds if r["added"]}
+    explained = {
+        r["added"]: r["scores"][r["added"]]["explained_fraction"]
+        for r in selection.rounds
+        if r["added"] and r["added"] in selection.added
+    }
     closed = closure_report(selection, data["optimization"], sensor.noise, settings.closure_ratio)
-    gp_section = gp_report(selection, settings.cv_standard_errors)
+    gp_section = gp_report(selection, cv_threshold(settings))
     # how far the zero-offsets move with the poses measured (the certificate's between-design component)
     between = {
         name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
@@ -244,7 +248,9 @@ def close_loop(
         effects_added=tuple(selection.added),
         explained_fraction_when_added=explained,
         candidates=_per_candidate(selection.rounds),
-        rounds=tuple({"round": r["round"], "model": r["model"], "added": r["added"]} for r in selection.rounds),
+        rounds=tuple(
+            {"round": r["round"], "model": r["model"], "added": r["added"], **_backward(r)} for r in selection.rounds
+        ),
         validation_rmse_before_mm=before["validation"]["rmse_mm"],
         validation_rmse_after_mm=after["validation"]["rmse_mm"],
         sigma_before_mm=sigma_before / MM,
@@ -364,11 +370,19 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
     the structured residual, the final verdict, and the warnings it calls for."""
     repeats, repeated = closure.repeatability(data.q, data.measured)
     floor = closure.noise_floor(stated_noise, repeats)
-    steps = [("zero-offsets (paper)", selection.base.cv.rmse / math.sqrt(3.0))]
-    for r in selection.rounds:
+    steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0))]
+    for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
             steps.append((r["added"], r["scores"][r["added"]]["cv_rmse_mm"] * MM / math.sqrt(3.0)))
-    rounds = [{"after": name, **closure.verdict(rms, floor, ratio)} for name, rms in steps]
+        elif r.get("removed"):  # the model without it: the removed block's scores were taken against it
+            steps.append(
+                (f"without {r['removed']}", r["scores"][r["removed"]]["cv_rmse_before_mm"] * MM / math.sqrt(3.0))
+            )
+    in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
+    rounds = [
+        {"after": name, **closure.verdict(rms, floor, ratio), "time_blocked_rms_per_axis_mm": in_time.get(name)}
+        for name, rms in steps
+    ]
     shares = {name: closure.share(before, after, floor, ratio) for (_, before), (name, after) in zip(steps, steps[1:])}
     final = rounds[-1]
     warnings = []
@@ -393,6 +407,9 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
         "noise_floor_mm": None if floor is None else floor / MM,
         "ratio": ratio,
         "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
+        "time_blocked": None
+        if selection.time_blocked is None
+        else {k: v for k, v in selection.time_blocked.items() if k != "rms_per_axis_mm"},
         "rounds": rounds,
         "share_of_structured_residual": shares,
         "main_causes": [n for n, v in shares.items() if v is not None and v >= closure.MAIN_CAUSE_SHARE],
@@ -405,9 +422,10 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
 def gp_report(selection: Selection, standard_errors: float) -> dict | None:
     """Where the residual the parametric effects left lives: the GP's hyperparameters, each joint's
     relevance (measured range / lengthscale), the joints it depends on, and the share of that
-    residual which is structured (cross-validated fall of its mean square) vs noise. The joints
-    are named only when there is structure to trace: the GP's cross-validated fall exceeds
-    `standard_errors` standard errors. None when the GP was not tried."""
+    residual which is structured (cross-validated fall of its mean square) vs noise, over the pose
+    folds and over blocks contiguous in time (`selection.TimeBlocked`). The joints are named only
+    when there is structure to trace: the GP's pose-grouped cross-validated fall exceeds
+    `standard_errors` standard errors (`selection.cv_threshold`). None when the GP was not tried."""
     if selection.gp is None:
         return None
     candidate = selection.gp
@@ -426,11 +444,25 @@ def gp_report(selection: Selection, standard_errors: float) -> dict | None:
         "depends_on": [columns[j] for j in order if structured and relevance[j] >= residual_gp.RELEVANT_RANGE],
         "most_relevant_joint": columns[int(order[0])] if structured else None,
         "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
+        "cv_gain": fall["cv_gain"],
+        "cv_mse_fall_in_se": fall["cv_mse_fall_in_se"],
+        "time_blocked": (selection.time_blocked or {}).get("residual_gp"),
         "frame": "robot (the residual rotated back by the final fit's registration)",
         "rows": int(len(candidate.q)),
         "inducing": int(len(candidate.gp.inducing)),
         "rotation_robot_to_sensor": selection.rotation.tolist(),
     }
+
+
+def _step_order(r: dict) -> tuple[int, int]:
+    """Rounds in the order their models were fitted: the GP, tried last, may be recorded in the last
+    forward round, before the backward pass's rounds."""
+    return (1 if r["added"] == GP else 0, r["round"])
+
+
+def _backward(r: dict) -> dict:
+    """A backward round's pass and removed block, for loop_closure.json's rounds."""
+    return {"pass": "backward", "removed": r["removed"]} if r.get("pass") == "backward" else {}
 
 
 def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:

@@ -23,6 +23,7 @@ from ..units import MM
 from .settings import LoopSettings
 
 GP = "residual_gp"
+BASE_STEP = "zero-offsets (paper)"
 NOISE_SEARCH_WIDTH = 3.0  # prior stds of log g either side of its median searched for the mode
 MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from noise
 # Blocks a candidate is offered with when the model lacks them: the link geometry is complete only
@@ -145,12 +146,19 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
     return out
 
 
+def cv_threshold(settings: LoopSettings, n_folds: int | None = None) -> float:
+    """The cross-validated fall (in standard errors over the folds) an effect needs: the one-sided
+    level of `cv_standard_errors` normal standard errors, held at Student's t with K - 1 degrees of
+    freedom (`evidence.t_threshold`; K = 5 folds at 2.0: 2.87)."""
+    return evidence.t_threshold(settings.cv_standard_errors, n_folds or settings.cv_folds)
+
+
 def passes(scores: Mapping, settings: LoopSettings) -> bool:
     """The selection's rule, for a parametric candidate and the residual GP alike: the evidence gain
-    exceeds min_log_evidence_gain AND the cross-validated fall exceeds cv_standard_errors."""
+    exceeds min_log_evidence_gain AND the cross-validated fall exceeds `cv_threshold` standard errors."""
     return bool(
         scores["log_evidence_gain"] > settings.min_log_evidence_gain
-        and scores["cv_mse_fall_in_se"] > settings.cv_standard_errors
+        and scores["cv_mse_fall_in_se"] > cv_threshold(settings, scores.get("cv_folds"))
     )
 
 
@@ -170,6 +178,7 @@ class Selection:
     gp: residual_gp.Candidate | None = None
     rotation: np.ndarray | None = None
     noise: dict | None = None
+    time_blocked: dict | None = None
 
     @property
     def gp_added(self) -> bool:
@@ -200,6 +209,7 @@ def select(
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
     rounds, signatures = [], {}
+    path = [(BASE_STEP, base)]  # every model the closure test is taken after
     while remaining:
         number = len(rounds) + 1
         residual, prediction = current.residuals(), current.model.predict(current.theta)
@@ -237,18 +247,29 @@ def select(
         if best is None:
             break
         current = fits[best]
+        path.append((best, current))
         for block in with_companions(best, added, remaining):
             added.append(block)
             remaining.remove(block)
+    forward_end = rounds[-1] if rounds else None
+    current, added, backward, removed = backward_pass(
+        chain, data, marker, t_nr, base_held, folds, settings, current, added, len(rounds)
+    )
+    rounds += backward
+    path += removed
     noise_choice = None
     if tracker and settings.tracker_noise is not None:
         current, noise_choice = choose_noise(current, folds, settings)
+    path[-1] = (path[-1][0], current)  # the model the GP is tried on, with its noise
     rotation = current.model.sensor_rotation(current.theta)
+    in_time = TimeBlocked.of(data, poses, settings.cv_folds)
     if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
-        return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice)
+        time_blocked = in_time.report(path) if in_time else None
+        return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice, time_blocked)
     gp, scores = _score_gp(current, data, rotation, folds, settings)
-    if rounds and rounds[-1]["added"] is None:  # tried in the round where no parametric effect passed
-        last = rounds[-1]
+    time_blocked = in_time.report(path, current, data, rotation, settings) if in_time else None
+    if not removed and forward_end is not None and forward_end["added"] is None:
+        last = forward_end  # tried in the round where no parametric effect passed, on that round's model
     else:
         last = {"round": len(rounds) + 1, "model": list(blocks.BASE) + added, "scores": {}, "added": None}
         rounds.append(last)
@@ -256,7 +277,125 @@ def select(
     if scores["passed"]:
         last["added"] = GP
         added.append(GP)
-    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice)
+    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice, time_blocked)
+
+
+def backward_pass(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    base_held: Mapping[str, float],
+    folds: np.ndarray,
+    settings: LoopSettings,
+    current: Fitted,
+    added: Sequence[str],
+    number: int,
+) -> tuple[Fitted, list[str], list[dict], list[tuple[str, Fitted]]]:
+    """After the forward pass: each added block is tried out of the model (the rest present) and
+    scored as if it were offered to the model without it, by the forward rule (`passes`); of those
+    that would not pass, the one of least evidence gain is removed, the model refitted without it,
+    and the pass repeated until every block left passes. A block another added block needs as its
+    companion (`COMPANIONS`) is not tried alone. number: the rounds so far.
+
+    Returns the final fit, the blocks left (in the order added), the backward rounds (JSON-ready,
+    'pass': 'backward', 'removed': the block or None; empty when nothing was added) and the
+    (step name, fit) of each removal."""
+    added, rounds, removals = list(added), [], []
+    while True:
+        needed = {c for b in added for c in COMPANIONS.get(b, ()) if c in added}
+        removable = [b for b in added if b not in needed]
+        if not removable:
+            return current, added, rounds, removals
+        number += 1
+        prediction = current.model.predict(current.theta)
+        scores, fits = {}, {}
+        for block in removable:
+            rest = tuple(b for b in added if b != block)
+            try:
+                without = fit_blocks(
+                    chain, data, marker, t_nr, rest, base_held, folds, settings.priors, current.values()
+                )
+            except np.linalg.LinAlgError as exc:  # the model without it is not determined: keep it
+                scores[block] = {"skipped": f"the model without it is not identifiable: {exc}"}
+                continue
+            fits[block] = without
+            signature = Signature(without.residuals(), prediction - without.model.predict(without.theta))
+            scores[block] = {**score(without, current, settings), "explained_fraction": signature.explained}
+        failing = [b for b in fits if not scores[b]["passed"]]
+        weakest = min(failing, key=lambda b: scores[b]["log_evidence_gain"]) if failing else None
+        rounds.append(
+            {
+                "round": number,
+                "pass": "backward",
+                "model": list(blocks.BASE) + added,
+                "scores": scores,
+                "added": None,
+                "removed": weakest,
+            }
+        )
+        if weakest is None:
+            return current, added, rounds, removals
+        current = fits[weakest]
+        added.remove(weakest)
+        removals.append((f"without {weakest}", current))
+
+
+@dataclass(frozen=True, eq=False)
+class TimeBlocked:
+    """Cross-validation by blocks contiguous in time (`evidence.time_folds`) beside the pose-grouped
+    folds the selection uses: how well each model predicts poses measured later (or earlier) than
+    those it was fitted on, rather than among them. folds (n,); order: what the blocks follow."""
+
+    folds: np.ndarray
+    order: str
+
+    @classmethod
+    def of(cls, data: Readings, poses, n_folds: int) -> TimeBlocked | None:
+        """Blocks in the order of the table's time column, or of its rows where it has none (the
+        rows are then taken as the measurement order); None with fewer poses than blocks."""
+        if data.drift is not None and data.drift_unit == "s":
+            times, order = data.drift, "time column"
+        else:
+            times, order = data.rows.astype(float), "row order (no time column: taken as the measurement order)"
+        try:
+            return cls(evidence.time_folds(times, poses, n_folds), order)
+        except ValueError:
+            return None
+
+    def report(
+        self,
+        path: Sequence[tuple[str, Fitted]],
+        current: Fitted | None = None,
+        data: Readings | None = None,
+        rotation: np.ndarray | None = None,
+        settings: LoopSettings | None = None,
+    ) -> dict:
+        """JSON-ready: the time-blocked cross-validated RMS per axis (mm) after each step of path
+        ((name, fit) in order) and, given the GP's inputs, the residual GP on current's residuals
+        scored over the time blocks (hyperparameters refitted without the held-out block, as with
+        the pose folds): its fall, in standard errors, and its gain."""
+        steps = {name: evidence.cross_validate(f.mode, self.folds).rmse / MM / math.sqrt(3.0) for name, f in path}
+        out = {
+            "folds": int(len(np.unique(self.folds))),
+            "order": self.order,
+            "measure": "cross-validated RMS per axis, blocks of whole poses contiguous in time held out in turn",
+            "rms_per_axis_mm": steps,
+        }
+        if current is not None:
+            before = evidence.cross_validate(current.mode, self.folds)
+            gp = residual_gp.candidate(
+                data.q,
+                current.residuals() @ rotation,
+                before.held_out @ rotation,
+                self.folds,
+                int(settings.residual_gp["subset"]),
+                int(settings.residual_gp["inducing"]),
+            )
+            gain = evidence.cv_gain(before, evidence.CrossValidation(gp.mse, gp.points))
+            steps[GP] = gain["cv_rmse_mm"] / math.sqrt(3.0)
+            out["residual_gp"] = {**gain, "structure_found": bool(gain["cv_mse_fall_in_se"] > cv_threshold(settings))}
+        return out
 
 
 def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> tuple[Fitted, dict]:

@@ -22,8 +22,8 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, LoopRepor
 
 
 def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
-    """The closure test of every sensor: after each step, the cross-validated RMS per axis, the
-    noise floor, their ratio, the share of the structured residual the step removed, the verdict;
+    """The closure test of every sensor: after each step, the cross-validated RMS per axis (pose
+    folds, and blocks of poses contiguous in time: None where not computed), the noise floor, their ratio, the share of the structured residual the step removed, the verdict;
     the last row of a sensor says where what is left lives (the residual GP's joints)."""
     rows = []
     for sensor, report in reports.items():
@@ -43,6 +43,7 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                     "Sensor": sensor,
                     "After": step["after"],
                     "CV RMS per axis (mm)": step["rms_per_axis_mm"],
+                    "Time-blocked CV RMS per axis (mm)": step.get("time_blocked_rms_per_axis_mm"),
                     "Noise floor (mm)": test["noise_floor_mm"],
                     "Ratio": step.get("ratio_to_floor"),
                     "Share removed (%)": (
@@ -58,21 +59,40 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
 def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
-    whether it was added. A candidate `select` skipped (nothing of it identifiable) has no scores:
+    whether it was added; in the backward pass (`selection.backward_pass`) each added block's
+    scores against the model without it, and whether it was removed. A candidate `select` skipped (nothing of it identifiable) has no scores:
     NaN, and the reason in the last column. A laser tracker's range/transverse noise model
     (`remaster.noise`) gets a row of its own, after the rounds: its evidence gain, or why it was
     not offered."""
     rows = []
     nan = float("nan")
     for sensor, report in reports.items():
+        by_round = {r["round"]: r for r in report.rounds}
         for name, rounds in report.candidates.items():
             for entry in rounds:
-                added = entry["round"] <= len(report.effects_added) and report.effects_added[entry["round"] - 1] == name
+                step = by_round.get(entry["round"], {})
+                backward = step.get("pass") == "backward"
+                if step:
+                    added = step.get("added") == name
+                else:  # a report without its rounds: the i-th round added the i-th effect
+                    added = (
+                        entry["round"] <= len(report.effects_added) and report.effects_added[entry["round"] - 1] == name
+                    )
                 skipped = "skipped" in entry
+                verdict = (
+                    f"skipped: {entry['skipped']}"
+                    if skipped
+                    else ("removed" if step.get("removed") == name else "kept")
+                    if backward
+                    else "yes"
+                    if added
+                    else ""
+                )
                 rows.append(
                     {
                         "Sensor": sensor,
                         "Round": entry["round"],
+                        "Pass": "backward" if backward else "forward",
                         "Candidate": name,
                         "Log evidence gain": entry.get("log_evidence_gain", nan),
                         "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
@@ -80,7 +100,7 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                         "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
                         "BIC gain": entry.get("bic_gain", nan),
                         "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
-                        "Added": f"skipped: {entry['skipped']}" if skipped else "yes" if added else "",
+                        "Added": verdict,
                     }
                 )
         noise_model = report.noise_model or {}
@@ -89,6 +109,7 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                 {
                     "Sensor": sensor,
                     "Round": nan,
+                    "Pass": "",
                     "Candidate": "noise: range/transverse",
                     "Log evidence gain": noise_model["log_evidence_gain"],
                     "CV RMSE (mm)": nan,
@@ -104,6 +125,7 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                 {
                     "Sensor": sensor,
                     "Round": nan,
+                    "Pass": "",
                     "Candidate": "noise: range/transverse",
                     **{
                         k: nan
