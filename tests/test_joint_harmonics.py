@@ -3,8 +3,10 @@ joint-angle error it says, a joint that never moves has no harmonic the data see
 cyclic transmission error, made by the simulator in its own form (a sum of sines of the readings),
 is taken by the loop closure, traced to joints 2 and 4 and its orders, and recovered within its band."""
 
+import json
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -12,9 +14,11 @@ from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, fit
 from remaster.loop import harmonics, loop_closure
+from remaster.loop.report import LoopReport
+from remaster.reporting import figures_loop, tables_loop
 
 from .arm_kinds import chain_of, iiwa_scenario
-from .conftest import loop_settings
+from .conftest import loop_report, loop_settings
 
 NOISE = {"tracker": 1.0e-5, "motion_capture": 3.0e-5}  # m per axis
 # the issue's case: J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg sin(q4 - 0.7)
@@ -139,3 +143,21 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
     noise = NOISE[sensor]
     rms_per_axis = report.after["validation"]["rms_per_axis_mm"] * 1e-3
     assert rms_per_axis <= 1.5 * noise
+
+    # the section survives loop_closure.json, and the table and figure show what it names
+    report = LoopReport.of(json.loads(json.dumps(report.to_json())))
+    table = tables_loop.harmonics_table({"laser_tracker": report})
+    named = table[table["Named"] == "yes"]
+    assert sorted(zip(named["Joint"], named["Order"])) == [("q2", 1), ("q2", 2), ("q4", 1)]
+    assert "q3" not in set(table["Joint"])  # held: not seen by the data, not tested
+    figure = figures_loop.harmonic_functions(report.harmonics, "cyclic")
+    assert len([ax for ax in figure.axes if ax.get_visible()]) == 2
+    plt.close(figure)
+
+
+def test_without_the_block_the_table_and_figure_say_so():
+    table = tables_loop.harmonics_table({"laser_tracker": loop_report()})
+    assert table["Named"].tolist() == ["joint_harmonics not added"]
+    figure = figures_loop.harmonic_functions(None, "none")
+    assert figure.axes[0].texts[0].get_text() == "joint_harmonics not added"
+    plt.close(figure)
