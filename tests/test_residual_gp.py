@@ -8,7 +8,7 @@ import scipy.optimize
 from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
-from remaster.inference import evidence, fit, residual_gp
+from remaster.inference import blocks, evidence, fit, residual_gp
 from remaster.loop import closure, loop_closure
 
 from .conftest import REPO, loop_settings
@@ -178,10 +178,15 @@ def cyclic(iiwa):
     return sensor, registration.t_nr, analysis.held
 
 
+# the GP's case is an effect outside every candidate: joint_harmonics (the joints' cyclic errors as
+# harmonics, tests/test_joint_harmonics.py) is not offered here
+OUTSIDE = tuple(c for c in blocks.EXTENSIONS if c != "joint_harmonics")
+
+
 def run(iiwa, cyclic, **changes):
     sensor, t_nr, held = cyclic
     return loop_closure.close_loop(
-        iiwa, sensor, t_nr, held, np.random.default_rng(0), loop_settings(mcmc=None, **changes)
+        iiwa, sensor, t_nr, held, np.random.default_rng(0), loop_settings(mcmc=None, candidates=OUTSIDE, **changes)
     ).report
 
 

@@ -11,6 +11,7 @@ REPORT_TABLES = [
     "loop_closure",
     "loop_closure_test",
     "loop_candidates",
+    "loop_harmonics_terms",
     "workspace_warnings",
     "workspace_accuracy",
     "controller_offsets",

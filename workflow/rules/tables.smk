@@ -18,6 +18,7 @@ CAMPAIGN_TABLES = [
     "loop_closure",
     "loop_closure_test",
     "loop_candidates",
+    "loop_harmonics_terms",
     "workspace_accuracy",
     "workspace_warnings",
     "controller_offsets",

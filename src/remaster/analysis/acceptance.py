@@ -454,6 +454,7 @@ def accept(
         payload_mass=loop.payload_mass,
         payload_com=loop.payload_com,
         drift_column=(loop.settings or {}).get("drift_column"),
+        harmonic_orders=loop.harmonic_orders,
     )
     data = blocks.readings(chain, sensor, "validation", settings, flagged)
     if len(data.rows) < 3:

@@ -130,7 +130,9 @@ class Predictor:
             torques, payload = loaded.torques, loaded.payload_torques
         else:
             torques = payload = np.zeros_like(q)
-        data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), torques, payload)
+        data = Readings(
+            np.arange(len(q)), q, np.zeros((len(q), 3)), torques, payload, harmonic_orders=settings.harmonic_orders
+        )
         self.model = BlockModel(chain, data, marker, np.eye(4), kept)
 
     def points(self, values: Mapping[str, float]) -> np.ndarray:
@@ -210,7 +212,9 @@ def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, la
     kept = table[~table["block"].isin(SETUP_BLOCKS)]
     values = dict(zip(kept["parameter"].astype(str), kept["mean"].astype(float)))
     free = kept.loc[kept["status"].astype(str) == ESTIMATED, "parameter"].astype(str).tolist()
-    model_settings = ModelSettings(payload_mass=report.payload_mass, payload_com=report.payload_com)
+    model_settings = ModelSettings(
+        payload_mass=report.payload_mass, payload_com=report.payload_com, harmonic_orders=report.harmonic_orders
+    )
     effects = tuple(b for b in EXTENSIONS if b in report.effects_added and b not in SETUP_BLOCKS)
     return Calibration("loop", values, effects, model_settings, _free_draws(samples, free, label))
 

@@ -147,15 +147,22 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
     cyclic = None
     if truth.get("cyclic_error"):
-        spec_c = truth["cyclic_error"]
-        where = "truth/cyclic_error"
-        cyclic = np.column_stack(
-            [
-                _vector(spec_c, "amplitude_deg", n_joints, np.pi / 180.0, where),
-                _vector(spec_c, "cycles_per_turn", n_joints, 1.0, where),
-                _vector(spec_c, "phase_deg", n_joints, np.pi / 180.0, where),
-            ]
-        )
+        # one term {amplitude_deg, cycles_per_turn, phase_deg} per joint, or a list of such terms (summed)
+        terms = truth["cyclic_error"]
+        terms = terms if isinstance(terms, list) else [terms]
+        stack = []
+        for i, spec_c in enumerate(terms):
+            where = "truth/cyclic_error" if len(terms) == 1 else f"truth/cyclic_error/{i}"
+            stack.append(
+                np.column_stack(
+                    [
+                        _vector(spec_c, "amplitude_deg", n_joints, np.pi / 180.0, where),
+                        _vector(spec_c, "cycles_per_turn", n_joints, 1.0, where),
+                        _vector(spec_c, "phase_deg", n_joints, np.pi / 180.0, where),
+                    ]
+                )
+            )
+        cyclic = stack[0] if len(stack) == 1 else np.stack(stack)
     return TrueRobot(
         zero_offsets=offsets,
         joint_compliance=_vector(truth, "joint_compliance", n_joints),
@@ -562,11 +569,7 @@ def robot_from_truth(truth: dict) -> TrueRobot:
         link_errors=np.column_stack([links["length_errors_m"], links["twist_errors_rad"]]) if links else None,
         joint_scale=np.array(effects["joint_scale"]["scale"]) if "joint_scale" in effects else None,
         drift_rate=np.radians(drift["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR if drift else None,
-        cyclic_error=np.column_stack(
-            [np.radians(cyclic["amplitude_deg"]), cyclic["cycles_per_turn"], np.radians(cyclic["phase_deg"])]
-        )
-        if cyclic
-        else None,
+        cyclic_error=_cyclic_terms(cyclic) if cyclic else None,
         link_motions=np.hstack([motions["translations_m"], motions["rotations_rpy_rad"]]) if motions else None,
         dh_errors=DHErrors(
             np.array(dh["nominal_rows"]), np.array(dh["errors"]), dh["convention"], np.array(dh["flange"])
@@ -628,9 +631,23 @@ def _effects_record(robot: TrueRobot) -> dict:
     if robot.drift_rate is not None:
         effects["drift"] = {"zero_offset_rate_deg_per_hour": np.degrees(robot.drift_rate * SECONDS_PER_HOUR).tolist()}
     if robot.cyclic_error is not None:
-        effects["cyclic_error"] = {
-            "amplitude_deg": np.degrees(robot.cyclic_error[:, 0]).tolist(),
-            "cycles_per_turn": robot.cyclic_error[:, 1].tolist(),
-            "phase_deg": np.degrees(robot.cyclic_error[:, 2]).tolist(),
-        }
+        terms = [
+            {
+                "amplitude_deg": np.degrees(term[:, 0]).tolist(),
+                "cycles_per_turn": term[:, 1].tolist(),
+                "phase_deg": np.degrees(term[:, 2]).tolist(),
+            }
+            for term in np.reshape(robot.cyclic_error, (-1,) + np.shape(robot.cyclic_error)[-2:])
+        ]
+        effects["cyclic_error"] = terms[0] if np.ndim(robot.cyclic_error) == 2 else terms
     return effects
+
+
+def _cyclic_terms(record) -> np.ndarray:
+    """(N, 3) or (T, N, 3) [amplitude (rad), cycles per turn, phase (rad)] of a truth record's
+    cyclic error: one term or a list of terms."""
+    terms = [
+        np.column_stack([np.radians(t["amplitude_deg"]), t["cycles_per_turn"], np.radians(t["phase_deg"])])
+        for t in (record if isinstance(record, list) else [record])
+    ]
+    return terms[0] if not isinstance(record, list) else np.stack(terms)

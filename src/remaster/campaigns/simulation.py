@@ -64,7 +64,8 @@ class TrueRobot:
     link_errors: np.ndarray | None = None
     joint_scale: np.ndarray | None = None
     drift_rate: np.ndarray | None = None
-    cyclic_error: np.ndarray | None = None  # (N, 3): amplitude (rad), cycles per turn, phase (rad) of a gear's error
+    # (N, 3), or (T, N, 3) for T summed terms: amplitude (rad), cycles per turn, phase (rad) of a gear's error
+    cyclic_error: np.ndarray | None = None
     link_motions: np.ndarray | None = None
     dh_errors: DHErrors | None = None
 
@@ -176,9 +177,10 @@ def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elaps
     true = q * (1.0 + robot.joint_scale) if robot.joint_scale is not None else q.copy()
     true = true + robot.zero_offsets
     if robot.cyclic_error is not None:
-        # a transmission's kinematic error, periodic in the joint's own angle: in no candidate's family
-        amplitude, cycles, phase = robot.cyclic_error.T
-        true = true + amplitude * np.sin(cycles * q + phase)
+        # a transmission's kinematic error, periodic in the joint's own reading (what joint_harmonics models)
+        for term in np.reshape(robot.cyclic_error, (-1,) + np.shape(robot.cyclic_error)[-2:]):  # summed terms
+            amplitude, cycles, phase = term.T
+            true = true + amplitude * np.sin(cycles * q + phase)
     if robot.drift_rate is not None:
         if elapsed_s is None:
             raise ValueError("a drifting robot needs the time of each reading")

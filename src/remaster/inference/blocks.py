@@ -1,7 +1,8 @@
 """The measurement model as parameter blocks: the paper's zero-offsets and registration, plus
 optional blocks for the effects the paper's model leaves out (docs/methods.md, "Parameter blocks").
 
-    angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i         (joint space)
+    angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i
+               + sum_k (a_k cos k q_i + b_k sin k q_i)                               (joint space)
     p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)
 
 | block              | parameters (SI)                                        | display unit |
@@ -15,6 +16,8 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 | `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
 | `link_geometry`    | F<j>.x, .y, .z (m), F<j>.rx, .ry, .rz (rad), tool.*    | mm, deg      |
 | `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
+| `joint_harmonics`  | q<j>.cos<k>, q<j>.sin<k> (rad), times cos/sin(k q_j),  | deg          |
+|                    | k = 1..K: joint j's cyclic (transmission) error f_j    |              |
 
 Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
 joint's angle, with v_k (n,) fixed per dataset (ones, gravity torques, readings, elapsed time).
@@ -62,7 +65,15 @@ from .identifiability import JACOBIAN_STEP
 from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
 
 BASE = ("registration", "zero_offsets")
-EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
+EXTENSIONS = (
+    "joint_compliance",
+    "joint_scale",
+    "marker_offset",
+    "sensor_scale",
+    "link_geometry",
+    "drift",
+    "joint_harmonics",
+)
 PPM = 1e-6
 MICRORAD_PER_NM = 1e-6
 # An extension column of the Jacobian below this fraction of the longest of its own block is
@@ -101,6 +112,7 @@ class ModelSettings:
     payload_mass: float = 1.0
     payload_com: tuple[float, float, float] = (0.0, 0.0, 0.02)
     drift_column: str | None = None
+    harmonic_orders: int = 2
 
     def payload(self, chain: KinematicChain) -> Payload:
         """The payload the gravity torques of `readings` assume on `chain` (`Payload.report()`
@@ -116,7 +128,7 @@ class Readings:
     frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
     readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
     table's first time (or K since the first temperature), None without such a column;
-    drift_unit 's' or 'K'.
+    drift_unit 's' or 'K'; harmonic_orders: K of the `joint_harmonics` block (orders 1..K).
     """
 
     rows: np.ndarray
@@ -126,10 +138,13 @@ class Readings:
     payload_torques: np.ndarray
     drift: np.ndarray | None = None
     drift_unit: str | None = None
+    harmonic_orders: int = 2
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
-        'payload_torques' or 'drift' (the same for every joint)."""
+        'payload_torques', 'drift' (the same for every joint) or 'cos<k>' / 'sin<k>' (of k q)."""
+        if key[:3] in ("cos", "sin") and key[3:].isdigit():
+            return (np.cos if key[:3] == "cos" else np.sin)(int(key[3:]) * self.q)
         if key == "ones":
             return np.ones_like(self.q)
         if key == "drift":
@@ -186,6 +201,7 @@ def readings(
         payload,
         None if drift is None else drift[0][rows],
         None if drift is None else drift[2],
+        settings.harmonic_orders,
     )
 
 
@@ -235,8 +251,11 @@ def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) ->
     return joints @ np.array(turns), tool
 
 
-def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
-    """The parameters a block owns on this chain, in model order."""
+def block_parameters(
+    block: str, chain: KinematicChain, drift_unit: str | None = None, harmonic_orders: int = 2
+) -> Parameters:
+    """The parameters a block owns on this chain, in model order (`joint_harmonics`: orders
+    1..harmonic_orders, the lower orders first, so that identifiability keeps them first)."""
     if block == "registration":  # the paper's parameters, named and scaled as `remaster.inference.model` does
         names = parameter_names(chain.n_joints)[: len(REGISTRATION)]
         scale = np.array([display_scale(n) for n in names])
@@ -251,6 +270,20 @@ def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None =
             tuple(name for _, _, name in labels),
             np.array([MM if c < 3 else DEG for _, c, _ in labels]),
             tuple("mm" if c < 3 else "deg" for _, c, _ in labels),
+        )
+    if block == "joint_harmonics":
+        parts = [
+            (f"{block}.q{j + 1}.{kind}{k}", j, f"{kind}{k}")
+            for k in range(1, harmonic_orders + 1)
+            for j in range(chain.n_joints)
+            for kind in ("cos", "sin")
+        ]
+        return Parameters(
+            tuple(p[0] for p in parts),
+            np.full(len(parts), DEG),
+            ("deg",) * len(parts),
+            tuple(p[1] for p in parts),
+            tuple(p[2] for p in parts),
         )
     rate = (DEG / SECONDS_PER_HOUR, "deg/h") if drift_unit != "K" else (DEG, "deg/K")
     joint_space = {  # block: ((name prefix, regressor), ...), scale, unit
@@ -314,7 +347,7 @@ class BlockModel(MeasurementModel):
         self.marker = np.asarray(marker, dtype=float)
         self.t_nr = np.asarray(t_nr, dtype=float)
         self.blocks = BASE + tuple(b for b in EXTENSIONS if b in blocks)
-        parts = [block_parameters(b, chain, data.drift_unit) for b in self.blocks]
+        parts = [block_parameters(b, chain, data.drift_unit, data.harmonic_orders) for b in self.blocks]
         self.all_names = tuple(n for p in parts for n in p.names)
         self.all_scale = np.concatenate([p.scale for p in parts])
         self.all_unit = tuple(u for p in parts for u in p.unit)

@@ -66,8 +66,9 @@ from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import closure, gross
+from . import closure, gross, harmonics
 from .frames import residuals_frame, signatures_frame
+from .harmonics import harmonics_report
 from .jackknife import zero_offset_jackknife
 from .refit import parameter_table, refit, zero_offset_shifts
 from .report import LoopReport
@@ -289,6 +290,11 @@ def close_loop(
         },
         gross_errors=gross_report(flagged, screens, provisional, history, settled, kept, settings.gross_errors),
         between_design=between,
+        harmonics=harmonics_report(
+            final.mode, final.reduction, data["optimization"].q, settings.harmonic_level, samples
+        )
+        if harmonics.BLOCK in selection.added
+        else None,
     )
     table = before_after_table(before, after, sigma_before, sigma_after, counts, kept, flagged)
     residuals = {

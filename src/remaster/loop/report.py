@@ -23,7 +23,7 @@ from ..units import DEG, MM
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
 # written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
 # between_design (reports written before it was computed lack it)
-OPTIONAL = ("campaign", "between_design")
+OPTIONAL = ("campaign", "between_design", "harmonics")
 # the gross errors of a report written before the final model screened the rows: none listed
 NOT_SCREENED = {"optimization": [], "validation": [], "screened": False}
 
@@ -50,7 +50,8 @@ class LoopReport:
     (`loop_closure.gross_report`; a file written before the screen reads as none flagged, with
     'screened' False); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`} the
     zero-offsets' spread across designs of the zero-offset model and the final model (None when
-    not computed); source: the file it was read from (not written)."""
+    not computed); harmonics: the joints and orders of `joint_harmonics` the data support, with each
+    named f_j and its band (`remaster.loop.harmonics`; None when the block was not added); source: the file it was read from (not written)."""
 
     sensor: str
     evidence: str
@@ -77,6 +78,7 @@ class LoopReport:
     gross_errors: Mapping[str, Any] = field(default_factory=lambda: dict(NOT_SCREENED))
     campaign: str | None = None
     between_design: Mapping[str, Any] | None = None
+    harmonics: Mapping[str, Any] | None = None
     source: str = "loop_closure.json"
 
     # ----------------------------------------------------------------------- what the later stages use
@@ -95,6 +97,12 @@ class LoopReport:
     def payload_com(self) -> tuple[float, float, float]:
         """(3,) m: the tool plate's centre of mass in the flange frame."""
         return tuple(float(v) for v in self.settings["payload_com_m"])
+
+    @property
+    def harmonic_orders(self) -> int:
+        """K of the joint_harmonics block the loop offered (orders 1..K); a report written before the
+        block existed never added it, so any K reads it."""
+        return int(self.settings.get("harmonic_orders", 1))
 
     @property
     def held_zero_offset_std(self) -> float:

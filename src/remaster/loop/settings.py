@@ -31,7 +31,9 @@ class LoopSettings:
     noise floor at which the loop counts as closed (`remaster.loop.closure`); tracker_noise:
     {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
     noise model (`remaster.noise`), None not to offer it; gross_errors: {'alpha', 'max_share'} of the
-    screen of every row with the final model (`remaster.loop.gross`, from the config's `outliers`)."""
+    screen of every row with the final model (`remaster.loop.gross`, from the config's `outliers`);
+    harmonic_level: the family-wise level at which a joint's harmonic order is named once
+    `joint_harmonics` is added (`remaster.loop.harmonics`; its orders are `model.harmonic_orders`)."""
 
     candidates: tuple[str, ...]
     min_log_evidence_gain: float
@@ -47,6 +49,7 @@ class LoopSettings:
     closure_ratio: float
     tracker_noise: dict | None
     gross_errors: dict
+    harmonic_level: float = 0.01
 
     def report(self) -> dict:
         """The settings as loop_closure.json records them (JSON-ready)."""
@@ -59,6 +62,8 @@ class LoopSettings:
             "payload_mass_kg": self.model.payload_mass,
             "payload_com_m": list(self.model.payload_com),
             "drift_column": self.model.drift_column,
+            "harmonic_orders": self.model.harmonic_orders,
+            "harmonic_level": self.harmonic_level,
             "priors": self.priors.report(),
             "mcmc": self.mcmc,
             "convergence": self.convergence,
@@ -82,7 +87,11 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
         cv_folds=int(config["cv_folds"]),
         cv_standard_errors=float(config["cv_standard_errors"]),
         jackknife_groups=int(config["jackknife_groups"]),
-        model=ModelSettings(payload_mass=float(payload["mass"]), payload_com=tuple(payload["com"])),
+        model=ModelSettings(
+            payload_mass=float(payload["mass"]),
+            payload_com=tuple(payload["com"]),
+            harmonic_orders=int(config["harmonics"]["orders"]),
+        ),
         priors=priors_from(priors_config),
         priors_config=dict(priors_config),
         mcmc=dict(config["mcmc"]) if config["mcmc"] else None,
@@ -95,6 +104,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
         closure_ratio=float(config["closure_ratio"]),
         tracker_noise=_tracker_noise_settings(config["tracker_noise"]),
         gross_errors={"alpha": float(outliers["alpha"]), "max_share": float(outliers["max_share"])},
+        harmonic_level=float(config["harmonics"]["level"]),
     )
 
 

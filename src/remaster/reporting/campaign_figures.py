@@ -26,6 +26,7 @@ SENSOR_FIGURES = (
     "loop_signatures",
     "loop_residuals",
     "loop_residual_joints",
+    "loop_harmonics",
     "workspace_accuracy",
 )
 
@@ -77,6 +78,10 @@ def sensor_figures(
             LoopReport.read(files["loop"]).residual_gp,
             title("where the residual lives"),
         ),
+    )
+    yield (
+        "loop_harmonics",
+        figures_loop.harmonic_functions(LoopReport.read(files["loop"]).harmonics, title("joints' cyclic errors")),
     )
     yield (
         "workspace_accuracy",

@@ -130,3 +130,32 @@ def residual_by_joint(rows: pd.DataFrame, gp: Mapping | None, title: str) -> plt
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, markerscale=3)
     return finished(fig, title)
+
+
+def harmonic_functions(section: Mapping | None, title: str) -> plt.Figure:
+    """Each named joint's cyclic error f_j (deg, against the joint's reading over its measured range,
+    deg): the posterior mean with its 95 % band, one panel per joint, the named orders in its title.
+    section: loop_closure.json's `harmonics` (`remaster.loop.harmonics`), None when the block was not
+    added."""
+    functions = (section or {}).get("functions") or {}
+    if not functions:
+        fig, ax = plt.subplots(figsize=(6.0, 3.0))
+        text = "joint_harmonics not added" if section is None else "no joint's harmonics named"
+        ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return finished(fig, title)
+    fig, axes = _grid(len(functions))
+    for ax, (joint, function) in zip(axes, functions.items()):
+        angle = np.asarray(function["angle_deg"])
+        ax.fill_between(
+            angle, function["q2.5_deg"], function["q97.5_deg"], color="tab:blue", alpha=0.3, label="95 % band"
+        )
+        ax.plot(angle, function["mean_deg"], color="tab:blue", lw=1.2, label="posterior mean")
+        ax.axhline(0.0, color="k", lw=0.6)
+        orders = ", ".join(str(k) for k in section["named"].get(joint, []))
+        ax.set_title(f"{joint}: orders {orders} ({function['band_from']})", fontsize=9)
+        ax.set_xlabel(f"{joint} reading (deg)", fontsize=8)
+        ax.set_ylabel("f_j: angle error (deg)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0].legend(fontsize=7)
+    return finished(fig, title)

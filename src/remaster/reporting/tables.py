@@ -119,6 +119,12 @@ CAPTIONS = {
     "removed, and the joints what is left depends on (residual GP relevance).",
     "loop_residual_joints": "What the parametric effects leave, in the robot frame, against the joint the residual "
     "GP finds most relevant",
+    "loop_harmonics_terms": "Loop closure: the joints' cyclic errors (joint_harmonics, when added). Per joint and "
+    "harmonic order the data see, the posterior amplitude A and phase of A sin(k q + phase) in degrees, A's std, "
+    "the chi-square (2 dof) of the order's two coefficients against 0 with every other term present, its "
+    "p-value and the Bonferroni threshold (level / pairs tested); named: supported by the data.",
+    "loop_harmonics": "Each joint's cyclic error f_j (joint_harmonics) the loop named: the posterior mean of the "
+    "angle error against the joint's reading over its measured range, with its 95 % band",
     "loop_signatures": "The residual against each candidate effect's signature, first round",
     "loop_residuals": "Post-registration errors before and after the loop closure",
     "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg; std from the "

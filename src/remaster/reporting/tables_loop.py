@@ -1,6 +1,6 @@
 """The loop closure's tables of a campaign, from its sensors' reports (`remaster.loop.report.LoopReport`):
-before and after with the effects added, the closure test after every step, and every candidate's
-scores. Numbers in the units their columns name (mm, %).
+before and after with the effects added, the closure test after every step, every candidate's
+scores, and the joints' cyclic errors (joint_harmonics) named. Numbers in the units their columns name (mm, %).
 """
 
 from __future__ import annotations
@@ -139,6 +139,39 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                         )
                     },
                     "Added": f"not offered: {noise_model['why']}",
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def harmonics_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
+    """The joints' cyclic errors of every sensor whose loop added `joint_harmonics`
+    (`remaster.loop.harmonics`): per joint and order the data see, the posterior amplitude and phase
+    of A sin(k q + phase) (deg), the amplitude's std, the chi-square of (cos, sin) against 0 with its
+    p-value and the threshold it is held to, and whether the pair is named; a sensor without the
+    block gets one row saying so."""
+    rows = []
+    nan = float("nan")
+    for sensor, report in reports.items():
+        section = report.harmonics
+        if section is None:
+            rows.append({"Sensor": sensor, "Joint": "", "Order": nan, "Named": "joint_harmonics not added"})
+            continue
+        for term in section["terms"]:
+            if not term["seen_by_data"]:
+                continue
+            rows.append(
+                {
+                    "Sensor": sensor,
+                    "Joint": term["joint"],
+                    "Order": term["order"],
+                    "Amplitude (deg)": term["amplitude_deg"],
+                    "Amplitude std (deg)": term["amplitude_std_deg"],
+                    "Phase (deg)": term["phase_deg"],
+                    "Chi-square (2 dof)": term["chi2"],
+                    "p-value": term["p_value"],
+                    "p threshold": section["p_threshold"],
+                    "Named": "yes" if term["named"] else "",
                 }
             )
     return pd.DataFrame(rows)

@@ -42,6 +42,10 @@ KEYS = {
     "sensor_scale_ppm": (MICRO, "scale error of the sensor's lengths (sensor_scale.s)"),
     "drift_deg_per_hour": (DEG / SECONDS_PER_HOUR, "zero-offset drift rate per hour of elapsed time (drift.*)"),
     "drift_deg_per_kelvin": (DEG, "zero-offset drift per kelvin of temperature change (drift.*)"),
+    "joint_harmonic_deg": (
+        DEG,
+        "each Fourier coefficient of a joint's cyclic error, a_jk cos(k q_j) + b_jk sin(k q_j) (joint_harmonics.*)",
+    ),
     "held_zero_offset_deg": (DEG, "controller marks' tolerance on a zero-offset no sensor can see (robot frame)"),
 }
 CLASS_KEY = "arm_class"
@@ -75,6 +79,7 @@ class Priors:
             "joint_compliance": "joint_compliance_urad_per_Nm",
             "joint_scale": "joint_scale_ppm",
             "sensor_scale": "sensor_scale_ppm",
+            "joint_harmonics": "joint_harmonic_deg",
         }.get(block)
         if key is None:
             raise ValueError(f"no prior for parameter {name!r}")
@@ -156,6 +161,7 @@ DEFAULTS = {
         "sensor_scale_ppm": 500.0,
         "drift_deg_per_hour": 0.05,
         "drift_deg_per_kelvin": 0.02,
+        "joint_harmonic_deg": 0.02,
         "held_zero_offset_deg": 0.5,
     },
     "collaborative": {
@@ -167,6 +173,7 @@ DEFAULTS = {
         "sensor_scale_ppm": 500.0,
         "drift_deg_per_hour": 0.05,
         "drift_deg_per_kelvin": 0.02,
+        "joint_harmonic_deg": 0.02,
         "held_zero_offset_deg": 0.5,
     },
 }
