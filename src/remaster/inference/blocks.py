@@ -2,7 +2,7 @@
 optional blocks for the effects the paper's model leaves out (docs/methods.md, "Parameter blocks").
 
     angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i         (joint space)
-    p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)
+    p_N,i    = (I + D)(1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)  (sensor frame)
 
 | block              | parameters (SI)                                        | display unit |
 |--------------------|--------------------------------------------------------|--------------|
@@ -15,6 +15,8 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 | `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
 | `link_geometry`    | F<j>.x, .y, .z (m), F<j>.rx, .ry, .rz (rad), tool.*    | mm, deg      |
 | `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
+| `sensor_distortion`| d1, d2, xy, xz, yz (1): p_N -> (I + D) p_N, D symmetric| ppm          |
+|                    | and traceless (`distortion_matrix`)                    |              |
 
 Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
 joint's angle, with v_k (n,) fixed per dataset (ones, gravity torques, readings, elapsed time).
@@ -62,7 +64,15 @@ from .identifiability import JACOBIAN_STEP
 from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
 
 BASE = ("registration", "zero_offsets")
-EXTENSIONS = ("joint_compliance", "joint_scale", "marker_offset", "sensor_scale", "link_geometry", "drift")
+EXTENSIONS = (
+    "joint_compliance",
+    "joint_scale",
+    "marker_offset",
+    "sensor_scale",
+    "link_geometry",
+    "drift",
+    "sensor_distortion",
+)
 PPM = 1e-6
 MICRORAD_PER_NM = 1e-6
 # An extension column of the Jacobian below this fraction of the longest of its own block is
@@ -82,7 +92,22 @@ STRUCTURAL_CONFIGURATIONS = 96
 # The blocks that take part in deciding structural redundancy (`structural_redundancy`): only
 # link-geometry parameters are dropped for structure; the marker offset and a sensor scale are
 # quantities of the set-up, part of the span they are tested against.
-GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry")
+GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry", "sensor_distortion")
+# The sensor frame distortion D (3, 3), symmetric and traceless (`distortion_matrix`): its
+# antisymmetric part is a rotation, the registration's, and its trace is `sensor_scale`'s, so five
+# parameters are left: two normal strains in an orthonormal basis of the traceless diagonals, so
+# that their prior treats the three axes alike (each axis's normal strain has std sqrt(2/3) times
+# the prior's), and the three shears D_xy = D_yx, D_xz, D_yz.
+DISTORTION_PARTS = ("d1", "d2", "xy", "xz", "yz")
+_DISTORTION_BASIS = np.array(
+    [
+        np.diag([1.0, -1.0, 0.0]) / math.sqrt(2.0),
+        np.diag([1.0, 1.0, -2.0]) / math.sqrt(6.0),
+        [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+        [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+        [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+    ]
+)
 # Below this sine a kept parameter is weakly determined (its std alone would grow more than a
 # thousandfold): reported, so that a reader knows its prior is doing the work.
 COLLINEAR = 1e-3
@@ -235,6 +260,22 @@ def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) ->
     return joints @ np.array(turns), tool
 
 
+def distortion_matrix(coefficients) -> np.ndarray:
+    """D (..., 3, 3), symmetric and traceless, from the `sensor_distortion` block's coefficients
+    (..., 5) in `DISTORTION_PARTS` order (1): p_N -> (I + D) p_N about the sensor's origin."""
+    return np.tensordot(np.asarray(coefficients, dtype=float), _DISTORTION_BASIS, axes=(-1, 0))
+
+
+def distortion_coefficients(matrix) -> dict[str, float]:
+    """{sensor_distortion.<part>: value} of the symmetric traceless part of a small linear map's
+    error M (3, 3) (I + M about the sensor's origin): what the block can take of it. The rest is
+    a rotation (the registration's, (M - M^T) / 2) and an isotropic scale (`sensor_scale`, tr M / 3)."""
+    matrix = np.asarray(matrix, dtype=float)
+    strain = 0.5 * (matrix + matrix.T) - np.trace(matrix) / 3.0 * np.eye(3)
+    values = [float(np.sum(strain * b) / np.sum(b * b)) for b in _DISTORTION_BASIS]
+    return {f"sensor_distortion.{p}": v for p, v in zip(DISTORTION_PARTS, values)}
+
+
 def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None = None) -> Parameters:
     """The parameters a block owns on this chain, in model order."""
     if block == "registration":  # the paper's parameters, named and scaled as `remaster.inference.model` does
@@ -245,6 +286,9 @@ def block_parameters(block: str, chain: KinematicChain, drift_unit: str | None =
         return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
     if block == "sensor_scale":
         return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
+    if block == "sensor_distortion":
+        names = tuple(f"sensor_distortion.{p}" for p in DISTORTION_PARTS)
+        return Parameters(names, np.full(len(names), PPM), ("ppm",) * len(names))
     if block == "link_geometry":
         labels = link_labels(chain)
         return Parameters(
@@ -334,6 +378,7 @@ class BlockModel(MeasurementModel):
         index = {n: i for i, n in enumerate(self.all_names)}
         self._marker_index = [index[n] for n in self.all_names if self.block_of[n] == "marker_offset"]
         self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
+        self._distortion_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_distortion"]
         self._links = (
             [(index[name], row, column) for row, column, name in link_labels(chain)]
             if "link_geometry" in self.blocks
@@ -486,6 +531,8 @@ class BlockModel(MeasurementModel):
         out = points @ np.swapaxes(transform[:, :3, :3], -1, -2) + transform[:, None, :3, 3]
         if self._scale_index:
             out = out * (1.0 + stack[:, self._scale_index])[:, :, None]
+        if self._distortion_index:  # (I + D) p about the sensor's origin
+            out = out + out @ np.swapaxes(distortion_matrix(stack[:, self._distortion_index]), -1, -2)
         return out if every.ndim == 2 else out[0]
 
     def sensor_rotation(self, theta) -> np.ndarray:
