@@ -141,7 +141,9 @@ class Readings:
     frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
     readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
     table's first time (or K since the first temperature), None without such a column;
-    drift_unit 's' or 'K'.
+    drift_unit 's' or 'K'; weights (n, 3): the instrument's per-point std of each axis over its
+    RMS over the sensor's measured rows (`point_weights`), None when the table gives none: the
+    likelihood's noise of row i, axis a is then sigma weights[i, a], sigma still in metres.
     """
 
     rows: np.ndarray
@@ -151,6 +153,7 @@ class Readings:
     payload_torques: np.ndarray
     drift: np.ndarray | None = None
     drift_unit: str | None = None
+    weights: np.ndarray | None = None
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
@@ -211,7 +214,19 @@ def readings(
         payload,
         None if drift is None else drift[0][rows],
         None if drift is None else drift[2],
+        point_weights(sensor, rows),
     )
+
+
+def point_weights(sensor: SensorData, rows) -> np.ndarray | None:
+    """(len(rows), 3) the per-point std columns (`SensorData.point_std`) at table rows over their
+    RMS over every measured row of the sensor (both sets, so that sigma means the same in each),
+    None without such columns: relative weights, the fit's sigma scales them."""
+    std = sensor.point_std(rows)
+    if std is None:
+        return None
+    every = sensor.point_std(sensor.measured_rows())
+    return std / math.sqrt(float(np.mean(every**2)))
 
 
 # --------------------------------------------------------------------------- parameters of each block
@@ -398,6 +413,11 @@ class BlockModel(MeasurementModel):
         self.noise = noise
         self._whitening = None if noise is None else noise.whitening(self.measured)
         self.noise_log_det = 0.0 if noise is None else noise.log_det_term(self.measured)
+        if data.weights is not None:  # per-point stds: S_i = sigma^2 V_i S_i' V_i, V_i = diag(weights_i)
+            scaling = 1.0 / np.asarray(data.weights, dtype=float)
+            shape = np.eye(3) if self._whitening is None else self._whitening
+            self._whitening = scaling[:, :, None] * np.broadcast_to(shape, (len(scaling), 3, 3))
+            self.noise_log_det += float(np.sum(np.log(scaling)))
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
