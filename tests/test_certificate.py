@@ -161,7 +161,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     before = accuracy.loc[("validation set (measured)", "controller's zero-offsets")]
     assert before["mean (mm)"] == np.mean([3.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])
     assert before["points"] == 20 and before["U(mean) (mm)"] > 0
-    loop = accuracy.loc[("validation set (measured)", "loop-closed (joint_compliance)")]
+    loop = accuracy.loc[("validation set (measured)", "loop-closed (added: joint_compliance (robot))")]
     pose_means = 0.02 + 0.001 * np.arange(10)  # the loop's rows found their poses through the table's rows
     assert np.isclose(loop["mean (mm)"], pose_means.mean())
     # equal poses: CR2 is the spread of the pose means / sqrt(10), with k = t_0.975(9)

@@ -26,7 +26,7 @@ TWIN = REPO / "data" / "raw" / "kuka-twin"
 SENSOR = "laser_tracker"
 ALLOWED = (
     "allowed: arm_class, link_translation_mm, link_rotation_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
-    "joint_scale_ppm, sensor_scale_ppm, drift_deg_per_hour, drift_deg_per_kelvin, joint_harmonic_deg, "
+    "joint_scale_ppm, sensor_scale_ppm, sensor_distortion_ppm, drift_deg_per_hour, drift_deg_per_kelvin, joint_harmonic_deg, "
     "held_zero_offset_deg"
 )
 POSITIVE = "must be a positive number (a standard deviation in the unit its name gives), got "
@@ -41,6 +41,7 @@ KNOWN = {
         "joint_compliance_urad_per_Nm": 50,
         "joint_scale_ppm": 1000,
         "sensor_scale_ppm": 500,
+        "sensor_distortion_ppm": 1000,
         "drift_deg_per_hour": 0.36,
         "drift_deg_per_kelvin": 0.02,
         "joint_harmonic_deg": 0.02,
@@ -53,6 +54,7 @@ KNOWN = {
         "joint_compliance_urad_per_Nm": 200,
         "joint_scale_ppm": 1000,
         "sensor_scale_ppm": 500,
+        "sensor_distortion_ppm": 1000,
         "drift_deg_per_hour": 0.36,
         "drift_deg_per_kelvin": 0.02,
         "joint_harmonic_deg": 0.02,

@@ -152,7 +152,10 @@ class Claim:
         points = self.model.predict(self.theta[rows]) + self.gp_mean
         if self.gp_std is not None:
             points = points + self.gp_std[None, :, None] * rng.standard_normal(points.shape)
-        return points + _noise_draws(self.sigma[rows], self.model.measured, points.shape, rng, self.model.noise)
+        draws = _noise_draws(self.sigma[rows], self.model.measured, points.shape, rng, self.model.noise)
+        # a loop model on a table with per-point stds: each row's noise is sigma times its weight
+        weights = getattr(getattr(self.model, "data", None), "weights", None)
+        return points + (draws if weights is None else draws * weights)
 
 
 CHUNK_VALUES = 2**21  # draws x rows x 3 values replicated at once: 16 MB per array whatever the campaign's size

@@ -69,7 +69,7 @@ AGREEMENT_COLUMNS = ["campaign", "date", "robot", "parameter", "sensor_a", "sens
 # The loop closure's registration and noise belong to one campaign's set-up; its marker offset and
 # scale to one sensor: compared over time within a sensor kind, never between two sensors.
 CAMPAIGN_BLOCKS = ("registration", "noise")
-SENSOR_BLOCKS = ("marker_offset", "sensor_scale")
+SENSOR_BLOCKS = ("marker_offset", "sensor_scale", "sensor_distortion")
 LOOP_OVER_TIME_COLUMNS = [
     "campaign",
     "date",

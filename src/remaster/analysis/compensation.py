@@ -10,8 +10,8 @@ A `CalibratedRobot` is one campaign's sensor under one model, 'paper' or 'loop'
 - **frames**: 'robot' is the base frame of the nominal kinematics. The zero-offsets no sensor sees
   (a registration absorbs them: joint 1 of the iiwa) stay at the controller's marks there, and
   their tolerance (priors: held_zero_offset_deg) is drawn in every bound. 'sensor' is the
-  campaign's sensor frame, p_N = (1 + s) T*(Theta1) T_NR p_R with the fitted registration and
-  sensor scale: targets measured by the same sensor in the same set-up (a fixture, a workpiece).
+  campaign's sensor frame, p_N = (I + D)(1 + s) T*(Theta1) T_NR p_R with the fitted registration,
+  sensor scale and frame distortion (D = 0 unless the loop added it): targets measured by the same sensor in the same set-up (a fixture, a workpiece).
   There the held zero-offsets a registration absorbs are part of it, whose posterior is drawn
   instead; one held because the marker never sees it (the marker on its axis) is drawn in both.
 
@@ -54,6 +54,7 @@ from .. import spatial
 from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows
 from ..inference import residual_gp
+from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import MM
@@ -62,7 +63,11 @@ from .prediction import Calibration, Predictor, loop_calibration, paper_calibrat
 MODELS = ("paper", "loop")
 FRAMES = ("robot", "sensor")
 QUANTILE = 0.95
-SETUP = tuple(f"registration.{p}" for p in REGISTRATION) + ("sensor_scale.s",)
+SETUP = (
+    tuple(f"registration.{p}" for p in REGISTRATION)
+    + ("sensor_scale.s",)
+    + tuple(f"sensor_distortion.{p}" for p in DISTORTION_PARTS)
+)
 POSITION_TOLERANCE = 1e-9  # m: a solution reproduces its target to this
 ORIENTATION_TOLERANCE = 1e-9  # rad
 MAX_ITERATIONS = 30
@@ -78,7 +83,7 @@ class CalibratedRobot:
 
     calibration: the robot's side (`prediction.Calibration`, held zero-offsets at their values);
     point (3,) m flange frame, at_marker: whether it is the sensor's marker; setup: registration.*
-    and sensor_scale.s posterior means (SI); t_nr (4, 4) the initial registration (robot ->
+    sensor_scale.s and sensor_distortion.* posterior means (SI); t_nr (4, 4) the initial registration (robot ->
     sensor); samples: posterior rows (every free parameter, registration and noise.sigma
     included; empty without MCMC); held: {zero-offset: value} the data cannot see, held_tolerance
     (rad) of the controller's marks; gp: the loop's residual GP (robot frame, at the marker);
@@ -146,23 +151,26 @@ class CalibratedRobot:
         points = self.predictor(q).points(self.calibration.values if values is None else values)
         return points + self.gp.mean(q) if self._gp_applies() else points
 
-    def robot_to_sensor(self, values: Mapping[str, float] | None = None) -> tuple[np.ndarray, float]:
-        """(T (4, 4) robot -> sensor, scale 1 + s) at parameter values (the posterior mean by default)."""
+    def robot_to_sensor(self, values: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(T (4, 4) robot -> sensor, the sensor's linear map (1 + s)(I + D) (3, 3)) at parameter
+        values (the posterior mean by default)."""
         values = self.setup if values is None else values
         transform = correction_transforms(np.array([[values.get(n, 0.0) for n in SETUP[:6]]]))[0] @ self.t_nr
-        return transform, 1.0 + values.get("sensor_scale.s", 0.0)
+        strain = distortion_matrix([values.get(f"sensor_distortion.{p}", 0.0) for p in DISTORTION_PARTS])
+        return transform, (1.0 + values.get("sensor_scale.s", 0.0)) * (np.eye(3) + strain)
 
     def in_frame(self, points, frame: str, values: Mapping[str, float] | None = None) -> np.ndarray:
         """Robot-frame points (..., 3) in `frame` (the sensor's through the fitted registration)."""
         if frame == "robot":
             return np.asarray(points, dtype=float)
-        transform, scale = self.robot_to_sensor(values)
-        return scale * spatial.transform_points(transform, points)
+        transform, linear = self.robot_to_sensor(values)
+        return spatial.transform_points(transform, points) @ linear.T
 
     def from_sensor(self, points) -> np.ndarray:
         """Sensor-frame points (n, 3) in the calibrated robot frame (posterior mean)."""
-        transform, scale = self.robot_to_sensor()
-        return spatial.transform_points(spatial.invert(transform), np.asarray(points, dtype=float) / scale)
+        transform, linear = self.robot_to_sensor()
+        unmapped = np.linalg.solve(linear, np.asarray(points, dtype=float).T).T
+        return spatial.transform_points(spatial.invert(transform), unmapped)
 
     def draws(self, count: int, frame: str, rng: np.random.Generator) -> tuple[list[dict], np.ndarray]:
         """`count` posterior draws ({name: SI}, every parameter) and their noise sigmas (count,):

@@ -10,8 +10,8 @@ A `Calibration` is one campaign's (and sensor's) kinematics under one model:
   (zero-offsets, link geometry, joint compliance with gravity torques at the readings predicted,
   joint scale, marker offset).
 
-Only what belongs to the robot (and its marker) is carried: the registration and the sensor scale
-belong to one campaign's sensor set-up and the drift to one campaign's clock or temperature, so
+Only what belongs to the robot (and its marker) is carried: the registration, the sensor scale and
+the sensor frame's distortion belong to one campaign's sensor set-up and the drift to one campaign's clock or temperature, so
 they are left out (`SETUP_BLOCKS`); a calibration applied elsewhere gets that campaign's own
 registration.
 
@@ -51,7 +51,8 @@ from . import comparison
 DEFAULT_SETTINGS = ModelSettings()  # frozen: one instance serves every default
 
 MODELS = ("nominal", "paper", "loop")
-SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise")  # one campaign's set-up: never transferred
+# one campaign's set-up: never transferred (the sensor's frame distortion is its sensor's, like its scale)
+SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise", "sensor_distortion")
 ESTIMATED = "estimated"
 NULL_QUANTILE = 0.95
 PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]

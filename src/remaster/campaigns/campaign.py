@@ -37,6 +37,10 @@ SENSOR_KEYS = ("kind", "marker", "noise", "mpe")
 KEY_COLUMNS = ("set", "pose", "solution")
 POSITION_COLUMNS = ("x", "y", "z")
 TIME_COLUMN = "time"
+# optional per-point instrument std (m): one isotropic `std`, or one per axis of the sensor frame
+STD_COLUMN = "std"
+AXIS_STD_COLUMNS = ("std_x", "std_y", "std_z")
+MAX_STD = 0.01  # m: a per-point std above 10 mm is a unit mistake (millimetres stored as metres)
 MAX_POSITION = 20.0  # m: a marker farther than this from the sensor's origin is a unit mistake
 # Joint readings in degrees stored as radians: a reading beyond one turn (2 pi) or beyond the robot's
 # joint limits by more than this margin cannot be a controller's reading in rad.
@@ -125,6 +129,16 @@ class SensorData:
     @property
     def n_missing(self) -> int:
         return int(self.missing_rows.size)
+
+    def point_std(self, rows) -> np.ndarray | None:
+        """The instrument's per-point std (len(rows), 3) m per axis of the sensor frame at table
+        rows (0-based) from the optional `std` or `std_x, std_y, std_z` columns; None without them."""
+        rows = np.asarray(rows, dtype=int)
+        if STD_COLUMN in self.table.columns:
+            return np.repeat(self.table[STD_COLUMN].to_numpy(dtype=float)[rows, None], 3, axis=1)
+        if all(c in self.table.columns for c in AXIS_STD_COLUMNS):
+            return self.table.loc[rows, list(AXIS_STD_COLUMNS)].to_numpy(dtype=float)
+        return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -557,6 +571,44 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> No
     _check_optimization_set(sets, xyz, seen, n_joints, source)
 
 
+def _check_std(df: pd.DataFrame, source: str) -> None:
+    """The optional per-point std columns: `std` or all of `std_x, std_y, std_z` (not both forms),
+    floats, finite, positive and at most MAX_STD m on every row whose marker was seen."""
+    axes = [c for c in AXIS_STD_COLUMNS if c in df.columns]
+    if STD_COLUMN in df.columns and axes:
+        raise InputError(
+            f"give the per-point std as one column {STD_COLUMN!r} or as {', '.join(AXIS_STD_COLUMNS)}, not both",
+            file=source,
+            key=", ".join([STD_COLUMN, *axes]),
+        )
+    if axes and len(axes) < len(AXIS_STD_COLUMNS):
+        missing = [c for c in AXIS_STD_COLUMNS if c not in axes]
+        raise InputError(
+            f"per-axis std needs all of {', '.join(AXIS_STD_COLUMNS)}; missing", file=source, key=", ".join(missing)
+        )
+    seen = np.all(np.isfinite(df[list(POSITION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)), axis=1)
+    for column in [STD_COLUMN] if STD_COLUMN in df.columns else axes:
+        if not pd.api.types.is_float_dtype(df[column].dtype):
+            raise InputError(f"must hold floats (m), has dtype {df[column].dtype}", file=source, key=column)
+        values = df[column].to_numpy(dtype=float, na_value=np.nan)
+        bad = np.flatnonzero(seen & ~(np.isfinite(values) & (values > 0)))
+        if bad.size:
+            raise InputError(
+                "a per-point std must be a positive finite number (m) on every row whose marker was seen",
+                file=source,
+                key=column,
+                rows=bad,
+            )
+        large = np.flatnonzero(seen & (values > MAX_STD))
+        if large.size:
+            raise InputError(
+                f"per-point std above {MAX_STD * 1e3:g} mm: looks like millimetres stored as metres (store metres)",
+                file=source,
+                key=column,
+                rows=large,
+            )
+
+
 def validate_sensor_table(
     df: pd.DataFrame, n_joints: int, sensor_name: str, source: str, *, limits=None
 ) -> pd.DataFrame:
@@ -578,6 +630,7 @@ def validate_sensor_table(
     _check_dtypes(df, n_joints, source)
     table = df.reset_index(drop=True)
     _check_rows(table, n_joints, source, limits)
+    _check_std(table, source)
     if TIME_COLUMN in table.columns:
         time = table[TIME_COLUMN]
         table[TIME_COLUMN] = time.dt.tz_localize("UTC") if time.dt.tz is None else time.dt.tz_convert("UTC")

@@ -3,7 +3,7 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 
     angles_i = q_i + dtheta + c tau_i + c' tau_payload,i + s_q q_i + r t_i
                + sum_k (a_k cos k q_i + b_k sin k q_i)                               (joint space)
-    p_N,i    = (1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)       (sensor frame)
+    p_N,i    = (I + D)(1 + s_N) T*(Theta1) T_NR FK_links(angles_i) (marker + delta)  (sensor frame)
 
 | block              | parameters (SI)                                        | display unit |
 |--------------------|--------------------------------------------------------|--------------|
@@ -18,6 +18,8 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 | `drift`            | q1..qN (rad/s, or rad/K), times t_i (or T_i)           | deg/h, deg/K |
 | `joint_harmonics`  | q<j>.cos<k>, q<j>.sin<k> (rad), times cos/sin(k q_j),  | deg          |
 |                    | k = 1..K: joint j's cyclic (transmission) error f_j    |              |
+| `sensor_distortion`| d1, d2, xy, xz, yz (1): p_N -> (I + D) p_N, D symmetric| ppm          |
+|                    | and traceless (`distortion_matrix`)                    |              |
 
 Joint-space blocks are linear in their parameters: each parameter k adds theta_k * v_k,i to one
 joint's angle, with v_k (n,) fixed per dataset (ones, gravity torques, readings, elapsed time).
@@ -73,6 +75,7 @@ EXTENSIONS = (
     "link_geometry",
     "drift",
     "joint_harmonics",
+    "sensor_distortion",
 )
 PPM = 1e-6
 MICRORAD_PER_NM = 1e-6
@@ -93,7 +96,22 @@ STRUCTURAL_CONFIGURATIONS = 96
 # The blocks that take part in deciding structural redundancy (`structural_redundancy`): only
 # link-geometry parameters are dropped for structure; the marker offset and a sensor scale are
 # quantities of the set-up, part of the span they are tested against.
-GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry")
+GEOMETRIC = ("marker_offset", "sensor_scale", "link_geometry", "sensor_distortion")
+# The sensor frame distortion D (3, 3), symmetric and traceless (`distortion_matrix`): its
+# antisymmetric part is a rotation, the registration's, and its trace is `sensor_scale`'s, so five
+# parameters are left: two normal strains in an orthonormal basis of the traceless diagonals, so
+# that their prior treats the three axes alike (each axis's normal strain has std sqrt(2/3) times
+# the prior's), and the three shears D_xy = D_yx, D_xz, D_yz.
+DISTORTION_PARTS = ("d1", "d2", "xy", "xz", "yz")
+_DISTORTION_BASIS = np.array(
+    [
+        np.diag([1.0, -1.0, 0.0]) / math.sqrt(2.0),
+        np.diag([1.0, 1.0, -2.0]) / math.sqrt(6.0),
+        [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+        [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+        [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+    ]
+)
 # Below this sine a kept parameter is weakly determined (its std alone would grow more than a
 # thousandfold): reported, so that a reader knows its prior is doing the work.
 COLLINEAR = 1e-3
@@ -128,7 +146,10 @@ class Readings:
     frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
     readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
     table's first time (or K since the first temperature), None without such a column;
-    drift_unit 's' or 'K'; harmonic_orders: K of the `joint_harmonics` block (orders 1..K).
+    drift_unit 's' or 'K'; harmonic_orders: K of the `joint_harmonics` block (orders 1..K);
+    weights (n, 3): the instrument's per-point std of each axis over its
+    RMS over the sensor's measured rows (`point_weights`), None when the table gives none: the
+    likelihood's noise of row i, axis a is then sigma weights[i, a], sigma still in metres.
     """
 
     rows: np.ndarray
@@ -139,6 +160,7 @@ class Readings:
     drift: np.ndarray | None = None
     drift_unit: str | None = None
     harmonic_orders: int = 2
+    weights: np.ndarray | None = None
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
@@ -201,8 +223,20 @@ def readings(
         payload,
         None if drift is None else drift[0][rows],
         None if drift is None else drift[2],
-        settings.harmonic_orders,
+        harmonic_orders=settings.harmonic_orders,
+        weights=point_weights(sensor, rows),
     )
+
+
+def point_weights(sensor: SensorData, rows) -> np.ndarray | None:
+    """(len(rows), 3) the per-point std columns (`SensorData.point_std`) at table rows over their
+    RMS over every measured row of the sensor (both sets, so that sigma means the same in each),
+    None without such columns: relative weights, the fit's sigma scales them."""
+    std = sensor.point_std(rows)
+    if std is None:
+        return None
+    every = sensor.point_std(sensor.measured_rows())
+    return std / math.sqrt(float(np.mean(every**2)))
 
 
 # --------------------------------------------------------------------------- parameters of each block
@@ -251,6 +285,22 @@ def calibrated_transforms(chain: KinematicChain, values: Mapping[str, float]) ->
     return joints @ np.array(turns), tool
 
 
+def distortion_matrix(coefficients) -> np.ndarray:
+    """D (..., 3, 3), symmetric and traceless, from the `sensor_distortion` block's coefficients
+    (..., 5) in `DISTORTION_PARTS` order (1): p_N -> (I + D) p_N about the sensor's origin."""
+    return np.tensordot(np.asarray(coefficients, dtype=float), _DISTORTION_BASIS, axes=(-1, 0))
+
+
+def distortion_coefficients(matrix) -> dict[str, float]:
+    """{sensor_distortion.<part>: value} of the symmetric traceless part of a small linear map's
+    error M (3, 3) (I + M about the sensor's origin): what the block can take of it. The rest is
+    a rotation (the registration's, (M - M^T) / 2) and an isotropic scale (`sensor_scale`, tr M / 3)."""
+    matrix = np.asarray(matrix, dtype=float)
+    strain = 0.5 * (matrix + matrix.T) - np.trace(matrix) / 3.0 * np.eye(3)
+    values = [float(np.sum(strain * b) / np.sum(b * b)) for b in _DISTORTION_BASIS]
+    return {f"sensor_distortion.{p}": v for p, v in zip(DISTORTION_PARTS, values)}
+
+
 def block_parameters(
     block: str, chain: KinematicChain, drift_unit: str | None = None, harmonic_orders: int = 2
 ) -> Parameters:
@@ -264,6 +314,9 @@ def block_parameters(
         return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
     if block == "sensor_scale":
         return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
+    if block == "sensor_distortion":
+        names = tuple(f"sensor_distortion.{p}" for p in DISTORTION_PARTS)
+        return Parameters(names, np.full(len(names), PPM), ("ppm",) * len(names))
     if block == "link_geometry":
         labels = link_labels(chain)
         return Parameters(
@@ -367,6 +420,7 @@ class BlockModel(MeasurementModel):
         index = {n: i for i, n in enumerate(self.all_names)}
         self._marker_index = [index[n] for n in self.all_names if self.block_of[n] == "marker_offset"]
         self._scale_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_scale"]
+        self._distortion_index = [index[n] for n in self.all_names if self.block_of[n] == "sensor_distortion"]
         self._links = (
             [(index[name], row, column) for row, column, name in link_labels(chain)]
             if "link_geometry" in self.blocks
@@ -386,6 +440,11 @@ class BlockModel(MeasurementModel):
         self.noise = noise
         self._whitening = None if noise is None else noise.whitening(self.measured)
         self.noise_log_det = 0.0 if noise is None else noise.log_det_term(self.measured)
+        if data.weights is not None:  # per-point stds: S_i = sigma^2 V_i S_i' V_i, V_i = diag(weights_i)
+            scaling = 1.0 / np.asarray(data.weights, dtype=float)
+            shape = np.eye(3) if self._whitening is None else self._whitening
+            self._whitening = scaling[:, :, None] * np.broadcast_to(shape, (len(scaling), 3, 3))
+            self.noise_log_det += float(np.sum(np.log(scaling)))
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
@@ -519,6 +578,8 @@ class BlockModel(MeasurementModel):
         out = points @ np.swapaxes(transform[:, :3, :3], -1, -2) + transform[:, None, :3, 3]
         if self._scale_index:
             out = out * (1.0 + stack[:, self._scale_index])[:, :, None]
+        if self._distortion_index:  # (I + D) p about the sensor's origin
+            out = out + out @ np.swapaxes(distortion_matrix(stack[:, self._distortion_index]), -1, -2)
         return out if every.ndim == 2 else out[0]
 
     def sensor_rotation(self, theta) -> np.ndarray:

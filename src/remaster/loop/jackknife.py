@@ -41,6 +41,7 @@ def subset(data: Readings, keep: np.ndarray) -> Readings:
         torques=data.torques[keep],
         payload_torques=data.payload_torques[keep],
         drift=None if data.drift is None else data.drift[keep],
+        weights=None if data.weights is None else data.weights[keep],
     )
 
 

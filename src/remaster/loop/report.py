@@ -19,6 +19,7 @@ import pandas as pd
 from ..errors import InputError, report_reader
 from ..files import read_json, write_json
 from ..units import DEG, MM
+from .sides import sides_of
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
 # written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
@@ -115,6 +116,11 @@ class LoopReport:
         return float(self.sigma_after_mm) * MM
 
     @property
+    def effects_sides(self) -> dict[str, str]:
+        """{effect added: 'robot', 'sensor' or 'unattributed'} (`remaster.loop.sides`)."""
+        return sides_of(self.effects_added)
+
+    @property
     def unseen_by_data(self) -> tuple[str, ...]:
         """Parameters the data cannot see at all."""
         return tuple(self.identifiability["dropped"])
@@ -130,6 +136,8 @@ class LoopReport:
             if f.name in NOT_WRITTEN or (f.name in OPTIONAL and value is None):
                 continue
             out[f.name] = list(value) if isinstance(value, tuple) else value
+        # for the file's reader: each effect's side (`remaster.loop.sides`), derived, not read back
+        out["effects_sides"] = self.effects_sides
         return out
 
     def write(self, path):

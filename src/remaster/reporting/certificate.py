@@ -27,6 +27,7 @@ from ..inference.fit import LaplaceReport, disagreeing
 from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
 from ..loop.report import LoopReport
+from ..loop.sides import with_sides
 from ..units import MM
 
 # the controller's zero-offsets with the registration that fits them best; the remastered ones
@@ -145,7 +146,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
             _row(
                 sensor,
                 where,
-                "loop-closed (" + ", ".join(inputs.loop.effects_added) + ")"
+                "loop-closed (added: " + with_sides(inputs.loop.effects_added) + ")"
                 if inputs.loop.effects_added
                 else "loop-closed (no effect added)",
                 norms,

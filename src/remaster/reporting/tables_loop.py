@@ -8,13 +8,14 @@ from __future__ import annotations
 import pandas as pd
 
 from ..loop.report import LoopReport
+from ..loop.sides import with_sides
 
 
 def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, LoopReport]) -> pd.DataFrame:
     """Before and after of every sensor of a campaign, with the effects each added, for the report."""
     frames = []
     for sensor, table in tables.items():
-        added = ", ".join(reports[sensor].effects_added) or "none"
+        added = with_sides(reports[sensor].effects_added)
         frames.append(table.assign(Sensor=sensor, **{"Effects added": added}))
     out = pd.concat(frames, ignore_index=True)
     first = ["Sensor", "Effects added"]

@@ -40,6 +40,10 @@ KEYS = {
     "joint_compliance_urad_per_Nm": (MICRO, "compliance of each joint and its payload term (joint_compliance.*)"),
     "joint_scale_ppm": (MICRO, "scale (gear-ratio) error of each joint reading (joint_scale.*)"),
     "sensor_scale_ppm": (MICRO, "scale error of the sensor's lengths (sensor_scale.s)"),
+    "sensor_distortion_ppm": (
+        MICRO,
+        "each coefficient of the sensor frame's symmetric traceless distortion (sensor_distortion.*)",
+    ),
     "drift_deg_per_hour": (DEG / SECONDS_PER_HOUR, "zero-offset drift rate per hour of elapsed time (drift.*)"),
     "drift_deg_per_kelvin": (DEG, "zero-offset drift per kelvin of temperature change (drift.*)"),
     "joint_harmonic_deg": (
@@ -80,6 +84,7 @@ class Priors:
             "joint_scale": "joint_scale_ppm",
             "sensor_scale": "sensor_scale_ppm",
             "joint_harmonics": "joint_harmonic_deg",
+            "sensor_distortion": "sensor_distortion_ppm",
         }.get(block)
         if key is None:
             raise ValueError(f"no prior for parameter {name!r}")
@@ -159,6 +164,7 @@ DEFAULTS = {
         "joint_compliance_urad_per_Nm": 50.0,
         "joint_scale_ppm": 1000.0,
         "sensor_scale_ppm": 500.0,
+        "sensor_distortion_ppm": 1000.0,
         "drift_deg_per_hour": 0.05,
         "drift_deg_per_kelvin": 0.02,
         "joint_harmonic_deg": 0.02,
@@ -171,6 +177,7 @@ DEFAULTS = {
         "joint_compliance_urad_per_Nm": 200.0,
         "joint_scale_ppm": 1000.0,
         "sensor_scale_ppm": 500.0,
+        "sensor_distortion_ppm": 1000.0,
         "drift_deg_per_hour": 0.05,
         "drift_deg_per_kelvin": 0.02,
         "joint_harmonic_deg": 0.02,
