@@ -12,11 +12,12 @@ ROBOT frame (rotated back by the fit's registration), so the correction travels 
 
 Hyperparameters (l_j, s, noise) maximise the exact marginal likelihood of at most `subset` rows
 evenly spaced over the data (analytic gradient, L-BFGS-B in logs, two starts): O(subset^3)
-whatever n. Prediction and the evidence use all n rows through m inducing inputs (the same kind of
+whatever n. Prediction uses all n rows through m inducing inputs (the same kind of
 subset), the DTC / projected-process approximation (Seeger, Williams & Lawrence 2003;
 Quinonero-Candela & Rasmussen 2005): O(n m^2) time and O(chunk m) memory. Far from every inducing
 input the mean returns to zero and the variance to s^2: the correction does not extrapolate, it
-says it does not know.
+says it does not know. The evidence the loop decides with is not the DTC
+likelihood (which can be far above or below the exact one): `remaster.inference.gp_evidence`.
 
 Relevance of joint j: its measured range (max - min of q_j) over l_j, the number of lengthscales
 the data cross along it; the residual "depends on" the joints where it is at least
@@ -27,6 +28,7 @@ SI inside (m, rad).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -34,7 +36,8 @@ import numpy as np  # scipy and emcee are imported in the functions that use the
 import pandas as pd
 
 SUBSET = 600  # rows for the hyperparameters (exact marginal likelihood)
-INDUCING = 400  # inducing inputs for prediction and the evidence
+INDUCING = 400  # inducing inputs for prediction (and the evidence's bound above EXACT_ROWS)
+EXACT_ROWS = 3000  # rows up to which the evidence is the exact marginal likelihood (`gp_evidence`)
 CHUNK = 8192  # rows per block when accumulating over all n
 STILL = 1e-6  # rad: a joint whose range is below this is not turned by the data
 RELEVANT_RANGE = 0.5  # lengthscales crossed over the measured range: the residual depends on that joint
@@ -228,7 +231,7 @@ def iid_log_likelihood(residuals) -> float:
 @dataclass(frozen=True, eq=False)
 class Candidate:
     """The GP as a candidate of the loop: fitted on every row, its evidence gain over independent
-    noise (nats), and its pose-grouped cross-validation: mse (K,) m^2 per point of the held-out
+    noise (nats; `evidence` says how it was obtained), and its pose-grouped cross-validation: mse (K,) m^2 per point of the held-out
     residuals less the GP's prediction from the other folds, points (K,)."""
 
     gp: ResidualGP
@@ -237,20 +240,23 @@ class Candidate:
     log_evidence_gain: float
     mse: np.ndarray
     points: np.ndarray
+    evidence: object = None  # gp_evidence.GPEvidence: how the gain was obtained
 
     def relevance(self) -> np.ndarray:
         return relevance(self.gp.hyper, self.q)
 
 
-def candidate(q, residuals, held_out, folds, subset: int = SUBSET, inducing: int = INDUCING) -> Candidate:
+def candidate(
+    q, residuals, held_out, folds, subset: int = SUBSET, inducing: int = INDUCING, exact_rows: int = EXACT_ROWS
+) -> Candidate:
     """Fit and score the GP on readings q (n, N) rad and residuals (n, 3) m of the current model;
     held_out (n, 3) m: each row's residual under the current model fitted without its fold, folds
     (n,) the pose-grouped folds.
 
-    Evidence: the DTC log likelihood of the residuals at the fitted hyperparameters, less that of
-    independent N(0, sigma^2) at sigma's maximum likelihood (the current model's), less the BIC
-    price 1/2 log(3n) of each hyperparameter beyond the noise (the lengthscales and s). The
-    parametric parameters stay at the current mode. Cross-validation: for each fold the GP's
+    Evidence (`remaster.inference.gp_evidence`): the GP's marginal likelihood, exact up to
+    exact_rows rows and Titsias' bound above, with its hyperparameters integrated by a Laplace step
+    in their logs, against independent noise with sigma integrated the same way; the parametric
+    parameters stay at the current mode in both. Cross-validation: for each fold the GP's
     hyperparameters are refitted on the other folds (from the whole set's, which saves most of the
     cost) and it is conditioned on their residuals; its mean is subtracted from the fold's held-out
     residuals. Hyperparameters fitted with the held-out rows would tune their lengthscales to the
@@ -258,8 +264,12 @@ def candidate(q, residuals, held_out, folds, subset: int = SUBSET, inducing: int
     q, residuals, held_out = (np.asarray(a, dtype=float) for a in (q, residuals, held_out))
     hyper = fit_hyperparameters(q, residuals, subset)
     gp = ResidualGP(q, residuals, hyper, inducing)
+    from . import gp_evidence  # it builds on this module's kernel
+
     price = 0.5 * (int(hyper.turned.sum()) + 1) * math.log(residuals.size)
-    gain = gp.log_likelihood - iid_log_likelihood(residuals) - price
+    dtc_gain = gp.log_likelihood - iid_log_likelihood(residuals) - price  # the former measure, for comparison
+    scored = gp_evidence.log_evidence_gain(q, residuals, hyper, exact_rows, inducing, subset)
+    scored = dataclasses.replace(scored, dtc_gain=float(dtc_gain))
     mse, points = [], []
     for fold in np.unique(folds):
         train = folds != fold
@@ -267,7 +277,7 @@ def candidate(q, residuals, held_out, folds, subset: int = SUBSET, inducing: int
         corrected = held_out[~train] - ResidualGP(q[train], residuals[train], fold_hyper, inducing).mean(q[~train])
         mse.append(float(np.mean(np.sum(corrected**2, axis=1))))
         points.append(int((~train).sum()))
-    return Candidate(gp, q, residuals, float(gain), np.array(mse), np.array(points))
+    return Candidate(gp, q, residuals, scored.gain, np.array(mse), np.array(points), scored)
 
 
 def training_frame(candidate: Candidate) -> pd.DataFrame:

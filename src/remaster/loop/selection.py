@@ -457,7 +457,9 @@ def _score_gp(
     current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
 ) -> tuple[residual_gp.Candidate, dict]:
     """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
-    parametric candidates' rule: evidence gain and pose-grouped cross-validated fall."""
+    parametric candidates' rule: evidence gain (`remaster.inference.gp_evidence`: exact or Titsias,
+    hyperparameters integrated, against iid noise with sigma integrated alike) and pose-grouped
+    cross-validated fall."""
     residual = current.residuals()
     gp = residual_gp.candidate(
         data.q,
@@ -466,6 +468,7 @@ def _score_gp(
         folds,
         int(settings.residual_gp["subset"]),
         int(settings.residual_gp["inducing"]),
+        int(settings.residual_gp.get("exact_rows", residual_gp.EXACT_ROWS)),
     )
     signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
     scores = {
@@ -474,6 +477,7 @@ def _score_gp(
         "sigma_mm": gp.gp.hyper.noise_std / MM,
         "parameters": ["lengthscales", "signal_std", "noise_std"],
         "explained_fraction": signature.explained,
+        "evidence": gp.evidence.report(),
     }
     scores["passed"] = passes(scores, settings)
     return gp, scores

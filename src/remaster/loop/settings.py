@@ -26,7 +26,7 @@ class LoopSettings:
     campaign's own `robot.priors` is laid over; mcmc: {'chains', 'samples', 'burn_in'} of the final
     refit's first attempt, None for Laplace only; convergence: {'max_rhat', 'min_ess',
     'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
-    residual_gp: {'subset', 'inducing'} of the Gaussian-process candidate tried last
+    residual_gp: {'subset', 'inducing', 'exact_rows'} of the Gaussian-process candidate tried last
     (`remaster.inference.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the
     noise floor at which the loop counts as closed (`remaster.loop.closure`); tracker_noise:
     {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
@@ -109,8 +109,14 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
 
 
 def _gp_settings(section: Mapping) -> dict | None:
-    """The residual GP's settings from its config section ({'enabled', 'subset', 'inducing'})."""
-    return {"subset": int(section["subset"]), "inducing": int(section["inducing"])} if section["enabled"] else None
+    """The residual GP's settings from its config section ({'enabled', 'subset', 'inducing', 'exact_rows'})."""
+    if not section["enabled"]:
+        return None
+    return {
+        "subset": int(section["subset"]),
+        "inducing": int(section["inducing"]),
+        "exact_rows": int(section["exact_rows"]),
+    }
 
 
 def _tracker_noise_settings(section: Mapping) -> dict | None:
