@@ -20,11 +20,11 @@ from remaster.loop.settings import settings_from
 from remaster.robot import registration
 from remaster.robot.priors import priors_from
 
-from .conftest import REPO, loop_settings
+from .conftest import REPO, loop_settings, validated_config
 
 SEED = 20181113
 DRAWS, RANDOM = 400, 300  # fewer than the pipeline's 2000 x 1000: the quantiles are stable to ~1 %
-CONFIG = files.read_yaml(REPO / "config.yaml")
+CONFIG = validated_config(files.read_yaml(REPO / "config.yaml"))  # the schema fills the defaults
 _fitted = {}
 _laplace_content = {}
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from snakemake.utils import validate
 
 from remaster import files
 from remaster.analysis import comparison, compensation, prediction, workspace
@@ -113,6 +114,9 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     truth = files.read_json(root / "truth.json")  # as data/truth holds it: plain lists
     campaign = folders.read_campaign(folder, repo_root=REPO)
     config = files.read_yaml(REPO / "config.yaml")
+    validate(
+        config, str(REPO / "workflow" / "schemas" / "config.schema.yaml")
+    )  # the schema's defaults, as the workflow fills them
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
