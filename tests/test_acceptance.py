@@ -387,3 +387,47 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     assert results[0].verdict == FAIL and results[0].gross_errors_left_out == ()
     assert results[1].verdict == PASS and results[1].gross_errors_left_out == (row,)
     assert results[1].validation_rows == results[0].validation_rows - 1
+
+
+def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path):
+    """A validation set is optional (docs/campaign-format.md): with fewer than 3 measured validation
+    rows the acceptance test is not made, acceptance.json says so, and the certificate's Acceptance
+    column tells the user to measure one; nothing raises."""
+    from remaster.reporting import certificate
+
+    from .test_certificate import SUMMARY, _inputs
+
+    spec = iiwa_scenario("unvalidated", seed=34)
+    chain = chain_of(spec)
+    simulated = scenario.simulate(spec, chain)
+    table = simulated.tables["laser_tracker"]
+    simulated.tables["laser_tracker"] = table[table["set"] == "optimization"].reset_index(drop=True)
+    folder = tmp_path / spec["name"]
+    folders.write_campaign(folder, simulated.metadata, simulated.tables)
+    campaign = folders.read_campaign(folder, repo_root=REPO)
+    config = validated_config(files.read_yaml(REPO / "config.yaml"))
+    registered = fit.registration_stage(campaign, "laser_tracker")
+    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
+    loop = loop_closure.loop_closure_stage(
+        campaign, "laser_tracker", registered, laplace, np.random.default_rng(5), settings
+    )
+    loop.report.write(tmp_path / "loop.json")
+    result = acceptance.acceptance_stage(
+        campaign,
+        "laser_tracker",
+        registered.t_nr,
+        laplace,
+        None,
+        LoopReport.read(tmp_path / "loop.json"),
+        loop.samples,
+        loop.gp,
+        np.random.default_rng(5),
+        config["acceptance"],
+    )
+    assert result.verdict == acceptance.UNTESTED and result.validation_rows == 0 and not result.passed
+    result.write(tmp_path / "acceptance.json")
+    again = Acceptance.read(tmp_path / "acceptance.json")
+    assert again == result
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(_inputs(), acceptance=again)})
+    assert cert.verdicts.iloc[0]["Acceptance"].startswith("not tested: 0 measured validation rows")

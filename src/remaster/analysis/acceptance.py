@@ -57,7 +57,8 @@ from ..units import DEG, MM
 
 MODELS = ("loop", "paper")
 GP = "residual_gp"
-PASS, FAIL = "pass", "fail"
+PASS, FAIL, UNTESTED = "pass", "fail", "not tested"
+MIN_VALIDATION_ROWS = 3  # fewer measured validation rows: no test made, the certificate says so
 MOVED, NOT_HELD, NOT_CONFIRMED = "sensor_moved", "effects_did_not_hold", "not_confirmed"
 DIAGNOSES = {
     MOVED: "the sensor or the robot's base moved between the sets",
@@ -368,7 +369,8 @@ def _diagnosis_text(diagnosis: str | None, checks: Mapping, level: float) -> str
 
 @dataclass(frozen=True)
 class Acceptance:
-    """acceptance.json of one sensor. verdict 'pass' | 'fail' (the loop-closed model's check);
+    """acceptance.json of one sensor. verdict 'pass' | 'fail' (the loop-closed model's check) |
+    'not tested' (fewer than MIN_VALIDATION_ROWS measured validation rows: checks empty);
     diagnosis: None or one of DIAGNOSES, diagnosis_text its sentence with the numbers; recommended:
     'loop' | 'paper', the model whose validation error is the certificate's "after"; move: the
     registration refit's move (mm, deg) when the diagnosis is a moved sensor, else None; checks:
@@ -420,8 +422,8 @@ class Acceptance:
                 continue
             value = get(f.name)
             values[f.name] = tuple(value) if f.name in ("gross_errors_left_out", "warnings") else value
-        if values["verdict"] not in (PASS, FAIL):
-            raise InputError(f"verdict must be {PASS!r} or {FAIL!r}", file=source, key="verdict")
+        if values["verdict"] not in (PASS, FAIL, UNTESTED):
+            raise InputError(f"verdict must be {PASS!r}, {FAIL!r} or {UNTESTED!r}", file=source, key="verdict")
         if values["recommended"] not in MODELS:
             raise InputError(f"recommended must be one of {MODELS}", file=source, key="recommended")
         return cls(**values, source=source)
@@ -460,8 +462,29 @@ def accept(
         harmonic_orders=loop.harmonic_orders,
     )
     data = blocks.readings(chain, sensor, "validation", settings, flagged)
-    if len(data.rows) < 3:
-        raise InputError("fewer than 3 measured validation rows: nothing to accept on", file=label, key="validation")
+    if len(data.rows) < MIN_VALIDATION_ROWS:
+        # a campaign may come without a validation set: the certificate says the calibration is
+        # untested, and every other result stands
+        text = (
+            f"not tested: {len(data.rows)} measured validation rows (at least {MIN_VALIDATION_ROWS} needed); "
+            "measure a validation set to accept this calibration"
+        )
+        return Acceptance(
+            sensor=sensor.name,
+            verdict=UNTESTED,
+            diagnosis=None,
+            diagnosis_text=text,
+            recommended="loop",
+            move=None,
+            checks={},
+            level=float(level),
+            registration_share=float(registration_share),
+            draws=int(draws),
+            validation_rows=int(len(data.rows)),
+            gross_errors_left_out=tuple(flagged),
+            warnings=(f"acceptance test {text}",),
+            campaign=loop.campaign,
+        )
     claims = {
         "loop": loop_claim(chain, data, sensor.marker, t_nr, loop, loop_samples, loop_gp_rows, draws, rng, label),
         "paper": paper_claim(chain, data, sensor.marker, t_nr, laplace, paper_samples, draws, rng, label),

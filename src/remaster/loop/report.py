@@ -170,7 +170,10 @@ class LoopReport:
             if f.name == "gross_errors" and f.name not in content:
                 continue  # written before the screen with the final model: the default says so
             value = get(f.name)
-            values[f.name] = tuple(value) if f.name in sequences else float(value) if f.name in numbers else value
+            if f.name in numbers:  # NaN is written as null (a campaign without a validation set)
+                values[f.name] = float(value) if value is not None else float("nan")
+            else:
+                values[f.name] = tuple(value) if f.name in sequences else value
         return cls(**values, source=source)
 
     @classmethod

@@ -46,6 +46,17 @@ def accuracy(measured, predicted, poses) -> dict:
     (n, 3), both in the sensor frame; poses (n,) group the relative measure's pairs
     (`remaster.inference.metrics`)."""
     error = np.asarray(measured) - np.asarray(predicted)
+    if not len(error):  # a set without measured rows (a campaign without a validation set): nothing to say
+        nan = float("nan")
+        return {
+            "points": 0,
+            "rmse_mm": nan,
+            "rms_per_axis_mm": nan,
+            "mean_error_mm": nan,
+            "error_q97.5_mm": nan,
+            "relative_pairs": 0,
+            "relative_mean_mm": None,
+        }
     norms = metrics.post_registration_errors(measured, predicted)
     relative = metrics.interval_summary(metrics.relative_errors(measured, predicted, poses))
     return {

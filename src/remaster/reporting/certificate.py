@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..analysis.acceptance import DIAGNOSES, Acceptance
+from ..analysis.acceptance import DIAGNOSES, UNTESTED, Acceptance
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
@@ -236,6 +236,8 @@ def acceptance_text(acceptance: Acceptance | None) -> str:
     NOT_TESTED."""
     if acceptance is None:
         return NOT_TESTED
+    if acceptance.verdict == UNTESTED:
+        return acceptance.diagnosis_text  # 'not tested: n measured validation rows ...'
     if acceptance.passed:
         return "pass"
     return f"fail: {DIAGNOSES.get(acceptance.diagnosis, acceptance.diagnosis or 'no diagnosis')}"
