@@ -336,6 +336,10 @@ def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiw
         for when in ("before", "after"):
             rmse = np.sqrt(np.mean(np.sum(result.residuals[when][set_name] ** 2, axis=1))) / 1e-3
             assert f"{when}: RMSE {rmse:.3g} mm" in labels
+    # a campaign without a validation set: that panel says so, the figure is still drawn
+    optimization_only = {when: {"optimization": r["optimization"]} for when, r in result.residuals.items()}
+    alone = figures_loop.residual_histograms(optimization_only, "before/after")
+    assert "no validation rows" in [t.get_text() for t in alone.axes[1].texts]
 
 
 def test_the_twin_is_explained_by_its_four_undeclared_effects(iiwa):

@@ -53,7 +53,8 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
     the effects added), on a logarithmic axis: the two may differ by orders of magnitude.
     residuals: {'before'|'after': {set: (n, 3) m}}."""
     fig, axes = plt.subplots(1, len(SETS), figsize=(4.2 * len(SETS), 3.0), squeeze=False)
-    norms = {when: {s: np.linalg.norm(residuals[when][s], axis=1) / MM for s in SETS} for when in residuals}
+    none = np.empty((0, 3))  # a set without rows (a campaign without a validation set)
+    norms = {when: {s: np.linalg.norm(residuals[when].get(s, none), axis=1) / MM for s in SETS} for when in residuals}
     every = np.concatenate([v for per_set in norms.values() for v in per_set.values()])
     positive = every[every > 0]
     low, high = (positive.min(), positive.max()) if positive.size else (1e-3, 1.0)
@@ -61,6 +62,9 @@ def residual_histograms(residuals: Mapping[str, Mapping[str, np.ndarray]], title
     for ax, set_name in zip(axes[0], SETS):
         for when, color in (("before", "tab:red"), ("after", "tab:blue")):
             values = norms[when][set_name]
+            if not values.size:
+                ax.text(0.5, 0.5, f"no {set_name} rows", transform=ax.transAxes, ha="center", fontsize=8)
+                continue
             ax.hist(
                 values, bins=bins, color=color, alpha=0.6, label=f"{when}: RMSE {np.sqrt(np.mean(values**2)):.3g} mm"
             )
