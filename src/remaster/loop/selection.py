@@ -219,6 +219,7 @@ def select(
     base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
+    brought: dict[str, tuple[str, ...]] = {}  # each added block: the blocks its round brought in
     rounds, signatures = [], {}
     path = [(BASE_STEP, base)]  # every model the closure test is taken after
     while remaining:
@@ -259,12 +260,13 @@ def select(
             break
         current = fits[best]
         path.append((best, current))
-        for block in with_companions(best, added, remaining):
+        brought[best] = with_companions(best, added, remaining)
+        for block in brought[best]:
             added.append(block)
             remaining.remove(block)
     forward_end = rounds[-1] if rounds else None
     current, added, backward, removed = backward_pass(
-        chain, data, marker, t_nr, base_held, folds, settings, current, added, len(rounds)
+        chain, data, marker, t_nr, base_held, folds, settings, current, added, len(rounds), brought
     )
     rounds += backward
     path += removed
@@ -302,12 +304,16 @@ def backward_pass(
     current: Fitted,
     added: Sequence[str],
     number: int,
+    brought: Mapping[str, Sequence[str]] | None = None,
 ) -> tuple[Fitted, list[str], list[dict], list[tuple[str, Fitted]]]:
     """After the forward pass: each added block is tried out of the model (the rest present) and
     scored as if it were offered to the model without it, by the forward rule (`passes`); of those
     that would not pass, the one of least evidence gain is removed, the model refitted without it,
     and the pass repeated until every block left passes. A block another added block needs as its
-    companion (`COMPANIONS`) is not tried alone. number: the rounds so far.
+    companion (`COMPANIONS`) is not tried alone, and a block is tried out together with the
+    companions it brought into the model (brought: {block: the blocks its forward round added}),
+    so that it is scored as the forward pass offered it: the link geometry without its marker
+    offset explains no rigid error of the tool. number: the rounds so far.
 
     Returns the final fit, the blocks left (in the order added), the backward rounds (JSON-ready,
     'pass': 'backward', 'removed': the block or None; empty when nothing was added) and the
@@ -321,8 +327,15 @@ def backward_pass(
         number += 1
         prediction = current.model.predict(current.theta)
         scores, fits = {}, {}
+        groups = {}
         for block in removable:
-            rest = tuple(b for b in added if b != block)
+            # the companions it brought go with it, unless another block left needs them
+            others = {c for b in added if b != block for c in COMPANIONS.get(b, ())}
+            groups[block] = [block] + [
+                c for c in (brought or {}).get(block, ()) if c != block and c in added and c not in others
+            ]
+        for block in removable:
+            rest = tuple(b for b in added if b not in groups[block])
             try:
                 without = fit_blocks(
                     chain, data, marker, t_nr, rest, base_held, folds, settings.priors, current.values()
@@ -343,13 +356,15 @@ def backward_pass(
                 "scores": scores,
                 "added": None,
                 "removed": weakest,
+                **({"removed_with": groups[weakest][1:]} if weakest and len(groups[weakest]) > 1 else {}),
             }
         )
         if weakest is None:
             return current, added, rounds, removals
         current = fits[weakest]
-        added.remove(weakest)
-        removals.append((f"without {weakest}", current))
+        for block in groups[weakest]:
+            added.remove(block)
+        removals.append((f"without {' + '.join(groups[weakest])}", current))
 
 
 @dataclass(frozen=True, eq=False)
