@@ -34,6 +34,23 @@ def chain_of(spec: dict) -> KinematicChain:
     return load_chain(spec["robot"], REPO, REPO, source=spec["name"], name=spec["name"])
 
 
+def simulated_sensor(spec: dict, name: str):
+    """(chain, SensorData) of one sensor of scenario `spec` simulated in memory (no campaign folder):
+    what an in-process loop closure takes."""
+    import numpy as np
+
+    from remaster.campaigns import scenario
+    from remaster.campaigns.campaign import sensor_data
+
+    chain = chain_of(spec)
+    simulated = scenario.simulate(spec, chain)
+    meta = simulated.metadata["sensors"][name]
+    table = simulated.tables[name]
+    return chain, sensor_data(
+        name, {**meta, "marker": np.array(meta["marker"])}, table, chain.n_joints, "simulated.parquet"
+    )
+
+
 def iiwa_scenario(
     name: str, *, seed: int = 1, truth: dict | None = None, plan: dict | None = None, sensors: dict | None = None
 ) -> dict:

@@ -95,24 +95,12 @@ def test_the_backward_pass_tries_a_block_out_with_the_companions_it_brought():
     companion the link geometry explains no rigid error of the tool and would be removed (it was, and
     the marker offset after it: validation stayed at the paper model's 0.29 mm). Tried out together,
     both stay and validation is at the tracker's noise (10 um)."""
-    from remaster.campaigns import scenario
-    from remaster.campaigns.campaign import sensor_data
-
-    from .arm_kinds import chain_of, iiwa_rigid_link_errors
+    from .arm_kinds import iiwa_rigid_link_errors, simulated_sensor
 
     spec = iiwa_rigid_link_errors()
-    chain = chain_of(spec)
-    simulated = scenario.simulate(spec, chain)
-    meta = simulated.metadata["sensors"]["laser_tracker"]
-    sensor = sensor_data(
-        "laser_tracker",
-        {**meta, "marker": np.array(meta["marker"])},
-        simulated.tables["laser_tracker"],
-        chain.n_joints,
-        "simulated.parquet",
-    )
+    chain, sensor = simulated_sensor(spec, "laser_tracker")
     report = closed(chain, sensor, loop_settings(mcmc=None)).report
     assert {"link_geometry", "marker_offset"} <= set(report.effects_added)
     backward = [r for r in report.rounds if r.get("pass") == "backward"]
     assert backward and all(r["removed"] != "link_geometry" for r in backward)
-    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * meta["noise"]
+    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * sensor.noise

@@ -12,14 +12,12 @@ import numpy as np
 import pytest
 
 from remaster import spatial
-from remaster.campaigns import scenario
-from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, frame_distortion, looking_at, measure, sensor_side
 from remaster.inference import blocks
 from remaster.loop import sides
 from remaster.robot.gravity import gravity_torques
 
-from .arm_kinds import chain_of, iiwa_scenario
+from .arm_kinds import iiwa_scenario, simulated_sensor
 from .conftest import loop_report, loop_settings
 from .test_compensation import synthetic_robot
 
@@ -118,16 +116,7 @@ def test_an_anisotropic_motion_capture_distortion_is_attributed_to_the_sensor():
         plan={"reference_sensor": "motion_capture", "sets": sets},
         sensors={"motion_capture": {**MOCAP, "frame_distortion": DISTORTION}},
     )
-    chain = chain_of(spec)
-    simulated = scenario.simulate(spec, chain)
-    meta = simulated.metadata["sensors"]["motion_capture"]
-    sensor = sensor_data(
-        "motion_capture",
-        {**meta, "marker": np.array(meta["marker"])},
-        simulated.tables["motion_capture"],
-        chain.n_joints,
-        "simulated.parquet",
-    )
+    chain, sensor = simulated_sensor(spec, "motion_capture")
     from .test_loop_closure import closed
 
     report = closed(chain, sensor, loop_settings(mcmc=None)).report
