@@ -47,6 +47,7 @@ from .residual_gp import (
     STILL,
     Hyperparameters,
     ResidualGP,
+    _negative_log_ml,
     evenly_spaced,
     kernel,
 )
@@ -100,43 +101,15 @@ def iid_log_evidence(residuals) -> float:
     return log_likelihood + 0.5 * LOG_2PI - 0.5 * math.log(2.0 * k)
 
 
-def _negative_log_posterior(x, cos_q, sin_q, y, prior_mean, prior_std) -> tuple[float, np.ndarray]:
+def _negative_log_posterior(x, distances, y, prior_mean, prior_std) -> tuple[float, np.ndarray]:
     """-(log p(y | x) + log prior(x)) and its gradient in x = (log l_j..., log s, log noise), y (n, 3)
-    in units of rms(r), cos_q, sin_q (n, J) of the turned joints; the noise has no prior term
-    (flat in log noise). The per-joint 1 - cos differences are formed one joint at a time, so the
-    memory is a few n x n arrays whatever the joints."""
-    import scipy.linalg
-
-    n, n_len = cos_q.shape
-    weights = np.exp(-2.0 * x[:n_len])
-    signal2, noise2 = math.exp(2.0 * x[n_len]), math.exp(2.0 * x[n_len + 1])
-
-    def distance(j):
-        return 1.0 - np.outer(cos_q[:, j], cos_q[:, j]) - np.outer(sin_q[:, j], sin_q[:, j])
-
-    exponent = np.zeros((n, n))
-    for j in range(n_len):
-        exponent += weights[j] * distance(j)
-    signal = signal2 * np.exp(-np.maximum(exponent, 0.0))
-    cov = signal.copy()
-    cov[np.diag_indices(n)] += noise2
-    try:
-        factor = scipy.linalg.cho_factor(cov, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        return 1e25, np.zeros_like(x)
-    alpha = scipy.linalg.cho_solve(factor, y, check_finite=False)
-    outputs = y.shape[1]
-    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
-    value = 0.5 * (float(np.sum(y * alpha)) + outputs * log_det + n * outputs * LOG_2PI)
-    w = alpha @ alpha.T - outputs * scipy.linalg.cho_solve(factor, np.eye(n), check_finite=False)
-    g = w * signal  # d log p / d x_i = 1/2 tr(W dK / dx_i)
-    gradient = np.empty_like(x)
-    for j in range(n_len):
-        gradient[j] = -weights[j] * float(np.sum(distance(j) * g))
-    gradient[n_len] = -float(np.sum(g))
-    gradient[n_len + 1] = -noise2 * float(np.trace(w))
+    in units of rms(r), distances (J, n, n) the turned joints' 1 - cos differences: the exact GP's
+    likelihood is the one the hyperparameter fit maximizes (`residual_gp._negative_log_ml`); the
+    noise has no prior term (flat in log noise)."""
+    value, gradient = _negative_log_ml(x, distances, y)
     z = (x[:-1] - prior_mean) / prior_std
     value += float(np.sum(0.5 * z**2 + np.log(prior_std) + 0.5 * LOG_2PI))
+    gradient = np.array(gradient, dtype=float)
     gradient[:-1] += z / prior_std
     return value, gradient
 
@@ -195,7 +168,7 @@ def log_evidence_gain(
     prior_std = np.full(n_len + 1, LOG_PRIOR_STD)
     rows = evenly_spaced(n, mode_rows)
     q_e, y_e = q[rows][:, turned], y[rows] / unit
-    cos_q, sin_q = np.cos(q_e), np.sin(q_e)
+    distances = np.ascontiguousarray(np.moveaxis(1.0 - np.cos(q_e[:, None, :] - q_e[None, :, :]), -1, 0))
     lengths = np.where(np.isfinite(hyper.lengthscales), hyper.lengthscales, LENGTH_BOUNDS[1])[turned]
     x0 = np.concatenate(
         [
@@ -205,7 +178,7 @@ def log_evidence_gain(
         ]
     )
     bounds = [tuple(np.log(LENGTH_BOUNDS))] * n_len + [tuple(np.log(SIGNAL_BOUNDS)), tuple(np.log(NOISE_BOUNDS))]
-    args = (cos_q, sin_q, y_e, prior_mean, prior_std)
+    args = (distances, y_e, prior_mean, prior_std)
     best = scipy.optimize.minimize(_negative_log_posterior, x0, args=args, jac=True, method="L-BFGS-B", bounds=bounds)
     x = best.x
     lower, upper = np.array(bounds).T
