@@ -16,7 +16,7 @@ The formats, and how their joints are written:
 - krl: a KUKA .src `DEF <name>()` ... `END`, axis speed and acceleration in % of each axis's
   maximum ($VEL_AXIS, $ACC_AXIS), `PTP {A1 .., ..., A6 ..}` then `WAIT SEC <s>`; joints in deg,
   `DEG_DECIMALS` decimals. A 7-axis arm's redundant joint (the third from the base, as on KUKA's
-  LBR 4+ under a KR C controller) is the external axis E1: q1, q2 -> A1, A2; q3 -> E1; q4..q7 ->
+  LBR 4+, the LWR IV+, under a KR C controller) is the external axis E1: q1, q2 -> A1, A2; q3 -> E1; q4..q7 ->
   A3..A6. No .dat is needed: the module declares nothing.
 - rapid: `MODULE <name>` ... `PROC main()` ... `ENDPROC` ... `ENDMODULE`, `VelSet`/`AccSet` in %,
   `MoveAbsJ [[j1..j6],[eax_a..eax_f]]\\NoEOffs, v1000, fine, tool0;` then `WaitTime \\InPos, <s>;`;
