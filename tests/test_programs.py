@@ -20,7 +20,7 @@ from .conftest import IIWA_URDF, UR5_URDF
 
 FRAMES = {"iiwa": (IIWA_URDF, "iiwa_link_0", "iiwa_link_ee"), "ur5": (UR5_URDF, None, None)}
 HALF_UNIT = {"urscript": 0.5e-6, "krl": np.radians(0.5e-4), "rapid": np.radians(0.5e-4)}  # rad
-SETTINGS = programs.Settings(speed=0.5, acceleration=0.5, dwell=2.0)
+SETTINGS = {fmt: programs.Settings(*programs.DEFAULT_MOTION[fmt], dwell=2.0) for fmt in programs.FORMATS}
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def test_each_format_reads_back_to_the_joint_values_and_order(fmt, robot, ur5, i
     q = random_within_limits(chain, 40, rng)
     given = programs.configurations(table_of(q), chain, "plan.csv", "robot.urdf")
     ordered = given.take(rng.permutation(len(q)))
-    text = programs.program_text(ordered, fmt, SETTINGS)
+    text = programs.program_text(ordered, fmt, SETTINGS[fmt])
     parsed = programs.parse_program(text, fmt, "prog")
     assert parsed.points.tolist() == list(range(1, 41))
     assert np.array_equal(parsed.plan_rows, ordered.rows)
@@ -70,7 +70,7 @@ def test_each_format_reads_back_to_the_joint_values_and_order(fmt, robot, ur5, i
 
 def test_a_known_configuration_is_printed_as_known_strings(ur5, iiwa):
     six = programs.configurations(table_of([0.0, np.pi / 2, -np.pi / 4, np.pi, 1.0, -0.5]), ur5, "p.csv", "u")
-    ur = programs.program_text(six, "urscript", SETTINGS).splitlines()
+    ur = programs.program_text(six, "urscript", SETTINGS["urscript"]).splitlines()
     assert "  movej([0.000000, 1.570796, -0.785398, 3.141593, 1.000000, -0.500000], a=0.5, v=0.5)" in ur
     assert "  sleep(2)" in ur and "def remaster_campaign():" in ur and ur[-1] == "end"
     assert ur.index("def remaster_campaign():") < ur.index("  # point 1: plan row 0 (optimization pose 0 solution 0)")
@@ -80,32 +80,34 @@ def test_a_known_configuration_is_printed_as_known_strings(ur5, iiwa):
     assert "  $VEL_AXIS[6] = 20" in krl and "  $ACC_AXIS[1] = 30" in krl and not any("EXTAX" in s for s in krl)
     # a 7-axis arm: the third joint is the external axis E1 / eax_a
     seven = programs.configurations(table_of(np.radians([10, 20, 30, 40, 50, 60, -70])), iiwa, "p.csv", "i")
-    krl7 = programs.program_text(seven, "krl", SETTINGS).splitlines()
+    krl7 = programs.program_text(seven, "krl", SETTINGS["krl"]).splitlines()
     assert "  PTP {A1 10.0000, A2 20.0000, A3 40.0000, A4 50.0000, A5 60.0000, A6 -70.0000, E1 30.0000}" in krl7
-    assert "  $VEL_EXTAX[1] = 0.5" in krl7
-    rapid = programs.program_text(seven, "rapid", SETTINGS).splitlines()
+    assert "  $VEL_EXTAX[1] = 20" in krl7
+    rapid = programs.program_text(seven, "rapid", SETTINGS["rapid"]).splitlines()
     assert (
         "    MoveAbsJ [[10.0000, 20.0000, 40.0000, 50.0000, 60.0000, -70.0000], [30.0000, 9E9, 9E9, 9E9, 9E9, 9E9]]"
         "\\NoEOffs, v1000, fine, tool0;"
     ) in rapid
     assert "    WaitTime \\InPos, 2;" in rapid and rapid[0] == "MODULE remaster_campaign" and rapid[-1] == "ENDMODULE"
-    rapid6 = programs.program_text(six, "rapid", SETTINGS)
+    rapid6 = programs.program_text(six, "rapid", SETTINGS["rapid"])
     assert "[[0.0000, 90.0000, -45.0000, 180.0000, 57.2958, -28.6479], [9E9, 9E9, 9E9, 9E9, 9E9, 9E9]]" in rapid6
     # a tiny negative angle prints as 0, not -0
     assert "A1 0.0000" in programs.program_text(
-        programs.configurations(table_of([-1e-9, 0, 0, 0, 0, 0]), ur5, "p.csv", "u"), "krl", SETTINGS
+        programs.configurations(table_of([-1e-9, 0, 0, 0, 0, 0]), ur5, "p.csv", "u"), "krl", SETTINGS["krl"]
     )
 
 
 def test_formats_and_settings_the_robot_cannot_take_are_refused(ur5, iiwa):
     seven = programs.configurations(table_of(np.zeros(7)), iiwa, "p.csv", "i")
     with pytest.raises(InputError, match="urscript programs are written for 6 joints, the robot has 7"):
-        programs.program_text(seven, "urscript", SETTINGS)
+        programs.program_text(seven, "urscript", SETTINGS["urscript"])
     six = programs.configurations(table_of(np.zeros(6)), ur5, "p.csv", "u")
     with pytest.raises(InputError, match="speed: is a percentage for krl: at most 100, got 150"):
         programs.program_text(six, "krl", programs.Settings(150, 20, 2))
     with pytest.raises(InputError, match="dwell: must be a positive number, got -1"):
         programs.program_text(six, "rapid", programs.Settings(20, 20, -1))
+    with pytest.raises(InputError, match="acceleration: RAPID's AccSet takes at least 20 %"):
+        programs.program_text(six, "rapid", programs.Settings(20, 10, 2))
     with pytest.raises(InputError, match="'2nd_cell' is not a KRL name"):
         programs.program_text(six, "krl", programs.Settings(20, 20, 2, "2nd_cell"))
 
@@ -177,7 +179,10 @@ def test_two_opt_leaves_no_improving_reversal(rng):
         ),
         (lambda t: t.assign(q1_deg=[0.0, 0.0, 5.0, 0.0]), r"plan.csv: q1_deg: disagrees with q1 \(rad\).*\(row 2\)"),
         (lambda t: t.assign(set=["optimization", "test", "validation", "x"]), r"plan.csv: set: unknown set.*rows 1, 3"),
-        (lambda t: t.assign(pose=[0, 0, 1, 2]), r"set, pose, solution: repeated.*\(rows 0, 1\)"),
+        (
+            lambda t: t.assign(pose=[0, 0, 1, 2]),
+            r"plan.csv: set, pose, solution: repeated: each \(set, pose, solution\) may appear once \(rows 0, 1\)",
+        ),
         (lambda t: t.assign(pose=[0, 1.5, 2, 3]), r"plan.csv: pose: not a non-negative integer \(row 1\)"),
         (lambda t: t.iloc[:0], r"plan.csv: no configurations \(no rows\)"),
     ],
@@ -296,4 +301,12 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
     assert "not a KRL name" in capsys.readouterr().err
     assert cli.main(program_args("iiwa", tmp_path / "missing.csv", "rapid", tmp_path / "p.mod")) == 2
     assert "missing.csv: file not found" in capsys.readouterr().err
+    # a program or table that would overwrite the configurations (plan.csv -> plan.src, plan.csv)
+    assert cli.main(program_args("iiwa", tmp_path / "good.csv", "krl", tmp_path / "good.src")) == 2
+    assert "--table: would overwrite the configurations" in capsys.readouterr().err
+    assert (
+        cli.main(program_args("iiwa", tmp_path / "good.csv", "rapid", tmp_path / "good.csv", "--table", "t.csv")) == 2
+    )
+    assert "--out: would overwrite the configurations" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv"]
+    assert pd.read_csv(tmp_path / "good.csv").shape == table.shape

@@ -96,6 +96,11 @@ def _program(args: argparse.Namespace) -> None:
     table_path = Path(args.table) if args.table else out.with_suffix(".csv")
     if table_path.resolve() == out.resolve():
         raise InputError("the program and its configurations table would be the same file: give --table", key="--out")
+    for option, path in (("--out", out), ("--table", table_path)):
+        if path.resolve() == Path(args.configurations).resolve():
+            raise InputError(
+                f"would overwrite the configurations {args.configurations}: give another {option}", key=option
+            )
     speed, acceleration = programs.DEFAULT_MOTION[args.format]
     settings = programs.Settings(
         speed=speed if args.speed is None else args.speed,

@@ -50,6 +50,7 @@ RAD_DECIMALS = 6  # URScript joints in rad: 5e-7 rad rounding, 0.5 um at 1 m
 DEG_DECIMALS = 4  # KRL and RAPID joints in deg (single-precision REAL / num): 5e-5 deg, 0.9 um at 1 m
 EXTERNAL_JOINT = 2  # 0-based joint of a 7-axis arm written as the external axis (E1, eax_a)
 RAPID_UNUSED = "9E9"
+RAPID_MIN_ACCELERATION = 20.0  # %: AccSet treats anything lower as 20 % (RAPID reference, AccSet)
 ANGLE_TOLERANCE = 1e-9  # rad: a configuration this close to a joint limit is within it
 
 
@@ -166,7 +167,7 @@ def configurations(table: pd.DataFrame, chain: KinematicChain, source: str, urdf
     repeated = np.flatnonzero(pd.DataFrame({"s": sets, "p": pose, "k": solution}).duplicated(keep=False).to_numpy())
     if repeated.size:
         raise InputError(
-            "repeated (set, pose, solution): each may appear once",
+            "repeated: each (set, pose, solution) may appear once",
             file=source,
             key="set, pose, solution",
             rows=repeated,
@@ -201,6 +202,12 @@ def _check_settings(fmt: str, settings: Settings) -> None:
             raise InputError(f"must be a positive number, got {value!r}", key=key)
         if key != "dwell" and fmt != "urscript" and value > 100:
             raise InputError(f"is a percentage for {fmt}: at most 100, got {value!r}", key=key)
+    if fmt == "rapid" and settings.acceleration < RAPID_MIN_ACCELERATION:
+        raise InputError(
+            f"RAPID's AccSet takes at least {RAPID_MIN_ACCELERATION:g} % (less acts as {RAPID_MIN_ACCELERATION:g} %), "
+            f"got {settings.acceleration:g}",
+            key="acceleration",
+        )
     if fmt == "krl" and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", settings.name):
         raise InputError(
             f"a KRL program's DEF is named as its file: {settings.name!r} is not a KRL name "
