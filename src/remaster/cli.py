@@ -88,6 +88,16 @@ def _plan(args: argparse.Namespace) -> None:
     )
 
 
+def _import(args: argparse.Namespace) -> None:
+    folder, report = import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
+    total = report["controller"]["rows"]
+    rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
+    print(
+        f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
+        f"{folder / importer.REPORT_FILE}"
+    )
+
+
 def _program(args: argparse.Namespace) -> None:
     robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
     chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
@@ -128,16 +138,6 @@ def _program(args: argparse.Namespace) -> None:
         f"{np.degrees(tour.largest):.1f} deg; as given {np.degrees(as_given.total):.1f} and "
         f"{np.degrees(as_given.largest):.1f} deg. {table_path}: the same configurations for `remaster import` "
         "(key column point, joints q1..qN in rad). Check the program on the robot's simulator before running it."
-    )
-
-
-def _import(args: argparse.Namespace) -> None:
-    folder, report = import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
-    total = report["controller"]["rows"]
-    rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
-    print(
-        f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
-        f"{folder / importer.REPORT_FILE}"
     )
 
 
@@ -310,6 +310,18 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument("--out", default="plan.csv")
     plan.set_defaults(run=_plan)
 
+    imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
+    imp.add_argument(
+        "--config",
+        required=True,
+        metavar="IMPORT.yaml",
+        help="campaign metadata, the controller log and sensor files with their columns, units and "
+        "matching (format: remaster.campaigns.importer)",
+    )
+    imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
+    imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
+    imp.set_defaults(run=_import)
+
     program = commands.add_parser(
         "program", help="a robot program (URScript, KRL, RAPID) that visits planned configurations"
     )
@@ -356,18 +368,6 @@ def parser() -> argparse.ArgumentParser:
         help="read the program back and compare it with the configurations before writing",
     )
     program.set_defaults(run=_program)
-
-    imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
-    imp.add_argument(
-        "--config",
-        required=True,
-        metavar="IMPORT.yaml",
-        help="campaign metadata, the controller log and sensor files with their columns, units and "
-        "matching (format: remaster.campaigns.importer)",
-    )
-    imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
-    imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
-    imp.set_defaults(run=_import)
 
     predict = commands.add_parser("predict", help="where the calibrated robot puts the marker or TCP at joint commands")
     _calibration_arguments(predict)
