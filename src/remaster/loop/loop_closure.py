@@ -222,7 +222,13 @@ def close_loop(
         for r in selection.rounds
         if r["added"] and r["added"] in selection.added
     }
-    closed = closure_report(selection, data["optimization"], sensor.noise, settings.closure_ratio)
+    closed = closure_report(
+        selection,
+        data["optimization"],
+        sensor.noise,
+        settings.closure_ratio,
+        closure.point_std_rms(sensor.point_std(data["optimization"].rows)),
+    )
     gp_section = gp_report(selection, cv_threshold(settings))
     # how far the zero-offsets move with the poses measured (the certificate's between-design component)
     between = {
@@ -375,12 +381,20 @@ def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gros
     return out
 
 
-def closure_report(selection: Selection, data: Readings, stated_noise: float | None, ratio: float) -> dict:
+def closure_report(
+    selection: Selection,
+    data: Readings,
+    stated_noise: float | None,
+    ratio: float,
+    measured_noise: float | None = None,
+) -> dict:
     """The closure test after every round (`remaster.loop.closure`) on the optimization readings: the
-    noise floor, each round's cross-validated RMS per axis and verdict, each added step's share of
-    the structured residual, the final verdict, and the warnings it calls for."""
+    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
+    each round's cross-validated RMS per axis and verdict, each added step's share of the structured
+    residual, the final verdict, the chosen noise model's std against the floor, and the warnings
+    they call for."""
     repeats, repeated = closure.repeatability(data.q, data.measured)
-    floor = closure.noise_floor(stated_noise, repeats)
+    floor = closure.noise_floor(stated_noise, repeats, measured_noise)
     steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0))]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
@@ -411,8 +425,22 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
                 else ""
             )
         )
+    noise_model_rms = None
+    chosen = selection.noise or {}
+    if chosen.get("chosen") == "range_transverse":
+        noise_model_rms = closure.range_transverse_rms(
+            chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
+        )
+        if floor is not None and noise_model_rms > ratio * floor:
+            warnings.append(
+                f"the chosen range/transverse noise model's std per axis ({noise_model_rms / MM:.3g} mm) is "
+                f"{noise_model_rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
+                "error the model lacks; the closure is tested against the floor"
+            )
     return {
         "stated_noise_mm": None if stated_noise is None else stated_noise / MM,
+        "measured_point_std_mm": None if measured_noise is None else measured_noise / MM,
+        "noise_model_rms_per_axis_mm": None if noise_model_rms is None else noise_model_rms / MM,
         "repeatability_mm": None if repeats is None else repeats / MM,
         "repeated_configurations": repeated,
         "noise_floor_mm": None if floor is None else floor / MM,

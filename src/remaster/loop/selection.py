@@ -475,8 +475,8 @@ def choose_noise(
                 unit_shapes[log_growth] = _noise_shapes(current.model, current.model.with_noise(growth))
             shapes = unit_shapes[log_growth]
             found = scipy.optimize.minimize_scalar(
-                lambda log_sigma: -gp_joint.noise_shape_log_evidence(
-                    current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes
+                lambda log_sigma: (
+                    -gp_joint.noise_shape_log_evidence(current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes)
                 ),
                 bounds=(math.log(hyper.noise_std) - 3.0, math.log(hyper.noise_std) + 3.0),
                 method="bounded",
