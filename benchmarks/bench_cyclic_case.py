@@ -37,18 +37,10 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.arm_kinds import TRACKER, chain_of, iiwa_scenario  # noqa: E402
+from tests.arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario  # noqa: E402
 from tests.test_joint_harmonics import cyclic_truth  # noqa: E402
 from tests.truth_claims import check  # noqa: E402
 
-# the twin's motion capture (data/simulation/kuka-twin.yaml) without its marker error
-MOTION_CAPTURE = {
-    "kind": "motion_capture",
-    "marker": [0.100, 0.0, 0.020],
-    "noise": 3.0e-5,
-    "position": [1.6, 0.3, 1.6],
-    "look_at": [0.0, 0.0, 0.6],
-}
 SENSORS = ("laser_tracker", "motion_capture")
 # optimization set (configurations, poses): ~4.75 configurations per pose, 152 / 32 the size;
 # 20 over 5, not 4: the loop closure's cross-validation needs as many poses as folds (cv_folds: 5)
