@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from tests.arm_kinds import chain_of  # noqa: E402
-from tests.test_joint_harmonics import ISSUE_SETS, issue_scenario  # noqa: E402
+from tests.test_joint_harmonics import ISSUE_SETS, issue_scenario, true_f  # noqa: E402
 from tests.truth_claims import check  # noqa: E402
 
 SENSORS = ("laser_tracker", "motion_capture")
@@ -81,6 +81,33 @@ def last_scores(report, candidate: str) -> dict | None:
 def gaps_deg(q: np.ndarray, measured: np.ndarray) -> np.ndarray:
     """(n, N) deg: each configuration's distance, per joint, to the nearest measured angle of that joint."""
     return np.degrees(np.abs(q[:, None, :] - measured[None, :, :]).min(axis=1))
+
+
+def joint_error_z(result, spec: dict, joint: int, grid: int = 61) -> dict | None:
+    """How far the posterior of joint `joint`'s whole angle error, zero-offset + f_j(q), lies from the
+    truth's across the joint's measured interval, in posterior standard deviations (MCMC samples):
+    the largest |z| at angles within GAP_DEG of a measured angle and in the gaps between them, and
+    the share of the interval in gaps. None without samples or when the block was not added."""
+    samples, orders = result.samples, result.report.harmonic_orders
+    columns = [f"joint_harmonics.q{joint}.{f}{k}" for k in range(1, orders + 1) for f in ("cos", "sin")]
+    if samples is None or not len(samples) or any(c not in samples for c in columns):
+        return None
+    measured = result.measured_q[:, joint - 1]
+    q = np.linspace(measured.min(), measured.max(), grid)
+    offset = samples[f"zero_offsets.q{joint}"].to_numpy(float)[:, None]
+    draws = offset + sum(
+        samples[f"joint_harmonics.q{joint}.cos{k}"].to_numpy(float)[:, None] * np.cos(k * q)
+        + samples[f"joint_harmonics.q{joint}.sin{k}"].to_numpy(float)[:, None] * np.sin(k * q)
+        for k in range(1, orders + 1)
+    )
+    truth = np.radians(spec["truth"]["zero_offsets_deg"][joint - 1]) + true_f(joint, q)
+    z = (draws.mean(axis=0) - truth) / draws.std(axis=0)
+    near = np.degrees(np.abs(q[:, None] - measured[None, :]).min(axis=1)) <= GAP_DEG
+    return {
+        "max_abs_z_near_data": float(np.abs(z[near]).max()) if near.any() else None,
+        "max_abs_z_in_gaps": float(np.abs(z[~near]).max()) if (~near).any() else None,
+        "gap_share_of_interval": float(np.mean(~near)),
+    }
 
 
 def run(sensor: str, seed: int, configurations: int, poses: int) -> dict:
@@ -142,6 +169,7 @@ def run(sensor: str, seed: int, configurations: int, poses: int) -> dict:
             "validation_commands": float(np.median(result.planned_bound_mm)),
         },
         "measured_q4_min_abs_deg": float(np.degrees(np.abs(result.measured_q[:, 3]).min())),
+        "joint_error_z": {f"q{j}": joint_error_z(result, spec, j) for j in (2, 4)},
         "sensor_side_scores": {c: last_scores(report, c) for c in SENSOR_SIDE},
         "joint_harmonics_scores": last_scores(report, "joint_harmonics"),
         "seconds": time.perf_counter() - started,
@@ -189,10 +217,26 @@ def cells(rows: list[dict]) -> list[dict]:
                     "bound_median_inside_ranges_mm": _median(r["bound_median_mm"]["inside_ranges"] for r in runs),
                     "true_error_p95_inside_ranges_mm": _median(r["true_error_p95_mm"]["inside_ranges"] for r in runs),
                     "joint_harmonics_first_offered": _scores(runs, "joint_harmonics"),
+                    "joint_error_max_abs_z": {
+                        f"q{j}": {
+                            where: _largest((r["joint_error_z"][f"q{j}"] or {}).get(f"max_abs_z_{where}") for r in runs)
+                            for where in ("near_data", "in_gaps")
+                        }
+                        for j in (2, 4)
+                    },
                     **{f"{c}_first_offered": _scores(runs, c) for c in SENSOR_SIDE},
                 }
             )
     return out
+
+
+def _largest(values) -> float | None:
+    values = [v for v in values if v is not None]
+    return max(values) if values else None
+
+
+def _z(value) -> str:
+    return "-" if value is None else f"{value:.1f}"
 
 
 def _median(values) -> float:
@@ -278,6 +322,21 @@ def markdown(summary: list[dict], seeds: list[int]) -> str:
             f"{c['true_error_p95_inside_ranges_mm']:.3f}",
         ]
         lines.append("| " + " | ".join(row) + " |")
+    lines += [
+        "",
+        "Joints 2 and 4's whole angle error (zero-offset + f_j) against the truth's across each joint's "
+        f"measured interval, in posterior standard deviations (MCMC samples): the largest |z| over the seeds "
+        f"at angles within {GAP_DEG:.0f} deg of a measured angle and in the gaps between them.",
+        "",
+        "| Sensor | Configurations | q2 near data | q2 in gaps | q4 near data | q4 in gaps |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in summary:
+        z = c["joint_error_max_abs_z"]
+        lines.append(
+            f"| {c['sensor']} | {c['configurations']} | {_z(z['q2']['near_data'])} | {_z(z['q2']['in_gaps'])} "
+            f"| {_z(z['q4']['near_data'])} | {_z(z['q4']['in_gaps'])} |"
+        )
     lines += ["", "Effects added and joints named, per cell:", ""]
     for c in summary:
         lines.append(

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from snakemake.utils import validate
 
 from remaster import files
@@ -61,7 +62,8 @@ class TruthCheck:
     the loop closure's report as read back from its file; measured_q (m, N): the optimization
     readings the fit used (the measured domain's rows); planned_error_mm, planned_bound_mm, planned_q:
     the same as error_mm and bound_mm at the validation set's commands (the planner's own
-    configurations, drawn like the measured ones, not between them)."""
+    configurations, drawn like the measured ones, not between them); samples: the loop closure's
+    posterior samples (SI)."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -79,6 +81,7 @@ class TruthCheck:
     planned_error_mm: np.ndarray | None = None
     planned_bound_mm: np.ndarray | None = None
     planned_q: np.ndarray | None = None
+    samples: pd.DataFrame | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -220,4 +223,5 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         planned_error,
         at_planned["bound95_mm"].to_numpy(),
         q_planned,
+        result.samples,
     )
