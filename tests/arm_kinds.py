@@ -26,6 +26,14 @@ TRACKER = {
     "position": [1.6, 0.5, 1.0],
     "look_at": [0.0, 0.0, 0.6],
 }
+# the twin's motion capture (data/simulation/kuka-twin.yaml) without its marker error
+MOTION_CAPTURE = {
+    "kind": "motion_capture",
+    "marker": [0.100, 0.0, 0.020],
+    "noise": 3.0e-5,
+    "position": [1.6, 0.3, 1.6],
+    "look_at": [0.0, 0.0, 0.6],
+}
 OPTIMIZATION, VALIDATION = 25, 16  # configurations of the two sets
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from snakemake.utils import validate
 
 from remaster import files
@@ -57,7 +58,12 @@ class TruthCheck:
     random configuration across the joint limits, and bound_mm (n,) its per-command 95 % bound; q
     (n, N) those configurations; moved_fraction (N,): the share of each joint's range the
     optimization set spanned; domain_error_mm, domain_bound_mm, domain_q: the same at random
-    configurations inside the measured joint ranges; claims: {'domain', 'random': Claim}."""
+    configurations inside the measured joint ranges; claims: {'domain', 'random': Claim}; report:
+    the loop closure's report as read back from its file; measured_q (m, N): the optimization
+    readings the fit used (the measured domain's rows); planned_error_mm, planned_bound_mm, planned_q:
+    the same as error_mm and bound_mm at the validation set's commands (the planner's own
+    configurations, drawn like the measured ones, not between them); samples: the loop closure's
+    posterior samples (SI)."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -70,6 +76,12 @@ class TruthCheck:
     domain_bound_mm: np.ndarray
     domain_q: np.ndarray
     claims: dict[str, Claim]
+    report: LoopReport | None = None
+    measured_q: np.ndarray | None = None
+    planned_error_mm: np.ndarray | None = None
+    planned_bound_mm: np.ndarray | None = None
+    planned_q: np.ndarray | None = None
+    samples: pd.DataFrame | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -80,6 +92,11 @@ class TruthCheck:
     def domain_held_fraction(self) -> float:
         """Share of the random configurations inside the measured ranges whose true error is within its bound."""
         return float(np.mean(self.domain_error_mm <= self.domain_bound_mm))
+
+    @property
+    def planned_held_fraction(self) -> float:
+        """Share of the validation set's commands whose true error is within its bound."""
+        return float(np.mean(self.planned_error_mm <= self.planned_bound_mm))
 
     def summary(self) -> dict:
         return {
@@ -181,6 +198,14 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         held_to_truth[where] = Claim(
             float(row["p95_mm"]), float(row["p95_bound_mm"]), float(np.quantile(registered, 0.95) / 1e-3)
         )
+    # at the validation set's commands (drawn after everything above, so that it changes none of it)
+    q_planned = campaign.sensors[sensor].q("validation")
+    at_planned = compensation.predict(robot, q_planned, "sensor", draws, rng)
+    true_planned = true_sensor_positions(campaign.chain, true_robot, device, q_planned, np.zeros(len(q_planned)))
+    planned_error = np.linalg.norm(at_planned[["x", "y", "z"]].to_numpy() - true_planned, axis=1) / 1e-3
+    measured_rows = np.setdiff1d(
+        campaign.sensors[sensor].measured_rows("optimization"), np.asarray(laplace.outlier_rows, dtype=int)
+    )
     return TruthCheck(
         tuple(report.effects_added),
         float(report.after["validation"]["rms_per_axis_mm"]),
@@ -193,4 +218,10 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         at_domain["bound95_mm"].to_numpy(),
         q_domain,
         held_to_truth,
+        report,
+        campaign.sensors[sensor].q()[measured_rows],
+        planned_error,
+        at_planned["bound95_mm"].to_numpy(),
+        q_planned,
+        result.samples,
     )
