@@ -405,3 +405,35 @@ def test_the_selection_does_not_read_the_validation_set(iiwa):
     assert first.refit["mode"] == second.refit["mode"]
     assert second.after["validation"]["rmse_mm"] > 10 * first.after["validation"]["rmse_mm"]
     assert first.after["optimization"] == second.after["optimization"]
+
+
+@pytest.mark.parametrize(("poses", "configurations"), [(4, 20), (3, 15)])
+def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configurations):
+    """A campaign with fewer poses than `cv_folds` (5): the loop cross-validates over one pose per
+    fold and says so, with the larger fall t(K - 1) asks for; the report is written."""
+    from .arm_kinds import chain_of, iiwa_scenario
+
+    spec = iiwa_scenario(
+        "few-poses",
+        seed=5,
+        plan={
+            "sets": {
+                "optimization": {"poses": poses, "configurations": configurations},
+                "validation": {"poses": 2, "configurations": 8},
+            }
+        },
+    )
+    chain = chain_of(spec)
+    out = scenario.simulate(spec, chain)
+    meta = out.metadata["sensors"]["laser_tracker"]
+    sensor = sensor_data(
+        "laser_tracker", {**meta, "marker": np.array(meta["marker"])}, out.tables["laser_tracker"], 7, "sim.parquet"
+    )
+    registration = fit.register(chain, sensor)
+    _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
+    report = loop_closure.close_loop(
+        chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(0), loop_settings(mcmc=None)
+    ).report
+    assert any(w.startswith(f"only {poses} poses") for w in report.warnings)
+    folds = {e["cv_folds"] for entries in report.candidates.values() for e in entries if "cv_folds" in e}
+    assert folds == {poses}

@@ -77,7 +77,7 @@ from .harmonics import harmonics_report
 from .jackknife import zero_offset_jackknife
 from .refit import parameter_table, refit, zero_offset_shifts
 from .report import LoopReport
-from .selection import BASE_STEP, GP, Selection, Signature, accuracy, cv_threshold, select
+from .selection import BASE_STEP, GP, Selection, Signature, accuracy, cv_threshold, fold_warning, select
 from .settings import LoopSettings
 
 MEASURES = (
@@ -236,6 +236,9 @@ def close_loop(
         for name, fitted in (("paper", base), ("loop", final))
     }
     warnings = list(closed["warnings"])
+    few_poses = fold_warning(poses["optimization"], settings)
+    if few_poses:
+        warnings.append(few_poses)
     if closed["closed"] is False and not selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
         warnings.append(

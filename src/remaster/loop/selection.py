@@ -158,6 +158,26 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
     return out
 
 
+def selection_folds(poses, n_folds: int) -> np.ndarray:
+    """(n,) the cross-validation folds of the selection: `n_folds` folds of whole poses, or one pose
+    per fold when the campaign has fewer poses (each score carries its `cv_folds`, and the t(K - 1)
+    threshold is held at that K: a campaign of few poses needs a larger fall). A single pose cannot
+    be registered (`remaster.robot.registration`), so it never reaches the loop."""
+    return evidence.pose_folds(poses, max(2, min(n_folds, len(np.unique(np.asarray(poses))))))
+
+
+def fold_warning(poses, settings: LoopSettings) -> str | None:
+    """The warning a campaign of fewer poses than `cv_folds` gets (`selection_folds`), or None."""
+    n_poses, n_folds = len(np.unique(np.asarray(poses))), settings.cv_folds
+    if n_poses >= n_folds:
+        return None
+    return (
+        f"only {n_poses} poses in the optimization set: the loop closure cross-validates over {n_poses} folds "
+        f"of one pose (not {n_folds}); an effect needs a fall of {cv_threshold(settings, n_poses):.3g} "
+        "standard errors at the same level"
+    )
+
+
 def cv_threshold(settings: LoopSettings, n_folds: int | None = None) -> float:
     """The cross-validated fall (in standard errors over the folds) an effect needs: the one-sided
     level of `cv_standard_errors` normal standard errors, held at Student's t with K - 1 degrees of
@@ -216,7 +236,7 @@ def select(
     """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2) on the optimization readings;
     poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
     sensor is a laser tracker, whose range/transverse noise is then offered."""
-    folds = evidence.pose_folds(poses, settings.cv_folds)
+    folds = selection_folds(poses, settings.cv_folds)
     base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
