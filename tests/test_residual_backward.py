@@ -14,12 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from remaster.campaigns import scenario
-from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, evidence, fit
 from remaster.loop import selection
 
-from .arm_kinds import chain_of, iiwa_scenario
+from .arm_kinds import iiwa_scenario, simulated_sensor
 from .conftest import loop_settings
 
 # joint, cycles per turn, amplitude deg, phase deg: orders the joint_harmonics block (1, 2) does not have
@@ -48,12 +46,7 @@ def case(scale_error: float = 0.0, growth: float = 0.0, extensions=("sensor_scal
     )
     spec["sensors"]["laser_tracker"].update(scale_error=scale_error, transverse_growth_per_m=growth)
     spec["plan"]["sets"]["validation"] = {"poses": 4, "configurations": 16}
-    chain = chain_of(spec)
-    out = scenario.simulate(spec, chain)
-    meta = out.metadata["sensors"]["laser_tracker"]
-    sensor = sensor_data(
-        "laser_tracker", {**meta, "marker": np.array(meta["marker"])}, out.tables["laser_tracker"], 7, "sim.parquet"
-    )
+    chain, sensor = simulated_sensor(spec, "laser_tracker")
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
     settings = loop_settings(mcmc=None)

@@ -331,6 +331,20 @@ def select(
     return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice, time_blocked)
 
 
+def removal_groups(added: Sequence[str], brought: Mapping[str, Sequence[str]] | None) -> dict[str, list[str]]:
+    """{block: the blocks taken out with it} for each added block a backward pass may try out: not
+    one another added block needs as its companion (`COMPANIONS`), and with the companions its
+    forward round brought in (brought: {block: those blocks}) unless another block left needs them."""
+    needed = {c for b in added for c in COMPANIONS.get(b, ()) if c in added}
+    groups = {}
+    for block in (b for b in added if b not in needed):
+        others = {c for b in added if b != block for c in COMPANIONS.get(b, ())}
+        groups[block] = [block] + [
+            c for c in (brought or {}).get(block, ()) if c != block and c in added and c not in others
+        ]
+    return groups
+
+
 def backward_pass(
     chain: KinematicChain,
     data: Readings,
@@ -358,21 +372,13 @@ def backward_pass(
     (step name, fit) of each removal."""
     added, rounds, removals = list(added), [], []
     while True:
-        needed = {c for b in added for c in COMPANIONS.get(b, ()) if c in added}
-        removable = [b for b in added if b not in needed]
-        if not removable:
+        groups = removal_groups(added, brought)
+        if not groups:
             return current, added, rounds, removals
         number += 1
         prediction = current.model.predict(current.theta)
         scores, fits = {}, {}
-        groups = {}
-        for block in removable:
-            # the companions it brought go with it, unless another block left needs them
-            others = {c for b in added if b != block for c in COMPANIONS.get(b, ())}
-            groups[block] = [block] + [
-                c for c in (brought or {}).get(block, ()) if c != block and c in added and c not in others
-            ]
-        for block in removable:
+        for block in groups:
             rest = tuple(b for b in added if b not in groups[block])
             try:
                 without = fit_blocks(
@@ -598,18 +604,13 @@ def residual_backward_pass(
         )
 
     while True:
-        needed = {c for b in added for c in COMPANIONS.get(b, ()) if c in added}
-        removable = [b for b in added if b not in needed]
-        if not removable:
+        groups = removal_groups(added, brought)
+        if not groups:
             return current, added, gp, rounds, removals
         number += 1
         log_z, cv = with_gp(current, gp.gp.hyper) if exact else fixed_mode(current, gp)
         scores, fits = {}, {}
-        for block in removable:
-            others = {c for b in added if b != block for c in COMPANIONS.get(b, ())}
-            group = [block] + [
-                c for c in (brought or {}).get(block, ()) if c != block and c in added and c not in others
-            ]
+        for block, group in groups.items():
             rest = tuple(b for b in added if b not in group)
             try:
                 without = fit_blocks(
