@@ -71,7 +71,7 @@ from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import closure, gross, harmonics
+from . import closure, gross, harmonics, joint_form
 from .frames import residuals_frame, signatures_frame
 from .harmonics import harmonics_report
 from .jackknife import zero_offset_jackknife
@@ -230,6 +230,14 @@ def close_loop(
         closure.point_std_rms(sensor.point_std(data["optimization"].rows)),
     )
     gp_section = gp_report(selection, cv_threshold(settings))
+    if gp_section is not None:  # where what is left lives, in the joints' own terms (a diagnostic)
+        gp_section["joint_error_form"] = (
+            joint_form.joint_error_form(
+                selection, chain, data["optimization"], sensor.marker, t_nr, settings.min_log_evidence_gain
+            )
+            if gp_section["structure_found"]
+            else {"computed": False, "why": "the residual GP found no structure to trace"}
+        )
     # how far the zero-offsets move with the poses measured (the certificate's between-design component)
     between = {
         name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
@@ -241,9 +249,15 @@ def close_loop(
         warnings.append(few_poses)
     if closed["closed"] is False and not selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
+        in_joints = (gp_section or {}).get("joint_error_form") or {}
         warnings.append(
             "no candidate effect explains what is left"
             + (f"; it depends on {', '.join(where)} (residual GP relevance)" if where else "")
+            + (
+                f"; read as joint-angle errors it lives in {', '.join(in_joints['named_joints'])}"
+                if in_joints.get("preferred") == "joint_error" and in_joints.get("named_joints")
+                else ""
+            )
         )
     warnings += gross_warnings(flagged, screens, settled)
     if mcmc is not None and not mcmc["converged"]:
