@@ -157,3 +157,26 @@ def greedy_design(
     if not reached() and len(chosen) == len(candidate_jacobian) and (budget is None or budget > len(chosen)):
         stopped = "candidates"
     return Design(np.array(chosen, dtype=int), pd.DataFrame(rows, columns=BOUND_COLUMNS), criterion, statistic, stopped)
+
+
+def chosen_table(candidates: pd.DataFrame, design: Design, n_joints: int) -> pd.DataFrame:
+    """The chosen rows of a candidates plan table in the order chosen (the format `remaster plan`
+    writes: set, pose, solution, q1..qN rad, q1_deg..qN_deg, the candidate's other columns after),
+    with rank (1..n) and bound_p95_mm / bound_mean_mm: the workspace bounds once it is measured
+    (with every row before it)."""
+    table = candidates.iloc[design.chosen].reset_index(drop=True).copy()
+    for j in range(n_joints):
+        table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"].to_numpy(dtype=float))
+    table["rank"] = np.arange(1, len(table) + 1)
+    after = design.bounds.iloc[1:].reset_index(drop=True)
+    table["bound_p95_mm"] = after["bound_p95_mm"].to_numpy()
+    table["bound_mean_mm"] = after["bound_mean_mm"].to_numpy()
+    return table
+
+
+def bound_table(design: Design) -> pd.DataFrame:
+    """The bound against the number of configurations (`BOUND_COLUMNS`), with gain_mm: how much the
+    objective fell with that configuration (NaN at n = 0)."""
+    table = design.bounds.copy()
+    table["gain_mm"] = -table[f"bound_{design.statistic}_mm"].diff()
+    return table
