@@ -113,10 +113,13 @@ def _candidate_count(args: argparse.Namespace) -> int | None:
     return value
 
 
-def _design_priors(args: argparse.Namespace):
-    """The priors of config.yaml's `priors` section (the schema's defaults without a config file)."""
+def _design_priors(args: argparse.Namespace, campaign=None):
+    """The priors of the config's `priors` section (the library's defaults without a config file),
+    with a campaign's own `robot.priors` over them."""
     config = read_yaml(args.config) if Path(args.config).is_file() else {}
-    return priors.priors_from(priors.with_defaults((config or {}).get("priors")), source=str(args.config))
+    robot = None if campaign is None else campaign.robot
+    source = "campaign.yaml" if campaign is None else f"{campaign.name}/campaign.yaml"
+    return priors.priors_from(priors.with_defaults((config or {}).get("priors")), robot, source)
 
 
 def _plan_workspace(args: argparse.Namespace) -> None:
@@ -124,7 +127,6 @@ def _plan_workspace(args: argparse.Namespace) -> None:
     if args.budget is None and args.target_mm is None:
         raise InputError("a workspace design needs --budget N, --target-mm X or both", key="--budget")
     rng = np.random.default_rng(args.seed)
-    prior_of = _design_priors(args)
     if args.from_results is not None:
         results = Path(args.from_results)
         campaign = read_campaign(args.campaign or Path("data") / "raw" / results.parent.name, Path.cwd())
@@ -141,7 +143,7 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         exclude = sorted(set(found["laplace"].outlier_rows) | set(int(r) for r in gross))
         chain = campaign.chain
         start = design_inputs.campaign_prior(
-            chain, sensor, found["registration"].t_nr, loop.sigma_after, prior_of, exclude=exclude
+            chain, sensor, found["registration"].t_nr, loop.sigma_after, _design_priors(args, campaign), exclude=exclude
         )
         model, information = start.model, start.information
         origin = np.linalg.inv(found["registration"].t_nr)[:3, 3]
@@ -156,7 +158,7 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         t_nr[:3, 3] = -origin  # the sensor's orientation does not change a position bound's size
         if not args.noise_mm > 0:
             raise InputError(f"must be > 0 mm, got {args.noise_mm}", key="--noise-mm")
-        model = design_posterior.complete_error_model(chain, marker, t_nr, prior_of, args.noise_mm * 1e-3)
+        model = design_posterior.complete_error_model(chain, marker, t_nr, _design_priors(args), args.noise_mm * 1e-3)
         information = model.prior_information()
     count = _candidate_count(args)
     if count is None:
@@ -167,7 +169,8 @@ def _plan_workspace(args: argparse.Namespace) -> None:
             chain, origin, marker, rng, poses=count, collision=collision, set_name=args.set
         )
     q = design_inputs.configurations(candidates, chain.n_joints)
-    evaluation = design.evaluation_configurations(chain, args.evaluation, rng)
+    within = q if args.workspace == "candidates" else None
+    evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
     chosen = design.greedy_design(
         model.whitened_jacobian(q),
         model.jacobian(evaluation),
@@ -400,6 +403,13 @@ def parser() -> argparse.ArgumentParser:
         type=_positive,
         default=design.EVALUATION_CONFIGURATIONS,
         help="workspace: configurations uniform across the joint limits the bound is taken at",
+    )
+    plan.add_argument(
+        "--workspace",
+        default="limits",
+        choices=["limits", "candidates"],
+        help="workspace: where the bound is taken: across the joint limits, or within the candidates' joint "
+        "ranges (a robot that works in one region)",
     )
     plan.add_argument("--noise-mm", type=float, default=0.01, help="workspace: the sensor's noise per axis (mm)")
     plan.add_argument(

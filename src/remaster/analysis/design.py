@@ -40,9 +40,14 @@ SCORE_BLOCK = 4_000_000
 BOUND_COLUMNS = ["n", "bound_p95_mm", "bound_mean_mm", "log_det_information"]
 
 
-def evaluation_configurations(chain: KinematicChain, count: int, rng: np.random.Generator) -> np.ndarray:
-    """(count, N) configurations uniform within the joint limits (`planning.joint_range`)."""
+def evaluation_configurations(chain: KinematicChain, count: int, rng: np.random.Generator, within=None) -> np.ndarray:
+    """(count, N) configurations uniform within the joint limits (`planning.joint_range`), or, with
+    `within` (n, N) rad, within the box of its joint ranges (the candidates' domain: a campaign whose
+    robot works in one region is judged there, not across limits it never goes to)."""
     ranges = np.array([joint_range(chain, j) for j in range(chain.n_joints)])
+    if within is not None:
+        within = np.atleast_2d(np.asarray(within, dtype=float))
+        ranges = np.column_stack([within.min(axis=0), within.max(axis=0)])
     return rng.uniform(ranges[:, 0], ranges[:, 1], (count, chain.n_joints))
 
 

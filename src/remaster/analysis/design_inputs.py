@@ -37,21 +37,26 @@ def generated_candidates(
     collision: planning.CollisionModel = DEFAULT_COLLISION,
     set_name: str = "optimization",
 ) -> pd.DataFrame:
-    """Candidate configurations as a plan table (set, pose, solution, q1..qN rad): every usable
-    inverse-kinematics solution of `poses` Latin-hypercube poses pointing at `sensor_origin` (3,) m
-    with joint 3 free (7-axis S-R-S arms), or `poses` random joint-space configurations (others)."""
+    """Candidate configurations as a plan table (set, pose, solution, q1..qN rad): on a 7-axis S-R-S
+    arm, every usable inverse-kinematics solution of `poses` Latin-hypercube poses pointing at
+    `sensor_origin` (3,) m with joint 3 free, then `poses` random joint-space configurations (each its
+    own pose); on any other arm the random ones alone. Both pass `planning`'s checks; the random ones
+    reach the parts of the joint space the pointing poses never do (the workspace is judged there)."""
     sight = planning.SightLine(np.asarray(sensor_origin, dtype=float), np.asarray(marker, dtype=float))
+    tables = []
     if chain.n_joints == 7:
-        plan = planning.plan_set(
-            chain, set_name, sight.sensor_origin, [sight], rng, candidates=poses, model=collision, q3=planning.FREE
+        tables.append(
+            planning.plan_set(
+                chain, set_name, sight.sensor_origin, [sight], rng, candidates=poses, model=collision, q3=planning.FREE
+            ).table
         )
-    else:
-        plan = planning.plan_random(chain, set_name, [sight], rng, n_configurations=poses, model=collision)
-    if plan.table.empty:
-        raise InputError(
-            f"no candidate configuration of {poses} poses passes the checks (discarded: {plan.discarded})", key="plan"
-        )
-    return plan.table
+    random = planning.plan_random(chain, set_name, [sight], rng, n_configurations=poses, model=collision).table
+    if tables:
+        random["pose"] += int(tables[0]["pose"].max()) + 1 if len(tables[0]) else 0
+    table = pd.concat([*tables, random], ignore_index=True)
+    if table.empty:
+        raise InputError(f"no candidate configuration of {poses} poses passes the checks", key="plan")
+    return table
 
 
 def table_candidates(table: pd.DataFrame, chain: KinematicChain, label: str) -> pd.DataFrame:
