@@ -67,6 +67,9 @@ DRAWS = 5  # UR5: random draws per N
 EVALUATION = 1000  # simulator: random configurations the true error is scored at
 CANDIDATE_POSES = 300  # simulator: Latin-hypercube poses of the planner's candidates
 SENSOR = "laser_tracker"
+# the blocks of docs/planning.md and README.md that show planner.md (tests/test_design.py checks them)
+DOCUMENTS = (REPO / "docs" / "planning.md", REPO / "README.md")
+BEGIN, END = "<!-- bench_planner:begin -->", "<!-- bench_planner:end -->"
 UR5 = REPO / "data" / "raw" / "jacobi-ur5-gts3800"
 
 
@@ -357,7 +360,17 @@ def main() -> None:
     (args.out / "planner.json").write_text(json.dumps(results, indent=1, default=float) + "\n")
     text = markdown(results)
     (args.out / "planner.md").write_text(text)
+    if args.out == REPO / "benchmarks" / "results":
+        for document in DOCUMENTS:
+            document.write_text(with_block(document.read_text(), text))
     print(text)
+
+
+def with_block(document: str, text: str) -> str:
+    """The document with the text between its BEGIN and END markers replaced by `text`."""
+    head, rest = document.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    return f"{head}{BEGIN}\n{text}{END}{tail}"
 
 
 if __name__ == "__main__":
