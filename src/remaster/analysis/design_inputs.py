@@ -3,10 +3,11 @@ generates them, with every joint free, or given as a table), and, for the next c
 existing campaign, that campaign's information as the prior (docs/planning.md).
 
 Generated candidates pass the checks of `remaster.robot.planning` (joint limits, floor, self-collision,
-the marker seen by the sensor): a 7-axis S-R-S arm's come from Latin-hypercube poses pointing the tool
-at the sensor with every inverse-kinematics branch and joint 3 drawn within its limits for each pose
-(`planning.plan_set`, q3 = FREE: the redundant configurations are candidates too); any other arm's
-are random joint-space configurations (`planning.plan_random`).
+the marker seen by the sensor): on a 7-axis S-R-S arm, Latin-hypercube poses pointing the tool at the
+sensor with every inverse-kinematics branch and joint 3 drawn within its limits for each pose
+(`planning.plan_set`, q3 = FREE: the redundant configurations are candidates too), and as many random
+joint-space configurations (`planning.plan_random`), which reach the parts of the joint space the
+pointing poses never do; on any other arm the random ones alone.
 """
 
 from __future__ import annotations
