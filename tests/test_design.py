@@ -220,3 +220,16 @@ def test_the_documents_show_the_benchmark_as_it_wrote_it():
     assert bench.markdown(json.loads((REPO / "benchmarks" / "results" / "planner.json").read_text())) == text
     for document in bench.DOCUMENTS:
         assert f"{bench.BEGIN}\n{text}{bench.END}" in document.read_text(), document
+
+
+def test_from_results_without_the_workflows_files_names_the_missing_file(tmp_path, capsys):
+    folder = tmp_path / "kuka-twin" / "laser_tracker"
+    folder.mkdir(parents=True)
+    arguments = ["plan", "--from-results", str(folder), "--campaign", str(REPO / "data" / "raw" / "kuka-twin")]
+    assert cli.main([*arguments, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    assert "registration.json: not written" in capsys.readouterr().err
+    wrong = tmp_path / "kuka-twin" / "no_such_sensor"
+    wrong.mkdir()
+    arguments[2] = str(wrong)
+    assert cli.main([*arguments, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    assert "names no sensor" in capsys.readouterr().err

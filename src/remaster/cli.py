@@ -122,6 +122,22 @@ def _design_priors(args: argparse.Namespace, campaign=None):
     return priors.priors_from(priors.with_defaults((config or {}).get("priors")), robot, source)
 
 
+def _campaign_results(folder: Path) -> dict:
+    """The registration, Laplace fit and loop closure of a sensor's results folder (`layout`), by key;
+    InputError naming the file the workflow has not written."""
+    readers = {
+        "registration": (layout.REGISTRATION, Registration.read),
+        "laplace": (layout.LAPLACE, LaplaceReport.read),
+        "loop": (layout.LOOP_CLOSURE, LoopReport.read),
+    }
+    out = {}
+    for key, (name, read) in readers.items():
+        if not (folder / name).is_file():
+            raise InputError("not written: run `snakemake -j2` on the campaign first", file=str(folder / name))
+        out[key] = read(folder / name)
+    return out
+
+
 def _plan_workspace(args: argparse.Namespace) -> None:
     """`remaster plan --objective workspace` and `--from-results`: the greedy design (analysis.design)."""
     if args.budget is None and args.target_mm is None:
@@ -137,7 +153,7 @@ def _plan_workspace(args: argparse.Namespace) -> None:
                 "results/<campaign>/<sensor>",
                 file=str(results),
             )
-        found = read_sensor_results(results.parent.parent, campaign.name, sensor.name)
+        found = _campaign_results(results)
         loop = found["loop"]
         gross = loop.gross_errors.get("optimization", []) if loop.gross_errors else []
         exclude = sorted(set(found["laplace"].outlier_rows) | set(int(r) for r in gross))
