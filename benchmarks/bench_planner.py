@@ -339,14 +339,47 @@ def markdown(results: dict) -> str:
             f"| {v['n']} | {v['planned_mm']:.4f} | {v['planned_limits_mm']:.4f} | {v['random_n_median_mm']:.4f} | {v['random_3n_median_mm']:.4f} | "
             f"{'yes' if v['reaches_3n_random'] else 'no'} |"
         )
+    lines += ["", *verdicts(results)]
     return "\n".join(lines) + "\n"
+
+
+def verdicts(results: dict) -> list[str]:
+    """The issue's two done-when targets, met or not, and the planner against random designs of the
+    same size, in sentences computed from the results."""
+    sim, real = results["simulator"], results["ur5"]
+    testable = [v for v in sim["verdict"] if v["within_a_third"] is not None]
+    met = [v["paper_n"] for v in testable if v["within_a_third"]]
+    median = {(m["design"], m["n"]): m["true_p95_mm"] for m in sim["median"]}
+    ratios = [median[("planned", n)] / median[("random", n)] for n in sorted({m["n"] for m in sim["median"]})]
+    reached = [v["n"] for v in real["verdict"] if v["reaches_3n_random"]]
+    against_n = [v["planned_mm"] / v["random_n_median_mm"] for v in real["verdict"]]
+    floor = real["all_1000_rows_validation_rms_mm"]
+    largest_3n = max(v["random_3n_median_mm"] for v in real["verdict"])
+    return [
+        f"- Simulator target (the paper planner's true workspace p95 with at most N / 3 planned configurations): "
+        f"{'met' if len(met) == len(testable) else 'not met'} at {len(met)} of the {len(testable)} paper N whose "
+        f"third the grid holds ({', '.join(map(str, met)) or 'none'}).",
+        f"- Simulator, planned against random configurations of the same N: true p95 ratio "
+        f"{min(ratios):.2f}-{max(ratios):.2f} (median over N {float(np.median(ratios)):.2f}).",
+        f"- UR5 target (N chosen rows reach the validation RMS of 3N random rows for N <= 100): "
+        f"{'met' if len(reached) == len(real['verdict']) else 'not met'}"
+        f"{' (reached at N = ' + ', '.join(map(str, reached)) + ')' if reached else ' at any N'}; planned against "
+        f"N random rows: RMS ratio {min(against_n):.2f}-{max(against_n):.2f}; 3N random rows are within "
+        f"{largest_3n / floor - 1:.0%} of the RMS of all 1000 rows ({floor:.4f} mm) at every N.",
+    ]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="one repeat, one draw, a short grid (a smoke run)")
     parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results", help="folder of the results")
+    parser.add_argument(
+        "--render", action="store_true", help="only write planner.md and the documents' blocks from planner.json"
+    )
     args = parser.parse_args()
+    if args.render:
+        publish(json.loads((args.out / "planner.json").read_text()), args.out)
+        return
     started = time.time()
     sim = simulator(1, (10, 20)) if args.quick else simulator(REPEATS, SIM_N)
     real = ur5(1, (10,)) if args.quick else ur5(DRAWS, UR5_N)
@@ -358,9 +391,14 @@ def main() -> None:
     }
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "planner.json").write_text(json.dumps(results, indent=1, default=float) + "\n")
+    publish(results, args.out)
+
+
+def publish(results: dict, out: Path) -> None:
+    """planner.md in `out` and, when that is benchmarks/results, the blocks of DOCUMENTS."""
     text = markdown(results)
-    (args.out / "planner.md").write_text(text)
-    if args.out == REPO / "benchmarks" / "results":
+    (out / "planner.md").write_text(text)
+    if out.resolve() == (REPO / "benchmarks" / "results").resolve():
         for document in DOCUMENTS:
             document.write_text(with_block(document.read_text(), text))
     print(text)
