@@ -67,7 +67,8 @@ DRAWS = 5  # UR5: random draws per N
 EVALUATION = 1000  # simulator: random configurations the true error is scored at
 CANDIDATE_POSES = 300  # simulator: Latin-hypercube poses of the planner's candidates
 SENSOR = "laser_tracker"
-# the blocks of docs/planning.md and README.md that show planner.md (tests/test_design.py checks them)
+# the blocks of docs/planning.md (planner.md whole) and README.md (its verdicts) that show the results
+# (tests/test_design.py checks them)
 DOCUMENTS = (REPO / "docs" / "planning.md", REPO / "README.md")
 BEGIN, END = "<!-- bench_planner:begin -->", "<!-- bench_planner:end -->"
 UR5 = REPO / "data" / "raw" / "jacobi-ur5-gts3800"
@@ -399,9 +400,14 @@ def publish(results: dict, out: Path) -> None:
     text = markdown(results)
     (out / "planner.md").write_text(text)
     if out.resolve() == (REPO / "benchmarks" / "results").resolve():
-        for document in DOCUMENTS:
-            document.write_text(with_block(document.read_text(), text))
+        for document, block in zip(DOCUMENTS, document_blocks(results)):
+            document.write_text(with_block(document.read_text(), block))
     print(text)
+
+
+def document_blocks(results: dict) -> tuple[str, str]:
+    """(docs/planning.md's block: planner.md whole, README.md's: the verdicts, short as the README is)."""
+    return markdown(results), "\n".join(verdicts(results)) + "\n"
 
 
 def with_block(document: str, text: str) -> str:

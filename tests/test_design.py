@@ -208,18 +208,18 @@ def test_the_command_line_writes_the_design_its_bound_and_figure(tmp_path):
 
 
 def test_the_documents_show_the_benchmark_as_it_wrote_it():
-    """docs/planning.md and README.md carry benchmarks/results/planner.md, which is the benchmark's
-    own rendering of planner.json: the curves' numbers are read from the results, not typed."""
+    """docs/planning.md carries benchmarks/results/planner.md and README.md its verdicts, both the
+    benchmark's own rendering of planner.json: the curves' numbers are read from the results, not typed."""
     import importlib.util
     import json
 
     spec = importlib.util.spec_from_file_location("bench_planner", REPO / "benchmarks" / "bench_planner.py")
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    text = (REPO / "benchmarks" / "results" / "planner.md").read_text()
-    assert bench.markdown(json.loads((REPO / "benchmarks" / "results" / "planner.json").read_text())) == text
-    for document in bench.DOCUMENTS:
-        assert f"{bench.BEGIN}\n{text}{bench.END}" in document.read_text(), document
+    results = json.loads((REPO / "benchmarks" / "results" / "planner.json").read_text())
+    assert bench.markdown(results) == (REPO / "benchmarks" / "results" / "planner.md").read_text()
+    for document, block in zip(bench.DOCUMENTS, bench.document_blocks(results)):
+        assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document
 
 
 def test_from_results_without_the_workflows_files_names_the_missing_file(tmp_path, capsys):
