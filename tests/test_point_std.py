@@ -90,3 +90,46 @@ def test_the_weighted_likelihood_is_the_sum_of_normal_densities(simulated, rng):
     # without the columns: the paper's isotropic likelihood
     plain = blocks.readings(chain, _sensor(simulated, simulated[2]), "optimization")
     assert plain.weights is None
+
+
+def test_the_closure_is_tested_against_the_instruments_own_std(simulated):
+    """A tracker whose per-point std columns say 30 um where campaign.yaml states 10 um: the table's
+    noise (the simulator's, 30 um) is at the columns' level, so the loop is closed against them and
+    would not be against the stated noise alone."""
+    from remaster.loop import closure, loop_closure
+
+    from .conftest import loop_settings
+
+    chain, meta, _ = simulated
+    spec = iiwa_scenario("point-std-floor", seed=22)
+    spec["sensors"]["laser_tracker"]["noise"] = 3e-5
+    out = scenario.simulate(spec, chain)
+    table = out.tables["laser_tracker"].copy()
+    table["std"] = 3e-5
+    reports = {}
+    for name, frame in (("columns", table), ("stated", out.tables["laser_tracker"])):
+        sensor = sensor_data(
+            "laser_tracker", {**meta, "noise": 1e-5, "marker": np.array(meta["marker"])}, frame, 7, "lt.parquet"
+        )
+        registration = fit.register(chain, sensor)
+        _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
+        reports[name] = loop_closure.close_loop(
+            chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(0), loop_settings(mcmc=None)
+        ).report.closure
+    assert reports["columns"]["measured_point_std_mm"] == pytest.approx(0.03)
+    assert reports["columns"]["noise_floor_mm"] == pytest.approx(0.03)
+    assert reports["columns"]["closed"] is True
+    assert reports["stated"]["measured_point_std_mm"] is None
+    assert reports["stated"]["noise_floor_mm"] == pytest.approx(0.01)
+    assert reports["stated"]["closed"] is False
+    assert closure.noise_floor(1e-5, None, 3e-5) == 3e-5
+
+
+def test_a_range_transverse_noise_implies_its_rms_per_axis():
+    from remaster.loop import closure
+
+    points = np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    # k^2 = 1 + (g d)^2 = 5 and 2: per axis (1 + 2 k^2) / 3 = 11/3 and 5/3
+    expected = 1e-5 * math.sqrt((11.0 / 3.0 + 5.0 / 3.0) / 2.0)
+    assert closure.range_transverse_rms(1e-5, 1.0, points) == pytest.approx(expected, rel=1e-12)
+    assert closure.range_transverse_rms(1e-5, 0.0, points) == pytest.approx(1e-5, rel=1e-12)

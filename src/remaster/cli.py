@@ -1,5 +1,5 @@
-"""Command line: `remaster plan`, `remaster simulate`, `remaster import`, `remaster predict` and
-`remaster compensate`.
+"""Command line: `remaster plan`, `remaster program`, `remaster simulate`, `remaster import`,
+`remaster predict` and `remaster compensate`.
 
 Each subcommand reads its inputs, calls the library and writes its outputs; errors in the input
 end with a message naming the file, key or column and rows, and exit status 2 (nothing written).
@@ -21,11 +21,11 @@ from .campaigns import importer, scenario
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
-from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json
+from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json, write_text
 from .inference.fit import LaplaceReport, Registration
 from .loop.report import LoopReport
 from .reporting import figures_design
-from .robot import planning, priors, registration
+from .robot import joint_tour, planning, priors, programs, registration
 from .robot.kinematics import ForwardKinematics
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -219,6 +219,49 @@ def _import(args: argparse.Namespace) -> None:
     print(
         f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
         f"{folder / importer.REPORT_FILE}"
+    )
+
+
+def _program(args: argparse.Namespace) -> None:
+    robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
+    chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
+    given = programs.configurations(read_csv(args.configurations), chain, args.configurations, args.urdf)
+    out = Path(args.out)
+    table_path = Path(args.table) if args.table else out.with_suffix(".csv")
+    if table_path.resolve() == out.resolve():
+        raise InputError("the program and its configurations table would be the same file: give --table", key="--out")
+    for option, path in (("--out", out), ("--table", table_path)):
+        if path.resolve() == Path(args.configurations).resolve():
+            raise InputError(
+                f"would overwrite the configurations {args.configurations}: give another {option}", key=option
+            )
+    speed, acceleration = programs.DEFAULT_MOTION[args.format]
+    settings = programs.Settings(
+        speed=speed if args.speed is None else args.speed,
+        acceleration=acceleration if args.acceleration is None else args.acceleration,
+        dwell=args.dwell,
+        name=out.stem if args.format == "krl" else "remaster_campaign",
+    )
+    tour = joint_tour.joint_tour(given.q, args.order)
+    as_given = joint_tour.joint_tour(given.q, "as-given")
+    ordered = given.take(tour.order)
+    text = programs.program_text(
+        ordered,
+        args.format,
+        settings,
+        header=[f"remaster program from {args.configurations} ({args.urdf}), order {args.order}"],
+    )
+    if args.check:
+        worst = programs.check_program(text, args.format, ordered, str(out))
+        print(f"{out}: reads back as the {len(ordered.q)} configurations in order, to {np.degrees(worst):.2g} deg")
+    write_text(out, text)
+    write_csv(table_path, programs.controller_table(ordered, args.format))
+    print(
+        f"{out}: {len(ordered.q)} configurations ({args.format}, order {args.order}): joint travel "
+        f"{np.degrees(tour.total):.1f} deg in all (the largest joint motion of each move, summed), largest move "
+        f"{np.degrees(tour.largest):.1f} deg; as given {np.degrees(as_given.total):.1f} and "
+        f"{np.degrees(as_given.largest):.1f} deg. {table_path}: the same configurations for `remaster import` "
+        "(key column point, joints q1..qN in rad). Check the program on the robot's simulator before running it."
     )
 
 
@@ -455,6 +498,53 @@ def parser() -> argparse.ArgumentParser:
     imp.add_argument("--raw-dir", default="data/raw", help="where the campaign folder goes")
     imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
     imp.set_defaults(run=_import)
+
+    program = commands.add_parser(
+        "program", help="a robot program (URScript, KRL, RAPID) that visits planned configurations"
+    )
+    program.add_argument("--urdf", required=True, help="robot URDF (its joint limits are checked)")
+    program.add_argument("--base", help="base frame (default: the URDF root)")
+    program.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
+    program.add_argument(
+        "--configurations",
+        required=True,
+        metavar="CSV",
+        help="configurations q1..qN (rad), with set, pose, solution: what `remaster plan` writes",
+    )
+    program.add_argument("--format", required=True, choices=programs.FORMATS)
+    program.add_argument("--out", required=True, help="the program (a KRL program's DEF is named as this file)")
+    program.add_argument(
+        "--table",
+        metavar="CSV",
+        help="the configurations in the program's order, for `remaster import` (default: --out with suffix .csv)",
+    )
+    program.add_argument(
+        "--order",
+        default="tour",
+        choices=("tour", "as-given"),
+        help="tour: nearest neighbour then 2-opt on the largest joint motion of each move; as-given: the CSV's order",
+    )
+    program.add_argument(
+        "--speed",
+        type=float,
+        help="urscript: joint speed (rad/s, default {urscript[0]:g}); krl: %% of each axis's maximum ($VEL_AXIS, "
+        "default {krl[0]:g}); rapid: VelSet override %% (default {rapid[0]:g})".format(**programs.DEFAULT_MOTION),
+    )
+    program.add_argument(
+        "--acceleration",
+        type=float,
+        help="urscript: joint acceleration (rad/s^2, default {urscript[1]:g}); krl: %% ($ACC_AXIS, default "
+        "{krl[1]:g}); rapid: AccSet %% (default {rapid[1]:g})".format(**programs.DEFAULT_MOTION),
+    )
+    program.add_argument(
+        "--dwell", type=float, default=programs.DEFAULT_DWELL, help="wait at each configuration for the measurement (s)"
+    )
+    program.add_argument(
+        "--check",
+        action="store_true",
+        help="read the program back and compare it with the configurations before writing",
+    )
+    program.set_defaults(run=_program)
 
     predict = commands.add_parser("predict", help="where the calibrated robot puts the marker or TCP at joint commands")
     _calibration_arguments(predict)

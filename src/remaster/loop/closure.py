@@ -1,9 +1,12 @@
 """Is the loop closed? What is left against what the sensor's noise and the robot's repeatability explain.
 
 The noise floor (m, per axis) is what no model of the robot can remove: the sensor's stated noise
-(campaign.yaml `noise`) and, where the campaign measures one configuration more than once, the
-spread of those repeats (sensor noise and the robot's repeatability together; pooled within-
-configuration standard deviation per axis). It is the larger of the two that are known.
+(campaign.yaml `noise`), the instrument's own per-point std where the table carries it (`std` or
+`std_x/y/z`, their RMS per axis) and, where the campaign measures one configuration more than once,
+the spread of those repeats (sensor noise and the robot's repeatability together; pooled within-
+configuration standard deviation per axis). It is the largest of those that are known. A noise
+model fitted to the residuals (a tracker's range/transverse shape) is not the floor: its std is
+compared with the floor, and one well above it is model error the noise model took up.
 
 After each round of the loop the residual is measured by its pose-grouped cross-validated RMS per
 axis on the optimization set (held-out poses: an in-sample residual would flatter a larger
@@ -53,10 +56,25 @@ def repeatability(q, measured) -> tuple[float | None, int]:
     return math.sqrt(float(np.sum(centred**2)) / dof), int(np.sum(counts > 1))
 
 
-def noise_floor(stated: float | None, repeats: float | None) -> float | None:
-    """The larger of the stated noise and the repeats' spread that are known (m), else None."""
-    known = [v for v in (stated, repeats) if v is not None]
+def noise_floor(stated: float | None, repeats: float | None, measured: float | None = None) -> float | None:
+    """The largest of the stated noise, the repeats' spread and the instrument's own per-point std
+    (the RMS per axis of the campaign's `std` columns) that are known (m), else None."""
+    known = [v for v in (stated, repeats, measured) if v is not None]
     return max(known) if known else None
+
+
+def point_std_rms(point_std) -> float | None:
+    """RMS per axis (m) of the instrument's per-point std (n, 3), None without them."""
+    return None if point_std is None else math.sqrt(float(np.mean(np.asarray(point_std, dtype=float) ** 2)))
+
+
+def range_transverse_rms(sigma_range: float, growth_per_m: float, measured) -> float:
+    """The noise's RMS per axis (m) a range/transverse model (`remaster.noise`) of range std
+    sigma_range (m) and growth g (1/m) implies at measured points (n, 3) m in the tracker's frame:
+    sigma sqrt(mean((1 + 2 k_i^2) / 3)), k_i^2 = 1 + (g d_i)^2 (one range and two transverse axes)."""
+    distance = np.linalg.norm(np.asarray(measured, dtype=float), axis=-1)
+    k2 = 1.0 + (growth_per_m * distance) ** 2
+    return float(sigma_range * math.sqrt(float(np.mean((1.0 + 2.0 * k2) / 3.0))))
 
 
 def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RATIO) -> dict:

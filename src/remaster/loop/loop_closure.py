@@ -17,10 +17,15 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
 2. Decide: greedy forward selection. Among the candidates whose evidence gain exceeds
    `min_log_evidence_gain` AND whose cross-validated fall exceeds `cv_standard_errors` standard
    errors, add the one of largest evidence gain, refit, and repeat with the others. When no
-   parametric effect passes, a laser tracker's noise is offered as it is, range and transverse
-   growing with distance (`remaster.noise`), against the isotropic noise by the same evidence
-   threshold; then the residual Gaussian process over the joints (`remaster.inference.residual_gp`)
-   is tried last by the same two tests; fitted or not, it says which joints what is left depends on.
+   parametric effect passes, a backward pass takes out any added block that would no longer pass
+   offered to the model without it. Then the residual Gaussian process over the joints
+   (`remaster.inference.residual_gp`) is tried by the same two tests; fitted or not, it says which
+   joints what is left depends on. When it is added, every parametric block is scored again with
+   the GP present, the parameters integrated together with it (`remaster.inference.gp_joint`), and
+   a block that only stood in for what the GP explains is taken out. Last, a laser tracker's noise
+   is offered as it is, range and transverse growing with distance (`remaster.noise`), against the
+   isotropic noise by the same evidence threshold, for what the residual model leaves (with the GP
+   present when it was added): chosen before it, an anisotropic noise takes up model error.
    After every step the closure test (`remaster.loop.closure`) compares the cross-validated residual
    with the sensor's noise and says what share of the structured residual the step removed.
 3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation; where
@@ -217,7 +222,13 @@ def close_loop(
         for r in selection.rounds
         if r["added"] and r["added"] in selection.added
     }
-    closed = closure_report(selection, data["optimization"], sensor.noise, settings.closure_ratio)
+    closed = closure_report(
+        selection,
+        data["optimization"],
+        sensor.noise,
+        settings.closure_ratio,
+        closure.point_std_rms(sensor.point_std(data["optimization"].rows)),
+    )
     gp_section = gp_report(selection, cv_threshold(settings))
     # how far the zero-offsets move with the poses measured (the certificate's between-design component)
     between = {
@@ -370,20 +381,28 @@ def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gros
     return out
 
 
-def closure_report(selection: Selection, data: Readings, stated_noise: float | None, ratio: float) -> dict:
+def closure_report(
+    selection: Selection,
+    data: Readings,
+    stated_noise: float | None,
+    ratio: float,
+    measured_noise: float | None = None,
+) -> dict:
     """The closure test after every round (`remaster.loop.closure`) on the optimization readings: the
-    noise floor, each round's cross-validated RMS per axis and verdict, each added step's share of
-    the structured residual, the final verdict, and the warnings it calls for."""
+    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
+    each round's cross-validated RMS per axis and verdict, each added step's share of the structured
+    residual, the final verdict, the chosen noise model's std against the floor, and the warnings
+    they call for."""
     repeats, repeated = closure.repeatability(data.q, data.measured)
-    floor = closure.noise_floor(stated_noise, repeats)
+    floor = closure.noise_floor(stated_noise, repeats, measured_noise)
     steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0))]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
             steps.append((r["added"], r["scores"][r["added"]]["cv_rmse_mm"] * MM / math.sqrt(3.0)))
         elif r.get("removed"):  # the model without it: the removed block's scores were taken against it
-            steps.append(
-                (f"without {r['removed']}", r["scores"][r["removed"]]["cv_rmse_before_mm"] * MM / math.sqrt(3.0))
-            )
+            name = "without " + " + ".join([r["removed"], *r.get("removed_with", [])])
+            name += f" ({GP} present)" if r.get("with") == GP else ""  # named as the selection's path names it
+            steps.append((name, r["scores"][r["removed"]]["cv_rmse_before_mm"] * MM / math.sqrt(3.0)))
     in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
     rounds = [
         {"after": name, **closure.verdict(rms, floor, ratio), "time_blocked_rms_per_axis_mm": in_time.get(name)}
@@ -406,8 +425,22 @@ def closure_report(selection: Selection, data: Readings, stated_noise: float | N
                 else ""
             )
         )
+    noise_model_rms = None
+    chosen = selection.noise or {}
+    if chosen.get("chosen") == "range_transverse":
+        noise_model_rms = closure.range_transverse_rms(
+            chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
+        )
+        if floor is not None and noise_model_rms > ratio * floor:
+            warnings.append(
+                f"the chosen range/transverse noise model's std per axis ({noise_model_rms / MM:.3g} mm) is "
+                f"{noise_model_rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
+                "error the model lacks; the closure is tested against the floor"
+            )
     return {
         "stated_noise_mm": None if stated_noise is None else stated_noise / MM,
+        "measured_point_std_mm": None if measured_noise is None else measured_noise / MM,
+        "noise_model_rms_per_axis_mm": None if noise_model_rms is None else noise_model_rms / MM,
         "repeatability_mm": None if repeats is None else repeats / MM,
         "repeated_configurations": repeated,
         "noise_floor_mm": None if floor is None else floor / MM,
@@ -462,13 +495,16 @@ def gp_report(selection: Selection, standard_errors: float) -> dict | None:
 
 def _step_order(r: dict) -> tuple[int, int]:
     """Rounds in the order their models were fitted: the GP, tried last, may be recorded in the last
-    forward round, before the backward pass's rounds."""
-    return (1 if r["added"] == GP else 0, r["round"])
+    forward round, before the backward pass's rounds; the backward rounds with the GP present come
+    after it."""
+    return (2 if r.get("with") == GP else 1 if r["added"] == GP else 0, r["round"])
 
 
 def _backward(r: dict) -> dict:
     """A backward round's pass and removed block, for loop_closure.json's rounds."""
-    return {"pass": "backward", "removed": r["removed"]} if r.get("pass") == "backward" else {}
+    if r.get("pass") != "backward":
+        return {}
+    return {"pass": "backward", "removed": r["removed"], **({"with": r["with"]} if "with" in r else {})}
 
 
 def _per_candidate(rounds: list[dict]) -> dict[str, list[dict]]:

@@ -1,7 +1,8 @@
 """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2): every candidate effect fitted at
 its posterior mode on the optimization set, scored by its evidence gain, its pose-grouped
-cross-validation and its signature, and added greedily while one passes; then a laser tracker's
-range/transverse noise, and last the residual Gaussian process over the joints.
+cross-validation and its signature, and added greedily while one passes; a backward pass; the
+residual Gaussian process over the joints, and with it added the parametric blocks scored again
+with the GP present; last a laser tracker's range/transverse noise, for what the residual model leaves.
 
 SI inside (m, rad); the JSON-ready scores are in mm where their names say so.
 """
@@ -15,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
 from .. import noise
-from ..inference import blocks, evidence, metrics, residual_gp
+from ..inference import blocks, evidence, gp_joint, metrics, residual_gp
 from ..inference.blocks import BlockModel, Readings, Reduction
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
@@ -270,17 +271,20 @@ def select(
     )
     rounds += backward
     path += removed
-    noise_choice = None
-    if tracker and settings.tracker_noise is not None:
-        current, noise_choice = choose_noise(current, folds, settings)
-    path[-1] = (path[-1][0], current)  # the model the GP is tried on, with its noise
+    # the tracker's noise shape is chosen after the residual model: before it, an anisotropic noise
+    # can take up model error (a joint-space error seen from the tracker head looks transverse)
+    offer_noise = tracker and settings.tracker_noise is not None
     rotation = current.model.sensor_rotation(current.theta)
     in_time = TimeBlocked.of(data, poses, settings.cv_folds)
     if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
+        noise_choice = None
+        if offer_noise:
+            current, noise_choice = choose_noise(current, folds, settings)
+            path[-1] = (path[-1][0], current)
+            rotation = current.model.sensor_rotation(current.theta)
         time_blocked = in_time.report(path) if in_time else None
         return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice, time_blocked)
     gp, scores = _score_gp(current, data, rotation, folds, settings)
-    time_blocked = in_time.report(path, current, data, rotation, settings) if in_time else None
     if not removed and forward_end is not None and forward_end["added"] is None:
         last = forward_end  # tried in the round where no parametric effect passed, on that round's model
     else:
@@ -289,7 +293,21 @@ def select(
     last["scores"][GP] = scores
     if scores["passed"]:
         last["added"] = GP
+        current, added, gp, with_gp, removed_with_gp = residual_backward_pass(
+            chain, data, marker, t_nr, base_held, folds, settings, current, gp, added, len(rounds), brought
+        )
+        rounds += with_gp
+        path += removed_with_gp
         added.append(GP)
+    noise_choice = None
+    if offer_noise:
+        hyper = gp.gp.hyper if GP in added else None
+        current, noise_choice = choose_noise(current, folds, settings, data.q if hyper else None, hyper)
+        if noise_choice["chosen"] != "isotropic" and hyper is not None:
+            gp = gp_candidate(current, data, current.model.sensor_rotation(current.theta), folds, settings)
+        path[-1] = (path[-1][0], current)
+    rotation = current.model.sensor_rotation(current.theta)
+    time_blocked = in_time.report(path, current, data, rotation, settings) if in_time else None
     return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice, time_blocked)
 
 
@@ -424,23 +442,58 @@ class TimeBlocked:
         return out
 
 
-def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> tuple[Fitted, dict]:
+def choose_noise(
+    current: Fitted,
+    folds: np.ndarray,
+    settings: LoopSettings,
+    q=None,
+    hyper: residual_gp.Hyperparameters | None = None,
+) -> tuple[Fitted, dict]:
     """The current model with a laser tracker's range/transverse noise (`remaster.noise`) against
     its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
-    integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. Returns
-    the chosen fit and a JSON-ready report."""
+    integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. With the
+    residual GP added (its hyperparameters `hyper`, readings q (n, N)), every evidence is taken with
+    the GP present (`remaster.inference.gp_joint`), so the noise shape is chosen after the residual
+    model, for what the residual model leaves. Returns the chosen fit and a JSON-ready report."""
     import scipy.optimize
 
     prior = settings.tracker_noise
     median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
+    exact = hyper is not None and len(q) <= gp_joint.MAX_NOISE_ROWS
 
     def mode_at(log_growth: float) -> evidence.PosteriorMode:
         return evidence.posterior_mode(
             current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))), current.theta
         )
 
+    if exact:  # the parameters and the GP integrated, the noise's scale at its maximum for each shape
+        unit_shapes = {None: _noise_shapes(current.model, current.model)}
+
+        def log_z_at(log_growth: float | None) -> float:
+            if log_growth not in unit_shapes:
+                growth = noise.RangeTransverse(math.exp(log_growth))
+                unit_shapes[log_growth] = _noise_shapes(current.model, current.model.with_noise(growth))
+            shapes = unit_shapes[log_growth]
+            found = scipy.optimize.minimize_scalar(
+                lambda log_sigma: (
+                    -gp_joint.noise_shape_log_evidence(current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes)
+                ),
+                bounds=(math.log(hyper.noise_std) - 3.0, math.log(hyper.noise_std) + 3.0),
+                method="bounded",
+                options={"xatol": 0.01},
+            )
+            return -found.fun
+
+        isotropic = log_z_at(None)
+    else:
+
+        def log_z_at(log_growth: float) -> float:
+            return mode_at(log_growth).log_evidence
+
+        isotropic = current.mode.log_evidence
+
     def objective(log_growth: float) -> float:
-        return -(mode_at(log_growth).log_evidence + noise.log_growth_prior(log_growth, median, log_std))
+        return -(log_z_at(log_growth) + noise.log_growth_prior(log_growth, median, log_std))
 
     centre, width = math.log(median), NOISE_SEARCH_WIDTH * log_std
     best = scipy.optimize.minimize_scalar(
@@ -450,7 +503,7 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
     curvature = (objective(best.x + step) - 2.0 * best.fun + objective(best.x - step)) / step**2
     curvature = max(curvature, 1.0 / log_std**2)  # the prior alone curves this much; a noisy difference may not
     log_evidence = -best.fun + 0.5 * math.log(2.0 * math.pi) - 0.5 * math.log(curvature)
-    gain = log_evidence - current.mode.log_evidence
+    gain = log_evidence - isotropic
     mode = mode_at(best.x)
     growth = math.exp(best.x)
     distance = np.linalg.norm(current.model.measured, axis=1)
@@ -461,7 +514,12 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
         **noise.RangeTransverse(growth).report(),
         "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
         "growth_std_log": 1.0 / math.sqrt(curvature),
-        "log_evidence_isotropic": current.mode.log_evidence,
+        "residual_model": "residual_gp present (gp_joint; the noise's scale at its maximum for each shape)"
+        if exact
+        else f"residual_gp added; above {gp_joint.MAX_NOISE_ROWS} rows the noise is compared without it"
+        if hyper is not None
+        else "the parametric effects (no residual GP added)",
+        "log_evidence_isotropic": isotropic,
         "log_evidence_range_transverse": float(log_evidence),
         "log_evidence_gain": float(gain),
         "sigma_isotropic_mm": current.mode.sigma / MM,
@@ -479,6 +537,137 @@ def choose_noise(current: Fitted, folds: np.ndarray, settings: LoopSettings) -> 
     return Fitted(mode, current.reduction, evidence.cross_validate(mode, folds)), report
 
 
+def residual_backward_pass(
+    chain: KinematicChain,
+    data: Readings,
+    marker,
+    t_nr,
+    base_held: Mapping[str, float],
+    folds: np.ndarray,
+    settings: LoopSettings,
+    current: Fitted,
+    gp: residual_gp.Candidate,
+    added: Sequence[str],
+    number: int,
+    brought: Mapping[str, Sequence[str]] | None = None,
+) -> tuple[Fitted, list[str], residual_gp.Candidate, list[dict], list[tuple[str, Fitted]]]:
+    """The parametric blocks scored again with the residual model present, once the GP is added: a
+    block taken only because it absorbed part of what the GP explains (a proxy, e.g. a sensor scale
+    standing in for a joint-space error) no longer passes. Each added block (with the companions it
+    brought, as in `backward_pass`) is taken out and the model with it and the model without it,
+    each with the GP present, are compared by the forward rule (`passes`): their evidences and
+    pose-grouped cross-validations with the parameters integrated together with the GP
+    (`remaster.inference.gp_joint`; each model's GP hyperparameters fitted to its residuals). Above
+    `gp_joint.MAX_ROWS` rows the parameters stay at their mode and the GP's gain on each model's
+    residuals is added to its Laplace evidence (`gp_joint_fixed_mode`), which the scores say. Of
+    the blocks that fail, the one of least evidence gain is removed and the pass repeated.
+
+    Returns the final parametric fit, the blocks left, the GP on its residuals, the rounds
+    (JSON-ready, 'pass': 'backward', 'with': 'residual_gp') and the (step name, fit) of each removal."""
+    added, rounds, removals = list(added), [], []
+    exact = data.q.shape[0] <= gp_joint.MAX_ROWS
+
+    def with_gp(fitted: Fitted, hyper: residual_gp.Hyperparameters) -> tuple[float, evidence.CrossValidation]:
+        joint = gp_joint.with_gp(fitted.mode, data.q, hyper, folds)
+        return joint.log_evidence, joint.cv
+
+    def fixed_mode(fitted: Fitted, candidate: residual_gp.Candidate) -> tuple[float, evidence.CrossValidation]:
+        return (
+            fitted.mode.log_evidence + candidate.log_evidence_gain,
+            evidence.CrossValidation(candidate.mse, candidate.points),
+        )
+
+    while True:
+        needed = {c for b in added for c in COMPANIONS.get(b, ()) if c in added}
+        removable = [b for b in added if b not in needed]
+        if not removable:
+            return current, added, gp, rounds, removals
+        number += 1
+        log_z, cv = with_gp(current, gp.gp.hyper) if exact else fixed_mode(current, gp)
+        scores, fits = {}, {}
+        for block in removable:
+            others = {c for b in added if b != block for c in COMPANIONS.get(b, ())}
+            group = [block] + [
+                c for c in (brought or {}).get(block, ()) if c != block and c in added and c not in others
+            ]
+            rest = tuple(b for b in added if b not in group)
+            try:
+                without = fit_blocks(
+                    chain, data, marker, t_nr, rest, base_held, folds, settings.priors, current.values()
+                )
+                rotation = without.model.sensor_rotation(without.theta)
+                if exact:
+                    hyper = residual_gp.fit_hyperparameters(
+                        data.q, without.residuals() @ rotation, int(settings.residual_gp["subset"]), gp.gp.hyper
+                    )
+                    log_z_without, cv_without = with_gp(without, hyper)
+                else:
+                    log_z_without, cv_without = fixed_mode(
+                        without, gp_candidate(without, data, rotation, folds, settings)
+                    )
+            except np.linalg.LinAlgError as exc:
+                scores[block] = {"skipped": f"the model without it is not identifiable: {exc}"}
+                continue
+            fits[block] = (without, group)
+            out = {
+                "log_evidence_gain": log_z - log_z_without,
+                "log_evidence_with_gp": log_z,
+                "log_evidence_without_with_gp": log_z_without,
+                **evidence.cv_gain(cv_without, cv),
+                "parameters": list(current.reduction.kept),
+                "evidence": "gp_joint" if exact else "gp_joint_fixed_mode",
+            }
+            out["passed"] = passes(out, settings)
+            scores[block] = out
+        failing = [b for b in fits if not scores[b]["passed"]]
+        weakest = min(failing, key=lambda b: scores[b]["log_evidence_gain"]) if failing else None
+        rounds.append(
+            {
+                "round": number,
+                "pass": "backward",
+                "with": GP,
+                "model": list(blocks.BASE) + added,
+                "scores": scores,
+                "added": None,
+                "removed": weakest,
+                **({"removed_with": fits[weakest][1][1:]} if weakest and len(fits[weakest][1]) > 1 else {}),
+            }
+        )
+        if weakest is None:
+            return current, added, gp, rounds, removals
+        current, group = fits[weakest]
+        gp = gp_candidate(current, data, current.model.sensor_rotation(current.theta), folds, settings)
+        for block in group:
+            added.remove(block)
+        removals.append((f"without {' + '.join(group)} ({GP} present)", current))
+
+
+def gp_candidate(
+    current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
+) -> residual_gp.Candidate:
+    """The Gaussian process fitted and cross-validated on a fit's residuals in the robot frame
+    (rotation (3, 3) its registration, robot -> sensor)."""
+    return residual_gp.candidate(
+        data.q,
+        current.residuals() @ rotation,
+        current.cv.held_out @ rotation,
+        folds,
+        int(settings.residual_gp["subset"]),
+        int(settings.residual_gp["inducing"]),
+        int(settings.residual_gp.get("exact_rows", residual_gp.EXACT_ROWS)),
+    )
+
+
+def _noise_shapes(model: BlockModel, shaped: BlockModel) -> np.ndarray:
+    """(n, 3, 3): the covariance over sigma^2 of each row's noise under `shaped`'s noise model, in the
+    coordinates of `model`'s whitened residuals (M (S / sigma^2) M^T, M model's whitening)."""
+    unit = np.broadcast_to(np.eye(3)[:, None, :], (3, model.n_points, 3))
+    whitening = np.moveaxis(model.whitened(unit), 0, -1)  # (n, 3, 3): M_i, column a = M_i e_a
+    shaped_whitening = np.moveaxis(shaped.whitened(unit), 0, -1)
+    inverse = np.linalg.inv(shaped_whitening)  # S_i / sigma^2 = W_i^-1 W_i^-T
+    return whitening @ inverse @ np.swapaxes(inverse, 1, 2) @ np.swapaxes(whitening, 1, 2)
+
+
 def _score_gp(
     current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
 ) -> tuple[residual_gp.Candidate, dict]:
@@ -487,15 +676,7 @@ def _score_gp(
     hyperparameters integrated, against iid noise with sigma integrated alike) and pose-grouped
     cross-validated fall."""
     residual = current.residuals()
-    gp = residual_gp.candidate(
-        data.q,
-        residual @ rotation,
-        current.cv.held_out @ rotation,
-        folds,
-        int(settings.residual_gp["subset"]),
-        int(settings.residual_gp["inducing"]),
-        int(settings.residual_gp.get("exact_rows", residual_gp.EXACT_ROWS)),
-    )
+    gp = gp_candidate(current, data, rotation, folds, settings)
     signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
     scores = {
         "log_evidence_gain": gp.log_evidence_gain,

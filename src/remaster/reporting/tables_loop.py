@@ -61,7 +61,8 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
     whether it was added; in the backward pass (`selection.backward_pass`) each added block's
-    scores against the model without it, and whether it was removed. A candidate `select` skipped (nothing of it identifiable) has no scores:
+    scores against the model without it, and whether it was removed (with the residual GP present in
+    both once it is added: `selection.residual_backward_pass`). A candidate `select` skipped (nothing of it identifiable) has no scores:
     NaN, and the reason in the last column. A laser tracker's range/transverse noise model
     (`remaster.noise`) gets a row of its own, after the rounds: its evidence gain, or why it was
     not offered."""
@@ -93,7 +94,7 @@ def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                     {
                         "Sensor": sensor,
                         "Round": entry["round"],
-                        "Pass": "backward" if backward else "forward",
+                        "Pass": ("backward, GP present" if step.get("with") else "backward") if backward else "forward",
                         "Candidate": name,
                         "Log evidence gain": entry.get("log_evidence_gain", nan),
                         "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),

@@ -1,0 +1,174 @@
+"""A parametric model with the residual Gaussian process present: its evidence and cross-validation
+with the parameters integrated together with the GP, not fitted first and the GP put on what they leave.
+
+Fitting the parameters first under independent noise lets a parameter absorb part of a joint-space
+error it only resembles (a sensor scale standing in for a transmission error), and the GP then
+explains what is left either way: comparing two models by "their Laplace evidence plus the GP's gain
+on their residuals" keeps the proxy. Here the model is linearised at its mode theta* (J, 3n x P,
+d predicted / d theta), y = r(theta*) + J theta* its pseudo-data (n, 3), and
+
+    y = J theta + g + e,   g_a ~ GP(0, k) per axis a (`residual_gp.kernel`),   e ~ N(0, s^2 I),
+    theta_k ~ N(0, tau_k^2) for the extension blocks, flat for the base blocks,
+
+so that theta is integrated in closed form. With K the n x n kernel matrix and C0 = K + s^2 I, the
+noise and GP covariance of the stacked y is C0 (x) I3 (the kernel is the same on the three axes and
+invariant under the registration's rotation), and with A = sum_a J_a^T C0^-1 J_a + diag(1 / tau^2)
+(0 for the flat blocks), b = sum_a J_a^T C0^-1 y_a:
+
+    log Z = -1/2 sum_a y_a^T C0^-1 y_a + 1/2 b^T A^-1 b - 3/2 log|C0| - 1/2 log|A|
+            - 3n/2 log 2 pi + 1/2 sum_k log(1 / tau_k^2) + (F / 2) log 2 pi,
+
+F the flat parameters: their improper constant is common to every model of the same base blocks,
+as in the Laplace evidence (`remaster.inference.evidence`), so log Z of two models that differ by an
+extension block compare like with like. The GP's hyperparameters are each model's own (fitted to
+its residuals, `residual_gp.fit_hyperparameters`) and held: the comparison is conditional on them.
+
+Cross-validation by the same pose folds: for each held-out fold H, theta is estimated from the
+other rows T by generalised least squares under C0_TT and the priors, and the fold is predicted by
+J_H theta_T + K_HT C0_TT^-1 (y_T - J_T theta_T) (the best linear unbiased predictor of a model with
+a GP: kriging with the parametric trend); the error is the held-out mean squared residual per point.
+
+One n x n Cholesky factor per model and per fold: exact up to `MAX_ROWS` rows. The likelihood's
+per-point weights or a tracker's noise shape (`remaster.noise`) whiten r and J before this; the
+GP then lives in the whitened coordinates.
+
+SI inside (m, rad).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .evidence import LOG_2PI, CrossValidation, PosteriorMode
+from .residual_gp import Hyperparameters, kernel
+
+MAX_ROWS = 3000  # rows up to which the n x n factor is taken (about 2 s per factor at 3000 on two cores)
+MAX_NOISE_ROWS = 600  # rows up to which a noise shape is compared with the GP present (3n x 3n factors)
+
+
+@dataclass(frozen=True)
+class WithGP:
+    """A model's evidence and cross-validation with the residual GP present: log_evidence (nats, up
+    to the flat blocks' constant), theta (P,) SI the parameters' posterior mean and std (P,) their
+    posterior std with the GP present, cv: the pose-grouped cross-validation (held-out mean squared
+    residual per point, m^2, per fold; None when not asked for)."""
+
+    log_evidence: float
+    theta: np.ndarray
+    std: np.ndarray
+    cv: CrossValidation | None
+
+
+def _factor(q, hyper: Hyperparameters):
+    """Cholesky factor (scipy's cho_factor) of C0 = K + s^2 I at readings q (n, N)."""
+    import scipy.linalg
+
+    covariance = kernel(q, q, hyper)
+    covariance[np.diag_indices_from(covariance)] += hyper.noise_std**2
+    return scipy.linalg.cho_factor(covariance, lower=True)
+
+
+def _generalised_least_squares(factor, jacobian, y, precision) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(theta (P,), A (P, P), b (P,)) of y (n, 3) = J theta + GP + noise under C0 = factor, J
+    (n, 3, P), prior precision (P,) (0: flat)."""
+    import scipy.linalg
+
+    solved_j = scipy.linalg.cho_solve(factor, jacobian.reshape(len(y), -1)).reshape(jacobian.shape)
+    a = np.einsum("nap,naq->pq", jacobian, solved_j) + np.diag(precision)
+    b = np.einsum("nap,na->p", solved_j, y)
+    return np.linalg.solve(a, b), a, b
+
+
+def with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None) -> WithGP:
+    """The model at `mode` (its linearisation, module docstring) with the residual GP of hyper,
+    on readings q (n, N) rad, its evidence and its cross-validation over folds (n,) (None: no
+    cross-validation, cv None). A noise shape's whitening adds its log-determinant
+    (`BlockModel.noise_log_det`) to the evidence, as in the Laplace evidence."""
+    import scipy.linalg
+
+    q = np.asarray(q, dtype=float)
+    n, p = mode.model.n_points, len(mode.theta)
+    if n > MAX_ROWS:
+        raise ValueError(f"{n} rows: the parameters are integrated with the GP up to {MAX_ROWS} rows")
+    jacobian = mode.jacobian.reshape(n, 3, p)
+    y = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(n, 3)
+    precision = np.asarray(mode.model._prior_precision, dtype=float)
+    proper = precision > 0
+
+    factor = _factor(q, hyper)
+    theta, a, b = _generalised_least_squares(factor, jacobian, y, precision)
+    solved_y = scipy.linalg.cho_solve(factor, y)
+    log_det_c0 = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+    sign, log_det_a = np.linalg.slogdet(a)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
+    log_evidence = (
+        -0.5 * float(np.sum(y * solved_y))
+        + 0.5 * float(b @ theta)
+        - 1.5 * log_det_c0
+        - 0.5 * log_det_a
+        - 1.5 * n * LOG_2PI
+        + 0.5 * float(np.sum(np.log(precision[proper])))
+        + 0.5 * int((~proper).sum()) * LOG_2PI
+        + float(mode.model.noise_log_det)
+    )
+    std = np.sqrt(np.diag(np.linalg.inv(a)))
+
+    if folds is None:
+        return WithGP(float(log_evidence), theta, std, None)
+    folds = np.asarray(folds)
+    mse, points = [], []
+    for fold in np.unique(folds):
+        train, held = folds != fold, folds == fold
+        factor_t = _factor(q[train], hyper)
+        theta_t, _, _ = _generalised_least_squares(factor_t, jacobian[train], y[train], precision)
+        trend = jacobian @ theta_t
+        left = scipy.linalg.cho_solve(factor_t, y[train] - trend[train])
+        predicted = trend[held] + kernel(q[held], q[train], hyper) @ left
+        mse.append(float(np.mean(np.sum((y[held] - predicted) ** 2, axis=1))))
+        points.append(int(held.sum()))
+    return WithGP(float(log_evidence), theta, std, CrossValidation(np.array(mse), np.array(points)))
+
+
+def dense_log_evidence(y, jacobian, precision, covariance) -> float:
+    """log Z of y (m,) = J theta + e with e ~ N(0, covariance (m, m)) and theta (P,) ~ N(0, 1 /
+    precision) (precision (P,), 0: flat, its constant left out as in `with_gp`), J (m, P). The
+    general form of `with_gp`'s evidence, for noise that is not the same on the three axes."""
+    import scipy.linalg
+
+    y, jacobian, precision = (np.asarray(a, dtype=float) for a in (y, jacobian, precision))
+    factor = scipy.linalg.cho_factor(covariance, lower=True)
+    solved_j, solved_y = scipy.linalg.cho_solve(factor, jacobian), scipy.linalg.cho_solve(factor, y)
+    a = jacobian.T @ solved_j + np.diag(precision)
+    b = jacobian.T @ solved_y
+    sign, log_det_a = np.linalg.slogdet(a)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
+    proper = precision > 0
+    return float(
+        -0.5 * y @ solved_y
+        + 0.5 * b @ np.linalg.solve(a, b)
+        - float(np.sum(np.log(np.diag(factor[0]))))
+        - 0.5 * log_det_a
+        - 0.5 * len(y) * LOG_2PI
+        + 0.5 * np.sum(np.log(precision[proper]))
+        + 0.5 * int((~proper).sum()) * LOG_2PI
+    )
+
+
+def noise_shape_log_evidence(mode: PosteriorMode, q, hyper: Hyperparameters, shapes) -> float:
+    """log Z of the model at `mode` (isotropic noise; its linearisation, module docstring) with the
+    residual GP of hyper (lengthscales and signal; its noise_std not used) and the noise of shapes
+    (n, 3, 3) m^2, the covariance of each row's noise in the coordinates of the mode's residuals:
+    the noise shape compared with the GP present. Dense in 3n: up to `MAX_NOISE_ROWS` rows."""
+    n = mode.model.n_points
+    if n > MAX_NOISE_ROWS:
+        raise ValueError(f"{n} rows: a noise shape is compared with the GP present up to {MAX_NOISE_ROWS} rows")
+    y = mode.model.whitened(mode.residuals).ravel() + mode.jacobian @ mode.theta
+    covariance = np.kron(kernel(np.asarray(q, dtype=float), np.asarray(q, dtype=float), hyper), np.eye(3))
+    blocks = np.asarray(shapes, dtype=float)
+    for i in range(n):
+        covariance[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] += blocks[i]
+    return dense_log_evidence(y, mode.jacobian, np.asarray(mode.model._prior_precision, dtype=float), covariance)

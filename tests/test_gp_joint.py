@@ -1,0 +1,82 @@
+"""A linear model with the residual GP present (`remaster.inference.gp_joint`) against closed forms it
+does not use: the evidence is the Gaussian density of the data under the model's marginal covariance
+(scipy), a flat prior is the limit of wide ones, and the cross-validation is kriging written out with
+dense matrices; with a vanishing GP it is the parametric model's own generalised least squares."""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import scipy.stats
+
+from remaster.inference import gp_joint
+from remaster.inference.residual_gp import Hyperparameters, kernel
+
+
+def linear_case(rng, n=40, prior_std=(np.inf, 2e-3, 5e-4), signal=3e-5, noise=1e-5):
+    """A linear 'model' of n points: y = J theta + g(q) + e, in the shape of a PosteriorMode."""
+    q = rng.uniform(-2.0, 2.0, (n, 2))
+    jacobian = rng.normal(size=(3 * n, len(prior_std))) * 0.3
+    hyper = Hyperparameters(np.array([0.8, 1.5]), signal, noise)
+    covariance = np.kron(kernel(q, q, hyper), np.eye(3)) + noise**2 * np.eye(3 * n)
+    theta_true = np.array([1e-3, 1e-3, -4e-4])
+    y = jacobian @ theta_true + rng.multivariate_normal(np.zeros(3 * n), covariance)
+    theta_mode = theta_true + 1e-4  # any linearisation point: the model is linear
+    prior_std = np.asarray(prior_std, dtype=float)
+    model = SimpleNamespace(
+        n_points=n,
+        noise_log_det=0.0,
+        whitened=lambda r: r,
+        _prior_precision=np.where(np.isfinite(prior_std), 1.0 / prior_std**2, 0.0),
+    )
+    residuals = (y - jacobian @ theta_mode).reshape(n, 3)
+    mode = SimpleNamespace(model=model, theta=theta_mode, jacobian=jacobian, residuals=residuals)
+    return mode, q, hyper, y, covariance, prior_std
+
+
+def test_the_evidence_is_the_marginal_density_of_the_data():
+    mode, q, hyper, y, covariance, prior_std = linear_case(np.random.default_rng(1), prior_std=(1e-3, 2e-3, 5e-4))
+    folds = np.arange(len(q)) % 4
+    marginal = covariance + mode.jacobian @ np.diag(prior_std**2) @ mode.jacobian.T
+    expected = scipy.stats.multivariate_normal(np.zeros(len(y)), marginal).logpdf(y)
+    assert math.isclose(gp_joint.with_gp(mode, q, hyper, folds).log_evidence, expected, rel_tol=0, abs_tol=1e-6)
+
+
+def test_a_flat_prior_is_the_limit_of_wide_ones():
+    rng = np.random.default_rng(2)
+    mode, q, hyper, *_ = linear_case(rng)
+    folds = np.arange(len(q)) % 4
+    flat = gp_joint.with_gp(mode, q, hyper, folds).log_evidence
+    wide = 1e3  # prior std of the flat parameter
+    mode.model._prior_precision[0] = 1.0 / wide**2
+    proper = gp_joint.with_gp(mode, q, hyper, folds).log_evidence
+    # Z_proper -> Z_flat N(0; 0, wide^2) as the prior widens: the flat constant is 1 / sqrt(2 pi) wide
+    assert math.isclose(proper + math.log(wide) + 0.5 * math.log(2 * math.pi), flat, abs_tol=1e-6)
+
+
+def test_the_cross_validation_is_kriging_with_the_parametric_trend():
+    mode, q, hyper, y, covariance, prior_std = linear_case(np.random.default_rng(3))
+    folds = np.arange(len(q)) % 4
+    result = gp_joint.with_gp(mode, q, hyper, folds)
+    precision = np.where(np.isfinite(prior_std), 1.0 / prior_std**2, 0.0)
+    jacobian, n = mode.jacobian, len(q)
+    for fold in range(4):
+        held = np.repeat(folds == fold, 3)
+        inverse = np.linalg.inv(covariance[np.ix_(~held, ~held)])
+        j_t = jacobian[~held]
+        theta = np.linalg.solve(j_t.T @ inverse @ j_t + np.diag(precision), j_t.T @ inverse @ y[~held])
+        predicted = jacobian[held] @ theta + covariance[np.ix_(held, ~held)] @ inverse @ (y[~held] - j_t @ theta)
+        mse = np.sum((y[held] - predicted) ** 2) / held.sum() * 3
+        assert math.isclose(result.cv.mse[fold], mse, rel_tol=1e-8)
+        assert result.cv.points[fold] == n // 4
+
+
+def test_without_a_gp_the_parameters_are_the_least_squares_ones():
+    mode, q, hyper, y, _, prior_std = linear_case(np.random.default_rng(4), signal=1e-12)
+    result = gp_joint.with_gp(mode, q, hyper, np.arange(len(q)) % 4)
+    precision = np.where(np.isfinite(prior_std), 1.0 / prior_std**2, 0.0) * hyper.noise_std**2
+    j = mode.jacobian
+    expected = np.linalg.solve(j.T @ j + np.diag(precision), j.T @ y)
+    np.testing.assert_allclose(result.theta, expected, rtol=1e-6)
+    covariance = np.linalg.inv(j.T @ j / hyper.noise_std**2 + np.diag(precision / hyper.noise_std**2))
+    np.testing.assert_allclose(result.std, np.sqrt(np.diag(covariance)), rtol=1e-6)
