@@ -16,15 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from . import layout
-from .analysis import compensation
+from .analysis import compensation, design, design_inputs, design_posterior
 from .campaigns import importer, scenario
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
-from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_json, write_text
+from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json, write_text
 from .inference.fit import LaplaceReport, Registration
 from .loop.report import LoopReport
-from .robot import joint_tour, planning, programs, registration
+from .reporting import figures_design
+from .robot import joint_tour, planning, priors, programs, registration
 from .robot.kinematics import ForwardKinematics
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -49,6 +50,8 @@ def _simulate(args: argparse.Namespace) -> None:
 def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
     if args.sensor_origin is not None:
         return np.asarray(args.sensor_origin, dtype=float)
+    if args.registration_points is None:
+        raise InputError("needs the sensor: --sensor-origin X Y Z or --registration-points CSV", key="--sensor-origin")
     points = read_csv(args.registration_points)
     joints = [f"q{j + 1}" for j in range(chain.n_joints)]
     missing = [c for c in joints + ["x", "y", "z"] if c not in points.columns]
@@ -60,9 +63,13 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 
 
 def _plan(args: argparse.Namespace) -> None:
-    robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
-    chain = load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
+    if args.objective == "workspace" or args.from_results is not None:
+        _plan_workspace(args)
+        return
+    chain = _plan_chain(args)
     origin = _sensor_origin(args, chain)
+    if _candidate_count(args) is None:
+        raise InputError("a file of candidates needs --objective workspace", key="--candidates")
     rng = np.random.default_rng(args.seed)
     model = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
     sight = planning.SightLine(origin, np.asarray(args.marker, dtype=float))
@@ -72,7 +79,7 @@ def _plan(args: argparse.Namespace) -> None:
         origin,
         [sight],
         rng,
-        candidates=args.candidates,
+        candidates=_candidate_count(args),
         n_poses=args.poses,
         n_configurations=args.configurations,
         model=model,
@@ -85,6 +92,123 @@ def _plan(args: argparse.Namespace) -> None:
     print(
         f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
         f"{plan.candidates} candidate poses; discarded: {plan.discarded}"
+    )
+
+
+def _plan_chain(args: argparse.Namespace):
+    if args.urdf is None:
+        raise InputError("needs the robot: --urdf (or --from-results, whose campaign names it)", key="--urdf")
+    robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
+    return load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
+
+
+def _candidate_count(args: argparse.Namespace) -> int | None:
+    """--candidates as a number of poses (None when it names a file)."""
+    try:
+        value = int(args.candidates)
+    except ValueError:
+        return None
+    if value < 1:
+        raise InputError(f"must be at least 1 or a CSV file, got {value}", key="--candidates")
+    return value
+
+
+def _design_priors(args: argparse.Namespace, campaign=None):
+    """The priors of the config's `priors` section (the library's defaults without a config file),
+    with a campaign's own `robot.priors` over them."""
+    config = read_yaml(args.config) if Path(args.config).is_file() else {}
+    robot = None if campaign is None else campaign.robot
+    source = "campaign.yaml" if campaign is None else f"{campaign.name}/campaign.yaml"
+    return priors.priors_from(priors.with_defaults((config or {}).get("priors")), robot, source)
+
+
+def _campaign_results(folder: Path) -> dict:
+    """The registration, Laplace fit and loop closure of a sensor's results folder (`layout`), by key;
+    InputError naming the file the workflow has not written."""
+    readers = {
+        "registration": (layout.REGISTRATION, Registration.read),
+        "laplace": (layout.LAPLACE, LaplaceReport.read),
+        "loop": (layout.LOOP_CLOSURE, LoopReport.read),
+    }
+    out = {}
+    for key, (name, read) in readers.items():
+        if not (folder / name).is_file():
+            raise InputError("not written: run `snakemake -j2` on the campaign first", file=str(folder / name))
+        out[key] = read(folder / name)
+    return out
+
+
+def _plan_workspace(args: argparse.Namespace) -> None:
+    """`remaster plan --objective workspace` and `--from-results`: the greedy design (analysis.design)."""
+    if args.budget is None and args.target_mm is None:
+        raise InputError("a workspace design needs --budget N, --target-mm X or both", key="--budget")
+    rng = np.random.default_rng(args.seed)
+    if args.from_results is not None:
+        results = Path(args.from_results)
+        campaign = read_campaign(args.campaign or Path("data") / "raw" / results.parent.name, Path.cwd())
+        sensor = campaign.sensors.get(results.name)
+        if sensor is None:
+            raise InputError(
+                f"names no sensor of campaign {campaign.name} ({', '.join(campaign.sensors)}): give "
+                "results/<campaign>/<sensor>",
+                file=str(results),
+            )
+        found = _campaign_results(results)
+        loop = found["loop"]
+        gross = loop.gross_errors.get("optimization", []) if loop.gross_errors else []
+        exclude = sorted(set(found["laplace"].outlier_rows) | set(int(r) for r in gross))
+        chain = campaign.chain
+        start = design_inputs.campaign_prior(
+            chain, sensor, found["registration"].t_nr, loop.sigma_after, _design_priors(args, campaign), exclude=exclude
+        )
+        model, information = start.model, start.information
+        origin = np.linalg.inv(found["registration"].t_nr)[:3, 3]
+        marker = sensor.marker
+        moved = ", ".join(f"q{j + 1} {f:.0%}" for j, f in enumerate(start.moved_fraction))
+        print(f"{results}: {len(start.rows)} measured rows; share of each joint's range moved: {moved}")
+    else:
+        chain = _plan_chain(args)
+        origin = _sensor_origin(args, chain)
+        marker = np.asarray(args.marker, dtype=float)
+        t_nr = np.eye(4)
+        t_nr[:3, 3] = -origin  # the sensor's orientation does not change a position bound's size
+        if not args.noise_mm > 0:
+            raise InputError(f"must be > 0 mm, got {args.noise_mm}", key="--noise-mm")
+        model = design_posterior.complete_error_model(chain, marker, t_nr, _design_priors(args), args.noise_mm * 1e-3)
+        information = model.prior_information()
+    count = _candidate_count(args)
+    if count is None:
+        candidates = design_inputs.table_candidates(read_csv(args.candidates), chain, str(args.candidates))
+    else:
+        collision = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
+        candidates = design_inputs.generated_candidates(
+            chain, origin, marker, rng, poses=count, collision=collision, set_name=args.set
+        )
+    q = design_inputs.configurations(candidates, chain.n_joints)
+    within = q if args.workspace == "candidates" else None
+    evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
+    chosen = design.greedy_design(
+        model.whitened_jacobian(q),
+        model.jacobian(evaluation),
+        information,
+        budget=args.budget,
+        target=None if args.target_mm is None else args.target_mm * 1e-3,
+        criterion=args.criterion,
+        statistic=args.statistic,
+    )
+    out = Path(args.out)
+    stem = out.with_name(out.stem + "_bound")
+    write_csv(out, design.chosen_table(candidates, chosen, chain.n_joints))
+    bounds = design.bound_table(chosen)
+    write_csv(stem.with_suffix(".csv"), bounds)
+    write_figure(
+        stem,
+        figures_design.bound_curve(bounds, f"{len(chosen.chosen)} configurations ({args.criterion})", args.target_mm),
+    )
+    print(
+        f"{out}: {len(chosen.chosen)} of {len(candidates)} candidate configurations ({args.criterion}; stopped: "
+        f"{chosen.stopped}); predicted workspace 95 % bound {chosen.final_bound_mm:.4g} mm ({args.statistic}); "
+        f"bound against n in {stem.with_suffix('.csv')}"
     )
 
 
@@ -272,10 +396,10 @@ def parser() -> argparse.ArgumentParser:
     simulate.set_defaults(run=_simulate)
 
     plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
-    plan.add_argument("--urdf", required=True, help="robot URDF")
+    plan.add_argument("--urdf", help="robot URDF (not with --from-results: the campaign's)")
     plan.add_argument("--base", help="base frame (default: the URDF root)")
     plan.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
-    where = plan.add_mutually_exclusive_group(required=True)
+    where = plan.add_mutually_exclusive_group()
     where.add_argument(
         "--sensor-origin",
         nargs=3,
@@ -298,7 +422,13 @@ def parser() -> argparse.ArgumentParser:
         help="marker in the flange frame (m)",
     )
     plan.add_argument("--set", default="optimization", choices=["optimization", "validation"])
-    plan.add_argument("--candidates", type=int, default=60, help="Latin-hypercube poses per batch")
+    plan.add_argument(
+        "--candidates",
+        default="60",
+        metavar="N|CSV",
+        help="Latin-hypercube poses per batch; with --objective workspace: the candidate poses (every joint "
+        "free), or a CSV of candidate configurations q1..qN (rad), e.g. a plan or a campaign's rows",
+    )
     plan.add_argument("--poses", type=int, help="exact number of poses (needs --configurations)")
     plan.add_argument("--configurations", type=int, help="exact number of configurations (needs --poses)")
     plan.add_argument(
@@ -306,6 +436,53 @@ def parser() -> argparse.ArgumentParser:
     )
     plan.add_argument("--link-radius", type=float, default=0.06, help="capsule radius of the links (m)")
     plan.add_argument("--floor", type=float, default=0.0, help="floor height in the base frame (m)")
+    plan.add_argument(
+        "--objective",
+        default="paper",
+        choices=["paper", "workspace"],
+        help="paper: the paper's planner (joint 3 held); workspace: the configurations that most reduce the "
+        "calibrated model's predicted 95 %% bound across the workspace, chosen greedily (docs/planning.md)",
+    )
+    plan.add_argument("--budget", type=_positive, help="workspace: at most N configurations")
+    plan.add_argument("--target-mm", type=float, help="workspace: stop once the predicted bound is at or below X mm")
+    plan.add_argument(
+        "--criterion",
+        default="workspace",
+        choices=list(design.CRITERIA),
+        help="workspace: the bound across the workspace; d-optimal: log det of the information",
+    )
+    plan.add_argument(
+        "--statistic",
+        default="p95",
+        choices=list(design.STATISTICS),
+        help="workspace: the 95th percentile or the mean over the workspace of the per-configuration bound",
+    )
+    plan.add_argument(
+        "--evaluation",
+        type=_positive,
+        default=design.EVALUATION_CONFIGURATIONS,
+        help="workspace: configurations uniform across the joint limits the bound is taken at",
+    )
+    plan.add_argument(
+        "--workspace",
+        default="limits",
+        choices=["limits", "candidates"],
+        help="workspace: where the bound is taken: across the joint limits, or within the candidates' joint "
+        "ranges (a robot that works in one region)",
+    )
+    plan.add_argument("--noise-mm", type=float, default=0.01, help="workspace: the sensor's noise per axis (mm)")
+    plan.add_argument(
+        "--config", default="config.yaml", help="workspace: the config whose priors the error model takes"
+    )
+    plan.add_argument(
+        "--from-results",
+        metavar="FOLDER",
+        help="the next configurations of a calibrated campaign: its results folder <results_dir>/<campaign>/"
+        "<sensor>; its measured rows and fitted noise are the prior",
+    )
+    plan.add_argument(
+        "--campaign", metavar="FOLDER", help="with --from-results: the campaign folder (default data/raw/<campaign>)"
+    )
     plan.add_argument("--seed", type=int, default=0)
     plan.add_argument("--out", default="plan.csv")
     plan.set_defaults(run=_plan)

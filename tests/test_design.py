@@ -1,0 +1,235 @@
+"""The workspace design (remaster.analysis.design*): the rank-3 updates against the direct inverse, the
+95 % bound against closed forms, the greedy design's bound against n, D-optimality, bad candidate
+tables, the command line, and a planned design against random ones of the same size."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.stats import chi2
+
+from remaster import cli
+from remaster.analysis import design, design_inputs
+from remaster.analysis import design_posterior as dp
+from remaster.errors import InputError
+from remaster.robot.priors import priors_from, with_defaults
+
+from .arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
+from .conftest import REPO
+
+ORIGIN = np.array(TRACKER["position"])
+MARKER = np.array(TRACKER["marker"])
+
+
+@pytest.fixture(scope="module")
+def iiwa():
+    """(chain, error model, candidates table, candidate Jacobian, evaluation Jacobian) of a small design."""
+    chain = chain_of(iiwa_scenario("design"))
+    t_nr = np.eye(4)
+    t_nr[:3, 3] = -ORIGIN
+    model = dp.complete_error_model(chain, MARKER, t_nr, priors_from(with_defaults(None)), TRACKER["noise"])
+    rng = np.random.default_rng(3)
+    candidates = design_inputs.generated_candidates(chain, ORIGIN, MARKER, rng, poses=40)
+    q = design_inputs.configurations(candidates, chain.n_joints)
+    evaluation = design.evaluation_configurations(chain, 120, rng)
+    return chain, model, candidates, model.whitened_jacobian(q), model.jacobian(evaluation)
+
+
+def _random_problem(seed=0, p=6, k=4, e=5):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(p, p))
+    prior = a @ a.T + p * np.eye(p)
+    return prior, rng.normal(size=(k, 3, p)), rng.normal(size=(e, 3, p))
+
+
+def test_rank_three_updates_equal_the_direct_inverse():
+    prior, jacobians, _ = _random_problem()
+    sigma = np.linalg.inv(prior)
+    for j in jacobians:
+        sigma = dp.woodbury_update(sigma, j)
+    direct = np.linalg.inv(prior + sum(j.T @ j for j in jacobians))
+    np.testing.assert_allclose(sigma, direct, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(dp.covariance(prior + dp.information(jacobians)), direct, rtol=1e-10, atol=1e-12)
+
+
+def test_candidate_scores_equal_the_objective_after_a_direct_inverse():
+    prior, candidates, evaluation = _random_problem(seed=1, k=6, e=40)
+    sigma = np.linalg.inv(prior)
+    for statistic in design.STATISTICS:
+        scored = design.candidate_objectives(sigma, candidates, evaluation, statistic)
+        for c, j in enumerate(candidates):
+            after = np.linalg.inv(prior + j.T @ j)
+            bounds = dp.position_bounds(np.einsum("eip,pq,ejq->eij", evaluation, after, evaluation))
+            expected = np.quantile(bounds, 0.95) if statistic == "p95" else np.mean(bounds)
+            assert scored[c] == pytest.approx(expected, rel=1e-9)
+    gains = design.log_det_gains(sigma, candidates)
+    for c, j in enumerate(candidates):
+        expected = np.linalg.slogdet(prior + j.T @ j)[1] - np.linalg.slogdet(prior)[1]
+        assert gains[c] == pytest.approx(expected, rel=1e-9)
+
+
+def test_the_bound_is_exact_for_isotropic_and_rank_one_covariances():
+    s = 2.0e-5
+    isotropic = dp.position_bounds(np.array([s**2 * np.eye(3)]))[0]
+    assert isotropic == pytest.approx(s * math.sqrt(chi2.ppf(0.95, 3)), rel=1e-9)  # chi with 3 dof
+    e = np.array([0.6, 0.0, 0.8])
+    rank_one = dp.position_bounds(np.array([s**2 * np.outer(e, e)]))[0]
+    assert rank_one == pytest.approx(s * 1.959964, rel=1e-6)  # |N(0, s^2)|: the 97.5 % normal quantile
+
+
+def test_the_bound_is_close_to_the_sampled_quantile_between():
+    covariance = np.diag([4.0, 1.0, 0.25]) * 1e-8
+    draws = np.random.default_rng(7).multivariate_normal(np.zeros(3), covariance, 400_000)
+    sampled = np.quantile(np.linalg.norm(draws, axis=1), 0.95)
+    assert dp.position_bounds(covariance[None])[0] == pytest.approx(sampled, rel=0.03)
+
+
+def test_the_greedy_bound_never_rises_and_stops_at_its_target(iiwa):
+    _, model, _, candidates, evaluation = iiwa
+    greedy = design.greedy_design(candidates, evaluation, model.prior_information(), budget=25)
+    p95 = greedy.bounds["bound_p95_mm"].to_numpy()
+    assert len(greedy.chosen) == 25 and len(set(greedy.chosen)) == 25
+    assert np.all(np.diff(p95) <= 1e-12 * p95[:-1])
+    assert np.all(np.diff(greedy.bounds["log_det_information"]) > 0)
+    # a target between two rows of the budget run stops at the first row at or below it (same steps)
+    target = 0.5 * (p95[15] + p95[16]) * 1e-3
+    stopped = design.greedy_design(candidates, evaluation, model.prior_information(), target=target)
+    assert stopped.stopped == "target" and len(stopped.chosen) == 16
+    np.testing.assert_array_equal(stopped.chosen, greedy.chosen[:16])
+
+
+def test_d_optimal_picks_the_largest_log_det_each_step(iiwa):
+    _, model, _, candidates, evaluation = iiwa
+    d_opt = design.greedy_design(candidates, evaluation, model.prior_information(), budget=3, criterion="d-optimal")
+    information = model.prior_information()
+    for pick in d_opt.chosen:
+        every = [np.linalg.slogdet(information + j.T @ j)[1] for j in candidates]
+        assert every[pick] == pytest.approx(max(every), abs=1e-6)
+        information = information + candidates[pick].T @ candidates[pick]
+    with pytest.raises(ValueError, match="criterion"):
+        design.greedy_design(candidates, evaluation, model.prior_information(), budget=1, criterion="a-optimal")
+
+
+def test_a_planned_design_predicts_a_smaller_bound_than_random_ones(iiwa):
+    chain, model, _, candidates, evaluation = iiwa
+    n = 15
+    planned = design.greedy_design(candidates, evaluation, model.prior_information(), budget=n)
+    # judged at other workspace configurations than those it was chosen for
+    judge = model.jacobian(design.evaluation_configurations(chain, 200, np.random.default_rng(11)))
+
+    def bound(chosen):
+        return design._summary(model.prior_information() + dp.information(candidates[chosen]), judge)[0]
+
+    rng = np.random.default_rng(12)
+    random = [bound(rng.choice(len(candidates), n, replace=False)) for _ in range(7)]
+    assert bound(planned.chosen) < min(random)
+
+
+def test_a_campaign_that_never_moved_joint_3_shows_it_and_informs_the_next_design():
+    chain, sensor = simulated_sensor(joint_never_moved(), "laser_tracker")
+    t_nr = np.eye(4)
+    t_nr[:3, 3] = -ORIGIN
+    priors = priors_from(with_defaults(None))
+    start = design_inputs.campaign_prior(chain, sensor, t_nr, TRACKER["noise"], priors)
+    assert start.moved_fraction[2] == 0.0 and np.all(np.delete(start.moved_fraction, 2) > 0.1)
+    assert len(start.rows) == len(sensor.measured_rows("optimization"))
+    q = design.evaluation_configurations(chain, 80, np.random.default_rng(5))
+    evaluation = start.model.jacobian(q)
+    alone = design._summary(start.model.prior_information(), evaluation)[0]
+    with_campaign = design._summary(start.information, evaluation)[0]
+    assert with_campaign < 1e-3 * alone  # 25 configurations determine what the prior alone does not
+
+
+def _table(rows):
+    return pd.DataFrame(rows, columns=[f"q{j + 1}" for j in range(7)])
+
+
+def test_bad_candidate_tables_name_the_file_column_and_rows():
+    chain = chain_of(iiwa_scenario("design"))
+    good = [[0.1] * 7, [0.2] * 7]
+    with pytest.raises(InputError, match=r"c\.csv: q7: missing") as missing:
+        design_inputs.table_candidates(_table(good).drop(columns="q7"), chain, "c.csv")
+    assert missing.value.key == "q7"
+    bad = _table(good + [[0.1] * 6 + ["x"]])
+    with pytest.raises(InputError) as text:
+        design_inputs.table_candidates(bad, chain, "c.csv")
+    assert text.value.file == "c.csv" and text.value.rows == [2]
+    far = _table(good + [[0.1, 4.0, 0.1, 0.1, 0.1, 0.1, 0.1]])
+    with pytest.raises(InputError, match="joint limits") as limits:
+        design_inputs.table_candidates(far, chain, "c.csv")
+    assert limits.value.key == "q2" and limits.value.rows == [2]
+    with pytest.raises(InputError, match="no rows"):
+        design_inputs.table_candidates(_table([]), chain, "c.csv")
+    table = design_inputs.table_candidates(_table(good), chain, "c.csv")
+    assert list(table.columns[:3]) == ["set", "pose", "solution"] and list(table["pose"]) == [0, 1]
+
+
+def _robot_arguments():
+    return [
+        "--urdf",
+        str(REPO / IIWA["urdf"]),
+        "--base",
+        IIWA["base"],
+        "--flange",
+        IIWA["flange"],
+        "--sensor-origin",
+        *map(str, ORIGIN),
+        "--marker",
+        *map(str, MARKER),
+        "--config",
+        str(REPO / "config.yaml"),
+    ]
+
+
+def test_the_command_line_writes_the_design_its_bound_and_figure(tmp_path):
+    out = tmp_path / "plan.csv"
+    arguments = ["plan", "--objective", "workspace", *_robot_arguments(), "--evaluation", "60"]
+    assert cli.main([*arguments, "--candidates", "25", "--budget", "6", "--out", str(out)]) == 0
+    plan = pd.read_csv(out)
+    bounds = pd.read_csv(tmp_path / "plan_bound.csv")
+    assert (tmp_path / "plan_bound.png").is_file() and (tmp_path / "plan_bound.pdf").is_file()
+    assert len(plan) == 6 and list(plan["rank"]) == list(range(1, 7))
+    assert {"set", "pose", "solution", "q1", "q7", "q1_deg", "q7_deg"} <= set(plan.columns)
+    assert list(bounds["n"]) == list(range(7))
+    np.testing.assert_allclose(plan["bound_p95_mm"], bounds["bound_p95_mm"][1:])
+    # the design it wrote is read back as candidates; a bad one ends with status 2 and names the file
+    again = tmp_path / "again.csv"
+    assert cli.main([*arguments, "--candidates", str(out), "--budget", "3", "--out", str(again)]) == 0
+    assert set(map(tuple, pd.read_csv(again)[["q1", "q2"]].to_numpy())) <= set(
+        map(tuple, plan[["q1", "q2"]].to_numpy())
+    )
+    broken = tmp_path / "broken.csv"
+    plan.drop(columns="q4").to_csv(broken, index=False)
+    assert cli.main([*arguments, "--candidates", str(broken), "--budget", "3", "--out", str(again)]) == 2
+    assert cli.main([*arguments, "--candidates", "25", "--out", str(again)]) == 2  # neither budget nor target
+
+
+def test_the_documents_show_the_benchmark_as_it_wrote_it():
+    """docs/planning.md carries benchmarks/results/planner.md and README.md its verdicts, both the
+    benchmark's own rendering of planner.json: the curves' numbers are read from the results, not typed."""
+    import importlib.util
+    import json
+
+    spec = importlib.util.spec_from_file_location("bench_planner", REPO / "benchmarks" / "bench_planner.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    results = json.loads((REPO / "benchmarks" / "results" / "planner.json").read_text())
+    assert bench.markdown(results) == (REPO / "benchmarks" / "results" / "planner.md").read_text()
+    for document, block in zip(bench.DOCUMENTS, bench.document_blocks(results)):
+        assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document
+
+
+def test_from_results_without_the_workflows_files_names_the_missing_file(tmp_path, capsys):
+    folder = tmp_path / "kuka-twin" / "laser_tracker"
+    folder.mkdir(parents=True)
+    arguments = ["plan", "--from-results", str(folder), "--campaign", str(REPO / "data" / "raw" / "kuka-twin")]
+    assert cli.main([*arguments, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    assert "registration.json: not written" in capsys.readouterr().err
+    wrong = tmp_path / "kuka-twin" / "no_such_sensor"
+    wrong.mkdir()
+    arguments[2] = str(wrong)
+    assert cli.main([*arguments, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    assert "names no sensor" in capsys.readouterr().err
