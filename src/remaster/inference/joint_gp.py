@@ -34,6 +34,7 @@ from .residual_gp import STILL, Hyperparameters, evenly_spaced, kernel
 
 MAX_ROWS = 250  # rows of the dense comparison (a 750 x 750 factor per evaluation)
 LENGTH_BOUNDS = (0.05, 20.0)  # rad, a joint's lengthscale on its circle
+UNSEEN = 1e-4  # a joint moving the marker less than this fraction of the most moving one's per radian
 LOG_RANGE = 6.0  # the signal's and noise's logs searched this far either side of their starts
 
 
@@ -59,6 +60,7 @@ class JointErrorForm:
     noise_joint: float
     noise_free: float
     threshold: float
+    unseen: tuple[str, ...] = ()
 
     @property
     def preferred(self) -> str:
@@ -76,6 +78,7 @@ class JointErrorForm:
             "price_nats": self.price,
             "preferred": self.preferred,
             "named_joints": self.named,
+            "not_seen": list(self.unseen),
             "threshold_nats": self.threshold,
             "joints": {
                 j: {
@@ -87,7 +90,8 @@ class JointErrorForm:
                 for j, a, l_, c in zip(self.joints, self.amplitudes, self.lengthscales, self.carried)
             },
             "noise_std_mm": {"joint_error_form": self.noise_joint * 1e3, "free_form": self.noise_free * 1e3},
-            "rule": "each form's hyperparameters at the maximum of its evidence (parameters integrated with the GP) on "
+            "rule": "joints in not_seen move the marker by less than 1e-4 of the most moving joint per radian "
+            "(the marker on their axis) and have no f_j; each form's hyperparameters at the maximum of its evidence (parameters integrated with the GP) on "
             "the same rows; joint-error form preferred when its log evidence exceeds the free form's by more than "
             "half the difference of their hyperparameter counts times log 3n; a joint named when its f_j carries "
             "more than the threshold",
@@ -144,6 +148,10 @@ def joint_error_form(
     flat_y = y.ravel()
     n = len(q)
     turned = np.flatnonzero(np.ptp(q, axis=0) > STILL)
+    # a joint whose angle error does not move the marker (the marker on its axis) has no f_j the data see
+    reach = np.array([math.sqrt(float(np.mean(directions[:, :, j] ** 2))) for j in turned])
+    unseen = tuple(f"q{j + 1}" for j in turned[reach <= UNSEEN * reach.max()])
+    turned = turned[reach > UNSEEN * reach.max()]
     names = tuple(f"q{j + 1}" for j in turned)
     scale = math.sqrt(float(np.mean(y**2)))
     identity = np.eye(3 * n)
@@ -225,4 +233,5 @@ def joint_error_form(
         noise_joint=math.exp(x_joint[-1]),
         noise_free=math.exp(x_free[-1]),
         threshold=float(threshold),
+        unseen=unseen,
     )
