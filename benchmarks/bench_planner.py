@@ -406,10 +406,44 @@ def publish(results: dict, out: Path) -> None:
     """planner.md in `out` and, when that is benchmarks/results, the blocks of DOCUMENTS."""
     text = markdown(results)
     (out / "planner.md").write_text(text)
+    curves(results, out / "planner.png")
     if out.resolve() == (REPO / "benchmarks" / "results").resolve():
         for document, block in zip(DOCUMENTS, document_blocks(results)):
             document.write_text(with_block(document.read_text(), block))
     print(text)
+
+
+def curves(results: dict, path: Path) -> None:
+    """The curves of planner.json as a figure: the simulator's true workspace p95 against N per
+    design, and the UR5's validation RMS against N (chosen, N random, 3N random, all rows)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sim, real = results["simulator"], results["ur5"]
+    figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    labels = {"planned": "planned (workspace)", "paper": "paper planner", "random": "random", "d_optimal": "D-optimal"}
+    for kind, label in labels.items():
+        rows = sorted((m["n"], m["true_p95_mm"]) for m in sim["median"] if m["design"] == kind)
+        left.plot(*zip(*rows), marker="o", label=label)
+    left.set(xscale="log", yscale="log", xlabel="configurations N", ylabel="true workspace p95 (mm)")
+    left.set_title("simulated iiwa, rigid link errors", fontsize=9)
+    left.legend(fontsize=7)
+    n = [v["n"] for v in real["verdict"]]
+    for key, label in (
+        ("planned_mm", "N chosen"),
+        ("random_n_median_mm", "N random"),
+        ("random_3n_median_mm", "3N random"),
+    ):
+        right.plot(n, [v[key] for v in real["verdict"]], marker="o", label=label)
+    right.axhline(real["all_1000_rows_validation_rms_mm"], color="grey", ls="--", label="all 1000 rows")
+    right.set(xscale="log", xlabel="rows N", ylabel="validation RMS per axis (mm)")
+    right.set_title("real UR5 grid, 20 validation rows", fontsize=9)
+    right.legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110, metadata={"Software": None})
+    plt.close(figure)
 
 
 def document_blocks(results: dict) -> tuple[str, str]:
