@@ -432,7 +432,8 @@ def closure_report(
         minor = [
             f"{name} ({100 * value:.0f} %)"
             for name, value in shares.items()
-            if value is not None and value < closure.MAIN_CAUSE_SHARE
+            # effects in the final model only: not a removal step, nor an effect a backward pass took out
+            if value is not None and value < closure.MAIN_CAUSE_SHARE and name in selection.added
         ]
         warnings.append(
             f"loop {final['text']}"
