@@ -205,6 +205,14 @@ def test_the_command_line_writes_the_design_its_bound_and_figure(tmp_path):
     plan.drop(columns="q4").to_csv(broken, index=False)
     assert cli.main([*arguments, "--candidates", str(broken), "--budget", "3", "--out", str(again)]) == 2
     assert cli.main([*arguments, "--candidates", "25", "--out", str(again)]) == 2  # neither budget nor target
+    # the exchange keeps the number and does not raise the final bound; it refuses the d-optimal criterion
+    exchanged = tmp_path / "exchanged.csv"
+    assert cli.main([*arguments, "--candidates", "25", "--budget", "6", "--exchange", "--out", str(exchanged)]) == 0
+    after = pd.read_csv(exchanged)
+    assert len(after) == 6 and after["bound_p95_mm"].iloc[-1] <= plan["bound_p95_mm"].iloc[-1] * (1 + 1e-9)
+    refused = [*arguments, "--candidates", "25", "--budget", "6", "--exchange", "--criterion", "d-optimal"]
+    assert cli.main([*refused, "--out", str(tmp_path / "refused.csv")]) == 2
+    assert not (tmp_path / "refused.csv").exists()
 
 
 def test_the_documents_show_the_benchmark_as_it_wrote_it():
@@ -233,3 +241,38 @@ def test_from_results_without_the_workflows_files_names_the_missing_file(tmp_pat
     arguments[2] = str(wrong)
     assert cli.main([*arguments, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
     assert "names no sensor" in capsys.readouterr().err
+
+
+def test_the_exchange_lowers_the_objective_to_a_point_no_single_swap_improves():
+    """Exchange after greedy (known answer by brute force over every single swap of a small problem):
+    the final objective is at most the greedy one, the number of configurations stays, and no swap of
+    one chosen configuration for one candidate lowers it further."""
+    rng = np.random.default_rng(7)
+    p, c, e = 5, 14, 30
+    candidates = rng.normal(size=(c, 3, p))
+    evaluation = rng.normal(size=(e, 3, p)) * 1e-3
+    prior = np.eye(p) * 1e-2
+    greedy = design.greedy_design(candidates, evaluation, prior, budget=3)
+    exchanged = design.exchange_design(greedy, candidates, evaluation, prior)
+    assert len(exchanged.chosen) == 3 and len(set(exchanged.chosen)) == 3
+    assert exchanged.final_bound_mm <= greedy.final_bound_mm * (1 + 1e-9)
+    assert exchanged.stopped.endswith("then exchange")
+
+    def objective(chosen):
+        info = prior + dp.information(candidates[list(chosen)])
+        return design._summary(info, evaluation)[0]
+
+    final = objective(exchanged.chosen)
+    assert final / 1e-3 == pytest.approx(exchanged.final_bound_mm, rel=1e-9)
+    for k in range(3):
+        for other in set(range(c)) - set(exchanged.chosen):
+            swapped = list(exchanged.chosen)
+            swapped[k] = other
+            assert objective(swapped) >= final * (1 - 1e-6)
+    with pytest.raises(ValueError, match="workspace criterion"):
+        design.exchange_design(
+            design.greedy_design(candidates, evaluation, prior, budget=3, criterion="d-optimal"),
+            candidates,
+            evaluation,
+            prior,
+        )

@@ -63,6 +63,8 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 
 
 def _plan(args: argparse.Namespace) -> None:
+    if args.exchange and args.criterion != "workspace":
+        raise InputError("the exchange improves the workspace criterion, not d-optimal", key="--exchange")
     if args.objective == "workspace" or args.from_results is not None:
         _plan_workspace(args)
         return
@@ -196,6 +198,8 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         criterion=args.criterion,
         statistic=args.statistic,
     )
+    if args.exchange:
+        chosen = design.exchange_design(chosen, model.whitened_jacobian(q), model.jacobian(evaluation), information)
     out = Path(args.out)
     stem = out.with_name(out.stem + "_bound")
     write_csv(out, design.chosen_table(candidates, chosen, chain.n_joints))
@@ -450,6 +454,12 @@ def parser() -> argparse.ArgumentParser:
         default="workspace",
         choices=list(design.CRITERIA),
         help="workspace: the bound across the workspace; d-optimal: log det of the information",
+    )
+    plan.add_argument(
+        "--exchange",
+        action="store_true",
+        help="workspace: after the greedy choice, swap chosen configurations for candidates while the bound falls "
+        "(the number stays; the curve is then the exchanged set's, in its order)",
     )
     plan.add_argument(
         "--statistic",
