@@ -39,12 +39,16 @@ def joint_error_form(
     directions = mode.model.whitened(
         np.moveaxis(joint_directions(chain, data, marker, t_nr, selection.final.values()), 2, 0)
     )
-    return joint_gp.joint_error_form(
-        data.q,
-        pseudo,
-        np.moveaxis(directions, 0, 2),
-        mode.jacobian,
-        mode.model._prior_precision,
-        selection.gp.gp.hyper,
-        threshold,
-    ).report()
+    try:
+        found = joint_gp.joint_error_form(
+            data.q,
+            pseudo,
+            np.moveaxis(directions, 0, 2),
+            mode.jacobian,
+            mode.model._prior_precision,
+            selection.gp.gp.hyper,
+            threshold,
+        )
+    except (np.linalg.LinAlgError, ValueError) as exc:  # a diagnostic that cannot be computed is said, not raised
+        return {"computed": False, "why": f"the joint-error form could not be computed: {exc}"}
+    return found.report()

@@ -322,7 +322,11 @@ def select(
     noise_choice = None
     if offer_noise:
         hyper = gp.gp.hyper if GP in added else None
-        current, noise_choice = choose_noise(current, folds, settings, data.q if hyper else None, hyper)
+        try:
+            current, noise_choice = choose_noise(current, folds, settings, data.q if hyper else None, hyper)
+        except np.linalg.LinAlgError as exc:  # the GP-present comparison is not determined: without it, said so
+            current, noise_choice = choose_noise(current, folds, settings)
+            noise_choice["residual_model"] = f"residual_gp added; compared without it: {exc}"
         if noise_choice["chosen"] != "isotropic" and hyper is not None:
             gp = gp_candidate(current, data, current.model.sensor_rotation(current.theta), folds, settings)
         path[-1] = (path[-1][0], current)
@@ -608,7 +612,13 @@ def residual_backward_pass(
         if not groups:
             return current, added, gp, rounds, removals
         number += 1
-        log_z, cv = with_gp(current, gp.gp.hyper) if exact else fixed_mode(current, gp)
+        if exact:
+            try:
+                log_z, cv = with_gp(current, gp.gp.hyper)
+            except np.linalg.LinAlgError:  # not determined with the GP present: the fixed-mode scores, said so
+                exact = False
+        if not exact:
+            log_z, cv = fixed_mode(current, gp)
         scores, fits = {}, {}
         for block, group in groups.items():
             rest = tuple(b for b in added if b not in group)
