@@ -70,7 +70,8 @@ class Design:
 
     @property
     def final_bound_mm(self) -> float:
-        return float(self.bounds[f"bound_{self.statistic}_mm"].iloc[-1])
+        column = "expected_rms_mm" if self.statistic == "rms" else f"bound_{self.statistic}_mm"
+        return float(self.bounds[column].iloc[-1])
 
 
 def _summary(information: np.ndarray, eval_jacobian: np.ndarray) -> tuple[float, float, float, np.ndarray]:
