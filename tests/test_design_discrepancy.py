@@ -134,3 +134,69 @@ def test_the_default_prior_and_a_campaigns_gp():
     measured = dd.discrepancy_of({"lengthscales_rad": [0.1, None, 0.3], "signal_std_m": 3e-5, "noise_std_m": 1e-5})
     assert np.isinf(measured.lengthscales[1]) and measured.signal_std == 3e-5
     assert measured.report()["lengthscales_deg"][1] is None
+
+
+def test_a_campaigns_rows_count_as_chosen_before_the_first_step():
+    """Starting from measured rows (their information in the prior, their discrepancy in B, H, U)
+    gives the same next choices and expected errors as choosing those rows first."""
+    rng = np.random.default_rng(5)
+    q_c, q_e, jc, je, prior = toy(rng)
+    discrepancy = dd.Discrepancy(np.array([0.7, 1.0, 1.5]), 2 * SIGMA)
+    measured = [3, 11, 20]
+    campaign = prior + dp.information(jc[measured])
+    rest = [c for c in range(len(q_c)) if c not in measured]
+    after = dd.robust_design(
+        jc[rest],
+        q_c[rest],
+        je,
+        q_e,
+        campaign,
+        discrepancy,
+        SIGMA,
+        budget=4,
+        measured_jacobian=jc[measured],
+        q_measured=q_c[measured],
+    )
+    for n in range(5):
+        rows = measured + [rest[c] for c in after.chosen[:n]]
+        direct = dd.expected_squared_errors(jc[rows], q_c[rows], prior, je, q_e, discrepancy, SIGMA)
+        assert after.bounds["expected_rms_mm"].iloc[n] == pytest.approx(np.sqrt(direct.mean() / 3) / 1e-3, rel=1e-6)
+    left = [c for c in rest]
+    totals = [
+        dd.expected_squared_errors(jc[measured + [c]], q_c[measured + [c]], prior, je, q_e, discrepancy, SIGMA).sum()
+        for c in left
+    ]
+    assert left[int(np.argmin(totals))] == rest[after.chosen[0]]
+
+
+def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_without_it(tmp_path, capsys):
+    import pandas as pd
+
+    from remaster import cli
+    from tests.test_design import _robot_arguments
+
+    out = tmp_path / "robust.csv"
+    arguments = ["plan", "--objective", "workspace", *_robot_arguments(), "--evaluation", "60", "--candidates", "25"]
+    assert cli.main([*arguments, "--criterion", "robust", "--budget", "6", "--out", str(out)]) == 0
+    plan, bounds = pd.read_csv(out), pd.read_csv(tmp_path / "robust_bound.csv")
+    assert len(plan) == 6 and list(bounds["n"]) == list(range(7))
+    np.testing.assert_allclose(plan["expected_rms_mm"], bounds["expected_rms_mm"][1:])
+    np.testing.assert_allclose(bounds["gain_mm"][1:], -np.diff(bounds["expected_rms_mm"]))
+    assert "signal_std_mm': 0.01" in capsys.readouterr().out  # the default: the sensor's noise (--noise-mm)
+    larger = tmp_path / "larger.csv"
+    assert (
+        cli.main(
+            [*arguments, "--criterion", "robust", "--discrepancy-mm", "0.05", "--budget", "6", "--out", str(larger)]
+        )
+        == 0
+    )
+    assert pd.read_csv(larger)["expected_rms_mm"].iloc[-1] > plan["expected_rms_mm"].iloc[-1]
+    for refused in (
+        ["--discrepancy-mm", "0.05"],
+        ["--criterion", "robust", "--discrepancy-mm", "-1"],
+        ["--criterion", "robust", "--exchange"],
+    ):
+        assert cli.main([*arguments, *refused, "--budget", "6", "--out", str(tmp_path / "refused.csv")]) == 2
+        assert not (tmp_path / "refused.csv").exists()
+    err = capsys.readouterr().err
+    assert "--discrepancy-mm" in err and "--exchange" in err

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import layout
-from .analysis import compensation, design, design_inputs, design_posterior
+from .analysis import compensation, design, design_discrepancy, design_inputs, design_posterior
 from .campaigns import importer, scenario
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
@@ -64,7 +64,9 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 
 def _plan(args: argparse.Namespace) -> None:
     if args.exchange and args.criterion != "workspace":
-        raise InputError("the exchange improves the workspace criterion, not d-optimal", key="--exchange")
+        raise InputError(f"the exchange improves the workspace criterion, not {args.criterion}", key="--exchange")
+    if args.discrepancy_mm is not None and args.criterion != design_discrepancy.CRITERION:
+        raise InputError("a discrepancy is the robust criterion's: add --criterion robust", key="--discrepancy-mm")
     if args.objective == "workspace" or args.from_results is not None:
         _plan_workspace(args)
         return
@@ -164,6 +166,8 @@ def _plan_workspace(args: argparse.Namespace) -> None:
             chain, sensor, found["registration"].t_nr, loop.sigma_after, _design_priors(args, campaign), exclude=exclude
         )
         model, information = start.model, start.information
+        measured = sensor.table.loc[start.rows, list(sensor.joint_columns)].to_numpy(dtype=float)
+        measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
         origin = np.linalg.inv(found["registration"].t_nr)[:3, 3]
         marker = sensor.marker
         moved = ", ".join(f"q{j + 1} {f:.0%}" for j, f in enumerate(start.moved_fraction))
@@ -178,6 +182,7 @@ def _plan_workspace(args: argparse.Namespace) -> None:
             raise InputError(f"must be > 0 mm, got {args.noise_mm}", key="--noise-mm")
         model = design_posterior.complete_error_model(chain, marker, t_nr, _design_priors(args), args.noise_mm * 1e-3)
         information = model.prior_information()
+        measured, measured_gp = np.zeros((0, chain.n_joints)), None
     count = _candidate_count(args)
     if count is None:
         candidates = design_inputs.table_candidates(read_csv(args.candidates), chain, str(args.candidates))
@@ -189,15 +194,33 @@ def _plan_workspace(args: argparse.Namespace) -> None:
     q = design_inputs.configurations(candidates, chain.n_joints)
     within = q if args.workspace == "candidates" else None
     evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
-    chosen = design.greedy_design(
-        model.whitened_jacobian(q),
-        model.jacobian(evaluation),
-        information,
-        budget=args.budget,
-        target=None if args.target_mm is None else args.target_mm * 1e-3,
-        criterion=args.criterion,
-        statistic=args.statistic,
-    )
+    target = None if args.target_mm is None else args.target_mm * 1e-3
+    if args.criterion == design_discrepancy.CRITERION:
+        discrepancy = _discrepancy(args, evaluation, model.sigma, measured_gp)
+        print(f"discrepancy prior: {discrepancy.report()}")
+        chosen = design_discrepancy.robust_design(
+            model.whitened_jacobian(q),
+            q,
+            model.jacobian(evaluation),
+            evaluation,
+            information,
+            discrepancy,
+            model.sigma,
+            budget=args.budget,
+            target=target,
+            measured_jacobian=model.whitened_jacobian(measured),
+            q_measured=measured,
+        )
+    else:
+        chosen = design.greedy_design(
+            model.whitened_jacobian(q),
+            model.jacobian(evaluation),
+            information,
+            budget=args.budget,
+            target=target,
+            criterion=args.criterion,
+            statistic=args.statistic,
+        )
     if args.exchange:
         chosen = design.exchange_design(chosen, model.whitened_jacobian(q), model.jacobian(evaluation), information)
     out = Path(args.out)
@@ -209,11 +232,29 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         stem,
         figures_design.bound_curve(bounds, f"{len(chosen.chosen)} configurations ({args.criterion})", args.target_mm),
     )
+    what = (
+        f"expected RMS error per axis across the workspace, with the discrepancy, {chosen.final_bound_mm:.4g} mm"
+        if chosen.statistic == "rms"
+        else f"predicted workspace 95 % bound {chosen.final_bound_mm:.4g} mm ({args.statistic})"
+    )
     print(
         f"{out}: {len(chosen.chosen)} of {len(candidates)} candidate configurations ({args.criterion}; stopped: "
-        f"{chosen.stopped}); predicted workspace 95 % bound {chosen.final_bound_mm:.4g} mm ({args.statistic}); "
-        f"bound against n in {stem.with_suffix('.csv')}"
+        f"{chosen.stopped}); {what}; against n in {stem.with_suffix('.csv')}"
     )
+
+
+def _discrepancy(args: argparse.Namespace, evaluation, sigma: float, measured_gp: dict | None):
+    """The robust criterion's discrepancy prior: a campaign's residual GP when its loop found structure
+    (--from-results), else the default (the sensor's noise as signal, each joint's workspace range
+    as lengthscale); --discrepancy-mm sets the signal std of either."""
+    if args.discrepancy_mm is not None and not args.discrepancy_mm >= 0:
+        raise InputError(f"must be >= 0 mm, got {args.discrepancy_mm}", key="--discrepancy-mm")
+    if measured_gp is not None:
+        found = design_discrepancy.discrepancy_of(measured_gp["hyperparameters"])
+        signal = found.signal_std if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
+        return design_discrepancy.Discrepancy(found.lengthscales, signal)
+    signal = sigma if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
+    return design_discrepancy.workspace_discrepancy(evaluation, signal)
 
 
 def _import(args: argparse.Namespace) -> None:
@@ -452,8 +493,15 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument(
         "--criterion",
         default="workspace",
-        choices=list(design.CRITERIA),
-        help="workspace: the bound across the workspace; d-optimal: log det of the information",
+        choices=[*design.CRITERIA, design_discrepancy.CRITERION],
+        help="workspace: the bound across the workspace; d-optimal: log det of the information; robust: the "
+        "expected error across the workspace with a discrepancy the error model lacks (docs/planning.md)",
+    )
+    plan.add_argument(
+        "--discrepancy-mm",
+        type=float,
+        help="robust: the discrepancy's std per axis (mm; default: the sensor's noise, or the residual GP's "
+        "of --from-results when its loop found structure)",
     )
     plan.add_argument(
         "--exchange",

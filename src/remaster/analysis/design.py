@@ -69,9 +69,13 @@ class Design:
     stopped: str
 
     @property
+    def objective_column(self) -> str:
+        """The bounds' column the design was chosen by (a robust design's: expected_rms_mm)."""
+        return "expected_rms_mm" if self.statistic == "rms" else f"bound_{self.statistic}_mm"
+
+    @property
     def final_bound_mm(self) -> float:
-        column = "expected_rms_mm" if self.statistic == "rms" else f"bound_{self.statistic}_mm"
-        return float(self.bounds[column].iloc[-1])
+        return float(self.bounds[self.objective_column].iloc[-1])
 
 
 def _summary(information: np.ndarray, eval_jacobian: np.ndarray) -> tuple[float, float, float, np.ndarray]:
@@ -225,7 +229,7 @@ def chosen_table(candidates: pd.DataFrame, design: Design, n_joints: int) -> pd.
     """The chosen rows of a candidates plan table in the order chosen (the format `remaster plan`
     writes: set, pose, solution, q1..qN rad, q1_deg..qN_deg, the candidate's other columns after),
     with rank (1..n) and bound_p95_mm / bound_mean_mm: the workspace bounds once it is measured
-    (with every row before it)."""
+    (with every row before it), and a robust design's expected_rms_mm."""
     table = candidates.iloc[design.chosen].reset_index(drop=True).copy()
     for j in range(n_joints):
         table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"].to_numpy(dtype=float))
@@ -233,6 +237,8 @@ def chosen_table(candidates: pd.DataFrame, design: Design, n_joints: int) -> pd.
     after = design.bounds.iloc[1:].reset_index(drop=True)
     table["bound_p95_mm"] = after["bound_p95_mm"].to_numpy()
     table["bound_mean_mm"] = after["bound_mean_mm"].to_numpy()
+    if "expected_rms_mm" in after:
+        table["expected_rms_mm"] = after["expected_rms_mm"].to_numpy()
     return table
 
 
@@ -240,5 +246,5 @@ def bound_table(design: Design) -> pd.DataFrame:
     """The bound against the number of configurations (`BOUND_COLUMNS`), with gain_mm: how much the
     objective fell with that configuration (NaN at n = 0)."""
     table = design.bounds.copy()
-    table["gain_mm"] = -table[f"bound_{design.statistic}_mm"].diff()
+    table["gain_mm"] = -table[design.objective_column].diff()
     return table

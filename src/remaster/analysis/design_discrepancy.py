@@ -58,7 +58,8 @@ from ..inference.residual_gp import LENGTH_BOUNDS, Hyperparameters, kernel
 from ..units import MM
 from . import design_posterior as dp
 
-# candidates scored at once: bounds the (c, P, P)-free but (c, P, 3) work arrays
+CRITERION = "robust"  # `remaster plan --criterion robust`
+# candidates scored at once: bounds the (c, P, 3) work arrays
 SCORE_CHUNK = 2048
 
 
@@ -181,13 +182,18 @@ def robust_design(
     *,
     budget: int | None = None,
     target: float | None = None,
+    measured_jacobian=None,
+    q_measured=None,
 ):
     """Choose candidates greedily by the expected squared error across the workspace with the
     discrepancy (module docstring). candidate_jacobian (C, 3, P) whitened at q_candidates (C, N) rad;
     eval_jacobian (E, 3, P) m per display unit at q_eval (E, N) rad; prior_information (P, P);
     sigma (m) the sensor's noise; budget: most configurations; target (m): stop once the expected
-    RMS per axis is at or below it. A `design.Design` (criterion 'robust', statistic 'rms') whose
-    bounds carry expected_rms_mm beside the posterior's bounds."""
+    RMS per axis is at or below it. An existing campaign's rows: measured_jacobian (M, 3, P)
+    whitened at q_measured (M, N), whose information prior_information already holds; their
+    discrepancy is fitted into the parameters too, so they enter B, H and U from the start. A
+    `design.Design` (criterion 'robust', statistic 'rms') whose bounds carry expected_rms_mm beside
+    the posterior's bounds."""
     from . import design
 
     if budget is None and target is None:
@@ -204,6 +210,14 @@ def robust_design(
     constant = 3.0 * float(np.trace(discrepancy.kernel(q_eval, q_eval))) if n_eval else 0.0
     information = np.array(prior_information, dtype=float)
     state = _State(information, dp.covariance(information), np.zeros((p, p)), np.zeros((p, p)), np.zeros_like(jc_all))
+    if measured_jacobian is not None and len(measured_jacobian):
+        jm = np.asarray(measured_jacobian, dtype=float)
+        q_m = np.atleast_2d(np.asarray(q_measured, dtype=float))
+        flat = jm.reshape(-1, p)
+        state.b = flat.T @ np.kron(discrepancy.kernel(q_m, q_m), np.eye(3)) @ flat / sigma**2
+        h_m = (discrepancy.kernel(q_m, q_eval) @ je.reshape(n_eval, -1)).reshape(len(jm), 3, p) / sigma
+        state.h = np.einsum("mip,miq->pq", jm, h_m)
+        state.u = np.einsum("mc,mip->cip", discrepancy.kernel(q_m, q_candidates) / sigma**2, jm)
     limit = len(jc_all) if budget is None else min(int(budget), len(jc_all))
     remaining = np.ones(len(jc_all), dtype=bool)
     chosen: list[int] = []
@@ -245,4 +259,4 @@ def robust_design(
         stopped = "candidates"
     bounds = pd.DataFrame(rows, columns=design.BOUND_COLUMNS)
     bounds["expected_rms_mm"] = expected
-    return design.Design(np.array(chosen, dtype=int), bounds, "robust", "rms", stopped)
+    return design.Design(np.array(chosen, dtype=int), bounds, CRITERION, "rms", stopped)
