@@ -480,11 +480,11 @@ def document_blocks(results: dict) -> tuple[str, str]:
     return markdown(results), "\n".join(verdicts(results)) + "\n"
 
 
-def with_block(document: str, text: str) -> str:
-    """The document with the text between its BEGIN and END markers replaced by `text`."""
-    head, rest = document.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    return f"{head}{BEGIN}\n{text}{END}{tail}"
+def with_block(document: str, text: str, begin: str = BEGIN, end: str = END) -> str:
+    """The document with the text between its `begin` and `end` markers replaced by `text`."""
+    head, rest = document.split(begin, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{begin}\n{text}{end}{tail}"
 
 
 if __name__ == "__main__":

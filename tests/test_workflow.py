@@ -138,6 +138,42 @@ def test_real_run_builds_everything_then_nothing(tiny):
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
 
 
+def test_the_next_configurations_of_a_calibrated_campaign(tiny, tmp_path):
+    """`remaster plan --from-results` on the workflow's own results (the tiny twin's planner held joint
+    3): the campaign alone is the n = 0 row, both criteria start from it, and the workspace
+    criterion's first proposals move joint 3, which the campaign never did."""
+    import numpy as np
+
+    from remaster import cli
+
+    assert run(tiny).returncode == 0  # nothing to do once test_real_run_builds_everything_then_nothing ran
+    arguments = [
+        "plan",
+        "--from-results",
+        str(tiny / "results" / "tiny" / "laser_tracker"),
+        "--campaign",
+        str(tiny / "raw" / "tiny"),
+        "--config",
+        str(tiny / "config.yaml"),
+        "--candidates",
+        "20",
+        "--evaluation",
+        "60",
+        "--budget",
+        "3",
+    ]
+    assert cli.main([*arguments, "--out", str(tmp_path / "next.csv")]) == 0
+    assert cli.main([*arguments, "--criterion", "robust", "--out", str(tmp_path / "robust.csv")]) == 0
+    workspace = files.read_csv(tmp_path / "next_bound.csv")
+    robust = files.read_csv(tmp_path / "robust_bound.csv")
+    assert list(workspace["n"]) == list(range(4)) and list(robust["n"]) == list(range(4))
+    # the same campaign information at n = 0; the first proposal brings the campaign's bound down
+    assert robust["bound_p95_mm"].iloc[0] == workspace["bound_p95_mm"].iloc[0] > workspace["bound_p95_mm"].iloc[1]
+    assert np.all(np.isfinite(robust["expected_rms_mm"]))
+    next_rows = files.read_csv(tmp_path / "next.csv")
+    assert abs(next_rows["q3"].iloc[0]) > 0.05 and len(files.read_csv(tmp_path / "robust.csv")) == 3
+
+
 def test_a_run_killed_half_way_completes_with_identical_results(tiny):
     """A second run of one of the two campaigns into another folder, killed while sampling and
     started again: it finishes, and every table and result of that campaign equals the first,
