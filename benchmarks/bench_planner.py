@@ -42,6 +42,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -143,20 +144,40 @@ def paper_design(chain, origin, sight, n: int, rng) -> np.ndarray:
     raise InputError(f"the paper's planner found no {n} configurations", key="plan")
 
 
-def simulator(repeats: int, grid) -> dict:
-    spec = iiwa_rigid_link_errors()
+@dataclass(frozen=True, eq=False)
+class Simulated:
+    """A simulated scenario's nominal chain, truth (robot, device) and what the planner knows: the
+    sensor's estimated origin, its sight line, config.yaml's priors and the complete error model."""
+
+    chain: object
+    marker: np.ndarray
+    robot: object
+    device: object
+    origin: np.ndarray
+    sight: object
+    priors: object
+    model: dp.ErrorModel
+
+
+def simulated(spec: dict) -> Simulated:
     chain = chain_of(spec)
-    simulated = scenario.simulate(spec, chain)
-    truth = json.loads(json.dumps(simulated.truth, default=float))
-    marker = np.asarray(simulated.metadata["sensors"][SENSOR]["marker"])
-    robot = scenario.robot_from_truth(truth)
+    out = scenario.simulate(spec, chain)
+    truth = json.loads(json.dumps(out.truth, default=float))
+    marker = np.asarray(out.metadata["sensors"][SENSOR]["marker"])
     device = scenario.sensor_from_truth(truth, SENSOR, marker)
     origin = np.asarray(truth["planning"]["estimated_reference_sensor_origin_m"])
-    sight = planning.SightLine(origin, marker)
     priors = config_priors()
     t_nr = np.eye(4)
-    t_nr[:3, 3] = -origin
+    t_nr[:3, 3] = -origin  # the sensor's orientation does not change a position bound's size
     model = dp.complete_error_model(chain, marker, t_nr, priors, device.noise)
+    robot = scenario.robot_from_truth(truth)
+    return Simulated(chain, marker, robot, device, origin, planning.SightLine(origin, marker), priors, model)
+
+
+def simulator(repeats: int, grid) -> dict:
+    setting = simulated(iiwa_rigid_link_errors())
+    chain, marker, robot, device = setting.chain, setting.marker, setting.robot, setting.device
+    origin, sight, priors, model = setting.origin, setting.sight, setting.priors, setting.model
     scores = np.random.default_rng(2035)
     q_eval = design.evaluation_configurations(chain, EVALUATION, scores)
     true_eval = true_sensor_positions(chain, robot, device, q_eval)

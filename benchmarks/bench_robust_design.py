@@ -50,6 +50,7 @@ from bench_planner import (  # noqa: E402
     config_priors,
     paper_design,
     sensor_of,
+    simulated,
     subset_sensor,
     validation_rms,
     with_block,
@@ -58,11 +59,11 @@ from bench_planner import (  # noqa: E402
 from remaster.analysis import design, design_inputs  # noqa: E402
 from remaster.analysis import design_discrepancy as dd  # noqa: E402
 from remaster.analysis import design_posterior as dp  # noqa: E402
-from remaster.campaigns import folders, scenario  # noqa: E402
+from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.inference import blocks, fit, residual_gp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
-from tests.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
+from tests.arm_kinds import iiwa_rigid_link_errors  # noqa: E402
 from tests.test_joint_harmonics import cyclic_truth  # noqa: E402
 
 SIM_N = (10, 20, 40, 80, 120)
@@ -90,19 +91,9 @@ def discrepancy_spec() -> dict:
 
 
 def simulator(repeats: int, grid) -> dict:
-    spec = discrepancy_spec()
-    chain = chain_of(spec)
-    simulated = scenario.simulate(spec, chain)
-    truth = json.loads(json.dumps(simulated.truth, default=float))
-    marker = np.asarray(simulated.metadata["sensors"][SENSOR]["marker"])
-    robot = scenario.robot_from_truth(truth)
-    device = scenario.sensor_from_truth(truth, SENSOR, marker)
-    origin = np.asarray(truth["planning"]["estimated_reference_sensor_origin_m"])
-    sight = planning.SightLine(origin, marker)
-    priors = config_priors()
-    t_nr = np.eye(4)
-    t_nr[:3, 3] = -origin
-    model = dp.complete_error_model(chain, marker, t_nr, priors, device.noise)
+    setting = simulated(discrepancy_spec())
+    chain, marker, robot, device = setting.chain, setting.marker, setting.robot, setting.device
+    origin, sight, priors, model = setting.origin, setting.sight, setting.priors, setting.model
     q_eval = design.evaluation_configurations(chain, EVALUATION, np.random.default_rng(2035))
     true_eval = true_sensor_positions(chain, robot, device, q_eval)
     largest = max(grid)
