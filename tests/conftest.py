@@ -98,3 +98,22 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
         **fields,
     }
     return LoopReport.of(content, source)
+
+
+def assert_documents_show(benchmark: str, results: str) -> None:
+    """benchmarks/results/<results>.md and the documents' blocks (`DOCUMENTS`, between `BEGIN` and
+    `END`) are `benchmarks/<benchmark>.py`'s own rendering of <results>.json: no number in them is
+    typed by hand."""
+    import importlib.util
+    import json
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))  # a benchmark may import its sibling
+    spec = importlib.util.spec_from_file_location(benchmark, REPO / "benchmarks" / f"{benchmark}.py")
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules[benchmark] = bench  # its dataclasses look their module up there
+    spec.loader.exec_module(bench)
+    written = json.loads((REPO / "benchmarks" / "results" / f"{results}.json").read_text())
+    assert bench.markdown(written) == (REPO / "benchmarks" / "results" / f"{results}.md").read_text()
+    for document, block in zip(bench.DOCUMENTS, bench.document_blocks(written)):
+        assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document

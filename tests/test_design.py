@@ -18,7 +18,7 @@ from remaster.errors import InputError
 from remaster.robot.priors import priors_from, with_defaults
 
 from .arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
-from .conftest import REPO
+from .conftest import REPO, assert_documents_show
 
 ORIGIN = np.array(TRACKER["position"])
 MARKER = np.array(TRACKER["marker"])
@@ -216,18 +216,8 @@ def test_the_command_line_writes_the_design_its_bound_and_figure(tmp_path):
 
 
 def test_the_documents_show_the_benchmark_as_it_wrote_it():
-    """docs/planning.md carries benchmarks/results/planner.md and README.md its verdicts, both the
-    benchmark's own rendering of planner.json: the curves' numbers are read from the results, not typed."""
-    import importlib.util
-    import json
-
-    spec = importlib.util.spec_from_file_location("bench_planner", REPO / "benchmarks" / "bench_planner.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    results = json.loads((REPO / "benchmarks" / "results" / "planner.json").read_text())
-    assert bench.markdown(results) == (REPO / "benchmarks" / "results" / "planner.md").read_text()
-    for document, block in zip(bench.DOCUMENTS, bench.document_blocks(results)):
-        assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document
+    """docs/planning.md carries benchmarks/results/planner.md and README.md its verdicts."""
+    assert_documents_show("bench_planner", "planner")
 
 
 def test_from_results_without_the_workflows_files_names_the_missing_file(tmp_path, capsys):

@@ -3,13 +3,13 @@ a Monte-Carlo of the calibration with a discrepancy drawn as a Gaussian process 
 squares, the criterion's full-matrix form, brute-force greedy steps, and the straight line's known
 designs."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from remaster.analysis import design_discrepancy as dd
 from remaster.analysis import design_posterior as dp
+
+from .conftest import assert_documents_show
 
 SIGMA = 1e-5  # m
 
@@ -205,18 +205,5 @@ def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_witho
 
 
 def test_the_documents_show_the_benchmark_as_it_wrote_it():
-    """docs/planning.md carries benchmarks/results/robust_planner.md and README.md its verdicts, both the
-    benchmark's own rendering of robust_planner.json: no number there is typed by hand."""
-    import importlib.util
-    import json
-    import sys
-
-    repo = Path(__file__).resolve().parents[1]
-    sys.path.insert(0, str(repo / "benchmarks"))
-    spec = importlib.util.spec_from_file_location("bench_robust_design", repo / "benchmarks" / "bench_robust_design.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    results = json.loads((repo / "benchmarks" / "results" / "robust_planner.json").read_text())
-    assert bench.markdown(results) == (repo / "benchmarks" / "results" / "robust_planner.md").read_text()
-    for document, block in zip(bench.DOCUMENTS, bench.document_blocks(results)):
-        assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document
+    """docs/planning.md carries benchmarks/results/robust_planner.md and README.md its UR5 verdict."""
+    assert_documents_show("bench_robust_design", "robust_planner")
