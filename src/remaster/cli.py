@@ -168,8 +168,8 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         model, information = start.model, start.information
         measured = sensor.table.loc[start.rows, list(sensor.joint_columns)].to_numpy(dtype=float)
         measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
-        origin = np.linalg.inv(found["registration"].t_nr)[:3, 3]
         marker = sensor.marker
+        origin = _campaign_sensor_origin(args, chain, found["registration"].t_nr, sensor, measured)
         moved = ", ".join(f"q{j + 1} {f:.0%}" for j, f in enumerate(start.moved_fraction))
         print(f"{results}: {len(start.rows)} measured rows; share of each joint's range moved: {moved}")
     else:
@@ -241,6 +241,31 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         f"{out}: {len(chosen.chosen)} of {len(candidates)} candidate configurations ({args.criterion}; stopped: "
         f"{chosen.stopped}); {what}; against n in {stem.with_suffix('.csv')}"
     )
+
+
+def _campaign_sensor_origin(args: argparse.Namespace, chain, t_nr, sensor, measured) -> np.ndarray:
+    """Where a calibrated campaign's sensor stands in the robot base frame (m), for the sight lines of
+    generated candidates: --sensor-origin when given, else the registration's. A campaign whose
+    coordinates were moved to the robot's frame before it was published registers to about the
+    identity, which puts the sensor at the robot's base: if none of its own measured rows would be
+    seen from there, the registration does not say where the sensor was, and a generated design would
+    be checked against the wrong sight line."""
+    if args.sensor_origin is not None:
+        return np.asarray(args.sensor_origin, dtype=float)
+    origin = np.linalg.inv(t_nr)[:3, 3]
+    if _candidate_count(args) is None or not len(measured):
+        return origin  # candidates given: no sight line is checked
+    collision = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
+    seen = planning.marker_visible(chain, measured, planning.SightLine(origin, sensor.marker), collision)
+    if not seen.any():
+        raise InputError(
+            f"the registration puts the sensor at ({origin[0]:.3f}, {origin[1]:.3f}, {origin[2]:.3f}) m in the "
+            f"robot frame, from where none of the campaign's {len(measured)} measured rows would be seen: its "
+            "coordinates are not the sensor's own (moved to the robot's frame?); give the sensor's position "
+            "--sensor-origin X Y Z (m, robot base frame), or the candidates --candidates FILE",
+            key="--sensor-origin",
+        )
+    return origin
 
 
 def _discrepancy(args: argparse.Namespace, evaluation, sigma: float, measured_gp: dict | None):
