@@ -93,7 +93,7 @@ def test_a_target_stops_the_choice():
     full = dd.robust_design(jc, q_c, je, q_e, prior, discrepancy, SIGMA, budget=15)
     target = full.bounds["expected_rms_mm"].iloc[6] * 1e-3
     stopped = dd.robust_design(jc, q_c, je, q_e, prior, discrepancy, SIGMA, target=target)
-    assert stopped.stopped == "target" and len(stopped.chosen) <= 6
+    assert stopped.stopped == "target" and len(stopped.chosen) == 6
     np.testing.assert_array_equal(stopped.chosen, full.chosen[: len(stopped.chosen)])
 
 
@@ -108,7 +108,8 @@ def test_a_straight_line_is_measured_at_its_ends_unless_it_may_bend():
     """The known answers for a line on [-1, 1]: with no discrepancy the greedy design of six points puts
     five at the two ends after the centre (the variance of the fitted line is smallest there); when the truth may bend
     (a discrepancy of 0.4 rad lengthscale, ten times the noise), the robust design spreads them inside,
-    and its simulated error under such a bend is smaller than the ends' design's."""
+    and the criterion's expected error under such a bend is smaller than the ends' design's (the
+    criterion itself is checked against simulated calibrations in the Monte-Carlo test above)."""
     x = np.repeat(np.linspace(-1, 1, 41), 6)  # every point may be measured six times
     q = x[:, None]
     x_eval = np.linspace(-1, 1, 101)
@@ -193,6 +194,9 @@ def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_witho
         == 0
     )
     assert pd.read_csv(larger)["expected_rms_mm"].iloc[-1] > plan["expected_rms_mm"].iloc[-1]
+    paper = ["plan", *_robot_arguments(), "--criterion", "robust", "--out", str(tmp_path / "paper.csv")]
+    assert cli.main(paper) == 2 and not (tmp_path / "paper.csv").exists()
+    assert "--criterion: the workspace design's, not the paper planner's" in capsys.readouterr().err
     for refused in (
         ["--discrepancy-mm", "0.05"],
         ["--criterion", "robust", "--discrepancy-mm", "-1"],
@@ -207,3 +211,34 @@ def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_witho
 def test_the_documents_show_the_benchmark_as_it_wrote_it():
     """docs/planning.md carries benchmarks/results/robust_planner.md and README.md its UR5 verdict."""
     assert_documents_show("bench_robust_design", "robust_planner")
+
+
+def test_the_candidates_scored_in_chunks_choose_as_at_once(monkeypatch):
+    rng = np.random.default_rng(6)
+    q_c, q_e, jc, je, prior = toy(rng)
+    discrepancy = dd.Discrepancy(np.array([0.7, 1.0, 1.5]), 2 * SIGMA)
+    whole = dd.robust_design(jc, q_c, je, q_e, prior, discrepancy, SIGMA, budget=6)
+    monkeypatch.setattr(dd, "SCORE_CHUNK", 3)
+    chunked = dd.robust_design(jc, q_c, je, q_e, prior, discrepancy, SIGMA, budget=6)
+    np.testing.assert_array_equal(chunked.chosen, whole.chosen)
+    np.testing.assert_allclose(chunked.bounds["expected_rms_mm"], whole.bounds["expected_rms_mm"], rtol=1e-12)
+
+
+def test_a_campaigns_gp_is_the_prior_with_the_joints_it_never_turned_given_the_workspaces_range():
+    """--from-results with a residual GP that found structure: its std and lengthscales, except a joint
+    the campaign never turned (null), which takes its range over the workspace rather than none (a
+    discrepancy constant along the joint the next configurations should move); --discrepancy-mm sets the
+    std; without a GP, the default from the sensor's noise."""
+    import argparse
+
+    from remaster import cli
+
+    q_eval = np.array([[0.0, 0.0, -1.0], [1.0, 0.5, 1.0]])
+    gp = {"hyperparameters": {"lengthscales_rad": [0.1, 0.3, None], "signal_std_m": 5e-5, "noise_std_m": 2e-5}}
+    found = cli._discrepancy(argparse.Namespace(discrepancy_mm=None), q_eval, 3e-5, gp)
+    np.testing.assert_allclose(found.lengthscales, [0.1, 0.3, 2.0])
+    assert found.signal_std == 5e-5
+    assert cli._discrepancy(argparse.Namespace(discrepancy_mm=0.02), q_eval, 3e-5, gp).signal_std == pytest.approx(2e-5)
+    default = cli._discrepancy(argparse.Namespace(discrepancy_mm=None), q_eval, 3e-5, None)
+    np.testing.assert_allclose(default.lengthscales, [1.0, 0.5, 2.0])
+    assert default.signal_std == 3e-5

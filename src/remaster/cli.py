@@ -70,6 +70,19 @@ def _plan(args: argparse.Namespace) -> None:
     if args.objective == "workspace" or args.from_results is not None:
         _plan_workspace(args)
         return
+    workspace_only = {
+        "--criterion": args.criterion != "workspace",
+        "--discrepancy-mm": args.discrepancy_mm is not None,
+        "--exchange": args.exchange,
+        "--budget": args.budget is not None,
+        "--target-mm": args.target_mm is not None,
+    }
+    given = [option for option, used in workspace_only.items() if used]
+    if given:
+        raise InputError(
+            f"{', '.join(given)}: the workspace design's, not the paper planner's: add --objective workspace",
+            key="--objective",
+        )
     chain = _plan_chain(args)
     origin = _sensor_origin(args, chain)
     if _candidate_count(args) is None:
@@ -162,12 +175,16 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         gross = loop.gross_errors.get("optimization", []) if loop.gross_errors else []
         exclude = sorted(set(found["laplace"].outlier_rows) | set(int(r) for r in gross))
         chain = campaign.chain
+        measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
+        # the parametric fit's sigma holds the discrepancy the GP found: with the GP as the robust
+        # criterion's discrepancy, the noise is the GP's own, or the discrepancy would count twice
+        robust_gp = measured_gp is not None and args.criterion == design_discrepancy.CRITERION
+        sigma = float(measured_gp["hyperparameters"]["noise_std_m"]) if robust_gp else loop.sigma_after
         start = design_inputs.campaign_prior(
-            chain, sensor, found["registration"].t_nr, loop.sigma_after, _design_priors(args, campaign), exclude=exclude
+            chain, sensor, found["registration"].t_nr, sigma, _design_priors(args, campaign), exclude=exclude
         )
         model, information = start.model, start.information
         measured = sensor.table.loc[start.rows, list(sensor.joint_columns)].to_numpy(dtype=float)
-        measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
         marker = sensor.marker
         origin = _campaign_sensor_origin(args, chain, found["registration"].t_nr, sensor, measured)
         moved = ", ".join(f"q{j + 1} {f:.0%}" for j, f in enumerate(start.moved_fraction))
@@ -270,12 +287,13 @@ def _campaign_sensor_origin(args: argparse.Namespace, chain, t_nr, sensor, measu
 
 def _discrepancy(args: argparse.Namespace, evaluation, sigma: float, measured_gp: dict | None):
     """The robust criterion's discrepancy prior: a campaign's residual GP when its loop found structure
-    (--from-results), else the default (the sensor's noise as signal, each joint's workspace range
-    as lengthscale); --discrepancy-mm sets the signal std of either."""
+    (--from-results; a joint it never turned takes its workspace range), else the default (the
+    sensor's noise as signal, each joint's workspace range as lengthscale); --discrepancy-mm sets the
+    signal std of either."""
     if args.discrepancy_mm is not None and not args.discrepancy_mm >= 0:
         raise InputError(f"must be >= 0 mm, got {args.discrepancy_mm}", key="--discrepancy-mm")
     if measured_gp is not None:
-        found = design_discrepancy.discrepancy_of(measured_gp["hyperparameters"])
+        found = design_discrepancy.discrepancy_of(measured_gp["hyperparameters"], evaluation)
         signal = found.signal_std if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
         return design_discrepancy.Discrepancy(found.lengthscales, signal)
     signal = sigma if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
@@ -514,7 +532,11 @@ def parser() -> argparse.ArgumentParser:
         "calibrated model's predicted 95 %% bound across the workspace, chosen greedily (docs/planning.md)",
     )
     plan.add_argument("--budget", type=_positive, help="workspace: at most N configurations")
-    plan.add_argument("--target-mm", type=float, help="workspace: stop once the predicted bound is at or below X mm")
+    plan.add_argument(
+        "--target-mm",
+        type=float,
+        help="workspace: stop once the predicted bound (robust: the expected RMS error per axis) is at or below X mm",
+    )
     plan.add_argument(
         "--criterion",
         default="workspace",

@@ -75,7 +75,7 @@ class Discrepancy:
         """k(qa_i, qb_k) (na, nb) m^2 of configurations qa (na, N) and qb (nb, N) rad."""
         lengthscales = np.asarray(self.lengthscales, dtype=float)
         if self.signal_std == 0.0 or not np.isfinite(lengthscales).any():
-            # a discrepancy that depends on no joint is a constant offset: the registration takes it
+            # a discrepancy that depends on no joint is one constant offset: k = s^2 between any two
             return np.full((len(np.atleast_2d(qa)), len(np.atleast_2d(qb))), self.signal_std**2)
         return kernel(np.atleast_2d(qa), np.atleast_2d(qb), Hyperparameters(lengthscales, self.signal_std, 0.0))
 
@@ -97,12 +97,18 @@ def workspace_discrepancy(q_workspace, signal_std: float) -> Discrepancy:
     return Discrepancy(lengthscales, float(signal_std))
 
 
-def discrepancy_of(hyperparameters: dict) -> Discrepancy:
+def discrepancy_of(hyperparameters: dict, q_workspace=None) -> Discrepancy:
     """The discrepancy a campaign's residual GP measured: its hyperparameters as loop_closure.json
     writes them (`Hyperparameters.report`: lengthscales_rad with null for a joint not turned,
-    signal_std_m)."""
+    signal_std_m). A joint the campaign never turned has no lengthscale, which would make the
+    discrepancy constant along exactly the joint the next measurements may move: with q_workspace
+    (E, N) rad it gets the default's instead (its range over the workspace)."""
     hyper = Hyperparameters.from_report(hyperparameters)
-    return Discrepancy(hyper.lengthscales, hyper.signal_std)
+    lengthscales = hyper.lengthscales
+    if q_workspace is not None:
+        default = workspace_discrepancy(q_workspace, hyper.signal_std).lengthscales
+        lengthscales = np.where(np.isfinite(lengthscales), lengthscales, default)
+    return Discrepancy(lengthscales, hyper.signal_std)
 
 
 def expected_squared_errors(
@@ -203,6 +209,8 @@ def robust_design(
     q_candidates = np.atleast_2d(np.asarray(q_candidates, dtype=float))
     q_eval = np.atleast_2d(np.asarray(q_eval, dtype=float))
     n_eval, p = je.shape[0], je.shape[2]
+    if n_eval == 0:
+        raise ValueError("no workspace configurations to take the expected error at")
     g = np.einsum("eip,eiq->pq", je, je)
     k_ce = discrepancy.kernel(q_candidates, q_eval)  # (C, E)
     h_all = (k_ce @ je.reshape(n_eval, -1)).reshape(len(jc_all), 3, p) / sigma
