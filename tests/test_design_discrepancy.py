@@ -170,6 +170,20 @@ def test_a_campaigns_rows_count_as_chosen_before_the_first_step():
         for c in left
     ]
     assert left[int(np.argmin(totals))] == rest[after.chosen[0]]
+    many = np.repeat(jc[measured], dd.MAX_MEASURED_ROWS, axis=0)
+    with pytest.raises(ValueError, match="at most 3000"):
+        dd.robust_design(
+            jc[rest],
+            q_c[rest],
+            je,
+            q_e,
+            campaign,
+            discrepancy,
+            SIGMA,
+            budget=1,
+            measured_jacobian=many,
+            q_measured=np.repeat(q_c[measured], dd.MAX_MEASURED_ROWS, axis=0),
+        )
 
 
 def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_without_it(tmp_path, capsys):

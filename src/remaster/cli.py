@@ -213,6 +213,13 @@ def _plan_workspace(args: argparse.Namespace) -> None:
     evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
     target = None if args.target_mm is None else args.target_mm * 1e-3
     if args.criterion == design_discrepancy.CRITERION:
+        if len(measured) > design_discrepancy.MAX_MEASURED_ROWS:
+            raise InputError(
+                f"the campaign has {len(measured)} measured rows; the robust criterion takes at most "
+                f"{design_discrepancy.MAX_MEASURED_ROWS} (their discrepancy kernel grows as the rows squared): "
+                "use --criterion workspace",
+                key="--criterion",
+            )
         discrepancy = _discrepancy(args, evaluation, model.sigma, measured_gp)
         print(f"discrepancy prior: {discrepancy.report()}")
         chosen = design_discrepancy.robust_design(

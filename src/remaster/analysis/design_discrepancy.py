@@ -61,6 +61,8 @@ from . import design_posterior as dp
 CRITERION = "robust"  # `remaster plan --criterion robust`
 # candidates scored at once: bounds the (c, P, 3) work arrays
 SCORE_CHUNK = 2048
+# a campaign's measured rows the discrepancy sums take: their kernel is (3M)^2 (3000 rows: 650 MB)
+MAX_MEASURED_ROWS = 3000
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,6 +221,11 @@ def robust_design(
     information = np.array(prior_information, dtype=float)
     state = _State(information, dp.covariance(information), np.zeros((p, p)), np.zeros((p, p)), np.zeros_like(jc_all))
     if measured_jacobian is not None and len(measured_jacobian):
+        if len(measured_jacobian) > MAX_MEASURED_ROWS:
+            raise ValueError(
+                f"{len(measured_jacobian)} measured rows: the robust criterion takes at most {MAX_MEASURED_ROWS} "
+                "(their discrepancy kernel grows as the rows squared)"
+            )
         jm = np.asarray(measured_jacobian, dtype=float)
         q_m = np.atleast_2d(np.asarray(q_measured, dtype=float))
         flat = jm.reshape(-1, p)
