@@ -148,42 +148,26 @@ def test_a_campaigns_rows_count_as_chosen_before_the_first_step():
     measured = [3, 11, 20]
     campaign = prior + dp.information(jc[measured])
     rest = [c for c in range(len(q_c)) if c not in measured]
-    after = dd.robust_design(
-        jc[rest],
-        q_c[rest],
-        je,
-        q_e,
-        campaign,
-        discrepancy,
-        SIGMA,
-        budget=4,
-        measured_jacobian=jc[measured],
-        q_measured=q_c[measured],
-    )
+
+    def after_campaign(measured_jacobian, q_measured, budget):
+        return dd.robust_design(
+            jc[rest], q_c[rest], je, q_e, campaign, discrepancy, SIGMA, budget=budget,
+            measured_jacobian=measured_jacobian, q_measured=q_measured,
+        )  # fmt: skip
+
+    after = after_campaign(jc[measured], q_c[measured], 4)
     for n in range(5):
         rows = measured + [rest[c] for c in after.chosen[:n]]
         direct = dd.expected_squared_errors(jc[rows], q_c[rows], prior, je, q_e, discrepancy, SIGMA)
         assert after.bounds["expected_rms_mm"].iloc[n] == pytest.approx(np.sqrt(direct.mean() / 3) / 1e-3, rel=1e-6)
-    left = [c for c in rest]
     totals = [
         dd.expected_squared_errors(jc[measured + [c]], q_c[measured + [c]], prior, je, q_e, discrepancy, SIGMA).sum()
-        for c in left
+        for c in rest
     ]
-    assert left[int(np.argmin(totals))] == rest[after.chosen[0]]
-    many = np.repeat(jc[measured], dd.MAX_MEASURED_ROWS, axis=0)
+    assert rest[int(np.argmin(totals))] == rest[after.chosen[0]]
+    many = dd.MAX_MEASURED_ROWS + 1
     with pytest.raises(ValueError, match="at most 3000"):
-        dd.robust_design(
-            jc[rest],
-            q_c[rest],
-            je,
-            q_e,
-            campaign,
-            discrepancy,
-            SIGMA,
-            budget=1,
-            measured_jacobian=many,
-            q_measured=np.repeat(q_c[measured], dd.MAX_MEASURED_ROWS, axis=0),
-        )
+        after_campaign(np.repeat(jc[measured[:1]], many, axis=0), np.repeat(q_c[measured[:1]], many, axis=0), 1)
 
 
 def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_without_it(tmp_path, capsys):
