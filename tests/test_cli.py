@@ -3,6 +3,7 @@ ends with a named error and exit status 2."""
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from remaster import cli, files
 from remaster.campaigns import folders
@@ -118,3 +119,12 @@ def test_simulate_regenerates_a_campaign_that_reads(tmp_path, monkeypatch):
     campaign = folders.read_campaign(tmp_path / "raw" / "kuka-compliance", repo_root=REPO)
     assert len(campaign.sensors["laser_tracker"].table) >= 15
     assert (tmp_path / "truth" / "kuka-compliance.json").is_file()
+
+
+def test_version_prints_the_installed_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as done:
+        cli.main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"remaster {version('remaster')}"

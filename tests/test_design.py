@@ -273,23 +273,22 @@ def test_a_campaign_in_the_robots_frame_must_say_where_its_sensor_stood():
     generated candidates would be checked against a sight line from the robot's base, from where none of
     its rows is seen, so the command asks for --sensor-origin (or --candidates) instead of failing to find
     candidates; a given origin or a candidates file is taken as it is."""
-    import argparse
-
     from remaster.campaigns import folders
     from remaster.inference import fit
+    from remaster.planning.plan import PlanOptions, campaign_sensor_origin
 
     campaign = folders.read_campaign(REPO / "data" / "raw" / "jacobi-ur5-gts3800", repo_root=REPO)
     chain, sensor = campaign.chain, campaign.sensors["laser_tracker"]
     rows = sensor.measured_rows("optimization")[:50]
     measured = sensor.table.loc[rows, list(sensor.joint_columns)].to_numpy(dtype=float)
     t_nr = fit.register(chain, sensor).t_nr
-    args = argparse.Namespace(sensor_origin=None, candidates="60", link_radius=0.06, floor=0.0)
+    args = PlanOptions(candidates="60", link_radius=0.06, floor=0.0)
     with pytest.raises(InputError, match="none of the campaign's 50 measured rows would be seen") as raised:
-        cli._campaign_sensor_origin(args, chain, t_nr, sensor, measured)
+        campaign_sensor_origin(args, chain, t_nr, sensor, measured)
     assert raised.value.key == "--sensor-origin"
-    given = argparse.Namespace(**{**vars(args), "sensor_origin": [2.0, 0.0, 0.5]})
-    np.testing.assert_allclose(cli._campaign_sensor_origin(given, chain, t_nr, sensor, measured), [2.0, 0.0, 0.5])
-    listed = argparse.Namespace(**{**vars(args), "candidates": "rows.csv"})
+    given = PlanOptions(candidates="60", sensor_origin=(2.0, 0.0, 0.5))
+    np.testing.assert_allclose(campaign_sensor_origin(given, chain, t_nr, sensor, measured), [2.0, 0.0, 0.5])
+    listed = PlanOptions(candidates="rows.csv")
     np.testing.assert_allclose(
-        cli._campaign_sensor_origin(listed, chain, t_nr, sensor, measured), np.linalg.inv(t_nr)[:3, 3]
+        campaign_sensor_origin(listed, chain, t_nr, sensor, measured), np.linalg.inv(t_nr)[:3, 3]
     )

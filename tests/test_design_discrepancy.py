@@ -227,16 +227,14 @@ def test_a_campaigns_gp_is_the_prior_with_the_joints_it_never_turned_given_the_w
     the campaign never turned (null), which takes its range over the workspace rather than none (a
     discrepancy constant along the joint the next configurations should move); --discrepancy-mm sets the
     std; without a GP, the default from the sensor's noise."""
-    import argparse
-
-    from remaster import cli
+    from remaster.planning.plan import PlanOptions, discrepancy_prior
 
     q_eval = np.array([[0.0, 0.0, -1.0], [1.0, 0.5, 1.0]])
     gp = {"hyperparameters": {"lengthscales_rad": [0.1, 0.3, None], "signal_std_m": 5e-5, "noise_std_m": 2e-5}}
-    found = cli._discrepancy(argparse.Namespace(discrepancy_mm=None), q_eval, 3e-5, gp)
+    found = discrepancy_prior(PlanOptions(), q_eval, 3e-5, gp)
     np.testing.assert_allclose(found.lengthscales, [0.1, 0.3, 2.0])
     assert found.signal_std == 5e-5
-    assert cli._discrepancy(argparse.Namespace(discrepancy_mm=0.02), q_eval, 3e-5, gp).signal_std == pytest.approx(2e-5)
-    default = cli._discrepancy(argparse.Namespace(discrepancy_mm=None), q_eval, 3e-5, None)
+    assert discrepancy_prior(PlanOptions(discrepancy_mm=0.02), q_eval, 3e-5, gp).signal_std == pytest.approx(2e-5)
+    default = discrepancy_prior(PlanOptions(), q_eval, 3e-5, None)
     np.testing.assert_allclose(default.lengthscales, [1.0, 0.5, 2.0])
     assert default.signal_std == 3e-5

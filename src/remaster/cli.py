@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import fields
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -24,9 +26,8 @@ from .errors import InputError, RemasterError
 from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json, write_text
 from .inference.fit import LaplaceReport, Registration
 from .loop.result import LoopReport
-from .planning import design, design_figures, design_posterior, joint_tour, plan_inputs, programs, robust_design
-from .robot import planning, priors, registration
-from .robot.kinematics import ForwardKinematics
+from .planning import design, plan, programs, robust_design
+from .robot import priors
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
 NOT_REACHED_STATUS = 3
@@ -47,69 +48,37 @@ def _simulate(args: argparse.Namespace) -> None:
             print(f"{path}: wrote {folder} ({rows}) and {truth}")
 
 
+def _plan_options(args: argparse.Namespace) -> plan.PlanOptions:
+    names = [f.name for f in fields(plan.PlanOptions)]
+    given = {name: getattr(args, name) for name in names if name not in ("from_results", "marker", "sensor_origin")}
+    return plan.PlanOptions(
+        **given,
+        marker=tuple(args.marker),
+        sensor_origin=None if args.sensor_origin is None else tuple(args.sensor_origin),
+        from_results=args.from_results is not None,
+    )
+
+
 def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
     if args.sensor_origin is not None:
         return np.asarray(args.sensor_origin, dtype=float)
     if args.registration_points is None:
         raise InputError("needs the sensor: --sensor-origin X Y Z or --registration-points CSV", key="--sensor-origin")
     points = read_csv(args.registration_points)
-    joints = [f"q{j + 1}" for j in range(chain.n_joints)]
-    missing = [c for c in joints + ["x", "y", "z"] if c not in points.columns]
-    if missing:
-        raise RemasterError(f"{args.registration_points}: missing columns {', '.join(missing)}")
-    robot = ForwardKinematics(chain, points[joints].to_numpy(float)).points(args.marker)
-    t_nr = registration.three_point(robot, points[["x", "y", "z"]].to_numpy(float))
-    return np.linalg.inv(t_nr)[:3, 3]
+    return plan.sensor_origin_from_points(chain, points, args.marker, str(args.registration_points))
 
 
 def _plan(args: argparse.Namespace) -> None:
-    if args.exchange and args.criterion != "workspace":
-        raise InputError(f"the exchange improves the workspace criterion, not {args.criterion}", key="--exchange")
-    if args.discrepancy_mm is not None and args.criterion != robust_design.CRITERION:
-        raise InputError("a discrepancy is the robust criterion's: add --criterion robust", key="--discrepancy-mm")
-    if args.objective == "workspace" or args.from_results is not None:
-        _plan_workspace(args)
+    options = _plan_options(args)
+    plan.check_options(options)
+    if options.workspace_design:
+        _plan_workspace(args, options)
         return
-    workspace_only = {
-        "--criterion": args.criterion != "workspace",
-        "--discrepancy-mm": args.discrepancy_mm is not None,
-        "--exchange": args.exchange,
-        "--budget": args.budget is not None,
-        "--target-mm": args.target_mm is not None,
-    }
-    given = [option for option, used in workspace_only.items() if used]
-    if given:
-        raise InputError(
-            f"{', '.join(given)}: the workspace design's, not the paper planner's: add --objective workspace",
-            key="--objective",
-        )
     chain = _plan_chain(args)
     origin = _sensor_origin(args, chain)
-    if _candidate_count(args) is None:
-        raise InputError("a file of candidates needs --objective workspace", key="--candidates")
-    rng = np.random.default_rng(args.seed)
-    model = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
-    sight = planning.SightLine(origin, np.asarray(args.marker, dtype=float))
-    plan = planning.plan_set(
-        chain,
-        args.set,
-        origin,
-        [sight],
-        rng,
-        candidates=_candidate_count(args),
-        n_poses=args.poses,
-        n_configurations=args.configurations,
-        model=model,
-        q3=args.q3,
-    )
-    table = plan.table.copy()
-    for j in range(chain.n_joints):
-        table[f"q{j + 1}_deg"] = np.degrees(table[f"q{j + 1}"])
-    write_csv(args.out, table)
-    print(
-        f"{args.out}: {len(table)} configurations of {table['pose'].nunique()} poses from "
-        f"{plan.candidates} candidate poses; discarded: {plan.discarded}"
-    )
+    planned = plan.paper_plan(chain, origin, options, np.random.default_rng(args.seed))
+    write_csv(args.out, planned.table)
+    print(f"{args.out}: {planned.summary}")
 
 
 def _plan_chain(args: argparse.Namespace):
@@ -117,17 +86,6 @@ def _plan_chain(args: argparse.Namespace):
         raise InputError("needs the robot: --urdf (or --from-results, whose campaign names it)", key="--urdf")
     robot = {"urdf": args.urdf, "base": args.base, "flange": args.flange}
     return load_chain({k: v for k, v in robot.items() if v is not None}, Path.cwd(), Path.cwd(), source="command line")
-
-
-def _candidate_count(args: argparse.Namespace) -> int | None:
-    """--candidates as a number of poses (None when it names a file)."""
-    try:
-        value = int(args.candidates)
-    except ValueError:
-        return None
-    if value < 1:
-        raise InputError(f"must be at least 1 or a CSV file, got {value}", key="--candidates")
-    return value
 
 
 def _design_priors(args: argparse.Namespace, campaign=None):
@@ -155,10 +113,8 @@ def _campaign_results(folder: Path) -> dict:
     return out
 
 
-def _plan_workspace(args: argparse.Namespace) -> None:
-    """`remaster plan --objective workspace` and `--from-results`: the greedy design (planning.design)."""
-    if args.budget is None and args.target_mm is None:
-        raise InputError("a workspace design needs --budget N, --target-mm X or both", key="--budget")
+def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None:
+    """`remaster plan --objective workspace` and `--from-results` (`planning.plan.workspace_plan`)."""
     rng = np.random.default_rng(args.seed)
     if args.from_results is not None:
         results = Path(args.from_results)
@@ -171,140 +127,21 @@ def _plan_workspace(args: argparse.Namespace) -> None:
                 file=str(results),
             )
         found = _campaign_results(results)
-        loop = found["loop"]
-        gross = loop.gross_errors.get("optimization", []) if loop.gross_errors else []
-        exclude = sorted(set(found["laplace"].outlier_rows) | set(int(r) for r in gross))
-        chain = campaign.chain
-        measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
-        # the parametric fit's sigma holds the discrepancy the GP found: with the GP as the robust
-        # criterion's discrepancy, the noise is the GP's own, or the discrepancy would count twice
-        robust_gp = measured_gp is not None and args.criterion == robust_design.CRITERION
-        sigma = float(measured_gp["hyperparameters"]["noise_std_m"]) if robust_gp else loop.sigma_after
-        start = plan_inputs.campaign_prior(
-            chain, sensor, found["registration"].t_nr, sigma, _design_priors(args, campaign), exclude=exclude
-        )
-        model, information = start.model, start.information
-        measured = sensor.table.loc[start.rows, list(sensor.joint_columns)].to_numpy(dtype=float)
-        marker = sensor.marker
-        origin = _campaign_sensor_origin(args, chain, found["registration"].t_nr, sensor, measured)
-        moved = ", ".join(f"q{j + 1} {f:.0%}" for j, f in enumerate(start.moved_fraction))
-        print(f"{results}: {len(start.rows)} measured rows; share of each joint's range moved: {moved}")
+        start = plan.campaign_start(campaign, sensor, found, options, _design_priors(args, campaign))
+        print(f"{results}: {start.note}")
     else:
         chain = _plan_chain(args)
-        origin = _sensor_origin(args, chain)
-        marker = np.asarray(args.marker, dtype=float)
-        t_nr = np.eye(4)
-        t_nr[:3, 3] = -origin  # the sensor's orientation does not change a position bound's size
-        if not args.noise_mm > 0:
-            raise InputError(f"must be > 0 mm, got {args.noise_mm}", key="--noise-mm")
-        model = design_posterior.complete_error_model(chain, marker, t_nr, _design_priors(args), args.noise_mm * 1e-3)
-        information = model.prior_information()
-        measured, measured_gp = np.zeros((0, chain.n_joints)), None
-    count = _candidate_count(args)
-    if count is None:
-        candidates = plan_inputs.table_candidates(read_csv(args.candidates), chain, str(args.candidates))
-    else:
-        collision = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
-        candidates = plan_inputs.generated_candidates(
-            chain, origin, marker, rng, poses=count, collision=collision, set_name=args.set
-        )
-    q = plan_inputs.configurations(candidates, chain.n_joints)
-    within = q if args.workspace == "candidates" else None
-    evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
-    target = None if args.target_mm is None else args.target_mm * 1e-3
-    if args.criterion == robust_design.CRITERION:
-        if len(measured) > robust_design.MAX_MEASURED_ROWS:
-            raise InputError(
-                f"the campaign has {len(measured)} measured rows; the robust criterion takes at most "
-                f"{robust_design.MAX_MEASURED_ROWS} (their discrepancy kernel grows as the rows squared): "
-                "use --criterion workspace",
-                key="--criterion",
-            )
-        discrepancy = _discrepancy(args, evaluation, model.sigma, measured_gp)
-        print(f"discrepancy prior: {discrepancy.report()}")
-        chosen = robust_design.robust_design(
-            model.whitened_jacobian(q),
-            q,
-            model.jacobian(evaluation),
-            evaluation,
-            information,
-            discrepancy,
-            model.sigma,
-            budget=args.budget,
-            target=target,
-            measured_jacobian=model.whitened_jacobian(measured),
-            q_measured=measured,
-        )
-    else:
-        chosen = design.greedy_design(
-            model.whitened_jacobian(q),
-            model.jacobian(evaluation),
-            information,
-            budget=args.budget,
-            target=target,
-            criterion=args.criterion,
-            statistic=args.statistic,
-        )
-    if args.exchange:
-        chosen = design.exchange_design(chosen, model.whitened_jacobian(q), model.jacobian(evaluation), information)
+        start = plan.nominal_start(chain, _sensor_origin(args, chain), options, _design_priors(args))
+    table = None if options.candidate_count() is not None else read_csv(args.candidates)
+    planned = plan.workspace_plan(start, options, rng, table, str(args.candidates))
+    for note in planned.notes:
+        print(note)
     out = Path(args.out)
     stem = out.with_name(out.stem + "_bound")
-    write_csv(out, design.chosen_table(candidates, chosen, chain.n_joints))
-    bounds = design.bound_table(chosen)
-    write_csv(stem.with_suffix(".csv"), bounds)
-    write_figure(
-        stem,
-        design_figures.bound_curve(bounds, f"{len(chosen.chosen)} configurations ({args.criterion})", args.target_mm),
-    )
-    what = (
-        f"expected RMS error per axis across the workspace, with the discrepancy, {chosen.final_bound_mm:.4g} mm"
-        if chosen.statistic == "rms"
-        else f"predicted workspace 95 % bound {chosen.final_bound_mm:.4g} mm ({args.statistic})"
-    )
-    print(
-        f"{out}: {len(chosen.chosen)} of {len(candidates)} candidate configurations ({args.criterion}; stopped: "
-        f"{chosen.stopped}); {what}; against n in {stem.with_suffix('.csv')}"
-    )
-
-
-def _campaign_sensor_origin(args: argparse.Namespace, chain, t_nr, sensor, measured) -> np.ndarray:
-    """Where a calibrated campaign's sensor stands in the robot base frame (m), for the sight lines of
-    generated candidates: --sensor-origin when given, else the registration's. A campaign whose
-    coordinates were moved to the robot's frame before it was published registers to about the
-    identity, which puts the sensor at the robot's base: if none of its own measured rows would be
-    seen from there, the registration does not say where the sensor was, and a generated design would
-    be checked against the wrong sight line."""
-    if args.sensor_origin is not None:
-        return np.asarray(args.sensor_origin, dtype=float)
-    origin = np.linalg.inv(t_nr)[:3, 3]
-    if _candidate_count(args) is None or not len(measured):
-        return origin  # candidates given: no sight line is checked
-    collision = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
-    seen = planning.marker_visible(chain, measured, planning.SightLine(origin, sensor.marker), collision)
-    if not seen.any():
-        raise InputError(
-            f"the registration puts the sensor at ({origin[0]:.3f}, {origin[1]:.3f}, {origin[2]:.3f}) m in the "
-            f"robot frame, from where none of the campaign's {len(measured)} measured rows would be seen: its "
-            "coordinates are not the sensor's own (moved to the robot's frame?); give the sensor's position "
-            "--sensor-origin X Y Z (m, robot base frame), or the candidates --candidates FILE",
-            key="--sensor-origin",
-        )
-    return origin
-
-
-def _discrepancy(args: argparse.Namespace, evaluation, sigma: float, measured_gp: dict | None):
-    """The robust criterion's discrepancy prior: a campaign's residual GP when its loop found structure
-    (--from-results; a joint it never turned takes its workspace range), else the default (the
-    sensor's noise as signal, each joint's workspace range as lengthscale); --discrepancy-mm sets the
-    signal std of either."""
-    if args.discrepancy_mm is not None and not args.discrepancy_mm >= 0:
-        raise InputError(f"must be >= 0 mm, got {args.discrepancy_mm}", key="--discrepancy-mm")
-    if measured_gp is not None:
-        found = robust_design.discrepancy_of(measured_gp["hyperparameters"], evaluation)
-        signal = found.signal_std if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
-        return robust_design.Discrepancy(found.lengthscales, signal)
-    signal = sigma if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
-    return robust_design.workspace_discrepancy(evaluation, signal)
+    write_csv(out, planned.chosen)
+    write_csv(stem.with_suffix(".csv"), planned.bounds)
+    write_figure(stem, planned.figure)
+    print(f"{out}: {planned.summary}; against n in {stem.with_suffix('.csv')}")
 
 
 def _import(args: argparse.Namespace) -> None:
@@ -337,25 +174,14 @@ def _program(args: argparse.Namespace) -> None:
         dwell=args.dwell,
         name=out.stem if args.format == "krl" else "remaster_campaign",
     )
-    tour = joint_tour.joint_tour(given.q, args.order)
-    as_given = joint_tour.joint_tour(given.q, "as-given")
-    ordered = given.take(tour.order)
-    text = programs.program_text(
-        ordered,
-        args.format,
-        settings,
-        header=[f"remaster program from {args.configurations} ({args.urdf}), order {args.order}"],
-    )
-    if args.check:
-        worst = programs.check_program(text, args.format, ordered, str(out))
-        print(f"{out}: reads back as the {len(ordered.q)} configurations in order, to {np.degrees(worst):.2g} deg")
-    write_text(out, text)
-    write_csv(table_path, programs.controller_table(ordered, args.format))
+    header = [f"remaster program from {args.configurations} ({args.urdf}), order {args.order}"]
+    program = programs.robot_program(given, args.format, settings, args.order, header, args.check, str(out))
+    if program.checked:
+        print(f"{out}: {program.checked}")
+    write_text(out, program.text)
+    write_csv(table_path, program.table)
     print(
-        f"{out}: {len(ordered.q)} configurations ({args.format}, order {args.order}): joint travel "
-        f"{np.degrees(tour.total):.1f} deg in all (the largest joint motion of each move, summed), largest move "
-        f"{np.degrees(tour.largest):.1f} deg; as given {np.degrees(as_given.total):.1f} and "
-        f"{np.degrees(as_given.largest):.1f} deg. {table_path}: the same configurations for `remaster import` "
+        f"{out}: {program.summary}. {table_path}: the same configurations for `remaster import` "
         "(key column point, joints q1..qN in rad). Check the program on the robot's simulator before running it."
     )
 
@@ -472,10 +298,7 @@ def _calibration_arguments(command: argparse.ArgumentParser) -> None:
     command.add_argument("--seed", type=int, default=0, help="seed of the posterior draws")
 
 
-def parser() -> argparse.ArgumentParser:
-    main = argparse.ArgumentParser(prog="remaster", description=" ".join(__doc__.split("\n\n")[0].split()))
-    commands = main.add_subparsers(dest="command", required=True)
-
+def _simulate_command(commands) -> None:
     simulate = commands.add_parser("simulate", help="regenerate simulated campaigns from scenarios")
     simulate.add_argument("scenarios", nargs="*", help=f"scenario YAML files (default: {DEFAULT_SCENARIOS}/*.yaml)")
     simulate.add_argument("--raw-dir", default="data/raw", help="where campaign folders go")
@@ -490,47 +313,9 @@ def parser() -> argparse.ArgumentParser:
     )
     simulate.set_defaults(run=_simulate)
 
-    plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
-    plan.add_argument("--urdf", help="robot URDF (not with --from-results: the campaign's)")
-    plan.add_argument("--base", help="base frame (default: the URDF root)")
-    plan.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
-    where = plan.add_mutually_exclusive_group()
-    where.add_argument(
-        "--sensor-origin",
-        nargs=3,
-        type=float,
-        metavar=("X", "Y", "Z"),
-        help="reference sensor origin in the robot base frame (m)",
-    )
-    where.add_argument(
-        "--registration-points",
-        metavar="CSV",
-        help="three configurations q1..qN (rad) with the marker measured by the sensor x, y, z (m): "
-        "the sensor origin comes from a three-point registration as in the paper",
-    )
-    plan.add_argument(
-        "--marker",
-        nargs=3,
-        type=float,
-        default=[0.0, 0.0, 0.0],
-        metavar=("X", "Y", "Z"),
-        help="marker in the flange frame (m)",
-    )
-    plan.add_argument("--set", default="optimization", choices=["optimization", "validation"])
-    plan.add_argument(
-        "--candidates",
-        default="60",
-        metavar="N|CSV",
-        help="Latin-hypercube poses per batch; with --objective workspace: the candidate poses (every joint "
-        "free), or a CSV of candidate configurations q1..qN (rad), e.g. a plan or a campaign's rows",
-    )
-    plan.add_argument("--poses", type=int, help="exact number of poses (needs --configurations)")
-    plan.add_argument("--configurations", type=int, help="exact number of configurations (needs --poses)")
-    plan.add_argument(
-        "--q3", type=float, default=0.0, help="joint 3 held at this angle (rad) by the inverse kinematics"
-    )
-    plan.add_argument("--link-radius", type=float, default=0.06, help="capsule radius of the links (m)")
-    plan.add_argument("--floor", type=float, default=0.0, help="floor height in the base frame (m)")
+
+def _workspace_design_arguments(plan: argparse.ArgumentParser) -> None:
+    """`remaster plan`'s options of the workspace design (docs/planning.md)."""
     plan.add_argument(
         "--objective",
         default="paper",
@@ -586,6 +371,51 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument(
         "--config", default="config.yaml", help="workspace: the config whose priors the error model takes"
     )
+
+
+def _plan_command(commands) -> None:
+    plan = commands.add_parser("plan", help="joint configurations to command for a measurement campaign")
+    plan.add_argument("--urdf", help="robot URDF (not with --from-results: the campaign's)")
+    plan.add_argument("--base", help="base frame (default: the URDF root)")
+    plan.add_argument("--flange", help="flange frame (default: the URDF's single leaf)")
+    where = plan.add_mutually_exclusive_group()
+    where.add_argument(
+        "--sensor-origin",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="reference sensor origin in the robot base frame (m)",
+    )
+    where.add_argument(
+        "--registration-points",
+        metavar="CSV",
+        help="three configurations q1..qN (rad) with the marker measured by the sensor x, y, z (m): "
+        "the sensor origin comes from a three-point registration as in the paper",
+    )
+    plan.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        default=[0.0, 0.0, 0.0],
+        metavar=("X", "Y", "Z"),
+        help="marker in the flange frame (m)",
+    )
+    plan.add_argument("--set", default="optimization", choices=["optimization", "validation"])
+    plan.add_argument(
+        "--candidates",
+        default="60",
+        metavar="N|CSV",
+        help="Latin-hypercube poses per batch; with --objective workspace: the candidate poses (every joint "
+        "free), or a CSV of candidate configurations q1..qN (rad), e.g. a plan or a campaign's rows",
+    )
+    plan.add_argument("--poses", type=int, help="exact number of poses (needs --configurations)")
+    plan.add_argument("--configurations", type=int, help="exact number of configurations (needs --poses)")
+    plan.add_argument(
+        "--q3", type=float, default=0.0, help="joint 3 held at this angle (rad) by the inverse kinematics"
+    )
+    plan.add_argument("--link-radius", type=float, default=0.06, help="capsule radius of the links (m)")
+    plan.add_argument("--floor", type=float, default=0.0, help="floor height in the base frame (m)")
+    _workspace_design_arguments(plan)
     plan.add_argument(
         "--from-results",
         metavar="FOLDER",
@@ -599,6 +429,8 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument("--out", default="plan.csv")
     plan.set_defaults(run=_plan)
 
+
+def _import_command(commands) -> None:
     imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
     imp.add_argument(
         "--config",
@@ -611,6 +443,8 @@ def parser() -> argparse.ArgumentParser:
     imp.add_argument("--force", action="store_true", help="replace an existing campaign folder's files")
     imp.set_defaults(run=_import)
 
+
+def _program_command(commands) -> None:
     program = commands.add_parser(
         "program", help="a robot program (URScript, KRL, RAPID) that visits planned configurations"
     )
@@ -658,12 +492,16 @@ def parser() -> argparse.ArgumentParser:
     )
     program.set_defaults(run=_program)
 
+
+def _predict_command(commands) -> None:
     predict = commands.add_parser("predict", help="where the calibrated robot puts the marker or TCP at joint commands")
     _calibration_arguments(predict)
     predict.add_argument("--commands", required=True, metavar="CSV", help="joint commands q1..qN (rad), one per row")
     predict.add_argument("--out", default="predicted.csv")
     predict.set_defaults(run=_predict)
 
+
+def _compensate_command(commands) -> None:
     compensate = commands.add_parser("compensate", help="joint commands that reach targets under the calibrated model")
     _calibration_arguments(compensate)
     compensate.add_argument(
@@ -675,6 +513,18 @@ def parser() -> argparse.ArgumentParser:
     )
     compensate.add_argument("--out", default="compensated.csv")
     compensate.set_defaults(run=_compensate)
+
+
+def parser() -> argparse.ArgumentParser:
+    main = argparse.ArgumentParser(prog="remaster", description=" ".join(__doc__.split("\n\n")[0].split()))
+    main.add_argument("--version", action="version", version=f"%(prog)s {version('remaster')}")
+    commands = main.add_subparsers(dest="command", required=True)
+    _simulate_command(commands)
+    _plan_command(commands)
+    _import_command(commands)
+    _program_command(commands)
+    _predict_command(commands)
+    _compensate_command(commands)
     return main
 
 

@@ -43,6 +43,7 @@ import pandas as pd
 
 from ..errors import InputError
 from ..robot.kinematics import KinematicChain
+from .joint_tour import joint_tour
 
 FORMATS = ("urscript", "krl", "rapid")
 SETS = ("optimization", "validation")
@@ -424,3 +425,37 @@ def check_program(text: str, fmt: str, c: Configurations, source: str = "program
             f"move {wrong[0] + 1} reads back {np.degrees(difference[wrong[0]]).max():.3g} deg off", file=source
         )
     return float(difference.max())
+
+
+@dataclass(frozen=True)
+class RobotProgram:
+    """A program ready to write: its text, the controller table in its order (`controller_table`),
+    what its check found ('' unchecked) and a line saying what it visits and how far the joints travel."""
+
+    text: str
+    table: pd.DataFrame
+    checked: str
+    summary: str
+
+
+def robot_program(
+    given: Configurations, fmt: str, settings: Settings, order: str, header: list[str], check: bool, source: str
+) -> RobotProgram:
+    """The program visiting `given` in `order` ('tour': `joint_tour.joint_tour`; 'as-given'), read
+    back and compared with the configurations first when `check` (InputError naming `source` when
+    it does not read back)."""
+    tour = joint_tour(given.q, order)
+    as_given = joint_tour(given.q, "as-given")
+    ordered = given.take(tour.order)
+    text = program_text(ordered, fmt, settings, header=header)
+    checked = ""
+    if check:
+        worst = check_program(text, fmt, ordered, source)
+        checked = f"reads back as the {len(ordered.q)} configurations in order, to {np.degrees(worst):.2g} deg"
+    summary = (
+        f"{len(ordered.q)} configurations ({fmt}, order {order}): joint travel "
+        f"{np.degrees(tour.total):.1f} deg in all (the largest joint motion of each move, summed), largest move "
+        f"{np.degrees(tour.largest):.1f} deg; as given {np.degrees(as_given.total):.1f} and "
+        f"{np.degrees(as_given.largest):.1f} deg"
+    )
+    return RobotProgram(text, controller_table(ordered, fmt), checked, summary)
