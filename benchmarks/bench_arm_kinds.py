@@ -33,7 +33,7 @@ from remaster import files, layout  # noqa: E402
 from remaster.campaigns import folders, scenario  # noqa: E402
 from remaster.inference import blocks, fit  # noqa: E402
 from remaster.labels import sensor_label  # noqa: E402
-from remaster.loop.report import LoopReport  # noqa: E402
+from remaster.loop.result import LoopReport  # noqa: E402
 from tests.arm_kinds import KINDS, chain_of  # noqa: E402
 
 COMPLETE = ("marker_offset", "link_geometry")

@@ -6,7 +6,7 @@ Run from the repository root: python benchmarks/bench_claim_coverage.py [sensor]
 truth (its link errors, rigid motions of every fixed transform in the simulator's own form, come from
 their own seed), new poses and noise. Each campaign goes through
 registration, the paper's fit and the loop closure with config.yaml's settings; its claims
-(`analysis.workspace`, 400 draws, registration fitted, with noise) at 300 random configurations across
+(`evaluation.workspace`, 400 draws, registration fitted, with noise) at 300 random configurations across
 the joint limits and at 300 inside the measured joint ranges (joint 3 held at 0, as the twin's planner
 holds it) are held against the simulator's true marker positions there. Printed per seed: the rms of
 z = (posterior mean - truth) / posterior std over the loop's compliance and drift parameters, the worst
@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from remaster import files
-from remaster.analysis import comparison, prediction, workspace
+from remaster import files, identity
+from remaster.calibration import prediction
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions
+from remaster.evaluation import workspace
 from remaster.inference import blocks, fit, metrics
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.loop.settings import settings_from
 from remaster.robot import kinematics
 from remaster.units import SECONDS_PER_HOUR
@@ -67,7 +68,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     )
     result.report.write(folder.parent / "loop.json")
     report, samples = LoopReport.read(folder.parent / "loop.json"), result.samples
-    robot = comparison.robot_identity(campaign)
+    robot = identity.robot_identity(campaign)
     claims = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],

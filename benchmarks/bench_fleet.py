@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from remaster import files
-from remaster.analysis import comparison
+from remaster.comparing import comparison
 
 SCENARIO = "data/simulation/kuka-compliance.yaml"
 

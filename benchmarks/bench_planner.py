@@ -52,13 +52,13 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from remaster import files  # noqa: E402
-from remaster.analysis import design, design_inputs  # noqa: E402
-from remaster.analysis import design_posterior as dp  # noqa: E402
 from remaster.campaigns import folders, scenario  # noqa: E402
 from remaster.campaigns.campaign import sensor_data  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
 from remaster.inference import blocks, evidence, fit  # noqa: E402
+from remaster.planning import design, plan_inputs  # noqa: E402
+from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
 from remaster.robot.priors import priors_from, with_defaults  # noqa: E402
 from tests.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
@@ -140,7 +140,7 @@ def paper_design(chain, origin, sight, n: int, rng) -> np.ndarray:
             )
         except InputError:
             continue
-        return design_inputs.configurations(plan.table, chain.n_joints)
+        return plan_inputs.configurations(plan.table, chain.n_joints)
     raise InputError(f"the paper's planner found no {n} configurations", key="plan")
 
 
@@ -186,8 +186,8 @@ def simulator(repeats: int, grid) -> dict:
     for repeat in range(repeats):
         rng = np.random.default_rng(100 + repeat)
         started = time.time()
-        candidates = design_inputs.generated_candidates(chain, origin, marker, rng, poses=CANDIDATE_POSES)
-        q_candidates = design_inputs.configurations(candidates, chain.n_joints)
+        candidates = plan_inputs.generated_candidates(chain, origin, marker, rng, poses=CANDIDATE_POSES)
+        q_candidates = plan_inputs.configurations(candidates, chain.n_joints)
         plan_eval = design.evaluation_configurations(chain, design.EVALUATION_CONFIGURATIONS, rng)
         candidate_jacobian, eval_jacobian = model.whitened_jacobian(q_candidates), model.jacobian(plan_eval)
         greedy = design.greedy_design(candidate_jacobian, eval_jacobian, model.prior_information(), budget=largest)
@@ -206,7 +206,7 @@ def simulator(repeats: int, grid) -> dict:
                 **exchanged,
                 "planned": q_candidates[greedy.chosen[:n]],
                 "paper": paper_design(chain, origin, sight, n, rng),
-                "random": design_inputs.configurations(
+                "random": plan_inputs.configurations(
                     planning.plan_random(chain, "optimization", [sight], rng, n_configurations=n).table,
                     chain.n_joints,
                 ),

@@ -56,12 +56,12 @@ from bench_planner import (  # noqa: E402
     with_block,
 )
 
-from remaster.analysis import design, design_inputs  # noqa: E402
-from remaster.analysis import design_discrepancy as dd  # noqa: E402
-from remaster.analysis import design_posterior as dp  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.inference import blocks, fit, residual_gp  # noqa: E402
+from remaster.planning import design, plan_inputs  # noqa: E402
+from remaster.planning import design_posterior as dp  # noqa: E402
+from remaster.planning import robust_design as dd  # noqa: E402
 from remaster.robot import planning  # noqa: E402
 from tests.arm_kinds import iiwa_rigid_link_errors  # noqa: E402
 from tests.test_joint_harmonics import cyclic_truth  # noqa: E402
@@ -101,8 +101,8 @@ def simulator(repeats: int, grid) -> dict:
     rows, seconds = [], []
     for repeat in range(repeats):
         rng = np.random.default_rng(100 + repeat)
-        candidates = design_inputs.generated_candidates(chain, origin, marker, rng, poses=CANDIDATE_POSES)
-        q_c = design_inputs.configurations(candidates, chain.n_joints)
+        candidates = plan_inputs.generated_candidates(chain, origin, marker, rng, poses=CANDIDATE_POSES)
+        q_c = plan_inputs.configurations(candidates, chain.n_joints)
         plan_eval = design.evaluation_configurations(chain, design.EVALUATION_CONFIGURATIONS, rng)
         jc, je, prior = model.whitened_jacobian(q_c), model.jacobian(plan_eval), model.prior_information()
         started = time.time()
@@ -124,7 +124,7 @@ def simulator(repeats: int, grid) -> dict:
                 "robust": q_c[robust.chosen[:n]],
                 "workspace": q_c[workspace.chosen[:n]],
                 "d_optimal": q_c[d_optimal.chosen[:n]],
-                "random": design_inputs.configurations(
+                "random": plan_inputs.configurations(
                     planning.plan_random(chain, "optimization", [sight], rng, n_configurations=n).table, chain.n_joints
                 ),
                 "paper": paper_design(chain, origin, sight, n, rng),

@@ -24,9 +24,9 @@ import numpy as np
 import pandas as pd
 
 from remaster import files, seeding
-from remaster.analysis import accuracy
 from remaster.campaigns import folders
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.evaluation import accuracy
 from remaster.inference import fit
 from remaster.loop import loop_closure
 from remaster.loop.settings import settings_from

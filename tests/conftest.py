@@ -61,11 +61,11 @@ def loop_settings(config=None, **changes):
 
 
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
-    """A loop closure's report (`remaster.loop.report.LoopReport`) as read from its file, with what
+    """A loop closure's report (`remaster.loop.result.LoopReport`) as read from its file, with what
     the later stages read: the refit's parameter rows, the effects added, the closure test, and
     neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model);
     `fields` overrides any top-level key."""
-    from remaster.loop.report import LoopReport
+    from remaster.loop.result import LoopReport
 
     accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
     content = {

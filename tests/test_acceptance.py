@@ -1,4 +1,4 @@
-"""The validation set as the acceptance test (`remaster.analysis.acceptance`): the check itself held to
+"""The validation set as the acceptance test (`remaster.evaluation.acceptance`): the check itself held to
 a closed-form case (a correct model fails at the stated rate, its p-values uniform), the diagnosis
 rules, the simulator's sensor-side phenomena, and simulated campaigns through the pipeline's own
 stages (registration, Laplace fit, loop closure with config.yaml's settings, then the acceptance
@@ -18,14 +18,14 @@ import pytest
 from scipy import stats
 
 from remaster import files, spatial
-from remaster.analysis import acceptance
-from remaster.analysis.acceptance import FAIL, MOVED, NOT_CONFIRMED, NOT_HELD, PASS, Acceptance, Claim
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_side
 from remaster.errors import InputError
+from remaster.evaluation import acceptance
+from remaster.evaluation.acceptance import FAIL, MOVED, NOT_CONFIRMED, NOT_HELD, PASS, Acceptance, Claim
 from remaster.inference import fit
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 

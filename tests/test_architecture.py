@@ -84,8 +84,9 @@ FOUNDATION = {
     "layout",
     "provenance",
     "stage_inputs",
+    "identity",
 }
-STAGES = ("robot", "campaigns", "inference", "loop", "analysis", "reporting")
+STAGES = ("robot", "campaigns", "inference", "loop", "calibration", "evaluation", "comparing", "reporting", "planning")
 INTERFACE = {"cli"}
 LAYER_NAMES = ["foundation", *STAGES, "interface"]
 

@@ -3,7 +3,7 @@
 import numpy as np
 from scipy import stats
 
-from remaster.analysis import budget
+from remaster.evaluation import budget
 from remaster.inference.fit import LaplaceReport
 
 

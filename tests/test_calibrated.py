@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from remaster import spatial
-from remaster.analysis import calibrated, dh_table, prediction
+from remaster.calibration import dh_table, exports, prediction
 from remaster.campaigns import folders
 from remaster.errors import InputError
 from remaster.inference import blocks
@@ -52,7 +52,7 @@ def random_values(chain, rng):
 def test_pinocchio_reads_the_calibrated_urdf_as_the_calibrated_model(robot, iiwa, rng):
     chain = iiwa if robot == "iiwa" else ur5_urdf_chain()
     values = random_values(chain, rng)
-    xml, left = calibrated.calibrated_urdf(chain, values)
+    xml, left = exports.calibrated_urdf(chain, values)
     q = rng.uniform(np.maximum(chain.lower, -2.5), np.minimum(chain.upper, 2.5), (25, chain.n_joints))
     expected = prediction.robot_points(chain, q, MARKER, values, ("link_geometry",))
     np.testing.assert_allclose(pinocchio_points(xml, chain, q), expected, rtol=0, atol=1e-9)
@@ -65,7 +65,7 @@ def test_pinocchio_reads_the_calibrated_urdf_as_the_calibrated_model(robot, iiwa
 def test_a_chain_ending_on_a_joint_keeps_its_tool_twist_out_of_the_urdf_and_says_so(iiwa, rng):
     chain = kinematics.chain_from_urdf(iiwa.urdf_xml, "iiwa_link_0", "iiwa_link_7")
     values = random_values(chain, rng)
-    xml, left = calibrated.calibrated_urdf(chain, values)
+    xml, left = exports.calibrated_urdf(chain, values)
     assert len(left) == 1 and left[0].startswith("link_geometry.tool")
     q = rng.uniform(-1.0, 1.0, (10, chain.n_joints))
     held = {k: v for k, v in values.items() if ".tool." not in k}
@@ -74,7 +74,7 @@ def test_a_chain_ending_on_a_joint_keeps_its_tool_twist_out_of_the_urdf_and_says
 
 
 def test_the_nominal_values_give_the_nominal_robot(iiwa, rng):
-    xml, _ = calibrated.calibrated_urdf(iiwa, {})
+    xml, _ = exports.calibrated_urdf(iiwa, {})
     q = rng.uniform(-1.0, 1.0, (10, iiwa.n_joints))
     np.testing.assert_allclose(
         pinocchio_points(xml, iiwa, q), prediction.robot_points(iiwa, q, MARKER, {}), rtol=0, atol=1e-12
@@ -92,7 +92,7 @@ def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
             "status": ["held: not identifiable", "estimated"],
         }
     )
-    offsets = calibrated.controller_offsets(["a1", "a2"], table, "paper").set_index("joint")
+    offsets = exports.controller_offsets(["a1", "a2"], table, "paper").set_index("joint")
     assert offsets.loc["a2", "correction_deg"] == pytest.approx(0.3)
     assert offsets.loc["a2", "correction_rad"] == pytest.approx(0.3 * DEG)
     assert offsets.loc["a2", "std_deg"] == pytest.approx(0.01)
@@ -113,16 +113,16 @@ def test_controller_offsets_carry_the_between_design_component():
         }
     )
     between = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
-    row = calibrated.controller_offsets(["a1"], table, "loop", between).iloc[0]
+    row = exports.controller_offsets(["a1"], table, "loop", between).iloc[0]
     assert row["u_between_deg"] == 0.04 and row["dof"] == pytest.approx(9.0)
     assert row["k"] == pytest.approx(2.262157, abs=1e-6) and row["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
-    alone = calibrated.controller_offsets(["a1"], table, "loop").iloc[0]
+    alone = exports.controller_offsets(["a1"], table, "loop").iloc[0]
     assert np.isnan(alone["u_between_deg"]) and alone["U_deg"] == pytest.approx(1.959964 * 0.03, rel=1e-6)
 
 
 def test_a_dh_robot_gets_a_urdf_of_its_own_that_pinocchio_reads_as_calibrated(ur5_dh, rng):
     values = random_values(ur5_dh, rng)
-    xml, left = calibrated.calibrated_urdf(ur5_dh, values)
+    xml, left = exports.calibrated_urdf(ur5_dh, values)
     assert left == []
     q = rng.uniform(-2.5, 2.5, (20, ur5_dh.n_joints))
     expected = prediction.robot_points(ur5_dh, q, MARKER, values, ("link_geometry",))
@@ -215,7 +215,7 @@ def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng)
 def test_a_campaign_without_a_dh_table_gets_none_and_a_clear_refusal():
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin")
     with pytest.raises(InputError, match="no DH table") as refusal:
-        calibrated.calibrated_dh_tables(campaign, "laser_tracker", pd.DataFrame(), {})
+        exports.calibrated_dh_tables(campaign, "laser_tracker", pd.DataFrame(), {})
     assert refusal.value.key == "robot/dh"
 
 

@@ -292,7 +292,7 @@ def test_a_held_registration_parameter_is_a_warning():
 
 
 def _acceptance(verdict, diagnosis, recommended):
-    from remaster.analysis.acceptance import Acceptance
+    from remaster.evaluation.acceptance import Acceptance
 
     checks = {m: {"passed": verdict == "pass", "p_value": 0.0} for m in ("loop", "paper")}
     text = "fail: ... the added effects did not hold on new poses" if diagnosis else "pass"

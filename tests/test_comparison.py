@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files
-from remaster.analysis import comparison
+from remaster import files, identity
+from remaster.comparing import comparison
 from remaster.errors import InputError
 from remaster.inference.model import SIGMA
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.reporting import figures_comparison
 from remaster.units import DEG
 
@@ -75,23 +75,23 @@ def test_robot_identity_of_the_bundled_campaigns():
     )
     # the serial names the physical unit: the twin and its campaign a year later are one robot,
     # kuka-compliance is another iiwa
-    assert comparison.robot_identity(twin) == comparison.robot_identity(twin_2019) == "serial:iiwa14-NIST-01"
-    assert comparison.robot_identity(twin["robot"]) == "serial:iiwa14-NIST-01"  # the section alone
-    assert comparison.robot_identity(compliance) == "serial:iiwa14-LAB-02"
+    assert identity.robot_identity(twin) == identity.robot_identity(twin_2019) == "serial:iiwa14-NIST-01"
+    assert identity.robot_identity(twin["robot"]) == "serial:iiwa14-NIST-01"  # the section alone
+    assert identity.robot_identity(compliance) == "serial:iiwa14-LAB-02"
     # without a serial, the model: same URDF and frames
     model = {k: v for k, v in twin["robot"].items() if k != "serial"}
-    assert comparison.robot_identity(model) == ROBOT
-    assert comparison.robot_identity({**model, "flange": "iiwa_link_7"}) != ROBOT
+    assert identity.robot_identity(model) == ROBOT
+    assert identity.robot_identity({**model, "flange": "iiwa_link_7"}) != ROBOT
 
 
 def test_robot_identity_of_dh_tables():
     rows = [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0]]
-    a = comparison.robot_identity({"dh": {"convention": "standard", "rows": rows}})
-    b = comparison.robot_identity({"dh": {"convention": "standard", "rows": [[v + 1e-12 for v in r] for r in rows]}})
-    c = comparison.robot_identity({"dh": {"convention": "standard", "rows": [rows[0], [0.41, 0.0, 0.0, 0.0]]}})
+    a = identity.robot_identity({"dh": {"convention": "standard", "rows": rows}})
+    b = identity.robot_identity({"dh": {"convention": "standard", "rows": [[v + 1e-12 for v in r] for r in rows]}})
+    c = identity.robot_identity({"dh": {"convention": "standard", "rows": [rows[0], [0.41, 0.0, 0.0, 0.0]]}})
     assert a == b != c and a.startswith("dh:standard:")
     with pytest.raises(InputError, match="robot"):
-        comparison.robot_identity({"name": "no robot"})
+        identity.robot_identity({"name": "no robot"})
 
 
 def test_zero_offsets_over_time_is_a_long_table_in_degrees():

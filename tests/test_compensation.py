@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from remaster import files, layout, spatial
-from remaster.analysis import compensation, prediction
+from remaster.calibration import compensation, prediction
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.cli import main as cli

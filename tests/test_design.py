@@ -1,4 +1,4 @@
-"""The workspace design (remaster.analysis.design*): the rank-3 updates against the direct inverse, the
+"""The workspace design (remaster.planning.design*): the rank-3 updates against the direct inverse, the
 95 % bound against closed forms, the greedy design's bound against n, D-optimality, bad candidate
 tables, the command line, and a planned design against random ones of the same size."""
 
@@ -12,9 +12,9 @@ import pytest
 from scipy.stats import chi2
 
 from remaster import cli
-from remaster.analysis import design, design_inputs
-from remaster.analysis import design_posterior as dp
 from remaster.errors import InputError
+from remaster.planning import design, plan_inputs
+from remaster.planning import design_posterior as dp
 from remaster.robot.priors import priors_from, with_defaults
 
 from .arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
@@ -32,8 +32,8 @@ def iiwa():
     t_nr[:3, 3] = -ORIGIN
     model = dp.complete_error_model(chain, MARKER, t_nr, priors_from(with_defaults(None)), TRACKER["noise"])
     rng = np.random.default_rng(3)
-    candidates = design_inputs.generated_candidates(chain, ORIGIN, MARKER, rng, poses=40)
-    q = design_inputs.configurations(candidates, chain.n_joints)
+    candidates = plan_inputs.generated_candidates(chain, ORIGIN, MARKER, rng, poses=40)
+    q = plan_inputs.configurations(candidates, chain.n_joints)
     evaluation = design.evaluation_configurations(chain, 120, rng)
     return chain, model, candidates, model.whitened_jacobian(q), model.jacobian(evaluation)
 
@@ -133,7 +133,7 @@ def test_a_campaign_that_never_moved_joint_3_shows_it_and_informs_the_next_desig
     t_nr = np.eye(4)
     t_nr[:3, 3] = -ORIGIN
     priors = priors_from(with_defaults(None))
-    start = design_inputs.campaign_prior(chain, sensor, t_nr, TRACKER["noise"], priors)
+    start = plan_inputs.campaign_prior(chain, sensor, t_nr, TRACKER["noise"], priors)
     assert start.moved_fraction[2] == 0.0 and np.all(np.delete(start.moved_fraction, 2) > 0.1)
     assert len(start.rows) == len(sensor.measured_rows("optimization"))
     q = design.evaluation_configurations(chain, 80, np.random.default_rng(5))
@@ -151,19 +151,19 @@ def test_bad_candidate_tables_name_the_file_column_and_rows():
     chain = chain_of(iiwa_scenario("design"))
     good = [[0.1] * 7, [0.2] * 7]
     with pytest.raises(InputError, match=r"c\.csv: q7: missing") as missing:
-        design_inputs.table_candidates(_table(good).drop(columns="q7"), chain, "c.csv")
+        plan_inputs.table_candidates(_table(good).drop(columns="q7"), chain, "c.csv")
     assert missing.value.key == "q7"
     bad = _table(good + [[0.1] * 6 + ["x"]])
     with pytest.raises(InputError) as text:
-        design_inputs.table_candidates(bad, chain, "c.csv")
+        plan_inputs.table_candidates(bad, chain, "c.csv")
     assert text.value.file == "c.csv" and text.value.rows == [2]
     far = _table(good + [[0.1, 4.0, 0.1, 0.1, 0.1, 0.1, 0.1]])
     with pytest.raises(InputError, match="joint limits") as limits:
-        design_inputs.table_candidates(far, chain, "c.csv")
+        plan_inputs.table_candidates(far, chain, "c.csv")
     assert limits.value.key == "q2" and limits.value.rows == [2]
     with pytest.raises(InputError, match="no rows"):
-        design_inputs.table_candidates(_table([]), chain, "c.csv")
-    table = design_inputs.table_candidates(_table(good), chain, "c.csv")
+        plan_inputs.table_candidates(_table([]), chain, "c.csv")
+    table = plan_inputs.table_candidates(_table(good), chain, "c.csv")
     assert list(table.columns[:3]) == ["set", "pose", "solution"] and list(table["pose"]) == [0, 1]
 
 

@@ -1,4 +1,4 @@
-"""The robust design criterion (analysis/design_discrepancy.py) against answers it does not compute:
+"""The robust design criterion (planning/robust_design.py) against answers it does not compute:
 a Monte-Carlo of the calibration with a discrepancy drawn as a Gaussian process and fitted by least
 squares, the criterion's full-matrix form, brute-force greedy steps, and the straight line's known
 designs."""
@@ -6,8 +6,8 @@ designs."""
 import numpy as np
 import pytest
 
-from remaster.analysis import design_discrepancy as dd
-from remaster.analysis import design_posterior as dp
+from remaster.planning import design_posterior as dp
+from remaster.planning import robust_design as dd
 
 from .conftest import assert_documents_show
 

@@ -4,7 +4,7 @@ and the random configurations inside it."""
 import numpy as np
 import pytest
 
-from remaster.analysis import domain
+from remaster.evaluation import domain
 from remaster.inference import metrics
 from remaster.units import DEG
 

@@ -388,8 +388,8 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
     """The bundled twin's laser tracker with emcee's samples shifted by 5 posterior std on joint
     3: the fit summary stage (cross-check, summary, discrepancy, remastering, accuracy) finishes,
     its cross-check marks joint 3 and emcee, and the summary is the default sampler's."""
-    from remaster.analysis import fit_summary
     from remaster.campaigns import folders
+    from remaster.evaluation import fit_summary
 
     from .conftest import REPO
 

@@ -126,7 +126,7 @@ def test_the_payload_compliance_of_a_urdf_tool_comes_out_zero_not_minus_the_join
 def test_predictions_take_the_torques_the_fit_took(rng):
     """`remaster predict` and the fit's readings assume the same payload: on a URDF that carries its
     tool, the predictor's compliance torques are the readings' (the plate once, not plus 1 kg)."""
-    from remaster.analysis import prediction
+    from remaster.calibration import prediction
 
     chain = with_tool_plate("iiwa_link_ee")
     q = rng.uniform(chain.lower, chain.upper, (5, 7))

@@ -5,8 +5,8 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from remaster.analysis import iso9283
-from remaster.analysis.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
+from remaster.evaluation import iso9283
+from remaster.evaluation.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 
 
 def test_rp_of_isotropic_noise_is_l_bar_plus_three_s_and_ap_is_the_offset():

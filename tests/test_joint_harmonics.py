@@ -14,7 +14,7 @@ from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, fit
 from remaster.loop import harmonics, loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.reporting import figures_loop, tables_loop
 
 from .arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario

@@ -10,10 +10,10 @@ import pytest
 from scipy import optimize, stats
 
 from remaster import files, spatial
-from remaster.analysis import accuracy
 from remaster.campaigns import folders
 from remaster.campaigns.campaign import Campaign, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
+from remaster.evaluation import accuracy
 from remaster.inference import fit, metrics
 from remaster.inference.model import SIGMA, ZeroOffsetModel, parameter_names
 from remaster.reporting import figures_accuracy

@@ -96,7 +96,7 @@ def test_the_closure_is_tested_against_the_instruments_own_std(simulated):
     """A tracker whose per-point std columns say 30 um where campaign.yaml states 10 um: the table's
     noise (the simulator's, 30 um) is at the columns' level, so the loop is closed against them and
     would not be against the stated noise alone."""
-    from remaster.loop import closure, loop_closure
+    from remaster.loop import loop_closure, noise_floor
 
     from .conftest import loop_settings
 
@@ -122,14 +122,14 @@ def test_the_closure_is_tested_against_the_instruments_own_std(simulated):
     assert reports["stated"]["measured_point_std_mm"] is None
     assert reports["stated"]["noise_floor_mm"] == pytest.approx(0.01)
     assert reports["stated"]["closed"] is False
-    assert closure.noise_floor(1e-5, None, 3e-5) == 3e-5
+    assert noise_floor.noise_floor(1e-5, None, 3e-5) == 3e-5
 
 
 def test_a_range_transverse_noise_implies_its_rms_per_axis():
-    from remaster.loop import closure
+    from remaster.loop import noise_floor
 
     points = np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     # k^2 = 1 + (g d)^2 = 5 and 2: per axis (1 + 2 k^2) / 3 = 11/3 and 5/3
     expected = 1e-5 * math.sqrt((11.0 / 3.0 + 5.0 / 3.0) / 2.0)
-    assert closure.range_transverse_rms(1e-5, 1.0, points) == pytest.approx(expected, rel=1e-12)
-    assert closure.range_transverse_rms(1e-5, 0.0, points) == pytest.approx(1e-5, rel=1e-12)
+    assert noise_floor.range_transverse_rms(1e-5, 1.0, points) == pytest.approx(expected, rel=1e-12)
+    assert noise_floor.range_transverse_rms(1e-5, 0.0, points) == pytest.approx(1e-5, rel=1e-12)

@@ -14,7 +14,8 @@ import pytest
 from remaster import cli, files
 from remaster.campaigns import folders
 from remaster.errors import InputError
-from remaster.robot import joint_tour, kinematics, programs
+from remaster.planning import joint_tour, programs
+from remaster.robot import kinematics
 
 from .conftest import IIWA_URDF, UR5_URDF
 

@@ -9,7 +9,7 @@ from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, evidence, fit, residual_gp
-from remaster.loop import closure, loop_closure
+from remaster.loop import loop_closure, noise_floor
 
 from .conftest import REPO, loop_settings
 
@@ -119,24 +119,24 @@ def test_repeatability_is_the_pooled_spread_of_repeated_configurations():
     rng = np.random.default_rng(11)
     q = np.repeat(readings(rng, 200), 3, axis=0)
     measured = np.repeat(rng.normal(0, 0.1, (200, 3)), 3, axis=0) + rng.normal(0.0, 3e-5, (600, 3))
-    spread, repeated = closure.repeatability(
+    spread, repeated = noise_floor.repeatability(
         np.vstack([q, readings(rng, 10)]), np.vstack([measured, np.zeros((10, 3))])
     )
     assert repeated == 200
     assert spread == pytest.approx(3e-5, rel=0.05)
-    assert closure.repeatability(readings(rng, 10), np.zeros((10, 3))) == (None, 0)
+    assert noise_floor.repeatability(readings(rng, 10), np.zeros((10, 3))) == (None, 0)
 
 
 def test_the_verdict_and_the_shares():
-    assert closure.verdict(1.1e-5, 1e-5)["closed"] is True
-    open_ = closure.verdict(5e-5, 1e-5)
+    assert noise_floor.verdict(1.1e-5, 1e-5)["closed"] is True
+    open_ = noise_floor.verdict(5e-5, 1e-5)
     assert open_["closed"] is False and open_["structured_mm"] == pytest.approx(np.sqrt(24) * 1e-2)
     assert "not closed" in open_["text"]
-    assert closure.verdict(5e-5, None)["closed"] is None
-    assert closure.noise_floor(1e-5, 3e-5) == 3e-5 and closure.noise_floor(None, None) is None
+    assert noise_floor.verdict(5e-5, None)["closed"] is None
+    assert noise_floor.noise_floor(1e-5, 3e-5) == 3e-5 and noise_floor.noise_floor(None, None) is None
     # from 5 to 4 (x 1e-5) over a floor of 1: (25 - 16) / (25 - 1)
-    assert closure.share(5e-5, 4e-5, 1e-5) == pytest.approx(9 / 24)
-    assert closure.share(1.1e-5, 0.9e-5, 1e-5) is None  # already closed: nothing structured to share
+    assert noise_floor.share(5e-5, 4e-5, 1e-5) == pytest.approx(9 / 24)
+    assert noise_floor.share(1.1e-5, 0.9e-5, 1e-5) is None  # already closed: nothing structured to share
 
 
 # --------------------------------------------------------------------------- an effect outside the candidates
@@ -203,7 +203,7 @@ def test_an_effect_outside_the_candidates_is_explained_by_the_gp_and_traced_to_i
     # a parametric effect added on the way explains a small share and is not named as the cause
     assert report.closure["main_causes"] == ["residual_gp"]
     for name, value in report.closure["share_of_structured_residual"].items():
-        assert (value is not None and value >= closure.MAIN_CAUSE_SHARE) == (name == "residual_gp")
+        assert (value is not None and value >= noise_floor.MAIN_CAUSE_SHARE) == (name == "residual_gp")
 
 
 def test_without_the_gp_the_loop_says_it_is_not_closed_and_where_the_residual_lives(iiwa, cyclic):

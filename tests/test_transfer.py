@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from remaster import spatial
-from remaster.analysis import prediction, transfer
+from remaster.calibration import prediction
 from remaster.campaigns.campaign import SensorData
+from remaster.comparing import predictions, transfer
 from remaster.inference.blocks import ModelSettings, link_labels
 from remaster.inference.metrics import random_configurations
 from remaster.reporting import figures_comparison
@@ -146,7 +147,7 @@ def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
     q = random_configurations(iiwa, 300, rng)
     a = paper(OFFSETS)
     a = prediction.Calibration("paper", a.values, draws=draws_around(a, 1e-6, 400, rng))
-    same = prediction.compare_predictions(iiwa, q, MARKER, a, a, 50, np.random.default_rng(1))
+    same = predictions.compare_predictions(iiwa, q, MARKER, a, a, 50, np.random.default_rng(1))
     assert same["mean_mm"] == 0.0 and same["p95_mm"] == 0.0 and not same["flagged"]
     assert same["status"] == "compared" and same["draw_pairs"] == 50 and same["null_p95_of_mean_mm"] > 0
 
@@ -156,7 +157,7 @@ def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
         {**a.values, "zero_offsets.q2": a.values["zero_offsets.q2"] + d},
         draws=a.draws.assign(**{"zero_offsets.q2": a.draws["zero_offsets.q2"] + d}),
     )
-    moved = prediction.compare_predictions(iiwa, q, MARKER, a, b, 50, np.random.default_rng(1))
+    moved = predictions.compare_predictions(iiwa, q, MARKER, a, b, 50, np.random.default_rng(1))
     fk = ForwardKinematics(iiwa, q)
     frames = fk.joint_frames(OFFSETS)[:, 1]
     axis = np.einsum("nij,j->ni", frames[:, :3, :3], iiwa.joint_axes[1])
@@ -166,7 +167,7 @@ def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
     assert moved["flagged"] and moved["null_p95_of_mean_mm"] < 0.1 * moved["mean_mm"]
     # the null does not see the shift: draws are deviations from each model's own mean
     assert moved["null_p95_of_mean_mm"] == pytest.approx(same["null_p95_of_mean_mm"], rel=0.5)
-    unsampled = prediction.compare_predictions(iiwa, q, MARKER, paper(OFFSETS), b, 50, np.random.default_rng(1))
+    unsampled = predictions.compare_predictions(iiwa, q, MARKER, paper(OFFSETS), b, 50, np.random.default_rng(1))
     assert not unsampled["flagged"] and np.isnan(unsampled["null_p95_of_mean_mm"])
     assert unsampled["status"] == "no null: no posterior samples of A"
 
@@ -182,16 +183,16 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
         entry(iiwa, "a", "2020-01-01", noisy, models),
         entry(iiwa, "a", "2020-01-01", other, models),
     ]
-    drift = prediction.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
-    assert list(drift.columns) == prediction.DRIFT_COLUMNS
+    drift = predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
+    assert list(drift.columns) == predictions.DRIFT_COLUMNS
     assert drift[["campaign_a", "campaign_b", "model"]].values.tolist() == [["a", "b", "paper"], ["a", "b", "loop"]]
     rows = drift.set_index("model")
     assert rows.loc["loop", "mean_mm"] == 0.0 and rows.loc["paper", "mean_mm"] > 0.1
     assert rows.loc["loop", "effects_a"] == "link_geometry + marker_offset"
-    again = prediction.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
+    again = predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
     pd.testing.assert_frame_equal(drift, again)  # one fixed set of configurations per robot and seed
-    agreement = prediction.prediction_agreement(entries, n_configurations=50, seed=3, draw_pairs=10)
-    assert list(agreement.columns) == prediction.AGREEMENT_COLUMNS
+    agreement = predictions.prediction_agreement(entries, n_configurations=50, seed=3, draw_pairs=10)
+    assert list(agreement.columns) == predictions.AGREEMENT_COLUMNS
     assert agreement[["sensor_a", "sensor_b"]].drop_duplicates().values.tolist() == [
         ["motion_capture", "laser_tracker"]
     ]

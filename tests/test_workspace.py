@@ -7,15 +7,17 @@ import pandas as pd
 import pytest
 import scipy.optimize
 
-from remaster import files, spatial
-from remaster.analysis import accuracy, comparison, domain, prediction, transfer, workspace
+from remaster import files, identity, spatial
+from remaster.calibration import prediction
 from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
+from remaster.comparing import transfer
+from remaster.evaluation import accuracy, domain, workspace
 from remaster.inference import blocks, evidence, fit, metrics
 from remaster.inference.model import SIGMA
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 from remaster.robot.priors import priors_from
@@ -163,7 +165,7 @@ def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.Works
     result = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],
-        comparison.robot_identity(campaign),
+        identity.robot_identity(campaign),
         fit.mode_summary(laplace),
         laplace,
         report,
@@ -186,7 +188,7 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
         result = workspace.workspace_accuracy(
             campaign.chain,
             campaign.sensors["laser_tracker"],
-            comparison.robot_identity(campaign),
+            identity.robot_identity(campaign),
             fit.mode_summary(laplace),
             laplace,
             report,
@@ -237,7 +239,7 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     model could not hold the twin's link errors there and its posterior did not know; the complete
     model leaves them to their priors.)"""
     result, campaign, laplace = claims_of("kuka-twin", sensor, tmp_path_factory)
-    robot = comparison.robot_identity(campaign)
+    robot = identity.robot_identity(campaign)
     if where == "random":
         q = prediction.robot_configurations(campaign.chain, robot, RANDOM, SEED)
     else:  # the domain's configurations, rebuilt from the campaign's readings: joint 3 at 0 in every one
@@ -315,7 +317,7 @@ def on_twin(calibration) -> np.ndarray:
     """Post-registration errors (m) of a calibration on the twin's laser-tracker validation rows."""
     twin = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     target = prediction.Calibrated(
-        "kuka-twin", "2018-06-12", comparison.robot_identity(twin), twin.sensors["laser_tracker"], twin.chain, {}
+        "kuka-twin", "2018-06-12", identity.robot_identity(twin), twin.sensors["laser_tracker"], twin.chain, {}
     )
     return transfer.transfer_errors(calibration, target)
 

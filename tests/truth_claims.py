@@ -23,13 +23,14 @@ import numpy as np
 import pandas as pd
 from snakemake.utils import validate
 
-from remaster import files
-from remaster.analysis import comparison, compensation, prediction, workspace
+from remaster import files, identity
+from remaster.calibration import compensation, prediction
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
+from remaster.evaluation import workspace
 from remaster.inference import fit, metrics
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.loop.settings import settings_from
 
 REPO = Path(__file__).resolve().parents[1]
@@ -163,9 +164,9 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     moved = np.ptp(optimization, axis=0) / (upper - lower)
     true_robot = scenario.robot_from_truth(truth)
     # inside the measured domain: the workspace claims' own configurations there
-    identity = comparison.robot_identity(campaign)
+    robot_key = identity.robot_identity(campaign)
     q_domain = workspace.fit_domain(campaign.chain, campaign.sensors[sensor], laplace.outlier_rows).configurations(
-        identity, n_random, seed
+        robot_key, n_random, seed
     )
     at_domain = compensation.predict(robot, q_domain, "sensor", draws, rng)
     true_domain = true_sensor_positions(campaign.chain, true_robot, device, q_domain, np.zeros(len(q_domain)))
@@ -173,7 +174,7 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     claims = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],
-        identity,
+        robot_key,
         results["summary"],
         laplace,
         report,
@@ -187,7 +188,7 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     held_to_truth = {}
     for where, configurations in (
         ("domain", q_domain),
-        ("random", prediction.robot_configurations(campaign.chain, identity, n_random, seed)),
+        ("random", prediction.robot_configurations(campaign.chain, robot_key, n_random, seed)),
     ):
         mean = loop.predictor(campaign.chain, configurations, campaign.sensors[sensor].marker).points(loop.values)
         true_points = true_marker_positions(

@@ -16,16 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from . import layout
-from .analysis import compensation, design, design_discrepancy, design_inputs, design_posterior
+from .calibration import compensation
 from .campaigns import importer, scenario
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
 from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json, write_text
 from .inference.fit import LaplaceReport, Registration
-from .loop.report import LoopReport
-from .reporting import figures_design
-from .robot import joint_tour, planning, priors, programs, registration
+from .loop.result import LoopReport
+from .planning import design, design_figures, design_posterior, joint_tour, plan_inputs, programs, robust_design
+from .robot import planning, priors, registration
 from .robot.kinematics import ForwardKinematics
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -65,7 +65,7 @@ def _sensor_origin(args: argparse.Namespace, chain) -> np.ndarray:
 def _plan(args: argparse.Namespace) -> None:
     if args.exchange and args.criterion != "workspace":
         raise InputError(f"the exchange improves the workspace criterion, not {args.criterion}", key="--exchange")
-    if args.discrepancy_mm is not None and args.criterion != design_discrepancy.CRITERION:
+    if args.discrepancy_mm is not None and args.criterion != robust_design.CRITERION:
         raise InputError("a discrepancy is the robust criterion's: add --criterion robust", key="--discrepancy-mm")
     if args.objective == "workspace" or args.from_results is not None:
         _plan_workspace(args)
@@ -156,7 +156,7 @@ def _campaign_results(folder: Path) -> dict:
 
 
 def _plan_workspace(args: argparse.Namespace) -> None:
-    """`remaster plan --objective workspace` and `--from-results`: the greedy design (analysis.design)."""
+    """`remaster plan --objective workspace` and `--from-results`: the greedy design (planning.design)."""
     if args.budget is None and args.target_mm is None:
         raise InputError("a workspace design needs --budget N, --target-mm X or both", key="--budget")
     rng = np.random.default_rng(args.seed)
@@ -178,9 +178,9 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         measured_gp = loop.residual_gp if loop.residual_gp and loop.residual_gp.get("structure_found") else None
         # the parametric fit's sigma holds the discrepancy the GP found: with the GP as the robust
         # criterion's discrepancy, the noise is the GP's own, or the discrepancy would count twice
-        robust_gp = measured_gp is not None and args.criterion == design_discrepancy.CRITERION
+        robust_gp = measured_gp is not None and args.criterion == robust_design.CRITERION
         sigma = float(measured_gp["hyperparameters"]["noise_std_m"]) if robust_gp else loop.sigma_after
-        start = design_inputs.campaign_prior(
+        start = plan_inputs.campaign_prior(
             chain, sensor, found["registration"].t_nr, sigma, _design_priors(args, campaign), exclude=exclude
         )
         model, information = start.model, start.information
@@ -202,27 +202,27 @@ def _plan_workspace(args: argparse.Namespace) -> None:
         measured, measured_gp = np.zeros((0, chain.n_joints)), None
     count = _candidate_count(args)
     if count is None:
-        candidates = design_inputs.table_candidates(read_csv(args.candidates), chain, str(args.candidates))
+        candidates = plan_inputs.table_candidates(read_csv(args.candidates), chain, str(args.candidates))
     else:
         collision = planning.CollisionModel(link_radius=args.link_radius, floor_height=args.floor)
-        candidates = design_inputs.generated_candidates(
+        candidates = plan_inputs.generated_candidates(
             chain, origin, marker, rng, poses=count, collision=collision, set_name=args.set
         )
-    q = design_inputs.configurations(candidates, chain.n_joints)
+    q = plan_inputs.configurations(candidates, chain.n_joints)
     within = q if args.workspace == "candidates" else None
     evaluation = design.evaluation_configurations(chain, args.evaluation, rng, within=within)
     target = None if args.target_mm is None else args.target_mm * 1e-3
-    if args.criterion == design_discrepancy.CRITERION:
-        if len(measured) > design_discrepancy.MAX_MEASURED_ROWS:
+    if args.criterion == robust_design.CRITERION:
+        if len(measured) > robust_design.MAX_MEASURED_ROWS:
             raise InputError(
                 f"the campaign has {len(measured)} measured rows; the robust criterion takes at most "
-                f"{design_discrepancy.MAX_MEASURED_ROWS} (their discrepancy kernel grows as the rows squared): "
+                f"{robust_design.MAX_MEASURED_ROWS} (their discrepancy kernel grows as the rows squared): "
                 "use --criterion workspace",
                 key="--criterion",
             )
         discrepancy = _discrepancy(args, evaluation, model.sigma, measured_gp)
         print(f"discrepancy prior: {discrepancy.report()}")
-        chosen = design_discrepancy.robust_design(
+        chosen = robust_design.robust_design(
             model.whitened_jacobian(q),
             q,
             model.jacobian(evaluation),
@@ -254,7 +254,7 @@ def _plan_workspace(args: argparse.Namespace) -> None:
     write_csv(stem.with_suffix(".csv"), bounds)
     write_figure(
         stem,
-        figures_design.bound_curve(bounds, f"{len(chosen.chosen)} configurations ({args.criterion})", args.target_mm),
+        design_figures.bound_curve(bounds, f"{len(chosen.chosen)} configurations ({args.criterion})", args.target_mm),
     )
     what = (
         f"expected RMS error per axis across the workspace, with the discrepancy, {chosen.final_bound_mm:.4g} mm"
@@ -300,11 +300,11 @@ def _discrepancy(args: argparse.Namespace, evaluation, sigma: float, measured_gp
     if args.discrepancy_mm is not None and not args.discrepancy_mm >= 0:
         raise InputError(f"must be >= 0 mm, got {args.discrepancy_mm}", key="--discrepancy-mm")
     if measured_gp is not None:
-        found = design_discrepancy.discrepancy_of(measured_gp["hyperparameters"], evaluation)
+        found = robust_design.discrepancy_of(measured_gp["hyperparameters"], evaluation)
         signal = found.signal_std if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
-        return design_discrepancy.Discrepancy(found.lengthscales, signal)
+        return robust_design.Discrepancy(found.lengthscales, signal)
     signal = sigma if args.discrepancy_mm is None else args.discrepancy_mm * 1e-3
-    return design_discrepancy.workspace_discrepancy(evaluation, signal)
+    return robust_design.workspace_discrepancy(evaluation, signal)
 
 
 def _import(args: argparse.Namespace) -> None:
@@ -547,7 +547,7 @@ def parser() -> argparse.ArgumentParser:
     plan.add_argument(
         "--criterion",
         default="workspace",
-        choices=[*design.CRITERIA, design_discrepancy.CRITERION],
+        choices=[*design.CRITERIA, robust_design.CRITERION],
         help="workspace: the bound across the workspace; d-optimal: log det of the information; robust: the "
         "expected error across the workspace with a discrepancy the error model lacks (docs/planning.md)",
     )

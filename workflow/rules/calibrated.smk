@@ -2,8 +2,8 @@
 # (where it holds, both models' posteriors propagated), the calibrated URDFs, the effects a URDF
 # cannot hold, the controller offsets and, for a campaign given as a DH table, the calibrated DH
 # tables. Two rules because the DH tables exist only for DH campaigns: each campaign matches one.
-from remaster.analysis.calibrated import DH_FILES as CALIBRATED_DH_FILES
-from remaster.analysis.calibrated import FILES as CALIBRATED_FILES
+from remaster.calibration.exports import DH_FILES as CALIBRATED_DH_FILES
+from remaster.calibration.exports import FILES as CALIBRATED_FILES
 
 CALIBRATED = f"{SENSOR}/{layout.CALIBRATED}"
 DH_CAMPAIGNS = [c for c in CAMPAIGNS if gives_dh(c)]

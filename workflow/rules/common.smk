@@ -199,10 +199,10 @@ def calibrated_file_inputs(wildcards):
 def robots():
     """robot slug -> robot identity, for every robot of the run."""
     from remaster import files
-    from remaster.analysis import comparison
+    from remaster import identity
 
-    keys = {comparison.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
-    return {comparison.robot_slug(k): k for k in sorted(keys)}
+    keys = {identity.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
+    return {identity.robot_slug(k): k for k in sorted(keys)}
 
 
 def report_layout():

@@ -4,8 +4,9 @@
 # agreement as the change of predicted marker positions (comparison_prediction); their figures.
 from types import SimpleNamespace
 
-from remaster.analysis.comparison import TABLES as COMPARISON_TABLES
-from remaster.analysis.prediction import MODELS as TRANSFER_MODELS, PREDICTION_TABLES
+from remaster.comparing.comparison import TABLES as COMPARISON_TABLES
+from remaster.calibration.prediction import MODELS as TRANSFER_MODELS
+from remaster.comparing.predictions import PREDICTION_TABLES
 from remaster.reporting.figures_comparison import OVER_TIME_FIGURES
 
 COMPARISON = f"{RESULTS}/comparison"

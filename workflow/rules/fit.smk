@@ -2,7 +2,7 @@
 # (the expensive, parallel part), then the samplers' cross-check, the posterior summary, the model
 # discrepancy, the remastering file and the accuracy metrics of the paper's tables (paper, sections
 # Optimization, Quantifying Positional Accuracy and Validation).
-from remaster.analysis.accuracy import TABLE_NAMES
+from remaster.evaluation.accuracy import TABLE_NAMES
 
 ACC = f"{SENSOR}/{layout.METRICS}"
 ACCURACY_FILES = list(TABLE_NAMES) + ["configuration_errors", "tcp_scatter", "remastering_parameters"]

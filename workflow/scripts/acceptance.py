@@ -3,10 +3,10 @@
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, seeding
-from remaster.analysis import acceptance
 from remaster.campaigns import folders
+from remaster.evaluation import acceptance
 from remaster.inference import fit
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.

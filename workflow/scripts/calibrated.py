@@ -4,10 +4,10 @@ controller offsets and, for a DH campaign, the calibrated DH tables."""
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, seeding
-from remaster.analysis import calibrated_outputs
 from remaster.campaigns import folders
+from remaster.evaluation import handover
 from remaster.inference import fit
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -15,7 +15,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
 with files.log_to(snakemake.log[0]):
-    result = calibrated_outputs.calibrated_outputs_stage(
+    result = handover.calibrated_outputs_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         files.read_csv(i.summary),

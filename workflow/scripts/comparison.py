@@ -6,8 +6,8 @@ from pathlib import Path
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, stage_inputs
-from remaster.analysis import comparison
-from remaster.loop.report import LoopReport
+from remaster.comparing import comparison
+from remaster.loop.result import LoopReport
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before

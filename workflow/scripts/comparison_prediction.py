@@ -6,10 +6,10 @@ from pathlib import Path
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, stage_inputs
-from remaster.analysis import prediction, transfer
 from remaster.campaigns import folders
+from remaster.comparing import predictions, transfer
 from remaster.inference import fit
-from remaster.loop.report import LoopReport
+from remaster.loop.result import LoopReport
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -36,4 +36,4 @@ with files.log_to(snakemake.log[0]):
     )
     for name, table in result.items():
         stem = Path(snakemake.output[name][0]).with_suffix("")
-        tables.write_table(stem, table, prediction.CAPTIONS[name], name)
+        tables.write_table(stem, table, predictions.CAPTIONS[name], name)

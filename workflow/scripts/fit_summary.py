@@ -4,8 +4,8 @@ remastering and the accuracy metrics."""
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, seeding, stage_inputs
-from remaster.analysis import fit_summary
 from remaster.campaigns import folders
+from remaster.evaluation import fit_summary
 from remaster.inference import fit
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before

@@ -6,7 +6,7 @@ from pathlib import Path
 from snakemake.iocontainers import Snakemake
 
 from remaster import files
-from remaster.analysis import prediction
+from remaster.comparing import predictions
 from remaster.reporting import report, tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -26,7 +26,7 @@ with files.log_to(snakemake.log[0]):
     p = snakemake.params
     page = report.build(
         {name: read_part(part) for name, part in p.layout.items()},
-        {**tables.CAPTIONS, **prediction.CAPTIONS},
+        {**tables.CAPTIONS, **predictions.CAPTIONS},
         audit=files.read_json(snakemake.input.audit),
         comparison=read_part(p.comparison),
         prediction=read_part(p.prediction),

@@ -1,7 +1,7 @@
 """The paper's accuracy metrics (section Quantifying Positional Accuracy) as array functions.
 
 Arrays in, arrays out, SI throughout (m, rad); the stage that turns them into tables in mm is
-`remaster.analysis.accuracy`.
+`remaster.evaluation.accuracy`.
 
 - relative accuracy (eq. dist_equation): within each group of configurations that reached the
   same Cartesian pose, how much the distance between two measured marker positions differs from

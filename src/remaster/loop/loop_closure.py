@@ -26,7 +26,7 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    is offered as it is, range and transverse growing with distance (`remaster.noise`), against the
    isotropic noise by the same evidence threshold, for what the residual model leaves (with the GP
    present when it was added): chosen before it, an anisotropic noise takes up model error.
-   After every step the closure test (`remaster.loop.closure`) compares the cross-validated residual
+   After every step the closure test (`remaster.loop.noise_floor`) compares the cross-validated residual
    with the sensor's noise and says what share of the structured residual the step removed.
 3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation; where
    that misses the project's convergence criteria, emcee's ensemble run longer until it meets
@@ -71,12 +71,12 @@ from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import closure, gross, harmonics, joint_form
-from .frames import residuals_frame, signatures_frame
+from . import gross, harmonics, joint_form, noise_floor
 from .harmonics import harmonics_report
 from .jackknife import zero_offset_jackknife
+from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
-from .report import LoopReport
+from .result import LoopReport
 from .selection import BASE_STEP, GP, Selection, Signature, accuracy, cv_threshold, fold_warning, select
 from .settings import LoopSettings
 
@@ -227,7 +227,7 @@ def close_loop(
         data["optimization"],
         sensor.noise,
         settings.closure_ratio,
-        closure.point_std_rms(sensor.point_std(data["optimization"].rows)),
+        noise_floor.point_std_rms(sensor.point_std(data["optimization"].rows)),
     )
     gp_section = gp_report(selection, cv_threshold(settings))
     if gp_section is not None:  # where what is left lives, in the joints' own terms (a diagnostic)
@@ -405,13 +405,13 @@ def closure_report(
     ratio: float,
     measured_noise: float | None = None,
 ) -> dict:
-    """The closure test after every round (`remaster.loop.closure`) on the optimization readings: the
+    """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
     noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
     each round's cross-validated RMS per axis and verdict, each added step's share of the structured
     residual, the final verdict, the chosen noise model's std against the floor, and the warnings
     they call for."""
-    repeats, repeated = closure.repeatability(data.q, data.measured)
-    floor = closure.noise_floor(stated_noise, repeats, measured_noise)
+    repeats, repeated = noise_floor.repeatability(data.q, data.measured)
+    floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
     steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0))]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
@@ -422,10 +422,12 @@ def closure_report(
             steps.append((name, r["scores"][r["removed"]]["cv_rmse_before_mm"] * MM / math.sqrt(3.0)))
     in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
     rounds = [
-        {"after": name, **closure.verdict(rms, floor, ratio), "time_blocked_rms_per_axis_mm": in_time.get(name)}
+        {"after": name, **noise_floor.verdict(rms, floor, ratio), "time_blocked_rms_per_axis_mm": in_time.get(name)}
         for name, rms in steps
     ]
-    shares = {name: closure.share(before, after, floor, ratio) for (_, before), (name, after) in zip(steps, steps[1:])}
+    shares = {
+        name: noise_floor.share(before, after, floor, ratio) for (_, before), (name, after) in zip(steps, steps[1:])
+    }
     final = rounds[-1]
     warnings = []
     if final["closed"] is False:
@@ -433,7 +435,7 @@ def closure_report(
             f"{name} ({100 * value:.0f} %)"
             for name, value in shares.items()
             # effects in the final model only: not a removal step, nor an effect a backward pass took out
-            if value is not None and value < closure.MAIN_CAUSE_SHARE and name in selection.added
+            if value is not None and value < noise_floor.MAIN_CAUSE_SHARE and name in selection.added
         ]
         warnings.append(
             f"loop {final['text']}"
@@ -446,7 +448,7 @@ def closure_report(
     noise_model_rms = None
     chosen = selection.noise or {}
     if chosen.get("chosen") == "range_transverse":
-        noise_model_rms = closure.range_transverse_rms(
+        noise_model_rms = noise_floor.range_transverse_rms(
             chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
         )
         if floor is not None and noise_model_rms > ratio * floor:
@@ -469,7 +471,7 @@ def closure_report(
         else {k: v for k, v in selection.time_blocked.items() if k != "rms_per_axis_mm"},
         "rounds": rounds,
         "share_of_structured_residual": shares,
-        "main_causes": [n for n, v in shares.items() if v is not None and v >= closure.MAIN_CAUSE_SHARE],
+        "main_causes": [n for n, v in shares.items() if v is not None and v >= noise_floor.MAIN_CAUSE_SHARE],
         "closed": final["closed"],
         "verdict": final["text"],
         "warnings": warnings,

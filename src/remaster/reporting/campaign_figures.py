@@ -14,8 +14,8 @@ from collections.abc import Iterator, Mapping
 import matplotlib.pyplot as plt
 
 from .. import files as result_files
-from ..loop import frames
-from ..loop.report import LoopReport
+from ..loop import long_tables
+from ..loop.result import LoopReport
 from . import figures, figures_accuracy, figures_loop
 
 SENSOR_FIGURES = (
@@ -61,14 +61,15 @@ def sensor_figures(
     yield (
         "loop_signatures",
         figures_loop.signatures(
-            frames.signatures_of_round(result_files.read_parquet(files["signatures"]), 1),
+            long_tables.signatures_of_round(result_files.read_parquet(files["signatures"]), 1),
             title("residual vs candidate effects"),
         ),
     )
     yield (
         "loop_residuals",
         figures_loop.residual_histograms(
-            frames.residuals_of(result_files.read_parquet(files["loop_residuals"])), title("before and after the loop")
+            long_tables.residuals_of(result_files.read_parquet(files["loop_residuals"])),
+            title("before and after the loop"),
         ),
     )
     yield (

@@ -20,11 +20,12 @@ from dataclasses import dataclass
 import pandas as pd
 
 from .. import files as result_files
-from ..analysis import accuracy, budget, calibrated, iso9283, workspace
-from ..analysis.acceptance import Acceptance
+from ..calibration import exports
 from ..campaigns.campaign import Campaign
+from ..evaluation import accuracy, budget, iso9283, workspace
+from ..evaluation.acceptance import Acceptance
 from ..inference.fit import LaplaceReport, Registration
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from . import certificate, tables, tables_loop
 
 Files = Mapping[str, Mapping[str, str]]  # kind -> sensor -> path
@@ -99,8 +100,8 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
             "loop_harmonics_terms": tables_loop.harmonics_table(loops),
             "workspace_accuracy": workspace.workspace_table(claims, workspaces),
             "workspace_warnings": workspace.warnings_table(workspaces),
-            "controller_offsets": calibrated.offsets_table(offsets),
-            "calibrated_files": calibrated.files_table(label, sensors, "dh" in campaign.robot),
+            "controller_offsets": exports.offsets_table(offsets),
+            "calibrated_files": exports.files_table(label, sensors, "dh" in campaign.robot),
             "uncertainty_budget": budget.budget_table(
                 campaign, _each(files, "registration", Registration.read), laplaces, loops
             ),

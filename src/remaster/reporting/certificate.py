@@ -19,14 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..analysis.acceptance import DIAGNOSES, UNTESTED, Acceptance
-from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
-from ..analysis.accuracy import VERNIER_LEAST_SQUARES
-from ..analysis.workspace import claim_rows
+from ..evaluation.acceptance import DIAGNOSES, UNTESTED, Acceptance
+from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
+from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
+from ..evaluation.workspace import claim_rows
 from ..inference.fit import LaplaceReport, disagreeing
 from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..loop.sides import with_sides
 from ..units import MM
 
@@ -41,7 +41,7 @@ class CertificateInputs:
     workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
     loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv; cross_check:
     fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read;
-    acceptance: acceptance.json (`analysis.acceptance`: the validation set as the acceptance test),
+    acceptance: acceptance.json (`evaluation.acceptance`: the validation set as the acceptance test),
     None when not read."""
 
     laplace: LaplaceReport
@@ -232,7 +232,7 @@ NOT_TESTED = "not tested"  # the acceptance column without acceptance.json
 
 
 def acceptance_text(acceptance: Acceptance | None) -> str:
-    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`analysis.acceptance`), or
+    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`evaluation.acceptance`), or
     NOT_TESTED."""
     if acceptance is None:
         return NOT_TESTED

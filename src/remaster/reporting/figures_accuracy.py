@@ -1,4 +1,4 @@
-"""Accuracy figures, drawn from the tables `remaster.analysis.accuracy.accuracy_tables` returns.
+"""Accuracy figures, drawn from the tables `remaster.evaluation.accuracy.accuracy_tables` returns.
 
 Every function returns a matplotlib Figure (Agg backend); `remaster.files.write_figure` saves it.
 Axes are in mm.

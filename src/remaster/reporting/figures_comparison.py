@@ -1,4 +1,4 @@
-"""Figures across campaigns, drawn from `remaster.analysis.comparison` tables (Agg backend, deg on the axes)."""
+"""Figures across campaigns, drawn from `remaster.comparing.comparison` tables (Agg backend, deg on the axes)."""
 
 from __future__ import annotations
 

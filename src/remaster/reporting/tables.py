@@ -14,7 +14,7 @@ from pathlib import PurePath
 import numpy as np
 import pandas as pd
 
-from ..analysis import iso9283
+from ..evaluation import iso9283
 from ..files import write_csv, write_text
 from ..inference.model import SIGMA, by_parameter, display_value
 from ..labels import paper_order, sensor_label

@@ -1,4 +1,4 @@
-"""The loop closure's tables of a campaign, from its sensors' reports (`remaster.loop.report.LoopReport`):
+"""The loop closure's tables of a campaign, from its sensors' reports (`remaster.loop.result.LoopReport`):
 before and after with the effects added, the closure test after every step, every candidate's
 scores, and the joints' cyclic errors (joint_harmonics) named. Numbers in the units their columns name (mm, %).
 """
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..loop.sides import with_sides
 
 

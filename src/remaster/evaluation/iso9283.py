@@ -20,10 +20,10 @@ import numpy as np
 import pandas as pd
 
 from ..campaigns.campaign import SensorData
+from ..evaluation.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 from ..labels import sensor_label
-from ..loop.closure import configuration_groups
+from ..loop.noise_floor import configuration_groups
 from ..units import MM
-from .accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 
 CANNOT_GIVE = (
     "orientation accuracy and repeatability (AP_a,b,c, RP_a,b,c): one marker point, not the tool's "

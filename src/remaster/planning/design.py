@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..planning import design_posterior as dp
 from ..robot.kinematics import KinematicChain
 from ..robot.planning import joint_range
 from ..units import MM
-from . import design_posterior as dp
 
 CRITERIA = ("workspace", "d-optimal")
 STATISTICS = ("p95", "mean")

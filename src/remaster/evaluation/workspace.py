@@ -64,18 +64,18 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..calibration.prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
 from ..campaigns.campaign import SensorData
 from ..errors import InputError
+from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
 from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM, shown
-from .domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
-from .prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
 
 LOOP_METHOD = "Loop-closed"
 THEORETICAL_TABLES = {  # paper table: (configurations, with noise)

@@ -27,11 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import seeding
+from .. import identity, seeding
 from ..inference import metrics
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import DEG
-from . import comparison
 
 FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
 MIN_TOOL_SPREAD_DEG = 30.0  # and the spread of the measured tool axes
@@ -84,7 +83,7 @@ class MeasuredDomain:
     def configurations(self, robot: str, n: int, seed: int) -> np.ndarray:
         """n configurations (n, N) rad uniform inside the intervals, held joints at their value,
         from the generator of (seed, 'domain', robot slug)."""
-        rng = seeding.generator(seed, "domain", comparison.robot_slug(robot))
+        rng = seeding.generator(seed, "domain", identity.robot_slug(robot))
         return self.lower + (self.upper - self.lower) * rng.uniform(size=(n, len(self.lower)))
 
     def ranges_text(self) -> str:

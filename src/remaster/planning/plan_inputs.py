@@ -17,13 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..calibration.compensation import joint_commands
 from ..campaigns.campaign import SensorData
 from ..errors import InputError
+from ..planning import design_posterior as dp
 from ..robot import planning
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
-from . import design_posterior as dp
-from .compensation import joint_commands
 
 DEFAULT_COLLISION = planning.CollisionModel()  # frozen: one instance serves every default
 

@@ -1,5 +1,5 @@
 """The workspace design's figure: the predicted bound against the number of configurations
-(`remaster.analysis.design.bound_table`), so that a user sees what each extra measurement buys.
+(`remaster.planning.design.bound_table`), so that a user sees what each extra measurement buys.
 
 Returns a matplotlib Figure (Agg backend); `remaster.files.write_figure` saves it. Axes in mm.
 """
@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .figures import finished  # noqa: E402
+from ..reporting.figures import finished  # noqa: E402
 
 
 def bound_curve(bounds: pd.DataFrame, title: str, target_mm: float | None = None) -> plt.Figure:

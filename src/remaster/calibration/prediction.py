@@ -1,6 +1,6 @@
 """Calibrations as predictions: robot-frame marker positions of a campaign's calibrated kinematics
-at any joint readings, and two calibrations compared by what they predict (docs/methods.md, "Across
-campaigns": predictions, not parameters, are what campaigns share).
+at any joint readings (docs/methods.md, "Across campaigns": predictions, not parameters, are what
+campaigns share; `remaster.comparing.predictions` compares two of them).
 
 A `Calibration` is one campaign's (and sensor's) kinematics under one model:
 
@@ -15,70 +15,35 @@ the sensor frame's distortion belong to one campaign's sensor set-up and the dri
 they are left out (`SETUP_BLOCKS`); a calibration applied elsewhere gets that campaign's own
 registration.
 
-Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
-d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q. Its null
-distribution (no change, only posterior uncertainty) comes from draw pairs k = 1..K: the
-deviations e_k(q) = [p_B(draw_B,k)(q) - p_B(mean_B)(q)] - [p_A(draw_A,k)(q) - p_A(mean_A)(q)],
-whose mean |e_k| over q is the statistic under no change. `null_p95_of_mean_mm` is its 95th
-percentile over the K pairs and the pair is `flagged` when the observed mean exceeds it (a one-sided
-test at 5 %: the change of prediction is larger than the two posteriors' own spread explains).
-Without posterior samples on one side (MCMC off) there is no null: NaN and not flagged.
-
-SI inside (m, rad); the tables are in mm.
+SI inside (m, rad).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from .. import seeding
+from .. import identity, seeding
 from ..campaigns.campaign import Campaign, SensorData
 from ..errors import InputError
 from ..inference import metrics
-from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, block_parameters, link_errors
+from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, link_errors
 from ..inference.fit import LaplaceReport
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..robot.gravity import loaded_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
-from ..units import MM
-from . import comparison
 
 DEFAULT_SETTINGS = ModelSettings()  # frozen: one instance serves every default
 
 MODELS = ("nominal", "paper", "loop")
+ZERO_OFFSET_PREFIX = "zero_offsets.q"
 # one campaign's set-up: never transferred (the sensor's frame distortion is its sensor's, like its scale)
 SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise", "sensor_distortion")
 ESTIMATED = "estimated"
-NULL_QUANTILE = 0.95
-PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
-DRIFT_COLUMNS = [
-    "robot",
-    "kind",
-    "model",
-    "campaign_a",
-    "date_a",
-    "sensor_a",
-    "campaign_b",
-    "date_b",
-    "sensor_b",
-    "effects_a",
-    "effects_b",
-] + PREDICTION_COLUMNS
-AGREEMENT_COLUMNS = [
-    "campaign",
-    "date",
-    "robot",
-    "model",
-    "sensor_a",
-    "sensor_b",
-    "effects_a",
-    "effects_b",
-] + PREDICTION_COLUMNS
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,9 +160,9 @@ def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None
     if "parameter" in summary.columns:
         summary = summary.set_index("parameter")
     _checked_columns(summary, ("mean", "status"), label, "a posterior summary")
-    names = [str(n) for n in summary.index if str(n).startswith(comparison.ZERO_OFFSET_PREFIX)]
+    names = [str(n) for n in summary.index if str(n).startswith(ZERO_OFFSET_PREFIX)]
     if not names:
-        raise InputError(f"no {comparison.ZERO_OFFSET_PREFIX}N parameters", file=label, key="parameter")
+        raise InputError(f"no {ZERO_OFFSET_PREFIX}N parameters", file=label, key="parameter")
     values = {n: float(summary.at[n, "mean"]) for n in names}
     free = [n for n in names if str(summary.at[n, "status"]) == ESTIMATED]
     return Calibration("paper", values, (), ModelSettings(), _free_draws(samples, free, label))
@@ -221,7 +186,7 @@ def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, la
 
 
 class Calibrated(NamedTuple):
-    """One campaign's sensor with its calibrations. robot: `comparison.robot_identity`; date: ISO
+    """One campaign's sensor with its calibrations. robot: `identity.robot_identity`; date: ISO
     text; models: {model name: Calibration}; excluded: table rows the fit left out as gross errors."""
 
     campaign: str
@@ -258,7 +223,7 @@ def calibrated(
     return Calibrated(
         campaign.name,
         campaign.date.isoformat(),
-        comparison.robot_identity(campaign),
+        identity.robot_identity(campaign),
         campaign.sensors[sensor],
         campaign.chain,
         models,
@@ -266,180 +231,10 @@ def calibrated(
     )
 
 
-# --------------------------------------------------------------------------- comparison by prediction
-
-
-def compare_predictions(
-    chain: KinematicChain, q, marker, a: Calibration, b: Calibration, draw_pairs: int, rng: np.random.Generator
-) -> dict:
-    """What B predicts against what A predicts at configurations q (n, N) rad, marker (3,) m
-    (flange frame, each model's marker offset added): configurations, mean_mm and p95_mm of
-    |p_B - p_A| at the posterior means, draw_pairs and null_p95_of_mean_mm from `draw_pairs`
-    posterior draw pairs (rng chooses the draws), flagged (see the module docstring)."""
-    pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
-    mean_a, mean_b = pa.points(a.values), pb.points(b.values)
-    distance = np.linalg.norm(mean_b - mean_a, axis=1)
-    row = {
-        "configurations": int(len(distance)),
-        "mean_mm": float(distance.mean() / MM),
-        "p95_mm": float(np.quantile(distance, 0.95) / MM),
-        "draw_pairs": 0,
-        "null_p95_of_mean_mm": np.nan,
-        "flagged": False,
-    }
-    draws_a, draws_b = a.draw_values(draw_pairs, rng), b.draw_values(draw_pairs, rng)
-    if draws_a is None or draws_b is None:
-        missing = " and ".join(s for s, d in (("A", draws_a), ("B", draws_b)) if d is None)
-        return {**row, "status": f"no null: no posterior samples of {missing}"}
-    null = np.array(
-        [
-            np.linalg.norm((pb.points(db) - mean_b) - (pa.points(da) - mean_a), axis=1).mean()
-            for da, db in zip(draws_a, draws_b)
-        ]
-    )
-    threshold = float(np.quantile(null, NULL_QUANTILE))
-    flagged = bool(distance.mean() > threshold)
-    return {
-        **row,
-        "draw_pairs": int(len(null)),
-        "null_p95_of_mean_mm": threshold / MM,
-        "flagged": flagged,
-        "status": "compared",
-    }
-
-
-def _entries_frame(entries: Sequence[Calibrated]) -> pd.DataFrame:
-    """The entries as over-time rows (campaign, date, robot, sensor, kind, entry index), so that
-    `comparison`'s pairing of consecutive campaigns and of a campaign's sensors applies."""
-    seen = set()
-    for e in entries:
-        if (e.campaign, e.sensor.name) in seen:
-            raise InputError("given twice", file=f"{e.campaign}/{e.sensor.name}")
-        seen.add((e.campaign, e.sensor.name))
-    return pd.DataFrame(
-        {
-            "campaign": [e.campaign for e in entries],
-            "date": [e.date for e in entries],
-            "robot": [e.robot for e in entries],
-            "sensor": [e.sensor.name for e in entries],
-            "kind": [e.kind for e in entries],
-            "entry": np.arange(len(entries)),
-        }
-    )
-
-
 def robot_configurations(chain: KinematicChain, robot: str, n: int, seed: int) -> np.ndarray:
     """The one fixed set of random configurations (n, N) rad of a robot: uniform within the joint
     limits, from the generator of (seed, 'comparison', robot slug)."""
-    return metrics.random_configurations(chain, n, seeding.generator(seed, "comparison", comparison.robot_slug(robot)))
-
-
-def _pair_rows(a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: int, labels: dict) -> list[dict]:
-    """One row per model both entries have: labels, effects and `compare_predictions`; the draws of
-    each pair and model come from their own generator, so a row does not depend on the others."""
-    rows = []
-    for model in [m for m in MODELS if m in a.models and m in b.models and m != "nominal"]:
-        ca, cb = a.models[model], b.models[model]
-        rng = seeding.generator(
-            seed,
-            "comparison",
-            comparison.robot_slug(a.robot),
-            a.campaign,
-            a.sensor.name,
-            b.campaign,
-            b.sensor.name,
-            model,
-        )
-        rows.append(
-            {
-                **labels,
-                "model": model,
-                "effects_a": ca.effects,
-                "effects_b": cb.effects,
-                **compare_predictions(a.chain, q, marker, ca, cb, draw_pairs, rng),
-            }
-        )
-    return rows
-
-
-def _table(rows: list[dict], columns: list[str]) -> pd.DataFrame:
-    return pd.DataFrame(rows, columns=columns) if rows else pd.DataFrame(columns=columns)
-
-
-def prediction_drift(
-    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
-) -> pd.DataFrame:
-    """Drift between consecutive campaigns of one robot and sensor kind (pairs as
-    `comparison.drift_between` makes them) as the change of predicted marker position, robot
-    frame, at the robot's fixed random configurations (`robot_configurations`), per model (paper,
-    loop). The marker is campaign A's sensor's nominal one (each model's marker offset added).
-    Columns DRIFT_COLUMNS (mm)."""
-    entries = list(entries)
-    frame = _entries_frame(entries)
-    rows, configurations = [], {}
-    for robot, kind, a_rows, b_rows in comparison.consecutive_pairs(frame):
-        a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
-        if robot not in configurations:
-            configurations[robot] = robot_configurations(a.chain, robot, n_configurations, seed)
-        labels = {
-            "robot": robot,
-            "kind": kind,
-            "campaign_a": a.campaign,
-            "date_a": a.date,
-            "sensor_a": a.sensor.name,
-            "campaign_b": b.campaign,
-            "date_b": b.date,
-            "sensor_b": b.sensor.name,
-        }
-        rows += _pair_rows(a, b, configurations[robot], a.sensor.marker, draw_pairs, seed, labels)
-    return _table(rows, DRIFT_COLUMNS)
-
-
-def prediction_agreement(
-    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
-) -> pd.DataFrame:
-    """The sensors' agreement within each campaign (pairs as `comparison.sensor_agreement` makes
-    them) as the difference of predicted positions, robot frame, at the robot's fixed random
-    configurations, per model. The point is the midpoint of the two sensors' nominal markers,
-    and the marker offsets are left out: each sensor has its own marker, and the comparison is of
-    the robot. Columns AGREEMENT_COLUMNS (mm)."""
-    entries = list(entries)
-    frame = _entries_frame(entries)
-    rows, configurations = [], {}
-    for a_rows, b_rows in comparison.sensor_pairs(frame):
-        a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
-        if a.robot not in configurations:
-            configurations[a.robot] = robot_configurations(a.chain, a.robot, n_configurations, seed)
-        a, b = _without_marker_offset(a), _without_marker_offset(b)
-        labels = {
-            "campaign": a.campaign,
-            "date": a.date,
-            "robot": a.robot,
-            "sensor_a": a.sensor.name,
-            "sensor_b": b.sensor.name,
-        }
-        marker = (np.asarray(a.sensor.marker) + np.asarray(b.sensor.marker)) / 2.0
-        rows += _pair_rows(a, b, configurations[a.robot], marker, draw_pairs, seed, labels)
-    return _table(rows, AGREEMENT_COLUMNS)
-
-
-def _without_marker_offset(entry: Calibrated) -> Calibrated:
-    """The entry with its models' marker offsets left out (values, blocks and draws)."""
-    names = set(block_parameters("marker_offset", entry.chain).names)
-
-    def strip(c: Calibration) -> Calibration:
-        if "marker_offset" not in c.blocks:
-            return c
-        draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
-        return Calibration(
-            c.model,
-            {k: v for k, v in c.values.items() if k not in names},
-            tuple(b for b in c.blocks if b != "marker_offset"),
-            c.settings,
-            draws,
-        )
-
-    return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
+    return metrics.random_configurations(chain, n, seeding.generator(seed, "comparison", identity.robot_slug(robot)))
 
 
 def calibrated_entries(
@@ -472,45 +267,3 @@ def calibrated_entries(
             )
         )
     return out
-
-
-PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement": prediction_agreement}
-
-
-def prediction_table(
-    name: str,
-    campaigns,
-    summaries,
-    laplaces,
-    loops=None,
-    paper_samples=None,
-    loop_samples=None,
-    n_configurations: int = 1000,
-    seed: int = 0,
-    draw_pairs: int = 200,
-) -> pd.DataFrame:
-    """One of PREDICTION_TABLES by name, of the campaigns' calibrations (arguments as
-    `calibrated_entries`)."""
-    if name not in PREDICTION_TABLES:
-        raise ValueError(f"unknown prediction table {name!r}; tables: {sorted(PREDICTION_TABLES)}")
-    entries = calibrated_entries(campaigns, summaries, laplaces, loops, paper_samples, loop_samples)
-    return PREDICTION_TABLES[name](entries, n_configurations, seed, draw_pairs)
-
-
-CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
-    "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
-    "each campaign's validation set of the same sensor, registration refitted on that campaign's "
-    "optimization set with the calibration's kinematics frozen (registration, sensor scale and drift "
-    "not transferred); the diagonal is the ordinary validation.",
-    "transfer_nominal": "Transfer heat-map, nominal kinematics: validation RMSE (mm), calibrated on (rows) against "
-    "evaluated on (columns)",
-    "transfer_paper": "Transfer heat-map, the paper's model: validation RMSE (mm), calibrated on (rows) against "
-    "evaluated on (columns)",
-    "transfer_loop": "Transfer heat-map, the loop closure's model: validation RMSE (mm), calibrated on (rows) "
-    "against evaluated on (columns)",
-    "prediction_drift": "Drift between consecutive campaigns of one robot and sensor kind as the change of "
-    "predicted marker position (robot frame, mm) over one fixed set of random configurations; "
-    "flagged where the mean change exceeds the 95th percentile of its posterior null.",
-    "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
-    "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
-}

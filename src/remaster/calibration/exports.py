@@ -37,16 +37,16 @@ import numpy as np
 import pandas as pd
 
 from .. import spatial
+from ..calibration import dh_table
+from ..calibration.prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError
 from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
 from ..inference.uncertainty import coverage_factor, with_between
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..robot.kinematics import KinematicChain, origin_transform
 from ..units import DEG
-from . import dh_table
-from .prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 
 URDF_BLOCKS = ("zero_offsets", "link_geometry")  # what the joint origins hold
 SIGN = "true joint angle = controller reading + correction: add the correction to the controller's zero"

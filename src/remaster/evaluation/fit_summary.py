@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from ..campaigns.campaign import Campaign
+from ..evaluation import accuracy
 from ..inference import discrepancy, fit
-from . import accuracy
 
 
 @dataclass(frozen=True)

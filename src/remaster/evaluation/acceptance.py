@@ -51,7 +51,7 @@ from ..inference import blocks, residual_gp
 from ..inference.blocks import BlockModel, ModelSettings, Readings
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM
 

@@ -1,6 +1,6 @@
 """Everything a calibration hands over for one sensor once its loop is closed: the workspace
 claims (`workspace.workspace_accuracy`), the calibrated URDFs and controller offsets
-(`calibrated.calibrated_stage`) and, for a campaign given as a DH table, the calibrated DH tables."""
+(`exports.calibrated_stage`) and, for a campaign given as a DH table, the calibrated DH tables."""
 
 from __future__ import annotations
 
@@ -9,10 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import identity
+from ..calibration import exports
 from ..campaigns.campaign import Campaign
+from ..evaluation import workspace
 from ..inference.fit import LaplaceReport
-from ..loop.report import LoopReport
-from . import calibrated, comparison, workspace
+from ..loop.result import LoopReport
 
 
 @dataclass(frozen=True)
@@ -21,7 +23,7 @@ class CalibratedOutputs:
     when the campaign gives a DH table, else None."""
 
     workspace: workspace.WorkspaceAccuracy
-    files: calibrated.CalibratedFiles
+    files: exports.CalibratedFiles
     dh: dict | None
 
 
@@ -47,7 +49,7 @@ def calibrated_outputs_stage(
     claims = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],
-        comparison.robot_identity(campaign),
+        identity.robot_identity(campaign),
         summary,
         laplace,
         loop_report,
@@ -59,9 +61,9 @@ def calibrated_outputs_stage(
         label=samples_label,
         loop_gp_rows=loop_gp_rows,
     )
-    files = calibrated.calibrated_stage(campaign, sensor, summary, loop_report, label=loop_label)
+    files = exports.calibrated_stage(campaign, sensor, summary, loop_report, label=loop_label)
     dh = (
-        calibrated.calibrated_dh_tables(campaign, sensor, summary, loop_report, label=loop_label)
+        exports.calibrated_dh_tables(campaign, sensor, summary, loop_report, label=loop_label)
         if "dh" in campaign.robot
         else None
     )

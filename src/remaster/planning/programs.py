@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .kinematics import KinematicChain
+from ..robot.kinematics import KinematicChain
 
 FORMATS = ("urscript", "krl", "rapid")
 SETS = ("optimization", "validation")

@@ -40,7 +40,7 @@ from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport, Registration, build_model
 from ..inference.uncertainty import COVERAGE, coverage_factor, welch_satterthwaite
 from ..labels import sensor_label
-from ..loop.report import LoopReport
+from ..loop.result import LoopReport
 from ..units import MM
 
 FITTED_BLOCKS = ("registration.", "zero_offsets.")

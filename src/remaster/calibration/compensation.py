@@ -51,6 +51,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from .. import spatial
+from ..calibration.prediction import Calibration, Predictor, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows
 from ..inference import residual_gp
@@ -58,7 +59,6 @@ from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import MM
-from .prediction import Calibration, Predictor, loop_calibration, paper_calibration
 
 MODELS = ("paper", "loop")
 FRAMES = ("robot", "sensor")

@@ -1,7 +1,7 @@
 """Transfer between campaigns of one robot: what a calibration is worth on another campaign.
 
 Campaign X's calibration (`prediction.Calibration`: nominal, paper or loop) is applied to campaign
-Y's readings of the same sensor (same sensor name, campaigns of one `comparison.robot_identity`):
+Y's readings of the same sensor (same sensor name, campaigns of one `identity.robot_identity`):
 
 1. robot-frame marker positions from X's kinematics at Y's readings (Y's nominal marker plus X's
    marker offset; a compliance acts through the gravity torques at Y's readings);
@@ -25,10 +25,10 @@ import numpy as np
 import pandas as pd
 
 from .. import spatial
+from ..calibration.prediction import MODELS, Calibrated, Calibration, calibrated_entries
 from ..errors import InputError
 from ..robot import registration
 from ..units import MM
-from .prediction import MODELS, Calibrated, Calibration, calibrated_entries
 
 TRANSFER_COLUMNS = [
     "robot",
@@ -134,9 +134,9 @@ def prediction_stage(
     draw_pairs: int,
 ) -> dict[str, pd.DataFrame]:
     """The comparisons by prediction (arguments as `prediction.calibrated_entries`): the transfer
-    table, then every table of `prediction.PREDICTION_TABLES` at `n_configurations` random
+    table, then every table of `predictions.PREDICTION_TABLES` at `n_configurations` random
     configurations per robot (from `seed`), with `draw_pairs` posterior draw pairs."""
-    from .prediction import PREDICTION_TABLES
+    from .predictions import PREDICTION_TABLES
 
     out = {"transfer": transfer_stage(campaigns, summaries, laplaces, loops)}
     # one set of calibrated entries (with their posterior samples) for every prediction table

@@ -55,8 +55,8 @@ import numpy as np
 import pandas as pd
 
 from ..inference.residual_gp import LENGTH_BOUNDS, Hyperparameters, kernel
+from ..planning import design_posterior as dp
 from ..units import MM
-from . import design_posterior as dp
 
 CRITERION = "robust"  # `remaster plan --criterion robust`
 # candidates scored at once: bounds the (c, P, 3) work arrays
@@ -202,7 +202,7 @@ def robust_design(
     discrepancy is fitted into the parameters too, so they enter B, H and U from the start. A
     `design.Design` (criterion 'robust', statistic 'rms') whose bounds carry expected_rms_mm beside
     the posterior's bounds."""
-    from . import design
+    from ..planning import design
 
     if budget is None and target is None:
         raise ValueError("give a budget, a target, or both")

@@ -1,0 +1,251 @@
+"""Two calibrations compared by what they predict: drift between consecutive campaigns of one robot
+and the agreement of one campaign's sensors, as the change of predicted marker position over one fixed
+set of random configurations (`remaster.calibration.prediction` makes the predictions).
+
+Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
+d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q. Its null
+distribution (no change, only posterior uncertainty) comes from draw pairs k = 1..K: the
+deviations e_k(q) = [p_B(draw_B,k)(q) - p_B(mean_B)(q)] - [p_A(draw_A,k)(q) - p_A(mean_A)(q)],
+whose mean |e_k| over q is the statistic under no change. `null_p95_of_mean_mm` is its 95th
+percentile over the K pairs and the pair is `flagged` when the observed mean exceeds it (a one-sided
+test at 5 %: the change of prediction is larger than the two posteriors' own spread explains).
+Without posterior samples on one side (MCMC off) there is no null: NaN and not flagged.
+
+SI inside (m, rad); the tables are in mm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .. import identity, seeding
+from ..calibration.prediction import MODELS, Calibrated, Calibration, robot_configurations
+from ..errors import InputError
+from ..inference.blocks import block_parameters
+from ..robot.kinematics import KinematicChain
+from ..units import MM
+from . import comparison
+
+NULL_QUANTILE = 0.95
+
+
+PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
+
+
+DRIFT_COLUMNS = [
+    "robot",
+    "kind",
+    "model",
+    "campaign_a",
+    "date_a",
+    "sensor_a",
+    "campaign_b",
+    "date_b",
+    "sensor_b",
+    "effects_a",
+    "effects_b",
+] + PREDICTION_COLUMNS
+
+
+AGREEMENT_COLUMNS = [
+    "campaign",
+    "date",
+    "robot",
+    "model",
+    "sensor_a",
+    "sensor_b",
+    "effects_a",
+    "effects_b",
+] + PREDICTION_COLUMNS
+
+
+def compare_predictions(
+    chain: KinematicChain, q, marker, a: Calibration, b: Calibration, draw_pairs: int, rng: np.random.Generator
+) -> dict:
+    """What B predicts against what A predicts at configurations q (n, N) rad, marker (3,) m
+    (flange frame, each model's marker offset added): configurations, mean_mm and p95_mm of
+    |p_B - p_A| at the posterior means, draw_pairs and null_p95_of_mean_mm from `draw_pairs`
+    posterior draw pairs (rng chooses the draws), flagged (see the module docstring)."""
+    pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
+    mean_a, mean_b = pa.points(a.values), pb.points(b.values)
+    distance = np.linalg.norm(mean_b - mean_a, axis=1)
+    row = {
+        "configurations": int(len(distance)),
+        "mean_mm": float(distance.mean() / MM),
+        "p95_mm": float(np.quantile(distance, 0.95) / MM),
+        "draw_pairs": 0,
+        "null_p95_of_mean_mm": np.nan,
+        "flagged": False,
+    }
+    draws_a, draws_b = a.draw_values(draw_pairs, rng), b.draw_values(draw_pairs, rng)
+    if draws_a is None or draws_b is None:
+        missing = " and ".join(s for s, d in (("A", draws_a), ("B", draws_b)) if d is None)
+        return {**row, "status": f"no null: no posterior samples of {missing}"}
+    null = np.array(
+        [
+            np.linalg.norm((pb.points(db) - mean_b) - (pa.points(da) - mean_a), axis=1).mean()
+            for da, db in zip(draws_a, draws_b)
+        ]
+    )
+    threshold = float(np.quantile(null, NULL_QUANTILE))
+    flagged = bool(distance.mean() > threshold)
+    return {
+        **row,
+        "draw_pairs": int(len(null)),
+        "null_p95_of_mean_mm": threshold / MM,
+        "flagged": flagged,
+        "status": "compared",
+    }
+
+
+def _entries_frame(entries: Sequence[Calibrated]) -> pd.DataFrame:
+    """The entries as over-time rows (campaign, date, robot, sensor, kind, entry index), so that
+    `comparison`'s pairing of consecutive campaigns and of a campaign's sensors applies."""
+    seen = set()
+    for e in entries:
+        if (e.campaign, e.sensor.name) in seen:
+            raise InputError("given twice", file=f"{e.campaign}/{e.sensor.name}")
+        seen.add((e.campaign, e.sensor.name))
+    return pd.DataFrame(
+        {
+            "campaign": [e.campaign for e in entries],
+            "date": [e.date for e in entries],
+            "robot": [e.robot for e in entries],
+            "sensor": [e.sensor.name for e in entries],
+            "kind": [e.kind for e in entries],
+            "entry": np.arange(len(entries)),
+        }
+    )
+
+
+def _pair_rows(a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: int, labels: dict) -> list[dict]:
+    """One row per model both entries have: labels, effects and `compare_predictions`; the draws of
+    each pair and model come from their own generator, so a row does not depend on the others."""
+    rows = []
+    for model in [m for m in MODELS if m in a.models and m in b.models and m != "nominal"]:
+        ca, cb = a.models[model], b.models[model]
+        rng = seeding.generator(
+            seed,
+            "comparison",
+            identity.robot_slug(a.robot),
+            a.campaign,
+            a.sensor.name,
+            b.campaign,
+            b.sensor.name,
+            model,
+        )
+        rows.append(
+            {
+                **labels,
+                "model": model,
+                "effects_a": ca.effects,
+                "effects_b": cb.effects,
+                **compare_predictions(a.chain, q, marker, ca, cb, draw_pairs, rng),
+            }
+        )
+    return rows
+
+
+def _table(rows: list[dict], columns: list[str]) -> pd.DataFrame:
+    return pd.DataFrame(rows, columns=columns) if rows else pd.DataFrame(columns=columns)
+
+
+def prediction_drift(
+    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
+) -> pd.DataFrame:
+    """Drift between consecutive campaigns of one robot and sensor kind (pairs as
+    `comparison.drift_between` makes them) as the change of predicted marker position, robot
+    frame, at the robot's fixed random configurations (`robot_configurations`), per model (paper,
+    loop). The marker is campaign A's sensor's nominal one (each model's marker offset added).
+    Columns DRIFT_COLUMNS (mm)."""
+    entries = list(entries)
+    frame = _entries_frame(entries)
+    rows, configurations = [], {}
+    for robot, kind, a_rows, b_rows in comparison.consecutive_pairs(frame):
+        a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
+        if robot not in configurations:
+            configurations[robot] = robot_configurations(a.chain, robot, n_configurations, seed)
+        labels = {
+            "robot": robot,
+            "kind": kind,
+            "campaign_a": a.campaign,
+            "date_a": a.date,
+            "sensor_a": a.sensor.name,
+            "campaign_b": b.campaign,
+            "date_b": b.date,
+            "sensor_b": b.sensor.name,
+        }
+        rows += _pair_rows(a, b, configurations[robot], a.sensor.marker, draw_pairs, seed, labels)
+    return _table(rows, DRIFT_COLUMNS)
+
+
+def prediction_agreement(
+    entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
+) -> pd.DataFrame:
+    """The sensors' agreement within each campaign (pairs as `comparison.sensor_agreement` makes
+    them) as the difference of predicted positions, robot frame, at the robot's fixed random
+    configurations, per model. The point is the midpoint of the two sensors' nominal markers,
+    and the marker offsets are left out: each sensor has its own marker, and the comparison is of
+    the robot. Columns AGREEMENT_COLUMNS (mm)."""
+    entries = list(entries)
+    frame = _entries_frame(entries)
+    rows, configurations = [], {}
+    for a_rows, b_rows in comparison.sensor_pairs(frame):
+        a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
+        if a.robot not in configurations:
+            configurations[a.robot] = robot_configurations(a.chain, a.robot, n_configurations, seed)
+        a, b = _without_marker_offset(a), _without_marker_offset(b)
+        labels = {
+            "campaign": a.campaign,
+            "date": a.date,
+            "robot": a.robot,
+            "sensor_a": a.sensor.name,
+            "sensor_b": b.sensor.name,
+        }
+        marker = (np.asarray(a.sensor.marker) + np.asarray(b.sensor.marker)) / 2.0
+        rows += _pair_rows(a, b, configurations[a.robot], marker, draw_pairs, seed, labels)
+    return _table(rows, AGREEMENT_COLUMNS)
+
+
+def _without_marker_offset(entry: Calibrated) -> Calibrated:
+    """The entry with its models' marker offsets left out (values, blocks and draws)."""
+    names = set(block_parameters("marker_offset", entry.chain).names)
+
+    def strip(c: Calibration) -> Calibration:
+        if "marker_offset" not in c.blocks:
+            return c
+        draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
+        return Calibration(
+            c.model,
+            {k: v for k, v in c.values.items() if k not in names},
+            tuple(b for b in c.blocks if b != "marker_offset"),
+            c.settings,
+            draws,
+        )
+
+    return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
+
+
+PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement": prediction_agreement}
+
+
+CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
+    "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
+    "each campaign's validation set of the same sensor, registration refitted on that campaign's "
+    "optimization set with the calibration's kinematics frozen (registration, sensor scale and drift "
+    "not transferred); the diagonal is the ordinary validation.",
+    "transfer_nominal": "Transfer heat-map, nominal kinematics: validation RMSE (mm), calibrated on (rows) against "
+    "evaluated on (columns)",
+    "transfer_paper": "Transfer heat-map, the paper's model: validation RMSE (mm), calibrated on (rows) against "
+    "evaluated on (columns)",
+    "transfer_loop": "Transfer heat-map, the loop closure's model: validation RMSE (mm), calibrated on (rows) "
+    "against evaluated on (columns)",
+    "prediction_drift": "Drift between consecutive campaigns of one robot and sensor kind as the change of "
+    "predicted marker position (robot frame, mm) over one fixed set of random configurations; "
+    "flagged where the mean change exceeds the 95th percentile of its posterior null.",
+    "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
+    "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
+}
