@@ -1,4 +1,4 @@
-"""Issue 34's cyclic case at the issue's size and the data density the joint-space residual model needs.
+"""The cyclic-error scenario at its full size and the data density the joint-space residual model needs.
 
 The truth (tests/test_joint_harmonics.py `cyclic_truth`): a simulated iiwa with zero-offsets and the
 cyclic transmission errors J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg
@@ -10,7 +10,7 @@ registration, Laplace fit, loop closure with config.yaml's settings, `remaster p
 scenario is tests/test_joint_harmonics.py `issue_scenario`.
 
 The sweep: optimization sets of 20, 30, 40, 80 and 152 configurations over 5, 6, 8, 17 and 32 poses (the
-paper's ~4.75 configurations per pose, 5 poses at least for the 5 folds; 152 / 32 is the issue's size), a validation set like the
+paper's ~4.75 configurations per pose, 5 poses at least for the 5 folds; 152 / 32 is the scenario's full size), a validation set like the
 twin's (32 poses, 156 configurations) for all, several seeds each. Per run: the effects added and
 their side, the joints and orders `joint_harmonics` names, validation RMS per axis / noise, and the
 share of configurations whose true error is within `remaster predict`'s per-command 95 % bound:
@@ -43,7 +43,7 @@ from tests.test_joint_harmonics import ISSUE_SETS, issue_scenario, true_f  # noq
 from tests.truth_claims import check  # noqa: E402
 
 SENSORS = ("laser_tracker", "motion_capture")
-# optimization set (configurations, poses): ~4.75 configurations per pose, 152 / 32 the issue's size;
+# optimization set (configurations, poses): ~4.75 configurations per pose, 152 / 32 the scenario's full size;
 # 20 over 5, not 4: the loop closure's cross-validation needs as many poses as folds (cv_folds: 5)
 SIZES = ((20, 5), (30, 6), (40, 8), (80, 17), (152, 32))
 VALIDATION = ISSUE_SETS["validation"]  # the twin's: 32 poses, 156 configurations
@@ -267,7 +267,7 @@ def _pct(value) -> str:
 
 def markdown(summary: list[dict], seeds: list[int]) -> str:
     lines = [
-        "# Issue 34's cyclic case: what the joint-space residual model needs",
+        "# The cyclic-error scenario: what the joint-space residual model needs",
         "",
         "Written by benchmarks/bench_cyclic_case.py (its docstring says what is simulated and measured); "
         f"seeds {', '.join(map(str, seeds))}; counts are over the seeds. Bound coverage: the share of "
@@ -365,7 +365,7 @@ def main() -> None:
     summary = cells(rows)
     OUT.mkdir(parents=True, exist_ok=True)
     content = {
-        "what": "issue 34's cyclic case: benchmarks/bench_cyclic_case.py",
+        "what": "the cyclic-error scenario: benchmarks/bench_cyclic_case.py",
         "seeds": seeds,
         "sizes": [{"configurations": c, "poses": p} for c, p in SIZES],
         "validation": VALIDATION,

@@ -28,7 +28,8 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results" / "main_job.json"
 README = REPO / "benchmarks" / "README.md"
 BEGIN, END = "<!-- bench_main_job:begin -->", "<!-- bench_main_job:end -->"
-# The commit issue 1/5 ("a job per campaign and stage") started from, and the campaigns it had.
+# The commit the change to a job per campaign and stage started from (it had a job per table and figure),
+# and the campaigns it had.
 DEFAULT_BASE = "4cb14a1"
 DEFAULT_CAMPAIGNS = ["kuka-compliance", "kuka-cubes", "kuka-twin", "kuka-twin-2019"]
 TEST_COMMAND = [".venv/bin/python", "-m", "pytest", "-q"]  # the README's, after the install

@@ -380,7 +380,7 @@ def markdown(results: dict) -> str:
 
 
 def verdicts(results: dict) -> list[str]:
-    """The issue's two done-when targets, met or not, and the planner against random designs of the
+    """The benchmark's two targets, met or not, and the planner against random designs of the
     same size, in sentences computed from the results."""
     sim, real = results["simulator"], results["ur5"]
     testable = [v for v in sim["verdict"] if v["within_a_third"] is not None]

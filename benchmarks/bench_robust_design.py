@@ -6,7 +6,7 @@ Run from the repository root: python benchmarks/bench_robust_design.py [--quick]
 Writes benchmarks/results/robust_planner.json and robust_planner.md (docs/planning.md quotes them).
 
 Simulator: the iiwa of bench_planner (`iiwa_rigid_link_errors`: rigid errors in every fixed
-transform, tracker 10 um), plus a cyclic error of the joint angles (the cyclic case of issue 4/5,
+transform, tracker 10 um), plus a cyclic error of the joint angles (the cyclic-error scenario,
 tests/test_joint_harmonics.py TERMS: orders 1 and 2 on joint 2, order 1 on joint 4, amplitudes
 scaled by CYCLIC_SCALE) that the complete error model does not have, so its calibration is
 biased wherever it is measured. Designs among the same generated candidates: workspace (the p95
@@ -72,7 +72,8 @@ REPEATS = 3
 DRAWS = 5
 EVALUATION = 1000
 CANDIDATE_POSES = 300
-CYCLIC_SCALE = 0.25  # of the issue's amplitudes (0.025 / 0.012 / 0.030 deg): a discrepancy of a few x the noise
+# of the cyclic-error scenario's amplitudes (0.025 / 0.012 / 0.030 deg): a discrepancy of a few x the noise
+CYCLIC_SCALE = 0.25
 OUT = REPO / "benchmarks" / "results"
 # the blocks of docs/planning.md (robust_planner.md whole) and README.md (its verdicts) that show the
 # results (tests/test_design_discrepancy.py checks them)
@@ -155,7 +156,8 @@ def simulator(repeats: int, grid) -> dict:
     table = pd.DataFrame(rows)
     median = table.groupby(["design", "n"])[["true_rms_mm", "true_mean_mm", "true_p95_mm"]].median()
     return {
-        "scenario": f"iiwa_rigid_link_errors + cyclic joint error (issue 4/5 terms x {CYCLIC_SCALE}), tracker 10 um",
+        "scenario": f"iiwa_rigid_link_errors + cyclic joint error (the cyclic-error scenario's terms x {CYCLIC_SCALE}), "
+        "tracker 10 um",
         "evaluation_configurations": EVALUATION,
         "candidates_per_repeat": int(len(q_c)),
         "repeats": repeats,
@@ -419,7 +421,7 @@ def _ratios(pairs) -> str:
 
 
 def verdicts(results: dict) -> list[str]:
-    """The robust criterion against the others and the issue's UR5 target, in sentences computed from
+    """The robust criterion against the others and the planner's UR5 target, in sentences computed from
     the results."""
     sim, real = results["simulator"], results["ur5"]
     rms = {(m["design"], m["n"]): m["true_rms_mm"] for m in sim["median"]}

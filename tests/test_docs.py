@@ -1,6 +1,7 @@
 """The documentation stays true to the repository: docs/configuration.md is what the schema generates,
-every relative link resolves, the README keeps CI's test command and its length, docs/cli.md names
-every subcommand and option, and nothing points outside the repository."""
+every relative link resolves, the reference pages' contents list every heading, the README keeps CI's test
+command and its length, docs/cli.md names every subcommand and option, nothing points outside the
+repository, and no tracked text file cites an issue number."""
 
 from __future__ import annotations
 
@@ -112,6 +113,69 @@ def test_link_checker_sees_a_broken_link_and_a_missing_heading(tmp_path):
 @pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(REPO)) for p in PAGES])
 def test_relative_links_resolve(page):
     assert _broken_links(page) == []
+
+
+def _contents_and_headings(text: str) -> tuple[list[str], list[str]]:
+    """(the anchors the contents list links to, in order; the anchors of every `##` and `###` heading, in
+    order). The contents list is the links `- [..](#..)` (indented for a `###`) before the first `##`."""
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    head = text.split("\n## ", 1)[0]
+    contents = re.findall(r"^ *- \[[^\]]*\]\(#([^)\s]+)\)$", head, flags=re.M)
+    return contents, [_slug(m) for m in re.findall(r"^#{2,3}\s+(.*?)\s*#*$", text, flags=re.M)]
+
+
+def test_contents_checker_sees_a_missing_heading():
+    page = "# T\n\n- [A](#a)\n  - [B c](#b-c)\n\n## A\n\n### B `c`\n\n## D\n"
+    contents, headings = _contents_and_headings(page)
+    assert contents == ["a", "b-c"] and headings == ["a", "b-c", "d"]
+
+
+@pytest.mark.parametrize("name", ["methods.md", "validation.md", "planning.md"])
+def test_the_contents_list_every_heading(name):
+    """A reference page's contents list every `##` and `###` heading, in the page's order."""
+    contents, headings = _contents_and_headings((REPO / "docs" / name).read_text(encoding="utf-8"))
+    assert contents == headings
+
+
+# --------------------------------------------------------------------------- issue numbers
+
+# A text that cites the issue tracker (an issue's number, a sub-task's "n/5", "the issue" with its size
+# or target) says nothing to a reader of the repository: it says what it means instead (the cyclic-error
+# scenario, its full size). The pattern is split so that this file does not match it.
+ISSUE_NUMBER = re.compile(r"issue[s]? ?[0-9]|[0-9]/5\b|[0-9]/6\b|\bthe issue" r"'s\b", re.I)
+
+
+def test_the_issue_pattern_catches_a_citation_and_not_plain_text():
+    cited = [
+        "the cyclic case of issue" + " 4" + "/5",
+        "Issue" + " 34's cyclic case",
+        "the commit (1" + "/5) started from",
+    ]
+    cited += ["at the " + "issue's size", "issues" + " 2 and 3"]
+    assert all(ISSUE_NUMBER.search(text) for text in cited)
+    plain = ["a known issue with the tracker", "issue_scenario(seed=3)", "0.5 deg", "1/50 of the range", "4 of 5 seeds"]
+    assert not any(ISSUE_NUMBER.search(text) for text in plain)
+
+
+def test_no_tracked_text_file_names_an_issue_number():
+    import subprocess
+
+    try:
+        tracked = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip("not a git checkout: no list of tracked files")
+    found = []
+    for name in filter(None, tracked.decode().split("\0")):
+        path = REPO / name
+        if not path.is_file():
+            continue  # deleted in the working tree
+        data = path.read_bytes()
+        if b"\0" in data[:8192]:
+            continue  # binary (Parquet, PNG)
+        for number, line in enumerate(data.decode("utf-8", errors="replace").splitlines(), 1):
+            if ISSUE_NUMBER.search(line):
+                found.append(f"{name}:{number}: {line.strip()[:100]}")
+    assert found == []
 
 
 def test_nothing_points_outside_the_repository():

@@ -1,4 +1,4 @@
-"""Fits that finish on any serial arm (issue 2/5): every undetermined combination is held, by the
+"""Fits that finish on any serial arm: every undetermined combination is held, by the
 Laplace fit's own test, and stated; the default sampler runs until its criteria hold; samplers
 that disagree are marked, not fatal; no diagnostic crashes on a NaN or a missing value."""
 

@@ -84,7 +84,7 @@ def test_a_smooth_function_of_one_joint_gives_a_clear_gain():
 
 
 def test_the_dtc_likelihood_can_say_no_where_the_exact_one_says_yes():
-    """The issue's sign problem: a residual that varies faster than the inducing inputs are spaced;
+    """Why DTC's likelihood was replaced, its sign: a residual that varies faster than the inducing inputs are spaced;
     DTC (at the same hyperparameters, through 6 inducing inputs) puts the variance it cannot
     represent into the noise and falls below iid noise, the exact likelihood is far above."""
     rng = np.random.default_rng(12)

@@ -2,7 +2,7 @@
 its gradient is the derivative of its evidence (finite differences), and on the simulator's cyclic
 transmission error of orders 3 and 4 on joints 2 and 4 (which the joint_harmonics block's orders do
 not have) the joint-error form is preferred and names joints 2 and 4 only, where the free GP's
-relevance also names joint 1 and 3 (the issue's complaint: the residual modelled in the base frame)."""
+relevance also names joint 1 and 3 (what a residual modelled in the base frame shows)."""
 
 import math
 

@@ -1,6 +1,6 @@
 """The joint-space residual model (`joint_harmonics`, `remaster.loop.harmonics`): the block is the
-joint-angle error it says, a joint that never moves has no harmonic the data see, and the issue's
-cyclic transmission error, made by the simulator in its own form (a sum of sines of the readings),
+joint-angle error it says, a joint that never moves has no harmonic the data see, and the cyclic-error
+scenario's transmission error, made by the simulator in its own form (a sum of sines of the readings),
 is taken by the loop closure, traced to joints 2 and 4 and its orders, and recovered within its band."""
 
 import json
@@ -22,7 +22,7 @@ from .conftest import loop_report, loop_settings
 from .truth_claims import check
 
 NOISE = {"tracker": 1.0e-5, "motion_capture": 3.0e-5}  # m per axis
-# the issue's case: J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg sin(q4 - 0.7)
+# the cyclic-error scenario: J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg sin(q4 - 0.7)
 TERMS = ((2, 1, 0.025, 0.3), (2, 2, 0.012, 1.1), (4, 1, 0.030, -0.7))  # joint, order, amplitude deg, phase rad
 
 
@@ -87,7 +87,7 @@ def test_a_joint_that_never_moves_has_no_harmonic_the_data_see(iiwa):
 
 
 def simulate(iiwa, sensor: str):
-    """The issue's cyclic case at a test's size: iiwa (joint 3 held), 80 configurations over 16 poses
+    """The cyclic-error scenario at a test's size: iiwa (joint 3 held), 80 configurations over 16 poses
     (validation 40 over 6), a laser tracker of 10 um or a motion capture's 30 um (as its noise)."""
     spec = iiwa_scenario(
         "cyclic-harmonics",
@@ -156,7 +156,7 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
     plt.close(figure)
 
 
-# the issue's size: 152 configurations over 32 poses to fit, validation like the twin's
+# the cyclic-error scenario's full size: 152 configurations over 32 poses to fit, validation like the twin's
 ISSUE_SETS = {
     "optimization": {"poses": 32, "configurations": 152},
     "validation": {"poses": 32, "configurations": 156},
@@ -164,8 +164,8 @@ ISSUE_SETS = {
 
 
 def issue_scenario(seed: int = 3, sets: dict | None = None) -> dict:
-    """The issue's cyclic case measured as the twin is: a laser tracker (10 um) and a motion capture
-    (30 um, its own kind) on the same campaign (joint 3 held), at the issue's size unless `sets`."""
+    """The cyclic-error scenario measured as the twin is: a laser tracker (10 um) and a motion capture
+    (30 um, its own kind) on the same campaign (joint 3 held), at its full size unless `sets`."""
     return iiwa_scenario(
         "cyclic-issue",
         seed=seed,
@@ -176,7 +176,7 @@ def issue_scenario(seed: int = 3, sets: dict | None = None) -> dict:
 
 
 def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_bound_holds():
-    """The issue's cyclic case at its size with a motion capture (kind motion_capture: no tracker
+    """The cyclic-error scenario at its full size with a motion capture (kind motion_capture: no tracker
     noise model offered, sensor_scale and sensor_distortion offered), calibrated by the pipeline's
     stages (`truth_claims.check`): joint_harmonics alone, q2 (orders 1, 2) and q4 (order 1) named,
     validation within 1.5x the noise, and `remaster predict`'s per-command 95 % bound holding against

@@ -1,6 +1,6 @@
 """Where a calibration holds: the loop-closed model's theoretical accuracy and the workspace-wide
-error of the paper's and the loop-closed model (issue: calibrations that hold beyond the measured
-poses).
+error of the paper's and the loop-closed model: what a calibration claims beyond the measured
+poses.
 
 Configurations, three sets:
 

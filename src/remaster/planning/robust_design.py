@@ -3,7 +3,7 @@ workspace when the arm has a discrepancy the model cannot take (docs/planning.md
 
 The workspace criterion (`design`) scores a design by the posterior of the error model as if the
 model were true. No model of a real arm is: after the complete error model, a UR5's residual is
-twice its tracker's noise (issue 4/5). A design that concentrates its measurements where the
+twice its tracker's noise (docs/planning.md). A design that concentrates its measurements where the
 parameters are best determined then fits the discrepancy found there into the parameters, and the
 calibration is biased everywhere else: on the real UR5 grid, rows chosen by it calibrate worse than as
 many random rows (benchmarks/results/planner.md). This module scores a design by what
