@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from remaster.inference import residual_gp
+from remaster.inference.gp import kernels, loop_candidate, residual
 
 NOISE = 2e-5
 
@@ -41,17 +41,17 @@ def main(sizes) -> None:
         q = configurations(rng, n)
         y = truth(q) + rng.normal(0.0, NOISE, (n, 3))
         started = time.perf_counter()
-        hyper = residual_gp.fit_hyperparameters(q, y)
+        hyper = residual.fit_hyperparameters(q, y)
         fitted = time.perf_counter()
-        gp = residual_gp.ResidualGP(q, y, hyper)
+        gp = residual.ResidualGP(q, y, hyper)
         conditioned = time.perf_counter()
-        residual_gp.candidate(q, y, y, np.arange(n) // 20 % 5)
+        loop_candidate.fit_and_score(q, y, y, np.arange(n) // 20 % 5)
         scored = time.perf_counter()
         error = np.sqrt(np.mean((gp.mean(new) - truth(new)) ** 2)) * 1e6
         exact = ""
         if n <= 3000:
-            cov = residual_gp.kernel(q, q, hyper) + hyper.noise_std**2 * np.eye(n)
-            mean = residual_gp.kernel(new, q, hyper) @ np.linalg.solve(cov, y)
+            cov = kernels.covariance_with_noise(q, hyper)
+            mean = kernels.kernel(new, q, hyper) @ np.linalg.solve(cov, y)
             exact = f"{np.sqrt(np.mean((mean - truth(new)) ** 2)) * 1e6:9.2f}"
         print(
             f"{n:6d} {fitted - started:8.1f} {conditioned - fitted:11.2f} {scored - conditioned:11.1f} {error:11.2f} {exact}"

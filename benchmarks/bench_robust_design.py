@@ -19,7 +19,7 @@ UR5 (data/raw/jacobi-ur5-gts3800): as bench_planner: N of the 1,000 optimization
 candidates (the workspace the candidates' joint box), against N and 3N random rows, scored by the
 validation RMS per axis on its 20 validation rows. Robust with the default prior (signal = the stated
 noise; the verdict's design, fixed before this run), and with the discrepancy the campaign itself
-shows: the residual GP's hyperparameters fitted (`residual_gp.fit_hyperparameters`) to the
+shows: the residual GP's hyperparameters fitted (`gp.residual.fit_hyperparameters`) to the
 residuals of the complete error model calibrated on all 1,000 optimization rows (never the
 validation rows): what a previous campaign of the same arm would give.
 
@@ -58,7 +58,8 @@ from bench_planner import (  # noqa: E402
 
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
-from remaster.inference import blocks, fit, residual_gp  # noqa: E402
+from remaster.inference import blocks, fit  # noqa: E402
+from remaster.inference.gp import residual  # noqa: E402
 from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.planning import robust_design as dd  # noqa: E402
@@ -179,7 +180,7 @@ def campaign_discrepancy(chain, sensor, priors) -> dd.Discrepancy:
     residuals; the kernel is the same on the three axes, so the frame does not matter)."""
     model, theta = calibrate(chain, sensor, priors)
     q = blocks.readings(chain, sensor, "optimization").q
-    hyper = residual_gp.fit_hyperparameters(q, model.residuals(theta).reshape(-1, 3))
+    hyper = residual.fit_hyperparameters(q, model.residuals(theta).reshape(-1, 3))
     return dd.Discrepancy(hyper.lengthscales, hyper.signal_std)
 
 

@@ -145,6 +145,57 @@ def test_no_module_imports_a_later_stage():
     ) == {"reporting.tables"}
 
 
+# --------------------------------------------------------------------------- import cycles
+
+
+def _import_cycles(imports: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of {module: the modules it imports}: each group of modules that import one
+    another, directly or through others (a strongly connected component of more than one module,
+    or a module that imports itself), sorted. Tarjan's algorithm."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    cycles = []
+
+    def visit(module: str) -> None:
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        for other in sorted(imports.get(module, ())):
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            group = []
+            while not group or group[-1] != module:
+                group.append(stack.pop())
+            if len(group) > 1 or module in imports.get(module, ()):
+                cycles.append(sorted(group))
+
+    for module in sorted(imports):
+        if module not in index:
+            visit(module)
+    return sorted(cycles)
+
+
+def test_no_import_cycle():
+    """A module never imports, directly or through others, a module that imports it: not across
+    packages, not inside one, not through an import inside a function (which only hides a cycle)."""
+    modules = _modules()
+    imports = {m: _imported_modules(path.read_text(encoding="utf-8"), m, modules) for m, path in modules.items()}
+    assert _import_cycles(imports) == []
+    # the check sees a cycle when there is one: through a late import inside a package, and longer ones
+    pair = {"inference.gp.a", "inference.gp.b"}
+    late = {
+        "inference.gp.a": _imported_modules("from . import b\n", "inference.gp.a", pair),
+        "inference.gp.b": _imported_modules("def f():\n    from .a import g\n", "inference.gp.b", pair),
+    }
+    assert _import_cycles(late) == [["inference.gp.a", "inference.gp.b"]]
+    assert _import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": {"e"}}) == [["a", "b", "c"], ["e"]]
+    assert _import_cycles({"a": {"b"}, "b": {"c"}, "d": {"a", "c"}}) == []
+
+
 # --------------------------------------------------------------------------- light readers
 
 # What a workflow job that only reads results (the tables, the figures, the report) must not

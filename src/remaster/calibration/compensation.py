@@ -54,8 +54,9 @@ from .. import spatial
 from ..calibration.prediction import Calibration, Predictor, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows
-from ..inference import residual_gp
 from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
+from ..inference.gp import loop_candidate
+from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import MM
@@ -99,7 +100,7 @@ class CalibratedRobot:
     samples: pd.DataFrame
     held: Mapping[str, float]
     held_tolerance: float
-    gp: residual_gp.ResidualGP | None = None
+    gp: ResidualGP | None = None
     absorbed: frozenset[str] = frozenset()
 
     @property
@@ -248,7 +249,7 @@ def calibrated_robot(
     else:
         calibration = loop_calibration(loop, results["loop_samples"], label)
         setup = _setup_values(loop.parameters)
-        samples, gp = results["loop_samples"], residual_gp.from_results(results.get("gp"), loop.residual_gp)
+        samples, gp = results["loop_samples"], loop_candidate.from_results(results.get("gp"), loop.residual_gp)
     laplace = results["laplace"]
     held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
     absorbed = frozenset(

@@ -47,9 +47,10 @@ from .. import noise, spatial
 from ..campaigns.campaign import SensorData
 from ..errors import InputError, report_reader
 from ..files import read_json, write_json
-from ..inference import blocks, residual_gp
+from ..inference import blocks
 from ..inference.blocks import BlockModel, ModelSettings, Readings
 from ..inference.fit import LaplaceReport
+from ..inference.gp import loop_candidate
 from ..inference.model import SIGMA
 from ..loop.result import LoopReport
 from ..robot.kinematics import KinematicChain
@@ -309,7 +310,7 @@ def loop_claim(
         sigma = np.full(count, float(mode["sigma_mm"]) * MM)
         source = "the loop closure's Laplace approximation (independent parameters; no MCMC samples)"
     reference = model.predict(mean)
-    gp = residual_gp.from_results(gp_rows, report.residual_gp) if GP in report.effects_added else None
+    gp = loop_candidate.from_results(gp_rows, report.residual_gp) if GP in report.effects_added else None
     if gp is None:
         return Claim(reference, model, theta, sigma, tuple(report.effects_added), source)
     rotation = np.asarray(report.residual_gp["rotation_robot_to_sensor"], dtype=float)

@@ -68,9 +68,11 @@ from ..calibration.prediction import Calibration, loop_calibration, paper_calibr
 from ..campaigns.campaign import SensorData
 from ..errors import InputError
 from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
-from ..inference import metrics, residual_gp
+from ..inference import metrics
 from ..inference.blocks import identifiable_extension
 from ..inference.fit import LaplaceReport
+from ..inference.gp import loop_candidate
+from ..inference.gp.residual import ResidualGP, evenly_spaced
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport
@@ -145,7 +147,7 @@ def _with_noise(points, sigma, rng: np.random.Generator):
     return points + np.asarray(sigma)[:, None, None] * rng.standard_normal(points.shape)
 
 
-def _gp_draws(gp: residual_gp.ResidualGP | None, q, count: int, rng: np.random.Generator):
+def _gp_draws(gp: ResidualGP | None, q, count: int, rng: np.random.Generator):
     """The residual GP's mean (n, 3) m at readings q (n, N) and `count` draws (count, n, 3) of it
     (marginal at each configuration); zeros without a GP (and no random draw)."""
     if gp is None:
@@ -235,14 +237,14 @@ def workspace_accuracy(
     unseen = {n: loop.values[n] for n in loop_report.unseen_by_data if n in loop.values}
     tolerance = loop_report.held_zero_offset_std
     measured = sensor.q("optimization")
-    used = residual_gp.evenly_spaced(len(measured), n_random)
+    used = evenly_spaced(len(measured), n_random)
     domain = fit_domain(chain, sensor, laplace.outlier_rows)
     q_sets = {  # the domain's last: the other sets' draws come from rng as they did before it
         "optimization": measured[used],
         "random": robot_configurations(chain, robot, n_random, seed),
         "domain": domain.configurations(robot, n_random, seed),
     }
-    gp = residual_gp.from_results(loop_gp_rows, loop_report.residual_gp)
+    gp = loop_candidate.from_results(loop_gp_rows, loop_report.residual_gp)
     if gp is not None:
         sigma = np.full(n_draws, gp.hyper.noise_std)
 

@@ -40,11 +40,11 @@ from dataclasses import dataclass
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
 from .blocks import BlockModel
+from .gp.likelihood import LOG_2PI
 from .identifiability import JACOBIAN_STEP
 
 MAX_SIGMA_ROUNDS = 20
 SIGMA_TOLERANCE = 1e-4  # relative change of sigma at which the MAP has settled (sigma only weighs the priors)
-LOG_2PI = math.log(2.0 * math.pi)
 
 
 @dataclass(frozen=True, eq=False)

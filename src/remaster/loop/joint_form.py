@@ -1,4 +1,4 @@
-"""The loop closure's residual GP read in joint-error form (`remaster.inference.joint_gp`): the
+"""The loop closure's residual GP read in joint-error form (`remaster.inference.gp.joint_error`): the
 directions each joint's angle error moves the marker in, at the optimization readings, and the
 comparison of the two forms on what the final parametric fit leaves.
 
@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..inference import blocks, joint_gp
+from ..inference import blocks
 from ..inference.blocks import Readings
+from ..inference.gp import joint_error
 from ..inference.identifiability import JACOBIAN_STEP
 from ..robot.kinematics import KinematicChain
 from .selection import Selection
@@ -29,7 +30,7 @@ def joint_directions(chain: KinematicChain, data: Readings, marker, t_nr, values
 def joint_error_form(
     selection: Selection, chain: KinematicChain, data: Readings, marker, t_nr, threshold: float
 ) -> dict | None:
-    """JSON-ready `joint_gp.JointErrorForm` report of what the final parametric fit leaves on the
+    """JSON-ready `joint_error.JointErrorForm` report of what the final parametric fit leaves on the
     optimization readings, the free GP's hyperparameters as the free form's start; None when the GP
     was not tried."""
     if selection.gp is None:
@@ -40,7 +41,7 @@ def joint_error_form(
         np.moveaxis(joint_directions(chain, data, marker, t_nr, selection.final.values()), 2, 0)
     )
     try:
-        found = joint_gp.joint_error_form(
+        found = joint_error.joint_error_form(
             data.q,
             pseudo,
             np.moveaxis(directions, 0, 2),

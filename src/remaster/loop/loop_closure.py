@@ -19,9 +19,9 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    errors, add the one of largest evidence gain, refit, and repeat with the others. When no
    parametric effect passes, a backward pass takes out any added block that would no longer pass
    offered to the model without it. Then the residual Gaussian process over the joints
-   (`remaster.inference.residual_gp`) is tried by the same two tests; fitted or not, it says which
+   (`remaster.inference.gp.residual`) is tried by the same two tests; fitted or not, it says which
    joints what is left depends on. When it is added, every parametric block is scored again with
-   the GP present, the parameters integrated together with it (`remaster.inference.gp_joint`), and
+   the GP present, the parameters integrated together with it (`remaster.inference.gp.with_parameters`), and
    a block that only stood in for what the GP explains is taken out. Last, a laser tracker's noise
    is offered as it is, range and transverse growing with distance (`remaster.noise`), against the
    isotropic noise by the same evidence threshold, for what the residual model leaves (with the GP
@@ -65,8 +65,10 @@ import pandas as pd
 from .. import noise
 from ..campaigns.campaign import SETS, Campaign, SensorData
 from ..files import write_csv, write_parquet
-from ..inference import blocks, evidence, fit, residual_gp
+from ..inference import blocks, evidence, fit
 from ..inference.blocks import Readings
+from ..inference.gp import loop_candidate
+from ..inference.gp.residual import RELEVANT_RANGE
 from ..inference.model import SIGMA
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
@@ -121,7 +123,7 @@ def before_after_table(
 class LoopClosure:
     """report: loop_closure.json; table: before/after; signatures: {round: {candidate: Signature}};
     residuals: {'before'|'after': {set: (n, 3) m}}; samples: the MCMC refit (SI) or None;
-    gp: the residual GP's training rows when it was tried (`residual_gp.training_frame`), else an
+    gp: the residual GP's training rows when it was tried (`loop_candidate.training_frame`), else an
     empty frame; rows: {set: (n,) the sensor table's row of each residual}."""
 
     report: LoopReport
@@ -329,7 +331,7 @@ def close_loop(
         "before": {s: base.residuals(data[s]) for s in SETS},
         "after": {s: data[s].measured - predicted[s] for s in SETS},
     }
-    gp = residual_gp.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
+    gp = loop_candidate.training_frame(selection.gp) if selection.gp is not None else pd.DataFrame()
     return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
 
 
@@ -500,7 +502,7 @@ def gp_report(selection: Selection, standard_errors: float) -> dict | None:
         "hyperparameters": candidate.gp.hyper.report(),
         "relevance": dict(zip(columns, relevance.tolist())),
         "structure_found": bool(structured),
-        "depends_on": [columns[j] for j in order if structured and relevance[j] >= residual_gp.RELEVANT_RANGE],
+        "depends_on": [columns[j] for j in order if structured and relevance[j] >= RELEVANT_RANGE],
         "most_relevant_joint": columns[int(order[0])] if structured else None,
         "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
         "cv_gain": fall["cv_gain"],

@@ -16,8 +16,12 @@ from dataclasses import dataclass
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
 from .. import noise
-from ..inference import blocks, evidence, gp_joint, metrics, residual_gp
+from ..inference import blocks, evidence, metrics
 from ..inference.blocks import BlockModel, Readings, Reduction
+from ..inference.gp import loop_candidate, with_parameters
+from ..inference.gp.evidence_gain import EXACT_ROWS
+from ..inference.gp.kernels import Hyperparameters
+from ..inference.gp.residual import fit_hyperparameters
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
 from ..units import MM
@@ -207,7 +211,7 @@ class Selection:
     added: tuple[str, ...]
     rounds: list[dict]
     signatures: dict[int, dict[str, Signature]]
-    gp: residual_gp.Candidate | None = None
+    gp: loop_candidate.Candidate | None = None
     rotation: np.ndarray | None = None
     noise: dict | None = None
     time_blocked: dict | None = None
@@ -458,7 +462,7 @@ class TimeBlocked:
         }
         if current is not None:
             before = evidence.cross_validate(current.mode, self.folds)
-            gp = residual_gp.candidate(
+            gp = loop_candidate.fit_and_score(
                 data.q,
                 current.residuals() @ rotation,
                 before.held_out @ rotation,
@@ -477,19 +481,19 @@ def choose_noise(
     folds: np.ndarray,
     settings: LoopSettings,
     q=None,
-    hyper: residual_gp.Hyperparameters | None = None,
+    hyper: Hyperparameters | None = None,
 ) -> tuple[Fitted, dict]:
     """The current model with a laser tracker's range/transverse noise (`remaster.noise`) against
     its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
     integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. With the
     residual GP added (its hyperparameters `hyper`, readings q (n, N)), every evidence is taken with
-    the GP present (`remaster.inference.gp_joint`), so the noise shape is chosen after the residual
+    the GP present (`remaster.inference.gp.with_parameters`), so the noise shape is chosen after the residual
     model, for what the residual model leaves. Returns the chosen fit and a JSON-ready report."""
     import scipy.optimize
 
     prior = settings.tracker_noise
     median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
-    exact = hyper is not None and len(q) <= gp_joint.MAX_NOISE_ROWS
+    exact = hyper is not None and len(q) <= with_parameters.MAX_NOISE_ROWS
 
     def mode_at(log_growth: float) -> evidence.PosteriorMode:
         return evidence.posterior_mode(
@@ -506,7 +510,9 @@ def choose_noise(
             shapes = unit_shapes[log_growth]
             found = scipy.optimize.minimize_scalar(
                 lambda log_sigma: (
-                    -gp_joint.noise_shape_log_evidence(current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes)
+                    -with_parameters.noise_shape_log_evidence(
+                        current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes
+                    )
                 ),
                 bounds=(math.log(hyper.noise_std) - 3.0, math.log(hyper.noise_std) + 3.0),
                 method="bounded",
@@ -546,7 +552,7 @@ def choose_noise(
         "growth_std_log": 1.0 / math.sqrt(curvature),
         "residual_model": "residual_gp present (gp_joint; the noise's scale at its maximum for each shape)"
         if exact
-        else f"residual_gp added; above {gp_joint.MAX_NOISE_ROWS} rows the noise is compared without it"
+        else f"residual_gp added; above {with_parameters.MAX_NOISE_ROWS} rows the noise is compared without it"
         if hyper is not None
         else "the parametric effects (no residual GP added)",
         "log_evidence_isotropic": isotropic,
@@ -576,32 +582,32 @@ def residual_backward_pass(
     folds: np.ndarray,
     settings: LoopSettings,
     current: Fitted,
-    gp: residual_gp.Candidate,
+    gp: loop_candidate.Candidate,
     added: Sequence[str],
     number: int,
     brought: Mapping[str, Sequence[str]] | None = None,
-) -> tuple[Fitted, list[str], residual_gp.Candidate, list[dict], list[tuple[str, Fitted]]]:
+) -> tuple[Fitted, list[str], loop_candidate.Candidate, list[dict], list[tuple[str, Fitted]]]:
     """The parametric blocks scored again with the residual model present, once the GP is added: a
     block taken only because it absorbed part of what the GP explains (a proxy, e.g. a sensor scale
     standing in for a joint-space error) no longer passes. Each added block (with the companions it
     brought, as in `backward_pass`) is taken out and the model with it and the model without it,
     each with the GP present, are compared by the forward rule (`passes`): their evidences and
     pose-grouped cross-validations with the parameters integrated together with the GP
-    (`remaster.inference.gp_joint`; each model's GP hyperparameters fitted to its residuals). Above
-    `gp_joint.MAX_ROWS` rows the parameters stay at their mode and the GP's gain on each model's
+    (`remaster.inference.gp.with_parameters`; each model's GP hyperparameters fitted to its residuals). Above
+    `with_parameters.MAX_ROWS` rows the parameters stay at their mode and the GP's gain on each model's
     residuals is added to its Laplace evidence (`gp_joint_fixed_mode`), which the scores say. Of
     the blocks that fail, the one of least evidence gain is removed and the pass repeated.
 
     Returns the final parametric fit, the blocks left, the GP on its residuals, the rounds
     (JSON-ready, 'pass': 'backward', 'with': 'residual_gp') and the (step name, fit) of each removal."""
     added, rounds, removals = list(added), [], []
-    exact = data.q.shape[0] <= gp_joint.MAX_ROWS
+    exact = data.q.shape[0] <= with_parameters.MAX_ROWS
 
-    def with_gp(fitted: Fitted, hyper: residual_gp.Hyperparameters) -> tuple[float, evidence.CrossValidation]:
-        joint = gp_joint.with_gp(fitted.mode, data.q, hyper, folds)
+    def with_gp(fitted: Fitted, hyper: Hyperparameters) -> tuple[float, evidence.CrossValidation]:
+        joint = with_parameters.with_gp(fitted.mode, data.q, hyper, folds)
         return joint.log_evidence, joint.cv
 
-    def fixed_mode(fitted: Fitted, candidate: residual_gp.Candidate) -> tuple[float, evidence.CrossValidation]:
+    def fixed_mode(fitted: Fitted, candidate: loop_candidate.Candidate) -> tuple[float, evidence.CrossValidation]:
         return (
             fitted.mode.log_evidence + candidate.log_evidence_gain,
             evidence.CrossValidation(candidate.mse, candidate.points),
@@ -628,7 +634,7 @@ def residual_backward_pass(
                 )
                 rotation = without.model.sensor_rotation(without.theta)
                 if exact:
-                    hyper = residual_gp.fit_hyperparameters(
+                    hyper = fit_hyperparameters(
                         data.q, without.residuals() @ rotation, int(settings.residual_gp["subset"]), gp.gp.hyper
                     )
                     log_z_without, cv_without = with_gp(without, hyper)
@@ -675,17 +681,17 @@ def residual_backward_pass(
 
 def gp_candidate(
     current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
-) -> residual_gp.Candidate:
+) -> loop_candidate.Candidate:
     """The Gaussian process fitted and cross-validated on a fit's residuals in the robot frame
     (rotation (3, 3) its registration, robot -> sensor)."""
-    return residual_gp.candidate(
+    return loop_candidate.fit_and_score(
         data.q,
         current.residuals() @ rotation,
         current.cv.held_out @ rotation,
         folds,
         int(settings.residual_gp["subset"]),
         int(settings.residual_gp["inducing"]),
-        int(settings.residual_gp.get("exact_rows", residual_gp.EXACT_ROWS)),
+        int(settings.residual_gp.get("exact_rows", EXACT_ROWS)),
     )
 
 
@@ -701,9 +707,9 @@ def _noise_shapes(model: BlockModel, shaped: BlockModel) -> np.ndarray:
 
 def _score_gp(
     current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
-) -> tuple[residual_gp.Candidate, dict]:
+) -> tuple[loop_candidate.Candidate, dict]:
     """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
-    parametric candidates' rule: evidence gain (`remaster.inference.gp_evidence`: exact or Titsias,
+    parametric candidates' rule: evidence gain (`remaster.inference.gp.evidence_gain`: exact or Titsias,
     hyperparameters integrated, against iid noise with sigma integrated alike) and pose-grouped
     cross-validated fall."""
     residual = current.residuals()

@@ -27,7 +27,7 @@ class LoopSettings:
     refit's first attempt, None for Laplace only; convergence: {'max_rhat', 'min_ess',
     'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
     residual_gp: {'subset', 'inducing', 'exact_rows'} of the Gaussian-process candidate tried last
-    (`remaster.inference.residual_gp`), None not to try it; closure_ratio: the RMS per axis over the
+    (`remaster.inference.gp.residual`), None not to try it; closure_ratio: the RMS per axis over the
     noise floor at which the loop counts as closed (`remaster.loop.noise_floor`); tracker_noise:
     {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
     noise model (`remaster.noise`), None not to offer it; gross_errors: {'alpha', 'max_share'} of the

@@ -11,7 +11,7 @@ it would leave *with* the discrepancy.
 
 The measured positions are  y = J theta + delta(q) + e,  e ~ N(0, sigma^2 I) the sensor, theta ~
 N(0, P) the error model's parameters under their prior, and delta a Gaussian process on the joint
-angles with the residual GP's kernel (`residual_gp.kernel`: k(q, q') I3, the same on the three
+angles with the residual GP's kernel (`remaster.inference.gp.kernels.kernel`: k(q, q') I3, the same on the three
 axes), independent of theta and e. The calibration is the model's MAP, which ignores delta:
 
     theta_hat = Sigma Jw^T y / sigma,   Sigma = (Jw^T Jw + P^-1)^-1,   Jw = J / sigma (whitened).
@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..inference.residual_gp import LENGTH_BOUNDS, Hyperparameters, kernel
+from ..inference.gp.kernels import LENGTH_BOUNDS, Hyperparameters, kernel
 from ..planning import design_posterior as dp
 from ..units import MM
 

@@ -112,7 +112,7 @@ def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
 def residual_by_joint(rows: pd.DataFrame, gp: Mapping | None, title: str) -> plt.Figure:
     """The residual the parametric effects leave (robot frame, mm) against the joint the residual
     GP finds most relevant (deg), per axis, with its median in 30 bins; rows: the GP's training
-    rows (`residual_gp.training_frame`), gp: loop_closure.json's `residual_gp` section."""
+    rows (`loop_candidate.training_frame`), gp: loop_closure.json's `residual_gp` section."""
     fig, ax = plt.subplots(figsize=(6.0, 3.0))
     if rows.empty or gp is None:
         ax.text(0.5, 0.5, "residual GP not tried", ha="center", va="center", transform=ax.transAxes)

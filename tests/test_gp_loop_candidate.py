@@ -1,101 +1,20 @@
-"""The residual Gaussian process against known answers, the closure test, and the loop on a robot
-whose effect is in no candidate's family (a transmission's cyclic error)."""
+"""The residual GP as the loop's candidate (`remaster.inference.gp.loop_candidate`): independent noise
+is not a residual to model, the GP written with the loop's results is the GP it fitted, the closure
+test, and the loop on a robot whose effect is in no candidate's family (a transmission's cyclic
+error)."""
 
 import numpy as np
 import pytest
-import scipy.optimize
 
 from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
-from remaster.inference import blocks, evidence, fit, residual_gp
+from remaster.inference import blocks, evidence, fit
+from remaster.inference.gp import loop_candidate
 from remaster.loop import loop_closure, noise_floor
 
 from .conftest import REPO, loop_settings
-
-NOISE = 2e-5
-
-
-def smooth_residual(q):
-    """A residual (n, 3) m that depends on joints 2 and 4 only."""
-    return np.column_stack([3e-4 * np.sin(2 * q[:, 1]), 2e-4 * np.cos(q[:, 3] + q[:, 1]), 1e-4 * np.sin(3 * q[:, 3])])
-
-
-def readings(rng, n, low=-2.0, high=2.0):
-    q = rng.uniform(low, high, (n, 7))
-    q[:, 2] = 0.0  # a joint the data never turn
-    return q
-
-
-@pytest.fixture(scope="module")
-def learnt():
-    rng = np.random.default_rng(5)
-    q = readings(rng, 1500)
-    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
-    hyper = residual_gp.fit_hyperparameters(q, y)
-    return q, y, hyper, residual_gp.ResidualGP(q, y, hyper)
-
-
-def test_the_hyperparameters_find_the_noise_and_the_joints(learnt):
-    q, _, hyper, _ = learnt
-    assert hyper.noise_std == pytest.approx(NOISE, rel=0.1)
-    assert not np.isfinite(hyper.lengthscales[2])  # never turned: no lengthscale
-    relevance = residual_gp.relevance(hyper, q)
-    assert set(np.argsort(-relevance)[:2]) == {1, 3}
-    assert np.all(relevance[[0, 4, 5, 6]] < residual_gp.RELEVANT_RANGE)
-
-
-def test_the_mean_predicts_new_configurations_to_within_the_noise(learnt):
-    _, _, _, gp = learnt
-    q = readings(np.random.default_rng(6), 500)
-    error = gp.mean(q) - smooth_residual(q)
-    assert np.sqrt(np.mean(error**2)) < 0.5 * NOISE
-    # the predictive std is honest: most errors within 1.96 std, and the errors in units of the
-    # std have an RMS near 1 (a std twice too wide gives 0.4 and fails, as does one too narrow)
-    standardised = error / np.sqrt(gp.variance(q))[:, None]
-    assert np.mean(np.abs(standardised) <= 1.96) > 0.85
-    assert 0.6 < np.sqrt(np.mean(standardised**2)) < 1.4
-
-
-def test_far_from_the_data_it_returns_to_zero_with_its_prior_uncertainty():
-    rng = np.random.default_rng(7)
-    q = readings(rng, 400, -0.3, 0.3)
-    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
-    hyper = residual_gp.Hyperparameters(np.array([0.2, 0.2, np.inf, 0.2, 0.2, 0.2, 0.2]), 2e-4, NOISE)
-    gp = residual_gp.ResidualGP(q, y, hyper)
-    far = readings(rng, 50, 2.0, 2.5)
-    np.testing.assert_allclose(gp.mean(far), 0.0, atol=1e-12)
-    np.testing.assert_allclose(gp.variance(far), hyper.signal_std**2, rtol=1e-9)
-    near = q[:50]
-    assert np.all(gp.variance(near) < 0.1 * hyper.signal_std**2)
-
-
-def test_with_every_row_inducing_it_is_the_exact_gp():
-    rng = np.random.default_rng(8)
-    q = readings(rng, 120)
-    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
-    hyper = residual_gp.Hyperparameters(np.array([1.0, 0.6, np.inf, 0.8, 2.0, 2.0, 2.0]), 1.5e-4, NOISE)
-    gp = residual_gp.ResidualGP(q, y, hyper, inducing=len(q))
-    cov = residual_gp.kernel(q, q, hyper) + NOISE**2 * np.eye(len(q))
-    new = readings(rng, 30)
-    k_new = residual_gp.kernel(new, q, hyper)
-    np.testing.assert_allclose(gp.mean(new), k_new @ np.linalg.solve(cov, y), rtol=1e-5, atol=1e-10)
-    exact_var = hyper.signal_std**2 - np.sum(k_new * np.linalg.solve(cov, k_new.T).T, axis=1)
-    np.testing.assert_allclose(gp.variance(new), exact_var, rtol=1e-4, atol=1e-14)
-    _, log_det = np.linalg.slogdet(cov)
-    exact = -0.5 * (np.sum(y * np.linalg.solve(cov, y)) + 3 * log_det + y.size * np.log(2 * np.pi))
-    assert gp.log_likelihood == pytest.approx(exact, rel=1e-6)
-
-
-def test_the_marginal_likelihood_gradient_is_the_derivative():
-    rng = np.random.default_rng(9)
-    q = readings(rng, 60)[:, [0, 1, 3]]
-    y = smooth_residual(np.insert(q, [2, 2, 2, 2], 0.0, axis=1)[:, :7]) / 1e-4 + rng.normal(0, 0.2, (60, 3))
-    distances = np.moveaxis(1.0 - np.cos(q[:, None, :] - q[None, :, :]), -1, 0)
-    x = np.log([0.7, 1.3, 0.9, 0.8, 0.3])
-    value, gradient = residual_gp._negative_log_ml(x, distances, y)
-    numeric = scipy.optimize.approx_fprime(x, lambda v: residual_gp._negative_log_ml(v, distances, y)[0], 1e-6)
-    np.testing.assert_allclose(gradient, numeric, rtol=1e-4, atol=1e-4)
+from .test_gp_residual import NOISE, readings, smooth_residual
 
 
 def test_independent_noise_is_not_a_residual_to_model():
@@ -103,7 +22,7 @@ def test_independent_noise_is_not_a_residual_to_model():
     q = readings(rng, 400)
     y = rng.normal(0.0, NOISE, (len(q), 3))
     folds = np.arange(len(q)) % 5
-    candidate = residual_gp.candidate(q, y, y, folds)
+    candidate = loop_candidate.fit_and_score(q, y, y, folds)
     assert candidate.log_evidence_gain < 0.0
     squares = np.sum(y**2, axis=1)
     current = evidence.CrossValidation(np.array([squares[folds == k].mean() for k in range(5)]), candidate.points)
@@ -219,10 +138,10 @@ def test_the_gp_written_with_the_loop_results_is_the_gp_the_loop_fitted():
     rng = np.random.default_rng(12)
     q = readings(rng, 300)
     y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
-    candidate = residual_gp.candidate(q, y, y, np.arange(len(q)) % 5, subset=200, inducing=100)
+    candidate = loop_candidate.fit_and_score(q, y, y, np.arange(len(q)) % 5, subset=200, inducing=100)
     section = {"added": True, "hyperparameters": candidate.gp.hyper.report(), "inducing": len(candidate.gp.inducing)}
-    rebuilt = residual_gp.from_results(residual_gp.training_frame(candidate), section)
+    rebuilt = loop_candidate.from_results(loop_candidate.training_frame(candidate), section)
     new = readings(rng, 40)
     np.testing.assert_allclose(rebuilt.mean(new), candidate.gp.mean(new), rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(rebuilt.variance(new), candidate.gp.variance(new), rtol=1e-9, atol=1e-18)
-    assert residual_gp.from_results(residual_gp.training_frame(candidate), {**section, "added": False}) is None
+    assert loop_candidate.from_results(loop_candidate.training_frame(candidate), {**section, "added": False}) is None

@@ -7,7 +7,7 @@ explains what is left either way: comparing two models by "their Laplace evidenc
 on their residuals" keeps the proxy. Here the model is linearised at its mode theta* (J, 3n x P,
 d predicted / d theta), y = r(theta*) + J theta* its pseudo-data (n, 3), and
 
-    y = J theta + g + e,   g_a ~ GP(0, k) per axis a (`residual_gp.kernel`),   e ~ N(0, s^2 I),
+    y = J theta + g + e,   g_a ~ GP(0, k) per axis a (`kernels.kernel`),   e ~ N(0, s^2 I),
     theta_k ~ N(0, tau_k^2) for the extension blocks, flat for the base blocks,
 
 so that theta is integrated in closed form. With K the n x n kernel matrix and C0 = K + s^2 I, the
@@ -21,7 +21,7 @@ invariant under the registration's rotation), and with A = sum_a J_a^T C0^-1 J_a
 F the flat parameters: their improper constant is common to every model of the same base blocks,
 as in the Laplace evidence (`remaster.inference.evidence`), so log Z of two models that differ by an
 extension block compare like with like. The GP's hyperparameters are each model's own (fitted to
-its residuals, `residual_gp.fit_hyperparameters`) and held: the comparison is conditional on them.
+its residuals, `residual.fit_hyperparameters`) and held: the comparison is conditional on them.
 
 Cross-validation by the same pose folds: for each held-out fold H, theta is estimated from the
 other rows T by generalised least squares under C0_TT and the priors, and the fold is predicted by
@@ -41,8 +41,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .evidence import LOG_2PI, CrossValidation, PosteriorMode
-from .residual_gp import Hyperparameters, kernel
+from ..evidence import CrossValidation, PosteriorMode
+from .kernels import Hyperparameters, covariance_with_noise, kernel
+from .likelihood import LOG_2PI, dense_log_evidence
 
 MAX_ROWS = 3000  # rows up to which the n x n factor is taken (about 2 s per factor at 3000 on two cores)
 MAX_NOISE_ROWS = 600  # rows up to which a noise shape is compared with the GP present (3n x 3n factors)
@@ -65,9 +66,7 @@ def _factor(q, hyper: Hyperparameters):
     """Cholesky factor (scipy's cho_factor) of C0 = K + s^2 I at readings q (n, N)."""
     import scipy.linalg
 
-    covariance = kernel(q, q, hyper)
-    covariance[np.diag_indices_from(covariance)] += hyper.noise_std**2
-    return scipy.linalg.cho_factor(covariance, lower=True)
+    return scipy.linalg.cho_factor(covariance_with_noise(q, hyper), lower=True)
 
 
 def _generalised_least_squares(factor, jacobian, y, precision) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -130,32 +129,6 @@ def with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None) -> WithG
         mse.append(float(np.mean(np.sum((y[held] - predicted) ** 2, axis=1))))
         points.append(int(held.sum()))
     return WithGP(float(log_evidence), theta, std, CrossValidation(np.array(mse), np.array(points)))
-
-
-def dense_log_evidence(y, jacobian, precision, covariance) -> float:
-    """log Z of y (m,) = J theta + e with e ~ N(0, covariance (m, m)) and theta (P,) ~ N(0, 1 /
-    precision) (precision (P,), 0: flat, its constant left out as in `with_gp`), J (m, P). The
-    general form of `with_gp`'s evidence, for noise that is not the same on the three axes."""
-    import scipy.linalg
-
-    y, jacobian, precision = (np.asarray(a, dtype=float) for a in (y, jacobian, precision))
-    factor = scipy.linalg.cho_factor(covariance, lower=True)
-    solved_j, solved_y = scipy.linalg.cho_solve(factor, jacobian), scipy.linalg.cho_solve(factor, y)
-    a = jacobian.T @ solved_j + np.diag(precision)
-    b = jacobian.T @ solved_y
-    sign, log_det_a = np.linalg.slogdet(a)
-    if sign <= 0:
-        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
-    proper = precision > 0
-    return float(
-        -0.5 * y @ solved_y
-        + 0.5 * b @ np.linalg.solve(a, b)
-        - float(np.sum(np.log(np.diag(factor[0]))))
-        - 0.5 * log_det_a
-        - 0.5 * len(y) * LOG_2PI
-        + 0.5 * np.sum(np.log(precision[proper]))
-        + 0.5 * int((~proper).sum()) * LOG_2PI
-    )
 
 
 def noise_shape_log_evidence(mode: PosteriorMode, q, hyper: Hyperparameters, shapes) -> float:

@@ -1,6 +1,6 @@
 """What the parametric effects leave, read as joint-angle errors: the residual GP in joint-error form.
 
-The residual GP (`residual_gp`) models what is left as a smooth function of all the joint angles in
+The residual GP (`residual`) models what is left as a smooth function of all the joint angles in
 the robot frame; a joint-angle error of one joint then shows in every joint whose motion moves the
 marker's sensitivity to it (a transmission error of joint 2 is "relevant" to joint 1 too, because
 joint 1 turns the direction it moves the marker in). In joint-error form each joint's angle error
@@ -14,7 +14,7 @@ kernel on the circle of that joint (periodic, every harmonic order at once: the 
 `joint_harmonics` block), e ~ N(0, s^2 I). The covariance of the stacked residuals is dense (3n x
 3n: the a_j differ from row to row), so both forms are compared on at most `MAX_ROWS` rows evenly
 spaced over the data, each with its hyperparameters at the maximum of its evidence (the model's
-parameters integrated with the GP, `gp_joint.dense_log_evidence`), their difference less half the
+parameters integrated with the GP, `likelihood.dense_log_evidence`), their difference less half the
 difference of their hyperparameter counts times log 3n (each form pays for what it fitted). A joint
 is named when taking its f_j out (s_j -> 0, the rest held) costs more than `min_log_evidence_gain`.
 
@@ -29,18 +29,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .gp_joint import dense_log_evidence
-from .residual_gp import STILL, Hyperparameters, evenly_spaced, kernel
+from .kernels import Hyperparameters, circle_distances, kernel, turned_joints
+from .likelihood import dense_log_evidence_and_gradient
+from .residual import evenly_spaced
 
 MAX_ROWS = 250  # rows of the dense comparison (a 750 x 750 factor per evaluation)
-LENGTH_BOUNDS = (0.05, 20.0)  # rad, a joint's lengthscale on its circle
+LENGTH_BOUNDS = (
+    0.05,
+    20.0,
+)  # rad, a joint's lengthscale on its circle in this form (the free GP: `kernels.LENGTH_BOUNDS`)
 UNSEEN = 1e-4  # a joint moving the marker less than this fraction of the most moving one's per radian
 LOG_RANGE = 6.0  # the signal's and noise's logs searched this far either side of their starts
-
-
-def circle_kernel(a, b, amplitude: float, length: float) -> np.ndarray:
-    """(n, m) s^2 exp(-(1 - cos(a - b')) / l^2) between angles a (n,) and b (m,) rad."""
-    return amplitude**2 * np.exp(-(1.0 - np.cos(np.subtract.outer(a, b))) / length**2)
 
 
 @dataclass(frozen=True)
@@ -98,24 +97,6 @@ class JointErrorForm:
         }
 
 
-def log_evidence_and_gradient(y, jacobian, precision, covariance, derivatives) -> tuple[float, np.ndarray]:
-    """`gp_joint.dense_log_evidence` of y (m,) and its gradient with respect to the hyperparameters
-    whose covariance derivatives (k, m, m) are given: 1/2 a^T dS a - 1/2 tr(Pi dS), a = Pi y, with
-    Pi = S^-1 - S^-1 J A^-1 J^T S^-1 (the parameters integrated)."""
-    import scipy.linalg
-
-    factor = scipy.linalg.cho_factor(covariance, lower=True)
-    inverse = scipy.linalg.cho_solve(factor, np.eye(len(y)))
-    solved_j = inverse @ jacobian
-    a = jacobian.T @ solved_j + np.diag(precision)
-    projection = inverse - solved_j @ np.linalg.solve(a, solved_j.T)
-    alpha = projection @ y
-    value = dense_log_evidence(y, jacobian, precision, covariance)
-    outer = np.outer(alpha, alpha) - projection
-    gradient = np.array([0.5 * float(np.sum(outer * d)) for d in derivatives])
-    return value, gradient
-
-
 def _maximise(objective, start: np.ndarray, bounds) -> tuple[np.ndarray, float]:
     """Maximise objective(x) -> (value, gradient) within bounds (L-BFGS-B)."""
     import scipy.optimize
@@ -147,7 +128,7 @@ def joint_error_form(
     )
     flat_y = y.ravel()
     n = len(q)
-    turned = np.flatnonzero(np.ptp(q, axis=0) > STILL)
+    turned = np.flatnonzero(turned_joints(q))
     # a joint whose angle error does not move the marker (the marker on its axis) has no f_j the data see
     reach = np.array([math.sqrt(float(np.mean(directions[:, :, j] ** 2))) for j in turned])
     unseen = tuple(f"q{j + 1}" for j in turned[reach <= UNSEEN * reach.max()])
@@ -157,7 +138,7 @@ def joint_error_form(
     identity = np.eye(3 * n)
 
     # per turned joint: K_j's exponent and the outer product of its directions, fixed
-    cosines = [1.0 - np.cos(np.subtract.outer(q[:, j], q[:, j])) for j in turned]
+    cosines = list(circle_distances(q[:, turned]))
     outers = []
     for j in turned:
         v = directions[:, :, j].ravel()
@@ -178,7 +159,7 @@ def joint_error_form(
 
     def joint_log_z(x: np.ndarray) -> tuple[float, np.ndarray]:
         covariance, derivatives = joint_terms(x)
-        return log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
+        return dense_log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
 
     def free_log_z(x: np.ndarray) -> tuple[float, np.ndarray]:
         lengths = np.full(q.shape[1], np.inf)
@@ -188,7 +169,7 @@ def joint_error_form(
         covariance = np.kron(base, np.eye(3)) + hyper.noise_std**2 * identity
         derivatives = [np.kron(base * 2.0 * c / length**2, np.eye(3)) for c, length in zip(cosines, lengths[turned])]
         derivatives += [2.0 * np.kron(base, np.eye(3)), 2.0 * hyper.noise_std**2 * identity]
-        return log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
+        return dense_log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
 
     norms = np.array([math.sqrt(float(np.mean(directions[:, :, j] ** 2))) for j in turned])
     start_joint = np.concatenate(

@@ -1,10 +1,10 @@
 """The residual GP's evidence on the same footing as the parametric candidates' Laplace evidence.
 
 The question the loop asks of the GP: are the current model's residuals r (n, 3) m (robot frame)
-better explained by  r = g(q) + e  (g the GP of `residual_gp`, e ~ N(0, noise^2 I3)) than by
+better explained by  r = g(q) + e  (g the GP of `residual`, e ~ N(0, noise^2 I3)) than by
 independent noise  r = e,  e ~ N(0, sigma^2 I3)?  Both models are scored by their marginal
-likelihood with every parameter integrated, the same way `evidence.posterior_mode` scores a
-parametric candidate:
+likelihood with every parameter integrated, the same way `remaster.inference.evidence.posterior_mode`
+scores a parametric candidate:
 
 - iid:  sigma has Jeffreys' prior (flat in u = log sigma, improper) and is integrated by a Laplace
   step in u:  log Z0 = log L(sigma_ML) + 1/2 log 2 pi - 1/2 log(2 k),  k = 3n.
@@ -39,76 +39,37 @@ from dataclasses import dataclass
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
-from .residual_gp import (
-    EXACT_ROWS,
-    JITTER,
-    LENGTH_BOUNDS,
-    LOG_2PI,
-    STILL,
-    Hyperparameters,
-    ResidualGP,
-    _negative_log_ml,
-    evenly_spaced,
-    kernel,
-)
+from .kernels import LENGTH_BOUNDS, Hyperparameters, circle_distances, turned_joints
+from .likelihood import LOG_2PI, exact_log_likelihood, iid_log_likelihood, negative_log_marginal_likelihood
+from .residual import INDUCING, NOISE_BOUNDS, SIGNAL_BOUNDS, SUBSET, evenly_spaced, titsias_bound
 
+EXACT_ROWS = 3000  # rows up to which the evidence is the exact marginal likelihood
 LOG_PRIOR_STD = 2.0  # prior std of log s and of each log l_j
 HESSIAN_STEP = 1e-3  # in the log hyperparameters, for the central differences of the gradient
-SIGNAL_BOUNDS = (1e-4, 10.0)  # s over rms(r), as `residual_gp.fit_hyperparameters`
-NOISE_BOUNDS = (1e-3, 10.0)  # noise over rms(r)
-
-
-def exact_log_likelihood(q, residuals, hyper: Hyperparameters) -> float:
-    """log p(r) (nats) of residuals (n, 3) m at readings q (n, N) rad under the GP with `hyper`,
-    each output an independent N(0, K + noise^2 I): dense Cholesky, O(n^3)."""
-    import scipy.linalg
-
-    q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
-    cov = kernel(q, q, hyper)
-    cov[np.diag_indices_from(cov)] += hyper.noise_std**2
-    factor = scipy.linalg.cho_factor(cov, lower=True, check_finite=False)
-    alpha = scipy.linalg.cho_solve(factor, y, check_finite=False)
-    n, outputs = y.shape
-    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
-    return -0.5 * (float(np.sum(y * alpha)) + outputs * log_det + n * outputs * LOG_2PI)
-
-
-def titsias_bound(q, residuals, hyper: Hyperparameters, inducing: int) -> float:
-    """Titsias' (2009) collapsed variational lower bound on log p(r) (nats) through `inducing`
-    evenly spaced inducing inputs: the DTC log likelihood less outputs * tr(K - Q) / (2 noise^2),
-    Q = K_nm K_mm^-1 K_mn. Equals the exact value when the inducing inputs are the rows."""
-    import scipy.linalg
-
-    q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
-    gp = ResidualGP(q, y, hyper, inducing)
-    k_mm = kernel(gp.inducing, gp.inducing, hyper)
-    k_mm[np.diag_indices(len(k_mm))] += JITTER * hyper.signal_std**2
-    factor = scipy.linalg.cho_factor(k_mm, lower=True)
-    projected = 0.0
-    for begin in range(0, len(q), 8192):
-        k_mn = kernel(gp.inducing, q[begin : begin + 8192], hyper)
-        projected += float(np.sum(k_mn * scipy.linalg.cho_solve(factor, k_mn)))
-    trace = max(len(q) * hyper.signal_std**2 - projected, 0.0)
-    return gp.log_likelihood - y.shape[1] * trace / (2.0 * hyper.noise_std**2)
 
 
 def iid_log_evidence(residuals) -> float:
     """log Z0 (nats): residuals (n, 3) m as N(0, sigma^2) per component, sigma under Jeffreys'
     prior integrated by a Laplace step in log sigma (module docstring)."""
-    r = np.asarray(residuals, dtype=float)
-    k = r.size
-    log_likelihood = -0.5 * k * (LOG_2PI + math.log(float(np.sum(r * r)) / k) + 1.0)
-    return log_likelihood + 0.5 * LOG_2PI - 0.5 * math.log(2.0 * k)
+    k = np.asarray(residuals).size
+    return iid_log_likelihood(residuals) + 0.5 * LOG_2PI - 0.5 * math.log(2.0 * k)
+
+
+def _log_prior(x, prior_mean, prior_std) -> tuple[float, np.ndarray]:
+    """log prior (nats) of x = (log l_j..., log s, log noise): independent normals on all but the
+    noise (flat), and z (d - 1,) each one's distance from its mean in prior stds."""
+    z = (x[:-1] - prior_mean) / prior_std
+    return -float(np.sum(0.5 * z**2 + np.log(prior_std) + 0.5 * LOG_2PI)), z
 
 
 def _negative_log_posterior(x, distances, y, prior_mean, prior_std) -> tuple[float, np.ndarray]:
     """-(log p(y | x) + log prior(x)) and its gradient in x = (log l_j..., log s, log noise), y (n, 3)
     in units of rms(r), distances (J, n, n) the turned joints' 1 - cos differences: the exact GP's
-    likelihood is the one the hyperparameter fit maximizes (`residual_gp._negative_log_ml`); the
+    likelihood is the one the hyperparameter fit maximizes (`residual.fit_hyperparameters`); the
     noise has no prior term (flat in log noise)."""
-    value, gradient = _negative_log_ml(x, distances, y)
-    z = (x[:-1] - prior_mean) / prior_std
-    value += float(np.sum(0.5 * z**2 + np.log(prior_std) + 0.5 * LOG_2PI))
+    value, gradient = negative_log_marginal_likelihood(x, distances, y)
+    log_prior, z = _log_prior(x, prior_mean, prior_std)
+    value -= log_prior
     gradient = np.array(gradient, dtype=float)
     gradient[:-1] += z / prior_std
     return value, gradient
@@ -150,7 +111,12 @@ class GPEvidence:
 
 
 def log_evidence_gain(
-    q, residuals, hyper: Hyperparameters, exact_rows: int = EXACT_ROWS, inducing: int = 400, mode_rows: int = 600
+    q,
+    residuals,
+    hyper: Hyperparameters,
+    exact_rows: int = EXACT_ROWS,
+    inducing: int = INDUCING,
+    mode_rows: int = SUBSET,
 ) -> GPEvidence:
     """The GP's log evidence gain over independent noise (module docstring) for readings q (n, N)
     rad and residuals (n, 3) m; hyper: the fitted (plug-in) hyperparameters, the mode search's start;
@@ -161,14 +127,14 @@ def log_evidence_gain(
     q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
     n = len(q)
     unit = float(np.sqrt(np.mean(y**2))) or 1.0
-    turned = np.ptp(q, axis=0) > STILL
+    turned = turned_joints(q)
     n_len = int(turned.sum())
     span = np.clip(np.ptp(q, axis=0)[turned], *LENGTH_BOUNDS)
     prior_mean = np.concatenate([np.log(span), [0.0]])  # log l_j, log (s / unit)
     prior_std = np.full(n_len + 1, LOG_PRIOR_STD)
     rows = evenly_spaced(n, mode_rows)
-    q_e, y_e = q[rows][:, turned], y[rows] / unit
-    distances = np.ascontiguousarray(np.moveaxis(1.0 - np.cos(q_e[:, None, :] - q_e[None, :, :]), -1, 0))
+    distances = circle_distances(q[rows][:, turned])
+    y_e = y[rows] / unit
     lengths = np.where(np.isfinite(hyper.lengthscales), hyper.lengthscales, LENGTH_BOUNDS[1])[turned]
     x0 = np.concatenate(
         [
@@ -203,8 +169,7 @@ def log_evidence_gain(
     hessian = vectors @ np.diag(np.maximum(values, 0.0)) @ vectors.T + floor
     hessian[-1, -1] = max(hessian[-1, -1], 1e-6)  # log noise: flat prior, the data always fix it
     sign, log_det = np.linalg.slogdet(hessian)
-    z = (x[:-1] - prior_mean) / prior_std
-    log_prior = -float(np.sum(0.5 * z**2 + np.log(prior_std) + 0.5 * LOG_2PI))
+    log_prior, _ = _log_prior(x, prior_mean, prior_std)
     all_lengths = np.full(q.shape[1], np.inf)
     all_lengths[turned] = np.exp(x[:n_len])
     mode = Hyperparameters(all_lengths, unit * math.exp(x[n_len]), unit * math.exp(x[n_len + 1]))

@@ -1,4 +1,4 @@
-"""A linear model with the residual GP present (`remaster.inference.gp_joint`) against closed forms it
+"""A linear model with the residual GP present (`remaster.inference.gp.with_parameters`) against closed forms it
 does not use: the evidence is the Gaussian density of the data under the model's marginal covariance
 (scipy), a flat prior is the limit of wide ones, and the cross-validation is kriging written out with
 dense matrices; with a vanishing GP it is the parametric model's own generalised least squares."""
@@ -9,8 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import scipy.stats
 
-from remaster.inference import gp_joint
-from remaster.inference.residual_gp import Hyperparameters, kernel
+from remaster.inference.gp import with_parameters
+from remaster.inference.gp.kernels import Hyperparameters, kernel
 
 
 def linear_case(rng, n=40, prior_std=(np.inf, 2e-3, 5e-4), signal=3e-5, noise=1e-5):
@@ -39,17 +39,17 @@ def test_the_evidence_is_the_marginal_density_of_the_data():
     folds = np.arange(len(q)) % 4
     marginal = covariance + mode.jacobian @ np.diag(prior_std**2) @ mode.jacobian.T
     expected = scipy.stats.multivariate_normal(np.zeros(len(y)), marginal).logpdf(y)
-    assert math.isclose(gp_joint.with_gp(mode, q, hyper, folds).log_evidence, expected, rel_tol=0, abs_tol=1e-6)
+    assert math.isclose(with_parameters.with_gp(mode, q, hyper, folds).log_evidence, expected, rel_tol=0, abs_tol=1e-6)
 
 
 def test_a_flat_prior_is_the_limit_of_wide_ones():
     rng = np.random.default_rng(2)
     mode, q, hyper, *_ = linear_case(rng)
     folds = np.arange(len(q)) % 4
-    flat = gp_joint.with_gp(mode, q, hyper, folds).log_evidence
+    flat = with_parameters.with_gp(mode, q, hyper, folds).log_evidence
     wide = 1e3  # prior std of the flat parameter
     mode.model._prior_precision[0] = 1.0 / wide**2
-    proper = gp_joint.with_gp(mode, q, hyper, folds).log_evidence
+    proper = with_parameters.with_gp(mode, q, hyper, folds).log_evidence
     # Z_proper -> Z_flat N(0; 0, wide^2) as the prior widens: the flat constant is 1 / sqrt(2 pi) wide
     assert math.isclose(proper + math.log(wide) + 0.5 * math.log(2 * math.pi), flat, abs_tol=1e-6)
 
@@ -57,7 +57,7 @@ def test_a_flat_prior_is_the_limit_of_wide_ones():
 def test_the_cross_validation_is_kriging_with_the_parametric_trend():
     mode, q, hyper, y, covariance, prior_std = linear_case(np.random.default_rng(3))
     folds = np.arange(len(q)) % 4
-    result = gp_joint.with_gp(mode, q, hyper, folds)
+    result = with_parameters.with_gp(mode, q, hyper, folds)
     precision = np.where(np.isfinite(prior_std), 1.0 / prior_std**2, 0.0)
     jacobian, n = mode.jacobian, len(q)
     for fold in range(4):
@@ -73,7 +73,7 @@ def test_the_cross_validation_is_kriging_with_the_parametric_trend():
 
 def test_without_a_gp_the_parameters_are_the_least_squares_ones():
     mode, q, hyper, y, _, prior_std = linear_case(np.random.default_rng(4), signal=1e-12)
-    result = gp_joint.with_gp(mode, q, hyper, np.arange(len(q)) % 4)
+    result = with_parameters.with_gp(mode, q, hyper, np.arange(len(q)) % 4)
     precision = np.where(np.isfinite(prior_std), 1.0 / prior_std**2, 0.0) * hyper.noise_std**2
     j = mode.jacobian
     expected = np.linalg.solve(j.T @ j + np.diag(precision), j.T @ y)

@@ -1,0 +1,130 @@
+"""Gaussian log densities of the Gaussian-process family (nats).
+
+- the exact GP marginal likelihood of residuals y (n, outputs), each output an independent
+  N(0, K + noise^2 I): at given hyperparameters (`exact_log_likelihood`) and, with its analytic
+  gradient in the log hyperparameters, as the objective of the hyperparameter fits
+  (`negative_log_marginal_likelihood`);
+- independent noise N(0, sigma^2) per component at sigma's maximum likelihood (`iid_log_likelihood`);
+- the evidence of a linear model y = J theta + e, e ~ N(0, S) with any dense covariance S and
+  theta ~ N(0, 1 / precision) integrated (`dense_log_evidence`), and its gradient in the
+  hyperparameters of S (`dense_log_evidence_and_gradient`).
+
+SI inside (m, rad).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
+
+from .kernels import Hyperparameters, covariance_with_noise, shape_from_distances
+
+LOG_2PI = math.log(2.0 * math.pi)
+
+
+def _cholesky_log_likelihood(cov, y) -> tuple[float, tuple, np.ndarray]:
+    """log N(y_a; 0, cov) summed over the outputs a of y (n, outputs), the Cholesky factor of cov
+    (n, n) (scipy's cho_factor) and alpha = cov^-1 y (n, outputs). Raises LinAlgError when cov is
+    not positive definite."""
+    import scipy.linalg
+
+    factor = scipy.linalg.cho_factor(cov, lower=True, check_finite=False)
+    alpha = scipy.linalg.cho_solve(factor, y, check_finite=False)
+    n, outputs = y.shape
+    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+    return -0.5 * (float(np.sum(y * alpha)) + outputs * log_det + n * outputs * LOG_2PI), factor, alpha
+
+
+def exact_log_likelihood(q, residuals, hyper: Hyperparameters) -> float:
+    """log p(r) (nats) of residuals (n, 3) m at readings q (n, N) rad under the GP with `hyper`,
+    each output an independent N(0, K + noise^2 I): dense Cholesky, O(n^3)."""
+    return _cholesky_log_likelihood(covariance_with_noise(q, hyper), np.asarray(residuals, dtype=float))[0]
+
+
+def negative_log_marginal_likelihood(
+    log_params: np.ndarray, distances: np.ndarray, y: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """-log p(y) of the exact GP and its gradient in (log l_j..., log s, log noise); distances
+    (J, n, n) the per-joint 1 - cos differences (`kernels.circle_distances`), y (n, outputs).
+    1e25 with a zero gradient where the covariance is not positive definite (the optimiser steps back)."""
+    import scipy.linalg
+
+    n_len = len(distances)
+    weights = np.exp(-2.0 * log_params[:n_len])
+    signal2, noise2 = math.exp(2.0 * log_params[n_len]), math.exp(2.0 * log_params[n_len + 1])
+    shape = shape_from_distances(distances, weights)
+    cov = signal2 * shape
+    cov[np.diag_indices_from(cov)] += noise2
+    try:
+        log_likelihood, factor, alpha = _cholesky_log_likelihood(cov, y)
+    except np.linalg.LinAlgError:
+        return 1e25, np.zeros_like(log_params)
+    n, outputs = y.shape
+    inverse = scipy.linalg.cho_solve(factor, np.eye(n), check_finite=False)
+    w = alpha @ alpha.T - outputs * inverse  # d log p = 1/2 tr(W dK)
+    g = w * (signal2 * shape)
+    gradient = np.empty_like(log_params)
+    gradient[:n_len] = weights * np.tensordot(distances, g, axes=((1, 2), (0, 1)))  # 1/2 * 2 w_j sum(D_j G)
+    gradient[n_len] = float(np.sum(g))
+    gradient[n_len + 1] = noise2 * float(np.trace(w))
+    return -log_likelihood, -gradient
+
+
+def iid_log_likelihood(residuals) -> float:
+    """log p of residuals (n, 3) m under N(0, sigma^2) per component at sigma's maximum likelihood."""
+    r = np.asarray(residuals, dtype=float)
+    k = r.size
+    return -0.5 * k * (LOG_2PI + math.log(float(np.sum(r * r)) / k) + 1.0)
+
+
+def _dense_log_evidence(factor, y, jacobian, precision) -> float:
+    """`dense_log_evidence` from the Cholesky factor (scipy's cho_factor) of the covariance."""
+    import scipy.linalg
+
+    solved_j, solved_y = scipy.linalg.cho_solve(factor, jacobian), scipy.linalg.cho_solve(factor, y)
+    a = jacobian.T @ solved_j + np.diag(precision)
+    b = jacobian.T @ solved_y
+    sign, log_det_a = np.linalg.slogdet(a)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
+    proper = precision > 0
+    return float(
+        -0.5 * y @ solved_y
+        + 0.5 * b @ np.linalg.solve(a, b)
+        - float(np.sum(np.log(np.diag(factor[0]))))
+        - 0.5 * log_det_a
+        - 0.5 * len(y) * LOG_2PI
+        + 0.5 * np.sum(np.log(precision[proper]))
+        + 0.5 * int((~proper).sum()) * LOG_2PI
+    )
+
+
+def dense_log_evidence(y, jacobian, precision, covariance) -> float:
+    """log Z of y (m,) = J theta + e with e ~ N(0, covariance (m, m)) and theta (P,) ~ N(0, 1 /
+    precision) (precision (P,), 0: flat, its improper constant left out: common to every model of
+    the same flat blocks), J (m, P). The general form of `with_parameters.with_gp`'s evidence, for
+    noise that is not the same on the three axes."""
+    import scipy.linalg
+
+    y, jacobian, precision = (np.asarray(a, dtype=float) for a in (y, jacobian, precision))
+    return _dense_log_evidence(scipy.linalg.cho_factor(covariance, lower=True), y, jacobian, precision)
+
+
+def dense_log_evidence_and_gradient(y, jacobian, precision, covariance, derivatives) -> tuple[float, np.ndarray]:
+    """`dense_log_evidence` of y (m,) and its gradient with respect to the hyperparameters whose
+    covariance derivatives (k, m, m) are given: 1/2 a^T dS a - 1/2 tr(Pi dS), a = Pi y, with
+    Pi = S^-1 - S^-1 J A^-1 J^T S^-1 (the parameters integrated)."""
+    import scipy.linalg
+
+    y, jacobian, precision = (np.asarray(a, dtype=float) for a in (y, jacobian, precision))
+    factor = scipy.linalg.cho_factor(covariance, lower=True)
+    inverse = scipy.linalg.cho_solve(factor, np.eye(len(y)))
+    solved_j = inverse @ jacobian
+    a = jacobian.T @ solved_j + np.diag(precision)
+    projection = inverse - solved_j @ np.linalg.solve(a, solved_j.T)
+    alpha = projection @ y
+    value = _dense_log_evidence(factor, y, jacobian, precision)
+    outer = np.outer(alpha, alpha) - projection
+    gradient = np.array([0.5 * float(np.sum(outer * d)) for d in derivatives])
+    return value, gradient

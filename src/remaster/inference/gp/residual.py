@@ -1,0 +1,164 @@
+"""What no parametric effect explains: a Gaussian process over the joint angles.
+
+After the parametric effects, the residual r(q) (3,) m at joint readings q (N,) rad is modelled as
+
+    r(q) = g(q) + e,   g_x, g_y, g_z ~ GP(0, k) independent with one kernel,   e ~ N(0, noise^2 I3),
+
+k the squared exponential on the circle of each joint (`kernels`). The residual is expressed in the
+ROBOT frame (rotated back by the fit's registration), so the correction travels with the robot.
+
+Hyperparameters (l_j, s, noise) maximise the exact marginal likelihood of at most `subset` rows
+evenly spaced over the data (analytic gradient, L-BFGS-B in logs, two starts): O(subset^3)
+whatever n. Prediction uses all n rows through m inducing inputs (the same kind of
+subset), the DTC / projected-process approximation (Seeger, Williams & Lawrence 2003;
+Quinonero-Candela & Rasmussen 2005): O(n m^2) time and O(chunk m) memory. Far from every inducing
+input the mean returns to zero and the variance to s^2: the correction does not extrapolate, it
+says it does not know. The evidence the loop decides with is not the DTC
+likelihood (which can be far above or below the exact one): `evidence_gain`.
+
+Relevance of joint j: its measured range (max - min of q_j) over l_j, the number of lengthscales
+the data cross along it; the residual "depends on" the joints where it is at least
+`RELEVANT_RANGE`.
+
+SI inside (m, rad).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
+
+from .kernels import LENGTH_BOUNDS, Hyperparameters, circle_distances, kernel, turned_joints
+from .likelihood import LOG_2PI, negative_log_marginal_likelihood
+
+SUBSET = 600  # rows for the hyperparameters (exact marginal likelihood)
+INDUCING = 400  # inducing inputs for prediction (and the evidence's bound above `evidence_gain.EXACT_ROWS`)
+CHUNK = 8192  # rows per block when accumulating over all n
+RELEVANT_RANGE = 0.5  # lengthscales crossed over the measured range: the residual depends on that joint
+SIGNAL_BOUNDS = (1e-4, 10.0)  # s over rms(r)
+NOISE_BOUNDS = (1e-3, 10.0)  # noise over rms(r)
+JITTER = 1e-8  # relative to s^2, for the inducing covariance's Cholesky factor
+
+
+def evenly_spaced(n: int, count: int) -> np.ndarray:
+    """At most `count` row indices spread evenly over n rows (all of them when n <= count):
+    deterministic, and representative when rows are in measurement order."""
+    return np.arange(n) if n <= count else np.unique(np.linspace(0, n - 1, count).round().astype(int))
+
+
+def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparameters | None = None) -> Hyperparameters:
+    """Type-II maximum likelihood of (l_j, s, noise) on at most `subset` evenly spaced rows of q
+    (n, N) rad and residuals (n, 3) m; from `start` when given (one start), else from a smooth
+    and a wiggly start."""
+    import scipy.optimize
+
+    q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
+    rows = evenly_spaced(len(q), subset)
+    q_s, y_s = q[rows], y[rows]
+    spread = np.ptp(q, axis=0)
+    turned = turned_joints(q)
+    unit = float(np.sqrt(np.mean(y_s**2))) or 1.0  # work in units of the residual's size
+    y_s = y_s / unit
+    distances = circle_distances(q_s[:, turned])
+    span = np.clip(spread[turned], LENGTH_BOUNDS[0], LENGTH_BOUNDS[1])
+    bounds = [tuple(np.log(LENGTH_BOUNDS))] * int(turned.sum()) + [
+        (math.log(SIGNAL_BOUNDS[0]), math.log(SIGNAL_BOUNDS[1])),
+        (math.log(NOISE_BOUNDS[0]), math.log(NOISE_BOUNDS[1])),
+    ]
+    if start is None:  # a smooth and a wiggly start: the likelihood can have both modes
+        starts = [
+            np.concatenate([np.log(np.maximum(f * span, LENGTH_BOUNDS[0])), [math.log(0.7)] * 2]) for f in (1.0, 0.25)
+        ]
+    else:
+        lengths = np.clip(
+            np.where(np.isfinite(start.lengthscales), start.lengthscales, span.max() if span.size else 1.0),
+            *LENGTH_BOUNDS,
+        )[turned]
+        starts = [
+            np.concatenate(
+                [np.log(lengths), np.log(np.clip([start.signal_std / unit, start.noise_std / unit], 1e-3, 10.0))]
+            )
+        ]
+    best = None
+    for x0 in starts:
+        result = scipy.optimize.minimize(
+            negative_log_marginal_likelihood, x0, args=(distances, y_s), jac=True, method="L-BFGS-B", bounds=bounds
+        )
+        if best is None or result.fun < best.fun:
+            best = result
+    lengths = np.full(q.shape[1], np.inf)
+    lengths[turned] = np.exp(best.x[: int(turned.sum())])
+    return Hyperparameters(lengths, unit * math.exp(best.x[-2]), unit * math.exp(best.x[-1]))
+
+
+class ResidualGP:
+    """The GP conditioned on residuals (n, 3) m at readings q (n, N) rad with given hyperparameters,
+    through `inducing` inducing inputs (DTC). `mean`, `variance` at any readings; `log_likelihood`
+    of the training residuals (DTC)."""
+
+    def __init__(self, q, residuals, hyper: Hyperparameters, inducing: int = INDUCING):
+        import scipy.linalg
+
+        q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
+        self.hyper = hyper
+        self.inducing = q[evenly_spaced(len(q), inducing)]
+        m, noise2 = len(self.inducing), hyper.noise_std**2
+        k_mm = kernel(self.inducing, self.inducing, hyper)
+        k_mm[np.diag_indices(m)] += JITTER * hyper.signal_std**2
+        gram, projected = np.zeros((m, m)), np.zeros((m, y.shape[1]))
+        for begin in range(0, len(q), CHUNK):
+            k_mn = kernel(self.inducing, q[begin : begin + CHUNK], hyper)
+            gram += k_mn @ k_mn.T
+            projected += k_mn @ y[begin : begin + CHUNK]
+        a = noise2 * k_mm + gram
+        a[np.diag_indices(m)] += JITTER * hyper.signal_std**2 * noise2
+        self._k_factor = scipy.linalg.cho_factor(k_mm, lower=True)
+        self._a_factor = scipy.linalg.cho_factor(a, lower=True)
+        self.weights = scipy.linalg.cho_solve(self._a_factor, projected)  # (m, 3): mean = K*m weights
+        n, outputs = y.shape
+        log_det = (
+            2.0 * np.sum(np.log(np.diag(self._a_factor[0])))
+            - 2.0 * np.sum(np.log(np.diag(self._k_factor[0])))
+            + (n - m) * math.log(noise2)
+        )
+        quadratic = (float(np.sum(y * y)) - float(np.sum(projected * self.weights))) / noise2
+        self.log_likelihood = -0.5 * (quadratic + outputs * log_det + n * outputs * LOG_2PI)
+        self.n_rows = n
+
+    def mean(self, q) -> np.ndarray:
+        """Posterior mean of g (n*, 3) m at readings q (n*, N) rad."""
+        return kernel(np.asarray(q, dtype=float), self.inducing, self.hyper) @ self.weights
+
+    def variance(self, q) -> np.ndarray:
+        """Posterior variance of each component of g (n*,) m^2 at readings q (n*, N), without the
+        noise: s^2 far from the data."""
+        import scipy.linalg
+
+        k_sm = kernel(np.asarray(q, dtype=float), self.inducing, self.hyper)
+        explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
+        left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)
+        return np.maximum(self.hyper.signal_std**2 - explained + left, 0.0)
+
+
+def titsias_bound(q, residuals, hyper: Hyperparameters, inducing: int) -> float:
+    """Titsias' (2009) collapsed variational lower bound on log p(r) (nats) of residuals (n, 3) m at
+    readings q (n, N) rad through `inducing` evenly spaced inducing inputs: the DTC log likelihood
+    less outputs * tr(K - Q) / (2 noise^2), Q = K_nm K_mm^-1 K_mn. Equals the exact value when the
+    inducing inputs are the rows."""
+    import scipy.linalg
+
+    q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
+    gp = ResidualGP(q, y, hyper, inducing)
+    projected = 0.0
+    for begin in range(0, len(q), CHUNK):
+        k_mn = kernel(gp.inducing, q[begin : begin + CHUNK], hyper)
+        projected += float(np.sum(k_mn * scipy.linalg.cho_solve(gp._k_factor, k_mn)))
+    trace = max(len(q) * hyper.signal_std**2 - projected, 0.0)
+    return gp.log_likelihood - y.shape[1] * trace / (2.0 * hyper.noise_std**2)
+
+
+def relevance(hyper: Hyperparameters, q) -> np.ndarray:
+    """(N,) measured range of each joint over its lengthscale (0 for a joint never turned)."""
+    spread = np.ptp(np.asarray(q, dtype=float), axis=0)
+    return np.where(hyper.turned, spread / np.where(hyper.turned, hyper.lengthscales, 1.0), 0.0)

@@ -1,0 +1,94 @@
+"""The residual Gaussian process (`remaster.inference.gp.residual`) against known answers: its
+hyperparameters find the noise and the joints, its mean and variance are honest near the data and
+return to the prior far from it, with every row inducing it is the exact GP, and Titsias' bound is
+a lower bound on the exact likelihood."""
+
+import numpy as np
+import pytest
+
+from remaster.inference.gp import likelihood, residual
+from remaster.inference.gp.kernels import Hyperparameters, kernel
+
+NOISE = 2e-5
+
+
+def smooth_residual(q):
+    """A residual (n, 3) m that depends on joints 2 and 4 only."""
+    return np.column_stack([3e-4 * np.sin(2 * q[:, 1]), 2e-4 * np.cos(q[:, 3] + q[:, 1]), 1e-4 * np.sin(3 * q[:, 3])])
+
+
+def readings(rng, n, low=-2.0, high=2.0):
+    q = rng.uniform(low, high, (n, 7))
+    q[:, 2] = 0.0  # a joint the data never turn
+    return q
+
+
+@pytest.fixture(scope="module")
+def learnt():
+    rng = np.random.default_rng(5)
+    q = readings(rng, 1500)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    hyper = residual.fit_hyperparameters(q, y)
+    return q, y, hyper, residual.ResidualGP(q, y, hyper)
+
+
+def test_the_hyperparameters_find_the_noise_and_the_joints(learnt):
+    q, _, hyper, _ = learnt
+    assert hyper.noise_std == pytest.approx(NOISE, rel=0.1)
+    assert not np.isfinite(hyper.lengthscales[2])  # never turned: no lengthscale
+    relevance = residual.relevance(hyper, q)
+    assert set(np.argsort(-relevance)[:2]) == {1, 3}
+    assert np.all(relevance[[0, 4, 5, 6]] < residual.RELEVANT_RANGE)
+
+
+def test_the_mean_predicts_new_configurations_to_within_the_noise(learnt):
+    _, _, _, gp = learnt
+    q = readings(np.random.default_rng(6), 500)
+    error = gp.mean(q) - smooth_residual(q)
+    assert np.sqrt(np.mean(error**2)) < 0.5 * NOISE
+    # the predictive std is honest: most errors within 1.96 std, and the errors in units of the
+    # std have an RMS near 1 (a std twice too wide gives 0.4 and fails, as does one too narrow)
+    standardised = error / np.sqrt(gp.variance(q))[:, None]
+    assert np.mean(np.abs(standardised) <= 1.96) > 0.85
+    assert 0.6 < np.sqrt(np.mean(standardised**2)) < 1.4
+
+
+def test_far_from_the_data_it_returns_to_zero_with_its_prior_uncertainty():
+    rng = np.random.default_rng(7)
+    q = readings(rng, 400, -0.3, 0.3)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    hyper = Hyperparameters(np.array([0.2, 0.2, np.inf, 0.2, 0.2, 0.2, 0.2]), 2e-4, NOISE)
+    gp = residual.ResidualGP(q, y, hyper)
+    far = readings(rng, 50, 2.0, 2.5)
+    np.testing.assert_allclose(gp.mean(far), 0.0, atol=1e-12)
+    np.testing.assert_allclose(gp.variance(far), hyper.signal_std**2, rtol=1e-9)
+    near = q[:50]
+    assert np.all(gp.variance(near) < 0.1 * hyper.signal_std**2)
+
+
+def test_with_every_row_inducing_it_is_the_exact_gp():
+    rng = np.random.default_rng(8)
+    q = readings(rng, 120)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    hyper = Hyperparameters(np.array([1.0, 0.6, np.inf, 0.8, 2.0, 2.0, 2.0]), 1.5e-4, NOISE)
+    gp = residual.ResidualGP(q, y, hyper, inducing=len(q))
+    cov = kernel(q, q, hyper) + NOISE**2 * np.eye(len(q))
+    new = readings(rng, 30)
+    k_new = kernel(new, q, hyper)
+    np.testing.assert_allclose(gp.mean(new), k_new @ np.linalg.solve(cov, y), rtol=1e-5, atol=1e-10)
+    exact_var = hyper.signal_std**2 - np.sum(k_new * np.linalg.solve(cov, k_new.T).T, axis=1)
+    np.testing.assert_allclose(gp.variance(new), exact_var, rtol=1e-4, atol=1e-14)
+    _, log_det = np.linalg.slogdet(cov)
+    exact = -0.5 * (np.sum(y * np.linalg.solve(cov, y)) + 3 * log_det + y.size * np.log(2 * np.pi))
+    assert gp.log_likelihood == pytest.approx(exact, rel=1e-6)
+
+
+def test_titsias_is_a_lower_bound_and_exact_with_every_row_inducing():
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-2.0, 2.0, (60, 3))
+    hyper = Hyperparameters(np.array([0.4, 0.6, np.inf]), 1e-4, 3e-5)  # well conditioned K
+    y = 1e-4 * np.sin(3 * q[:, [0, 1, 0]]) + rng.normal(0.0, 3e-5, (len(q), 3))
+    exact = likelihood.exact_log_likelihood(q, y, hyper)
+    assert residual.titsias_bound(q, y, hyper, len(q)) == pytest.approx(exact, abs=1e-3)
+    for m in (5, 15, 30, 45):
+        assert residual.titsias_bound(q, y, hyper, m) <= exact
