@@ -273,7 +273,7 @@ def _walk(
     under/overflow of sigma^-(3n+2). Returns (samples (n_steps, P), log_probs (n_steps,)) when
     `store`, else (None, None), and the number of accepted proposals. With thin > 1 only every
     thin-th state is stored (the random draws, hence the chain, are the same whatever thin is).
-    A target with a `walk_block` (the paper's model: `ZeroOffsetModel.metropolis_block`) runs each
+    A target with a `walk_block` (the paper's model: `BlockModel.metropolis_block`) runs each
     block's accept/reject loop compiled, on the same draws: the same chain to the bit.
     """
     p = len(walker.theta)
