@@ -11,9 +11,9 @@ add to the joint readings. With a flat prior on Theta and Jeffreys' on sigma the
 E the sum of squared residuals over the n measured points. Parameters are SI (m, rad);
 `scale` gives the paper's display units (mm, deg) in SI, which samplers use as step units.
 
-The model itself is `remaster.inference.blocks.BlockModel` with no extension block
-(`blocks.paper_model`); this module holds what its readers share without the model: parameter
-names, display units and the registration's correction transform.
+The model itself is the block model without extension blocks (`remaster.inference.blocks.paper_model`);
+this module holds the parameter names, display units and the registration's correction transform,
+which readers of results use without building a model.
 """
 
 from __future__ import annotations
