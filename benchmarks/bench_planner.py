@@ -56,7 +56,7 @@ from remaster.campaigns import folders, scenario  # noqa: E402
 from remaster.campaigns.campaign import sensor_data  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
-from remaster.inference import blocks, evidence, fit  # noqa: E402
+from remaster.inference import blocks, evidence, fit, samplers  # noqa: E402
 from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
@@ -89,8 +89,6 @@ def calibrate(chain, sensor, priors, set_name: str = "optimization"):
     stacked with the prior's theta / tau, as `evidence.posterior_mode` stacks them at its sigma):
     (model, theta). The stated noise rather than a fitted sigma: a design of 10 configurations leaves
     too few residuals for sigma to be estimated beside 25-32 parameters (UR5, iiwa)."""
-    import scipy.optimize
-
     registered = fit.register(chain, sensor, set_name)
     _, analysis, _ = fit.build_model(chain, sensor, registered.t_nr, set_name)
     data = blocks.readings(chain, sensor, set_name)
@@ -103,15 +101,8 @@ def calibrate(chain, sensor, priors, set_name: str = "optimization"):
         weighted = model.weighted_residuals(theta) / sigma
         return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), model.prior_residuals(theta)], axis=-1)
 
-    solution = scipy.optimize.least_squares(
-        stacked,
-        np.zeros(len(model.names)),
-        jac=lambda t: evidence.forward_differences(stacked, t),
-        x_scale=model.scale,
-        method="trf",
-        xtol=1e-12,
-        ftol=1e-12,
-        gtol=1e-12,
+    solution = samplers.least_squares_mode(
+        stacked, np.zeros(len(model.names)), model.scale, lambda t: evidence.forward_differences(stacked, t)
     )
     return model, solution.x
 

@@ -70,7 +70,7 @@ def test_fleet_copies_of_a_robot_the_model_lacks_an_effect_of_drift_by_about_one
             }
         )
         table, report = discrepancy.discrepancy_summary(
-            model, laplace.theta_map, sensor.table.loc[model.table_rows, "pose"], summary
+            model, laplace.theta_map, sensor.table.loc[model.data.rows, "pose"], summary
         )
         offsets = [n for n in names if n.startswith("zero_offsets.")]
         table = table.set_index("parameter").loc[offsets]

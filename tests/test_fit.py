@@ -228,7 +228,7 @@ def test_gross_error_is_flagged_listed_and_left_out(iiwa):
     outliers = fit.flag_outliers(model, alpha=0.01)
     np.testing.assert_array_equal(outliers, [37])
     robust, analysis, excluded = fit.build_model(iiwa, glitched, registration.t_nr, exclude=outliers)
-    assert 37 not in robust.table_rows and robust.n_points == model.n_points - 1
+    assert 37 not in robust.data.rows and robust.n_points == model.n_points - 1
     report = fit.laplace_report(fit.laplace_fit(robust), analysis, excluded, outliers, robust)
     assert report["excluded_rows_outliers"] == [37] and report["points_fitted"] == robust.n_points
     offsets = np.array(report["theta_map"][6:])
@@ -290,7 +290,7 @@ def test_many_log_posteriors_are_the_same_a_slice_at_a_time(iiwa, rng, monkeypat
 
 
 def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
-    """The paper's model steps its random walks compiled (`ZeroOffsetModel.metropolis_block`): the
+    """The paper's model steps its random walks compiled (`BlockModel.metropolis_block`): the
     same draws give the same chain as the Python loop over its log_prob, bit for bit, for the
     paper's sampler and the adaptive one; a proposal with sigma <= 0 is rejected, not an error."""
     from remaster.inference import samplers

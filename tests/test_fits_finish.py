@@ -13,7 +13,8 @@ from remaster import diagnostics, files
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit, identifiability, samplers
-from remaster.inference.model import ZeroOffsetModel, display_scale
+from remaster.inference.blocks import paper_model
+from remaster.inference.model import display_scale
 from remaster.robot import ik, kinematics
 
 CRITERIA = {"max_rhat": 1.05, "min_ess": 200}
@@ -64,7 +65,7 @@ def test_a_7_axis_arm_with_joints_1_and_7_still_and_the_marker_on_axis_7(iiwa, o
     marker = [off_axis, 0.0, 0.05]
     truth = rng.normal(0.0, np.radians(0.3), 7)
     sensor = sensor_table(iiwa, q, marker, truth, rng)
-    full = ZeroOffsetModel(iiwa, q, sensor.table[["x", "y", "z"]].to_numpy(), marker, fit.register(iiwa, sensor).t_nr)
+    full = paper_model(iiwa, q, sensor.table[["x", "y", "z"]].to_numpy(), marker, fit.register(iiwa, sensor).t_nr)
     if off_axis:  # the premise: a combination between the two old tests
         jacobian = full.jacobian(np.zeros(13), identifiability.JACOBIAN_STEP)
         si = np.linalg.norm(jacobian, axis=0)

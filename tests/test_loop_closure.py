@@ -73,18 +73,20 @@ def closed(chain, sensor, settings=LAPLACE_ONLY, seed=0):
 # --------------------------------------------------------------------------- the blocks
 
 
-def test_base_blocks_are_the_papers_model(iiwa):
+def test_the_loops_base_is_the_paper_fits_model(iiwa):
+    """The loop's base blocks on its readings (`blocks.readings`) are the paper fit's model
+    (`fit.build_model`): the same rows, parameters and predictions, to the bit."""
     sensor = simulated(iiwa, "none")
     registration = fit.register(iiwa, sensor)
     paper, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
     model = blocks.BlockModel(
         iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker, registration.t_nr, (), analysis.held
     )
-    assert model.names == paper.names
+    assert model.names == paper.names and np.array_equal(model.data.rows, paper.data.rows)
     theta = np.random.default_rng(3).normal(0.0, 1e-3, (4, len(model.names)))
-    np.testing.assert_allclose(model.predict(theta), paper.predict(theta), rtol=0, atol=1e-12)
+    assert np.array_equal(model.predict(theta), paper.predict(theta))
     sigma = np.full(4, 1e-4)
-    np.testing.assert_allclose(model.log_posterior(theta, sigma), paper.log_posterior(theta, sigma))
+    assert np.array_equal(model.log_posterior(theta, sigma), paper.log_posterior(theta, sigma))
 
 
 def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng, monkeypatch):

@@ -15,7 +15,8 @@ from remaster.campaigns.campaign import Campaign, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.evaluation import accuracy
 from remaster.inference import fit, metrics
-from remaster.inference.model import SIGMA, ZeroOffsetModel, parameter_names
+from remaster.inference.blocks import paper_model
+from remaster.inference.model import SIGMA, parameter_names
 from remaster.reporting import figures_accuracy
 from remaster.units import shown
 
@@ -242,7 +243,7 @@ def test_vernier_is_scored_with_the_three_point_registration_beside_the_least_sq
     campaign, out, model, laplace, samples = stage
     chain = campaign.chain
     zero_offsets = {name: 0.0 for name in parameter_names(chain.n_joints)[6:]}
-    registration_only = ZeroOffsetModel(chain, model.q, model.measured, model.marker, model.t_nr, fixed=zero_offsets)
+    registration_only = paper_model(chain, model.q, model.measured, model.marker, model.t_nr, fixed=zero_offsets)
     best = optimize.least_squares(
         lambda theta: registration_only.residuals(theta).ravel(),
         np.zeros(6),

@@ -223,7 +223,7 @@ def metropolis_walk(
     proposes theta + steps[i] and accepts when log_u[i] < the log-posterior ratio. Every state
     goes to states (m, P) and log_probs (m,). Returns (accepted, i) with i the first step whose
     log-posterior is NaN (-1 when none): the caller raises. The same arithmetic, in the same
-    order, as `ZeroOffsetModel.log_posterior`, so the chain is the Python loop's to the bit."""
+    order, as the paper's model's `BlockModel.log_posterior`, so the chain is the Python loop's to the bit."""
     m, p = steps.shape
     power = -(3 * cos_q.shape[1] + 2)
     every = fixed_values.copy().reshape(1, -1)

@@ -41,8 +41,8 @@ against its zero-offset, a translation along two parallel axes once). What is le
 of the robot; what this campaign's data cannot determine (a joint it never moved) keeps its prior.
 
 A `BlockModel` shows the samplers, the Laplace fit and the metrics only names, a parameter
-vector, a predict function and the paper's log-posterior (both it and `ZeroOffsetModel` are a
-`model.MeasurementModel`). Which extension parameters the data determine is decided in one
+vector, a predict function and the paper's log-posterior. The paper's model is a `BlockModel`
+without extension blocks (`paper_model`). Which extension parameters the data determine is decided in one
 place, `identifiable_extension`: QR with column pivoting of the extension's Jacobian columns
 after projecting out the base parameters' columns.
 """
@@ -64,7 +64,7 @@ from ..robot.kinematics import LINK_MOTION, KernelForm, KinematicChain, perturbe
 from ..robot.priors import Priors
 from ..units import DEG, MM, SECONDS_PER_HOUR
 from .identifiability import JACOBIAN_STEP
-from .model import REGISTRATION, MeasurementModel, correction_transforms, display_scale, display_unit, parameter_names
+from .model import REGISTRATION, correction_transforms, display_scale, display_unit, parameter_names
 
 BASE = ("registration", "zero_offsets")
 EXTENSIONS = (
@@ -144,7 +144,8 @@ class Readings:
 
     rows (n,): 0-based table rows (measured ones only); q (n, N) rad; measured (n, 3) m, sensor
     frame; torques (n, N) N m: torque gravity exerts on each joint (payload included) at the
-    readings; payload_torques (n, N) N m: the payload's part of it; drift (n,) s since the
+    readings; payload_torques (n, N) N m: the payload's part of it (both None when not computed:
+    only the `joint_compliance` block needs them); drift (n,) s since the
     table's first time (or K since the first temperature), None without such a column;
     drift_unit 's' or 'K'; harmonic_orders: K of the `joint_harmonics` block (orders 1..K);
     weights (n, 3): the instrument's per-point std of each axis over its
@@ -155,8 +156,8 @@ class Readings:
     rows: np.ndarray
     q: np.ndarray
     measured: np.ndarray
-    torques: np.ndarray
-    payload_torques: np.ndarray
+    torques: np.ndarray | None = None
+    payload_torques: np.ndarray | None = None
     drift: np.ndarray | None = None
     drift_unit: str | None = None
     harmonic_orders: int = 2
@@ -367,7 +368,7 @@ def available(block: str, data: Readings) -> bool:
 # --------------------------------------------------------------------------- the model
 
 
-class BlockModel(MeasurementModel):
+class BlockModel:
     """Predicted marker positions (sensor frame) of one set's readings for base + extension blocks.
 
     chain: the nominal chain; data: `Readings`; marker (3,) m nominal, flange frame; t_nr (4, 4)
@@ -377,6 +378,8 @@ class BlockModel(MeasurementModel):
     shape (`remaster.noise`), None for the paper's isotropic noise: the likelihood then sums the
     squares of whitened residuals (`weighted_residuals`), while `residuals` stay in metres.
     Parameters: `names` (P,) free ones, `scale` (P,) their display units in SI, `unit` (P,).
+    Everything that does not depend on the parameters (sines and cosines of the readings, the
+    chain's fixed transforms) is computed once.
     """
 
     def __init__(
@@ -395,6 +398,8 @@ class BlockModel(MeasurementModel):
             raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
         if "drift" in blocks and data.drift is None:
             raise ValueError("a drift block needs a time or temperature column")
+        if "joint_compliance" in blocks and (data.torques is None or data.payload_torques is None):
+            raise ValueError("a joint_compliance block needs the readings' gravity torques (`readings`)")
         self.chain, self.data = chain, data
         self.q, self.measured = data.q, data.measured
         self.marker = np.asarray(marker, dtype=float)
@@ -445,6 +450,13 @@ class BlockModel(MeasurementModel):
             shape = np.eye(3) if self._whitening is None else self._whitening
             self._whitening = scaling[:, :, None] * np.broadcast_to(shape, (len(scaling), 3, 3))
             self.noise_log_det += float(np.sum(np.log(scaling)))
+        self._has_prior = bool(np.any(self._prior_precision))
+        # the paper's model (no extension block, isotropic noise: `paper_model`) has its sum of squares
+        # and its random walk compiled: the samplers evaluate it hundreds of thousands of times
+        self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None
+        if self.compiled_posterior:
+            self._start = self._kernel.start(self.marker)
+            self._measured_t = np.ascontiguousarray(self.measured.T)
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
@@ -463,6 +475,34 @@ class BlockModel(MeasurementModel):
         self._kernel_values = np.ascontiguousarray(self._joint_values_t[:, order].T)  # (K, n)
         self._kernel_first = np.searchsorted(joints[order], np.arange(self.chain.n_joints + 1))
         self._cos_q, self._sin_q = np.ascontiguousarray(np.cos(self.q.T)), np.ascontiguousarray(np.sin(self.q.T))
+
+    @property
+    def n_points(self) -> int:
+        return len(self.q)
+
+    def full(self, theta) -> np.ndarray:
+        """Free parameters (..., P) -> every parameter (..., P_all), held ones at their values."""
+        theta = np.asarray(theta, dtype=float)
+        out = np.empty(theta.shape[:-1] + self.fixed_values.shape)
+        out[...] = self.fixed_values
+        out[..., self._free_index] = theta
+        return out
+
+    def predict(self, theta) -> np.ndarray:
+        """Predicted positions (n, 3) or (m, n, 3) from free parameters (P,) or (m, P)."""
+        return self.predict_full(self.full(theta))
+
+    def residuals(self, theta) -> np.ndarray:
+        """E = p_ref - p_predicted, (n, 3) or (m, n, 3), m."""
+        return self.measured - self.predict(theta)
+
+    def jacobian(self, theta, step: float = 1e-7) -> np.ndarray:
+        """d residuals / d free parameters by central differences, (3n, P) (SI units)."""
+        theta = np.asarray(theta, dtype=float)
+        steps = step * np.eye(len(theta))
+        both = self.residuals(np.concatenate([theta + steps, theta - steps]))
+        plus, minus = both[: len(theta)], both[len(theta) :]
+        return ((plus - minus) / (2 * step)).reshape(len(theta), -1).T
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
         """Free-parameter vector (P,) from {name: value}; parameters not given are 0."""
@@ -511,8 +551,25 @@ class BlockModel(MeasurementModel):
         return -0.5 * np.sum(theta**2 * self._prior_precision, axis=-1)
 
     def log_posterior(self, theta, sigma):
-        """The paper's log-posterior plus the extension priors: scalar or (m,); -inf where sigma <= 0."""
-        return super().log_posterior(theta, sigma) + self.log_prior(theta)
+        """The paper's: -(3n + 2) log sigma - E / (2 sigma^2) (flat prior on the registration and
+        the zero-offsets, Jeffreys' on sigma), plus the extension blocks' priors (`log_prior`);
+        -inf where sigma <= 0. Scalar or (m,)."""
+        if np.ndim(sigma) == 0:  # one chain step: plain floats are several times cheaper
+            sigma = float(sigma)
+            if sigma <= 0.0:
+                value = -math.inf
+            else:
+                value = -(3 * self.n_points + 2) * math.log(sigma) - float(self.sum_squares(theta)) / (
+                    2.0 * sigma * sigma
+                )
+        else:
+            sigma = np.asarray(sigma, dtype=float)
+            energy = self.sum_squares(theta)
+            positive = sigma > 0
+            safe = np.where(positive, sigma, 1.0)
+            value = -(3 * self.n_points + 2) * np.log(safe) - energy / (2.0 * safe**2)
+            value = np.where(positive, value, -np.inf)
+        return value + self.log_prior(theta) if self._has_prior else value
 
     def prior_residuals(self, theta) -> np.ndarray:
         """theta_k / std_k of the parameters with a prior (P_prior,) or (m, P_prior): least squares'
@@ -588,8 +645,66 @@ class BlockModel(MeasurementModel):
         return (correction_transforms(every[:, :6]) @ self.t_nr)[0, :3, :3]
 
     def sum_squares(self, theta) -> np.ndarray:
-        """Sum of squared (whitened) residuals E(theta): scalar or (m,)."""
-        return np.sum(self.weighted_residuals(theta) ** 2, axis=(-2, -1))
+        """Sum of squared (whitened) residuals E(theta): scalar or (m,). The paper's model's is
+        compiled (`_kernels.registered_sum_squares`, the same predictions summed in a loop)."""
+        if not self.compiled_posterior:
+            return np.sum(self.weighted_residuals(theta) ** 2, axis=(-2, -1))
+        every = self.full(theta)
+        energy = _kernels.registered_sum_squares(
+            self._kernel.rotations,
+            self._kernel.shifts,
+            self._start,
+            self._cos_q,
+            self._sin_q,
+            every.reshape(-1, every.shape[-1]),
+            self.t_nr,
+            self._measured_t,
+        )
+        return energy if every.ndim == 2 else energy[0]
+
+    def metropolis_block(self, theta, log_prob: float, steps, log_u):
+        """Random-walk Metropolis steps on the paper's model's `log_posterior` over (free
+        parameters, sigma), compiled (`_kernels.metropolis_walk`): from theta (P + 1,) with its
+        log_prob, proposals theta + steps[i] (m, P + 1) accepted when log_u[i] (m,) < the log-ratio.
+        Returns (states (m, P + 1), their log-posteriors (m,), accepted count, index of the first
+        NaN log-posterior or -1). Only for a model with `compiled_posterior`."""
+        if not self.compiled_posterior:
+            raise ValueError("only the paper's model (no extension block, isotropic noise) has a compiled walk")
+        steps = np.ascontiguousarray(steps, dtype=float)
+        states, log_probs = np.empty_like(steps), np.empty(len(steps))
+        accepted, nan_at = _kernels.metropolis_walk(
+            self._kernel.rotations,
+            self._kernel.shifts,
+            self._start,
+            self._cos_q,
+            self._sin_q,
+            self.t_nr,
+            self._measured_t,
+            self.fixed_values,
+            self._free_index,
+            np.asarray(theta, dtype=float),
+            float(log_prob),
+            steps,
+            np.asarray(log_u, dtype=float),
+            states,
+            log_probs,
+        )
+        return states, log_probs, int(accepted), int(nan_at)
+
+
+def paper_model(chain: KinematicChain, q, measured, marker, t_nr, fixed=None, table_rows=None) -> BlockModel:
+    """The paper's model (eqs. point_mod_transf and posterior, `remaster.inference.model`): the
+    registration and zero-offsets alone, flat priors, isotropic noise, for one sensor's measured
+    points. q (n, N) rad; measured (n, 3) m in the sensor frame, all finite (unseen points are
+    excluded by the caller, who counts them); marker (3,) m, flange frame; t_nr (4, 4) the initial
+    registration; fixed: {parameter name: value} held; table_rows (n,): the sensor table's row of
+    each point (default 0..n-1), the model's `data.rows`."""
+    q = np.asarray(q, dtype=float)
+    measured = np.asarray(measured, dtype=float)
+    if measured.shape != (len(q), 3) or not np.all(np.isfinite(measured)):
+        raise ValueError("measured must be finite with shape (n, 3) matching q")
+    rows = np.arange(len(q)) if table_rows is None else np.asarray(table_rows, dtype=int)
+    return BlockModel(chain, Readings(rows, q, measured), marker, t_nr, (), fixed)
 
 
 # --------------------------------------------------------------------------- identifiability of extensions

@@ -33,8 +33,9 @@ import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from . import metrics
+from .blocks import BlockModel
 from .fit import LaplaceReport, Registration, build_model
-from .model import ZeroOffsetModel, by_parameter, display_scale
+from .model import by_parameter, display_scale
 
 SOURCE = "paper posterior mean; std from the pose-clustered sandwich covariance"
 
@@ -53,7 +54,7 @@ def sandwich_covariance(jacobian, residuals, poses) -> np.ndarray:
     return len(labels) / (len(labels) - 1) * bread @ (scores.T @ scores) @ bread
 
 
-def discrepancy_summary(model: ZeroOffsetModel, theta, poses, summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
+def discrepancy_summary(model: BlockModel, theta, poses, summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
     """The fit's summary (`fit.posterior_summary`, SI) with every estimated parameter's std and 95 %
     interval (mean +- 1.96 std) from the sandwich at theta (P,), the paper's fit of `model`
     (outliers out); poses (n,) the model's rows' poses. And a JSON-ready report: each std over
@@ -89,7 +90,7 @@ def discrepancy_stage(
     data = campaign.sensors[sensor]
     model, _, _ = build_model(campaign.chain, data, registration.t_nr, exclude=laplace.outlier_rows)
     laplace.check_names(model.names)
-    poses = data.table.loc[model.table_rows, "pose"].to_numpy()
+    poses = data.table.loc[model.data.rows, "pose"].to_numpy()
     out, report = discrepancy_summary(model, laplace.theta_map, poses, summary)
     report.update(campaign=campaign.name, sensor=sensor)
     return out, report

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
+from . import samplers
 from .blocks import BlockModel
 from .gp.likelihood import LOG_2PI
 from .identifiability import JACOBIAN_STEP
@@ -100,8 +101,6 @@ class PosteriorMode:
 
 def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
-    import scipy.optimize
-
     theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
     k = 3 * model.n_points
     sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
@@ -115,15 +114,8 @@ def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
             )
 
         # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
-        theta = scipy.optimize.least_squares(
-            stacked,
-            theta,
-            jac=lambda t: forward_differences(stacked, t),
-            x_scale=model.scale,
-            method="lm",
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
+        theta = samplers.least_squares_mode(
+            stacked, theta, model.scale, lambda t: forward_differences(stacked, t), method="lm"
         ).x
         previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
         if abs(sigma - previous) <= SIGMA_TOLERANCE * sigma:

@@ -32,7 +32,8 @@ from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
 from . import identifiability, samplers
-from .model import SIGMA, ZeroOffsetModel, display_scale, display_unit
+from .blocks import BlockModel, paper_model
+from .model import SIGMA, display_scale, display_unit
 
 log = logging.getLogger(__name__)
 
@@ -105,13 +106,13 @@ def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str =
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
-    analysis = identifiability.analyse(ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr))
-    model = ZeroOffsetModel(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows)
+    analysis = identifiability.analyse(paper_model(chain, q, measured, sensor.marker, t_nr))
+    model = paper_model(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows)
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
 
 
-def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
+def flag_outliers(model: BlockModel, alpha: float) -> np.ndarray:
     """Table rows of gross measurement errors (a laser tracker's re-acquisition glitch, a swapped
     marker): points whose residual after a robust (Cauchy-loss) least-squares fit is farther
     from the model than an isotropic Gaussian of the robust scale sigma_r (1.4826 MAD of the
@@ -137,7 +138,7 @@ def flag_outliers(model: ZeroOffsetModel, alpha: float) -> np.ndarray:
     sigma_r = 1.4826 * np.median(residual)
     threshold = math.sqrt(scipy.special.chdtri(3, alpha / model.n_points))  # chi2(3).isf, without scipy.stats' import
     far = np.linalg.norm(residual, axis=1) > threshold * sigma_r
-    return model.table_rows[far]
+    return model.data.rows[far]
 
 
 POINTS_PER_CALL = 2**20  # predicted points held at once by a stacked evaluation (24 MB per array)
@@ -147,7 +148,7 @@ POINTS_PER_CALL = 2**20  # predicted points held at once by a stacked evaluation
 class PosteriorTarget:
     """The log-posterior of a model over (free parameters..., noise.sigma), for the samplers."""
 
-    model: ZeroOffsetModel
+    model: BlockModel
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -164,9 +165,9 @@ class PosteriorTarget:
 
     @property
     def walk_block(self):
-        """The model's compiled random-walk block (`ZeroOffsetModel.metropolis_block`) when it has
-        one (the paper's model), else None: the samplers then step in Python."""
-        return getattr(self.model, "metropolis_block", None)
+        """The model's compiled random-walk block (`BlockModel.metropolis_block`) when it has one
+        (the paper's model), else None: the samplers then step in Python."""
+        return self.model.metropolis_block if self.model.compiled_posterior else None
 
     def log_prob_many(self, thetas) -> np.ndarray:
         """Log-posterior (m,) of m vectors (m, P + 1), a slice of at most POINTS_PER_CALL / n
@@ -198,7 +199,7 @@ METHOD_LABELS = {
 }
 
 
-def laplace_fit(model: ZeroOffsetModel) -> samplers.LaplaceResult:
+def laplace_fit(model: BlockModel) -> samplers.LaplaceResult:
     """Least-squares MAP of the model parameters from zero corrections, with its Laplace covariance."""
     target = PosteriorTarget(model)
     return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale, names=model.names)
@@ -209,7 +210,7 @@ def laplace_report(
     analysis: identifiability.Identifiability,
     excluded_rows,
     outlier_rows=(),
-    model: ZeroOffsetModel | None = None,
+    model: BlockModel | None = None,
 ) -> dict:
     """JSON-ready: the MAP, covariance and sigma (SI), the identifiability analysis, the rows
     left out (marker not seen; flagged as outliers), the number of points fitted, and the tool
@@ -303,7 +304,7 @@ class LaplaceReport:
 
 
 def sample(
-    model: ZeroOffsetModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator, progress=None
+    model: BlockModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator, progress=None
 ) -> list[samplers.Chain]:
     """Chains of one method on the model's posterior.
 

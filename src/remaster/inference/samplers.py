@@ -273,7 +273,7 @@ def _walk(
     under/overflow of sigma^-(3n+2). Returns (samples (n_steps, P), log_probs (n_steps,)) when
     `store`, else (None, None), and the number of accepted proposals. With thin > 1 only every
     thin-th state is stored (the random draws, hence the chain, are the same whatever thin is).
-    A target with a `walk_block` (the paper's model: `ZeroOffsetModel.metropolis_block`) runs each
+    A target with a `walk_block` (the paper's model: `BlockModel.metropolis_block`) runs each
     block's accept/reject loop compiled, on the same draws: the same chain to the bit.
     """
     p = len(walker.theta)
@@ -768,6 +768,32 @@ def _undetermined(vt: np.ndarray, small: np.ndarray, names: Sequence[str]) -> li
     return out
 
 
+def least_squares_mode(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    theta0,
+    scale,
+    jacobian="2-point",
+    method: str = "trf",
+    starts=(),
+):
+    """The minimum of the sum of squared residuals(theta) (k,) over theta (P,) SI: scipy's least
+    squares from theta0 (P,) to tolerances of 1e-12, scale (P,) SI step units as its x_scale;
+    jacobian: a callable theta -> (k, P), or scipy's "2-point" forward differences; method: scipy's
+    "trf" or "lm" (MINPACK: no SVD of the whole Jacobian per step). starts (m, P): further starts,
+    the best of all kept. Returns scipy's OptimizeResult (x, cost = SS / 2, jac at x). The mode of
+    both Laplace approximations: the paper fit's (`least_squares_laplace`) and the block models'
+    under their priors (`evidence.posterior_mode`)."""
+    import scipy.optimize
+
+    fits = [
+        scipy.optimize.least_squares(
+            residuals, x, jac=jacobian, x_scale=scale, method=method, xtol=1e-12, ftol=1e-12, gtol=1e-12
+        )
+        for x in [theta0, *starts]
+    ]
+    return min(fits, key=lambda f: f.cost)
+
+
 def least_squares_laplace(
     residuals: Callable[[np.ndarray], np.ndarray],
     theta0,
@@ -789,25 +815,17 @@ def least_squares_laplace(
     below rcond * the largest: their variance would be (near) infinite, and a pseudo-inverse would
     silently report a finite one. See `LaplaceResult` for the sigma formulas.
     """
-    import scipy.optimize
     from scipy.special import gammaln
 
     theta0 = np.asarray(theta0, dtype=float)
     scale = np.broadcast_to(np.asarray(scale, dtype=float), theta0.shape)
     names = tuple(names) if names is not None else tuple(f"theta[{i}]" for i in range(len(theta0)))
-    starts = [theta0]
+    starts = []
     if n_restarts:
         if rng is None:
             raise ValueError("n_restarts > 0 needs rng")
-        starts += list(theta0 + restart_spread * scale * rng.standard_normal((n_restarts, len(theta0))))
-    jac = "2-point" if jacobian is None else jacobian
-    fits = [
-        scipy.optimize.least_squares(
-            residuals, x, jac=jac, x_scale=scale, method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12
-        )
-        for x in starts
-    ]
-    fit = min(fits, key=lambda f: f.cost)
+        starts = list(theta0 + restart_spread * scale * rng.standard_normal((n_restarts, len(theta0))))
+    fit = least_squares_mode(residuals, theta0, scale, "2-point" if jacobian is None else jacobian, "trf", starts)
     r = np.asarray(residuals(fit.x), dtype=float).ravel()
     k, m = r.size, len(theta0)
     sum_squares = float(r @ r)  # scipy's fit.cost is HALF of this

@@ -353,6 +353,30 @@ def removal_groups(added: Sequence[str], brought: Mapping[str, Sequence[str]] | 
     return groups
 
 
+class ForwardRuleScoring:
+    """How `backward_pass` scores a block by default: as if it were offered to the model without it,
+    by the forward rule (`score`), with the signature of what it explains in the model's fit."""
+
+    round_keys: dict = {}  # what each backward round records besides its scores
+    step_suffix = ""  # added to the name of each removal's step
+
+    def __init__(self, settings: LoopSettings):
+        self.settings = settings
+        self._prediction = None
+
+    def start_round(self, current: Fitted) -> None:
+        """Before the blocks of a round are tried out of `current`."""
+        self._prediction = current.model.predict(current.theta)
+
+    def score(self, current: Fitted, without: Fitted) -> dict:
+        """The scores (JSON-ready, with "passed") of the block `without` lacks, against `current`."""
+        signature = Signature(without.residuals(), self._prediction - without.model.predict(without.theta))
+        return {**score(without, current, self.settings), "explained_fraction": signature.explained}
+
+    def removed(self, current: Fitted) -> None:
+        """After a removal, `current` the model left."""
+
+
 def backward_pass(
     chain: KinematicChain,
     data: Readings,
@@ -365,45 +389,48 @@ def backward_pass(
     added: Sequence[str],
     number: int,
     brought: Mapping[str, Sequence[str]] | None = None,
+    scoring: ForwardRuleScoring | GPPresentScoring | None = None,
 ) -> tuple[Fitted, list[str], list[dict], list[tuple[str, Fitted]]]:
-    """After the forward pass: each added block is tried out of the model (the rest present) and
-    scored as if it were offered to the model without it, by the forward rule (`passes`); of those
-    that would not pass, the one of least evidence gain is removed, the model refitted without it,
-    and the pass repeated until every block left passes. A block another added block needs as its
-    companion (`COMPANIONS`) is not tried alone, and a block is tried out together with the
-    companions it brought into the model (brought: {block: the blocks its forward round added}),
-    so that it is scored as the forward pass offered it: the link geometry without its marker
-    offset explains no rigid error of the tool. number: the rounds so far.
+    """After the forward pass: each added block is tried out of the model (the rest present), the
+    model refitted without it and the block scored by `scoring` (default `ForwardRuleScoring`: as if
+    it were offered to the model without it, by the forward rule `passes`; `GPPresentScoring`: with
+    the residual GP present, `residual_backward_pass`); of those that would not pass, the one of
+    least evidence gain is removed and the pass repeated until every block left passes. A block
+    another added block needs as its companion (`COMPANIONS`) is not tried alone, and a block is
+    tried out together with the companions it brought into the model (brought: {block: the blocks
+    its forward round added}), so that it is scored as the forward pass offered it: the link
+    geometry without its marker offset explains no rigid error of the tool. number: the rounds so far.
 
     Returns the final fit, the blocks left (in the order added), the backward rounds (JSON-ready,
     'pass': 'backward', 'removed': the block or None; empty when nothing was added) and the
     (step name, fit) of each removal."""
+    scoring = ForwardRuleScoring(settings) if scoring is None else scoring
     added, rounds, removals = list(added), [], []
     while True:
         groups = removal_groups(added, brought)
         if not groups:
             return current, added, rounds, removals
         number += 1
-        prediction = current.model.predict(current.theta)
+        scoring.start_round(current)
         scores, fits = {}, {}
-        for block in groups:
-            rest = tuple(b for b in added if b not in groups[block])
+        for block, group in groups.items():
+            rest = tuple(b for b in added if b not in group)
             try:
                 without = fit_blocks(
                     chain, data, marker, t_nr, rest, base_held, folds, settings.priors, current.values()
                 )
+                scores[block] = scoring.score(current, without)
             except np.linalg.LinAlgError as exc:  # the model without it is not determined: keep it
                 scores[block] = {"skipped": f"the model without it is not identifiable: {exc}"}
                 continue
             fits[block] = without
-            signature = Signature(without.residuals(), prediction - without.model.predict(without.theta))
-            scores[block] = {**score(without, current, settings), "explained_fraction": signature.explained}
         failing = [b for b in fits if not scores[b]["passed"]]
         weakest = min(failing, key=lambda b: scores[b]["log_evidence_gain"]) if failing else None
         rounds.append(
             {
                 "round": number,
                 "pass": "backward",
+                **scoring.round_keys,
                 "model": list(blocks.BASE) + added,
                 "scores": scores,
                 "added": None,
@@ -416,7 +443,8 @@ def backward_pass(
         current = fits[weakest]
         for block in groups[weakest]:
             added.remove(block)
-        removals.append((f"without {' + '.join(groups[weakest])}", current))
+        scoring.removed(current)
+        removals.append((f"without {' + '.join(groups[weakest])}{scoring.step_suffix}", current))
 
 
 @dataclass(frozen=True, eq=False)
@@ -573,6 +601,72 @@ def choose_noise(
     return Fitted(mode, current.reduction, evidence.cross_validate(mode, folds)), report
 
 
+class GPPresentScoring:
+    """How `residual_backward_pass` scores a block: the model with it and the model without it, each
+    with the residual GP present, compared by the forward rule (`passes`) on their evidences and
+    pose-grouped cross-validations with the parameters integrated together with the GP
+    (`remaster.inference.gp.with_parameters`; each model's GP hyperparameters fitted to its residuals). Above
+    `with_parameters.MAX_ROWS` rows, or once that comparison is not determined, the parameters stay at their
+    mode and the GP's gain on each model's residuals is added to its Laplace evidence
+    (`gp_joint_fixed_mode`), which the scores say. `gp`: the GP on the current model's residuals,
+    refitted after each removal."""
+
+    round_keys = {"with": GP}
+    step_suffix = f" ({GP} present)"
+
+    def __init__(self, data: Readings, folds: np.ndarray, settings: LoopSettings, gp: loop_candidate.Candidate):
+        self.data, self.folds, self.settings, self.gp = data, folds, settings, gp
+        self.exact = data.q.shape[0] <= with_parameters.MAX_ROWS
+        self._log_z, self._cv = None, None
+
+    def _with_gp(self, fitted: Fitted, hyper: Hyperparameters) -> tuple[float, evidence.CrossValidation]:
+        joint = with_parameters.with_gp(fitted.mode, self.data.q, hyper, self.folds)
+        return joint.log_evidence, joint.cv
+
+    @staticmethod
+    def _fixed_mode(fitted: Fitted, candidate: loop_candidate.Candidate) -> tuple[float, evidence.CrossValidation]:
+        return (
+            fitted.mode.log_evidence + candidate.log_evidence_gain,
+            evidence.CrossValidation(candidate.mse, candidate.points),
+        )
+
+    def start_round(self, current: Fitted) -> None:
+        if self.exact:
+            try:
+                self._log_z, self._cv = self._with_gp(current, self.gp.gp.hyper)
+            except np.linalg.LinAlgError:  # not determined with the GP present: the fixed-mode scores, said so
+                self.exact = False
+        if not self.exact:
+            self._log_z, self._cv = self._fixed_mode(current, self.gp)
+
+    def score(self, current: Fitted, without: Fitted) -> dict:
+        rotation = without.model.sensor_rotation(without.theta)
+        if self.exact:
+            hyper = fit_hyperparameters(
+                self.data.q, without.residuals() @ rotation, int(self.settings.residual_gp["subset"]), self.gp.gp.hyper
+            )
+            log_z_without, cv_without = self._with_gp(without, hyper)
+        else:
+            log_z_without, cv_without = self._fixed_mode(
+                without, gp_candidate(without, self.data, rotation, self.folds, self.settings)
+            )
+        out = {
+            "log_evidence_gain": self._log_z - log_z_without,
+            "log_evidence_with_gp": self._log_z,
+            "log_evidence_without_with_gp": log_z_without,
+            **evidence.cv_gain(cv_without, self._cv),
+            "parameters": list(current.reduction.kept),
+            "evidence": "gp_joint" if self.exact else "gp_joint_fixed_mode",
+        }
+        out["passed"] = passes(out, self.settings)
+        return out
+
+    def removed(self, current: Fitted) -> None:
+        self.gp = gp_candidate(
+            current, self.data, current.model.sensor_rotation(current.theta), self.folds, self.settings
+        )
+
+
 def residual_backward_pass(
     chain: KinematicChain,
     data: Readings,
@@ -589,94 +683,15 @@ def residual_backward_pass(
 ) -> tuple[Fitted, list[str], loop_candidate.Candidate, list[dict], list[tuple[str, Fitted]]]:
     """The parametric blocks scored again with the residual model present, once the GP is added: a
     block taken only because it absorbed part of what the GP explains (a proxy, e.g. a sensor scale
-    standing in for a joint-space error) no longer passes. Each added block (with the companions it
-    brought, as in `backward_pass`) is taken out and the model with it and the model without it,
-    each with the GP present, are compared by the forward rule (`passes`): their evidences and
-    pose-grouped cross-validations with the parameters integrated together with the GP
-    (`remaster.inference.gp.with_parameters`; each model's GP hyperparameters fitted to its residuals). Above
-    `with_parameters.MAX_ROWS` rows the parameters stay at their mode and the GP's gain on each model's
-    residuals is added to its Laplace evidence (`gp_joint_fixed_mode`), which the scores say. Of
-    the blocks that fail, the one of least evidence gain is removed and the pass repeated.
+    standing in for a joint-space error) no longer passes. `backward_pass` with `GPPresentScoring`.
 
     Returns the final parametric fit, the blocks left, the GP on its residuals, the rounds
     (JSON-ready, 'pass': 'backward', 'with': 'residual_gp') and the (step name, fit) of each removal."""
-    added, rounds, removals = list(added), [], []
-    exact = data.q.shape[0] <= with_parameters.MAX_ROWS
-
-    def with_gp(fitted: Fitted, hyper: Hyperparameters) -> tuple[float, evidence.CrossValidation]:
-        joint = with_parameters.with_gp(fitted.mode, data.q, hyper, folds)
-        return joint.log_evidence, joint.cv
-
-    def fixed_mode(fitted: Fitted, candidate: loop_candidate.Candidate) -> tuple[float, evidence.CrossValidation]:
-        return (
-            fitted.mode.log_evidence + candidate.log_evidence_gain,
-            evidence.CrossValidation(candidate.mse, candidate.points),
-        )
-
-    while True:
-        groups = removal_groups(added, brought)
-        if not groups:
-            return current, added, gp, rounds, removals
-        number += 1
-        if exact:
-            try:
-                log_z, cv = with_gp(current, gp.gp.hyper)
-            except np.linalg.LinAlgError:  # not determined with the GP present: the fixed-mode scores, said so
-                exact = False
-        if not exact:
-            log_z, cv = fixed_mode(current, gp)
-        scores, fits = {}, {}
-        for block, group in groups.items():
-            rest = tuple(b for b in added if b not in group)
-            try:
-                without = fit_blocks(
-                    chain, data, marker, t_nr, rest, base_held, folds, settings.priors, current.values()
-                )
-                rotation = without.model.sensor_rotation(without.theta)
-                if exact:
-                    hyper = fit_hyperparameters(
-                        data.q, without.residuals() @ rotation, int(settings.residual_gp["subset"]), gp.gp.hyper
-                    )
-                    log_z_without, cv_without = with_gp(without, hyper)
-                else:
-                    log_z_without, cv_without = fixed_mode(
-                        without, gp_candidate(without, data, rotation, folds, settings)
-                    )
-            except np.linalg.LinAlgError as exc:
-                scores[block] = {"skipped": f"the model without it is not identifiable: {exc}"}
-                continue
-            fits[block] = (without, group)
-            out = {
-                "log_evidence_gain": log_z - log_z_without,
-                "log_evidence_with_gp": log_z,
-                "log_evidence_without_with_gp": log_z_without,
-                **evidence.cv_gain(cv_without, cv),
-                "parameters": list(current.reduction.kept),
-                "evidence": "gp_joint" if exact else "gp_joint_fixed_mode",
-            }
-            out["passed"] = passes(out, settings)
-            scores[block] = out
-        failing = [b for b in fits if not scores[b]["passed"]]
-        weakest = min(failing, key=lambda b: scores[b]["log_evidence_gain"]) if failing else None
-        rounds.append(
-            {
-                "round": number,
-                "pass": "backward",
-                "with": GP,
-                "model": list(blocks.BASE) + added,
-                "scores": scores,
-                "added": None,
-                "removed": weakest,
-                **({"removed_with": fits[weakest][1][1:]} if weakest and len(fits[weakest][1]) > 1 else {}),
-            }
-        )
-        if weakest is None:
-            return current, added, gp, rounds, removals
-        current, group = fits[weakest]
-        gp = gp_candidate(current, data, current.model.sensor_rotation(current.theta), folds, settings)
-        for block in group:
-            added.remove(block)
-        removals.append((f"without {' + '.join(group)} ({GP} present)", current))
+    scoring = GPPresentScoring(data, folds, settings, gp)
+    current, added, rounds, removals = backward_pass(
+        chain, data, marker, t_nr, base_held, folds, settings, current, added, number, brought, scoring
+    )
+    return current, added, scoring.gp, rounds, removals
 
 
 def gp_candidate(

@@ -35,7 +35,6 @@ import numpy as np
 
 from ..inference import identifiability
 from ..inference.blocks import BlockModel, Readings, spread_configurations, structural_redundancy
-from ..inference.model import ZeroOffsetModel
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
 
@@ -120,8 +119,7 @@ def complete_error_model(
     t_nr = np.asarray(t_nr, dtype=float)
     spread = spread_configurations(chain)
     if held is None:
-        paper = ZeroOffsetModel(chain, spread, np.zeros((len(spread), 3)), marker, t_nr)
-        held = dict(identifiability.analyse(paper).held)
+        held = dict(identifiability.analyse(BlockModel(chain, probe_readings(spread), marker, t_nr)).held)
     held = dict(held)
     structural = structural_redundancy(BlockModel(chain, probe_readings(spread), marker, t_nr, blocks, held))
     held.update({name: 0.0 for name in structural})
