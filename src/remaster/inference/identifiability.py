@@ -30,15 +30,12 @@ invisible; the analysis finds each the same way.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from .model import display_unit
 from .samplers import RCOND, undetermined_directions
-
-if TYPE_CHECKING:  # blocks imports this module's JACOBIAN_STEP
-    from .blocks import BlockModel
 
 # Central differences with a 1e-6 rad/m step are exact to ~1e-10 relative, so a true null
 # direction sits many decades below RCOND, and a merely weak one (1e-4 and up) far above it.
@@ -166,7 +163,17 @@ def hold_undetermined(
     raise RuntimeError("holding one parameter per null direction did not make the rest identifiable")
 
 
-def analyse(model: BlockModel, rcond: float = RELATIVE_THRESHOLD) -> Identifiability:
+class LinearisedModel(Protocol):
+    """What the analysis needs of a model (a `blocks.BlockModel`, which imports this module's
+    JACOBIAN_STEP): its parameter names and scales, and its Jacobian at theta."""
+
+    names: list[str]
+    scale: np.ndarray
+
+    def jacobian(self, theta: np.ndarray, step: float) -> np.ndarray: ...
+
+
+def analyse(model: LinearisedModel, rcond: float = RELATIVE_THRESHOLD) -> Identifiability:
     """Analyse a model whose parameters are all free, at zero corrections."""
     theta = np.zeros(len(model.names))
     jacobian = model.jacobian(theta, JACOBIAN_STEP)
