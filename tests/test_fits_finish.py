@@ -120,6 +120,7 @@ def near_collinear_configurations(chain, marker, rng, n=6, off_line=2e-3):
     direction = np.array([0.0, 0.6, 0.1])
     across = np.cross(direction, [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
+    solver = ik.SRSInverseKinematics(chain)
     configurations = []
     for k, t in enumerate(np.linspace(0.0, 1.0, n)):
         point = np.array([0.55, -0.3, 0.45]) + t * direction + off_line * (-1) ** k * across
@@ -128,7 +129,7 @@ def near_collinear_configurations(chain, marker, rng, n=6, off_line=2e-3):
             rotation = Rotation.from_euler("xyz", angles).as_matrix()
             pose = np.eye(4)
             pose[:3, :3], pose[:3, 3] = rotation, point - rotation @ marker
-            solutions = ik.inverse_kinematics(chain, pose, q3=rng.uniform(-0.5, 0.5))
+            solutions = solver.solve(pose, q3=rng.uniform(-0.5, 0.5))
             if len(solutions):
                 configurations.append(solutions[0])
                 break

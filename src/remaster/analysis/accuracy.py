@@ -129,10 +129,6 @@ class Remastered:
         """Marker positions (n, 3) m in the robot frame at readings q (n, N)."""
         return ForwardKinematics(chain, q).points(marker, self.zero_offsets)
 
-    def sensor_points(self, chain: KinematicChain, q, marker) -> np.ndarray:
-        """Marker positions (n, 3) m in the sensor frame."""
-        return spatial.transform_points(self.sensor_from_robot, self.robot_points(chain, q, marker))
-
     def registered_to(self, chain: KinematicChain, q, measured, marker) -> Remastered:
         """The same zero-offsets with the least-squares registration onto measured points (n, 3)."""
         return replace(self, sensor_from_robot=registration.kabsch(self.robot_points(chain, q, marker), measured))

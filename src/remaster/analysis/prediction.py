@@ -477,26 +477,6 @@ def calibrated_entries(
 PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement": prediction_agreement}
 
 
-def prediction_table(
-    name: str,
-    campaigns,
-    summaries,
-    laplaces,
-    loops=None,
-    paper_samples=None,
-    loop_samples=None,
-    n_configurations: int = 1000,
-    seed: int = 0,
-    draw_pairs: int = 200,
-) -> pd.DataFrame:
-    """One of PREDICTION_TABLES by name, of the campaigns' calibrations (arguments as
-    `calibrated_entries`)."""
-    if name not in PREDICTION_TABLES:
-        raise ValueError(f"unknown prediction table {name!r}; tables: {sorted(PREDICTION_TABLES)}")
-    entries = calibrated_entries(campaigns, summaries, laplaces, loops, paper_samples, loop_samples)
-    return PREDICTION_TABLES[name](entries, n_configurations, seed, draw_pairs)
-
-
 CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
     "each campaign's validation set of the same sensor, registration refitted on that campaign's "

@@ -377,15 +377,6 @@ def chain_from_dh(
 # --------------------------------------------------------------------------- forward kinematics
 
 
-def _angles(q, zero_offsets) -> np.ndarray:
-    """q (n, N) plus offsets (N,) or (m, N) -> (n, N) or (m, n, N)."""
-    q = np.asarray(q, dtype=float)
-    if zero_offsets is None:
-        return q
-    offsets = np.asarray(zero_offsets, dtype=float)
-    return q + offsets[..., None, :] if offsets.ndim == 2 else q + offsets
-
-
 def _basis_with_z(axis) -> np.ndarray:
     """An orthonormal right-handed basis (3, 3) whose third column is the unit `axis` (the
     identity when the axis is z already, so that z-axis chains stay exact)."""
@@ -491,14 +482,6 @@ class ForwardKinematics:
         self.q = q
         self.cos_q = np.cos(q)
         self.sin_q = np.sin(q)
-        # Rot(a, q + d) = Rot(a, q) Rot(a, d): the reading's part of each joint is folded into its
-        # fixed transform once, as (N, 3, 3, n) with configurations last so that each joint costs
-        # one small matrix product and one broadcast multiply-add per call (the NumPy reference).
-        self._axis_k = spatial.skew(chain.joint_axes)  # (N, 3, 3)
-        self._axis_k2 = self._axis_k @ self._axis_k
-        readings = self._axis_rotations(self.cos_q, self.sin_q)  # (n, N, 3, 3)
-        self._moved = np.ascontiguousarray(np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
-        self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
         self.kernel = KernelForm.of(chain)
         self.kernel_rotations, self.kernel_shifts = self.kernel.rotations, self.kernel.shifts
         self.kernel_cos_q = np.ascontiguousarray(self.cos_q.T)
@@ -507,10 +490,6 @@ class ForwardKinematics:
     def flange_point(self, point_in_flange) -> np.ndarray:
         """A point given in the flange frame, in the last joint's z-aligned frame (3,)."""
         return self.kernel.start(point_in_flange)
-
-    def _axis_rotations(self, cos, sin) -> np.ndarray:
-        """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""
-        return np.eye(3) + sin[..., None, None] * self._axis_k + (1.0 - cos)[..., None, None] * self._axis_k2
 
     def _trig(self, zero_offsets):
         if zero_offsets is None:
@@ -538,19 +517,6 @@ class ForwardKinematics:
             np.sin(stack),
         )
         return out if offsets.ndim == 2 else out[0]
-
-    def points_numpy(self, point_in_flange, zero_offsets=None) -> np.ndarray:
-        """`points` in plain NumPy: the reference the compiled kernel is tested against."""
-        x = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
-        offsets = None if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
-        rotations = None if offsets is None else self._axis_rotations(np.cos(offsets), np.sin(offsets))
-        lead = () if offsets is None or offsets.ndim == 1 else offsets.shape[:1]
-        x = np.broadcast_to(x[:, None], lead + (3, len(self.q)))
-        for j in range(self.chain.n_joints - 1, -1, -1):
-            if rotations is not None:
-                x = rotations[..., j, :, :] @ x
-            x = (self._moved[j] * x[..., None, :, :]).sum(-2) + self._shift[j]
-        return np.swapaxes(x, -1, -2)
 
     def flange_poses(self, zero_offsets=None) -> np.ndarray:
         """Flange poses in the base frame, (n, 4, 4) or (m, n, 4, 4)."""
