@@ -63,8 +63,8 @@ def loop_settings(config=None, **changes):
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
     """A loop closure's report (`remaster.loop.report.LoopReport`) as read from its file, with what
     the later stages read: the refit's parameter rows, the effects added, the closure test, and
-    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model);
-    `fields` overrides any top-level key."""
+    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model,
+    no gross error, no between-design component); `fields` overrides any top-level key."""
     from remaster.loop.report import LoopReport
 
     accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
@@ -76,6 +76,7 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
             "payload_mass_kg": 1.0,
             "payload_com_m": [0.0, 0.0, 0.02],
             "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}},
+            "harmonic_orders": 1,
         },
         "effects_added": list(effects),
         "explained_fraction_when_added": {},
@@ -95,6 +96,8 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
         "closure": dict(closure or {}),
         "residual_gp": None,
         "noise_model": {"offered": False, "chosen": "isotropic", "why": "not a laser tracker"},
+        "gross_errors": {"optimization": [], "validation": [], "with_flagged_rows": {}},
+        "between_design": {m: {"groups": 0, "method": "not computed", "parameters": {}} for m in ("paper", "loop")},
         **fields,
     }
     return LoopReport.of(content, source)

@@ -348,8 +348,7 @@ def test_a_twin_like_campaign_passes():
 
 
 def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
-    """The gross-error screen's validation rows (LoopReport.gross_errors, when it has them) are left
-    out of the check: a 3 mm glitch in a clean campaign fails it unless it is left out."""
+    """The gross-error screen's validation rows (LoopReport.gross_errors) are left out of the check: a 3 mm glitch in a clean campaign fails it unless it is left out."""
     spec = iiwa_scenario("glitch", seed=31)
     chain = chain_of(spec)
     simulated = scenario.simulate(spec, chain)
@@ -369,7 +368,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     loop.report.write(folder.parent / "loop.json")
     results = {}
     for flagged in ([], [row]):
-        # the report as the gross-error screen extends it (a field read defensively by the test)
+        # the report with the glitch's row flagged by the screen, or not
         report = LoopReport.read(folder.parent / "loop.json")
         object.__setattr__(report, "gross_errors", {"optimization": [], "validation": flagged})
         results[len(flagged)] = acceptance.acceptance_stage(

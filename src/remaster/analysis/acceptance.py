@@ -454,7 +454,7 @@ def accept(
     loop closure's report, MCMC samples and residual-GP training rows; rng draws the posterior rows
     and the noise; level: the p-value below which a model fails; draws: replicates per model;
     registration_share: the share of the excess a refit registration must remove to explain it."""
-    flagged = sorted(int(r) for r in ((getattr(loop, "gross_errors", None) or {}).get("validation") or ()))
+    flagged = sorted(int(r) for r in loop.gross_errors["validation"])
     settings = ModelSettings(
         payload_mass=loop.payload_mass,
         payload_com=loop.payload_com,

@@ -78,7 +78,6 @@ def _checked_keys(mapping, known: tuple[str, ...], where: str, hint: str = "") -
 
 
 LINK_MOTION_KEYS = ("translation_std", "rotation_std", "seed")  # m, rad
-LEGACY_LINK_KEYS = ("length_std", "twist_std", "seed")  # m, rad: truth files before rigid link motions
 DH_ERROR_KEYS = ("std", "seed")  # std: [a (m), alpha (rad), d (m), theta (rad)]
 TRUTH_KEYS = (
     "zero_offsets_deg",
@@ -92,26 +91,14 @@ TRUTH_KEYS = (
 )
 
 
-def _link_truth(sizes, n_joints: int, rng: np.random.Generator) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(legacy link errors (N + 1, 2), rigid link motions (N + 1, 6)) of `truth/link_errors`: the
-    legacy stretch and twist when it names length_std/twist_std, rigid motions otherwise."""
+def _link_truth(sizes, n_joints: int, rng: np.random.Generator) -> np.ndarray:
+    """Rigid link motions (N + 1, 6) of `truth/link_errors` (`simulation.moved_transforms`)."""
     where = "truth/link_errors"
-    _checked_keys(sizes, tuple(dict.fromkeys(LINK_MOTION_KEYS + LEGACY_LINK_KEYS)), where)
-    legacy = [k for k in ("length_std", "twist_std") if k in sizes]
-    rigid = [k for k in ("translation_std", "rotation_std") if k in sizes]
-    if legacy and rigid:
-        raise InputError(
-            "either rigid link motions {translation_std, rotation_std, seed} (m, rad) or the legacy "
-            "{length_std, twist_std, seed}, not both",
-            key=f"{where}/{legacy[0]}",
-        )
+    _checked_keys(sizes, LINK_MOTION_KEYS, where)
     draw = _own_draw(sizes, where, rng)
     count = n_joints + 1  # F_1 .. F_N, F_tool
-    if legacy:
-        length, twist = _std(sizes, "length_std", where), _std(sizes, "twist_std", where)
-        return np.column_stack([draw.normal(0.0, length, count), draw.normal(0.0, twist, count)]), None
     translation, rotation = _std(sizes, "translation_std", where), _std(sizes, "rotation_std", where)
-    return None, np.hstack([draw.normal(0.0, translation, (count, 3)), draw.normal(0.0, rotation, (count, 3))])
+    return np.hstack([draw.normal(0.0, translation, (count, 3)), draw.normal(0.0, rotation, (count, 3))])
 
 
 def _dh_truth(sizes, robot_spec: dict, n_joints: int, rng: np.random.Generator) -> DHErrors:
@@ -139,9 +126,7 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
     offsets = _vector(truth, "zero_offsets_deg", n_joints, np.pi / 180.0)
     if offsets is None:
         raise InputError("a scenario needs the true zero-offsets", key="truth/zero_offsets_deg")
-    link_errors = link_motions = None
-    if truth.get("link_errors"):
-        link_errors, link_motions = _link_truth(truth["link_errors"], n_joints, rng)
+    link_motions = _link_truth(truth["link_errors"], n_joints, rng) if truth.get("link_errors") else None
     dh_errors = _dh_truth(truth["dh_errors"], spec.get("robot"), n_joints, rng) if truth.get("dh_errors") else None
     payload = truth.get("payload") or {}
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
@@ -168,7 +153,6 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
         joint_compliance=_vector(truth, "joint_compliance", n_joints),
         payload_mass=float(payload.get("mass", 0.0)),
         payload_com=np.asarray(payload.get("com", [0, 0, 0]), float),
-        link_errors=link_errors,
         joint_scale=_vector(truth, "joint_scale", n_joints),
         drift_rate=drift,
         cyclic_error=cyclic,
@@ -558,7 +542,7 @@ def robot_from_truth(truth: dict) -> TrueRobot:
     """The true robot of a ground-truth record (data/truth/<campaign>.json, as `simulate` writes
     it): the inverse of its `zero_offsets_deg` and `effects`."""
     effects = truth.get("effects", {})
-    compliance, links = effects.get("joint_compliance"), effects.get("link_geometry")
+    compliance = effects.get("joint_compliance")
     cyclic, drift = effects.get("cyclic_error"), effects.get("drift")
     motions, dh = effects.get("link_motions"), effects.get("dh_errors")
     return TrueRobot(
@@ -566,7 +550,6 @@ def robot_from_truth(truth: dict) -> TrueRobot:
         joint_compliance=np.array(compliance["compliance_rad_per_Nm"]) if compliance else None,
         payload_mass=float(compliance["payload_mass_kg"]) if compliance else 0.0,
         payload_com=np.array(compliance["payload_com_m"]) if compliance else np.zeros(3),
-        link_errors=np.column_stack([links["length_errors_m"], links["twist_errors_rad"]]) if links else None,
         joint_scale=np.array(effects["joint_scale"]["scale"]) if "joint_scale" in effects else None,
         drift_rate=np.radians(drift["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR if drift else None,
         cyclic_error=_cyclic_terms(cyclic) if cyclic else None,
@@ -602,12 +585,6 @@ def _effects_record(robot: TrueRobot) -> dict:
             "compliance_rad_per_Nm": robot.joint_compliance.tolist(),
             "payload_mass_kg": robot.payload_mass,
             "payload_com_m": robot.payload_com.tolist(),
-        }
-    if robot.link_errors is not None:
-        effects["link_geometry"] = {
-            "length_errors_m": robot.link_errors[:, 0].tolist(),
-            "twist_errors_rad": robot.link_errors[:, 1].tolist(),
-            "links": "F_1 .. F_N, F_tool (the fixed transform before each joint, then the tool)",
         }
     if robot.link_motions is not None:
         effects["link_motions"] = {
