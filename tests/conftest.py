@@ -8,21 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from remaster.campaigns.arm_kinds import UR5_DH
 from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
 UR5_URDF = Path(__file__).resolve().parent / "data" / "ur5_nominal.urdf"
-# Universal Robots UR5 nominal standard DH table [a, alpha, d, theta offset]; ur5_nominal.urdf is the same chain.
-UR5_DH = [
-    [0.0, np.pi / 2, 0.089159, 0.0],
-    [-0.425, 0.0, 0.0, 0.0],
-    [-0.39225, 0.0, 0.0, 0.0],
-    [0.0, np.pi / 2, 0.10915, 0.0],
-    [0.0, -np.pi / 2, 0.09465, 0.0],
-    [0.0, 0.0, 0.0823, 0.0],
-]
+# UR5_DH (`arm_kinds`): Universal Robots UR5 nominal standard DH table; ur5_nominal.urdf is the same chain.
 
 
 @pytest.fixture(scope="session")

@@ -21,6 +21,7 @@ from remaster import files, spatial
 from remaster.analysis import acceptance
 from remaster.analysis.acceptance import FAIL, MOVED, NOT_CONFIRMED, NOT_HELD, PASS, Acceptance, Claim
 from remaster.campaigns import folders, scenario
+from remaster.campaigns.arm_kinds import TRACKER, chain_of, iiwa_scenario
 from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_side
 from remaster.errors import InputError
 from remaster.inference import fit
@@ -29,7 +30,6 @@ from remaster.loop.report import LoopReport
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 
-from .arm_kinds import TRACKER, chain_of, iiwa_scenario
 from .conftest import REPO, validated_config
 
 MM = 1e-3
@@ -150,7 +150,7 @@ def test_a_failure_is_diagnosed_in_the_stated_order(checks, effects, expected):
 
 def test_a_bumped_sensor_moves_the_validation_readings_only_and_a_distortion_every_reading():
     spec = iiwa_scenario("side", seed=41)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     plain = scenario.simulate(spec, chain)
     moved = iiwa_scenario("side", seed=41, sensors={"laser_tracker": {**TRACKER, "moved_between_sets": BUMP}})
     bumped = scenario.simulate(moved, chain)
@@ -196,10 +196,10 @@ def test_a_bad_sensor_side_key_is_named():
         "bad", sensors={"laser_tracker": {**TRACKER, "moved_between_sets": {"translation": [1, 2, 3]}}}
     )
     with pytest.raises(InputError, match="sensors/laser_tracker/moved_between_sets/translation"):
-        scenario.simulate(spec, chain_of(spec))
+        scenario.simulate(spec, chain_of(spec, REPO))
     spec = iiwa_scenario("bad", sensors={"laser_tracker": {**TRACKER, "frame_distortion": {"scale": [1e-3]}}})
     with pytest.raises(InputError, match="sensors/laser_tracker/frame_distortion/scale"):
-        scenario.simulate(spec, chain_of(spec))
+        scenario.simulate(spec, chain_of(spec, REPO))
 
 
 # --------------------------------------------------------------------------- the report file
@@ -240,7 +240,7 @@ def accepted(
     """Simulate `spec`, calibrate its `sensor` by the pipeline's stages with config.yaml's settings
     (the loop's candidates but those in `without`), then run the acceptance test at config.yaml's
     acceptance settings. Returns the result and the simulated campaign (tables and truth)."""
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     folder = Path(tempfile.mkdtemp()) / spec["name"]
     folders.write_campaign(folder, simulated.metadata, simulated.tables)
@@ -350,7 +350,7 @@ def test_a_twin_like_campaign_passes():
 def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     """The gross-error screen's validation rows (LoopReport.gross_errors) are left out of the check: a 3 mm glitch in a clean campaign fails it unless it is left out."""
     spec = iiwa_scenario("glitch", seed=31)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     table = simulated.tables["laser_tracker"]
     row = int(np.flatnonzero((table["set"] == "validation").to_numpy() & table["x"].notna().to_numpy())[0])
@@ -397,7 +397,7 @@ def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path)
     from .test_certificate import SUMMARY, _inputs
 
     spec = iiwa_scenario("unvalidated", seed=34)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     table = simulated.tables["laser_tracker"]
     simulated.tables["laser_tracker"] = table[table["set"] == "optimization"].reset_index(drop=True)

@@ -186,3 +186,34 @@ def test_jobs_that_only_read_results_import_no_solver():
         check=True,
     ).stdout.strip()
     assert "scipy.optimize" in seen
+
+
+# --------------------------------------------------------------------------- benchmarks and tests
+
+
+def _imports_from(source: str, package: str) -> list[str]:
+    """The imports of `package` or its modules in `source`, as 'line N: module'."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        names = (
+            [a.name for a in node.names]
+            if isinstance(node, ast.Import)
+            else [node.module or ""]
+            if isinstance(node, ast.ImportFrom) and not node.level
+            else []
+        )
+        found += [f"line {node.lineno}: {n}" for n in names if n == package or n.startswith(f"{package}.")]
+    return found
+
+
+def test_no_benchmark_imports_from_the_tests():
+    """What a benchmark shares with the tests lives in the library (e.g. `campaigns.arm_kinds`) or
+    beside the benchmarks (benchmarks/truth_claims.py), never in tests/."""
+    assert _imports_from("from tests.arm_kinds import x\nimport tests\nfrom testsuite import y\n", "tests") == [
+        "line 1: tests.arm_kinds",
+        "line 2: tests",
+    ]
+    benchmarks = sorted((Path(__file__).parents[1] / "benchmarks").glob("*.py"))
+    assert benchmarks, "no benchmark found"
+    offenders = {p.name: hits for p in benchmarks if (hits := _imports_from(p.read_text(encoding="utf-8"), "tests"))}
+    assert offenders == {}

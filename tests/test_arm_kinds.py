@@ -1,4 +1,4 @@
-"""The kinds of arm and campaign real calibrations meet (tests/arm_kinds.py), simulated: each one's
+"""The kinds of arm and campaign real calibrations meet (`remaster.campaigns.arm_kinds`), simulated: each one's
 tables are what its truth record says, it writes and reads back as a campaign folder, and it has
 the property that makes it that kind. The truth's link errors are not the fit's model."""
 
@@ -6,10 +6,9 @@ import numpy as np
 import pytest
 
 from remaster import files, spatial
-from remaster.campaigns import folders, scenario, simulation
+from remaster.campaigns import arm_kinds, folders, scenario, simulation
 from remaster.robot import kinematics, planning
 
-from . import arm_kinds
 from .conftest import REPO
 
 _simulated = {}
@@ -19,7 +18,7 @@ def simulated(kind: str):
     """(scenario, nominal chain, SimulatedCampaign) of a kind, simulated once per session."""
     if kind not in _simulated:
         spec = arm_kinds.KINDS[kind]()
-        chain = arm_kinds.chain_of(spec)
+        chain = arm_kinds.chain_of(spec, REPO)
         _simulated[kind] = (spec, chain, scenario.simulate(spec, chain))
     return _simulated[kind]
 

@@ -359,7 +359,7 @@ def test_chain_report_and_moments_on_nan_and_empty_chains():
 
 # ----------------------------------------------------------------------------- the arms real calibrations meet
 
-HELD = {  # what each kind of tests/arm_kinds.py leaves undetermined, by its construction
+HELD = {  # what each kind of `arm_kinds` leaves undetermined, by its construction
     "joints_one_and_seven_held": {"zero_offsets.q1", "zero_offsets.q2"},  # q1 still: q2 a rigid rotation too
     "ur5_with_dh_errors": {"zero_offsets.q1", "zero_offsets.q6"},  # the marker on the UR5's last axis
 }

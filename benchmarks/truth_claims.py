@@ -5,8 +5,10 @@ configurations inside the measured joint ranges (`domain.MeasuredDomain`); and t
 one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
 percentile of the registered error there.
 
-Used by tests/test_truth_claims.py (small campaigns) and benchmarks/bench_truth_claims.py (campaigns
-of the paper's size). The campaign goes through the pipeline's own stages in-process (registration,
+Not a benchmark itself: the harness that tests/test_truth_claims.py and tests/test_joint_harmonics.py
+(small campaigns) and benchmarks/bench_truth_claims.py and bench_cyclic_case.py (campaigns of the
+paper's size) share, with the config.yaml the workflow runs (validated against its schema, defaults
+filled). The campaign goes through the pipeline's own stages in-process (registration,
 Laplace fit, loop closure with config.yaml's settings); `compensation.calibrated_robot` and
 `compensation.predict` are what `remaster predict` runs. The truth comes from the simulator's record
 (`scenario.robot_from_truth`), whose link errors are rigid motions written by other code than the
