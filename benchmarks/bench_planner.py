@@ -136,7 +136,13 @@ def paper_design(chain, origin, sight, n: int, rng) -> np.ndarray:
     for per_pose in (4, 3, 2):
         try:
             plan = planning.plan_set(
-                chain, "optimization", origin, [sight], rng, n_poses=-(-n // per_pose), n_configurations=n, q3=0.0
+                chain,
+                "optimization",
+                origin,
+                [sight],
+                rng,
+                size=planning.SetSize(poses=-(-n // per_pose), configurations=n),
+                q3=0.0,
             )
         except InputError:
             continue

@@ -96,9 +96,7 @@ def _plan(args: argparse.Namespace) -> None:
         origin,
         [sight],
         rng,
-        candidates=_candidate_count(args),
-        n_poses=args.poses,
-        n_configurations=args.configurations,
+        size=planning.SetSize(_candidate_count(args), args.poses, args.configurations),
         model=model,
         q3=args.q3,
     )

@@ -469,9 +469,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
                 target,
                 sights,
                 rng,
-                candidates=int(plan_spec["candidates"]),
-                n_poses=size.get("poses"),
-                n_configurations=size.get("configurations"),
+                size=planning.SetSize(int(plan_spec["candidates"]), size.get("poses"), size.get("configurations")),
                 model=collision,
                 q3=held.q3,
             )
