@@ -31,7 +31,7 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.inference import fit, metrics
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.report import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 
 REPO = Path(__file__).resolve().parents[1]
@@ -178,12 +178,9 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         identity,
         results["summary"],
         laplace,
-        report,
-        result.samples,
+        LoopResults(report, result.samples),
         np.random.default_rng(seed),
-        n_draws=draws,
-        n_random=n_random,
-        seed=seed,
+        prediction.Propagation(draws, n_random, seed),
     ).claims
     loop = prediction.loop_calibration(report, result.samples)
     held_to_truth = {}

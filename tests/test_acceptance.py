@@ -26,7 +26,7 @@ from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_
 from remaster.errors import InputError
 from remaster.inference import fit
 from remaster.loop import loop_closure
-from remaster.loop.report import LoopReport
+from remaster.loop.report import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 
@@ -259,9 +259,7 @@ def accepted(
         registered.t_nr,
         laplace,
         None,
-        report,
-        loop.samples,
-        loop.gp,
+        LoopResults(report, loop.samples, loop.gp),
         np.random.default_rng(seed),
         config["acceptance"],
     )
@@ -377,9 +375,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
             registered.t_nr,
             laplace,
             None,
-            report,
-            loop.samples,
-            loop.gp,
+            LoopResults(report, loop.samples, loop.gp),
             np.random.default_rng(5),
             config["acceptance"],
         )
@@ -418,9 +414,7 @@ def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path)
         registered.t_nr,
         laplace,
         None,
-        LoopReport.read(tmp_path / "loop.json"),
-        loop.samples,
-        loop.gp,
+        LoopResults(LoopReport.read(tmp_path / "loop.json"), loop.samples, loop.gp),
         np.random.default_rng(5),
         config["acceptance"],
     )

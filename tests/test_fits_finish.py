@@ -411,16 +411,13 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
     samples["emcee"]["zero_offsets.q3"] += 5 * samples["emcee"]["zero_offsets.q3"].std()
     result = fit_summary.fit_summary_stage(
         campaign,
-        "kuka-twin",
         "laser_tracker",
         registration,
         laplace,
         samples,
         reports,
-        {"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1},
         np.random.default_rng(4),
-        n_draws=50,
-        n_random=20,
+        fit_summary.SummarySettings({"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1}, 50, 20),
     )
     assert fit.disagreeing(result.cross_check) == {"zero_offsets.q3": ["emcee"]}
     summary = result.summary.set_index("parameter")

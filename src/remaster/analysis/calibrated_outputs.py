@@ -11,8 +11,9 @@ import pandas as pd
 
 from ..campaigns.campaign import Campaign
 from ..inference.fit import LaplaceReport
-from ..loop.report import LoopReport
+from ..loop.report import LoopResults
 from . import calibrated, comparison, workspace
+from .prediction import Propagation
 
 
 @dataclass(frozen=True)
@@ -30,38 +31,28 @@ def calibrated_outputs_stage(
     sensor: str,
     summary: pd.DataFrame,
     laplace: LaplaceReport,
-    loop_report: LoopReport,
-    loop_samples: pd.DataFrame,
-    loop_gp_rows: pd.DataFrame,
+    loop: LoopResults,
     rng: np.random.Generator,
-    *,
-    n_draws: int,
-    n_random: int,
-    seed: int,
-    samples_label: str = "",
-    loop_label: str = "",
+    propagation: Propagation,
 ) -> CalibratedOutputs:
-    """summary: the fit's summary.csv; laplace, loop_report: its Laplace and loop-closure reports;
-    loop_samples, loop_gp_rows: the loop's MCMC samples and residual-GP rows (SI); rng draws the
-    workspace claims' posterior rows and noise; labels name the files in error messages."""
+    """summary: the fit's summary.csv; laplace: its Laplace report; loop: the loop closure's report,
+    MCMC samples and residual-GP rows (SI); rng draws the workspace claims' posterior rows and
+    noise, with `propagation`'s sizes and seed. The files' names (the loop report's source, the
+    samples' label) name them in error messages."""
     claims = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],
         comparison.robot_identity(campaign),
         summary,
         laplace,
-        loop_report,
-        loop_samples,
+        loop,
         rng,
-        n_draws=n_draws,
-        n_random=n_random,
-        seed=seed,
-        label=samples_label,
-        loop_gp_rows=loop_gp_rows,
+        propagation,
     )
-    files = calibrated.calibrated_stage(campaign, sensor, summary, loop_report, label=loop_label)
+    label = loop.report.source
+    files = calibrated.calibrated_stage(campaign, sensor, summary, loop.report, label=label)
     dh = (
-        calibrated.calibrated_dh_tables(campaign, sensor, summary, loop_report, label=loop_label)
+        calibrated.calibrated_dh_tables(campaign, sensor, summary, loop.report, label=label)
         if "dh" in campaign.robot
         else None
     )

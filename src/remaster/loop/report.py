@@ -174,3 +174,16 @@ class LoopReport:
     def read(cls, path) -> LoopReport:
         """From loop_closure.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
+
+
+@dataclass(frozen=True, eq=False)
+class LoopResults:
+    """What the later stages read of one sensor's loop closure: its report, its MCMC refit's samples
+    (SI; None or empty when the refit ran without MCMC) and its residual GP's training rows
+    (`residual_gp.training_frame`; None or empty when it added none); label: the samples' file, for
+    error messages."""
+
+    report: LoopReport
+    samples: pd.DataFrame | None = None
+    gp_rows: pd.DataFrame | None = None
+    label: str = ""
