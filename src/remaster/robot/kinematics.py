@@ -169,7 +169,9 @@ def chain_from_urdf(
         raise KinematicsError(exc.reason, file=source, key=exc.key, rows=exc.rows) from None
 
 
-def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
+def _urdf_tree(xml_text: str, source: str) -> tuple[ET.Element, dict[str, ET.Element], dict[str, ET.Element]]:
+    """(root, {link name: <link>}, {child link name: the <joint> that is its parent}) of a URDF,
+    checked: no XML entities, valid XML under <robot>, every joint between defined links, a tree."""
     if "<!ENTITY" in xml_text:
         raise KinematicsError(
             "declares XML entities (<!ENTITY ...>): refused, a URDF needs none and their expansion can exhaust memory",
@@ -201,7 +203,12 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
                 file=source,
             )
         parent_of[child_name] = joint
+    return root, links, parent_of
 
+
+def _chain_ends(links, parent_of, base: str | None, flange: str | None, source: str) -> tuple[str, str]:
+    """(base, flange) link names: the given ones, checked to be links, or the tree's one root and
+    its one leaf."""
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
         raise KinematicsError(f"expected one root link, found {sorted(roots)}", file=source)
@@ -220,7 +227,11 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             raise KinematicsError(
                 f"frame {frame!r} is not a link of the URDF (links: {', '.join(sorted(links))})", file=source, key=key
             )
+    return base, flange
 
+
+def _joint_path(parent_of, base: str, flange: str, source: str) -> list[ET.Element]:
+    """The joints from `base` to `flange`, in that order."""
     path: list[ET.Element] = []
     link = flange
     while link != base:
@@ -231,7 +242,41 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         path.append(parent_of[link])
         link = parent_of[link].find("parent").get("link")
     path.reverse()
+    return path
 
+
+def _joint_axis(joint: ET.Element, where: str, source: str) -> np.ndarray:
+    """A movable joint's unit axis (3,) (x when it gives none)."""
+    axis = (
+        _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None, 3, 0.0, f"{where}/axis")
+        if joint.find("axis") is not None
+        else np.array([1.0, 0, 0])
+    )
+    norm = np.linalg.norm(axis)
+    if norm < 1e-12:
+        raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
+    return axis / norm
+
+
+def _joint_limits(joint: ET.Element, kind: str, where: str, source: str) -> tuple[float, float]:
+    """(lower, upper) rad of a revolute joint's <limit>, each infinite where not given; a continuous
+    joint's are infinite."""
+    limit = joint.find("limit")
+    if kind != "revolute" or limit is None:
+        return -np.inf, np.inf
+    lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
+    hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
+    if lo > hi:
+        raise KinematicsError(
+            f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
+        )
+    return lo, hi
+
+
+def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
+    root, links, parent_of = _urdf_tree(xml_text, source)
+    base, flange = _chain_ends(links, parent_of, base, flange, source)
+    path = _joint_path(parent_of, base, flange, source)
     children: dict[str, list[ET.Element]] = {}
     for joint in parent_of.values():
         children.setdefault(joint.find("parent").get("link"), []).append(joint)
@@ -266,27 +311,11 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             )
         if names:
             inertias.append(body_inertia)
-        axis = (
-            _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None, 3, 0.0, f"{where}/axis")
-            if joint.find("axis") is not None
-            else np.array([1.0, 0, 0])
-        )
-        norm = np.linalg.norm(axis)
-        if norm < 1e-12:
-            raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
-        limit = joint.find("limit")
-        if kind == "revolute" and limit is not None:
-            lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
-            hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
-            if lo > hi:
-                raise KinematicsError(
-                    f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
-                )
-        else:
-            lo, hi = -np.inf, np.inf
+        axis = _joint_axis(joint, where, source)
+        lo, hi = _joint_limits(joint, kind, where, source)
         names.append(name)
         transforms.append(pending @ origin)
-        axes.append(axis / norm)
+        axes.append(axis)
         lower.append(lo)
         upper.append(hi)
         pending = np.eye(4)
