@@ -409,27 +409,14 @@ def copies(spec: dict, count: int | None, seed: int | None = None):
     return [({**spec, "name": f"{spec['name']}-{i + 1:03d}"}, first + i) for i in range(count)]
 
 
-def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> SimulatedCampaign:
-    """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
-    rng = np.random.default_rng(spec["seed"] if seed is None else seed)
-    robot = true_robot(spec, chain.n_joints, rng)
-    if robot.dh_errors is not None and robot.joint_compliance is not None and chain.inertias is not None:
-        if not same_frames_as_dh(chain, robot.dh_errors):
-            raise InputError(
-                "DH errors rebuild the joint frames from the DH table, and the URDF's mass data are in "
-                "other frames: simulate joint compliance and DH errors in separate scenarios",
-                key="truth/dh_errors",
-            )
-    sensors = sensors_of(spec)
-    plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
-    design = plan_spec.get("design", LATIN_HYPERCUBE)
-    if design not in DESIGNS:
-        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
-    held = holding(plan_spec, chain, design)
+def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot, sensors, held: Holding, rng):
+    """(the readings' table: set, pose, solution, q1..qN rad; {set: what was drawn and discarded};
+    the reference sensor's estimated origin (3,) m, None for random joint-space configurations; the
+    cube design's flange rotation (3, 3), None for the others) of the scenario's `plan`."""
     sets = _sets(plan_spec, design)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
-    target = None
+    target = rotation = None
     if design != RANDOM_JOINTS:  # the inverse-kinematics designs point the tool at the reference sensor
         if plan_spec.get("reference_sensor") not in sensors:
             raise InputError(f"must name one of the sensors ({', '.join(sensors)})", key="plan/reference_sensor")
@@ -476,39 +463,66 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         tables.append(plan.table)
         drawn = "candidate_configurations" if design == RANDOM_JOINTS else "candidate_poses"
         discarded[set_name] = {drawn: plan.candidates, **plan.discarded}
-    readings = pd.concat(tables, ignore_index=True)
+    return pd.concat(tables, ignore_index=True), discarded, target, rotation
+
+
+def _measured(name: str, spec: dict, sensor: Sensor, chain, robot: TrueRobot, readings, elapsed, rng):
+    """(xyz (n, 3) m, the truth's record) of one sensor measuring the readings' configurations at
+    `elapsed` (n,) s: its noise, what happens to it (`sensor_side`), the rows it does not see (NaN)
+    and its glitches, as the scenario's `sensors/<name>` (`spec`) says."""
     q = readings[[f"q{j + 1}" for j in range(chain.n_joints)]].to_numpy()
+    xyz = measure(chain, robot, sensor, q, rng, elapsed)
+    move, distortion, sensor_record = sensor_side_of(spec, f"sensors/{name}")
+    xyz = sensor_side(xyz, readings["set"].to_numpy() == "validation", move, distortion)
+    unseen = rng.choice(len(xyz), size=int(spec.get("missing", 0)), replace=False)
+    xyz[np.sort(unseen)] = np.nan
+    glitches = spec.get("gross_errors")
+    if glitches is not None:
+        xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
+    return xyz, {
+        "kind": sensor.kind,
+        "noise_m": sensor.noise,
+        "scale_error": sensor.scale_error,
+        **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
+        "marker_error_m": sensor.marker_error.tolist(),
+        "T_NR": sensor.robot_to_sensor.tolist(),
+        "pose_in_robot": sensor.pose_in_robot.tolist(),
+        "unseen_rows": sorted(int(i) for i in unseen),
+        **({"gross_errors": glitched} if glitches is not None else {}),
+        "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
+        **sensor_record,
+    }
+
+
+def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> SimulatedCampaign:
+    """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
+    rng = np.random.default_rng(spec["seed"] if seed is None else seed)
+    robot = true_robot(spec, chain.n_joints, rng)
+    if robot.dh_errors is not None and robot.joint_compliance is not None and chain.inertias is not None:
+        if not same_frames_as_dh(chain, robot.dh_errors):
+            raise InputError(
+                "DH errors rebuild the joint frames from the DH table, and the URDF's mass data are in "
+                "other frames: simulate joint compliance and DH errors in separate scenarios",
+                key="truth/dh_errors",
+            )
+    sensors = sensors_of(spec)
+    plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
+    design = plan_spec.get("design", LATIN_HYPERCUBE)
+    if design not in DESIGNS:
+        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
+    held = holding(plan_spec, chain, design)
+    readings, discarded, target, rotation = _plan(plan_spec, design, chain, robot, sensors, held, rng)
     elapsed = np.arange(len(readings)) * float(plan_spec["seconds_per_configuration"])
     start = pd.Timestamp(spec["date"], tz="UTC") + pd.Timedelta(hours=9)
     times = start + pd.to_timedelta(elapsed, unit="s")
 
     out_tables, truth_sensors = {}, {}
     for name, sensor in sensors.items():
-        xyz = measure(chain, robot, sensor, q, rng, elapsed)
-        move, distortion, sensor_record = sensor_side_of(spec["sensors"][name], f"sensors/{name}")
-        xyz = sensor_side(xyz, readings["set"].to_numpy() == "validation", move, distortion)
-        unseen = rng.choice(len(xyz), size=int(spec["sensors"][name].get("missing", 0)), replace=False)
-        xyz[np.sort(unseen)] = np.nan
-        glitches = spec["sensors"][name].get("gross_errors")
-        if glitches is not None:
-            xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
+        xyz, truth_sensors[name] = _measured(name, spec["sensors"][name], sensor, chain, robot, readings, elapsed, rng)
         table = readings.copy()
         table[["x", "y", "z"]] = xyz
         table["time"] = times
         out_tables[name] = table
-        truth_sensors[name] = {
-            "kind": sensor.kind,
-            "noise_m": sensor.noise,
-            "scale_error": sensor.scale_error,
-            **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
-            "marker_error_m": sensor.marker_error.tolist(),
-            "T_NR": sensor.robot_to_sensor.tolist(),
-            "pose_in_robot": sensor.pose_in_robot.tolist(),
-            "unseen_rows": sorted(int(i) for i in unseen),
-            **({"gross_errors": glitched} if glitches is not None else {}),
-            "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
-            **sensor_record,
-        }
     metadata = {
         "name": spec["name"],
         "date": str(spec["date"]),
