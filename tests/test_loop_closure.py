@@ -379,6 +379,10 @@ def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
             "link_geometry": [scored],
             "marker_offset": [nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}],
         },
+        rounds=[
+            {"round": 1, "model": [], "added": "link_geometry"},
+            {"round": 2, "model": ["link_geometry"], "added": None},
+        ],
     )
     table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
     assert table.loc[("link_geometry", 1), "Added"] == "yes"
