@@ -407,7 +407,7 @@ class Acceptance:
         get = report_reader(content, source, "missing in the acceptance report")
         values = {}
         for f in fields(cls):
-            if f.name == "source" or (f.name in ("statistic", "campaign") and f.name not in content):
+            if f.name == "source":
                 continue
             value = get(f.name)
             values[f.name] = tuple(value) if f.name in ("gross_errors_left_out", "warnings") else value
