@@ -21,7 +21,7 @@ from remaster import files, spatial
 from remaster.analysis import acceptance
 from remaster.analysis.acceptance import FAIL, MOVED, NOT_CONFIRMED, NOT_HELD, PASS, Acceptance, Claim
 from remaster.campaigns import folders, scenario
-from remaster.campaigns.arm_kinds import TRACKER, chain_of, iiwa_scenario
+from remaster.campaigns.arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario
 from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_side
 from remaster.errors import InputError
 from remaster.inference import fit
@@ -33,13 +33,6 @@ from remaster.robot import registration
 from .conftest import REPO, validated_config
 
 MM = 1e-3
-MOCAP = {
-    "kind": "motion_capture",
-    "marker": [0.100, 0.0, 0.020],
-    "noise": 3.0e-5,
-    "position": [1.6, 0.3, 1.6],
-    "look_at": [0.0, 0.0, 0.6],
-}
 SIZES = {"optimization": {"poses": 16, "configurations": 80}, "validation": {"poses": 8, "configurations": 40}}
 BUMP = {"translation_m": [1.5e-3, 0.0, 0.0], "rotation_deg": [0.0, 0.0, 0.03]}
 DISTORTION = {"scale": [1.5e-3, -1.0e-3, 0.0], "shear": [0.8e-3, 0.0, 0.0]}
@@ -303,7 +296,7 @@ def test_a_bumped_sensor_fails_and_the_move_is_found_near_the_truth(bumped):
 def test_a_distorted_motion_capture_frame_fails_and_is_not_taken_for_a_move():
     """What the model cannot represent: the loop without its sensor_distortion candidate (with it,
     tests/test_sensor_side.py attributes this distortion to the sensor)."""
-    sensors = {"motion_capture": {**MOCAP, "frame_distortion": DISTORTION}}
+    sensors = {"motion_capture": {**MOTION_CAPTURE, "frame_distortion": DISTORTION}}
     spec = iiwa_scenario(
         "distorted", seed=33, plan={"reference_sensor": "motion_capture", "sets": SIZES}, sensors=sensors
     )
