@@ -2,7 +2,7 @@
 how does the loop-closed model validate against least squares with a complete kinematic parameter set?
 
 Run from the repository root: python benchmarks/bench_arm_kinds.py [--keep FOLDER]
-Each scenario of tests/arm_kinds.py (a joint never moved; joints 1 and 7 held; a marker 1 mm from the
+Each scenario of `remaster.campaigns.arm_kinds` (a joint never moved; joints 1 and 7 held; a marker 1 mm from the
 last axis; 25 configurations; three reflectors of one tracker as three sensors; a UR5 given by a DH
 table with DH errors; an iiwa with rigid errors in every fixed transform; each with rigid link errors
 where it has no geometric error of its own) is simulated into one raw
@@ -31,10 +31,10 @@ sys.path.insert(0, str(REPO))
 
 from remaster import files, layout  # noqa: E402
 from remaster.campaigns import folders, scenario  # noqa: E402
+from remaster.campaigns.arm_kinds import KINDS, chain_of  # noqa: E402
 from remaster.inference import blocks, fit  # noqa: E402
 from remaster.labels import sensor_label  # noqa: E402
 from remaster.loop.result import LoopReport  # noqa: E402
-from tests.arm_kinds import KINDS, chain_of  # noqa: E402
 
 COMPLETE = ("marker_offset", "link_geometry")
 # rigid errors of every fixed transform given to the kinds that have none of their own (m, rad)
@@ -77,7 +77,7 @@ def main() -> None:
         if "link_errors" not in spec["truth"] and "dh_errors" not in spec["truth"]:
             spec["truth"]["link_errors"] = dict(LINK_ERRORS)  # every real arm has some
         specs[spec["name"]] = (kind, spec)
-        simulated = scenario.simulate(spec, chain_of(spec))
+        simulated = scenario.simulate(spec, chain_of(spec, REPO))
         folders.write_campaign(raw / spec["name"], simulated.metadata, simulated.tables)
     files.write_yaml(root / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), "paper_twins": []})
     started = time.perf_counter()

@@ -30,7 +30,7 @@ from remaster.campaigns.simulation import true_marker_positions
 from remaster.evaluation import workspace
 from remaster.inference import blocks, fit, metrics
 from remaster.loop import loop_closure
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 from remaster.robot import kinematics
 from remaster.units import SECONDS_PER_HOUR
@@ -75,12 +75,9 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
         robot,
         fit.mode_summary(laplace),
         laplace,
-        report,
-        samples,
+        LoopResults(report, samples),
         np.random.default_rng(SEED),
-        n_draws=DRAWS,
-        n_random=RANDOM,
-        seed=SEED,
+        prediction.Propagation(DRAWS, RANDOM, SEED),
     ).claims
     marker = campaign.sensors[sensor].marker
     device = scenario.sensor_from_truth(truth, sensor, marker)

@@ -1,13 +1,13 @@
 """The cyclic-error scenario at its full size and the data density the joint-space residual model needs.
 
-The truth (tests/test_joint_harmonics.py `cyclic_truth`): a simulated iiwa with zero-offsets and the
+The truth (`arm_kinds.cyclic_truth`): a simulated iiwa with zero-offsets and the
 cyclic transmission errors J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg
 sin(q4 - 0.7), nothing else; joint 3 held at 0 by the planner (the paper's). Two sensors measure the
 same campaign as in the twin (data/simulation/kuka-twin.yaml, without its marker errors): a laser
 tracker (10 um, its range/transverse noise offered) and a motion capture (30 um, kind
-`motion_capture`), each calibrated alone by the pipeline's stages (`tests.truth_claims.check`:
+`motion_capture`), each calibrated alone by the pipeline's stages (`truth_claims.check`:
 registration, Laplace fit, loop closure with config.yaml's settings, `remaster predict`); the
-scenario is tests/test_joint_harmonics.py `issue_scenario`.
+scenario is `remaster.campaigns.arm_kinds.cyclic_case`.
 
 The sweep: optimization sets of 20, 30, 40, 80 and 152 configurations over 5, 6, 8, 17 and 32 poses (the
 paper's ~4.75 configurations per pose, 5 poses at least for the 5 folds; 152 / 32 is the scenario's full size), a validation set like the
@@ -38,15 +38,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.arm_kinds import chain_of  # noqa: E402
-from tests.test_joint_harmonics import ISSUE_SETS, issue_scenario, true_f  # noqa: E402
-from tests.truth_claims import check  # noqa: E402
+from benchmarks.truth_claims import check  # noqa: E402
+from remaster.campaigns.arm_kinds import CYCLIC_SETS, chain_of, cyclic_case, true_f  # noqa: E402
 
 SENSORS = ("laser_tracker", "motion_capture")
 # optimization set (configurations, poses): ~4.75 configurations per pose, 152 / 32 the scenario's full size;
 # 20 over 5, not 4: the loop closure's cross-validation needs as many poses as folds (cv_folds: 5)
 SIZES = ((20, 5), (30, 6), (40, 8), (80, 17), (152, 32))
-VALIDATION = ISSUE_SETS["validation"]  # the twin's: 32 poses, 156 configurations
+VALIDATION = CYCLIC_SETS["validation"]  # the twin's: 32 poses, 156 configurations
 TRUTH_NAMED = {"q2": [1, 2], "q4": [1]}
 SENSOR_SIDE = ("sensor_scale", "sensor_distortion")
 # a configuration inside the ranges is "near the data" when every joint is this close to a measured angle
@@ -56,7 +55,7 @@ OUT = REPO / "benchmarks" / "results"
 
 
 def scenario(seed: int, configurations: int, poses: int) -> dict:
-    return issue_scenario(
+    return cyclic_case(
         seed, {"optimization": {"poses": poses, "configurations": configurations}, "validation": VALIDATION}
     )
 
@@ -113,7 +112,7 @@ def joint_error_z(result, spec: dict, joint: int, grid: int = 61) -> dict | None
 def run(sensor: str, seed: int, configurations: int, poses: int) -> dict:
     spec = scenario(seed, configurations, poses)
     started = time.perf_counter()
-    result = check(spec, chain_of(spec), sensor, n_random=N_RANDOM, draws=DRAWS, seed=seed)
+    result = check(spec, chain_of(spec, REPO), sensor, n_random=N_RANDOM, draws=DRAWS, seed=seed)
     report = result.report
     sides = dict(report.effects_sides)
     harmonics = report.harmonics

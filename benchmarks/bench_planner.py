@@ -7,7 +7,7 @@ validation rows.
 Run from the repository root: python benchmarks/bench_planner.py [--quick]
 Writes benchmarks/results/planner.json and planner.md (docs/planning.md quotes them).
 
-Simulator: the iiwa of tests/arm_kinds.py with rigid errors in every fixed transform
+Simulator: the iiwa of `remaster.campaigns.arm_kinds` with rigid errors in every fixed transform
 (`iiwa_rigid_link_errors`: 0.1 mm and 0.2 mrad per component, zero-offsets of 0.1-0.6 deg, a laser
 tracker of 10 um), errors the fit's parametrization did not make (`simulation.true_chain`). Designs:
 - planned: the greedy workspace design (p95 criterion) among the candidates `remaster plan
@@ -53,6 +53,7 @@ sys.path.insert(0, str(REPO))
 
 from remaster import files  # noqa: E402
 from remaster.campaigns import folders, scenario  # noqa: E402
+from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
 from remaster.campaigns.campaign import sensor_data  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
@@ -61,7 +62,6 @@ from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
 from remaster.robot.priors import priors_from, with_defaults  # noqa: E402
-from tests.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
 
 SIM_N = (10, 20, 40, 60, 80, 120, 200)
 UR5_N = (10, 20, 40, 60, 100)
@@ -127,7 +127,13 @@ def paper_design(chain, origin, sight, n: int, rng) -> np.ndarray:
     for per_pose in (4, 3, 2):
         try:
             plan = planning.plan_set(
-                chain, "optimization", origin, [sight], rng, n_poses=-(-n // per_pose), n_configurations=n, q3=0.0
+                chain,
+                "optimization",
+                origin,
+                [sight],
+                rng,
+                size=planning.SetSize(poses=-(-n // per_pose), configurations=n),
+                q3=0.0,
             )
         except InputError:
             continue
@@ -151,7 +157,7 @@ class Simulated:
 
 
 def simulated(spec: dict) -> Simulated:
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     out = scenario.simulate(spec, chain)
     truth = json.loads(json.dumps(out.truth, default=float))
     marker = np.asarray(out.metadata["sensors"][SENSOR]["marker"])
@@ -239,7 +245,7 @@ def simulator(repeats: int, grid) -> dict:
             }
         )
     return {
-        "scenario": "tests/arm_kinds.py iiwa_rigid_link_errors (rigid link errors 0.1 mm / 0.2 mrad, tracker 10 um)",
+        "scenario": "arm_kinds.iiwa_rigid_link_errors (rigid link errors 0.1 mm / 0.2 mrad, tracker 10 um)",
         "evaluation_configurations": EVALUATION,
         "candidates_per_repeat": int(len(q_candidates)),
         "repeats": repeats,

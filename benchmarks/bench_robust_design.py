@@ -7,7 +7,7 @@ Writes benchmarks/results/robust_planner.json and robust_planner.md (docs/planni
 
 Simulator: the iiwa of bench_planner (`iiwa_rigid_link_errors`: rigid errors in every fixed
 transform, tracker 10 um), plus a cyclic error of the joint angles (the cyclic-error scenario,
-tests/test_joint_harmonics.py TERMS: orders 1 and 2 on joint 2, order 1 on joint 4, amplitudes
+`arm_kinds.CYCLIC_TERMS`: orders 1 and 2 on joint 2, order 1 on joint 4, amplitudes
 scaled by CYCLIC_SCALE) that the complete error model does not have, so its calibration is
 biased wherever it is measured. Designs among the same generated candidates: workspace (the p95
 criterion), robust (this criterion, its DEFAULT prior: the sensor's noise as signal, each joint's
@@ -57,6 +57,7 @@ from bench_planner import (  # noqa: E402
 )
 
 from remaster.campaigns import folders  # noqa: E402
+from remaster.campaigns.arm_kinds import cyclic_truth, iiwa_rigid_link_errors  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.inference import blocks, fit  # noqa: E402
 from remaster.inference.gp import residual  # noqa: E402
@@ -64,8 +65,6 @@ from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.planning import robust_design as dd  # noqa: E402
 from remaster.robot import planning  # noqa: E402
-from tests.arm_kinds import iiwa_rigid_link_errors  # noqa: E402
-from tests.test_joint_harmonics import cyclic_truth  # noqa: E402
 
 SIM_N = (10, 20, 40, 80, 120)
 UR5_N = (10, 20, 40, 60, 100)

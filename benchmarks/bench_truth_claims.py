@@ -22,8 +22,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
-from tests.truth_claims import check  # noqa: E402
+from benchmarks.truth_claims import check  # noqa: E402
+from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors  # noqa: E402
 
 SIZES = {
     "optimization": {"poses": 36, "configurations": 173},
@@ -45,7 +45,7 @@ def main() -> None:
     for seed in seeds:
         for q3 in ("free", 0.0):
             spec = scenario(seed, q3)
-            result = check(spec, chain_of(spec), "laser_tracker")
+            result = check(spec, chain_of(spec, REPO), "laser_tracker")
             rows.append({"seed": seed, "joint_3": "moving" if q3 == "free" else "held at 0", **result.summary()})
             print(json.dumps(rows[-1]), flush=True)
     out = REPO / "benchmarks" / "results" / "truth_claims.json"

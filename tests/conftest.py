@@ -8,21 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from remaster.campaigns.arm_kinds import UR5_DH
 from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
 UR5_URDF = Path(__file__).resolve().parent / "data" / "ur5_nominal.urdf"
-# Universal Robots UR5 nominal standard DH table [a, alpha, d, theta offset]; ur5_nominal.urdf is the same chain.
-UR5_DH = [
-    [0.0, np.pi / 2, 0.089159, 0.0],
-    [-0.425, 0.0, 0.0, 0.0],
-    [-0.39225, 0.0, 0.0, 0.0],
-    [0.0, np.pi / 2, 0.10915, 0.0],
-    [0.0, -np.pi / 2, 0.09465, 0.0],
-    [0.0, 0.0, 0.0823, 0.0],
-]
+# UR5_DH (`arm_kinds`): Universal Robots UR5 nominal standard DH table; ur5_nominal.urdf is the same chain.
 
 
 @pytest.fixture(scope="session")
@@ -63,8 +56,8 @@ def loop_settings(config=None, **changes):
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
     """A loop closure's report (`remaster.loop.result.LoopReport`) as read from its file, with what
     the later stages read: the refit's parameter rows, the effects added, the closure test, and
-    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model);
-    `fields` overrides any top-level key."""
+    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model,
+    no gross error, no between-design component); `fields` overrides any top-level key."""
     from remaster.loop.result import LoopReport
 
     accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
@@ -76,6 +69,7 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
             "payload_mass_kg": 1.0,
             "payload_com_m": [0.0, 0.0, 0.02],
             "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}},
+            "harmonic_orders": 1,
         },
         "effects_added": list(effects),
         "explained_fraction_when_added": {},
@@ -95,6 +89,8 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
         "closure": dict(closure or {}),
         "residual_gp": None,
         "noise_model": {"offered": False, "chosen": "isotropic", "why": "not a laser tracker"},
+        "gross_errors": {"optimization": [], "validation": [], "with_flagged_rows": {}},
+        "between_design": {m: {"groups": 0, "method": "not computed", "parameters": {}} for m in ("paper", "loop")},
         **fields,
     }
     return LoopReport.of(content, source)

@@ -19,27 +19,20 @@ from scipy import stats
 
 from remaster import files, spatial
 from remaster.campaigns import folders, scenario
+from remaster.campaigns.arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario
 from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_side
 from remaster.errors import InputError
 from remaster.evaluation import acceptance
 from remaster.evaluation.acceptance import FAIL, MOVED, NOT_CONFIRMED, NOT_HELD, PASS, Acceptance, Claim
 from remaster.inference import fit
 from remaster.loop import loop_closure
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 
-from .arm_kinds import TRACKER, chain_of, iiwa_scenario
 from .conftest import REPO, validated_config
 
 MM = 1e-3
-MOCAP = {
-    "kind": "motion_capture",
-    "marker": [0.100, 0.0, 0.020],
-    "noise": 3.0e-5,
-    "position": [1.6, 0.3, 1.6],
-    "look_at": [0.0, 0.0, 0.6],
-}
 SIZES = {"optimization": {"poses": 16, "configurations": 80}, "validation": {"poses": 8, "configurations": 40}}
 BUMP = {"translation_m": [1.5e-3, 0.0, 0.0], "rotation_deg": [0.0, 0.0, 0.03]}
 DISTORTION = {"scale": [1.5e-3, -1.0e-3, 0.0], "shear": [0.8e-3, 0.0, 0.0]}
@@ -150,7 +143,7 @@ def test_a_failure_is_diagnosed_in_the_stated_order(checks, effects, expected):
 
 def test_a_bumped_sensor_moves_the_validation_readings_only_and_a_distortion_every_reading():
     spec = iiwa_scenario("side", seed=41)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     plain = scenario.simulate(spec, chain)
     moved = iiwa_scenario("side", seed=41, sensors={"laser_tracker": {**TRACKER, "moved_between_sets": BUMP}})
     bumped = scenario.simulate(moved, chain)
@@ -196,10 +189,10 @@ def test_a_bad_sensor_side_key_is_named():
         "bad", sensors={"laser_tracker": {**TRACKER, "moved_between_sets": {"translation": [1, 2, 3]}}}
     )
     with pytest.raises(InputError, match="sensors/laser_tracker/moved_between_sets/translation"):
-        scenario.simulate(spec, chain_of(spec))
+        scenario.simulate(spec, chain_of(spec, REPO))
     spec = iiwa_scenario("bad", sensors={"laser_tracker": {**TRACKER, "frame_distortion": {"scale": [1e-3]}}})
     with pytest.raises(InputError, match="sensors/laser_tracker/frame_distortion/scale"):
-        scenario.simulate(spec, chain_of(spec))
+        scenario.simulate(spec, chain_of(spec, REPO))
 
 
 # --------------------------------------------------------------------------- the report file
@@ -240,7 +233,7 @@ def accepted(
     """Simulate `spec`, calibrate its `sensor` by the pipeline's stages with config.yaml's settings
     (the loop's candidates but those in `without`), then run the acceptance test at config.yaml's
     acceptance settings. Returns the result and the simulated campaign (tables and truth)."""
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     folder = Path(tempfile.mkdtemp()) / spec["name"]
     folders.write_campaign(folder, simulated.metadata, simulated.tables)
@@ -259,9 +252,7 @@ def accepted(
         registered.t_nr,
         laplace,
         None,
-        report,
-        loop.samples,
-        loop.gp,
+        LoopResults(report, loop.samples, loop.gp),
         np.random.default_rng(seed),
         config["acceptance"],
     )
@@ -305,7 +296,7 @@ def test_a_bumped_sensor_fails_and_the_move_is_found_near_the_truth(bumped):
 def test_a_distorted_motion_capture_frame_fails_and_is_not_taken_for_a_move():
     """What the model cannot represent: the loop without its sensor_distortion candidate (with it,
     tests/test_sensor_side.py attributes this distortion to the sensor)."""
-    sensors = {"motion_capture": {**MOCAP, "frame_distortion": DISTORTION}}
+    sensors = {"motion_capture": {**MOTION_CAPTURE, "frame_distortion": DISTORTION}}
     spec = iiwa_scenario(
         "distorted", seed=33, plan={"reference_sensor": "motion_capture", "sets": SIZES}, sensors=sensors
     )
@@ -348,10 +339,9 @@ def test_a_twin_like_campaign_passes():
 
 
 def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
-    """The gross-error screen's validation rows (LoopReport.gross_errors, when it has them) are left
-    out of the check: a 3 mm glitch in a clean campaign fails it unless it is left out."""
+    """The gross-error screen's validation rows (LoopReport.gross_errors) are left out of the check: a 3 mm glitch in a clean campaign fails it unless it is left out."""
     spec = iiwa_scenario("glitch", seed=31)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     table = simulated.tables["laser_tracker"]
     row = int(np.flatnonzero((table["set"] == "validation").to_numpy() & table["x"].notna().to_numpy())[0])
@@ -369,7 +359,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     loop.report.write(folder.parent / "loop.json")
     results = {}
     for flagged in ([], [row]):
-        # the report as the gross-error screen extends it (a field read defensively by the test)
+        # the report with the glitch's row flagged by the screen, or not
         report = LoopReport.read(folder.parent / "loop.json")
         object.__setattr__(report, "gross_errors", {"optimization": [], "validation": flagged})
         results[len(flagged)] = acceptance.acceptance_stage(
@@ -378,9 +368,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
             registered.t_nr,
             laplace,
             None,
-            report,
-            loop.samples,
-            loop.gp,
+            LoopResults(report, loop.samples, loop.gp),
             np.random.default_rng(5),
             config["acceptance"],
         )
@@ -398,7 +386,7 @@ def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path)
     from .test_certificate import SUMMARY, _inputs
 
     spec = iiwa_scenario("unvalidated", seed=34)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     simulated = scenario.simulate(spec, chain)
     table = simulated.tables["laser_tracker"]
     simulated.tables["laser_tracker"] = table[table["set"] == "optimization"].reset_index(drop=True)
@@ -419,9 +407,7 @@ def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path)
         registered.t_nr,
         laplace,
         None,
-        LoopReport.read(tmp_path / "loop.json"),
-        loop.samples,
-        loop.gp,
+        LoopResults(LoopReport.read(tmp_path / "loop.json"), loop.samples, loop.gp),
         np.random.default_rng(5),
         config["acceptance"],
     )

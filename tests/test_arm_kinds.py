@@ -1,16 +1,14 @@
-"""The kinds of arm and campaign real calibrations meet (tests/arm_kinds.py), simulated: each one's
+"""The kinds of arm and campaign real calibrations meet (`remaster.campaigns.arm_kinds`), simulated: each one's
 tables are what its truth record says, it writes and reads back as a campaign folder, and it has
 the property that makes it that kind. The truth's link errors are not the fit's model."""
 
 import numpy as np
 import pytest
-from scipy.optimize import least_squares
 
 from remaster import files, spatial
-from remaster.campaigns import folders, scenario, simulation
+from remaster.campaigns import arm_kinds, folders, scenario, simulation
 from remaster.robot import kinematics, planning
 
-from . import arm_kinds
 from .conftest import REPO
 
 _simulated = {}
@@ -20,7 +18,7 @@ def simulated(kind: str):
     """(scenario, nominal chain, SimulatedCampaign) of a kind, simulated once per session."""
     if kind not in _simulated:
         spec = arm_kinds.KINDS[kind]()
-        chain = arm_kinds.chain_of(spec)
+        chain = arm_kinds.chain_of(spec, REPO)
         _simulated[kind] = (spec, chain, scenario.simulate(spec, chain))
     return _simulated[kind]
 
@@ -187,35 +185,3 @@ def test_an_iiwa_with_rigid_link_errors_and_every_joint_moving():
     marker = np.array(spec["sensors"]["laser_tracker"]["marker"])
     by_hand = _by_hand(chain, expected, q + np.radians(spec["truth"]["zero_offsets_deg"]), marker)
     np.testing.assert_allclose(true_points(out, "laser_tracker"), by_hand, rtol=0, atol=1e-13)
-
-
-def _fit_two_parameter_model(chain, q, marker, points) -> np.ndarray:
-    """Residuals (m) of the best least-squares fit of zero-offsets (N,) and the legacy stretch-
-    and-twist link errors (N + 1, 2) to marker positions (n, 3) in the robot frame."""
-    n = chain.n_joints
-
-    def residual(x):
-        robot = simulation.TrueRobot(zero_offsets=x[:n], link_errors=x[n:].reshape(n + 1, 2))
-        return (kinematics.marker_positions(simulation.true_chain(chain, robot), q + x[:n], marker) - points).ravel()
-
-    fit = least_squares(residual, np.zeros(n + 2 * (n + 1)), x_scale=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
-    return fit.fun
-
-
-def test_the_rigid_truth_is_not_the_two_parameter_model():
-    """The best fit of zero-offsets plus a stretch and a twist per link (the fit's former link
-    model) to the true, noise-free marker positions leaves tens of um; the same fit to a truth
-    made by that model leaves nothing, so the gap is the truth's, not the fit's."""
-    spec, chain, out = simulated("iiwa_rigid_link_errors")
-    q = out.tables["laser_tracker"][joints(chain)].to_numpy()
-    marker = np.array(spec["sensors"]["laser_tracker"]["marker"])
-    rigid = _fit_two_parameter_model(chain, q, marker, true_points(out, "laser_tracker"))
-    assert np.sqrt(np.mean(rigid**2)) > 1e-5  # far above 1 um
-
-    legacy = simulation.TrueRobot(
-        zero_offsets=np.radians(spec["truth"]["zero_offsets_deg"]),
-        link_errors=np.random.default_rng(3).normal(0.0, 2e-4, (8, 2)),
-    )
-    sensor = simulation.Sensor("lt", "laser_tracker", np.eye(4), 0.0, marker)
-    made = simulation.true_marker_positions(chain, legacy, sensor, q)
-    assert np.abs(_fit_two_parameter_model(chain, q, marker, made)).max() < 1e-9

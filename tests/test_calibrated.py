@@ -81,6 +81,10 @@ def test_the_nominal_values_give_the_nominal_robot(iiwa, rng):
     )
 
 
+# a campaign of too few poses for the jackknife (`jackknife.zero_offset_jackknife`)
+NOT_COMPUTED = {"groups": 2, "method": "not computed: fewer than 3 poses", "parameters": {}}
+
+
 def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
     table = pd.DataFrame(
         {
@@ -92,7 +96,7 @@ def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
             "status": ["held: not identifiable", "estimated"],
         }
     )
-    offsets = exports.controller_offsets(["a1", "a2"], table, "paper").set_index("joint")
+    offsets = exports.controller_offsets(["a1", "a2"], table, "paper", NOT_COMPUTED).set_index("joint")
     assert offsets.loc["a2", "correction_deg"] == pytest.approx(0.3)
     assert offsets.loc["a2", "correction_rad"] == pytest.approx(0.3 * DEG)
     assert offsets.loc["a2", "std_deg"] == pytest.approx(0.01)
@@ -116,7 +120,7 @@ def test_controller_offsets_carry_the_between_design_component():
     row = exports.controller_offsets(["a1"], table, "loop", between).iloc[0]
     assert row["u_between_deg"] == 0.04 and row["dof"] == pytest.approx(9.0)
     assert row["k"] == pytest.approx(2.262157, abs=1e-6) and row["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
-    alone = exports.controller_offsets(["a1"], table, "loop").iloc[0]
+    alone = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED).iloc[0]
     assert np.isnan(alone["u_between_deg"]) and alone["U_deg"] == pytest.approx(1.959964 * 0.03, rel=1e-6)
 
 

@@ -104,6 +104,7 @@ def _inputs(outliers=(), closed=True):
         },
         "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
         "warnings": ["the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)"],
+        "held_note": "",
     }
     verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
     refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
@@ -111,6 +112,7 @@ def _inputs(outliers=(), closed=True):
         effects=["joint_compliance"],
         closure={"closed": closed, "verdict": verdict},
         warnings=([] if closed else [f"loop {verdict}"]) + [refit],
+        gross_errors={"optimization": list(outliers), "validation": [], "with_flagged_rows": {}},
     )
     offsets = pd.DataFrame(
         [
@@ -187,7 +189,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     assert verdict["After: model"].startswith("loop-closed")
     assert verdict["Inside the measured ranges: p95 (mm)"] == 3 * 0.03
     assert verdict["Across the joint limits: p95 (mm)"] == 1.5
-    assert any("1 points flagged" in w and "[7]" in w for w in cert.warnings)
+    assert any("optimization set: 1 rows flagged as gross errors" in w and "[7]" in w for w in cert.warnings)
     assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
     assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
     assert "Laser Tracker: the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)" in (
@@ -198,18 +200,6 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
         "tool axis within 18 deg of one direction; beyond them, the claim across the joint limits carries the "
         "priors of what the data did not reach"
     )
-    # a workspace.json written before the measured domain: the shares of each range, no domain claims
-    older = dataclasses.replace(
-        _inputs(),
-        workspace={k: v for k, v in _inputs().workspace.items() if k != "domain"},
-        workspace_accuracy=_inputs().workspace_accuracy.query("configurations != 'domain'"),
-    )
-    old_cert = certificate.certificate(SUMMARY, {"laser_tracker": older})
-    assert old_cert.warnings[0].endswith(
-        "over the joint ranges measured: q1 90 %, q2 0 %; every measured tool axis within 18 deg of one direction"
-    )
-    assert old_cert.verdicts.iloc[0]["Holds"] == "inside the measured ranges"
-    assert np.isnan(old_cert.verdicts.iloc[0]["Inside the measured ranges: p95 (mm)"])
     text = certificate.to_markdown(cert)
     assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
 
@@ -264,15 +254,12 @@ def test_certificate_rows_take_missing_values_without_a_crash():
     offsets = inputs.controller_offsets.copy().astype(object)
     offsets.loc[1, "U_deg"] = None
     offsets.loc[1, "correction_deg"] = np.nan
-    workspace = {"holds": None, "coverage": {"joint_range_fraction": [0.5, None]}, "warnings": None}
     loop = dataclasses.replace(inputs.loop, closure={}, warnings=[])
-    inputs = dataclasses.replace(inputs, controller_offsets=offsets, workspace=workspace, loop=loop)
+    inputs = dataclasses.replace(inputs, controller_offsets=offsets, loop=loop)
     cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
     paper_j2 = cert.corrections.iloc[2]
     assert np.isnan(paper_j2["U(Correction) (deg)"]) and np.isnan(paper_j2["Correction (deg)"])
-    verdict = cert.verdicts.iloc[0]
-    assert verdict["Holds"] == "" and verdict["Loop"] == ""
-    assert "q1 50 %, q2 nan %" in cert.warnings[0]
+    assert cert.verdicts.iloc[0]["Loop"] == ""
     assert certificate.to_markdown(cert).startswith("# Calibration certificate: c")
     # no validation rows at all: the verdict's after-values are blank, not an IndexError
     empty = dataclasses.replace(inputs, configuration_errors=inputs.configuration_errors.iloc[:0])

@@ -12,12 +12,12 @@ import pytest
 from scipy.stats import chi2
 
 from remaster import cli
+from remaster.campaigns.arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
 from remaster.errors import InputError
 from remaster.planning import design, plan_inputs
 from remaster.planning import design_posterior as dp
 from remaster.robot.priors import priors_from, with_defaults
 
-from .arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
 from .conftest import REPO, assert_documents_show
 
 ORIGIN = np.array(TRACKER["position"])
@@ -27,7 +27,7 @@ MARKER = np.array(TRACKER["marker"])
 @pytest.fixture(scope="module")
 def iiwa():
     """(chain, error model, candidates table, candidate Jacobian, evaluation Jacobian) of a small design."""
-    chain = chain_of(iiwa_scenario("design"))
+    chain = chain_of(iiwa_scenario("design"), REPO)
     t_nr = np.eye(4)
     t_nr[:3, 3] = -ORIGIN
     model = dp.complete_error_model(chain, MARKER, t_nr, priors_from(with_defaults(None)), TRACKER["noise"])
@@ -129,7 +129,7 @@ def test_a_planned_design_predicts_a_smaller_bound_than_random_ones(iiwa):
 
 
 def test_a_campaign_that_never_moved_joint_3_shows_it_and_informs_the_next_design():
-    chain, sensor = simulated_sensor(joint_never_moved(), "laser_tracker")
+    chain, sensor = simulated_sensor(joint_never_moved(), "laser_tracker", REPO)
     t_nr = np.eye(4)
     t_nr[:3, 3] = -ORIGIN
     priors = priors_from(with_defaults(None))
@@ -148,7 +148,7 @@ def _table(rows):
 
 
 def test_bad_candidate_tables_name_the_file_column_and_rows():
-    chain = chain_of(iiwa_scenario("design"))
+    chain = chain_of(iiwa_scenario("design"), REPO)
     good = [[0.1] * 7, [0.2] * 7]
     with pytest.raises(InputError, match=r"c\.csv: q7: missing") as missing:
         plan_inputs.table_candidates(_table(good).drop(columns="q7"), chain, "c.csv")

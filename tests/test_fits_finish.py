@@ -121,6 +121,7 @@ def near_collinear_configurations(chain, marker, rng, n=6, off_line=2e-3):
     direction = np.array([0.0, 0.6, 0.1])
     across = np.cross(direction, [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
+    solver = ik.SRSInverseKinematics(chain)
     configurations = []
     for k, t in enumerate(np.linspace(0.0, 1.0, n)):
         point = np.array([0.55, -0.3, 0.45]) + t * direction + off_line * (-1) ** k * across
@@ -129,7 +130,7 @@ def near_collinear_configurations(chain, marker, rng, n=6, off_line=2e-3):
             rotation = Rotation.from_euler("xyz", angles).as_matrix()
             pose = np.eye(4)
             pose[:3, :3], pose[:3, 3] = rotation, point - rotation @ marker
-            solutions = ik.inverse_kinematics(chain, pose, q3=rng.uniform(-0.5, 0.5))
+            solutions = solver.solve(pose, q3=rng.uniform(-0.5, 0.5))
             if len(solutions):
                 configurations.append(solutions[0])
                 break
@@ -359,7 +360,7 @@ def test_chain_report_and_moments_on_nan_and_empty_chains():
 
 # ----------------------------------------------------------------------------- the arms real calibrations meet
 
-HELD = {  # what each kind of tests/arm_kinds.py leaves undetermined, by its construction
+HELD = {  # what each kind of `arm_kinds` leaves undetermined, by its construction
     "joints_one_and_seven_held": {"zero_offsets.q1", "zero_offsets.q2"},  # q1 still: q2 a rigid rotation too
     "ur5_with_dh_errors": {"zero_offsets.q1", "zero_offsets.q6"},  # the marker on the UR5's last axis
 }
@@ -411,16 +412,13 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
     samples["emcee"]["zero_offsets.q3"] += 5 * samples["emcee"]["zero_offsets.q3"].std()
     result = fit_summary.fit_summary_stage(
         campaign,
-        "kuka-twin",
         "laser_tracker",
         registration,
         laplace,
         samples,
         reports,
-        {"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1},
         np.random.default_rng(4),
-        n_draws=50,
-        n_random=20,
+        fit_summary.SummarySettings({"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1}, 50, 20),
     )
     assert fit.disagreeing(result.cross_check) == {"zero_offsets.q3": ["emcee"]}
     summary = result.summary.set_index("parameter")

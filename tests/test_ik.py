@@ -137,11 +137,6 @@ def test_equivalents_two_pi_apart_within_wide_limits(iiwa):
     assert np.all(wide.within_limits(both))
 
 
-def test_convenience_function(iiwa, solver):
-    pose = pose_of(iiwa, [0.1, -0.5, 0.3, 1.2, 0.4, -0.7, 2.0])
-    np.testing.assert_array_equal(ik.inverse_kinematics(iiwa, pose, q3=0.3), solver.solve(pose, q3=0.3))
-
-
 # --------------------------------------------------------------------------- out of reach
 
 

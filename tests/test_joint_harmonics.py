@@ -4,44 +4,31 @@ scenario's transmission error, made by the simulator in its own form (a sum of s
 is taken by the loop closure, traced to joints 2 and 4 and its orders, and recovered within its band."""
 
 import json
-import math
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from benchmarks.truth_claims import check
 from remaster.campaigns import scenario
+from remaster.campaigns.arm_kinds import (
+    CYCLIC_TERMS,
+    MOTION_CAPTURE,
+    chain_of,
+    cyclic_case,
+    cyclic_truth,
+    iiwa_scenario,
+    true_f,
+)
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, fit
 from remaster.loop import harmonics, loop_closure
 from remaster.loop.result import LoopReport
 from remaster.reporting import figures_loop, tables_loop
 
-from .arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario
-from .conftest import loop_report, loop_settings
-from .truth_claims import check
+from .conftest import REPO, loop_report, loop_settings
 
 NOISE = {"tracker": 1.0e-5, "motion_capture": 3.0e-5}  # m per axis
-# the cyclic-error scenario: J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg sin(q4 - 0.7)
-TERMS = ((2, 1, 0.025, 0.3), (2, 2, 0.012, 1.1), (4, 1, 0.030, -0.7))  # joint, order, amplitude deg, phase rad
-
-
-def cyclic_truth() -> list[dict]:
-    """The simulator's `truth/cyclic_error` of TERMS: one term (a per-joint vector) per row."""
-    out = []
-    for joint, order, amplitude, phase in TERMS:
-        term = {"amplitude_deg": [0.0] * 7, "cycles_per_turn": [1.0] * 7, "phase_deg": [0.0] * 7}
-        term["amplitude_deg"][joint - 1] = amplitude
-        term["cycles_per_turn"][joint - 1] = float(order)
-        term["phase_deg"][joint - 1] = math.degrees(phase)
-        out.append(term)
-    return out
-
-
-def true_f(joint: int, q) -> np.ndarray:
-    """The truth's f_j (rad) at readings q (rad), written here from TERMS, not from the simulator."""
-    q = np.asarray(q, dtype=float)
-    return sum(math.radians(a) * np.sin(k * q + p) for j, k, a, p in TERMS if j == joint) + 0.0 * q
 
 
 def test_the_block_adds_its_harmonics_to_the_joint_angles(iiwa):
@@ -101,12 +88,12 @@ def simulate(iiwa, sensor: str):
         },
     )
     spec["sensors"]["laser_tracker"]["noise"] = NOISE[sensor]
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     out = scenario.simulate(spec, chain)
     # the simulator's truth record keeps the terms, and reads back as the robot it simulated
-    assert len(out.truth["effects"]["cyclic_error"]) == len(TERMS)
+    assert len(out.truth["effects"]["cyclic_error"]) == len(CYCLIC_TERMS)
     robot = scenario.robot_from_truth(out.truth)
-    assert robot.cyclic_error.shape == (len(TERMS), 7, 3)
+    assert robot.cyclic_error.shape == (len(CYCLIC_TERMS), 7, 3)
     meta = out.metadata["sensors"]["laser_tracker"]
     data = sensor_data(
         "laser_tracker", {**meta, "marker": np.array(meta["marker"])}, out.tables["laser_tracker"], 7, "sim.parquet"
@@ -129,7 +116,7 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
     assert section["named"] == {"q2": [1, 2], "q4": [1]}
     for row in section["terms"]:
         if row["named"]:
-            truth = next(a for j, k, a, _ in TERMS if f"q{j}" == row["joint"] and k == row["order"])
+            truth = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
             assert abs(row["amplitude_deg"] - truth) < 3 * row["amplitude_std_deg"]
         else:
             assert row["p_value"] > section["p_threshold"]
@@ -156,25 +143,6 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
     plt.close(figure)
 
 
-# the cyclic-error scenario's full size: 152 configurations over 32 poses to fit, validation like the twin's
-ISSUE_SETS = {
-    "optimization": {"poses": 32, "configurations": 152},
-    "validation": {"poses": 32, "configurations": 156},
-}
-
-
-def issue_scenario(seed: int = 3, sets: dict | None = None) -> dict:
-    """The cyclic-error scenario measured as the twin is: a laser tracker (10 um) and a motion capture
-    (30 um, its own kind) on the same campaign (joint 3 held), at its full size unless `sets`."""
-    return iiwa_scenario(
-        "cyclic-issue",
-        seed=seed,
-        truth={"cyclic_error": cyclic_truth()},
-        plan={"sets": sets or ISSUE_SETS},
-        sensors={"laser_tracker": dict(TRACKER), "motion_capture": dict(MOTION_CAPTURE)},
-    )
-
-
 def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_bound_holds():
     """The cyclic-error scenario at its full size with a motion capture (kind motion_capture: no tracker
     noise model offered, sensor_scale and sensor_distortion offered), calibrated by the pipeline's
@@ -182,8 +150,8 @@ def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_b
     validation within 1.5x the noise, and `remaster predict`'s per-command 95 % bound holding against
     the truth at >= 75 % of random configurations across the joint limits and inside the measured
     ranges (benchmarks/bench_cyclic_case.py: the same over seeds and sizes, and the laser tracker)."""
-    spec = issue_scenario()
-    result = check(spec, chain_of(spec), "motion_capture", n_random=200, draws=300)
+    spec = cyclic_case()
+    result = check(spec, chain_of(spec, REPO), "motion_capture", n_random=200, draws=300)
     report = result.report
     assert report.effects_added == ("joint_harmonics",)
     assert report.effects_sides == {"joint_harmonics": "robot"}
@@ -191,7 +159,7 @@ def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_b
     assert report.harmonics["named"] == {"q2": [1, 2], "q4": [1]}
     for row in report.harmonics["terms"]:
         if row["named"]:
-            truth = next(a for j, k, a, _ in TERMS if f"q{j}" == row["joint"] and k == row["order"])
+            truth = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
             assert abs(row["amplitude_deg"] - truth) < 3 * row["amplitude_std_deg"]
     assert result.noise_mm == pytest.approx(MOTION_CAPTURE["noise"] * 1e3)
     assert result.validation_rms_per_axis_mm <= 1.5 * result.noise_mm

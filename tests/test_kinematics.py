@@ -233,14 +233,16 @@ def random_axis_chain(rng, n_joints=6):
     )
 
 
-def test_compiled_points_equal_numpy_and_pinocchio_for_any_axes(rng):
+def test_compiled_points_equal_pinocchio_for_any_axes_and_a_stack_of_offsets(rng):
     chain = random_axis_chain(rng)
     q = rng.uniform(-np.pi, np.pi, (40, chain.n_joints))
     offsets = rng.normal(0, 0.05, (3, chain.n_joints))
     marker = [0.05, -0.02, 0.03]
     fk = kinematics.ForwardKinematics(chain, q)
-    np.testing.assert_allclose(fk.points(marker, offsets), fk.points_numpy(marker, offsets), atol=1e-12)
-    np.testing.assert_allclose(fk.points(marker, offsets[0]), fk.points_numpy(marker, offsets[0]), atol=1e-12)
+    stacked = fk.points(marker, offsets)
+    assert stacked.shape == (3, 40, 3)
+    for k in range(3):  # a stack of zero-offset vectors is each vector on its own
+        np.testing.assert_allclose(stacked[k], fk.points(marker, offsets[k]), rtol=0, atol=1e-15)
     model = kinematics.pinocchio_model(chain)
     data = model.createData()
     for qi, p in zip(q + offsets[1], fk.points(marker, offsets[1])):

@@ -381,6 +381,10 @@ def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
             "link_geometry": [scored],
             "marker_offset": [nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}],
         },
+        rounds=[
+            {"round": 1, "model": [], "added": "link_geometry"},
+            {"round": 2, "model": ["link_geometry"], "added": None},
+        ],
     )
     table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
     assert table.loc[("link_geometry", 1), "Added"] == "yes"
@@ -413,7 +417,7 @@ def test_the_selection_does_not_read_the_validation_set(iiwa):
 def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configurations):
     """A campaign with fewer poses than `cv_folds` (5): the loop cross-validates over one pose per
     fold and says so, with the larger fall t(K - 1) asks for; the report is written."""
-    from .arm_kinds import iiwa_scenario, simulated_sensor
+    from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
 
     spec = iiwa_scenario(
         "few-poses",
@@ -425,7 +429,7 @@ def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configuratio
             }
         },
     )
-    chain, sensor = simulated_sensor(spec, "laser_tracker")
+    chain, sensor = simulated_sensor(spec, "laser_tracker", REPO)
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
     report = loop_closure.close_loop(

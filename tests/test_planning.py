@@ -14,7 +14,7 @@ MARKER = np.array([-0.1, 0.0, 0.02])
 def plan(iiwa):
     rng = np.random.default_rng(7)
     sights = [planning.SightLine(SENSOR, MARKER), planning.SightLine(np.array([1.6, 0.3, 1.6]), -MARKER)]
-    return planning.plan_set(iiwa, "optimization", SENSOR, sights, rng, candidates=60), sights
+    return planning.plan_set(iiwa, "optimization", SENSOR, sights, rng, size=planning.SetSize(60)), sights
 
 
 def test_latin_hypercube_has_one_sample_per_stratum(rng):
@@ -77,9 +77,7 @@ def test_exact_sizes_are_met(iiwa):
         SENSOR,
         [planning.SightLine(SENSOR, MARKER)],
         rng,
-        candidates=60,
-        n_poses=20,
-        n_configurations=90,
+        size=planning.SetSize(60, poses=20, configurations=90),
     )
     assert plan.table["pose"].nunique() == 20 and len(plan.table) == 90
     assert (plan.table["set"] == "validation").all()
@@ -179,7 +177,7 @@ def test_cube_plan_has_one_flange_orientation_and_the_designed_positions(iiwa):
 def test_a_free_q3_is_drawn_for_each_pose_within_its_limits(iiwa):
     sights = [planning.SightLine(SENSOR, MARKER)]
     plan = planning.plan_set(
-        iiwa, "optimization", SENSOR, sights, np.random.default_rng(3), candidates=30, q3=planning.FREE
+        iiwa, "optimization", SENSOR, sights, np.random.default_rng(3), size=planning.SetSize(30), q3=planning.FREE
     )
     table = plan.table
     assert table["q3"].groupby(table["pose"]).nunique().eq(1).all()  # the solutions of a pose share it
@@ -214,9 +212,15 @@ def test_random_joint_plans_hold_the_held_joints_and_pass_every_check(iiwa):
     # whole batches of 200 drawn; those not discarded are at least the 30 kept
     assert plan.candidates % 200 == 0 and plan.candidates - sum(plan.discarded.values()) >= 30
     np.testing.assert_array_equal(planning.nearest_neighbour_tour(q, start=np.zeros(7)), np.arange(30))
-    with pytest.raises(InputError, match="did not|gave"):
-        planning.plan_random(
-            iiwa, "validation", sights, np.random.default_rng(4), n_configurations=30, candidates=5, max_batches=2
+    with pytest.raises(InputError, match="50 batches of 5 random configurations gave 0 that pass"):
+        planning.plan_random(  # a floor above the arm: no configuration passes
+            iiwa,
+            "validation",
+            sights,
+            np.random.default_rng(4),
+            n_configurations=30,
+            candidates=5,
+            model=planning.CollisionModel(floor_height=5.0),
         )
 
 

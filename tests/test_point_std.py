@@ -12,11 +12,12 @@ import pytest
 from scipy import stats
 
 from remaster.campaigns import scenario
+from remaster.campaigns.arm_kinds import chain_of, iiwa_scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.errors import InputError
 from remaster.inference import blocks, fit
 
-from .arm_kinds import chain_of, iiwa_scenario
+from .conftest import REPO
 
 LOG_2PI = math.log(2.0 * math.pi)
 
@@ -24,7 +25,7 @@ LOG_2PI = math.log(2.0 * math.pi)
 @pytest.fixture(scope="module")
 def simulated():
     spec = iiwa_scenario("point-std", seed=21)
-    chain = chain_of(spec)
+    chain = chain_of(spec, REPO)
     out = scenario.simulate(spec, chain)
     return chain, out.metadata["sensors"]["laser_tracker"], out.tables["laser_tracker"]
 

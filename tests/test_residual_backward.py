@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pytest
 
+from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
 from remaster.inference import blocks, evidence, fit
 from remaster.loop import selection
 
-from .arm_kinds import iiwa_scenario, simulated_sensor
-from .conftest import loop_settings
+from .conftest import REPO, loop_settings
 
 # joint, cycles per turn, amplitude deg, phase deg: orders the joint_harmonics block (1, 2) does not have
 TERMS = ((2, 3.0, 0.03, 20.0), (4, 4.0, 0.03, -40.0))
@@ -46,7 +46,7 @@ def case(scale_error: float = 0.0, growth: float = 0.0, extensions=("sensor_scal
     )
     spec["sensors"]["laser_tracker"].update(scale_error=scale_error, transverse_growth_per_m=growth)
     spec["plan"]["sets"]["validation"] = {"poses": 4, "configurations": 16}
-    chain, sensor = simulated_sensor(spec, "laser_tracker")
+    chain, sensor = simulated_sensor(spec, "laser_tracker", REPO)
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
     settings = loop_settings(mcmc=None)

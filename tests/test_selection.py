@@ -7,7 +7,7 @@ import pytest
 from remaster.inference import blocks, evidence, fit
 from remaster.loop import selection
 
-from .conftest import loop_settings
+from .conftest import REPO, loop_settings
 from .test_loop_closure import COMPLIANCE, EFFECTS, HEAVY, LAPLACE_ONLY, closed, simulated
 
 
@@ -95,10 +95,10 @@ def test_the_backward_pass_tries_a_block_out_with_the_companions_it_brought():
     companion the link geometry explains no rigid error of the tool and would be removed (it was, and
     the marker offset after it: validation stayed at the paper model's 0.29 mm). Tried out together,
     both stay and validation is at the tracker's noise (10 um)."""
-    from .arm_kinds import iiwa_rigid_link_errors, simulated_sensor
+    from remaster.campaigns.arm_kinds import iiwa_rigid_link_errors, simulated_sensor
 
     spec = iiwa_rigid_link_errors()
-    chain, sensor = simulated_sensor(spec, "laser_tracker")
+    chain, sensor = simulated_sensor(spec, "laser_tracker", REPO)
     report = closed(chain, sensor, loop_settings(mcmc=None)).report
     assert {"link_geometry", "marker_offset"} <= set(report.effects_added)
     backward = [r for r in report.rounds if r.get("pass") == "backward"]

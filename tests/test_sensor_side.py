@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from remaster import spatial
+from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
 from remaster.campaigns.simulation import Sensor, TrueRobot, frame_distortion, looking_at, measure, sensor_side
 from remaster.inference import blocks
 from remaster.loop import sides
 from remaster.robot.gravity import gravity_torques
 
-from .arm_kinds import iiwa_scenario, simulated_sensor
-from .conftest import loop_report, loop_settings
+from .conftest import REPO, loop_report, loop_settings
 from .test_compensation import synthetic_robot
 
 MOCAP_NOISE = 3.0e-5  # m per axis
@@ -116,7 +116,7 @@ def test_an_anisotropic_motion_capture_distortion_is_attributed_to_the_sensor():
         plan={"reference_sensor": "motion_capture", "sets": sets},
         sensors={"motion_capture": {**MOCAP, "frame_distortion": DISTORTION}},
     )
-    chain, sensor = simulated_sensor(spec, "motion_capture")
+    chain, sensor = simulated_sensor(spec, "motion_capture", REPO)
     from .test_loop_closure import closed
 
     report = closed(chain, sensor, loop_settings(mcmc=None)).report

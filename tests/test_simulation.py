@@ -74,15 +74,6 @@ def test_every_effect_changes_the_measurement_as_modelled(iiwa, rng):
     moved_marker = Sensor("s", "other", pose, 0.0, nominal.marker, marker_error=np.array([0, 0, 1e-3]))
     shift = np.linalg.norm(measure(iiwa, base, moved_marker, q, rng) - reference, axis=1)
     np.testing.assert_allclose(shift, 1e-3, rtol=1e-9)  # a rigid 1 mm move of the marker
-    errors = np.zeros((8, 2))
-    errors[3, 0] = 1e-3  # the link before joint 4 (the elbow) 1 mm longer
-    errors[5, 1] = 1e-3  # joint 6's axis tilted by a 1 mrad twist
-    perturbed = simulation.true_chain(iiwa, TrueRobot(zero_offsets=np.zeros(7), link_errors=errors))
-    reach = [np.linalg.norm(f[:3, 3]) for f in (iiwa.joint_transforms[3], perturbed.joint_transforms[3])]
-    assert reach[1] - reach[0] == pytest.approx(1e-3, abs=1e-15)
-    tilt = iiwa.joint_transforms[5][:3, :3].T @ perturbed.joint_transforms[5][:3, :3]
-    np.testing.assert_allclose(tilt, spatial.rot_x(1e-3), atol=1e-15)
-    np.testing.assert_array_equal(perturbed.joint_transforms[0], iiwa.joint_transforms[0])
 
 
 def test_simulated_campaign_is_deterministic_and_passes_the_reader(iiwa, tmp_path):
@@ -238,20 +229,14 @@ def test_a_rigid_motion_of_the_first_transform_moves_the_whole_arm_in_the_base_f
     np.testing.assert_allclose(turned, nominal @ spatial.rot_z(2e-3).T, atol=1e-15)
 
 
-def test_truth_records_rigid_link_motions_and_keeps_the_legacy_form(iiwa):
+def test_truth_records_rigid_link_motions_drawn_from_their_own_seed(iiwa):
     rigid = scenario.simulate(
-        small_scenario(link_errors={"translation_std": 1e-4, "rotation_std": 1e-4, "seed": 3}), iiwa
+        small_scenario(link_errors={"translation_std": 1e-4, "rotation_std": 2e-4, "seed": 3}), iiwa
     )
-    assert "link_motions" in rigid.truth["effects"] and "link_geometry" not in rigid.truth["effects"]
     robot = scenario.robot_from_truth(rigid.truth)
-    assert robot.link_motions.shape == (8, 6) and robot.link_errors is None
-    legacy_sizes = {"length_std": 1.2e-4, "twist_std": 1.2e-4, "seed": 14}  # the twin's until its rigid truth
-    legacy = scenario.simulate(small_scenario(link_errors=legacy_sizes), iiwa)
-    robot = scenario.robot_from_truth(legacy.truth)
-    assert robot.link_errors.shape == (8, 2) and robot.link_motions is None
-    draw = np.random.default_rng(14)
-    expected = np.column_stack([draw.normal(0.0, 1.2e-4, 8), draw.normal(0.0, 1.2e-4, 8)])
-    np.testing.assert_array_equal(robot.link_errors, expected)
+    draw = np.random.default_rng(3)
+    expected = np.hstack([draw.normal(0.0, 1e-4, (8, 3)), draw.normal(0.0, 2e-4, (8, 3))])
+    np.testing.assert_array_equal(robot.link_motions, expected)
 
 
 BAD_PLANS = [
@@ -277,7 +262,7 @@ def test_bad_plan_keys_are_refused_by_name(iiwa, plan, message):
 
 
 BAD_TRUTHS = [
-    ({"link_errors": {"length_std": 1e-4, "rotation_std": 1e-4}}, "truth/link_errors/length_std: either rigid"),
+    ({"link_errors": {"length_std": 1e-4, "rotation_std": 1e-4}}, "truth/link_errors/length_std: unknown key"),
     ({"link_errors": {"translation_std": 1e-4, "size": 1}}, "truth/link_errors/size: unknown key"),
     ({"link_errors": {"translation_std": -1.0, "rotation_std": 1e-4}}, "truth/link_errors/translation_std"),
     ({"dh_errors": {"std": [1e-4, 1e-4, 1e-4, 1e-4]}}, r"truth/dh_errors: DH errors need a robot given by a DH table"),

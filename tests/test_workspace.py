@@ -17,7 +17,7 @@ from remaster.evaluation import accuracy, domain, workspace
 from remaster.inference import blocks, evidence, fit, metrics
 from remaster.inference.model import SIGMA
 from remaster.loop import loop_closure
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 from remaster.robot import registration
 from remaster.robot.priors import priors_from
@@ -168,12 +168,9 @@ def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.Works
         identity.robot_identity(campaign),
         fit.mode_summary(laplace),
         laplace,
-        report,
-        samples,
+        LoopResults(report, samples),
         np.random.default_rng(SEED),
-        n_draws=DRAWS,
-        n_random=RANDOM,
-        seed=SEED,
+        prediction.Propagation(DRAWS, RANDOM, SEED),
     )
     return result, campaign, laplace
 
@@ -191,12 +188,9 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
             identity.robot_identity(campaign),
             fit.mode_summary(laplace),
             laplace,
-            report,
-            samples,
+            LoopResults(report, samples),
             np.random.default_rng(SEED),
-            n_draws=200,
-            n_random=n_random,
-            seed=SEED,
+            prediction.Propagation(200, n_random, SEED),
         )
         assert result.report["measured_configurations"]["used"] == used
         assert result.report["measured_configurations"]["of"] == rows

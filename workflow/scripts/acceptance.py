@@ -6,7 +6,7 @@ from remaster import files, seeding
 from remaster.campaigns import folders
 from remaster.evaluation import acceptance
 from remaster.inference import fit
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -20,9 +20,9 @@ with files.log_to(snakemake.log[0]):
         fit.Registration.read(i.registration).t_nr,
         fit.LaplaceReport.read(i.laplace),
         files.read_parquet(i.paper_samples),
-        LoopReport.read(i.loop),
-        files.read_parquet(i.loop_samples),
-        files.read_parquet(i.gp),
+        LoopResults(
+            LoopReport.read(i.loop), files.read_parquet(i.loop_samples), files.read_parquet(i.gp), i.loop_samples
+        ),
         seeding.generator(p.seed, w.campaign, w.sensor, "acceptance"),
         p.settings,
     )

@@ -4,10 +4,11 @@ controller offsets and, for a DH campaign, the calibrated DH tables."""
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, seeding
+from remaster.calibration import prediction
 from remaster.campaigns import folders
 from remaster.evaluation import handover
 from remaster.inference import fit
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -20,15 +21,9 @@ with files.log_to(snakemake.log[0]):
         w.sensor,
         files.read_csv(i.summary),
         fit.LaplaceReport.read(i.laplace),
-        LoopReport.read(i.loop),
-        files.read_parquet(i.samples),
-        files.read_parquet(i.gp),
+        LoopResults(LoopReport.read(i.loop), files.read_parquet(i.samples), files.read_parquet(i.gp), i.samples),
         seeding.generator(p.seed, w.campaign, w.sensor, "workspace"),
-        n_draws=p.draws,
-        n_random=p.random_configurations,
-        seed=p.seed,
-        samples_label=i.samples,
-        loop_label=i.loop,
+        prediction.Propagation(p.draws, p.random_configurations, p.seed),
     )
     files.write_csv(out.theoretical, result.workspace.theoretical)
     files.write_csv(out.claims, result.workspace.claims)

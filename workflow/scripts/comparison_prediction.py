@@ -6,6 +6,7 @@ from pathlib import Path
 from snakemake.iocontainers import Snakemake
 
 from remaster import files, stage_inputs
+from remaster.calibration import prediction
 from remaster.campaigns import folders
 from remaster.comparing import predictions, transfer
 from remaster.inference import fit
@@ -30,9 +31,7 @@ with files.log_to(snakemake.log[0]):
         each("loop", LoopReport.read),
         each("paper_samples", files.read_parquet),
         each("loop_samples", files.read_parquet),
-        n_configurations=p.random_configurations,
-        seed=p.seed,
-        draw_pairs=p.draw_pairs,
+        prediction.Propagation(p.draw_pairs, p.random_configurations, p.seed),
     )
     for name, table in result.items():
         stem = Path(snakemake.output[name][0]).with_suffix("")

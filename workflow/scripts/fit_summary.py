@@ -17,16 +17,13 @@ with files.log_to(snakemake.log[0]):
     named = dict(i.items())
     result = fit_summary.fit_summary_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
-        w.campaign,
         w.sensor,
         fit.Registration.read(i.registration),
         fit.LaplaceReport.read(i.laplace),
         {m: files.read_parquet(f) for m, f in stage_inputs.by_sensor(named, "samples").items()},
         {m: files.read_json(f) for m, f in stage_inputs.by_sensor(named, "diagnostics").items()},
-        dict(p.cross_check),
         seeding.generator(p.seed, w.campaign, w.sensor, "accuracy"),
-        n_draws=p.draws,
-        n_random=p.random_configurations,
+        fit_summary.SummarySettings(dict(p.cross_check), p.draws, p.random_configurations),
     )
     files.write_csv(out.cross_check, result.cross_check)
     files.write_csv(out.summary, result.summary)

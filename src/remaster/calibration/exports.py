@@ -22,7 +22,8 @@ none and say why. Each correction's expanded uncertainty holds how far it moves 
 measured too: u_between, the zero-offsets' spread across designs beyond the posterior's
 (loop_closure.json between_design, `remaster.loop.jackknife`), u_c = sqrt(std^2 + u_between^2), its
 effective degrees of freedom (Welch-Satterthwaite, `uncertainty.with_between`) and U = k u_c with
-k = t_0.975(dof). A report without between_design gives u_between NaN and U = k std at k normal.
+k = t_0.975(dof). Where the jackknife was not computed (too few poses), u_between is NaN and U = k std
+at k normal.
 
 SI inside (m, rad).
 """
@@ -167,12 +168,12 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
     return out
 
 
-def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Mapping | None = None) -> pd.DataFrame:
+def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Mapping) -> pd.DataFrame:
     """`OFFSET_COLUMNS` per joint of one model from its parameter table (parameter, mean, std,
     q2.5, q97.5 SI, status) and its between-design component (`jackknife.zero_offset_jackknife`:
-    groups, parameters {name: u_between_deg, jackknife_std_deg}; None when not computed)."""
+    groups, parameters {name: u_between_deg, jackknife_std_deg}, empty when not computed)."""
     table = by_parameter(table)
-    spread = (between or {}).get("parameters") or {}
+    spread = between["parameters"]
     rows = []
     for j, joint in enumerate(joint_names):
         name = f"zero_offsets.q{j + 1}"
@@ -242,11 +243,11 @@ def calibrated_stage(
             else "not added"
         ),
     }
-    between = loop_report.between_design or {}
+    between = loop_report.between_design
     offsets = pd.concat(
         [
-            controller_offsets(chain.joint_names, summary, "paper", between.get("paper")),
-            controller_offsets(chain.joint_names, table, "loop", between.get("loop")),
+            controller_offsets(chain.joint_names, summary, "paper", between["paper"]),
+            controller_offsets(chain.joint_names, table, "loop", between["loop"]),
         ],
         ignore_index=True,
     )

@@ -231,6 +231,17 @@ def calibrated(
     )
 
 
+@dataclass(frozen=True)
+class Propagation:
+    """How a posterior is carried to configurations nobody measured: `draws` posterior draws (pairs
+    of draws where two calibrations are compared) at `random_configurations` configurations of the
+    robot, drawn from `seed` and its identity (`robot_configurations`)."""
+
+    draws: int = 2000
+    random_configurations: int = 1000
+    seed: int = 0
+
+
 def robot_configurations(chain: KinematicChain, robot: str, n: int, seed: int) -> np.ndarray:
     """The one fixed set of random configurations (n, N) rad of a robot: uniform within the joint
     limits, from the generator of (seed, 'comparison', robot slug)."""

@@ -160,24 +160,6 @@ class Campaign:
     def n_joints(self) -> int:
         return self.chain.n_joints
 
-    def to_metadata(self) -> dict[str, Any]:
-        """The campaign.yaml content as a plain dict (for `folders.write_campaign`)."""
-        return {
-            "name": self.name,
-            "date": self.date,
-            "description": self.description,
-            "robot": self.robot,
-            "sensors": {
-                name: {
-                    "kind": s.kind,
-                    "marker": [float(v) for v in s.marker],
-                    **({} if s.noise is None else {"noise": s.noise}),
-                    **({} if s.mpe is None else {"mpe": s.mpe}),
-                }
-                for name, s in self.sensors.items()
-            },
-        }
-
 
 # --------------------------------------------------------------------------- campaign.yaml
 

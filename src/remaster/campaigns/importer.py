@@ -297,20 +297,14 @@ def _zone(name: str) -> dt.tzinfo:
     return dt.UTC if name.upper() == "UTC" else zoneinfo.ZoneInfo(name)
 
 
-def parse_config(config: Any, source: str) -> ImportSpec:
-    """Check an import configuration (as loaded from YAML/JSON); errors name `source` and the key."""
-    config = _mapping(config, "", source)
-    _check_keys(config, REQUIRED_KEYS + OPTIONAL_KEYS + ("controller",), "", source)
-    sensors = _mapping(config.get("sensors", {}), "sensors", source)
-    for name, section in sensors.items():
-        _check_keys(
-            _mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS, f"sensors/{name}", source
-        )
+def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
+    """campaign.yaml's content of an import configuration: its own keys and each sensor's kind,
+    marker and noise, validated (`validate_metadata`)."""
     campaign_yaml = {k: v for k, v in config.items() if k != "controller"}
     if sensors:  # campaign.yaml's part of each sensor section; validate_metadata names what is missing
         campaign_yaml["sensors"] = {n: {k: v for k, v in s.items() if k in SENSOR_KEYS} for n, s in sensors.items()}
     meta = validate_metadata(campaign_yaml, source)
-    metadata = {
+    return {
         "name": meta["name"],
         "date": meta["date"].isoformat(),
         "description": meta["description"],
@@ -325,60 +319,78 @@ def parse_config(config: Any, source: str) -> ImportSpec:
         },
     }
 
+
+def _controller_spec(config: Mapping, source: str) -> ControllerSpec:
+    """The configuration's `controller` section, checked."""
     if "controller" not in config:
         raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
     section = _mapping(config["controller"], "controller", source)
     _check_keys(section, CONTROLLER_KEYS, "controller", source)
-    controller = ControllerSpec(
+    return ControllerSpec(
         file=_file_spec(section, "controller", source),
         joints=_columns(section, "joints", "controller", source),
         unit=_choice(section, "unit", tuple(ANGLE_UNITS), "controller", source),
         **{k: _text(section, k, "controller", source) for k in ("set", "pose", "solution", "key", "time")},
     )
-    controller_carry = set(controller.file.carry)
 
-    specs = {}
-    for name, section in sensors.items():
-        where = f"sensors/{name}"
-        match = _choice(section, "match", MATCHES, where, source)
-        spec = SensorSpec(
-            name=name,
-            file=_file_spec(section, where, source),
-            xyz=_columns(section, "xyz", where, source, list(POSITION_COLUMNS), 3),
-            unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source),
-            match=match,
-            key=_text(section, "key", where, source, controller.key),
-            time=_text(section, "time", where, source, controller.time),
-            tolerance=section.get("tolerance"),
+
+def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
+    """One `sensors/<name>` section's export, checked against the controller log it is matched to:
+    the column it is matched by, a time match's tolerance, no column carried from both."""
+    where = f"sensors/{name}"
+    match = _choice(section, "match", MATCHES, where, source)
+    spec = SensorSpec(
+        name=name,
+        file=_file_spec(section, where, source),
+        xyz=_columns(section, "xyz", where, source, list(POSITION_COLUMNS), 3),
+        unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source),
+        match=match,
+        key=_text(section, "key", where, source, controller.key),
+        time=_text(section, "time", where, source, controller.time),
+        tolerance=section.get("tolerance"),
+    )
+    needed = getattr(controller, match)
+    if needed is None:
+        raise InputError(
+            f"missing: sensor {name!r} is matched by {match}, so the controller log needs a {match} column",
+            file=source,
+            key=f"controller/{match}",
         )
-        needed = getattr(controller, match)
-        if needed is None:
+    if match == "time":
+        tolerance = spec.tolerance
+        if not (
+            isinstance(tolerance, (int, float))
+            and not isinstance(tolerance, bool)
+            and math.isfinite(tolerance)
+            and tolerance > 0
+        ):
             raise InputError(
-                f"missing: sensor {name!r} is matched by {match}, so the controller log needs a {match} column",
+                f"must be a positive number of seconds for match: time, got {tolerance!r}",
                 file=source,
-                key=f"controller/{match}",
+                key=f"{where}/tolerance",
             )
-        if match == "time":
-            tolerance = spec.tolerance
-            if not (
-                isinstance(tolerance, (int, float))
-                and not isinstance(tolerance, bool)
-                and math.isfinite(tolerance)
-                and tolerance > 0
-            ):
-                raise InputError(
-                    f"must be a positive number of seconds for match: time, got {tolerance!r}",
-                    file=source,
-                    key=f"{where}/tolerance",
-                )
-        elif spec.tolerance is not None:
-            raise InputError("only applies to match: time", file=source, key=f"{where}/tolerance")
-        clash = sorted(controller_carry & set(spec.file.carry))
-        if clash:
-            raise InputError(
-                f"column(s) {', '.join(clash)} carried from the controller log too", file=source, key=f"{where}/carry"
-            )
-        specs[name] = spec
+    elif spec.tolerance is not None:
+        raise InputError("only applies to match: time", file=source, key=f"{where}/tolerance")
+    clash = sorted(set(controller.file.carry) & set(spec.file.carry))
+    if clash:
+        raise InputError(
+            f"column(s) {', '.join(clash)} carried from the controller log too", file=source, key=f"{where}/carry"
+        )
+    return spec
+
+
+def parse_config(config: Any, source: str) -> ImportSpec:
+    """Check an import configuration (as loaded from YAML/JSON); errors name `source` and the key."""
+    config = _mapping(config, "", source)
+    _check_keys(config, REQUIRED_KEYS + OPTIONAL_KEYS + ("controller",), "", source)
+    sensors = _mapping(config.get("sensors", {}), "sensors", source)
+    for name, section in sensors.items():
+        _check_keys(
+            _mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS, f"sensors/{name}", source
+        )
+    metadata = _campaign_metadata(config, sensors, source)
+    controller = _controller_spec(config, source)
+    specs = {name: _sensor_spec(name, section, controller, source) for name, section in sensors.items()}
     return ImportSpec(source=source, metadata=metadata, controller=controller, sensors=specs)
 
 
@@ -559,14 +571,9 @@ def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
     return {"columns": columns, "carry": _carried(export, c.file, "controller"), "key": key, "time": time}
 
 
-def _sensor_table(
-    spec: SensorSpec,
-    export: Export,
-    controller: dict[str, Any],
-    controller_export: Export,
-    controller_spec: ControllerSpec,
-) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
-    """One sensor's contract table, its section of the report, and the export row of each table row."""
+def _positions(spec: SensorSpec, export: Export) -> np.ndarray:
+    """The export's marker positions (n, 3) m, NaN where the marker was not seen; an error where
+    some but not all of x, y, z are empty, or a position is beyond MAX_POSITION (a wrong unit)."""
     where = f"sensors/{spec.name}"
     xyz = (
         np.column_stack([_numbers(export, c, f"{where}/xyz", spec.file.decimal, allow_missing=True) for c in spec.xyz])
@@ -589,6 +596,19 @@ def _sensor_table(
             file=export.source,
             key=", ".join(spec.xyz),
         )
+    return xyz
+
+
+def _sensor_table(
+    spec: SensorSpec,
+    export: Export,
+    controller: dict[str, Any],
+    controller_export: Export,
+    controller_spec: ControllerSpec,
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+    """One sensor's contract table, its section of the report, and the export row of each table row."""
+    where = f"sensors/{spec.name}"
+    xyz = _positions(spec, export)
     sensor_time = (
         _times(export, spec.time, f"{where}/time", spec.file)
         if spec.time is not None and (spec.match == "time" or controller["time"] is None)

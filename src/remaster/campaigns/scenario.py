@@ -78,7 +78,6 @@ def _checked_keys(mapping, known: tuple[str, ...], where: str, hint: str = "") -
 
 
 LINK_MOTION_KEYS = ("translation_std", "rotation_std", "seed")  # m, rad
-LEGACY_LINK_KEYS = ("length_std", "twist_std", "seed")  # m, rad: truth files before rigid link motions
 DH_ERROR_KEYS = ("std", "seed")  # std: [a (m), alpha (rad), d (m), theta (rad)]
 TRUTH_KEYS = (
     "zero_offsets_deg",
@@ -92,26 +91,14 @@ TRUTH_KEYS = (
 )
 
 
-def _link_truth(sizes, n_joints: int, rng: np.random.Generator) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(legacy link errors (N + 1, 2), rigid link motions (N + 1, 6)) of `truth/link_errors`: the
-    legacy stretch and twist when it names length_std/twist_std, rigid motions otherwise."""
+def _link_truth(sizes, n_joints: int, rng: np.random.Generator) -> np.ndarray:
+    """Rigid link motions (N + 1, 6) of `truth/link_errors` (`simulation.moved_transforms`)."""
     where = "truth/link_errors"
-    _checked_keys(sizes, tuple(dict.fromkeys(LINK_MOTION_KEYS + LEGACY_LINK_KEYS)), where)
-    legacy = [k for k in ("length_std", "twist_std") if k in sizes]
-    rigid = [k for k in ("translation_std", "rotation_std") if k in sizes]
-    if legacy and rigid:
-        raise InputError(
-            "either rigid link motions {translation_std, rotation_std, seed} (m, rad) or the legacy "
-            "{length_std, twist_std, seed}, not both",
-            key=f"{where}/{legacy[0]}",
-        )
+    _checked_keys(sizes, LINK_MOTION_KEYS, where)
     draw = _own_draw(sizes, where, rng)
     count = n_joints + 1  # F_1 .. F_N, F_tool
-    if legacy:
-        length, twist = _std(sizes, "length_std", where), _std(sizes, "twist_std", where)
-        return np.column_stack([draw.normal(0.0, length, count), draw.normal(0.0, twist, count)]), None
     translation, rotation = _std(sizes, "translation_std", where), _std(sizes, "rotation_std", where)
-    return None, np.hstack([draw.normal(0.0, translation, (count, 3)), draw.normal(0.0, rotation, (count, 3))])
+    return np.hstack([draw.normal(0.0, translation, (count, 3)), draw.normal(0.0, rotation, (count, 3))])
 
 
 def _dh_truth(sizes, robot_spec: dict, n_joints: int, rng: np.random.Generator) -> DHErrors:
@@ -139,9 +126,7 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
     offsets = _vector(truth, "zero_offsets_deg", n_joints, np.pi / 180.0)
     if offsets is None:
         raise InputError("a scenario needs the true zero-offsets", key="truth/zero_offsets_deg")
-    link_errors = link_motions = None
-    if truth.get("link_errors"):
-        link_errors, link_motions = _link_truth(truth["link_errors"], n_joints, rng)
+    link_motions = _link_truth(truth["link_errors"], n_joints, rng) if truth.get("link_errors") else None
     dh_errors = _dh_truth(truth["dh_errors"], spec.get("robot"), n_joints, rng) if truth.get("dh_errors") else None
     payload = truth.get("payload") or {}
     drift = _vector(truth, "drift_deg_per_hour", n_joints, np.pi / 180.0 / SECONDS_PER_HOUR)
@@ -168,7 +153,6 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
         joint_compliance=_vector(truth, "joint_compliance", n_joints),
         payload_mass=float(payload.get("mass", 0.0)),
         payload_com=np.asarray(payload.get("com", [0, 0, 0]), float),
-        link_errors=link_errors,
         joint_scale=_vector(truth, "joint_scale", n_joints),
         drift_rate=drift,
         cyclic_error=cyclic,
@@ -425,27 +409,14 @@ def copies(spec: dict, count: int | None, seed: int | None = None):
     return [({**spec, "name": f"{spec['name']}-{i + 1:03d}"}, first + i) for i in range(count)]
 
 
-def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> SimulatedCampaign:
-    """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
-    rng = np.random.default_rng(spec["seed"] if seed is None else seed)
-    robot = true_robot(spec, chain.n_joints, rng)
-    if robot.dh_errors is not None and robot.joint_compliance is not None and chain.inertias is not None:
-        if not same_frames_as_dh(chain, robot.dh_errors):
-            raise InputError(
-                "DH errors rebuild the joint frames from the DH table, and the URDF's mass data are in "
-                "other frames: simulate joint compliance and DH errors in separate scenarios",
-                key="truth/dh_errors",
-            )
-    sensors = sensors_of(spec)
-    plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
-    design = plan_spec.get("design", LATIN_HYPERCUBE)
-    if design not in DESIGNS:
-        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
-    held = holding(plan_spec, chain, design)
+def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot, sensors, held: Holding, rng):
+    """(the readings' table: set, pose, solution, q1..qN rad; {set: what was drawn and discarded};
+    the reference sensor's estimated origin (3,) m, None for random joint-space configurations; the
+    cube design's flange rotation (3, 3), None for the others) of the scenario's `plan`."""
     sets = _sets(plan_spec, design)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
-    target = None
+    target = rotation = None
     if design != RANDOM_JOINTS:  # the inverse-kinematics designs point the tool at the reference sensor
         if plan_spec.get("reference_sensor") not in sensors:
             raise InputError(f"must name one of the sensors ({', '.join(sensors)})", key="plan/reference_sensor")
@@ -485,48 +456,73 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
                 target,
                 sights,
                 rng,
-                candidates=int(plan_spec["candidates"]),
-                n_poses=size.get("poses"),
-                n_configurations=size.get("configurations"),
+                size=planning.SetSize(int(plan_spec["candidates"]), size.get("poses"), size.get("configurations")),
                 model=collision,
                 q3=held.q3,
             )
         tables.append(plan.table)
         drawn = "candidate_configurations" if design == RANDOM_JOINTS else "candidate_poses"
         discarded[set_name] = {drawn: plan.candidates, **plan.discarded}
-    readings = pd.concat(tables, ignore_index=True)
+    return pd.concat(tables, ignore_index=True), discarded, target, rotation
+
+
+def _measured(name: str, spec: dict, sensor: Sensor, chain, robot: TrueRobot, readings, elapsed, rng):
+    """(xyz (n, 3) m, the truth's record) of one sensor measuring the readings' configurations at
+    `elapsed` (n,) s: its noise, what happens to it (`sensor_side`), the rows it does not see (NaN)
+    and its glitches, as the scenario's `sensors/<name>` (`spec`) says."""
     q = readings[[f"q{j + 1}" for j in range(chain.n_joints)]].to_numpy()
+    xyz = measure(chain, robot, sensor, q, rng, elapsed)
+    move, distortion, sensor_record = sensor_side_of(spec, f"sensors/{name}")
+    xyz = sensor_side(xyz, readings["set"].to_numpy() == "validation", move, distortion)
+    unseen = rng.choice(len(xyz), size=int(spec.get("missing", 0)), replace=False)
+    xyz[np.sort(unseen)] = np.nan
+    glitches = spec.get("gross_errors")
+    if glitches is not None:
+        xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
+    return xyz, {
+        "kind": sensor.kind,
+        "noise_m": sensor.noise,
+        "scale_error": sensor.scale_error,
+        **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
+        "marker_error_m": sensor.marker_error.tolist(),
+        "T_NR": sensor.robot_to_sensor.tolist(),
+        "pose_in_robot": sensor.pose_in_robot.tolist(),
+        "unseen_rows": sorted(int(i) for i in unseen),
+        **({"gross_errors": glitched} if glitches is not None else {}),
+        "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
+        **sensor_record,
+    }
+
+
+def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> SimulatedCampaign:
+    """Plan, measure and record one scenario. `seed` overrides the scenario's own."""
+    rng = np.random.default_rng(spec["seed"] if seed is None else seed)
+    robot = true_robot(spec, chain.n_joints, rng)
+    if robot.dh_errors is not None and robot.joint_compliance is not None and chain.inertias is not None:
+        if not same_frames_as_dh(chain, robot.dh_errors):
+            raise InputError(
+                "DH errors rebuild the joint frames from the DH table, and the URDF's mass data are in "
+                "other frames: simulate joint compliance and DH errors in separate scenarios",
+                key="truth/dh_errors",
+            )
+    sensors = sensors_of(spec)
+    plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
+    design = plan_spec.get("design", LATIN_HYPERCUBE)
+    if design not in DESIGNS:
+        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
+    held = holding(plan_spec, chain, design)
+    readings, discarded, target, rotation = _plan(plan_spec, design, chain, robot, sensors, held, rng)
     elapsed = np.arange(len(readings)) * float(plan_spec["seconds_per_configuration"])
     start = pd.Timestamp(spec["date"], tz="UTC") + pd.Timedelta(hours=9)
     times = start + pd.to_timedelta(elapsed, unit="s")
 
     out_tables, truth_sensors = {}, {}
     for name, sensor in sensors.items():
-        xyz = measure(chain, robot, sensor, q, rng, elapsed)
-        move, distortion, sensor_record = sensor_side_of(spec["sensors"][name], f"sensors/{name}")
-        xyz = sensor_side(xyz, readings["set"].to_numpy() == "validation", move, distortion)
-        unseen = rng.choice(len(xyz), size=int(spec["sensors"][name].get("missing", 0)), replace=False)
-        xyz[np.sort(unseen)] = np.nan
-        glitches = spec["sensors"][name].get("gross_errors")
-        if glitches is not None:
-            xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
+        xyz, truth_sensors[name] = _measured(name, spec["sensors"][name], sensor, chain, robot, readings, elapsed, rng)
         table = readings.copy()
         table[["x", "y", "z"]] = xyz
         table["time"] = times
         out_tables[name] = table
-        truth_sensors[name] = {
-            "kind": sensor.kind,
-            "noise_m": sensor.noise,
-            "scale_error": sensor.scale_error,
-            **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
-            "marker_error_m": sensor.marker_error.tolist(),
-            "T_NR": sensor.robot_to_sensor.tolist(),
-            "pose_in_robot": sensor.pose_in_robot.tolist(),
-            "unseen_rows": sorted(int(i) for i in unseen),
-            **({"gross_errors": glitched} if glitches is not None else {}),
-            "true_marker_positions_robot_frame_m": true_marker_positions(chain, robot, sensor, q, elapsed).tolist(),
-            **sensor_record,
-        }
     metadata = {
         "name": spec["name"],
         "date": str(spec["date"]),
@@ -558,7 +554,7 @@ def robot_from_truth(truth: dict) -> TrueRobot:
     """The true robot of a ground-truth record (data/truth/<campaign>.json, as `simulate` writes
     it): the inverse of its `zero_offsets_deg` and `effects`."""
     effects = truth.get("effects", {})
-    compliance, links = effects.get("joint_compliance"), effects.get("link_geometry")
+    compliance = effects.get("joint_compliance")
     cyclic, drift = effects.get("cyclic_error"), effects.get("drift")
     motions, dh = effects.get("link_motions"), effects.get("dh_errors")
     return TrueRobot(
@@ -566,7 +562,6 @@ def robot_from_truth(truth: dict) -> TrueRobot:
         joint_compliance=np.array(compliance["compliance_rad_per_Nm"]) if compliance else None,
         payload_mass=float(compliance["payload_mass_kg"]) if compliance else 0.0,
         payload_com=np.array(compliance["payload_com_m"]) if compliance else np.zeros(3),
-        link_errors=np.column_stack([links["length_errors_m"], links["twist_errors_rad"]]) if links else None,
         joint_scale=np.array(effects["joint_scale"]["scale"]) if "joint_scale" in effects else None,
         drift_rate=np.radians(drift["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR if drift else None,
         cyclic_error=_cyclic_terms(cyclic) if cyclic else None,
@@ -602,12 +597,6 @@ def _effects_record(robot: TrueRobot) -> dict:
             "compliance_rad_per_Nm": robot.joint_compliance.tolist(),
             "payload_mass_kg": robot.payload_mass,
             "payload_com_m": robot.payload_com.tolist(),
-        }
-    if robot.link_errors is not None:
-        effects["link_geometry"] = {
-            "length_errors_m": robot.link_errors[:, 0].tolist(),
-            "twist_errors_rad": robot.link_errors[:, 1].tolist(),
-            "links": "F_1 .. F_N, F_tool (the fixed transform before each joint, then the tool)",
         }
     if robot.link_motions is not None:
         effects["link_motions"] = {

@@ -15,7 +15,7 @@ The true chain's geometry (`true_chain`) is written here, apart from the fit's l
 model (`remaster.inference`, `kinematics.perturbed_chain`), so that a simulated campaign tests
 that model against a world it did not make: a DH robot's table with errors, rebuilt; then an
 arbitrary small rigid motion of every fixed transform, applied on the side of the frame it starts
-from; then, for truth files written before those, the legacy stretch-and-twist link errors.
+from.
 """
 
 from __future__ import annotations
@@ -53,15 +53,12 @@ class TrueRobot:
 
     link_motions (N + 1, 6): for F_1..F_N, F_tool a translation t (m, 3) then roll, pitch, yaw
     r (rad, 3), F'_j = Trans(t) Rz(yaw) Ry(pitch) Rx(roll) F_j (`moved_transforms`).
-    link_errors (N + 1, 2): the legacy truth, a length error (m) along each fixed transform's
-    translation and a twist (rad) about the x axis of the frame it leads to (`stretched_transforms`).
     dh_errors: a DH robot's true table (`DHErrors`), applied first."""
 
     zero_offsets: np.ndarray
     joint_compliance: np.ndarray | None = None
     payload_mass: float = 0.0
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    link_errors: np.ndarray | None = None
     joint_scale: np.ndarray | None = None
     drift_rate: np.ndarray | None = None
     # (N, 3), or (T, N, 3) for T summed terms: amplitude (rad), cycles per turn, phase (rad) of a gear's error
@@ -114,20 +111,6 @@ def moved_transforms(transforms, motions) -> np.ndarray:
     return moves @ np.asarray(transforms, dtype=float)
 
 
-def stretched_transforms(transforms, link_errors) -> np.ndarray:
-    """Fixed transforms (k, 4, 4) with the legacy two-parameter link errors (k, 2): a length error
-    (m) along each translation (none for a transform without one) and a twist (rad) about the x
-    axis of the frame it leads to. Truth files written before rigid link motions hold these; the
-    arithmetic is that of the fit's former model, so their campaigns regenerate bit for bit."""
-    errors = np.asarray(link_errors, dtype=float)
-    out = np.array(transforms, dtype=float)
-    reach = np.linalg.norm(out[:, :3, 3], axis=1)
-    stretch = np.divide(errors[:, 0], reach, out=np.zeros(len(errors)), where=reach > 0)
-    out[:, :3, 3] *= (1.0 + stretch)[:, None]
-    out[:, :3, :3] = out[:, :3, :3] @ spatial.rot_x(errors[:, 1])
-    return out
-
-
 def dh_chain(dh: DHErrors, nominal: KinematicChain) -> KinematicChain:
     """The chain of a DH table with errors, with the nominal chain's names and limits (the
     controller's), and its mass data only when its joint frames are the DH table's own."""
@@ -156,18 +139,18 @@ def same_frames_as_dh(chain: KinematicChain, dh: DHErrors, tolerance: float = 1e
 
 def true_chain(chain: KinematicChain, robot: TrueRobot) -> KinematicChain:
     """The robot's true geometry: the nominal chain, or the DH table with its errors, then the
-    rigid link motions, then the legacy link errors; the nominal chain itself when it has none."""
-    if robot.dh_errors is None and robot.link_motions is None and robot.link_errors is None:
+    rigid link motions; the nominal chain itself when it has none."""
+    if robot.dh_errors is None and robot.link_motions is None:
         return chain
     base = dh_chain(robot.dh_errors, chain) if robot.dh_errors is not None else chain
+    if robot.link_motions is None:
+        return base
     transforms = np.concatenate([base.joint_transforms, base.tool_transform[None]])
-    for errors, apply in ((robot.link_motions, moved_transforms), (robot.link_errors, stretched_transforms)):
-        if errors is not None:
-            if np.shape(errors)[0] != len(transforms):
-                raise ValueError(
-                    f"link errors need one row per fixed transform ({len(transforms)}), got {np.shape(errors)}"
-                )
-            transforms = apply(transforms, errors)
+    if np.shape(robot.link_motions)[0] != len(transforms):
+        raise ValueError(
+            f"link motions need one row per fixed transform ({len(transforms)}), got {np.shape(robot.link_motions)}"
+        )
+    transforms = moved_transforms(transforms, robot.link_motions)
     return replace(base, joint_transforms=transforms[:-1], tool_transform=transforms[-1])
 
 

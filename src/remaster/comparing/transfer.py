@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .. import spatial
-from ..calibration.prediction import MODELS, Calibrated, Calibration, calibrated_entries
+from ..calibration.prediction import MODELS, Calibrated, Calibration, Propagation, calibrated_entries
 from ..errors import InputError
 from ..robot import registration
 from ..units import MM
@@ -128,19 +128,16 @@ def prediction_stage(
     loops,
     paper_samples,
     loop_samples,
-    *,
-    n_configurations: int,
-    seed: int,
-    draw_pairs: int,
+    propagation: Propagation,
 ) -> dict[str, pd.DataFrame]:
     """The comparisons by prediction (arguments as `prediction.calibrated_entries`): the transfer
-    table, then every table of `predictions.PREDICTION_TABLES` at `n_configurations` random
-    configurations per robot (from `seed`), with `draw_pairs` posterior draw pairs."""
+    table, then every table of `predictions.PREDICTION_TABLES` at the propagation's random
+    configurations per robot (from its seed), with its draws as posterior draw pairs."""
     from .predictions import PREDICTION_TABLES
 
     out = {"transfer": transfer_stage(campaigns, summaries, laplaces, loops)}
     # one set of calibrated entries (with their posterior samples) for every prediction table
     entries = calibrated_entries(campaigns, summaries, laplaces, loops, paper_samples, loop_samples)
     for name, table in PREDICTION_TABLES.items():
-        out[name] = table(entries, n_configurations, seed, draw_pairs)
+        out[name] = table(entries, propagation.random_configurations, propagation.seed, propagation.draws)
     return out

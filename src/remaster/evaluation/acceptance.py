@@ -38,13 +38,12 @@ where the names say so.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import pandas as pd
 
 from .. import noise, spatial
-from ..campaigns.campaign import SensorData
 from ..errors import InputError, report_reader
 from ..files import read_json, write_json
 from ..inference import blocks
@@ -52,7 +51,7 @@ from ..inference.blocks import BlockModel, ModelSettings, Readings
 from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
 from ..inference.model import SIGMA
-from ..loop.result import LoopReport
+from ..loop.result import LoopReport, LoopResults
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM
 
@@ -234,20 +233,16 @@ def _checked_samples(samples: pd.DataFrame, names: Sequence[str], label: str) ->
 
 
 def paper_claim(
-    chain: KinematicChain,
-    data: Readings,
-    marker,
-    t_nr,
+    model: BlockModel,
     laplace: LaplaceReport,
     samples: pd.DataFrame | None,
     count: int,
     rng: np.random.Generator,
     label: str = "",
 ) -> Claim:
-    """The paper's model (registration + zero-offsets, held ones at their value) at the validation
-    readings: draws from its posterior samples (the default sampler's), or from its Laplace
-    approximation when none are given."""
-    model = BlockModel(chain, data, marker, t_nr, (), laplace.held)
+    """The paper's model (registration + zero-offsets, held ones at their value: `paper_model`) at
+    the validation readings: draws from its posterior samples (the default sampler's), or from its
+    Laplace approximation when none are given."""
     if samples is not None and not samples.empty:
         table = _checked_samples(samples, model.names, label)
         chosen = table.iloc[_rows(count, len(table), rng)]
@@ -261,6 +256,11 @@ def paper_claim(
         mean = laplace.theta_map
         source = "the paper model's Laplace approximation (no samples given)"
     return Claim(model.predict(mean), model, theta, sigma, (), source)
+
+
+def paper_model(chain: KinematicChain, data: Readings, marker, t_nr, laplace: LaplaceReport) -> BlockModel:
+    """The paper's model on some readings: registration and zero-offsets, the held ones at their value."""
+    return BlockModel(chain, data, marker, t_nr, (), laplace.held)
 
 
 def loop_model(chain: KinematicChain, data: Readings, marker, t_nr, report: LoopReport) -> BlockModel:
@@ -277,23 +277,12 @@ def loop_model(chain: KinematicChain, data: Readings, marker, t_nr, report: Loop
     return BlockModel(chain, data, marker, t_nr, effects, fixed, None, shape)
 
 
-def loop_claim(
-    chain: KinematicChain,
-    data: Readings,
-    marker,
-    t_nr,
-    report: LoopReport,
-    samples: pd.DataFrame | None,
-    gp_rows: pd.DataFrame | None,
-    count: int,
-    rng: np.random.Generator,
-    label: str = "",
-) -> Claim:
-    """The loop-closed model at the validation readings: its MCMC refit's draws (the Laplace
-    approximation's diagonal when the refit ran without MCMC), plus its residual GP when it added
-    one (mean at the reference; drawn from its marginal at each configuration, its noise std the
-    noise, as `workspace` propagates it)."""
-    model = loop_model(chain, data, marker, t_nr, report)
+def loop_claim(model: BlockModel, loop: LoopResults, count: int, rng: np.random.Generator, label: str = "") -> Claim:
+    """The loop-closed model (`loop_model`) at the validation readings: its MCMC refit's draws (the
+    Laplace approximation's diagonal when the refit ran without MCMC), plus its residual GP when it
+    added one (mean at the reference; drawn from its marginal at each configuration, its noise std
+    the noise, as `workspace` propagates it)."""
+    report, samples = loop.report, loop.samples
     names = list(model.names)
     if samples is not None and not samples.empty:
         table = _checked_samples(samples, names, label)
@@ -310,11 +299,11 @@ def loop_claim(
         sigma = np.full(count, float(mode["sigma_mm"]) * MM)
         source = "the loop closure's Laplace approximation (independent parameters; no MCMC samples)"
     reference = model.predict(mean)
-    gp = loop_candidate.from_results(gp_rows, report.residual_gp) if GP in report.effects_added else None
+    gp = loop_candidate.from_results(loop.gp_rows, report.residual_gp) if GP in report.effects_added else None
     if gp is None:
         return Claim(reference, model, theta, sigma, tuple(report.effects_added), source)
     rotation = np.asarray(report.residual_gp["rotation_robot_to_sensor"], dtype=float)
-    correction = gp.mean(data.q) @ rotation.T
+    correction = gp.mean(model.data.q) @ rotation.T
     return Claim(
         reference + correction,
         model,
@@ -322,7 +311,7 @@ def loop_claim(
         np.full(count, gp.hyper.noise_std),
         tuple(report.effects_added),
         source + " with its residual GP",
-        np.sqrt(gp.variance(data.q)),
+        np.sqrt(gp.variance(model.data.q)),
         correction,
     )
 
@@ -419,7 +408,7 @@ class Acceptance:
         get = report_reader(content, source, "missing in the acceptance report")
         values = {}
         for f in fields(cls):
-            if f.name == "source" or (f.name in ("statistic", "campaign") and f.name not in content):
+            if f.name == "source":
                 continue
             value = get(f.name)
             values[f.name] = tuple(value) if f.name in ("gross_errors_left_out", "warnings") else value
@@ -434,65 +423,21 @@ class Acceptance:
         return cls.of(read_json(path), source=str(path))
 
 
-def accept(
-    chain: KinematicChain,
-    sensor: SensorData,
-    t_nr,
-    laplace: LaplaceReport,
-    paper_samples: pd.DataFrame | None,
-    loop: LoopReport,
-    loop_samples: pd.DataFrame | None,
-    loop_gp_rows: pd.DataFrame | None,
-    rng: np.random.Generator,
-    level: float,
-    draws: int,
-    registration_share: float,
-    label: str = "",
-) -> Acceptance:
-    """The acceptance check of one sensor (module docstring). t_nr (4, 4): the fit's initial
-    registration (registration.json); laplace: the paper's fit; paper_samples: its default
-    sampler's samples (None: its Laplace approximation); loop, loop_samples, loop_gp_rows: the
-    loop closure's report, MCMC samples and residual-GP training rows; rng draws the posterior rows
-    and the noise; level: the p-value below which a model fails; draws: replicates per model;
-    registration_share: the share of the excess a refit registration must remove to explain it."""
-    flagged = sorted(int(r) for r in ((getattr(loop, "gross_errors", None) or {}).get("validation") or ()))
-    settings = ModelSettings(
-        payload_mass=loop.payload_mass,
-        payload_com=loop.payload_com,
-        drift_column=(loop.settings or {}).get("drift_column"),
-        harmonic_orders=loop.harmonic_orders,
+def _untested(rows: int) -> tuple[str, dict]:
+    """(the diagnosis text, the Acceptance fields) of a campaign with fewer than MIN_VALIDATION_ROWS
+    measured validation rows: the certificate says the calibration is untested, every other result
+    stands."""
+    text = (
+        f"not tested: {rows} measured validation rows (at least {MIN_VALIDATION_ROWS} needed); "
+        "measure a validation set to accept this calibration"
     )
-    data = blocks.readings(chain, sensor, "validation", settings, flagged)
-    if len(data.rows) < MIN_VALIDATION_ROWS:
-        # a campaign may come without a validation set: the certificate says the calibration is
-        # untested, and every other result stands
-        text = (
-            f"not tested: {len(data.rows)} measured validation rows (at least {MIN_VALIDATION_ROWS} needed); "
-            "measure a validation set to accept this calibration"
-        )
-        return Acceptance(
-            sensor=sensor.name,
-            verdict=UNTESTED,
-            diagnosis=None,
-            diagnosis_text=text,
-            recommended="loop",
-            move=None,
-            checks={},
-            level=float(level),
-            registration_share=float(registration_share),
-            draws=int(draws),
-            validation_rows=int(len(data.rows)),
-            gross_errors_left_out=tuple(flagged),
-            warnings=(f"acceptance test {text}",),
-            campaign=loop.campaign,
-        )
-    claims = {
-        "loop": loop_claim(chain, data, sensor.marker, t_nr, loop, loop_samples, loop_gp_rows, draws, rng, label),
-        "paper": paper_claim(chain, data, sensor.marker, t_nr, laplace, paper_samples, draws, rng, label),
-    }
-    checks = {m: check(data.measured, claims[m], level, registration_share, rng) for m in MODELS}
-    effects = [b for b in loop.effects_added]
-    verdict, diagnosis, recommended = diagnose(checks, effects)
+    return text, {"verdict": UNTESTED, "diagnosis": None, "recommended": "loop", "move": None, "checks": {}}
+
+
+def _warnings(checks: Mapping, diagnosis: str | None, recommended: str, effects, flagged, level: float) -> list[str]:
+    """What the certificate must say of the checks: the diagnosis of a failure, a loop-closed model
+    that validates worse than the paper's though within its claim, a recommended paper model that
+    fails too, and the validation rows left out as gross errors."""
     warnings = []
     if diagnosis is not None:
         warnings.append(f"acceptance test on the validation set: {_diagnosis_text(diagnosis, checks, level)}")
@@ -510,22 +455,7 @@ def accept(
         warnings.append(
             f"{len(flagged)} validation rows flagged as gross errors left out of the check (rows {flagged})"
         )
-    return Acceptance(
-        sensor=sensor.name,
-        verdict=verdict,
-        diagnosis=diagnosis,
-        diagnosis_text=_diagnosis_text(diagnosis, checks, level),
-        recommended=recommended,
-        move=checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
-        checks=checks,
-        level=float(level),
-        registration_share=float(registration_share),
-        draws=int(draws),
-        validation_rows=int(len(data.rows)),
-        gross_errors_left_out=tuple(flagged),
-        warnings=tuple(warnings),
-        campaign=loop.campaign,
-    )
+    return warnings
 
 
 def acceptance_stage(
@@ -534,27 +464,60 @@ def acceptance_stage(
     t_nr,
     laplace: LaplaceReport,
     paper_samples: pd.DataFrame | None,
-    loop: LoopReport,
-    loop_samples: pd.DataFrame | None,
-    loop_gp_rows: pd.DataFrame | None,
+    loop: LoopResults,
     rng: np.random.Generator,
     settings: Mapping,
 ) -> Acceptance:
-    """`accept` for one sensor of a campaign with the config's `acceptance` section (level, draws,
-    registration_share)."""
-    result = accept(
-        campaign.chain,
-        campaign.sensors[sensor],
-        t_nr,
-        laplace,
-        paper_samples,
-        loop,
-        loop_samples,
-        loop_gp_rows,
-        rng,
-        float(settings["level"]),
-        int(settings["draws"]),
-        float(settings["registration_share"]),
-        label=f"{campaign.name}/{sensor}",
+    """The acceptance check of one sensor of a campaign (module docstring). t_nr (4, 4): the fit's
+    initial registration (registration.json); laplace: the paper's fit; paper_samples: its default
+    sampler's samples (None: its Laplace approximation); loop: the loop closure's report, MCMC
+    samples and residual-GP training rows; rng draws the posterior rows and the noise; settings: the
+    config's `acceptance` section: level, the p-value below which a model fails; draws, replicates
+    per model; registration_share, the share of the excess a refit registration must remove to
+    explain it."""
+    level, draws = float(settings["level"]), int(settings["draws"])
+    registration_share = float(settings["registration_share"])
+    chain, measured, report = campaign.chain, campaign.sensors[sensor], loop.report
+    flagged = sorted(int(r) for r in report.gross_errors["validation"])
+    model_settings = ModelSettings(
+        payload_mass=report.payload_mass,
+        payload_com=report.payload_com,
+        drift_column=(report.settings or {}).get("drift_column"),
+        harmonic_orders=report.harmonic_orders,
     )
-    return replace(result, campaign=campaign.name)
+    data = blocks.readings(chain, measured, "validation", model_settings, flagged)
+    if len(data.rows) < MIN_VALIDATION_ROWS:
+        text, verdict = _untested(len(data.rows))
+        warnings = [f"acceptance test {text}"]
+    else:
+        label = f"{campaign.name}/{sensor}"
+        claims = {
+            "loop": loop_claim(loop_model(chain, data, measured.marker, t_nr, report), loop, draws, rng, label),
+            "paper": paper_claim(
+                paper_model(chain, data, measured.marker, t_nr, laplace), laplace, paper_samples, draws, rng, label
+            ),
+        }
+        checks = {m: check(data.measured, claims[m], level, registration_share, rng) for m in MODELS}
+        effects = [b for b in report.effects_added]
+        result, diagnosis, recommended = diagnose(checks, effects)
+        text = _diagnosis_text(diagnosis, checks, level)
+        verdict = {
+            "verdict": result,
+            "diagnosis": diagnosis,
+            "recommended": recommended,
+            "move": checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
+            "checks": checks,
+        }
+        warnings = _warnings(checks, diagnosis, recommended, effects, flagged, level)
+    return Acceptance(
+        sensor=measured.name,
+        diagnosis_text=text,
+        level=level,
+        registration_share=registration_share,
+        draws=draws,
+        validation_rows=int(len(data.rows)),
+        gross_errors_left_out=tuple(flagged),
+        warnings=tuple(warnings),
+        campaign=campaign.name,
+        **verdict,
+    )

@@ -40,6 +40,7 @@ Everything inside is SI; the returned tables are in mm (columns say _mm).
 
 from __future__ import annotations
 
+import copy
 import functools
 from dataclasses import dataclass, replace
 from importlib import resources
@@ -128,10 +129,6 @@ class Remastered:
     def robot_points(self, chain: KinematicChain, q, marker) -> np.ndarray:
         """Marker positions (n, 3) m in the robot frame at readings q (n, N)."""
         return ForwardKinematics(chain, q).points(marker, self.zero_offsets)
-
-    def sensor_points(self, chain: KinematicChain, q, marker) -> np.ndarray:
-        """Marker positions (n, 3) m in the sensor frame."""
-        return spatial.transform_points(self.sensor_from_robot, self.robot_points(chain, q, marker))
 
     def registered_to(self, chain: KinematicChain, q, measured, marker) -> Remastered:
         """The same zero-offsets with the least-squares registration onto measured points (n, 3)."""
@@ -284,6 +281,65 @@ def _configuration_errors(
 
 # --------------------------------------------------------------------------- the stage
 
+# how each method and registration was obtained (the report's notes)
+REPORT_NOTES = {
+    "vernier": "controller zero-offsets with the initial three-point registration T_NR (the paper's scoring)",
+    "vernier_least_squares": "controller zero-offsets; registration by least squares (Kabsch) with "
+    "zero-offsets 0 on the optimization set's used points (seen, not flagged); "
+    "post-registration errors only",
+    "bayesian": "posterior means of the free parameters, held parameters at their held value, with the "
+    "fitted registration T*(Theta1) T_NR",
+    "theoretical": "distances in the robot frame between the method's TCP and the TCPs of posterior draws "
+    "(whole posterior rows), with each draw's N(0, sigma^2 I3) added except for zero-offsets "
+    "only; optimization configurations include rows whose marker was not seen",
+    "validation_registration": {
+        POST_REGISTRATION: REGISTRATION_AS_FITTED,
+        POST_REGISTRATION_REFIT: REGISTRATION_REFIT,
+    },
+}
+
+
+def _rows_report(optimization: SetData, validation: SetData) -> dict:
+    """The report's rows of each set: left out (marker not seen; flagged), with counts, and used;
+    and the configuration of the TCP scatter (the first optimization row's)."""
+    sets = (optimization, validation)
+    first = {
+        "row": int(optimization.rows[0]),
+        "pose": int(optimization.poses[0]),
+        "solution": int(optimization.solutions[0]),
+    }
+    return {
+        "tcp_scatter_configuration": first if len(optimization.rows) else None,
+        "excluded_rows_marker_not_seen": {data.name: data.unseen_rows for data in sets},
+        "excluded_rows_outliers": {data.name: data.flagged_rows for data in sets},
+        "excluded_counts": {
+            data.name: {"marker_not_seen": len(data.unseen_rows), "outliers": len(data.flagged_rows)} for data in sets
+        },
+        "configurations": {data.name: int(len(data.rows)) for data in sets},
+    }
+
+
+def _theoretical_tables(chain, optimization_q, random_q, marker, robots, draw_offsets, draw_sigma, rng) -> dict:
+    """The paper's theoretical tables, one row per method: the TCP's distance to the posterior
+    draws' (zero-offsets (k, N), noise stds (k,) m) at the optimization configurations and at the
+    random ones, with each draw's noise, and at the random ones without it (zero-offsets only)."""
+    out = {}
+    for table, q, sigma in (
+        ("theoretical_accuracy_optimization_configs", optimization_q, draw_sigma),
+        ("theoretical_accuracy_random_configs", random_q, draw_sigma),
+        ("theoretical_accuracy_zero_offsets_only", random_q, None),
+    ):
+        out[table] = pd.DataFrame(
+            [
+                _summary_row(
+                    metrics.theoretical_errors(chain, q, marker, robot.zero_offsets, draw_offsets, sigma, rng),
+                    method=method,
+                )
+                for method, robot in robots.items()
+            ]
+        )
+    return out
+
 
 def accuracy_tables(
     campaign: Campaign,
@@ -344,67 +400,37 @@ def accuracy_tables(
     draw_offsets = draws[list(parameter_names(chain.n_joints)[6:])].to_numpy()
     draw_sigma = draws[SIGMA].to_numpy()
     random_q = metrics.random_configurations(chain, n_random, rng)
-    for table, q, sigma in (
-        ("theoretical_accuracy_optimization_configs", optimization.q, draw_sigma),
-        ("theoretical_accuracy_random_configs", random_q, draw_sigma),
-        ("theoretical_accuracy_zero_offsets_only", random_q, None),
-    ):
-        out[table] = pd.DataFrame(
-            [
-                _summary_row(
-                    metrics.theoretical_errors(chain, q, marker, robot.zero_offsets, draw_offsets, sigma, rng),
-                    method=method,
-                )
-                for method, robot in robots.items()
-            ]
-        )
+    out.update(_theoretical_tables(chain, optimization.q, random_q, marker, robots, draw_offsets, draw_sigma, rng))
 
-    validation_rows, validation_frames = _validation(chain, validation, scored, marker)
-    out[VALIDATION_TABLE] = pd.DataFrame(validation_rows)
-    frames = [frame for frame in [errors[m][1] for m in SCORED_METHODS] + validation_frames if len(frame)]
-    out["configuration_errors"] = (
-        pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(CONFIGURATION_COLUMNS))
-    )
+    out.update(_validation_tables(chain, validation, scored, marker, errors))
     out["tcp_scatter"] = tcp_scatter(chain, optimization, marker, robots, draw_offsets, draw_sigma, rng)
     out["remastering_parameters"] = _parameters_used(scored, mle, t_nr, laplace, errors)
     out["report"] = {
         "campaign": campaign.name,
         "sensor": sensor_name,
-        "excluded_rows_marker_not_seen": {data.name: data.unseen_rows for data in (optimization, validation)},
-        "excluded_rows_outliers": {data.name: data.flagged_rows for data in (optimization, validation)},
-        "excluded_counts": {
-            data.name: {"marker_not_seen": len(data.unseen_rows), "outliers": len(data.flagged_rows)}
-            for data in (optimization, validation)
-        },
-        "configurations": {data.name: int(len(data.rows)) for data in (optimization, validation)},
+        **_rows_report(optimization, validation),
         "posterior_samples": int(len(parameters)),
         "draws": int(n_draws),
         "draws_with_replacement": replace_draws,
         "random_configurations": int(n_random),
         "random_configuration_bounds_rad": [b.tolist() for b in metrics.joint_space_bounds(chain)],
         "held_parameters": dict(laplace.held),
-        "vernier": "controller zero-offsets with the initial three-point registration T_NR (the paper's scoring)",
-        "vernier_least_squares": "controller zero-offsets; registration by least squares (Kabsch) with "
-        "zero-offsets 0 on the optimization set's used points (seen, not flagged); "
-        "post-registration errors only",
-        "bayesian": "posterior means of the free parameters, held parameters at their held value, with the "
-        "fitted registration T*(Theta1) T_NR",
-        "theoretical": "distances in the robot frame between the method's TCP and the TCPs of posterior draws "
-        "(whole posterior rows), with each draw's N(0, sigma^2 I3) added except for zero-offsets "
-        "only; optimization configurations include rows whose marker was not seen",
-        "validation_registration": {
-            POST_REGISTRATION: REGISTRATION_AS_FITTED,
-            POST_REGISTRATION_REFIT: REGISTRATION_REFIT,
-        },
-        "tcp_scatter_configuration": {
-            "row": int(optimization.rows[0]),
-            "pose": int(optimization.poses[0]),
-            "solution": int(optimization.solutions[0]),
-        }
-        if len(optimization.rows)
-        else None,
+        **copy.deepcopy(REPORT_NOTES),
     }
     return out
+
+
+def _validation_tables(chain: KinematicChain, data: SetData, scored: dict[str, Remastered], marker, errors) -> dict:
+    """The validation table (`_validation`) and every configuration's errors: the optimization
+    set's (`errors`: {method: (errors, frame)}) then the validation set's."""
+    validation_rows, validation_frames = _validation(chain, data, scored, marker)
+    frames = [frame for frame in [errors[m][1] for m in SCORED_METHODS] + validation_frames if len(frame)]
+    return {
+        VALIDATION_TABLE: pd.DataFrame(validation_rows),
+        "configuration_errors": (
+            pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(CONFIGURATION_COLUMNS))
+        ),
+    }
 
 
 def _validation(chain: KinematicChain, data: SetData, robots: dict[str, Remastered], marker):

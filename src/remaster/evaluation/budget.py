@@ -55,23 +55,10 @@ def propagated(jacobian: np.ndarray, covariance: np.ndarray, columns) -> float:
     return float(np.sqrt(np.mean(np.einsum("ij,jk,ik->i", j, covariance[np.ix_(columns, columns)], j))))
 
 
-def budget_rows(
-    jacobian: np.ndarray,
-    laplace: LaplaceReport,
-    stated_noise: float | None,
-    residuals: np.ndarray | None = None,
-    loop_sigma: float | None = None,
-    mpe: float | None = None,
-) -> list[dict]:
-    """The budget's rows (`COLUMNS`) of one fit (module docstring). jacobian (3n, P) of the
-    residuals at the MAP; residuals (n, 3) m at the MAP (for the systematic term's bound; None:
-    no bound); stated_noise, loop_sigma and mpe in m (or None)."""
-    names = laplace.names
-    columns = [i for i, n in enumerate(names) if n.startswith(FITTED_BLOCKS)]
-    fitted = propagated(jacobian, laplace.covariance, columns)
-    sigma = laplace.sigma_mean
-    dof_fit = max(jacobian.shape[0] - len(names) - 1, 1)
-    random: list[tuple] = []  # (component, type, distribution, u m, dof, source)
+def _random_components(stated_noise, sigma: float, dof_fit: int, mpe, fitted: float) -> list[tuple]:
+    """The random rows (component, type, distribution, u m, dof, source): the measurement noise
+    (the fit's sigma when none is stated), the instrument's MPE and the fitted parameters."""
+    random: list[tuple] = []
     if stated_noise is not None:
         random.append(("measurement noise", "B", "normal", stated_noise, math.inf, "stated in campaign.yaml"))
     else:
@@ -108,6 +95,53 @@ def budget_rows(
             "the fit's Laplace covariance, correlations included, through its Jacobian",
         )
     )
+    return random
+
+
+def _bound_rows(residuals, expanded: float) -> list[dict]:
+    """The systematic term's 95 % bound over the measured configurations from the fit's residuals
+    (n, 3) m, and U (`expanded`, m) with it added linearly."""
+    bound = float(np.quantile(np.abs(np.asarray(residuals)), BOUND_QUANTILE))
+    return [
+        _row(
+            "model discrepancy, 95 % bound",
+            "systematic",
+            "",
+            bound,
+            math.nan,
+            math.nan,
+            "95th percentile of the fit's |residual| per axis over the measured configurations (noise inside)",
+        ),
+        _row(
+            "U + model discrepancy bound",
+            "",
+            "",
+            expanded + bound,
+            math.nan,
+            math.nan,
+            "the systematic term added linearly (GUM F.2.4.5): what the zero-offset model's prediction "
+            "misses by at 95 % of the measured configurations",
+        ),
+    ]
+
+
+def budget_rows(
+    jacobian: np.ndarray,
+    laplace: LaplaceReport,
+    stated_noise: float | None,
+    residuals: np.ndarray | None = None,
+    loop_sigma: float | None = None,
+    mpe: float | None = None,
+) -> list[dict]:
+    """The budget's rows (`COLUMNS`) of one fit (module docstring). jacobian (3n, P) of the
+    residuals at the MAP; residuals (n, 3) m at the MAP (for the systematic term's bound; None:
+    no bound); stated_noise, loop_sigma and mpe in m (or None)."""
+    names = laplace.names
+    columns = [i for i, n in enumerate(names) if n.startswith(FITTED_BLOCKS)]
+    fitted = propagated(jacobian, laplace.covariance, columns)
+    sigma = laplace.sigma_mean
+    dof_fit = max(jacobian.shape[0] - len(names) - 1, 1)
+    random = _random_components(stated_noise, sigma, dof_fit, mpe, fitted)
     used = [r for r in random if np.isfinite(r[3])]
     combined = math.sqrt(sum(r[3] ** 2 for r in used))
     nu = welch_satterthwaite([r[3] for r in used], [r[4] for r in used])
@@ -143,30 +177,7 @@ def budget_rows(
         )
     )
     if systematic is not None and residuals is not None:
-        bound = float(np.quantile(np.abs(np.asarray(residuals)), BOUND_QUANTILE))
-        out.append(
-            _row(
-                "model discrepancy, 95 % bound",
-                "systematic",
-                "",
-                bound,
-                math.nan,
-                math.nan,
-                "95th percentile of the fit's |residual| per axis over the measured configurations (noise inside)",
-            )
-        )
-        out.append(
-            _row(
-                "U + model discrepancy bound",
-                "",
-                "",
-                k * combined + bound,
-                math.nan,
-                math.nan,
-                "the systematic term added linearly (GUM F.2.4.5): what the zero-offset model's prediction "
-                "misses by at 95 % of the measured configurations",
-            )
-        )
+        out += _bound_rows(residuals, k * combined)
     if loop_sigma is not None and stated_noise is not None:
         out.append(
             _row(

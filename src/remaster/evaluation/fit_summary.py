@@ -15,6 +15,8 @@ from ..campaigns.campaign import Campaign
 from ..evaluation import accuracy
 from ..inference import discrepancy, fit
 
+DEFAULT_METHOD = "default"  # the sampler whose samples every result is made from
+
 
 @dataclass(frozen=True)
 class FitSummary:
@@ -30,33 +32,46 @@ class FitSummary:
     accuracy: dict
 
 
+@dataclass(frozen=True)
+class SummarySettings:
+    """The job's settings: cross_check, the samplers' cross-check (`fit.cross_check`'s tolerance,
+    max_rhat, min_ess, floor); draws and random_configurations, the accuracy metrics' posterior rows
+    and random configurations (`accuracy.accuracy_tables`)."""
+
+    cross_check: Mapping
+    draws: int = 2000
+    random_configurations: int = 1000
+
+
 def fit_summary_stage(
     campaign: Campaign,
-    campaign_label: str,
     sensor: str,
     registration: fit.Registration,
     laplace: fit.LaplaceReport,
     samples: Mapping[str, pd.DataFrame],
     sampler_reports: Mapping[str, dict],
-    cross_check_settings: Mapping,
     rng: np.random.Generator,
-    *,
-    n_draws: int,
-    n_random: int,
-    default_method: str = "default",
+    settings: SummarySettings,
 ) -> FitSummary:
     """Cross-check every sampler (`samples`, `sampler_reports`: method -> samples, diagnostics),
     then summarize the default method's samples. A disagreement between the samplers does not stop
     the campaign: the cross-check table marks it (its `disagreement` column; `fit.cross_check`),
     every result is made from the default sampler as usual, and the certificate says that the fit
-    is not confirmed by a second sampler and on which parameters. `campaign_label`: the campaign's folder
-    name, as the remastering file names it; rng draws the accuracy metrics' posterior rows,
-    random configurations and noise (`accuracy.accuracy_tables`)."""
-    checked = fit.cross_check(dict(samples), dict(sampler_reports), laplace, **cross_check_settings)
-    summary = fit.posterior_summary(samples[default_method], laplace).reset_index()
+    is not confirmed by a second sampler and on which parameters. The remastering file names the
+    campaign by its name (its folder's); rng draws the accuracy metrics' posterior rows, random
+    configurations and noise (`accuracy.accuracy_tables`)."""
+    checked = fit.cross_check(dict(samples), dict(sampler_reports), laplace, **settings.cross_check)
+    summary = fit.posterior_summary(samples[DEFAULT_METHOD], laplace).reset_index()
     with_discrepancy, report = discrepancy.discrepancy_stage(campaign, sensor, registration, laplace, summary)
-    remastering = fit.remastering(summary, campaign.chain.joint_names, campaign_label, sensor)
+    remastering = fit.remastering(summary, campaign.chain.joint_names, campaign.name, sensor)
     metrics = accuracy.accuracy_tables(
-        campaign, sensor, registration, laplace, samples[default_method], rng, n_draws=n_draws, n_random=n_random
+        campaign,
+        sensor,
+        registration,
+        laplace,
+        samples[DEFAULT_METHOD],
+        rng,
+        n_draws=settings.draws,
+        n_random=settings.random_configurations,
     )
     return FitSummary(checked, summary, with_discrepancy, report, remastering, metrics)

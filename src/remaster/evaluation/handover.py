@@ -11,10 +11,11 @@ import pandas as pd
 
 from .. import identity
 from ..calibration import exports
+from ..calibration.prediction import Propagation
 from ..campaigns.campaign import Campaign
 from ..evaluation import workspace
 from ..inference.fit import LaplaceReport
-from ..loop.result import LoopReport
+from ..loop.result import LoopResults
 
 
 @dataclass(frozen=True)
@@ -32,38 +33,28 @@ def calibrated_outputs_stage(
     sensor: str,
     summary: pd.DataFrame,
     laplace: LaplaceReport,
-    loop_report: LoopReport,
-    loop_samples: pd.DataFrame,
-    loop_gp_rows: pd.DataFrame,
+    loop: LoopResults,
     rng: np.random.Generator,
-    *,
-    n_draws: int,
-    n_random: int,
-    seed: int,
-    samples_label: str = "",
-    loop_label: str = "",
+    propagation: Propagation,
 ) -> CalibratedOutputs:
-    """summary: the fit's summary.csv; laplace, loop_report: its Laplace and loop-closure reports;
-    loop_samples, loop_gp_rows: the loop's MCMC samples and residual-GP rows (SI); rng draws the
-    workspace claims' posterior rows and noise; labels name the files in error messages."""
+    """summary: the fit's summary.csv; laplace: its Laplace report; loop: the loop closure's report,
+    MCMC samples and residual-GP rows (SI); rng draws the workspace claims' posterior rows and
+    noise, with `propagation`'s sizes and seed. The files' names (the loop report's source, the
+    samples' label) name them in error messages."""
     claims = workspace.workspace_accuracy(
         campaign.chain,
         campaign.sensors[sensor],
         identity.robot_identity(campaign),
         summary,
         laplace,
-        loop_report,
-        loop_samples,
+        loop,
         rng,
-        n_draws=n_draws,
-        n_random=n_random,
-        seed=seed,
-        label=samples_label,
-        loop_gp_rows=loop_gp_rows,
+        propagation,
     )
-    files = exports.calibrated_stage(campaign, sensor, summary, loop_report, label=loop_label)
+    label = loop.report.source
+    files = exports.calibrated_stage(campaign, sensor, summary, loop.report, label=label)
     dh = (
-        exports.calibrated_dh_tables(campaign, sensor, summary, loop_report, label=loop_label)
+        exports.calibrated_dh_tables(campaign, sensor, summary, loop.report, label=label)
         if "dh" in campaign.robot
         else None
     )

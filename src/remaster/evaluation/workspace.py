@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..calibration.prediction import Calibration, loop_calibration, paper_calibration, robot_configurations
+from ..calibration.prediction import Calibration, Propagation, loop_calibration, paper_calibration, robot_configurations
 from ..campaigns.campaign import SensorData
 from ..errors import InputError
 from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
@@ -75,7 +75,7 @@ from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP, evenly_spaced
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
-from ..loop.result import LoopReport
+from ..loop.result import LoopReport, LoopResults
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM, shown
 
@@ -196,46 +196,121 @@ def fit_domain(chain: KinematicChain, sensor: SensorData, outlier_rows=()) -> Me
     return MeasuredDomain.of(chain, sensor.q()[rows] if len(rows) else sensor.q("optimization"))
 
 
+@dataclass(frozen=True, eq=False)
+class _Posterior:
+    """The posterior as `workspace_accuracy` propagates it: the loop-closed and the paper's
+    calibrations; the loop's draws ({parameter: value} each, every parameter) with their noise std
+    sigma (m); the held zero-offsets {name: rad}, drawn at the marks' tolerance (rad); what the data
+    cannot see {name: value}, held in the paper's tables; the residual GP, None without one."""
+
+    loop: Calibration
+    paper: Calibration
+    draws: list[dict]
+    sigma: np.ndarray
+    held: dict[str, float]
+    tolerance: float
+    unseen: dict[str, float]
+    gp: ResidualGP | None
+
+
+def _posterior(paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopResults, rng, count: int) -> _Posterior:
+    """`count` draws of the loop closure's MCMC samples (rng), and what goes with them (`_Posterior`)."""
+    samples = loop.samples
+    if samples is None or samples.empty or SIGMA not in samples.columns:
+        raise InputError(
+            "the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
+            file=loop.label,
+            key="samples",
+        )
+    calibration = loop_calibration(loop.report, samples, loop.label)
+    rows = rng.choice(len(samples), count, replace=len(samples) < count)
+    gp = loop_candidate.from_results(loop.gp_rows, loop.report.residual_gp)
+    return _Posterior(
+        loop=calibration,
+        paper=paper_calibration(paper_summary, None, loop.label),
+        draws=[{**calibration.values, **d} for d in calibration.draws.iloc[rows].to_dict(orient="records")],
+        # with a residual GP the noise is its white part
+        sigma=samples[SIGMA].to_numpy(float)[rows] if gp is None else np.full(count, gp.hyper.noise_std),
+        held={n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")},
+        tolerance=loop.report.held_zero_offset_std,
+        # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
+        unseen={n: calibration.values[n] for n in loop.report.unseen_by_data if n in calibration.values},
+        gp=gp,
+    )
+
+
+def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posterior, rng) -> tuple[list, list]:
+    """(theoretical rows, claim rows) at one set of configurations q (n, N): the paper's tables made
+    there (`THEORETICAL_TABLES`) and each model's claim, registered with and without noise and in the
+    robot frame; rng draws the GP, the held zero-offsets and the noise."""
+    count = len(posterior.draws)
+    predictor = posterior.loop.predictor(chain, q, marker)
+    correction, corrections = _gp_draws(posterior.gp, q, count, rng)
+    loop_mean = predictor.points(posterior.loop.values) + correction
+    # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
+    # (a registration removes joint 1's; one held only because the tool never turned stays)
+    points = predictor.points_of_draws(_held_draws(posterior.draws, posterior.held, posterior.tolerance, rng))
+    points = points + corrections
+    noisy = _with_noise(points, posterior.sigma, rng)
+    paper_points = posterior.paper.predictor(chain, q, marker).points(posterior.paper.values)
+    tables = {table: noise for table, (at, noise) in THEORETICAL_TABLES.items() if at == where}
+    if tables:  # the paper's tables' convention: what the data cannot see, held
+        seen = predictor.points_of_draws([{**d, **posterior.unseen} for d in posterior.draws]) + corrections
+        seen_noisy = _with_noise(seen, posterior.sigma, rng)
+    theoretical, claims = [], []
+    for table, noise in tables.items():
+        distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
+        theoretical.append(
+            {
+                "table": table,
+                "method": LOOP_METHOD,
+                **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
+            }
+        )
+    for model, mean in (("paper", paper_points), ("loop", loop_mean)):
+        for noise, reference in (("with noise", noisy), ("without noise", points)):
+            claims.append(
+                _summary(
+                    metrics.registered_distances(mean, reference),
+                    model=model,
+                    configurations=where,
+                    frame="registered",
+                    noise=noise,
+                )
+            )
+        claims.append(
+            _summary(
+                np.linalg.norm(noisy - mean, axis=-1),
+                model=model,
+                configurations=where,
+                frame="robot",
+                noise="with noise",
+            )
+        )
+    return theoretical, claims
+
+
 def workspace_accuracy(
     chain: KinematicChain,
     sensor: SensorData,
     robot: str,
     paper_summary: pd.DataFrame,
     laplace: LaplaceReport,
-    loop_report: LoopReport,
-    loop_samples: pd.DataFrame,
+    loop: LoopResults,
     rng: np.random.Generator,
-    n_draws: int = 2000,
-    n_random: int = 1000,
-    seed: int = 0,
-    label: str = "",
-    loop_gp_rows: pd.DataFrame | None = None,
+    propagation: Propagation,
 ) -> WorkspaceAccuracy:
     """The loop-closed model's theoretical accuracy and both models' workspace-wide claims (see the
     module docstring). paper_summary: the fit's summary.csv; laplace: its Laplace report (held
-    parameters); loop_report, loop_samples: the loop closure's report (`LoopReport.read`) and its MCMC
-    samples (SI); robot:
-    the robot's identity (its random configurations come from seed and it); rng draws the
-    posterior rows, the noise and the held zero-offsets; loop_gp_rows: the loop's residual GP
-    training rows (residual_gp.parquet), empty or None when it added none. With a residual GP the
-    loop-closed model's mean includes its correction, each draw a draw of it (mean + its marginal
-    std at each configuration, independently per configuration), and the noise is the GP's white
-    part: far from the data its variance, back to its prior, is what the claim carries."""
-    if loop_samples is None or loop_samples.empty or SIGMA not in loop_samples.columns:
-        raise InputError(
-            "the loop closure wrote no MCMC samples (with sigma): its posterior cannot be propagated",
-            file=label,
-            key="samples",
-        )
-    loop = loop_calibration(loop_report, loop_samples, label)
-    paper = paper_calibration(paper_summary, None, label)
-    rows = rng.choice(len(loop_samples), n_draws, replace=len(loop_samples) < n_draws)
-    draws = [{**loop.values, **d} for d in loop.draws.iloc[rows].to_dict(orient="records")]
-    sigma = loop_samples[SIGMA].to_numpy(float)[rows]
-    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
-    # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
-    unseen = {n: loop.values[n] for n in loop_report.unseen_by_data if n in loop.values}
-    tolerance = loop_report.held_zero_offset_std
+    parameters); loop: the loop closure's report, MCMC samples (SI) and residual-GP training rows
+    (empty or None when it added none); robot: the robot's identity (its random configurations come
+    from the propagation's seed and it); rng draws the posterior rows, the noise and the held
+    zero-offsets. With a residual GP the loop-closed model's mean includes its correction, each draw
+    a draw of it (mean + its marginal std at each configuration, independently per configuration),
+    and the noise is the GP's white part: far from the data its variance, back to its prior, is
+    what the claim carries."""
+    posterior = _posterior(paper_summary, laplace, loop, rng, propagation.draws)
+    n_random, seed = propagation.random_configurations, propagation.seed
     measured = sensor.q("optimization")
     used = evenly_spaced(len(measured), n_random)
     domain = fit_domain(chain, sensor, laplace.outlier_rows)
@@ -244,73 +319,24 @@ def workspace_accuracy(
         "random": robot_configurations(chain, robot, n_random, seed),
         "domain": domain.configurations(robot, n_random, seed),
     }
-    gp = loop_candidate.from_results(loop_gp_rows, loop_report.residual_gp)
-    if gp is not None:
-        sigma = np.full(n_draws, gp.hyper.noise_std)
-
     theoretical, claims = [], []
     for where, q in q_sets.items():
-        predictor = loop.predictor(chain, q, sensor.marker)
-        correction, corrections = _gp_draws(gp, q, n_draws, rng)
-        loop_mean = predictor.points(loop.values) + correction
-        # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
-        # (a registration removes joint 1's; one held only because the tool never turned stays)
-        points = predictor.points_of_draws(_held_draws(draws, held, tolerance, rng)) + corrections
-        noisy = _with_noise(points, sigma, rng)
-        paper_points = paper.predictor(chain, q, sensor.marker).points(paper.values)
-        tables = {table: noise for table, (at, noise) in THEORETICAL_TABLES.items() if at == where}
-        if tables:  # the paper's tables' convention: what the data cannot see, held
-            seen = predictor.points_of_draws([{**d, **unseen} for d in draws]) + corrections
-            seen_noisy = _with_noise(seen, sigma, rng)
-        for table, noise in tables.items():
-            distances = np.linalg.norm((seen_noisy if noise else seen) - loop_mean, axis=-1)
-            theoretical.append(
-                {
-                    "table": table,
-                    "method": LOOP_METHOD,
-                    **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
-                }
-            )
-        for model, mean in (("paper", paper_points), ("loop", loop_mean)):
-            for noise, reference in (("with noise", noisy), ("without noise", points)):
-                claims.append(
-                    _summary(
-                        metrics.registered_distances(mean, reference),
-                        model=model,
-                        configurations=where,
-                        frame="registered",
-                        noise=noise,
-                    )
-                )
-            claims.append(
-                _summary(
-                    np.linalg.norm(noisy - mean, axis=-1),
-                    model=model,
-                    configurations=where,
-                    frame="robot",
-                    noise="with noise",
-                )
-            )
+        rows, claimed = _claims_at(chain, sensor.marker, where, q, posterior, rng)
+        theoretical += rows
+        claims += claimed
     claims = pd.DataFrame(claims, columns=CLAIM_COLUMNS)
     # what no campaign can see (absorbed by a registration, or without effect) anywhere in the joint space
-    nowhere = sorted(identifiable_extension(loop.predictor(chain, q_sets["random"], sensor.marker).model).dropped)
-    return WorkspaceAccuracy(
-        pd.DataFrame(theoretical),
-        claims,
-        _report(
-            domain,
-            sensor,
-            claims,
-            loop,
-            loop_report,
-            held,
-            tolerance,
-            n_draws,
-            n_random,
-            nowhere,
-            (len(used), len(measured)),
-        ),
-    )
+    predictor = posterior.loop.predictor(chain, q_sets["random"], sensor.marker)
+    nowhere = sorted(identifiable_extension(predictor.model).dropped)
+    report = _report(domain, sensor, claims, posterior.loop, loop.report, posterior.held, nowhere)
+    report["draws"] = int(propagation.draws)
+    report["random_configurations"] = int(n_random)
+    report["measured_configurations"] = {
+        "used": len(used),
+        "of": len(measured),
+        "how": "every optimization row, or that many evenly spaced rows when there are more than random configurations",
+    }
+    return WorkspaceAccuracy(pd.DataFrame(theoretical), claims, report)
 
 
 def claim_rows(
@@ -331,19 +357,9 @@ def _claim(claims: pd.DataFrame, model: str, where: str, column: str = "mean_mm"
     return float(rows[column].iloc[0]) if len(rows) else np.nan
 
 
-def _report(
-    domain: MeasuredDomain,
-    sensor,
-    claims,
-    loop: Calibration,
-    loop_report: LoopReport,
-    held,
-    tolerance,
-    n_draws,
-    n_random,
-    nowhere,
-    measured_used: tuple[int, int],
-) -> dict:
+def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, nowhere) -> dict:
+    """workspace.json without its sizes (`workspace_accuracy` adds them): where the claims hold,
+    the held zero-offsets, what the next campaign must add and the warnings."""
     dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
     suggestions = _suggestions(domain, dominated)
     where = ACROSS if domain.covers_the_limits else INSIDE
@@ -378,18 +394,10 @@ def _report(
         "campaign": loop_report.campaign,
         "sensor": sensor.name,
         "loop_effects": list(loop.blocks),
-        "draws": int(n_draws),
-        "random_configurations": int(n_random),
-        "measured_configurations": {
-            "used": int(measured_used[0]),
-            "of": int(measured_used[1]),
-            "how": "every optimization row, or that many evenly spaced rows when there are "
-            "more than random configurations",
-        },
         "configurations": dict(CONFIGURATIONS),
         "frames": dict(FRAMES),
         "held_zero_offsets": sorted(held),
-        "held_tolerance_deg": tolerance / DEG,
+        "held_tolerance_deg": loop_report.held_zero_offset_std / DEG,
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
         "holds": holds,

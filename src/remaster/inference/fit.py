@@ -243,8 +243,8 @@ class LaplaceReport:
     parameters: every parameter in order, held ones included; held: {name: value} held at the
     controller's value; null_directions: the data's blind combinations ({name: weight} each);
     outlier_rows and marker_not_seen_rows: table rows left out of the fit;
-    points_fitted (None when not recorded); held_statements: one sentence per held parameter,
-    saying what the data cannot tell apart (empty in reports written before they were recorded)."""
+    points_fitted (None when the report was made without the model); held_statements: one sentence
+    per held parameter, saying what the data cannot tell apart."""
 
     names: tuple[str, ...]
     theta_map: np.ndarray
@@ -278,8 +278,8 @@ class LaplaceReport:
             null_directions=tuple(dict(d) for d in get("identifiability", "null_directions")),
             outlier_rows=tuple(int(r) for r in get("excluded_rows_outliers")),
             marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
-            points_fitted=None if content.get("points_fitted") is None else int(content["points_fitted"]),
-            held_statements=tuple(str(x) for x in (content.get("identifiability") or {}).get("statements") or ()),
+            points_fitted=None if get("points_fitted") is None else int(get("points_fitted")),
+            held_statements=tuple(str(x) for x in get("identifiability", "statements")),
         )
 
     @classmethod
@@ -568,12 +568,9 @@ def cross_check(
     return out
 
 
-def disagreeing(table: pd.DataFrame | None) -> dict[str, list[str]] | None:
+def disagreeing(table: pd.DataFrame) -> dict[str, list[str]]:
     """{parameter: [methods]} on which a `cross_check` table (as made, or read back from
-    cross_check.csv) records a disagreement; {} when every checked method agrees; None when there
-    is no table or it predates the `disagreement` column (the agreement was then enforced)."""
-    if table is None or "disagreement" not in table.columns or "parameter" not in table.columns:
-        return None
+    cross_check.csv) records a disagreement; {} when every checked method agrees."""
     out = {}
     for name, methods in zip(table["parameter"], table["disagreement"]):
         if isinstance(methods, str) and methods.strip():

@@ -42,10 +42,8 @@ def signatures_of_round(frame: pd.DataFrame, round_number: int = 1) -> dict[str,
     return out
 
 
-def residuals_frame(
-    residuals: dict[str, dict[str, np.ndarray]], rows: dict[str, np.ndarray] | None = None
-) -> pd.DataFrame:
-    """Long table of the residuals before and after: when, set, point, x_m, y_m, z_m, and with
+def residuals_frame(residuals: dict[str, dict[str, np.ndarray]], rows: dict[str, np.ndarray]) -> pd.DataFrame:
+    """Long table of the residuals before and after: when, set, point, x_m, y_m, z_m, and row:
     rows ({set: (n,)}) the sensor table's row of each point (so a pose can be found for it)."""
     frames = [
         pd.DataFrame(
@@ -56,7 +54,7 @@ def residuals_frame(
                 "x_m": r[:, 0],
                 "y_m": r[:, 1],
                 "z_m": r[:, 2],
-                **({"row": np.asarray(rows[set_name], dtype=np.int64)} if rows else {}),
+                "row": np.asarray(rows[set_name], dtype=np.int64),
             }
         )
         for when, per_set in residuals.items()

@@ -136,7 +136,7 @@ class LoopClosure:
 
     def write(self, report, table, signatures, residuals, samples, gp) -> None:
         """Write the loop closure's six files at these paths: loop_closure.json, the before/after CSV,
-        and the signatures (`frames.signatures_frame`), residuals (`frames.residuals_frame`, with the
+        and the signatures (`long_tables.signatures_frame`), residuals (`long_tables.residuals_frame`, with the
         rows), MCMC samples (an empty table without them) and residual-GP training rows as Parquet."""
         self.report.write(report)
         write_csv(table, self.table)
@@ -146,21 +146,35 @@ class LoopClosure:
         write_parquet(gp, self.gp)
 
 
-def close_loop(
-    chain: KinematicChain,
-    sensor: SensorData,
-    t_nr,
-    base_held: Mapping[str, float],
-    rng: np.random.Generator,
-    settings: LoopSettings,
-    exclude=(),
-) -> LoopClosure:
-    """Diagnose, decide and refit on the optimization set, then report before and after on both
-    sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
-    parameters (identifiability analysis); exclude: table rows the prepare stage's provisional
-    screen left out as gross errors: the first fit leaves them out, then every row of both sets is
-    screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
-    finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
+@dataclass(frozen=True, eq=False)
+class _Screened:
+    """Steps 1-2 made without exactly the rows their own final model flags as gross errors.
+    selection: the selection; data, poses: {set: readings, pose labels} without the flagged rows;
+    every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
+    screens: {set: `gross.Screen`}; provisional: the prepare stage's rows; history: the screen's
+    rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
+    noise model cannot be offered in the fit's frame (None when it can)."""
+
+    selection: Selection
+    data: dict[str, Readings]
+    poses: dict[str, np.ndarray]
+    every: dict[str, Readings]
+    every_poses: dict[str, np.ndarray]
+    flagged: dict[str, np.ndarray]
+    screens: dict[str, gross.Screen]
+    provisional: np.ndarray
+    history: list[dict]
+    settled: bool
+    frame_problem: str | None
+
+
+def _select_screened(
+    chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
+) -> _Screened:
+    """Select on the optimization set without the rows `exclude` (the prepare stage's provisional
+    screen), screen every optimization row with the final model (`remaster.loop.gross`) and select
+    again without the rows it finds, until they are the ones it was fitted without (bounded, a
+    cycle stops it); then screen the validation set with the final model."""
     every = {s: blocks.readings(chain, sensor, s, settings.model) for s in SETS}
     every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
     provisional = np.sort(np.asarray(exclude, dtype=int))
@@ -189,67 +203,38 @@ def close_loop(
         if any(np.array_equal(found, np.asarray(h["fitted_without"], dtype=int)) for h in history):
             break  # the screen turns in a cycle: the last fit stands, and the report says so
         excluded = found
-    base, final = selection.base, selection.final
     # the validation set is screened here, with the final model, after every choice has been made
     screens["validation"] = _screen(selection, data, every, every_poses, "validation", settings)
     flagged = {"optimization": excluded, "validation": screens["validation"].gross}
     data["validation"] = blocks.readings(chain, sensor, "validation", settings.model, flagged["validation"])
     poses["validation"] = sensor.table.loc[data["validation"].rows, "pose"].to_numpy()
-
-    samples, mcmc = None, None
-    if settings.mcmc is not None:
-        chains, mcmc = refit(final.mode, settings, rng)
-        samples = fit.samples_frame(chains)
-    before_table = parameter_table(base)
-    after_table = parameter_table(final, samples)
-    sigma_before = base.mode.sigma
-    sigma_after = float(after_table.set_index("parameter").loc[SIGMA, "mean"])
-    # the validation set is read here, after every choice has been made
-    before = {s: base.accuracy(data[s], poses[s]) for s in SETS}
-    predicted = {s: selection.prediction(data[s]) for s in SETS}
-    after = {s: accuracy(data[s].measured, predicted[s], poses[s]) for s in SETS}
-    # every before/after also with the rows flagged as gross errors, where a set has any
-    kept = {
-        s: {
-            "before": base.accuracy(every[s], every_poses[s]),
-            "after": accuracy(every[s].measured, selection.prediction(every[s]), every_poses[s]),
-        }
-        for s in SETS
-        if len(flagged[s])
-    }
-    counts = (len(base.model.names) + 1, len(final.model.names) + 1)
-    dominated = after_table[after_table["prior_dominated"]]
-    explained = {
-        r["added"]: r["scores"][r["added"]]["explained_fraction"]
-        for r in selection.rounds
-        if r["added"] and r["added"] in selection.added
-    }
-    closed = closure_report(
-        selection,
-        data["optimization"],
-        sensor.noise,
-        settings.closure_ratio,
-        noise_floor.point_std_rms(sensor.point_std(data["optimization"].rows)),
+    return _Screened(
+        selection, data, poses, every, every_poses, flagged, screens, provisional, history, settled, frame_problem
     )
-    gp_section = gp_report(selection, cv_threshold(settings))
-    if gp_section is not None:  # where what is left lives, in the joints' own terms (a diagnostic)
-        gp_section["joint_error_form"] = (
-            joint_form.joint_error_form(
-                selection, chain, data["optimization"], sensor.marker, t_nr, settings.min_log_evidence_gain
-            )
-            if gp_section["structure_found"]
+
+
+def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr, settings: LoopSettings):
+    """loop_closure.json's `residual_gp` (`gp_report`), with where what is left lives in the joints'
+    own terms when the GP found structure (`joint_form.joint_error_form`, a diagnostic)."""
+    section = gp_report(selection, cv_threshold(settings))
+    if section is not None:
+        section["joint_error_form"] = (
+            joint_form.joint_error_form(selection, chain, data, marker, t_nr, settings.min_log_evidence_gain)
+            if section["structure_found"]
             else {"computed": False, "why": "the residual GP found no structure to trace"}
         )
-    # how far the zero-offsets move with the poses measured (the certificate's between-design component)
-    between = {
-        name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
-        for name, fitted in (("paper", base), ("loop", final))
-    }
+    return section
+
+
+def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
+    """The report's warnings: the closure test's, too few poses for the folds, nothing explaining
+    what is left (with where it lives), the gross-error screen's, and an MCMC refit short of the
+    convergence criteria."""
     warnings = list(closed["warnings"])
-    few_poses = fold_warning(poses["optimization"], settings)
+    few_poses = fold_warning(screened.poses["optimization"], settings)
     if few_poses:
         warnings.append(few_poses)
-    if closed["closed"] is False and not selection.gp_added:
+    if closed["closed"] is False and not screened.selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
         in_joints = (gp_section or {}).get("joint_error_form") or {}
         warnings.append(
@@ -261,37 +246,56 @@ def close_loop(
                 else ""
             )
         )
-    warnings += gross_warnings(flagged, screens, settled)
+    warnings += gross_warnings(screened.flagged, screened.screens, screened.settled)
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(
             f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
             f"{mcmc['criteria']['min_ess']} after {len(mcmc['attempts'])} runs (last: R-hat "
             f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable"
         )
-    report = LoopReport(
-        sensor=sensor.name,
-        evidence="Laplace log evidence under the extension priors (nats), gain = log Z(with the candidate) - "
-        "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
-        "gain for reference. The validation set is not used to select.",
-        selection_data="optimization set only",
-        # which payload the compliance's torques assume: the configured one, or a URDF's own tool
-        settings={**settings.report(), "payload_assumed": settings.model.payload(chain).report()},
-        effects_added=tuple(selection.added),
-        explained_fraction_when_added=explained,
-        candidates=_per_candidate(selection.rounds),
-        rounds=tuple(
+    return warnings
+
+
+def _noise_model(selection: Selection, sensor: SensorData, settings: LoopSettings, frame_problem) -> dict:
+    """loop_closure.json's `noise_model`: the one chosen, or why a tracker's was not offered."""
+    return selection.noise or {
+        "offered": False,
+        "chosen": "isotropic",
+        "why": (
+            "not a laser tracker"
+            if sensor.kind != "laser_tracker"
+            else "tracker_noise disabled in the config"
+            if settings.tracker_noise is None
+            else frame_problem
+        ),
+    }
+
+
+def _selection_fields(selection: Selection) -> dict:
+    """loop_closure.json's fields of the selection: the effects added, the share of the residual
+    each explained when added, every candidate's scores and the rounds."""
+    return {
+        "effects_added": tuple(selection.added),
+        "explained_fraction_when_added": {
+            r["added"]: r["scores"][r["added"]]["explained_fraction"]
+            for r in selection.rounds
+            if r["added"] and r["added"] in selection.added
+        },
+        "candidates": _per_candidate(selection.rounds),
+        "rounds": tuple(
             {"round": r["round"], "model": r["model"], "added": r["added"], **_backward(r)} for r in selection.rounds
         ),
-        validation_rmse_before_mm=before["validation"]["rmse_mm"],
-        validation_rmse_after_mm=after["validation"]["rmse_mm"],
-        sigma_before_mm=sigma_before / MM,
-        sigma_after_mm=sigma_after / MM,
-        before=before,
-        after=after,
-        identifiability=final.reduction.report(),
-        prior_dominated=tuple(dominated["parameter"].tolist()),
-        warnings=tuple(warnings),
-        refit={
+    }
+
+
+def _refit_fields(final, mcmc, before_table: pd.DataFrame, after_table: pd.DataFrame) -> dict:
+    """loop_closure.json's fields of the final model and its refit: its identifiability, the
+    parameters the data barely moved from their prior, the refit (the final model's mode, the
+    MCMC refit, the parameter table) and how far each zero-offset moved."""
+    return {
+        "identifiability": final.reduction.report(),
+        "prior_dominated": tuple(after_table[after_table["prior_dominated"]]["parameter"].tolist()),
+        "refit": {
             "mode": {
                 "names": list(final.model.names),
                 "theta": final.theta.tolist(),
@@ -303,22 +307,98 @@ def close_loop(
             "mcmc": mcmc,
             "parameters": after_table.replace({np.nan: None}).to_dict(orient="records"),
         },
-        zero_offset_shifts=tuple(zero_offset_shifts(before_table, after_table)),
+        "zero_offset_shifts": tuple(zero_offset_shifts(before_table, after_table)),
+    }
+
+
+def _accuracies(screened: _Screened) -> tuple[dict, dict, dict, dict]:
+    """(before, predicted, after, kept): each set's accuracy measures with the zero-offset model and
+    the selected one, without the rows flagged as gross errors, the selected model's predictions
+    (m), and, for a set with flagged rows, both measures with them ({set: {'before', 'after'}})."""
+    selection, data, poses = screened.selection, screened.data, screened.poses
+    every, every_poses = screened.every, screened.every_poses
+    before = {s: selection.base.accuracy(data[s], poses[s]) for s in SETS}
+    predicted = {s: selection.prediction(data[s]) for s in SETS}
+    after = {s: accuracy(data[s].measured, predicted[s], poses[s]) for s in SETS}
+    kept = {
+        s: {
+            "before": selection.base.accuracy(every[s], every_poses[s]),
+            "after": accuracy(every[s].measured, selection.prediction(every[s]), every_poses[s]),
+        }
+        for s in SETS
+        if len(screened.flagged[s])
+    }
+    return before, predicted, after, kept
+
+
+EVIDENCE = (
+    "Laplace log evidence under the extension priors (nats), gain = log Z(with the candidate) - "
+    "log Z(current model); pose-grouped K-fold cross-validation on the optimization set; BIC "
+    "gain for reference. The validation set is not used to select."
+)
+
+
+def close_loop(
+    chain: KinematicChain,
+    sensor: SensorData,
+    t_nr,
+    base_held: Mapping[str, float],
+    rng: np.random.Generator,
+    settings: LoopSettings,
+    exclude=(),
+) -> LoopClosure:
+    """Diagnose, decide and refit on the optimization set, then report before and after on both
+    sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
+    parameters (identifiability analysis); exclude: table rows the prepare stage's provisional
+    screen left out as gross errors: the first fit leaves them out, then every row of both sets is
+    screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
+    finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
+    screened = _select_screened(chain, sensor, t_nr, base_held, settings, exclude)
+    selection, data, poses, flagged = screened.selection, screened.data, screened.poses, screened.flagged
+    base, final = selection.base, selection.final
+    samples, mcmc = None, None
+    if settings.mcmc is not None:
+        chains, mcmc = refit(final.mode, settings, rng)
+        samples = fit.samples_frame(chains)
+    before_table = parameter_table(base)
+    after_table = parameter_table(final, samples)
+    sigma_before = base.mode.sigma
+    sigma_after = float(after_table.set_index("parameter").loc[SIGMA, "mean"])
+    # the validation set is read here, after every choice has been made
+    before, predicted, after, kept = _accuracies(screened)
+    closed = closure_report(
+        selection,
+        data["optimization"],
+        sensor.noise,
+        settings.closure_ratio,
+        noise_floor.point_std_rms(sensor.point_std(data["optimization"].rows)),
+    )
+    gp_section = _residual_section(selection, chain, data["optimization"], sensor.marker, t_nr, settings)
+    # how far the zero-offsets move with the poses measured (the certificate's between-design component)
+    between = {
+        name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
+        for name, fitted in (("paper", base), ("loop", final))
+    }
+    screen = (screened.screens, screened.provisional, screened.history, screened.settled)
+    report = LoopReport(
+        sensor=sensor.name,
+        evidence=EVIDENCE,
+        selection_data="optimization set only",
+        # which payload the compliance's torques assume: the configured one, or a URDF's own tool
+        settings={**settings.report(), "payload_assumed": settings.model.payload(chain).report()},
+        **_selection_fields(selection),
+        validation_rmse_before_mm=before["validation"]["rmse_mm"],
+        validation_rmse_after_mm=after["validation"]["rmse_mm"],
+        sigma_before_mm=sigma_before / MM,
+        sigma_after_mm=sigma_after / MM,
+        before=before,
+        after=after,
+        **_refit_fields(final, mcmc, before_table, after_table),
+        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings)),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
-        noise_model=selection.noise
-        or {
-            "offered": False,
-            "chosen": "isotropic",
-            "why": (
-                "not a laser tracker"
-                if sensor.kind != "laser_tracker"
-                else "tracker_noise disabled in the config"
-                if settings.tracker_noise is None
-                else frame_problem
-            ),
-        },
-        gross_errors=gross_report(flagged, screens, provisional, history, settled, kept, settings.gross_errors),
+        noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
+        gross_errors=gross_report(flagged, *screen, kept, settings.gross_errors),
         between_design=between,
         harmonics=harmonics_report(
             final.mode, final.reduction, data["optimization"].q, settings.harmonic_level, samples
@@ -326,6 +406,7 @@ def close_loop(
         if harmonics.BLOCK in selection.added
         else None,
     )
+    counts = (len(base.model.names) + 1, len(final.model.names) + 1)
     table = before_after_table(before, after, sigma_before, sigma_after, counts, kept, flagged)
     residuals = {
         "before": {s: base.residuals(data[s]) for s in SETS},

@@ -10,7 +10,7 @@ InputError naming the file and the key.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from functools import cached_property
 from typing import Any
 
@@ -23,10 +23,8 @@ from .sides import sides_of
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
 # written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
-# between_design (reports written before it was computed lack it)
-OPTIONAL = ("campaign", "between_design", "harmonics")
-# the gross errors of a report written before the final model screened the rows: none listed
-NOT_SCREENED = {"optimization": [], "validation": [], "screened": False}
+# harmonics (when the joint_harmonics block was added)
+OPTIONAL = ("campaign", "harmonics")
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,10 +46,8 @@ class LoopReport:
     'validation' the table rows (ints) flagged as gross errors and left out (the optimization rows
     are the ones the final model was fitted without), with the level, the rule, each set's screen,
     the provisional rows and those restored, and the accuracy with the flagged rows
-    (`loop_closure.gross_report`; a file written before the screen reads as none flagged, with
-    'screened' False); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`} the
-    zero-offsets' spread across designs of the zero-offset model and the final model (None when
-    not computed); harmonics: the joints and orders of `joint_harmonics` the data support, with each
+    (`loop_closure.gross_report`); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`}
+    the zero-offsets' spread across designs of the zero-offset model and the final model; harmonics: the joints and orders of `joint_harmonics` the data support, with each
     named f_j and its band (`remaster.loop.harmonics`; None when the block was not added); source: the file it was read from (not written)."""
 
     sensor: str
@@ -76,9 +72,9 @@ class LoopReport:
     closure: Mapping[str, Any]
     residual_gp: Mapping[str, Any] | None
     noise_model: Mapping[str, Any]
-    gross_errors: Mapping[str, Any] = field(default_factory=lambda: dict(NOT_SCREENED))
+    gross_errors: Mapping[str, Any]
+    between_design: Mapping[str, Any]
     campaign: str | None = None
-    between_design: Mapping[str, Any] | None = None
     harmonics: Mapping[str, Any] | None = None
     source: str = "loop_closure.json"
 
@@ -101,9 +97,8 @@ class LoopReport:
 
     @property
     def harmonic_orders(self) -> int:
-        """K of the joint_harmonics block the loop offered (orders 1..K); a report written before the
-        block existed never added it, so any K reads it."""
-        return int(self.settings.get("harmonic_orders", 1))
+        """K of the joint_harmonics block the loop offered (orders 1..K)."""
+        return int(self.settings["harmonic_orders"])
 
     @property
     def held_zero_offset_std(self) -> float:
@@ -152,6 +147,7 @@ class LoopReport:
         for path in (
             ("settings", "payload_mass_kg"),
             ("settings", "payload_com_m"),
+            ("settings", "harmonic_orders"),
             ("settings", "priors", "std_display_units", "held_zero_offset_deg"),
             ("identifiability", "dropped"),
             ("refit", "parameters"),
@@ -167,8 +163,6 @@ class LoopReport:
         for f in fields(cls):
             if f.name in NOT_WRITTEN or (f.name in OPTIONAL and f.name not in content):
                 continue
-            if f.name == "gross_errors" and f.name not in content:
-                continue  # written before the screen with the final model: the default says so
             value = get(f.name)
             if f.name in numbers:  # NaN is written as null (a campaign without a validation set)
                 values[f.name] = float(value) if value is not None else float("nan")
@@ -180,3 +174,16 @@ class LoopReport:
     def read(cls, path) -> LoopReport:
         """From loop_closure.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
+
+
+@dataclass(frozen=True, eq=False)
+class LoopResults:
+    """What the later stages read of one sensor's loop closure: its report, its MCMC refit's samples
+    (SI; None or empty when the refit ran without MCMC) and its residual GP's training rows
+    (`residual_gp.training_frame`; None or empty when it added none); label: the samples' file, for
+    error messages."""
+
+    report: LoopReport
+    samples: pd.DataFrame | None = None
+    gp_rows: pd.DataFrame | None = None
+    label: str = ""

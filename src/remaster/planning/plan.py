@@ -128,9 +128,7 @@ def paper_plan(chain: KinematicChain, origin, options: PlanOptions, rng: np.rand
         origin,
         [sight],
         rng,
-        candidates=options.candidate_count(),
-        n_poses=options.poses,
-        n_configurations=options.configurations,
+        size=planning.SetSize(options.candidate_count(), options.poses, options.configurations),
         model=options.collision,
         q3=options.q3,
     )

@@ -48,7 +48,14 @@ def generated_candidates(
     if chain.n_joints == 7:
         tables.append(
             planning.plan_set(
-                chain, set_name, sight.sensor_origin, [sight], rng, candidates=poses, model=collision, q3=planning.FREE
+                chain,
+                set_name,
+                sight.sensor_origin,
+                [sight],
+                rng,
+                size=planning.SetSize(candidates=poses),
+                model=collision,
+                q3=planning.FREE,
             ).table
         )
     random = planning.plan_random(chain, set_name, [sight], rng, n_configurations=poses, model=collision).table

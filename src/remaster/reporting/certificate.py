@@ -85,15 +85,11 @@ def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
     return mean, u, int(seen.sum()), clusters - 1
 
 
-def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
+def _row(sensor: str, where: str, model: str, errors_mm, poses) -> dict:
     errors_mm = np.asarray(errors_mm, dtype=float)
     seen = np.isfinite(errors_mm)
     errors_mm = errors_mm[seen]
-    if poses is not None:
-        poses = np.asarray(poses)[seen]
-        mean, u, count, dof = mean_with_uncertainty(errors_mm, poses)
-    else:
-        mean, u, count, dof = float(np.mean(errors_mm)) if len(errors_mm) else np.nan, np.nan, len(errors_mm), 0
+    mean, u, count, dof = mean_with_uncertainty(errors_mm, np.asarray(poses)[seen])
     k = coverage_factor(dof)
     return {
         "Sensor": sensor_label(sensor),
@@ -123,7 +119,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
     # every model's validation rows without those the final model flagged as gross errors (the
     # loop's residuals leave them out already); the warnings give the numbers with them
-    flagged = ((inputs.loop.gross_errors or {}).get("validation")) or []
+    flagged = inputs.loop.gross_errors["validation"]
     validation = validation[~validation["row"].isin(flagged)]
     where = "validation set (measured)"
     rows = [
@@ -141,7 +137,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     if len(after):
         norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
         pose_of_row = dict(zip(validation["row"], validation["pose"]))
-        poses = after["row"].map(pose_of_row).to_numpy() if "row" in after else None  # older results: no rows
+        poses = after["row"].map(pose_of_row).to_numpy()
         rows.append(
             _row(
                 sensor,
@@ -214,8 +210,7 @@ def _number(value) -> float:
 
 def second_sampler(inputs: CertificateInputs) -> tuple[str, dict[str, list[str]]]:
     """(what the verdict says of the samplers' cross-check, {parameter: [methods]} that disagree):
-    CONFIRMED, NOT_CONFIRMED (with the disagreements) or NOT_CHECKED (no cross-check read). A
-    cross-check written before disagreements were marked raised on any: it agreed."""
+    CONFIRMED, NOT_CONFIRMED (with the disagreements) or NOT_CHECKED (no cross-check read)."""
     if inputs.cross_check is None:
         return NOT_CHECKED, {}
     disagree = disagreeing(inputs.cross_check)
@@ -259,11 +254,6 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     after = _after(by, inputs.acceptance)
     inside = by.get((CLAIMED["domain"], "loop-closed"), {})
     limits = by.get((CLAIMED["random"], "loop-closed"), {})
-    workspace = inputs.workspace or {}
-    # where the claims hold, naming the measured ranges (`domain.MeasuredDomain.holds`); older files: the loop's
-    holds = (workspace.get("domain") or {}).get("holds") or (
-        ((workspace.get("holds") or {}).get("loop") or {}).get("holds") or ""
-    )
     samplers, disagree = second_sampler(inputs)
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
@@ -277,7 +267,7 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "Inside the measured ranges: p95 (mm)": inside.get("p95 (mm)", np.nan),
         "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan),
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
-        "Holds": holds,
+        "Holds": inputs.workspace["domain"]["holds"],  # naming the measured ranges (`domain.MeasuredDomain.holds`)
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
         "Acceptance": acceptance_text(inputs.acceptance),
     }
@@ -285,23 +275,14 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
     """What the calibration was measured over (`workspace.json`): each joint's measured range in
-    degrees (the held joints at their value) and how far the tool axis turned; from older files,
-    each joint's share of its range."""
-    workspace = inputs.workspace or {}
-    domain = workspace.get("domain") or {}
-    coverage = workspace.get("coverage") or {}
-    if domain.get("ranges"):
-        parts = [str(domain["ranges"])]
-    else:
-        fractions = coverage.get("joint_range_fraction") or []
-        parts = [", ".join(f"q{j + 1} {100 * _number(f):.0f} %" for j, f in enumerate(fractions))] if fractions else []
-    spread = domain.get("tool_axis_spread_deg", coverage.get("tool_axis_spread_deg"))
-    if spread is not None:
-        parts.append(f"every measured tool axis within {_number(spread):.0f} deg of one direction")
-    where = "; ".join(parts) if parts else "coverage not recorded"
+    degrees (the held joints at their value) and how far the tool axis turned."""
+    domain = inputs.workspace["domain"]
+    where = (
+        f"{domain['ranges']}; every measured tool axis within {domain['tool_axis_spread_deg']:.0f} deg of one direction"
+    )
     beyond = (
         "; beyond them, the claim across the joint limits carries the priors of what the data did not reach"
-        if domain and not domain.get("covers_the_limits")
+        if not domain["covers_the_limits"]
         else ""
     )
     return (
@@ -315,7 +296,7 @@ def _mean_with_and_without(errors: pd.DataFrame, method: str, rows) -> tuple[flo
     the table rows `rows`)."""
     mine = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS) & (errors["method"] == method)]
     values = mine["error_mm"].to_numpy(dtype=float)
-    kept = ~mine["row"].isin(list(rows)).to_numpy() if "row" in mine else np.ones(len(mine), dtype=bool)
+    kept = ~mine["row"].isin(list(rows)).to_numpy()
     return (
         float(np.nanmean(values)) if np.isfinite(values).any() else np.nan,
         float(np.nanmean(values[kept])) if np.isfinite(values[kept]).any() else np.nan,
@@ -326,18 +307,11 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
     """The rows the loop closure's final model flagged as gross errors (loop_closure.json
     `gross_errors`), in each set: the optimization rows left out of the loop's fit, the validation
     rows with every validation mean error before/after with them and without them; and the
-    zero-offset model's provisional rows (fit/laplace.json) that the final model restored. A
-    report written before that screen: the provisional rows only, as before."""
-    found = inputs.loop.gross_errors or {}
+    zero-offset model's provisional rows (fit/laplace.json) that the final model restored."""
+    found = inputs.loop.gross_errors
     provisional = list(inputs.laplace.outlier_rows)
-    if not found.get("screened", True):
-        return (
-            [f"{label}: {len(provisional)} points flagged as gross errors and left out (rows {provisional})"]
-            if provisional
-            else []
-        )
     out = []
-    optimization, validation = list(found.get("optimization", [])), list(found.get("validation", []))
+    optimization, validation = list(found["optimization"]), list(found["validation"])
     if optimization:
         out.append(
             f"{label}: optimization set: {len(optimization)} rows flagged as gross errors by the final model and "
@@ -354,9 +328,8 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
         for method, name in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets")):
             with_them, without = _mean_with_and_without(inputs.configuration_errors, method, validation)
             parts.append(f"{name} {with_them:.3g} / {without:.3g}")
-        kept = ((found.get("with_flagged_rows") or {}).get("validation") or {}).get("after") or {}
-        after = (inputs.loop.after or {}).get("validation") or {}
-        if kept.get("mean_error_mm") is not None and after.get("mean_error_mm") is not None:
+        kept, after = found["with_flagged_rows"]["validation"]["after"], inputs.loop.after["validation"]
+        if kept["mean_error_mm"] is not None and after["mean_error_mm"] is not None:  # null: no row to average
             parts.append(f"loop-closed {kept['mean_error_mm']:.3g} / {after['mean_error_mm']:.3g}")
         out.append(
             f"{label}: validation set: {len(validation)} rows flagged as gross errors by the final model (rows "
@@ -390,10 +363,9 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
         )
     out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings or ()]
     out += [f"{label}: {w}" for w in (inputs.acceptance.warnings if inputs.acceptance is not None else ())]
-    workspace = inputs.workspace or {}
-    out += [f"{label}: {w}" for w in workspace.get("warnings") or ()]
-    if workspace.get("held_note"):
-        out.append(f"{label}: {workspace['held_note']}")
+    out += [f"{label}: {w}" for w in inputs.workspace["warnings"]]
+    if inputs.workspace["held_note"]:
+        out.append(f"{label}: {inputs.workspace['held_note']}")
     return out
 
 
@@ -412,13 +384,11 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
     accuracy, corrections, verdicts, warnings = [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
-        found = inputs.loop.gross_errors or {}
+        found = inputs.loop.gross_errors
         flagged = (
-            f"{len(found.get('optimization', []))} optimization and {len(found.get('validation', []))} validation "
+            f"{len(found['optimization'])} optimization and {len(found['validation'])} validation "
             "rows flagged as gross errors by the loop closure's final model (left out, listed in "
             "loop_closure.json), "
-            if found.get("screened", True)
-            else f"{len(laplace.outlier_rows)} flagged as gross errors, "
         )
         heading.append(
             f"{sensor_label(sensor)}: {laplace.points_fitted} points used in the zero-offset fit, {flagged}"

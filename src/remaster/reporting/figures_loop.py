@@ -77,8 +77,7 @@ def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
     """Claimed error (mm, log axis) of each model, mean with its 95 % interval, at the measured
     configurations, at random ones inside the measured joint ranges and across the joint limits,
     registration fitted (filled) and in the robot frame with the held zero-offsets at the
-    controller's tolerance (open). claims: `workspace.CLAIM_COLUMNS` rows (older files without the
-    'domain' rows: those ticks empty)."""
+    controller's tolerance (open). claims: `workspace.CLAIM_COLUMNS` rows."""
     fig, ax = plt.subplots(figsize=(7.0, 3.0))
     chosen = claims[claims["noise"] == "with noise"]
     labels = []
@@ -86,10 +85,9 @@ def workspace_claims(claims: pd.DataFrame, title: str) -> plt.Figure:
     for k, (model, where) in enumerate([(m, w) for m in ("paper", "loop") for w in names]):
         labels.append(f"{model}\n{names[where]}")
         for offset, frame, fill in ((-0.12, "registered", True), (0.12, "robot", False)):
-            row = chosen[(chosen["model"] == model) & (chosen["configurations"] == where) & (chosen["frame"] == frame)]
-            if row.empty:
-                continue
-            r = row.iloc[0]
+            r = chosen[
+                (chosen["model"] == model) & (chosen["configurations"] == where) & (chosen["frame"] == frame)
+            ].iloc[0]
             color = "tab:red" if model == "paper" else "tab:blue"
             ax.errorbar(
                 k + offset,

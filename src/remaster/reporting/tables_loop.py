@@ -57,92 +57,72 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+SCORE_COLUMNS = ("Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "CV fall / SE", "BIC gain", "Explained (%)")
+
+
+def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
+    """A candidate's row of `candidates_table`: its scores in one round (`entry`) of the selection
+    (`step`: the round as loop_closure.json's rounds record it)."""
+    nan = float("nan")
+    backward = step.get("pass") == "backward"
+    verdict = (
+        f"skipped: {entry['skipped']}"
+        if "skipped" in entry
+        else ("removed" if step.get("removed") == name else "kept")
+        if backward
+        else "yes"
+        if step.get("added") == name
+        else ""
+    )
+    return {
+        "Sensor": sensor,
+        "Round": entry["round"],
+        "Pass": ("backward, GP present" if step.get("with") else "backward") if backward else "forward",
+        "Candidate": name,
+        "Log evidence gain": entry.get("log_evidence_gain", nan),
+        "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
+        "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
+        "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
+        "BIC gain": entry.get("bic_gain", nan),
+        "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
+        "Added": verdict,
+    }
+
+
+def _noise_row(sensor: str, noise_model: dict) -> dict | None:
+    """The range/transverse noise model's row of `candidates_table`: its evidence gain when it was
+    offered, why it was not for a laser tracker, None for any other sensor."""
+    nan = float("nan")
+    head = {"Sensor": sensor, "Round": nan, "Pass": "", "Candidate": "noise: range/transverse"}
+    if noise_model.get("offered"):
+        return {
+            **head,
+            **{k: nan for k in SCORE_COLUMNS},
+            "Log evidence gain": noise_model["log_evidence_gain"],
+            "Added": "yes" if noise_model["chosen"] == "range_transverse" else "",
+        }
+    if noise_model.get("why") and noise_model["why"] != "not a laser tracker":
+        return {**head, **{k: nan for k in SCORE_COLUMNS}, "Added": f"not offered: {noise_model['why']}"}
+    return None
+
+
 def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
     whether it was added; in the backward pass (`selection.backward_pass`) each added block's
-    scores against the model without it, and whether it was removed (with the residual GP present in
-    both once it is added: `selection.residual_backward_pass`). A candidate `select` skipped (nothing of it identifiable) has no scores:
-    NaN, and the reason in the last column. A laser tracker's range/transverse noise model
-    (`remaster.noise`) gets a row of its own, after the rounds: its evidence gain, or why it was
-    not offered."""
+    scores against the model without it, and whether it was removed (with the residual GP present
+    in both once it is added: `selection.residual_backward_pass`). A candidate `select` skipped
+    (nothing of it identifiable) has no scores: NaN, and the reason in the last column. A laser
+    tracker's range/transverse noise model (`remaster.noise`) gets a row of its own, after the
+    rounds: its evidence gain, or why it was not offered."""
     rows = []
-    nan = float("nan")
     for sensor, report in reports.items():
         by_round = {r["round"]: r for r in report.rounds}
         for name, rounds in report.candidates.items():
-            for entry in rounds:
-                step = by_round.get(entry["round"], {})
-                backward = step.get("pass") == "backward"
-                if step:
-                    added = step.get("added") == name
-                else:  # a report without its rounds: the i-th round added the i-th effect
-                    added = (
-                        entry["round"] <= len(report.effects_added) and report.effects_added[entry["round"] - 1] == name
-                    )
-                skipped = "skipped" in entry
-                verdict = (
-                    f"skipped: {entry['skipped']}"
-                    if skipped
-                    else ("removed" if step.get("removed") == name else "kept")
-                    if backward
-                    else "yes"
-                    if added
-                    else ""
-                )
-                rows.append(
-                    {
-                        "Sensor": sensor,
-                        "Round": entry["round"],
-                        "Pass": ("backward, GP present" if step.get("with") else "backward") if backward else "forward",
-                        "Candidate": name,
-                        "Log evidence gain": entry.get("log_evidence_gain", nan),
-                        "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
-                        "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
-                        "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
-                        "BIC gain": entry.get("bic_gain", nan),
-                        "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
-                        "Added": verdict,
-                    }
-                )
-        noise_model = report.noise_model or {}
-        if noise_model.get("offered"):
-            rows.append(
-                {
-                    "Sensor": sensor,
-                    "Round": nan,
-                    "Pass": "",
-                    "Candidate": "noise: range/transverse",
-                    "Log evidence gain": noise_model["log_evidence_gain"],
-                    "CV RMSE (mm)": nan,
-                    "CV fall (%)": nan,
-                    "CV fall / SE": nan,
-                    "BIC gain": nan,
-                    "Explained (%)": nan,
-                    "Added": "yes" if noise_model["chosen"] == "range_transverse" else "",
-                }
-            )
-        elif noise_model.get("why") and noise_model["why"] != "not a laser tracker":
-            rows.append(
-                {
-                    "Sensor": sensor,
-                    "Round": nan,
-                    "Pass": "",
-                    "Candidate": "noise: range/transverse",
-                    **{
-                        k: nan
-                        for k in (
-                            "Log evidence gain",
-                            "CV RMSE (mm)",
-                            "CV fall (%)",
-                            "CV fall / SE",
-                            "BIC gain",
-                            "Explained (%)",
-                        )
-                    },
-                    "Added": f"not offered: {noise_model['why']}",
-                }
-            )
+            rows += [_candidate_row(sensor, name, entry, by_round[entry["round"]]) for entry in rounds]
+        noise = _noise_row(sensor, report.noise_model or {})
+        if noise is not None:
+            rows.append(noise)
     return pd.DataFrame(rows)
 
 

@@ -48,7 +48,6 @@ method). Lengths in m, angles in rad.
 from __future__ import annotations
 
 import itertools
-import weakref
 
 import numpy as np
 
@@ -376,15 +375,3 @@ class SRSInverseKinematics:
                 return []
             options.append(values)
         return [np.array(combo) for combo in itertools.product(*options)]
-
-
-_SOLVERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def inverse_kinematics(chain: KinematicChain, pose, q3: float = 0.0, within_limits: bool = True) -> np.ndarray:
-    """All solutions (k, 7) (rad) for a flange pose (4, 4, base frame, m) of an S-R-S chain with
-    joint 3 fixed at q3 (rad); see `SRSInverseKinematics.solve`. The solver is cached per chain."""
-    solver = _SOLVERS.get(chain)
-    if solver is None:
-        solver = _SOLVERS[chain] = SRSInverseKinematics(chain)
-    return solver.solve(pose, q3=q3, within_limits=within_limits)

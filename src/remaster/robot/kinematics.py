@@ -169,7 +169,9 @@ def chain_from_urdf(
         raise KinematicsError(exc.reason, file=source, key=exc.key, rows=exc.rows) from None
 
 
-def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
+def _urdf_tree(xml_text: str, source: str) -> tuple[ET.Element, dict[str, ET.Element], dict[str, ET.Element]]:
+    """(root, {link name: <link>}, {child link name: the <joint> that is its parent}) of a URDF,
+    checked: no XML entities, valid XML under <robot>, every joint between defined links, a tree."""
     if "<!ENTITY" in xml_text:
         raise KinematicsError(
             "declares XML entities (<!ENTITY ...>): refused, a URDF needs none and their expansion can exhaust memory",
@@ -201,7 +203,12 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
                 file=source,
             )
         parent_of[child_name] = joint
+    return root, links, parent_of
 
+
+def _chain_ends(links, parent_of, base: str | None, flange: str | None, source: str) -> tuple[str, str]:
+    """(base, flange) link names: the given ones, checked to be links, or the tree's one root and
+    its one leaf."""
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
         raise KinematicsError(f"expected one root link, found {sorted(roots)}", file=source)
@@ -220,7 +227,11 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             raise KinematicsError(
                 f"frame {frame!r} is not a link of the URDF (links: {', '.join(sorted(links))})", file=source, key=key
             )
+    return base, flange
 
+
+def _joint_path(parent_of, base: str, flange: str, source: str) -> list[ET.Element]:
+    """The joints from `base` to `flange`, in that order."""
     path: list[ET.Element] = []
     link = flange
     while link != base:
@@ -231,7 +242,41 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         path.append(parent_of[link])
         link = parent_of[link].find("parent").get("link")
     path.reverse()
+    return path
 
+
+def _joint_axis(joint: ET.Element, where: str, source: str) -> np.ndarray:
+    """A movable joint's unit axis (3,) (x when it gives none)."""
+    axis = (
+        _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None, 3, 0.0, f"{where}/axis")
+        if joint.find("axis") is not None
+        else np.array([1.0, 0, 0])
+    )
+    norm = np.linalg.norm(axis)
+    if norm < 1e-12:
+        raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
+    return axis / norm
+
+
+def _joint_limits(joint: ET.Element, kind: str, where: str, source: str) -> tuple[float, float]:
+    """(lower, upper) rad of a revolute joint's <limit>, each infinite where not given; a continuous
+    joint's are infinite."""
+    limit = joint.find("limit")
+    if kind != "revolute" or limit is None:
+        return -np.inf, np.inf
+    lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
+    hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
+    if lo > hi:
+        raise KinematicsError(
+            f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
+        )
+    return lo, hi
+
+
+def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
+    root, links, parent_of = _urdf_tree(xml_text, source)
+    base, flange = _chain_ends(links, parent_of, base, flange, source)
+    path = _joint_path(parent_of, base, flange, source)
     children: dict[str, list[ET.Element]] = {}
     for joint in parent_of.values():
         children.setdefault(joint.find("parent").get("link"), []).append(joint)
@@ -266,27 +311,11 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             )
         if names:
             inertias.append(body_inertia)
-        axis = (
-            _floats(joint.find("axis").get("xyz") if joint.find("axis") is not None else None, 3, 0.0, f"{where}/axis")
-            if joint.find("axis") is not None
-            else np.array([1.0, 0, 0])
-        )
-        norm = np.linalg.norm(axis)
-        if norm < 1e-12:
-            raise KinematicsError("joint axis has zero length", file=source, key=f"{where}/axis")
-        limit = joint.find("limit")
-        if kind == "revolute" and limit is not None:
-            lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
-            hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
-            if lo > hi:
-                raise KinematicsError(
-                    f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
-                )
-        else:
-            lo, hi = -np.inf, np.inf
+        axis = _joint_axis(joint, where, source)
+        lo, hi = _joint_limits(joint, kind, where, source)
         names.append(name)
         transforms.append(pending @ origin)
-        axes.append(axis / norm)
+        axes.append(axis)
         lower.append(lo)
         upper.append(hi)
         pending = np.eye(4)
@@ -375,15 +404,6 @@ def chain_from_dh(
 
 
 # --------------------------------------------------------------------------- forward kinematics
-
-
-def _angles(q, zero_offsets) -> np.ndarray:
-    """q (n, N) plus offsets (N,) or (m, N) -> (n, N) or (m, n, N)."""
-    q = np.asarray(q, dtype=float)
-    if zero_offsets is None:
-        return q
-    offsets = np.asarray(zero_offsets, dtype=float)
-    return q + offsets[..., None, :] if offsets.ndim == 2 else q + offsets
 
 
 def _basis_with_z(axis) -> np.ndarray:
@@ -491,14 +511,6 @@ class ForwardKinematics:
         self.q = q
         self.cos_q = np.cos(q)
         self.sin_q = np.sin(q)
-        # Rot(a, q + d) = Rot(a, q) Rot(a, d): the reading's part of each joint is folded into its
-        # fixed transform once, as (N, 3, 3, n) with configurations last so that each joint costs
-        # one small matrix product and one broadcast multiply-add per call (the NumPy reference).
-        self._axis_k = spatial.skew(chain.joint_axes)  # (N, 3, 3)
-        self._axis_k2 = self._axis_k @ self._axis_k
-        readings = self._axis_rotations(self.cos_q, self.sin_q)  # (n, N, 3, 3)
-        self._moved = np.ascontiguousarray(np.moveaxis(chain.joint_transforms[:, :3, :3] @ readings, 0, -1))
-        self._shift = chain.joint_transforms[:, :3, 3, None]  # (N, 3, 1)
         self.kernel = KernelForm.of(chain)
         self.kernel_rotations, self.kernel_shifts = self.kernel.rotations, self.kernel.shifts
         self.kernel_cos_q = np.ascontiguousarray(self.cos_q.T)
@@ -507,10 +519,6 @@ class ForwardKinematics:
     def flange_point(self, point_in_flange) -> np.ndarray:
         """A point given in the flange frame, in the last joint's z-aligned frame (3,)."""
         return self.kernel.start(point_in_flange)
-
-    def _axis_rotations(self, cos, sin) -> np.ndarray:
-        """Rot(a_j, angle) for every joint from cos, sin of shape (..., N): (..., N, 3, 3)."""
-        return np.eye(3) + sin[..., None, None] * self._axis_k + (1.0 - cos)[..., None, None] * self._axis_k2
 
     def _trig(self, zero_offsets):
         if zero_offsets is None:
@@ -538,19 +546,6 @@ class ForwardKinematics:
             np.sin(stack),
         )
         return out if offsets.ndim == 2 else out[0]
-
-    def points_numpy(self, point_in_flange, zero_offsets=None) -> np.ndarray:
-        """`points` in plain NumPy: the reference the compiled kernel is tested against."""
-        x = spatial.transform_points(self.chain.tool_transform, np.asarray(point_in_flange, dtype=float))
-        offsets = None if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
-        rotations = None if offsets is None else self._axis_rotations(np.cos(offsets), np.sin(offsets))
-        lead = () if offsets is None or offsets.ndim == 1 else offsets.shape[:1]
-        x = np.broadcast_to(x[:, None], lead + (3, len(self.q)))
-        for j in range(self.chain.n_joints - 1, -1, -1):
-            if rotations is not None:
-                x = rotations[..., j, :, :] @ x
-            x = (self._moved[j] * x[..., None, :, :]).sum(-2) + self._shift[j]
-        return np.swapaxes(x, -1, -2)
 
     def flange_poses(self, zero_offsets=None) -> np.ndarray:
         """Flange poses in the base frame, (n, 4, 4) or (m, n, 4, 4)."""

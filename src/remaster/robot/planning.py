@@ -65,6 +65,21 @@ class CollisionModel:
     min_index_gap: int = 3  # segments closer in the chain than this share a joint and always touch
 
 
+@dataclass(frozen=True)
+class SetSize:
+    """How many configurations a pointing design plans: Latin hypercubes of `candidates` poses are
+    drawn (at most MAX_BATCHES) until `poses` poses with exactly `configurations` configurations
+    among them exist; without `poses` and `configurations`, one hypercube, every usable pose kept."""
+
+    candidates: int = 60
+    poses: int | None = None
+    configurations: int | None = None
+
+
+MAX_BATCHES = 20  # hypercubes of a pointing design before it gives up
+MAX_RANDOM_BATCHES = 50  # batches of random joint-space configurations before `plan_random` gives up
+
+
 @dataclass
 class Plan:
     """Configurations to command: a table with set, pose, solution, q1..qN (rad), and counts of
@@ -289,42 +304,35 @@ def plan_set(
     sights,
     rng: np.random.Generator,
     *,
-    candidates: int = 60,
-    n_poses: int | None = None,
-    n_configurations: int | None = None,
-    workspace: Workspace = Workspace(),
+    size: SetSize = SetSize(),
     model: CollisionModel = CollisionModel(),
     q3: float | str = 0.0,
-    max_batches: int = 20,
 ) -> Plan:
-    """Plan one set (optimization or validation).
-
-    Without target sizes: one Latin hypercube of `candidates` poses, every usable pose kept.
-    With n_poses and n_configurations: further hypercubes of `candidates` poses are drawn until
-    a subset of exactly that size exists, and the earliest such subset is kept. q3 (rad) holds
-    joint 3; FREE draws it for each pose after the batch's poses.
+    """Plan one set (optimization or validation) of `size` (`SetSize`): the earliest subset of the
+    usable poses of exactly that size is kept. q3 (rad) holds joint 3; FREE draws it for each pose
+    after the batch's poses.
     """
     solver = SRSInverseKinematics(chain)
     poses, discarded = [], {"unreachable_poses": 0}
     drawn = 0
-    for _ in range(max_batches):
-        batch = candidate_poses(candidates, target, rng, workspace)
+    for _ in range(MAX_BATCHES):
+        batch = candidate_poses(size.candidates, target, rng)
         drawn += len(batch)
         q3s = _q3_values(chain, q3, len(batch), rng)
         _usable_poses(chain, batch, sights, model, q3s, solver, poses, discarded)
-        if n_poses is None:
+        if size.poses is None:
             break
         counts = [len(s) for s in poses]
         try:
-            chosen = choose_poses(counts, n_poses, n_configurations)
+            chosen = choose_poses(counts, size.poses, size.configurations)
             poses = [poses[i] for i in chosen]
             break
         except InputError:
             continue
     else:
         raise InputError(
-            f"{set_name}: {max_batches} batches of {candidates} candidates did not give "
-            f"{n_poses} poses with {n_configurations} configurations",
+            f"{set_name}: {MAX_BATCHES} batches of {size.candidates} candidates did not give "
+            f"{size.poses} poses with {size.configurations} configurations",
             key="plan",
         )
     return Plan(_toured_table(chain, set_name, poses), discarded, drawn)
@@ -404,19 +412,18 @@ def plan_random(
     held: dict[int, float] | None = None,
     candidates: int = 200,
     model: CollisionModel = CollisionModel(),
-    max_batches: int = 50,
 ) -> Plan:
     """Plan one set of random joint-space configurations: every joint drawn uniformly within its
     range (`joint_range`), except the `held` ones {joint (0-based): angle (rad)}, in batches of
-    `candidates`, until `n_configurations` pass the checks of `plan_set` (floor, self-collision,
-    every sight line); the first that pass are kept, each its own pose. A real campaign that
+    `candidates` (at most MAX_RANDOM_BATCHES), until `n_configurations` pass the checks of `plan_set`
+    (floor, self-collision, every sight line); the first that pass are kept, each its own pose. A real campaign that
     holds joints the inverse kinematics cannot hold (joints 1 and 7 of a 7-axis arm), or of an
     arm without an analytic inverse, is planned this way.
     """
     held = dict(held or {})
     ranges = np.array([joint_range(chain, j) for j in range(chain.n_joints)])
     kept, discarded, drawn = [], {"floor": 0, "self_collision": 0, "occluded": 0}, 0
-    for _ in range(max_batches):
+    for _ in range(MAX_RANDOM_BATCHES):
         q = rng.uniform(ranges[:, 0], ranges[:, 1], (candidates, chain.n_joints))
         for joint, angle in held.items():
             q[:, joint] = angle
@@ -435,7 +442,7 @@ def plan_random(
             break
     else:
         raise InputError(
-            f"{set_name}: {max_batches} batches of {candidates} random configurations gave {len(kept)} "
+            f"{set_name}: {MAX_RANDOM_BATCHES} batches of {candidates} random configurations gave {len(kept)} "
             f"that pass the checks, not {n_configurations}",
             key="plan",
         )

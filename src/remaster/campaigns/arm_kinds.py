@@ -1,21 +1,35 @@
-"""Scenarios of the kinds of arm and campaign real calibrations meet, small and fast to simulate.
+"""Simulated scenarios of the kinds of arm and campaign real calibrations meet, small and fast to simulate.
 
 Each builder returns a scenario mapping for `remaster.campaigns.scenario.simulate` (the format of
 data/simulation/*.yaml); `chain_of` gives the robot's nominal chain as `remaster simulate` loads
-it. Sizes are those of a quick test, not of a campaign: an optimization set of 25 configurations
-and a validation set of 16, one laser tracker (10 um) unless the kind says otherwise.
+it. Sizes are those of a quick check, not of a campaign: an optimization set of 25 configurations
+and a validation set of 16, one laser tracker (10 um) unless the kind says otherwise. The cyclic
+case (`cyclic_case`) is a transmission's cyclic error of joints 2 and 4, measured as the twin is.
+The tests and the benchmarks simulate these.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 
-from remaster.campaigns.robot_model import load_chain
-from remaster.robot.kinematics import KinematicChain
+import numpy as np
 
-from .conftest import REPO, UR5_DH
+from ..robot.kinematics import KinematicChain
+from .campaign import SensorData, sensor_data
+from .robot_model import load_chain
+from .scenario import simulate
 
 IIWA = {"urdf": "data/robots/kuka_iiwa14.urdf", "base": "iiwa_link_0", "flange": "iiwa_link_ee"}
+# the UR5's standard DH table: [a (m), alpha (rad), d (m), theta (rad)] per joint
+UR5_DH = [
+    [0.0, math.pi / 2, 0.089159, 0.0],
+    [-0.425, 0.0, 0.0, 0.0],
+    [-0.39225, 0.0, 0.0, 0.0],
+    [0.0, math.pi / 2, 0.10915, 0.0],
+    [0.0, -math.pi / 2, 0.09465, 0.0],
+    [0.0, 0.0, 0.0823, 0.0],
+]
 UR5 = {"dh": {"convention": "standard", "rows": [list(map(float, row)) for row in UR5_DH]}}
 IIWA_OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]
 UR5_OFFSETS_DEG = [0.21, -0.33, 0.15, 0.27, -0.12, 0.40]
@@ -37,21 +51,17 @@ MOTION_CAPTURE = {
 OPTIMIZATION, VALIDATION = 25, 16  # configurations of the two sets
 
 
-def chain_of(spec: dict) -> KinematicChain:
-    """The nominal chain of a scenario's robot, loaded as `remaster simulate` loads it."""
-    return load_chain(spec["robot"], REPO, REPO, source=spec["name"], name=spec["name"])
+def chain_of(spec: dict, repo_root) -> KinematicChain:
+    """The nominal chain of a scenario's robot, loaded as `remaster simulate` loads it (`repo_root`:
+    where data/robots lies)."""
+    return load_chain(spec["robot"], repo_root, repo_root, source=spec["name"], name=spec["name"])
 
 
-def simulated_sensor(spec: dict, name: str):
+def simulated_sensor(spec: dict, name: str, repo_root) -> tuple[KinematicChain, SensorData]:
     """(chain, SensorData) of one sensor of scenario `spec` simulated in memory (no campaign folder):
     what an in-process loop closure takes."""
-    import numpy as np
-
-    from remaster.campaigns import scenario
-    from remaster.campaigns.campaign import sensor_data
-
-    chain = chain_of(spec)
-    simulated = scenario.simulate(spec, chain)
+    chain = chain_of(spec, repo_root)
+    simulated = simulate(spec, chain)
     meta = simulated.metadata["sensors"][name]
     table = simulated.tables[name]
     return chain, sensor_data(
@@ -192,3 +202,44 @@ KINDS = {
     "ur5_with_dh_errors": ur5_with_dh_errors,
     "iiwa_rigid_link_errors": iiwa_rigid_link_errors,
 }
+
+
+# --------------------------------------------------------------------------- the cyclic case
+
+# J2 0.025 deg sin(q2 + 0.3) + 0.012 deg sin(2 q2 + 1.1), J4 0.03 deg sin(q4 - 0.7)
+CYCLIC_TERMS = ((2, 1, 0.025, 0.3), (2, 2, 0.012, 1.1), (4, 1, 0.030, -0.7))  # joint, order, amplitude deg, phase rad
+# its full size: 152 configurations over 32 poses to fit, validation like the twin's
+CYCLIC_SETS = {
+    "optimization": {"poses": 32, "configurations": 152},
+    "validation": {"poses": 32, "configurations": 156},
+}
+
+
+def cyclic_truth() -> list[dict]:
+    """The simulator's `truth/cyclic_error` of CYCLIC_TERMS: one term (a per-joint vector) per row."""
+    out = []
+    for joint, order, amplitude, phase in CYCLIC_TERMS:
+        term = {"amplitude_deg": [0.0] * 7, "cycles_per_turn": [1.0] * 7, "phase_deg": [0.0] * 7}
+        term["amplitude_deg"][joint - 1] = amplitude
+        term["cycles_per_turn"][joint - 1] = float(order)
+        term["phase_deg"][joint - 1] = math.degrees(phase)
+        out.append(term)
+    return out
+
+
+def true_f(joint: int, q) -> np.ndarray:
+    """The cyclic truth's f_j (rad) at readings q (rad), written here from CYCLIC_TERMS, not from the simulator."""
+    q = np.asarray(q, dtype=float)
+    return sum(math.radians(a) * np.sin(k * q + p) for j, k, a, p in CYCLIC_TERMS if j == joint) + 0.0 * q
+
+
+def cyclic_case(seed: int = 3, sets: dict | None = None) -> dict:
+    """The cyclic case measured as the twin is: a laser tracker (10 um) and a motion capture (30 um,
+    its own kind) on the same campaign (joint 3 held), at its full size (CYCLIC_SETS) unless `sets`."""
+    return iiwa_scenario(
+        "cyclic-issue",
+        seed=seed,
+        truth={"cyclic_error": cyclic_truth()},
+        plan={"sets": sets or CYCLIC_SETS},
+        sensors={"laser_tracker": dict(TRACKER), "motion_capture": dict(MOTION_CAPTURE)},
+    )

@@ -5,8 +5,10 @@ configurations inside the measured joint ranges (`domain.MeasuredDomain`); and t
 one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
 percentile of the registered error there.
 
-Used by tests/test_truth_claims.py (small campaigns) and benchmarks/bench_truth_claims.py (campaigns
-of the paper's size). The campaign goes through the pipeline's own stages in-process (registration,
+Not a benchmark itself: the harness that tests/test_truth_claims.py and tests/test_joint_harmonics.py
+(small campaigns) and benchmarks/bench_truth_claims.py and bench_cyclic_case.py (campaigns of the
+paper's size) share, with the config.yaml the workflow runs (validated against its schema, defaults
+filled). The campaign goes through the pipeline's own stages in-process (registration,
 Laplace fit, loop closure with config.yaml's settings); `compensation.calibrated_robot` and
 `compensation.predict` are what `remaster predict` runs. The truth comes from the simulator's record
 (`scenario.robot_from_truth`), whose link errors are rigid motions written by other code than the
@@ -30,7 +32,7 @@ from remaster.campaigns.simulation import true_marker_positions, true_sensor_pos
 from remaster.evaluation import workspace
 from remaster.inference import fit, metrics
 from remaster.loop import loop_closure
-from remaster.loop.result import LoopReport
+from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 
 REPO = Path(__file__).resolve().parents[1]
@@ -177,12 +179,9 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         robot_key,
         results["summary"],
         laplace,
-        report,
-        result.samples,
+        LoopResults(report, result.samples),
         np.random.default_rng(seed),
-        n_draws=draws,
-        n_random=n_random,
-        seed=seed,
+        prediction.Propagation(draws, n_random, seed),
     ).claims
     loop = prediction.loop_calibration(report, result.samples)
     held_to_truth = {}
