@@ -18,6 +18,11 @@ from .conftest import validated_config
 CROSS_CHECK = validated_config()["fit"]["cross_check"]  # the schema's defaults: tolerance, floor, ...
 
 
+def statistic(chains, name: str) -> np.ndarray:
+    """(P,) one of `diagnostics.convergence`'s statistics."""
+    return diagnostics.convergence(chains, [name])[name]
+
+
 def ar1(rng, phi, n, shape=()):
     """AR(1) with unit marginal variance along axis 0: ESS = n (1 - phi) / (1 + phi) for large n."""
     noise = rng.standard_normal((n, *shape)) * math.sqrt(1 - phi**2)
@@ -45,9 +50,9 @@ def test_ess_of_ar1_chains(phi):
     rng = np.random.default_rng(1)
     chains = [ar1(rng, phi, 20_000, (2,)) for _ in range(4)]
     expected = 80_000 * (1 - phi) / (1 + phi)
-    np.testing.assert_allclose(diagnostics.ess_bulk(chains), expected, rtol=0.1)
-    np.testing.assert_allclose(diagnostics.mcse_mean(chains), 1 / math.sqrt(expected), rtol=0.1)
-    assert np.all(np.abs(diagnostics.rhat(chains) - 1) < 0.01)
+    np.testing.assert_allclose(statistic(chains, "ess_bulk"), expected, rtol=0.1)
+    np.testing.assert_allclose(statistic(chains, "mcse_mean"), 1 / math.sqrt(expected), rtol=0.1)
+    assert np.all(np.abs(statistic(chains, "rhat") - 1) < 0.01)
 
 
 def test_an_ensembles_walkers_are_chains():
@@ -55,29 +60,30 @@ def test_an_ensembles_walkers_are_chains():
     and the same walkers given as two ensembles (or as one-walker chains) are the same chains."""
     rng = np.random.default_rng(2)
     ensemble = ar1(rng, 0.8, 5_000, (8, 2))
-    np.testing.assert_allclose(diagnostics.ess_bulk([ensemble]), 40_000 / 9, rtol=0.1)
+    np.testing.assert_allclose(statistic([ensemble], "ess_bulk"), 40_000 / 9, rtol=0.1)
     as_halves = [ensemble[:, :4], ensemble[:, 4:]]
     as_chains = [ensemble[:, k] for k in range(8)]
-    for statistic in (diagnostics.rhat, diagnostics.ess_bulk, diagnostics.ess_tail, diagnostics.mcse_mean):
-        np.testing.assert_array_equal(statistic([ensemble]), statistic(as_halves))
-        np.testing.assert_array_equal(statistic([ensemble]), statistic(as_chains))
+    one = diagnostics.convergence([ensemble])
+    for same in (diagnostics.convergence(as_halves), diagnostics.convergence(as_chains)):
+        for name in diagnostics.STATISTICS:
+            np.testing.assert_array_equal(one[name], same[name])
     # one walker stuck away from the others: R-hat over walkers sees it
     ensemble[:, 3] += 3.0
-    assert np.all(diagnostics.rhat([ensemble]) > 1.1)
+    assert np.all(statistic([ensemble], "rhat") > 1.1)
 
 
 def test_rhat_sees_chains_apart_and_a_drifting_chain():
     rng = np.random.default_rng(3)
     good = [rng.standard_normal((2_000, 3)) for _ in range(4)]
-    assert np.all(np.abs(diagnostics.rhat(good) - 1) < 0.01)
+    assert np.all(np.abs(statistic(good, "rhat") - 1) < 0.01)
     apart = [good[0], good[1], good[2] + 1.0, good[3] + 1.0]  # two pairs of chains one sd apart
-    assert np.all(diagnostics.rhat(apart) > 1.1)
+    assert np.all(statistic(apart, "rhat") > 1.1)
     # one chain of two still drifting by 4 sd: the split halves catch it
     drifting = [good[0], good[1] + np.linspace(0, 4, 2_000)[:, None]]
-    assert np.all(diagnostics.rhat(drifting) > 1.1)
+    assert np.all(statistic(drifting, "rhat") > 1.1)
     # the tails: same centre, one chain four times as wide, caught by the folded R-hat
     wide = [good[0], good[1], good[2], 4 * good[3]]
-    assert np.all(diagnostics.rhat(wide) > 1.1)
+    assert np.all(statistic(wide, "rhat") > 1.1)
 
 
 def test_what_failed_runs_leave_is_nan_not_an_error():

@@ -316,6 +316,26 @@ def test_converged_on_numbers():
     assert fit.converged({"max_rhat": 1.2, "min_ess": 300}, 1.05, 200) is False
 
 
+def test_the_samplers_stopping_test_judges_as_their_report():
+    """The doublings' test (R-hat first, the ESS only when R-hat passes) says what
+    `sampler_diagnostics` says of the same chains: converged, R-hat too high, bulk ESS too low
+    (the tail ESS is reported, not judged), a chain that never moved."""
+    rng = np.random.default_rng(6)
+    good = [rng.normal(size=(1000, 2)) for _ in range(2)]
+    noise = [rng.normal(size=(1002, 2)) for _ in range(2)]
+    slow = [e[2:] + e[1:-1] + e[:-2] for e in noise]  # mixed (R-hat 1) but ESS a third of the draws
+    apart = [good[0], good[1] + 1.0]
+    stuck = [np.column_stack([np.zeros(1000), g[:, 1]]) for g in good]
+    criteria = {"max_rhat": 1.05, "min_ess": 1000}
+    verdicts = []
+    for chains in (good, slow, apart, stuck):
+        report = fit._extremes(diagnostics.chain_report(chains))
+        verdict = fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
+        assert fit._meets(chains, criteria) is verdict
+        verdicts.append(verdict)
+    assert verdicts == [True, False, False, False]
+
+
 def test_a_chain_that_never_moves_has_no_rhat_and_is_not_converged(tmp_path):
     """A parameter constant in every chain: R-hat NaN (no spread to compare), reported as such
     (not skipped by the max), written as null, and read back as not converged."""

@@ -98,7 +98,7 @@ def thinned_marginal(chains, index):
     out = []
     for chain in chains:
         walkers = chain.per_walker()[:, :, index]
-        step = math.ceil(2 * walkers.size / diagnostics.ess_bulk([walkers[:, :, None]])[0])
+        step = math.ceil(2 * walkers.size / diagnostics.convergence([walkers[:, :, None]], ["ess_bulk"])["ess_bulk"][0])
         out.append(walkers[::step].ravel())
     return np.concatenate(out)
 

@@ -43,72 +43,66 @@ def _walkers(samples) -> np.ndarray:
     return x
 
 
-def _as_chains(chains: Sequence) -> np.ndarray:
-    """(P, C, n) array, arviz's (chain, draw) layout per parameter: every walker of every chain
-    one of the C chains, in order; all cut to the shortest length n (every sampler here gives
-    equal lengths; a rank-normalised R-hat needs a rectangular array)."""
+STATISTICS = ("rhat", "ess_bulk", "ess_tail", "mcse_mean")
+
+
+def _parameters(chains: Sequence):
+    """Each parameter's draws as a (C, n) array, arviz's (chain, draw) layout: every walker of
+    every chain one of the C chains, in order, all cut to the shortest length n (every sampler
+    here gives equal lengths; the statistics need a rectangular array). One parameter at a time:
+    an ensemble run long holds gigabytes of draws, and a copy of all of them is not needed."""
     walkers = [_walkers(c) for c in chains]
     n = min(len(w) for w in walkers)
-    stacked = np.concatenate([w[:n] for w in walkers], axis=1)  # (n, C, P)
-    return np.transpose(stacked, (2, 1, 0))
+    for d in range(walkers[0].shape[2]):
+        yield np.concatenate([w[:n, :, d] for w in walkers], axis=1).T
 
 
-def _array_stat(chains: Sequence, statistic: str, **options) -> np.ndarray:
-    """(P,) arviz_stats' `statistic` (rhat, ess or mcse, with its options) of chains in
-    `_as_chains`' layout; NaN where there are fewer than 4 draws per chain (or, for R-hat, fewer
-    than 2 chains) or a NaN draw."""
+def _statistic(draws: np.ndarray, statistic: str) -> float:
+    """One of STATISTICS of one parameter's draws (C, n) (`convergence`)."""
     from arviz_stats.base import array_stats  # scipy.stats and scipy.optimize: not for light readers
 
-    x = _as_chains(chains)
-    if x.shape[2] == 0:
-        return np.full(x.shape[0], np.nan)
+    if draws.shape[1] == 0 or (statistic != "rhat" and not np.ptp(draws) > 0):  # empty, NaN or never moved
+        return np.nan
     with np.errstate(invalid="ignore", divide="ignore"):  # 0 / 0 where a chain never moved: NaN
-        return np.asarray(getattr(array_stats, statistic)(x, **options), dtype=float)
+        if statistic == "rhat":
+            return float(array_stats.rhat(draws, method="rank"))
+        if statistic == "ess_bulk":
+            return float(array_stats.ess(draws, method="bulk"))
+        if statistic == "ess_tail":
+            return float(array_stats.ess(draws, method="tail", prob=TAIL_PROBABILITIES))
+        if statistic == "mcse_mean":
+            return float(array_stats.mcse(draws, method="mean"))
+    raise ValueError(f"unknown statistic {statistic!r}; use one of {STATISTICS}")
 
 
-def _moving(chains: Sequence) -> np.ndarray:
-    """(P,) True where a parameter's draws are not all equal. arviz counts the draws of one that
-    never moves as independent (ESS = every draw, MCSE 0), which would pass any ESS criterion: its
-    ESS and MCSE are NaN here, as its R-hat is."""
-    x = _as_chains(chains)
-    return np.ptp(x.reshape(x.shape[0], -1), axis=1) > 0 if x.size else np.zeros(x.shape[0], bool)
+def convergence(chains: Sequence, statistics: Sequence[str] = STATISTICS) -> dict[str, np.ndarray]:
+    """{statistic: (P,)} for each of `statistics` of chains pooled (a list of any accepted layout,
+    every walker a chain: see the module's docstring):
 
+    rhat: rank-normalised split R-hat, the larger of the bulk's (rank-normalised draws) and the
+    tails' (the same of the draws folded about their median), every chain split in halves so
+    that one still drifting is caught. About 1 for converged chains; Vehtari et al. ask for
+    < 1.01, remaster's criterion is fit/cross_check/max_rhat.
+    ess_bulk: effective sample size of the rank-normalised draws, what the centre of the
+    posterior (mean, median) is worth; ess_tail: the smaller ESS of the 5 % and 95 % quantiles
+    (TAIL_PROBABILITIES), what the intervals are worth.
+    mcse_mean: Monte Carlo standard error of the posterior mean, std / sqrt(ESS of the mean) (the
+    split chains' ESS without rank normalisation), in the parameter's units (SI).
 
-def rhat(chains: Sequence) -> np.ndarray:
-    """(P,) rank-normalised split R-hat of chains (a list of any accepted layout, every walker a
-    chain): the larger of the bulk's (rank-normalised draws) and the tails' (the same of the
-    draws folded about their median), every chain split in halves so that one still drifting is
-    caught. About 1 for converged chains; Vehtari et al. ask for < 1.01, remaster's criterion is
-    fit/cross_check/max_rhat. NaN with fewer than 2 chains or 4 draws per chain, a NaN draw, or
-    no spread to compare (a parameter that never moves): none of that is convergence."""
-    return _array_stat(chains, "rhat", method="rank")
-
-
-def ess_bulk(chains: Sequence) -> np.ndarray:
-    """(P,) effective sample size of the rank-normalised draws, all chains together: what the
-    centre of the posterior (mean, median) is worth. NaN as `rhat` says, and for a parameter that
-    never moves (`_moving`)."""
-    return np.where(_moving(chains), _array_stat(chains, "ess", method="bulk"), np.nan)
-
-
-def ess_tail(chains: Sequence) -> np.ndarray:
-    """(P,) the smaller effective sample size of the 5 % and 95 % quantiles (TAIL_PROBABILITIES):
-    what the posterior intervals are worth. NaN as `ess_bulk`."""
-    return np.where(_moving(chains), _array_stat(chains, "ess", method="tail", prob=TAIL_PROBABILITIES), np.nan)
-
-
-def mcse_mean(chains: Sequence) -> np.ndarray:
-    """(P,) Monte Carlo standard error of the posterior mean, std / sqrt(ESS of the mean) (the
-    split chains' ESS without rank normalisation), in the parameters' units (SI). NaN as
-    `ess_bulk`."""
-    return np.where(_moving(chains), _array_stat(chains, "mcse", method="mean"), np.nan)
+    Never raises on what a failed run leaves: R-hat needs at least 2 chains, every statistic 4
+    draws per chain, else NaN; a NaN draw makes its parameter's statistics NaN; a parameter that
+    never moves (every draw equal) has rhat NaN (no spread to compare) and its ESS and MCSE NaN
+    too (arviz would count its draws as independent, and they would pass any ESS criterion). A
+    NaN rhat or ESS is not convergence (`inference.fit.converged`)."""
+    values = [[_statistic(draws, s) for s in statistics] for draws in _parameters(chains)]
+    table = np.array(values, dtype=float).reshape(-1, len(statistics))
+    return {s: table[:, k] for k, s in enumerate(statistics)}
 
 
 def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.DataFrame:
-    """Per parameter, over all chains pooled: mean, std, q2.5, q97.5 (SI), `rhat`, `ess_bulk`,
-    `ess_tail` and `mcse_mean`. Never raises on what a failed run leaves: NaN where a statistic is
-    undefined (see each), empty chains NaN everywhere. A NaN rhat or ESS is not convergence
-    (`inference.fit.converged`)."""
+    """Per parameter, over all chains pooled: mean, std, q2.5, q97.5 (SI), and `convergence`'s
+    rhat, ess_bulk, ess_tail and mcse_mean. Never raises on what a failed run leaves: NaN where a
+    statistic is undefined (`convergence`), empty chains NaN everywhere."""
     if names is None:
         names = getattr(chains[0], "names", None)
     walkers = [_walkers(c) for c in chains]
@@ -127,10 +121,7 @@ def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.Dat
                 "std": std,
                 "q2.5": q_low,
                 "q97.5": q_high,
-                "rhat": rhat(walkers),
-                "ess_bulk": ess_bulk(walkers),
-                "ess_tail": ess_tail(walkers),
-                "mcse_mean": mcse_mean(walkers),
+                **convergence(walkers),
             },
             index=pd.Index(names, name="parameter"),
         )

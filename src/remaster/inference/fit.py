@@ -385,11 +385,11 @@ def _meets(chains, criteria: Mapping) -> bool:
     (max_rhat, min_ess), judged as `sampler_diagnostics` judges them (`converged` on `_extremes`).
     R-hat first: a run that misses it needs no ESS, the costlier part on an ensemble of a hundred
     walkers, and that is most runs the test sees."""
-    max_rhat = float(np.max(diagnostics.rhat(chains)))
+    max_rhat = float(np.max(diagnostics.convergence(chains, ["rhat"])["rhat"]))
     if not max_rhat <= criteria["max_rhat"]:  # NaN too
         return False
-    ess = np.concatenate([diagnostics.ess_bulk(chains), diagnostics.ess_tail(chains)])
-    return converged({"max_rhat": max_rhat, "min_ess": float(np.min(ess))}, criteria["max_rhat"], criteria["min_ess"])
+    min_ess = float(np.min(diagnostics.convergence(chains, ["ess_bulk"])["ess_bulk"]))
+    return converged({"max_rhat": max_rhat, "min_ess": min_ess}, criteria["max_rhat"], criteria["min_ess"])
 
 
 def _converged_chains(criteria: Mapping | None):
@@ -401,15 +401,20 @@ def _converged_chains(criteria: Mapping | None):
 
 
 def _extremes(report: pd.DataFrame) -> dict:
-    """{'max_rhat', 'min_ess'} of a `diagnostics.chain_report`: the largest R-hat and the smallest
-    ESS, bulk or tail (the centre and the 95 % intervals both need enough effective draws, as
-    Vehtari et al. 2021 recommend); NaN when any parameter's is NaN (a parameter whose chains never
-    move has no R-hat: that is not convergence, and a max that skipped it would say it is)."""
-    rhat = report["rhat"].to_numpy(dtype=float)
-    ess = report[["ess_bulk", "ess_tail"]].to_numpy(dtype=float)
+    """{'max_rhat', 'min_ess', 'min_ess_tail'} of a `diagnostics.chain_report`: the largest R-hat,
+    the smallest bulk ESS (the one the criteria judge, as the former ESS of the mean was) and the
+    smallest tail ESS (reported beside it); NaN when any parameter's is NaN (a parameter whose
+    chains never move has no R-hat: that is not convergence, and a max that skipped it would say
+    it is)."""
+
+    def extreme(function, column: str) -> float:
+        values = report[column].to_numpy(dtype=float)
+        return float(function(values)) if values.size else math.nan
+
     return {
-        "max_rhat": float(np.max(rhat)) if rhat.size else math.nan,
-        "min_ess": float(np.min(ess)) if ess.size else math.nan,
+        "max_rhat": extreme(np.max, "rhat"),
+        "min_ess": extreme(np.min, "ess_bulk"),
+        "min_ess_tail": extreme(np.min, "ess_tail"),
     }
 
 
@@ -468,8 +473,9 @@ def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
 
 def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
     """JSON-ready: per-parameter report (`diagnostics.chain_report`: rank-normalised R-hat, bulk
-    and tail ESS, MCSE of the mean), acceptance, the smallest ESS (bulk or tail) per second, and
-    how often the run doubled to meet its criteria. min_ess and max_rhat are NaN (null in the
+    and tail ESS, MCSE of the mean), acceptance, the smallest bulk ESS (`min_ess`, the criterion's)
+    and its rate per second, the smallest tail ESS, and how often the run doubled to meet its
+    criteria. min_ess and max_rhat are NaN (null in the
     file) when a parameter's is: `converged` then says no, as it must for a chain that never
     moved."""
     frame = samples_frame(chains)
@@ -486,6 +492,7 @@ def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
         "seconds": seconds,
         "min_ess": extremes["min_ess"],
         "min_ess_per_second": extremes["min_ess"] / seconds if seconds > 0 else None,
+        "min_ess_tail": extremes["min_ess_tail"],
         "max_rhat": extremes["max_rhat"],
         "rhat_undefined": [n for n, r in report["rhat"].items() if not np.isfinite(r)],
         "parameters": report.reset_index().to_dict(orient="records"),
