@@ -475,9 +475,8 @@ def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
     """JSON-ready: per-parameter report (`diagnostics.chain_report`: rank-normalised R-hat, bulk
     and tail ESS, MCSE of the mean), acceptance, the smallest bulk ESS (`min_ess`, the criterion's)
     and its rate per second, the smallest tail ESS, and how often the run doubled to meet its
-    criteria. min_ess and max_rhat are NaN (null in the
-    file) when a parameter's is: `converged` then says no, as it must for a chain that never
-    moved."""
+    criteria. min_ess and max_rhat are NaN (null in the file) when a parameter's is: `converged`
+    then says no, as it must for a chain that never moved."""
     frame = samples_frame(chains)
     names = list(chains[0].names)
     report = diagnostics.chain_report(chains_of(frame, names), names)
