@@ -55,6 +55,7 @@ from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows
 from ..inference import residual_gp
 from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
+from ..inference.bounds import bound_at_points
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import MM
@@ -62,7 +63,6 @@ from .prediction import Calibration, Predictor, loop_calibration, paper_calibrat
 
 MODELS = ("paper", "loop")
 FRAMES = ("robot", "sensor")
-QUANTILE = 0.95
 SETUP = (
     tuple(f"registration.{p}" for p in REGISTRATION)
     + ("sensor_scale.s",)
@@ -335,11 +335,9 @@ def _numbers(table: pd.DataFrame, names: list[str], label: str) -> np.ndarray:
 # --------------------------------------------------------------------------- predict
 
 
-def _bounds(points_draws: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """95th percentile over draws (K, n, 3) of the distance to reference (n, 3), mm; NaN without draws."""
-    if len(points_draws) == 0:
-        return np.full(len(reference), np.nan)
-    return np.quantile(np.linalg.norm(points_draws - reference, axis=-1), QUANTILE, axis=0) / MM
+def _bounds_mm(points_draws: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """`bounds.bound_at_points` (n,) mm of draws (K, n, 3) m about reference (n, 3) m."""
+    return bound_at_points(np.linalg.norm(points_draws - reference, axis=-1)) / MM
 
 
 def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Generator) -> pd.DataFrame:
@@ -359,8 +357,8 @@ def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Ge
     for k, axis in enumerate("xyz"):
         table[f"nominal_{axis}"] = nominal[:, k]
     table["correction_mm"] = np.linalg.norm(points - nominal, axis=1) / MM
-    table["bound95_mm"] = _bounds(draws, points)
-    table["bound95_with_noise_mm"] = _bounds(noisy, points)
+    table["bound95_mm"] = _bounds_mm(draws, points)
+    table["bound95_with_noise_mm"] = _bounds_mm(noisy, points)
     return table
 
 
@@ -549,8 +547,8 @@ def compensate(
         draws, noisy = robot.draw_points(q[at], frame, count, rng)
         target = t_frame[at]
         table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM
-        table.loc[at, "bound95_mm"] = _bounds(draws, target)
-        table.loc[at, "bound95_with_noise_mm"] = _bounds(noisy, target)
+        table.loc[at, "bound95_mm"] = _bounds_mm(draws, target)
+        table.loc[at, "bound95_with_noise_mm"] = _bounds_mm(noisy, target)
         table.loc[at, "nominal_error_mm"] = (
             np.linalg.norm(robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
         )

@@ -68,6 +68,7 @@ from ..campaigns.campaign import SensorData
 from ..errors import InputError
 from ..inference import metrics, residual_gp
 from ..inference.blocks import identifiable_extension
+from ..inference.bounds import bound_on_percentile_over_configurations
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
@@ -121,14 +122,13 @@ class WorkspaceAccuracy:
 def _summary(distances_m, **labels) -> dict:
     """Errors (draws, configurations) m, in mm: the pooled distribution (mean, 2.5 %, 97.5 % and 95 %
     quantiles: the error at a random configuration of a random draw) and `p95_bound_mm`, the 95 %
-    quantile over draws of each draw's own 95 % quantile over the configurations. One arm is one
-    draw: its 95th-percentile error exceeds the pooled one whenever its parameters lie out in the
-    posterior's tail, and stays below the bound with 95 % posterior probability."""
+    bound on one arm's own 95 % quantile over the configurations
+    (`bounds.bound_on_percentile_over_configurations`)."""
     distances = np.asarray(distances_m, dtype=float)
     values = distances.ravel()
     summary = metrics.interval_summary(values)
     p95 = float(np.quantile(values, 0.95)) if values.size else np.nan
-    bound = float(np.quantile(np.quantile(distances, 0.95, axis=-1), 0.95)) if values.size else np.nan
+    bound = bound_on_percentile_over_configurations(distances)
     return {
         **labels,
         "mean_mm": summary["mean"] / MM,
