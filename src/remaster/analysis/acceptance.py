@@ -45,13 +45,14 @@ import pandas as pd
 
 from .. import noise, spatial
 from ..campaigns.campaign import SensorData
-from ..errors import InputError, report_reader
+from ..errors import InputError, report_reader, require_columns
 from ..files import read_json, write_json
 from ..inference import blocks, residual_gp
 from ..inference.blocks import BlockModel, ModelSettings, Readings
 from ..inference.fit import LaplaceReport
 from ..inference.model import SIGMA
 from ..loop.report import LoopReport
+from ..robot import registration
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM
 
@@ -79,28 +80,10 @@ def rms(residuals) -> np.ndarray:
     return np.sqrt(np.mean(np.asarray(residuals, dtype=float) ** 2, axis=(-2, -1)))
 
 
-def kabsch_many(reference, targets) -> np.ndarray:
-    """Rigid transforms (m, 4, 4) that map reference points (n, 3) onto each of targets (m, n, 3)
-    in least squares (closed form, as `robot.registration.kabsch`, for a stack of targets)."""
-    reference = np.asarray(reference, dtype=float)
-    targets = np.asarray(targets, dtype=float)
-    centre_a, centre_b = reference.mean(axis=0), targets.mean(axis=1)
-    covariance = np.einsum("ni,mnj->mij", reference - centre_a, targets - centre_b[:, None, :])
-    u, _, vt = np.linalg.svd(covariance)
-    d = np.sign(np.linalg.det(np.swapaxes(vt, -1, -2) @ np.swapaxes(u, -1, -2)))
-    flip = np.ones((len(targets), 3))
-    flip[:, 2] = d
-    rotation = np.swapaxes(vt, -1, -2) @ (flip[:, :, None] * np.swapaxes(u, -1, -2))
-    out = np.tile(np.eye(4), (len(targets), 1, 1))
-    out[:, :3, :3] = rotation
-    out[:, :3, 3] = centre_b - np.einsum("mij,j->mi", rotation, centre_a)
-    return out
-
-
 def refit_residuals(reference, targets) -> tuple[np.ndarray, np.ndarray]:
     """(residuals (m, n, 3) of targets (m, n, 3) after the rigid transform that best maps reference
-    (n, 3) onto each, those transforms (m, 4, 4))."""
-    moves = kabsch_many(reference, targets)
+    (n, 3) onto each, those transforms (m, 4, 4): `robot.registration.rigid_transforms`)."""
+    moves = registration.rigid_transforms(reference, targets)
     mapped = np.einsum("mij,nj->mni", moves[:, :3, :3], reference) + moves[:, None, :3, 3]
     return np.asarray(targets) - mapped, moves
 
@@ -226,9 +209,7 @@ def _rows(count: int, available: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def _checked_samples(samples: pd.DataFrame, names: Sequence[str], label: str) -> pd.DataFrame:
-    missing = [n for n in list(names) + [SIGMA] if n not in samples.columns]
-    if missing:
-        raise InputError("missing column(s) of the posterior samples", file=label, key=", ".join(missing))
+    require_columns(samples, list(names) + [SIGMA], file=label, of="the posterior samples")
     return samples[list(names) + [SIGMA]].astype(float).reset_index(drop=True)
 
 

@@ -52,7 +52,7 @@ from scipy.spatial.transform import Rotation
 
 from .. import spatial
 from ..campaigns.campaign import Campaign
-from ..errors import InputError, format_rows
+from ..errors import InputError, format_rows, require_columns
 from ..inference import residual_gp
 from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
 from ..inference.bounds import bound_at_points
@@ -220,9 +220,7 @@ def _posterior_rows(
         return pd.DataFrame()
     free = [] if calibration.draws is None else list(calibration.draws.columns)
     names = free + [n for n in setup if n in samples.columns] + [SIGMA]
-    missing = [n for n in free + [SIGMA] if n not in samples.columns]
-    if missing:
-        raise InputError("missing column(s) of the posterior samples", file=label, key=", ".join(missing))
+    require_columns(samples, free + [SIGMA], file=label, of="the posterior samples")
     return samples[names].astype(float).reset_index(drop=True)
 
 
@@ -286,11 +284,7 @@ def joint_commands(table: pd.DataFrame, chain: KinematicChain, label: str, requi
     present = [n for n in names if n in table.columns]
     if not present and not required:
         return None
-    missing = [n for n in names if n not in table.columns]
-    if missing:
-        raise InputError(
-            f"missing joint column(s) (got: {', '.join(map(str, table.columns))})", file=label, key=", ".join(missing)
-        )
+    require_columns(table, names, file=label, kind="joint", listed=True)
     q = _numbers(table, names, label)
     for j, name in enumerate(names):
         outside = np.flatnonzero((q[:, j] < chain.lower[j]) | (q[:, j] > chain.upper[j]))

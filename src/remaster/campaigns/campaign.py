@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, KinematicsError
+from ..errors import InputError, KinematicsError, require_columns
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, KinematicChain
 from ..robot.priors import check_override
@@ -407,13 +407,7 @@ def _check_columns(df: pd.DataFrame, n_joints: int, source: str) -> None:
         raise InputError("duplicate column name(s)", file=source, key=", ".join(duplicated))
     joints = joint_columns(n_joints)
     required = KEY_COLUMNS + joints + POSITION_COLUMNS
-    missing = [c for c in required if c not in df.columns]
-    if missing:
-        raise InputError(
-            f"missing column(s) (the robot has {n_joints} joints, so q1..q{n_joints} are needed)",
-            file=source,
-            key=", ".join(missing),
-        )
+    require_columns(df, required, file=source, note=f"the robot has {n_joints} joints, so q1..q{n_joints} are needed")
     extra_joints = [c for c in df.columns if _JOINT_COLUMN.fullmatch(c) and c not in joints]
     if extra_joints:
         raise InputError(
