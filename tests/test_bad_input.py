@@ -170,7 +170,7 @@ def test_empty_validation_set_is_read_and_reported_empty(tmp_path):
         sensor.table.loc[sensor.set_mask("validation"), "pose"].to_numpy(),
     )
     assert relative.shape == (0,)
-    summary = metrics.interval_summary(relative)
+    summary = metrics.error_summary(relative)
     assert summary["count"] == 0 and math.isnan(summary["mean"])
 
 

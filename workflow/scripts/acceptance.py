@@ -2,11 +2,9 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding
+from remaster import files, results, seeding
 from remaster.analysis import acceptance
 from remaster.campaigns import folders
-from remaster.inference import fit
-from remaster.loop.report import LoopReport
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -14,15 +12,18 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, p, out = snakemake.wildcards, snakemake.input, snakemake.params, snakemake.output
 with files.log_to(snakemake.log[0]):
+    read = results.read_results(
+        dict(i.items()), ("registration", "laplace", "paper_samples", "loop", "loop_samples", "gp")
+    )
     result = acceptance.acceptance_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        fit.Registration.read(i.registration).t_nr,
-        fit.LaplaceReport.read(i.laplace),
-        files.read_parquet(i.paper_samples),
-        LoopReport.read(i.loop),
-        files.read_parquet(i.loop_samples),
-        files.read_parquet(i.gp),
+        read["registration"].t_nr,
+        read["laplace"],
+        read["paper_samples"],
+        read["loop"],
+        read["loop_samples"],
+        read["gp"],
         seeding.generator(p.seed, w.campaign, w.sensor, "acceptance"),
         p.settings,
     )

@@ -3,11 +3,9 @@ controller offsets and, for a DH campaign, the calibrated DH tables."""
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding
+from remaster import files, results, seeding
 from remaster.analysis import calibrated_outputs
 from remaster.campaigns import folders
-from remaster.inference import fit
-from remaster.loop.report import LoopReport
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -15,14 +13,15 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
 with files.log_to(snakemake.log[0]):
+    read = results.read_results(dict(i.items()), ("summary", "laplace", "loop", "samples", "gp"))
     result = calibrated_outputs.calibrated_outputs_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        files.read_csv(i.summary),
-        fit.LaplaceReport.read(i.laplace),
-        LoopReport.read(i.loop),
-        files.read_parquet(i.samples),
-        files.read_parquet(i.gp),
+        read["summary"],
+        read["laplace"],
+        read["loop"],
+        read["samples"],
+        read["gp"],
         seeding.generator(p.seed, w.campaign, w.sensor, "workspace"),
         n_draws=p.draws,
         n_random=p.random_configurations,

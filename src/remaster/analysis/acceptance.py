@@ -49,7 +49,9 @@ from ..errors import InputError, report_reader, require_columns
 from ..files import read_json, write_json
 from ..inference import blocks, residual_gp
 from ..inference.blocks import BlockModel, ModelSettings, Readings
+from ..inference.bounds import QUANTILE
 from ..inference.fit import LaplaceReport
+from ..inference.metrics import rms_per_axis
 from ..inference.model import SIGMA
 from ..loop.report import LoopReport
 from ..robot import registration
@@ -73,11 +75,6 @@ STATISTIC = (
 
 
 # --------------------------------------------------------------------------- the check itself
-
-
-def rms(residuals) -> np.ndarray:
-    """RMS per axis of residuals (..., n, 3): sqrt of the mean square over rows and axes."""
-    return np.sqrt(np.mean(np.asarray(residuals, dtype=float) ** 2, axis=(-2, -1)))
 
 
 def refit_residuals(reference, targets) -> tuple[np.ndarray, np.ndarray]:
@@ -151,15 +148,15 @@ def check(measured, claim: Claim, level: float, registration_share: float, rng: 
     validation rows (`refit`: its move, and the share of the excess mean square it removes). The
     replicates are made a chunk of draws at a time (rng: their GP draws and noise)."""
     measured = np.asarray(measured, dtype=float)
-    observed = float(rms(measured - claim.reference))
+    observed = float(rms_per_axis(measured - claim.reference))
     refit_obs, moves = refit_residuals(claim.reference, measured[None])
-    observed_refit = float(rms(refit_obs[0]))
+    observed_refit = float(rms_per_axis(refit_obs[0]))
     chunk = max(1, CHUNK_VALUES // measured.size)
     replicates, replicates_refit = [], []
     for begin in range(0, len(claim.theta), chunk):
         replicated = claim.replicates(np.arange(begin, min(begin + chunk, len(claim.theta))), rng)
-        replicates.append(rms(replicated - claim.reference))
-        replicates_refit.append(rms(refit_residuals(claim.reference, replicated)[0]))
+        replicates.append(rms_per_axis(replicated - claim.reference))
+        replicates_refit.append(rms_per_axis(refit_residuals(claim.reference, replicated)[0]))
     replicates, replicates_refit = np.concatenate(replicates), np.concatenate(replicates_refit)
     excess = observed**2 - float(np.median(replicates**2))
     excess_refit = observed_refit**2 - float(np.median(replicates_refit**2))
@@ -172,13 +169,13 @@ def check(measured, claim: Claim, level: float, registration_share: float, rng: 
         "draws": int(len(replicates)),
         "observed_rms_per_axis_mm": observed / MM,
         "replicate_median_mm": float(np.median(replicates) / MM),
-        "replicate_q95_mm": float(np.quantile(replicates, 0.95) / MM),
+        "replicate_p95_mm": float(np.quantile(replicates, QUANTILE) / MM),
         "p_value": p,
         "passed": bool(p >= level),
         "refit": {
             "observed_rms_per_axis_mm": observed_refit / MM,
             "replicate_median_mm": float(np.median(replicates_refit) / MM),
-            "replicate_q95_mm": float(np.quantile(replicates_refit, 0.95) / MM),
+            "replicate_p95_mm": float(np.quantile(replicates_refit, QUANTILE) / MM),
             "p_value": p_refit,
             "passed": bool(p_refit >= level),
             "excess_mean_square_mm2": excess / MM**2,
@@ -327,7 +324,7 @@ def _diagnosis_text(diagnosis: str | None, checks: Mapping, level: float) -> str
     loop, paper = checks["loop"], checks["paper"]
     head = (
         f"validation RMS per axis {loop['observed_rms_per_axis_mm']:.3g} mm against the loop-closed model's claim "
-        f"{loop['replicate_median_mm']:.3g} mm (95 %: {loop['replicate_q95_mm']:.3g} mm), p = {loop['p_value']:.3g}"
+        f"{loop['replicate_median_mm']:.3g} mm (95 %: {loop['replicate_p95_mm']:.3g} mm), p = {loop['p_value']:.3g}"
     )
     if diagnosis is None:
         return f"pass: {head} >= {level:g}"

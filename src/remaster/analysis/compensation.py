@@ -227,7 +227,7 @@ def _posterior_rows(
 def calibrated_robot(
     campaign: Campaign, sensor: str, model: str, results: Mapping, tcp=None, label: str = ""
 ) -> CalibratedRobot:
-    """The calibrated robot of a campaign's sensor from its results (`cli.read_sensor_results`:
+    """The calibrated robot of a campaign's sensor from its results (`results.sensor_results`:
     registration, laplace, summary, paper_samples, loop, loop_samples, gp). tcp (3,) m in the
     flange frame, or None for the sensor's marker."""
     if sensor not in campaign.sensors:

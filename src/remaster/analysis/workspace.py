@@ -119,25 +119,13 @@ class WorkspaceAccuracy:
     report: dict
 
 
-def _summary(distances_m, **labels) -> dict:
-    """Errors (draws, configurations) m, in mm: the pooled distribution (mean, 2.5 %, 97.5 % and 95 %
-    quantiles: the error at a random configuration of a random draw) and `p95_bound_mm`, the 95 %
-    bound on one arm's own 95 % quantile over the configurations
+def _claim_row(distances_m, **labels) -> dict:
+    """A claim's row of errors (draws, configurations) m, in mm: the pooled distribution (mean,
+    2.5 %, 97.5 % and 95 % quantiles: the error at a random configuration of a random draw) and
+    `p95_bound_mm`, the 95 % bound on one arm's own 95 % quantile over the configurations
     (`bounds.bound_on_percentile_over_configurations`)."""
-    distances = np.asarray(distances_m, dtype=float)
-    values = distances.ravel()
-    summary = metrics.interval_summary(values)
-    p95 = float(np.quantile(values, 0.95)) if values.size else np.nan
-    bound = bound_on_percentile_over_configurations(distances)
-    return {
-        **labels,
-        "mean_mm": summary["mean"] / MM,
-        "q2.5_mm": summary["q2.5"] / MM,
-        "q97.5_mm": summary["q97.5"] / MM,
-        "p95_mm": p95 / MM,
-        "p95_bound_mm": bound / MM,
-        "count": summary["count"],
-    }
+    summary = metrics.in_mm(metrics.error_summary(distances_m, (*metrics.INTERVAL, "p95")))
+    return {**labels, **summary, "p95_bound_mm": bound_on_percentile_over_configurations(distances_m) / MM}
 
 
 def _with_noise(points, sigma, rng: np.random.Generator):
@@ -266,13 +254,13 @@ def workspace_accuracy(
                 {
                     "table": table,
                     "method": LOOP_METHOD,
-                    **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
+                    **metrics.in_mm(metrics.error_summary(distances)),
                 }
             )
         for model, mean in (("paper", paper_points), ("loop", loop_mean)):
             for noise, reference in (("with noise", noisy), ("without noise", points)):
                 claims.append(
-                    _summary(
+                    _claim_row(
                         metrics.registered_distances(mean, reference),
                         model=model,
                         configurations=where,
@@ -281,7 +269,7 @@ def workspace_accuracy(
                     )
                 )
             claims.append(
-                _summary(
+                _claim_row(
                     np.linalg.norm(noisy - mean, axis=-1),
                     model=model,
                     configurations=where,

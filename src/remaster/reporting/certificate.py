@@ -23,6 +23,7 @@ from ..analysis.acceptance import DIAGNOSES, UNTESTED, Acceptance
 from ..analysis.accuracy import REGISTRATION_AS_FITTED as AS_IS  # validation errors, the optimization registration
 from ..analysis.accuracy import VERNIER_LEAST_SQUARES
 from ..analysis.workspace import claim_rows
+from ..inference import metrics
 from ..inference.fit import LaplaceReport, disagreeing
 from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
@@ -102,7 +103,7 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
         "mean (mm)": mean,
         "U(mean) (mm)": k * u,
         "k": k,
-        "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
+        "p95 (mm)": metrics.error_summary(errors_mm, ("p95",))["p95"],
         "points": count,
     }
 
@@ -356,8 +357,8 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
             parts.append(f"{name} {with_them:.3g} / {without:.3g}")
         kept = ((found.get("with_flagged_rows") or {}).get("validation") or {}).get("after") or {}
         after = (inputs.loop.after or {}).get("validation") or {}
-        if kept.get("mean_error_mm") is not None and after.get("mean_error_mm") is not None:
-            parts.append(f"loop-closed {kept['mean_error_mm']:.3g} / {after['mean_error_mm']:.3g}")
+        if kept.get("mean_mm") is not None and after.get("mean_mm") is not None:
+            parts.append(f"loop-closed {kept['mean_mm']:.3g} / {after['mean_mm']:.3g}")
         out.append(
             f"{label}: validation set: {len(validation)} rows flagged as gross errors by the final model (rows "
             f"{validation}); validation mean error with them / without them (mm): {'; '.join(parts)}"
