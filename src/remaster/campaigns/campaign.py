@@ -575,10 +575,9 @@ def _check_std(df: pd.DataFrame, source: str) -> None:
             file=source,
             key=", ".join([STD_COLUMN, *axes]),
         )
-    if axes and len(axes) < len(AXIS_STD_COLUMNS):
-        missing = [c for c in AXIS_STD_COLUMNS if c not in axes]
-        raise InputError(
-            f"per-axis std needs all of {', '.join(AXIS_STD_COLUMNS)}; missing", file=source, key=", ".join(missing)
+    if axes:
+        require_columns(
+            df, AXIS_STD_COLUMNS, file=source, note=f"per-axis std needs all of {', '.join(AXIS_STD_COLUMNS)}"
         )
     seen = np.all(np.isfinite(df[list(POSITION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)), axis=1)
     for column in [STD_COLUMN] if STD_COLUMN in df.columns else axes:
