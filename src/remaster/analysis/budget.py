@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..campaigns.campaign import Campaign
+from ..inference.bounds import QUANTILE
 from ..inference.fit import LaplaceReport, Registration, build_model
 from ..inference.uncertainty import COVERAGE, coverage_factor, welch_satterthwaite
 from ..labels import sensor_label
@@ -44,7 +45,6 @@ from ..loop.report import LoopReport
 from ..units import MM
 
 FITTED_BLOCKS = ("registration.", "zero_offsets.")
-BOUND_QUANTILE = 0.95  # of the systematic term over the measured configurations
 COLUMNS = ["Component", "Type", "Distribution", "u per axis (mm)", "dof", "share of u_c^2 (%)", "source"]
 
 
@@ -143,7 +143,8 @@ def budget_rows(
         )
     )
     if systematic is not None and residuals is not None:
-        bound = float(np.quantile(np.abs(np.asarray(residuals)), BOUND_QUANTILE))
+        # the 95 % bound of the systematic term over the measured configurations
+        bound = float(np.quantile(np.abs(np.asarray(residuals)), QUANTILE))
         out.append(
             _row(
                 "model discrepancy, 95 % bound",
