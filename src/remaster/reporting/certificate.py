@@ -103,7 +103,7 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses=None) -> dict:
         "mean (mm)": mean,
         "U(mean) (mm)": k * u,
         "k": k,
-        "p95 (mm)": metrics.error_summary(errors_mm, ("p95",))["p95"],
+        "p95 (mm)": metrics.error_summary(errors_mm, ("p95",))["p95"] if count else np.nan,
         "points": count,
     }
 
