@@ -60,7 +60,14 @@ def report_reader(content: Mapping, source: str, message: str):
 
 
 def require_columns(
-    table, required: Iterable[str], *, file: str | None, kind: str = "", of: str = "", note: str = "", listed=False
+    table,
+    required: Iterable[str],
+    *,
+    file: str | None,
+    kind: str = "",
+    of: str = "",
+    note: str = "",
+    listed: bool = False,
 ) -> None:
     """The one check that a table (anything with `.columns`) has every required column: else an
     InputError naming the file and the missing columns, "missing [kind ]column(s)[ of <of>]", then in
