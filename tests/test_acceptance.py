@@ -28,7 +28,6 @@ from remaster.inference import fit
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
-from remaster.robot import registration
 
 from .conftest import REPO, validated_config
 
@@ -97,21 +96,6 @@ def test_a_shifted_validation_set_fails_and_its_refit_explains_it():
     # the move is found to within what the noise lets 20 points fix (far below the move itself)
     assert np.abs(found[:3, 3] - move[:3, 3]).max() < 0.02e-3
     assert spatial.rotation_angle(found[:3, :3] @ move[:3, :3].T) < np.radians(0.005)
-
-
-def test_kabsch_of_a_stack_is_the_registrations_kabsch():
-    rng = np.random.default_rng(2)
-    reference = rng.uniform(-1, 1, (12, 3))
-    targets = np.array(
-        [
-            spatial.transform_points(sensor_move(rng.normal(0, 0.1, 3), rng.normal(0, 0.3, 3)), reference)
-            + 1e-3 * rng.standard_normal((12, 3))
-            for _ in range(4)
-        ]
-    )
-    stacked = acceptance.kabsch_many(reference, targets)
-    for one, target in zip(stacked, targets):
-        np.testing.assert_allclose(one, registration.kabsch(reference, target), atol=1e-12)
 
 
 # --------------------------------------------------------------------------- the diagnosis rules

@@ -11,8 +11,9 @@ import remaster
 
 FILE_MODULES = {"pathlib", "shutil", "tempfile", "glob", "os"}
 # files: plain files (YAML, JSON, CSV, Parquet, figures, logs); campaigns.folders: campaign folders;
-# campaigns.robot_model: the robot description a campaign names; provenance: digests of files and code
-FILE_ACCESS = {"files", "campaigns.folders", "campaigns.robot_model", "provenance", "cli"}
+# campaigns.robot_model: the robot description a campaign names; provenance: digests of files and code;
+# results: a stage's results read back (by the command line and the workflow's scripts)
+FILE_ACCESS = {"files", "campaigns.folders", "campaigns.robot_model", "provenance", "results", "cli"}
 
 
 def _file_access(source: str) -> list[str]:
@@ -66,7 +67,8 @@ def test_only_the_file_modules_and_cli_touch_files():
 
 # The pipeline's direction, bottom to top: the foundation (modules beside the packages that any
 # stage may use, among them files, layout and provenance: the files every stage reads and writes),
-# the sub-packages in the workflow's order, and the edge (cli: the command line). A module may
+# the sub-packages in the workflow's order, and the edge (cli: the command line; results: the results
+# read back, typed by the stages that wrote them, for the command line and the workflow). A module may
 # import its own layer and those below, never a later stage; a new top-level module must be placed
 # here, or the test says so.
 FOUNDATION = {
@@ -87,7 +89,7 @@ FOUNDATION = {
     "identity",
 }
 STAGES = ("robot", "campaigns", "inference", "loop", "calibration", "evaluation", "comparing", "reporting", "planning")
-INTERFACE = {"cli"}
+INTERFACE = {"cli", "results"}
 LAYER_NAMES = ["foundation", *STAGES, "interface"]
 
 

@@ -18,7 +18,7 @@ import pytest
 from remaster import files
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
-from remaster.errors import InputError, KinematicsError
+from remaster.errors import InputError, KinematicsError, require_columns
 from remaster.inference import metrics
 from remaster.robot import kinematics, registration
 
@@ -170,7 +170,7 @@ def test_empty_validation_set_is_read_and_reported_empty(tmp_path):
         sensor.table.loc[sensor.set_mask("validation"), "pose"].to_numpy(),
     )
     assert relative.shape == (0,)
-    summary = metrics.interval_summary(relative)
+    summary = metrics.error_summary(relative)
     assert summary["count"] == 0 and math.isnan(summary["mean"])
 
 
@@ -365,3 +365,16 @@ def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
     # q3 is held at 0 by the planner, so 0 deg = 0 rad is not named
     assert "motion_capture.parquet: q1, q2, q4, q5, q6, q7: joint values beyond one turn" in logs
     assert "looks like degrees stored as radians" in logs
+
+
+def test_the_one_column_check_names_the_file_the_missing_columns_and_what_it_has():
+    table = pd.DataFrame(columns=["set", "q1", "q3"])
+    require_columns(table, ["set", "q1"], file="plan.csv")  # all there: no error
+    with pytest.raises(InputError) as raised:
+        require_columns(
+            table, ["q1", "q2", "q4"], file="plan.csv", kind="joint", note="the robot has 4 joints", listed=True
+        )
+    assert str(raised.value) == "plan.csv: q2, q4: missing joint column(s) (the robot has 4 joints; got: set, q1, q3)"
+    assert raised.value.file == "plan.csv" and raised.value.key == "q2, q4"
+    with pytest.raises(InputError, match=r"^s.parquet: sigma: missing column\(s\) of the posterior samples$"):
+        require_columns(table, ["sigma"], file="s.parquet", of="the posterior samples")

@@ -219,7 +219,9 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
     assert "nowhere/kuka-twin/laser_tracker: no results of this campaign and sensor" in capsys.readouterr().err
     (tmp_path / "results" / "kuka-twin" / "laser_tracker").mkdir(parents=True)
     assert cli(["predict", *common, "--results", str(tmp_path / "results"), "--commands", "c.csv"]) == 2
-    assert "laser_tracker/registration.json: file not found" in capsys.readouterr().err
+    assert "laser_tracker/registration.json: not written: run `snakemake -j2` on the campaign first" in (
+        capsys.readouterr().err
+    )
     assert (
         cli(
             [

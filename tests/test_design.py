@@ -4,16 +4,14 @@ tables, the command line, and a planned design against random ones of the same s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pandas as pd
 import pytest
-from scipy.stats import chi2
 
 from remaster import cli
 from remaster.campaigns.arm_kinds import IIWA, TRACKER, chain_of, iiwa_scenario, joint_never_moved, simulated_sensor
 from remaster.errors import InputError
+from remaster.inference.bounds import bound_from_covariances
 from remaster.planning import design, plan_inputs
 from remaster.planning import design_posterior as dp
 from remaster.robot.priors import priors_from, with_defaults
@@ -62,29 +60,13 @@ def test_candidate_scores_equal_the_objective_after_a_direct_inverse():
         scored = design.candidate_objectives(sigma, candidates, evaluation, statistic)
         for c, j in enumerate(candidates):
             after = np.linalg.inv(prior + j.T @ j)
-            bounds = dp.position_bounds(np.einsum("eip,pq,ejq->eij", evaluation, after, evaluation))
+            bounds = bound_from_covariances(np.einsum("eip,pq,ejq->eij", evaluation, after, evaluation))
             expected = np.quantile(bounds, 0.95) if statistic == "p95" else np.mean(bounds)
             assert scored[c] == pytest.approx(expected, rel=1e-9)
     gains = design.log_det_gains(sigma, candidates)
     for c, j in enumerate(candidates):
         expected = np.linalg.slogdet(prior + j.T @ j)[1] - np.linalg.slogdet(prior)[1]
         assert gains[c] == pytest.approx(expected, rel=1e-9)
-
-
-def test_the_bound_is_exact_for_isotropic_and_rank_one_covariances():
-    s = 2.0e-5
-    isotropic = dp.position_bounds(np.array([s**2 * np.eye(3)]))[0]
-    assert isotropic == pytest.approx(s * math.sqrt(chi2.ppf(0.95, 3)), rel=1e-9)  # chi with 3 dof
-    e = np.array([0.6, 0.0, 0.8])
-    rank_one = dp.position_bounds(np.array([s**2 * np.outer(e, e)]))[0]
-    assert rank_one == pytest.approx(s * 1.959964, rel=1e-6)  # |N(0, s^2)|: the 97.5 % normal quantile
-
-
-def test_the_bound_is_close_to_the_sampled_quantile_between():
-    covariance = np.diag([4.0, 1.0, 0.25]) * 1e-8
-    draws = np.random.default_rng(7).multivariate_normal(np.zeros(3), covariance, 400_000)
-    sampled = np.quantile(np.linalg.norm(draws, axis=1), 0.95)
-    assert dp.position_bounds(covariance[None])[0] == pytest.approx(sampled, rel=0.03)
 
 
 def test_the_greedy_bound_never_rises_and_stops_at_its_target(iiwa):

@@ -151,10 +151,10 @@ def test_the_certificate_lists_both_sets_with_and_without_the_rows():
     found = {
         "optimization": [9, 12],
         "validation": [101, 104],
-        "with_flagged_rows": {"validation": {"after": {"mean_error_mm": 0.5}}},
+        "with_flagged_rows": {"validation": {"after": {"mean_mm": 0.5}}},
     }
     inputs = dataclasses.replace(
-        inputs, loop=dataclasses.replace(inputs.loop, gross_errors=found, after={"validation": {"mean_error_mm": 0.02}})
+        inputs, loop=dataclasses.replace(inputs.loop, gross_errors=found, after={"validation": {"mean_mm": 0.02}})
     )
     cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
     assert "2 optimization and 2 validation rows flagged as gross errors" in cert.heading[1]

@@ -189,7 +189,10 @@ def test_non_numeric_cell_names_file_line_and_column(tmp_path):
 
 def test_missing_column_is_named(tmp_path):
     config = write_import(tmp_path, tracker=TRACKER.replace("id,X,Y,Z", "id,X,Y,Zmm"))
-    with pytest.raises(InputError, match=r"tracker\.csv: Z: missing column \(named by `sensors/laser_tracker/xyz`"):
+    with pytest.raises(
+        InputError,
+        match=r"tracker\.csv: Z: missing column\(s\) \(named by `sensors/laser_tracker/xyz` of the import configuration; got: id, X, Y, Zmm\)",
+    ):
         folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
 
 

@@ -356,8 +356,8 @@ def test_the_twin_is_explained_by_its_four_undeclared_effects(iiwa):
     # the simulator's rigid motions of the fixed transforms are what the link-geometry block models
     simulated_effects = {"link_motions": "link_geometry"}
     assert set(report.effects_added) == {simulated_effects.get(e, e) for e in truth["effects"]} | {"marker_offset"}
-    assert report.before["validation"]["mean_error_mm"] > 1.0
-    assert report.after["validation"]["mean_error_mm"] < 0.05
+    assert report.before["validation"]["mean_mm"] > 1.0
+    assert report.after["validation"]["mean_mm"] < 0.05
     assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * NOISE
 
 

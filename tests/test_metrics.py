@@ -72,13 +72,34 @@ def test_post_registration_errors_on_3_4_5_triangles():
     np.testing.assert_allclose(metrics.post_registration_errors(p_ref, p_pred), [5.0, 5.0, 0.0])
 
 
-def test_interval_summary_known_quantiles_and_empty():
-    summary = metrics.interval_summary(np.arange(101.0))
+def test_error_summary_known_quantiles_and_empty():
+    summary = metrics.error_summary(np.arange(101.0))
     assert summary == {"mean": 50.0, "q2.5": 2.5, "q97.5": 97.5, "count": 101}
-    assert metrics.interval_summary([1.0, np.nan, 3.0])["count"] == 2
+    assert list(summary) == ["mean", "q2.5", "q97.5", "count"]  # the order tables take their columns in
+    assert metrics.error_summary([1.0, np.nan, 3.0])["count"] == 2
     for empty in ([], [np.nan]):
-        summary = metrics.interval_summary(empty)
-        assert summary["count"] == 0 and all(np.isnan(summary[k]) for k in ("mean", "q2.5", "q97.5"))
+        summary = metrics.error_summary(empty, ("rmse", "p95"))
+        assert summary["count"] == 0 and all(np.isnan(summary[k]) for k in ("rmse", "p95"))
+    with pytest.raises(ValueError, match="unknown statistics"):
+        metrics.error_summary([1.0], ("median",))
+
+
+def test_error_summary_statistics_in_the_asked_order_and_in_mm():
+    errors = np.array([3e-3, 4e-3, np.nan, 12e-3])
+    summary = metrics.error_summary(errors, ("p95", "rmse", "mean"))
+    assert list(summary) == ["p95", "rmse", "mean", "count"] and summary["count"] == 3
+    assert summary["rmse"] == pytest.approx(np.sqrt((9 + 16 + 144) / 3) * 1e-3)
+    assert summary["p95"] == np.quantile([3e-3, 4e-3, 12e-3], 0.95)
+    shown = metrics.in_mm(summary)
+    assert list(shown) == ["p95_mm", "rmse_mm", "mean_mm", "count"]
+    assert shown["mean_mm"] == pytest.approx(19 / 3) and shown["count"] == 3
+
+
+def test_rms_per_axis_is_the_rmse_over_root_three(rng):
+    residuals = rng.normal(0.0, 1e-4, (50, 3))
+    rmse = metrics.error_summary(np.linalg.norm(residuals, axis=1), ("rmse",))["rmse"]
+    assert metrics.rms_per_axis(residuals) == pytest.approx(rmse / np.sqrt(3.0), rel=1e-12)
+    assert metrics.rms_per_axis(np.stack([residuals, 2 * residuals])).shape == (2,)
 
 
 # --------------------------------------------------------------------------- theoretical accuracy
@@ -486,10 +507,10 @@ def test_theoretical_errors_in_blocks_of_draws_are_the_same_numbers(iiwa, rng, m
     assert whole.shape == (30 * 40,) and np.array_equal(whole, blocked)
 
 
-def test_interval_summary_leaves_the_callers_values_as_they_were(rng):
+def test_error_summary_leaves_the_callers_values_as_they_were(rng):
     """The quantiles partition a copy in place (memory): the caller's array keeps its order."""
     values = rng.gamma(2.0, 1.0, 1001)
     kept = values.copy()
-    summary = metrics.interval_summary(values)
+    summary = metrics.error_summary(values)
     assert np.array_equal(values, kept)
     assert summary["mean"] == kept.mean() and summary["q97.5"] == np.quantile(kept, 0.975)

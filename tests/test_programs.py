@@ -169,7 +169,7 @@ def test_two_opt_leaves_no_improving_reversal(rng):
     [
         (
             lambda t: t.drop(columns="q6"),
-            r"plan.csv: q6: missing joint column\(s\), the robot has 6 joints \(got: set, pose, solution, q1, q2, q3, q4, q5, q1_deg\)",
+            r"plan.csv: q6: missing joint column\(s\) \(the robot has 6 joints; got: set, pose, solution, q1, q2, q3, q4, q5, q1_deg\)",
         ),
         (lambda t: t.assign(q7=0.0), r"plan.csv: q7: more joint columns than the robot's 6 joints \(ur5.urdf\)"),
         (lambda t: t.assign(q3=[0.1, np.nan, 0.2, "x"]), r"plan.csv: q3: not a finite number \(rows 1, 3\)"),

@@ -87,3 +87,27 @@ def test_the_spread_out_triple_of_100k_points_needs_no_pairwise_table(rng):
     hull_distance = np.linalg.norm(points[i] - points[j])
     assert np.all(np.linalg.norm(points - points[i], axis=1) <= hull_distance)  # nothing is farther from i
     assert tuple(triple[:2]) == (i, j)
+
+
+def test_a_stack_of_fits_is_the_registrations_kabsch_of_each(rng):
+    reference = rng.uniform(-1, 1, (12, 3))
+    targets = np.array(
+        [
+            spatial.transform_points(random_transform(rng), reference) + 1e-3 * rng.standard_normal((12, 3))
+            for _ in range(4)
+        ]
+    )
+    stacked = registration.rigid_transforms(reference, targets)
+    assert stacked.shape == (4, 4, 4)
+    for one, target in zip(stacked, targets):
+        np.testing.assert_allclose(one, registration.kabsch(reference, target), atol=1e-12)
+    # the single case is a call of the batched one: the same numbers, bit for bit
+    weights = rng.uniform(0.5, 2.0, 12)
+    assert np.array_equal(
+        registration.kabsch(reference, targets[0], weights),
+        registration.rigid_transforms(reference, targets[:1], weights / weights.sum())[0],
+    )
+    # several source sets, each onto its own target set: a reflection is never the answer
+    mirrored = targets * np.array([1.0, 1.0, -1.0])
+    rotations, _, _ = registration.rigid_fits(targets, mirrored)
+    np.testing.assert_allclose(np.linalg.det(rotations), 1.0, atol=1e-12)

@@ -82,7 +82,7 @@ def test_own_paper_model_on_itself_is_a_direct_validation(iiwa, noisy):
     table = transfer.transfer_table([entry(iiwa, "x", "2020-01-01", noisy, {"paper": paper(estimate)}, [7])])
     assert list(table.columns) == transfer.TRANSFER_COLUMNS
     row = table.iloc[0]
-    assert row["points"] == 16 and row["rmse_mm"] == pytest.approx(np.sqrt(np.mean(direct**2)) / MM)
+    assert row["count"] == 16 and row["rmse_mm"] == pytest.approx(np.sqrt(np.mean(direct**2)) / MM)
     assert row["p95_mm"] == pytest.approx(np.quantile(direct, 0.95) / MM)
 
 
@@ -130,7 +130,7 @@ def test_transfer_of_exact_predictions_is_zero(iiwa):
     table = transfer.transfer_table([y, x]).set_index(["model", "calibrated_on", "evaluated_on"])
     assert table.loc[("loop", "x", "y"), "rmse_mm"] < 1e-6
     assert table.loc[("nominal", "x", "y"), "rmse_mm"] > 0.5  # 0.1-0.4 deg off: millimetres
-    assert table.loc[("nominal", "x", "y"), "points"] == 12
+    assert table.loc[("nominal", "x", "y"), "count"] == 12
     assert ("loop", "y", "x") not in table.index  # y has no loop model
     assert table.reset_index()["calibrated_on"].iloc[0] == "x"  # date order
 

@@ -59,7 +59,7 @@ def test_the_bound_is_the_95_percent_quantile_over_draws_of_each_draws_95_percen
     the bound the 95 % quantile of those."""
     errors = np.linspace(0.0, 1e-3, 1001)
     scales = np.arange(1.0, 201.0)
-    summary = workspace._summary(scales[:, None] * errors[None, :])
+    summary = workspace._claim_row(scales[:, None] * errors[None, :])
     assert summary["p95_bound_mm"] == pytest.approx(np.quantile(scales, 0.95) * np.quantile(errors, 0.95) / 1e-3)
     assert summary["p95_mm"] == pytest.approx(np.quantile(scales[:, None] * errors[None, :], 0.95) / 1e-3)
 
@@ -71,7 +71,7 @@ def test_one_arms_95_percent_quantile_is_within_the_bound_95_percent_of_the_time
     (it is the error at a random configuration of a random arm, not a statement about one arm)."""
     directions = rng.normal(size=(200, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    summary = workspace._summary(np.abs(rng.normal(size=(4000, 3)) @ directions.T))
+    summary = workspace._claim_row(np.abs(rng.normal(size=(4000, 3)) @ directions.T))
     arms = np.quantile(np.abs(rng.normal(size=(1000, 3)) @ directions.T), 0.95, axis=1) / 1e-3
     covered = np.mean(arms <= summary["p95_bound_mm"])
     assert abs(covered - 0.95) <= 4 * np.sqrt(0.95 * 0.05 / len(arms))

@@ -17,16 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import layout
 from .calibration import compensation
 from .campaigns import importer, scenario
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
-from .files import read_csv, read_json, read_parquet, read_yaml, write_csv, write_figure, write_json, write_text
-from .inference.fit import LaplaceReport, Registration
-from .loop.result import LoopReport
+from .files import read_csv, read_yaml, write_csv, write_figure, write_json, write_text
 from .planning import design, plan, programs, robust_design
+from .results import sensor_folder, sensor_results
 from .robot import priors
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -97,22 +95,6 @@ def _design_priors(args: argparse.Namespace, campaign=None):
     return priors.priors_from(priors.with_defaults((config or {}).get("priors")), robot, source)
 
 
-def _campaign_results(folder: Path) -> dict:
-    """The registration, Laplace fit and loop closure of a sensor's results folder (`layout`), by key;
-    InputError naming the file the workflow has not written."""
-    readers = {
-        "registration": (layout.REGISTRATION, Registration.read),
-        "laplace": (layout.LAPLACE, LaplaceReport.read),
-        "loop": (layout.LOOP_CLOSURE, LoopReport.read),
-    }
-    out = {}
-    for key, (name, read) in readers.items():
-        if not (folder / name).is_file():
-            raise InputError("not written: run `snakemake -j2` on the campaign first", file=str(folder / name))
-        out[key] = read(folder / name)
-    return out
-
-
 def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None:
     """`remaster plan --objective workspace` and `--from-results` (`planning.plan.workspace_plan`)."""
     rng = np.random.default_rng(args.seed)
@@ -126,7 +108,7 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
                 "results/<campaign>/<sensor>",
                 file=str(results),
             )
-        found = _campaign_results(results)
+        found = sensor_results(results, ("registration", "laplace", "loop"))
         start = plan.campaign_start(campaign, sensor, found, options, _design_priors(args, campaign))
         print(f"{results}: {start.note}")
     else:
@@ -186,32 +168,9 @@ def _program(args: argparse.Namespace) -> None:
     )
 
 
-def read_sensor_results(results_dir: str | Path, campaign: str, sensor: str) -> dict:
-    """The results of one campaign's sensor that `remaster predict` and `compensate` read
-    (`layout.SENSOR_RESULTS`, under results_dir/layout.SENSOR_FOLDER) by key; InputError naming the
-    folder or file when the workflow has not written them."""
-    folder = Path(results_dir) / layout.SENSOR_FOLDER.format(campaign=campaign, sensor=sensor)
-    if not folder.is_dir():
-        raise InputError(
-            "no results of this campaign and sensor: run `snakemake -j2` first, or give the results folder it wrote",
-            file=str(folder),
-        )
-    readers = {
-        ".json": read_json,
-        ".csv": read_csv,
-        ".parquet": read_parquet,
-        "laplace": LaplaceReport.read,
-        "registration": Registration.read,
-        "loop": LoopReport.read,
-    }
-    return {
-        key: readers.get(key, readers[Path(name).suffix])(folder / name) for key, name in layout.SENSOR_RESULTS.items()
-    }
-
-
 def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
     campaign = read_campaign(args.campaign, Path.cwd())
-    results = read_sensor_results(args.results, Path(args.campaign).name, args.sensor)
+    results = sensor_results(sensor_folder(args.results, Path(args.campaign).name, args.sensor))
     label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
     robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
     for note in robot.notes(args.frame):

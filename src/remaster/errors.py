@@ -57,3 +57,27 @@ def report_reader(content: Mapping, source: str, message: str):
         return value
 
     return get
+
+
+def require_columns(
+    table,
+    required: Iterable[str],
+    *,
+    file: str | None,
+    kind: str = "",
+    of: str = "",
+    note: str = "",
+    listed: bool = False,
+) -> None:
+    """The one check that a table (anything with `.columns`) has every required column: else an
+    InputError naming the file and the missing columns, "missing [kind ]column(s)[ of <of>]", then in
+    parentheses the note and, when `listed`, the columns the table has ("got: ...")."""
+    columns = list(table.columns)
+    missing = [str(c) for c in required if c not in columns]
+    if not missing:
+        return
+    details = [note] if note else []
+    if listed:
+        details.append(f"got: {', '.join(map(str, columns))}")
+    message = f"missing {kind + ' ' if kind else ''}column(s){' of ' + of if of else ''}"
+    raise InputError(message + (f" ({'; '.join(details)})" if details else ""), file=file, key=", ".join(missing))

@@ -3,12 +3,11 @@ controller offsets and, for a DH campaign, the calibrated DH tables."""
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding
+from remaster import files, results, seeding
 from remaster.calibration import prediction
 from remaster.campaigns import folders
 from remaster.evaluation import handover
-from remaster.inference import fit
-from remaster.loop.result import LoopReport, LoopResults
+from remaster.loop.result import LoopResults
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -16,12 +15,13 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
 with files.log_to(snakemake.log[0]):
+    read = results.read_results(dict(i.items()), ("summary", "laplace", "loop", "samples", "gp"))
     result = handover.calibrated_outputs_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        files.read_csv(i.summary),
-        fit.LaplaceReport.read(i.laplace),
-        LoopResults(LoopReport.read(i.loop), files.read_parquet(i.samples), files.read_parquet(i.gp), i.samples),
+        read["summary"],
+        read["laplace"],
+        LoopResults(read["loop"], read["samples"], read["gp"], i.samples),
         seeding.generator(p.seed, w.campaign, w.sensor, "workspace"),
         prediction.Propagation(p.draws, p.random_configurations, p.seed),
     )

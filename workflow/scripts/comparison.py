@@ -5,9 +5,8 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, stage_inputs
+from remaster import files, results, stage_inputs
 from remaster.comparing import comparison
-from remaster.loop.result import LoopReport
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -18,8 +17,8 @@ with files.log_to(snakemake.log[0]):
     named = dict(snakemake.input.items())
     result = comparison.comparison_tables(
         {c: files.read_yaml(f) for c, f in stage_inputs.by_sensor(named, "metadata").items()},
-        {pair: files.read_csv(f) for pair, f in stage_inputs.by_pair(named, "summary").items()},
-        {pair: LoopReport.read(f) for pair, f in stage_inputs.by_pair(named, "loop").items()},
+        {pair: results.read_result("summary", f) for pair, f in stage_inputs.by_pair(named, "summary").items()},
+        {pair: results.read_result("loop", f) for pair, f in stage_inputs.by_pair(named, "loop").items()},
         snakemake.params.significance,
     )
     for name, table in result.items():

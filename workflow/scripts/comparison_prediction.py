@@ -5,12 +5,10 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, stage_inputs
+from remaster import files, results, stage_inputs
 from remaster.calibration import prediction
 from remaster.campaigns import folders
 from remaster.comparing import predictions, transfer
-from remaster.inference import fit
-from remaster.loop.result import LoopReport
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -21,16 +19,16 @@ i, p = snakemake.input, snakemake.params
 with files.log_to(snakemake.log[0]):
     named = dict(i.items())
 
-    def each(kind, read):
-        return {pair: read(f) for pair, f in stage_inputs.by_pair(named, kind).items()}
+    def each(kind):
+        return {pair: results.read_result(kind, f) for pair, f in stage_inputs.by_pair(named, kind).items()}
 
     result = transfer.prediction_stage(
         {c: folders.read_campaign(f) for c, f in folders.campaign_folders(i.campaigns).items()},
-        each("summary", files.read_csv),
-        each("laplace", fit.LaplaceReport.read),
-        each("loop", LoopReport.read),
-        each("paper_samples", files.read_parquet),
-        each("loop_samples", files.read_parquet),
+        each("summary"),
+        each("laplace"),
+        each("loop"),
+        each("paper_samples"),
+        each("loop_samples"),
         prediction.Propagation(p.draw_pairs, p.random_configurations, p.seed),
     )
     for name, table in result.items():

@@ -3,10 +3,9 @@ remastering and the accuracy metrics."""
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding, stage_inputs
+from remaster import files, results, seeding, stage_inputs
 from remaster.campaigns import folders
 from remaster.evaluation import fit_summary
-from remaster.inference import fit
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -18,10 +17,10 @@ with files.log_to(snakemake.log[0]):
     result = fit_summary.fit_summary_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        fit.Registration.read(i.registration),
-        fit.LaplaceReport.read(i.laplace),
-        {m: files.read_parquet(f) for m, f in stage_inputs.by_sensor(named, "samples").items()},
-        {m: files.read_json(f) for m, f in stage_inputs.by_sensor(named, "diagnostics").items()},
+        results.read_result("registration", i.registration),
+        results.read_result("laplace", i.laplace),
+        {m: results.read_result("samples", f) for m, f in stage_inputs.by_sensor(named, "samples").items()},
+        {m: results.read_result("diagnostics", f) for m, f in stage_inputs.by_sensor(named, "diagnostics").items()},
         seeding.generator(p.seed, w.campaign, w.sensor, "accuracy"),
         fit_summary.SummarySettings(dict(p.cross_check), p.draws, p.random_configurations),
     )

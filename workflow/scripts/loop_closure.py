@@ -2,9 +2,8 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding
+from remaster import files, results, seeding
 from remaster.campaigns import folders
-from remaster.inference import fit
 from remaster.loop import loop_closure, settings
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -16,8 +15,8 @@ with files.log_to(snakemake.log[0]):
     result = loop_closure.loop_closure_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        fit.Registration.read(i.registration),
-        fit.LaplaceReport.read(i.laplace),
+        results.read_result("registration", i.registration),
+        results.read_result("laplace", i.laplace),
         seeding.generator(p.seed, w.campaign, w.sensor, "loop_closure"),
         settings.settings_from(p.settings, p.priors, p.convergence, p.outliers),
     )

@@ -2,7 +2,7 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, seeding
+from remaster import files, results, seeding
 from remaster.campaigns import folders
 from remaster.inference import fit
 
@@ -15,8 +15,8 @@ with files.log_to(snakemake.log[0]) as log:
     samples, trace, diagnostics = fit.sampling_stage(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
-        fit.Registration.read(i.registration),
-        fit.LaplaceReport.read(i.laplace),
+        results.read_result("registration", i.registration),
+        results.read_result("laplace", i.laplace),
         w.method,
         dict(snakemake.params.settings),
         seeding.generator(snakemake.params.seed, w.campaign, w.sensor, w.method),

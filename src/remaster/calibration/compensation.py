@@ -53,8 +53,9 @@ from scipy.spatial.transform import Rotation
 from .. import spatial
 from ..calibration.prediction import Calibration, Predictor, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
-from ..errors import InputError, format_rows
+from ..errors import InputError, format_rows, require_columns
 from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
+from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
@@ -63,7 +64,6 @@ from ..units import MM
 
 MODELS = ("paper", "loop")
 FRAMES = ("robot", "sensor")
-QUANTILE = 0.95
 SETUP = (
     tuple(f"registration.{p}" for p in REGISTRATION)
     + ("sensor_scale.s",)
@@ -221,16 +221,14 @@ def _posterior_rows(
         return pd.DataFrame()
     free = [] if calibration.draws is None else list(calibration.draws.columns)
     names = free + [n for n in setup if n in samples.columns] + [SIGMA]
-    missing = [n for n in free + [SIGMA] if n not in samples.columns]
-    if missing:
-        raise InputError("missing column(s) of the posterior samples", file=label, key=", ".join(missing))
+    require_columns(samples, free + [SIGMA], file=label, of="the posterior samples")
     return samples[names].astype(float).reset_index(drop=True)
 
 
 def calibrated_robot(
     campaign: Campaign, sensor: str, model: str, results: Mapping, tcp=None, label: str = ""
 ) -> CalibratedRobot:
-    """The calibrated robot of a campaign's sensor from its results (`cli.read_sensor_results`:
+    """The calibrated robot of a campaign's sensor from its results (`results.sensor_results`:
     registration, laplace, summary, paper_samples, loop, loop_samples, gp). tcp (3,) m in the
     flange frame, or None for the sensor's marker."""
     if sensor not in campaign.sensors:
@@ -287,11 +285,7 @@ def joint_commands(table: pd.DataFrame, chain: KinematicChain, label: str, requi
     present = [n for n in names if n in table.columns]
     if not present and not required:
         return None
-    missing = [n for n in names if n not in table.columns]
-    if missing:
-        raise InputError(
-            f"missing joint column(s) (got: {', '.join(map(str, table.columns))})", file=label, key=", ".join(missing)
-        )
+    require_columns(table, names, file=label, kind="joint", listed=True)
     q = _numbers(table, names, label)
     for j, name in enumerate(names):
         outside = np.flatnonzero((q[:, j] < chain.lower[j]) | (q[:, j] > chain.upper[j]))
@@ -336,11 +330,9 @@ def _numbers(table: pd.DataFrame, names: list[str], label: str) -> np.ndarray:
 # --------------------------------------------------------------------------- predict
 
 
-def _bounds(points_draws: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """95th percentile over draws (K, n, 3) of the distance to reference (n, 3), mm; NaN without draws."""
-    if len(points_draws) == 0:
-        return np.full(len(reference), np.nan)
-    return np.quantile(np.linalg.norm(points_draws - reference, axis=-1), QUANTILE, axis=0) / MM
+def _bounds_mm(points_draws: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """`bounds.bound_at_points` (n,) mm of draws (K, n, 3) m about reference (n, 3) m."""
+    return bound_at_points(np.linalg.norm(points_draws - reference, axis=-1)) / MM
 
 
 def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Generator) -> pd.DataFrame:
@@ -360,8 +352,8 @@ def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Ge
     for k, axis in enumerate("xyz"):
         table[f"nominal_{axis}"] = nominal[:, k]
     table["correction_mm"] = np.linalg.norm(points - nominal, axis=1) / MM
-    table["bound95_mm"] = _bounds(draws, points)
-    table["bound95_with_noise_mm"] = _bounds(noisy, points)
+    table["bound95_mm"] = _bounds_mm(draws, points)
+    table["bound95_with_noise_mm"] = _bounds_mm(noisy, points)
     return table
 
 
@@ -550,8 +542,8 @@ def compensate(
         draws, noisy = robot.draw_points(q[at], frame, count, rng)
         target = t_frame[at]
         table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM
-        table.loc[at, "bound95_mm"] = _bounds(draws, target)
-        table.loc[at, "bound95_with_noise_mm"] = _bounds(noisy, target)
+        table.loc[at, "bound95_mm"] = _bounds_mm(draws, target)
+        table.loc[at, "bound95_with_noise_mm"] = _bounds_mm(noisy, target)
         table.loc[at, "nominal_error_mm"] = (
             np.linalg.norm(robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
         )

@@ -29,7 +29,7 @@ import pandas as pd
 
 from .. import identity, seeding
 from ..campaigns.campaign import Campaign, SensorData
-from ..errors import InputError
+from ..errors import InputError, require_columns
 from ..inference import metrics
 from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, link_errors
 from ..inference.fit import LaplaceReport
@@ -140,17 +140,11 @@ def robot_points(
 # --------------------------------------------------------------------------- calibrations from results
 
 
-def _checked_columns(table: pd.DataFrame, columns: Sequence[str], label: str, what: str) -> None:
-    missing = [c for c in columns if c not in table.columns]
-    if missing:
-        raise InputError(f"missing column(s) of {what}", file=label, key=", ".join(missing))
-
-
 def _free_draws(samples: pd.DataFrame | None, names: Sequence[str], label: str) -> pd.DataFrame | None:
     """The samples' columns of the free parameters `names` (SI), None when there are no samples."""
     if samples is None or samples.empty:
         return None
-    _checked_columns(samples, names, label, "the posterior samples")
+    require_columns(samples, names, file=label, of="the posterior samples")
     return samples[list(names)].astype(float).reset_index(drop=True)
 
 
@@ -159,7 +153,7 @@ def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None
     status) and, when given, its posterior samples (free parameters' columns)."""
     if "parameter" in summary.columns:
         summary = summary.set_index("parameter")
-    _checked_columns(summary, ("mean", "status"), label, "a posterior summary")
+    require_columns(summary, ("mean", "status"), file=label, of="a posterior summary")
     names = [str(n) for n in summary.index if str(n).startswith(ZERO_OFFSET_PREFIX)]
     if not names:
         raise InputError(f"no {ZERO_OFFSET_PREFIX}N parameters", file=label, key="parameter")
@@ -172,9 +166,8 @@ def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, la
     """The loop closure's model from its report (`LoopReport.read`: effects added, payload, the refit's
     parameters: parameter, block, mean SI, status) and, when given, its posterior samples."""
     table = report.parameters
-    _checked_columns(
-        table, ("parameter", "block", "mean", "status"), label or report.source, "the loop closure's parameters"
-    )
+    columns = ("parameter", "block", "mean", "status")
+    require_columns(table, columns, file=label or report.source, of="the loop closure's parameters")
     kept = table[~table["block"].isin(SETUP_BLOCKS)]
     values = dict(zip(kept["parameter"].astype(str), kept["mean"].astype(float)))
     free = kept.loc[kept["status"].astype(str) == ESTIMATED, "parameter"].astype(str).tolist()

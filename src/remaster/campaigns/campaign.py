@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, KinematicsError
+from ..errors import InputError, KinematicsError, require_columns
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, KinematicChain
 from ..robot.priors import check_override
@@ -389,13 +389,7 @@ def _check_columns(df: pd.DataFrame, n_joints: int, source: str) -> None:
         raise InputError("duplicate column name(s)", file=source, key=", ".join(duplicated))
     joints = joint_columns(n_joints)
     required = KEY_COLUMNS + joints + POSITION_COLUMNS
-    missing = [c for c in required if c not in df.columns]
-    if missing:
-        raise InputError(
-            f"missing column(s) (the robot has {n_joints} joints, so q1..q{n_joints} are needed)",
-            file=source,
-            key=", ".join(missing),
-        )
+    require_columns(df, required, file=source, note=f"the robot has {n_joints} joints, so q1..q{n_joints} are needed")
     extra_joints = [c for c in df.columns if _JOINT_COLUMN.fullmatch(c) and c not in joints]
     if extra_joints:
         raise InputError(
@@ -563,10 +557,9 @@ def _check_std(df: pd.DataFrame, source: str) -> None:
             file=source,
             key=", ".join([STD_COLUMN, *axes]),
         )
-    if axes and len(axes) < len(AXIS_STD_COLUMNS):
-        missing = [c for c in AXIS_STD_COLUMNS if c not in axes]
-        raise InputError(
-            f"per-axis std needs all of {', '.join(AXIS_STD_COLUMNS)}; missing", file=source, key=", ".join(missing)
+    if axes:
+        require_columns(
+            df, AXIS_STD_COLUMNS, file=source, note=f"per-axis std needs all of {', '.join(AXIS_STD_COLUMNS)}"
         )
     seen = np.all(np.isfinite(df[list(POSITION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)), axis=1)
     for column in [STD_COLUMN] if STD_COLUMN in df.columns else axes:

@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import MAX_ROWS_SHOWN, InputError, format_rows
+from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, require_columns
 from ..units import DEG
 from .campaign import (
     _JOINT_COLUMN,
@@ -113,13 +113,13 @@ class Export:
 
     def column(self, name: str, config_key: str) -> pd.Series:
         """Cells of column `name`; InputError naming the file and the column if it is missing."""
-        if name not in self.cells.columns:
-            raise InputError(
-                f"missing column (named by `{config_key}` of the import configuration); the file has: "
-                f"{', '.join(map(str, self.cells.columns))}",
-                file=self.source,
-                key=name,
-            )
+        require_columns(
+            self.cells,
+            [name],
+            file=self.source,
+            note=f"named by `{config_key}` of the import configuration",
+            listed=True,
+        )
         return self.cells[name]
 
     def fail(self, column: str, what: str, positions) -> InputError:

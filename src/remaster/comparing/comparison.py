@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd  # scipy.special is imported where it is used: table jobs load this module
 
 from ..calibration.prediction import ZERO_OFFSET_PREFIX
-from ..errors import InputError
+from ..errors import InputError, require_columns
 from ..identity import robot_identity
 from ..inference.model import display_value
 from ..labels import paper_order
@@ -141,9 +141,7 @@ def _zero_offsets(entry: Entry, label: str) -> pd.DataFrame:
         raise InputError(f"summary must be a DataFrame, got {type(summary).__name__}", file=label)
     if "parameter" in summary.columns:
         summary = summary.set_index("parameter")
-    missing = [c for c in ("mean", "std", "status") if c not in summary.columns]
-    if missing:
-        raise InputError("missing column(s) of a posterior summary", file=label, key=", ".join(missing))
+    require_columns(summary, ("mean", "std", "status"), file=label, of="a posterior summary")
     names = sorted(
         (str(n) for n in summary.index if str(n).startswith(ZERO_OFFSET_PREFIX)),
         key=lambda n: int(n[len(ZERO_OFFSET_PREFIX) :]),
@@ -390,11 +388,8 @@ def _loop_rows(entry: Entry, label: str) -> pd.DataFrame | None:
         return None
     if not isinstance(loop, pd.DataFrame):
         raise InputError(f"loop-closure parameters must be a DataFrame, got {type(loop).__name__}", file=label)
-    missing = [
-        c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status") if c not in loop.columns
-    ]
-    if missing:
-        raise InputError("missing column(s) of the loop closure's parameter table", file=label, key=", ".join(missing))
+    columns = ("parameter", "block", "mean_display", "std_display", "unit", "status")
+    require_columns(loop, columns, file=label, of="the loop closure's parameter table")
     rows = loop[~loop["block"].isin(CAMPAIGN_BLOCKS)]
     estimated = rows["status"].astype(str) == ESTIMATED
     return pd.DataFrame(

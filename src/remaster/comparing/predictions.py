@@ -24,6 +24,7 @@ import pandas as pd
 from .. import identity, seeding
 from ..calibration.prediction import MODELS, Calibrated, Calibration, robot_configurations
 from ..errors import InputError
+from ..inference import metrics
 from ..inference.blocks import block_parameters
 from ..robot.kinematics import KinematicChain
 from ..units import MM
@@ -32,7 +33,7 @@ from . import comparison
 NULL_QUANTILE = 0.95
 
 
-PREDICTION_COLUMNS = ["configurations", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
+PREDICTION_COLUMNS = ["count", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
 
 
 DRIFT_COLUMNS = [
@@ -66,16 +67,14 @@ def compare_predictions(
     chain: KinematicChain, q, marker, a: Calibration, b: Calibration, draw_pairs: int, rng: np.random.Generator
 ) -> dict:
     """What B predicts against what A predicts at configurations q (n, N) rad, marker (3,) m
-    (flange frame, each model's marker offset added): configurations, mean_mm and p95_mm of
+    (flange frame, each model's marker offset added): count (the configurations), mean_mm and p95_mm of
     |p_B - p_A| at the posterior means, draw_pairs and null_p95_of_mean_mm from `draw_pairs`
     posterior draw pairs (rng chooses the draws), flagged (see the module docstring)."""
     pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
     mean_a, mean_b = pa.points(a.values), pb.points(b.values)
     distance = np.linalg.norm(mean_b - mean_a, axis=1)
     row = {
-        "configurations": int(len(distance)),
-        "mean_mm": float(distance.mean() / MM),
-        "p95_mm": float(np.quantile(distance, 0.95) / MM),
+        **metrics.in_mm(metrics.error_summary(distance, ("mean", "p95"))),
         "draw_pairs": 0,
         "null_p95_of_mean_mm": np.nan,
         "flagged": False,

@@ -10,7 +10,7 @@ Y's readings of the same sensor (same sensor name, campaigns of one `identity.ro
 3. the post-registration errors |measured - T p| on Y's VALIDATION rows: rmse_mm, mean_mm, p95_mm.
 
 X = Y is the campaign's ordinary validation with a least-squares registration. Rows whose marker
-was not seen (NaN) and Y's flagged gross errors are left out of both steps; `points` counts the
+was not seen (NaN) and Y's flagged gross errors are left out of both steps; `count` counts the
 validation rows used. The registration and sensor scale (Y's sensor set-up) and the drift (X's
 clock or temperature) are not transferred: they are refitted or do not apply.
 
@@ -27,8 +27,8 @@ import pandas as pd
 from .. import spatial
 from ..calibration.prediction import MODELS, Calibrated, Calibration, Propagation, calibrated_entries
 from ..errors import InputError
+from ..inference import metrics
 from ..robot import registration
-from ..units import MM
 
 TRANSFER_COLUMNS = [
     "robot",
@@ -36,7 +36,7 @@ TRANSFER_COLUMNS = [
     "model",
     "calibrated_on",
     "evaluated_on",
-    "points",
+    "count",
     "rmse_mm",
     "mean_mm",
     "p95_mm",
@@ -65,23 +65,14 @@ def transfer_errors(calibration: Calibration, target: Calibrated) -> np.ndarray:
     return np.linalg.norm(measured["validation"] - predicted, axis=1)
 
 
-def _summary(errors: np.ndarray) -> dict:
-    """points, rmse_mm, mean_mm, p95_mm of errors (n,) m (NaN without errors)."""
-    if errors.size == 0:
-        return {"points": 0, "rmse_mm": np.nan, "mean_mm": np.nan, "p95_mm": np.nan}
-    return {
-        "points": int(errors.size),
-        "rmse_mm": float(np.sqrt(np.mean(errors**2)) / MM),
-        "mean_mm": float(errors.mean() / MM),
-        "p95_mm": float(np.quantile(errors, 0.95) / MM),
-    }
+SUMMARY = ("rmse", "mean", "p95")  # of the validation errors (`metrics.error_summary`)
 
 
 def transfer_table(entries: Iterable[Calibrated]) -> pd.DataFrame:
     """Every calibration of every campaign applied to every campaign of the same robot and sensor
     name (itself included), per model (nominal, paper, loop) the calibrating entry has.
 
-    Columns TRANSFER_COLUMNS: robot, sensor, model, calibrated_on (X), evaluated_on (Y), points
+    Columns TRANSFER_COLUMNS: robot, sensor, model, calibrated_on (X), evaluated_on (Y), count
     (Y's validation rows used), rmse_mm, mean_mm, p95_mm. Sorted by robot, sensor, model (nominal,
     paper, loop), X and Y in date order (then name).
     """
@@ -106,7 +97,7 @@ def transfer_table(entries: Iterable[Calibrated]) -> pd.DataFrame:
                         "model": model,
                         "calibrated_on": source.campaign,
                         "evaluated_on": target.campaign,
-                        **_summary(transfer_errors(source.models[model], target)),
+                        **metrics.in_mm(metrics.error_summary(transfer_errors(source.models[model], target), SUMMARY)),
                     }
                 )
     if not rows:

@@ -44,14 +44,17 @@ import numpy as np
 import pandas as pd
 
 from .. import noise, spatial
-from ..errors import InputError, report_reader
+from ..errors import InputError, report_reader, require_columns
 from ..files import read_json, write_json
 from ..inference import blocks
 from ..inference.blocks import BlockModel, ModelSettings, Readings
+from ..inference.bounds import QUANTILE
 from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
+from ..inference.metrics import rms_per_axis
 from ..inference.model import SIGMA
 from ..loop.result import LoopReport, LoopResults
+from ..robot import registration
 from ..robot.kinematics import KinematicChain
 from ..units import DEG, MM
 
@@ -74,33 +77,10 @@ STATISTIC = (
 # --------------------------------------------------------------------------- the check itself
 
 
-def rms(residuals) -> np.ndarray:
-    """RMS per axis of residuals (..., n, 3): sqrt of the mean square over rows and axes."""
-    return np.sqrt(np.mean(np.asarray(residuals, dtype=float) ** 2, axis=(-2, -1)))
-
-
-def kabsch_many(reference, targets) -> np.ndarray:
-    """Rigid transforms (m, 4, 4) that map reference points (n, 3) onto each of targets (m, n, 3)
-    in least squares (closed form, as `robot.registration.kabsch`, for a stack of targets)."""
-    reference = np.asarray(reference, dtype=float)
-    targets = np.asarray(targets, dtype=float)
-    centre_a, centre_b = reference.mean(axis=0), targets.mean(axis=1)
-    covariance = np.einsum("ni,mnj->mij", reference - centre_a, targets - centre_b[:, None, :])
-    u, _, vt = np.linalg.svd(covariance)
-    d = np.sign(np.linalg.det(np.swapaxes(vt, -1, -2) @ np.swapaxes(u, -1, -2)))
-    flip = np.ones((len(targets), 3))
-    flip[:, 2] = d
-    rotation = np.swapaxes(vt, -1, -2) @ (flip[:, :, None] * np.swapaxes(u, -1, -2))
-    out = np.tile(np.eye(4), (len(targets), 1, 1))
-    out[:, :3, :3] = rotation
-    out[:, :3, 3] = centre_b - np.einsum("mij,j->mi", rotation, centre_a)
-    return out
-
-
 def refit_residuals(reference, targets) -> tuple[np.ndarray, np.ndarray]:
     """(residuals (m, n, 3) of targets (m, n, 3) after the rigid transform that best maps reference
-    (n, 3) onto each, those transforms (m, 4, 4))."""
-    moves = kabsch_many(reference, targets)
+    (n, 3) onto each, those transforms (m, 4, 4): `robot.registration.rigid_transforms`)."""
+    moves = registration.rigid_transforms(reference, targets)
     mapped = np.einsum("mij,nj->mni", moves[:, :3, :3], reference) + moves[:, None, :3, 3]
     return np.asarray(targets) - mapped, moves
 
@@ -168,15 +148,15 @@ def check(measured, claim: Claim, level: float, registration_share: float, rng: 
     validation rows (`refit`: its move, and the share of the excess mean square it removes). The
     replicates are made a chunk of draws at a time (rng: their GP draws and noise)."""
     measured = np.asarray(measured, dtype=float)
-    observed = float(rms(measured - claim.reference))
+    observed = float(rms_per_axis(measured - claim.reference))
     refit_obs, moves = refit_residuals(claim.reference, measured[None])
-    observed_refit = float(rms(refit_obs[0]))
+    observed_refit = float(rms_per_axis(refit_obs[0]))
     chunk = max(1, CHUNK_VALUES // measured.size)
     replicates, replicates_refit = [], []
     for begin in range(0, len(claim.theta), chunk):
         replicated = claim.replicates(np.arange(begin, min(begin + chunk, len(claim.theta))), rng)
-        replicates.append(rms(replicated - claim.reference))
-        replicates_refit.append(rms(refit_residuals(claim.reference, replicated)[0]))
+        replicates.append(rms_per_axis(replicated - claim.reference))
+        replicates_refit.append(rms_per_axis(refit_residuals(claim.reference, replicated)[0]))
     replicates, replicates_refit = np.concatenate(replicates), np.concatenate(replicates_refit)
     excess = observed**2 - float(np.median(replicates**2))
     excess_refit = observed_refit**2 - float(np.median(replicates_refit**2))
@@ -189,13 +169,13 @@ def check(measured, claim: Claim, level: float, registration_share: float, rng: 
         "draws": int(len(replicates)),
         "observed_rms_per_axis_mm": observed / MM,
         "replicate_median_mm": float(np.median(replicates) / MM),
-        "replicate_q95_mm": float(np.quantile(replicates, 0.95) / MM),
+        "replicate_p95_mm": float(np.quantile(replicates, QUANTILE) / MM),
         "p_value": p,
         "passed": bool(p >= level),
         "refit": {
             "observed_rms_per_axis_mm": observed_refit / MM,
             "replicate_median_mm": float(np.median(replicates_refit) / MM),
-            "replicate_q95_mm": float(np.quantile(replicates_refit, 0.95) / MM),
+            "replicate_p95_mm": float(np.quantile(replicates_refit, QUANTILE) / MM),
             "p_value": p_refit,
             "passed": bool(p_refit >= level),
             "excess_mean_square_mm2": excess / MM**2,
@@ -226,9 +206,7 @@ def _rows(count: int, available: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def _checked_samples(samples: pd.DataFrame, names: Sequence[str], label: str) -> pd.DataFrame:
-    missing = [n for n in list(names) + [SIGMA] if n not in samples.columns]
-    if missing:
-        raise InputError("missing column(s) of the posterior samples", file=label, key=", ".join(missing))
+    require_columns(samples, list(names) + [SIGMA], file=label, of="the posterior samples")
     return samples[list(names) + [SIGMA]].astype(float).reset_index(drop=True)
 
 
@@ -336,7 +314,7 @@ def _diagnosis_text(diagnosis: str | None, checks: Mapping, level: float) -> str
     loop, paper = checks["loop"], checks["paper"]
     head = (
         f"validation RMS per axis {loop['observed_rms_per_axis_mm']:.3g} mm against the loop-closed model's claim "
-        f"{loop['replicate_median_mm']:.3g} mm (95 %: {loop['replicate_q95_mm']:.3g} mm), p = {loop['p_value']:.3g}"
+        f"{loop['replicate_median_mm']:.3g} mm (95 %: {loop['replicate_p95_mm']:.3g} mm), p = {loop['p_value']:.3g}"
     )
     if diagnosis is None:
         return f"pass: {head} >= {level:g}"

@@ -232,7 +232,7 @@ class SetData:
 
 def _summary_row(values_m, **labels) -> dict:
     """Labels plus mean, 95 % interval (mm) and count of values in m."""
-    summary = metrics.interval_summary(values_m)
+    summary = metrics.error_summary(values_m)
     return {
         **labels,
         "mean_mm": summary["mean"] * TO_MM,

@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..campaigns.campaign import Campaign
+from ..inference.bounds import QUANTILE
 from ..inference.fit import LaplaceReport, Registration, build_model
 from ..inference.uncertainty import COVERAGE, coverage_factor, welch_satterthwaite
 from ..labels import sensor_label
@@ -44,7 +45,6 @@ from ..loop.result import LoopReport
 from ..units import MM
 
 FITTED_BLOCKS = ("registration.", "zero_offsets.")
-BOUND_QUANTILE = 0.95  # of the systematic term over the measured configurations
 COLUMNS = ["Component", "Type", "Distribution", "u per axis (mm)", "dof", "share of u_c^2 (%)", "source"]
 
 
@@ -101,7 +101,7 @@ def _random_components(stated_noise, sigma: float, dof_fit: int, mpe, fitted: fl
 def _bound_rows(residuals, expanded: float) -> list[dict]:
     """The systematic term's 95 % bound over the measured configurations from the fit's residuals
     (n, 3) m, and U (`expanded`, m) with it added linearly."""
-    bound = float(np.quantile(np.abs(np.asarray(residuals)), BOUND_QUANTILE))
+    bound = float(np.quantile(np.abs(np.asarray(residuals)), QUANTILE))
     return [
         _row(
             "model discrepancy, 95 % bound",

@@ -70,6 +70,7 @@ from ..errors import InputError
 from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
 from ..inference import metrics
 from ..inference.blocks import identifiable_extension
+from ..inference.bounds import bound_on_percentile_over_configurations
 from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP, evenly_spaced
@@ -120,26 +121,13 @@ class WorkspaceAccuracy:
     report: dict
 
 
-def _summary(distances_m, **labels) -> dict:
-    """Errors (draws, configurations) m, in mm: the pooled distribution (mean, 2.5 %, 97.5 % and 95 %
-    quantiles: the error at a random configuration of a random draw) and `p95_bound_mm`, the 95 %
-    quantile over draws of each draw's own 95 % quantile over the configurations. One arm is one
-    draw: its 95th-percentile error exceeds the pooled one whenever its parameters lie out in the
-    posterior's tail, and stays below the bound with 95 % posterior probability."""
-    distances = np.asarray(distances_m, dtype=float)
-    values = distances.ravel()
-    summary = metrics.interval_summary(values)
-    p95 = float(np.quantile(values, 0.95)) if values.size else np.nan
-    bound = float(np.quantile(np.quantile(distances, 0.95, axis=-1), 0.95)) if values.size else np.nan
-    return {
-        **labels,
-        "mean_mm": summary["mean"] / MM,
-        "q2.5_mm": summary["q2.5"] / MM,
-        "q97.5_mm": summary["q97.5"] / MM,
-        "p95_mm": p95 / MM,
-        "p95_bound_mm": bound / MM,
-        "count": summary["count"],
-    }
+def _claim_row(distances_m, **labels) -> dict:
+    """A claim's row of errors (draws, configurations) m, in mm: the pooled distribution (mean,
+    2.5 %, 97.5 % and 95 % quantiles: the error at a random configuration of a random draw) and
+    `p95_bound_mm`, the 95 % bound on one arm's own 95 % quantile over the configurations
+    (`bounds.bound_on_percentile_over_configurations`)."""
+    summary = metrics.in_mm(metrics.error_summary(distances_m, (*metrics.INTERVAL, "p95")))
+    return {**labels, **summary, "p95_bound_mm": bound_on_percentile_over_configurations(distances_m) / MM}
 
 
 def _with_noise(points, sigma, rng: np.random.Generator):
@@ -264,13 +252,13 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
             {
                 "table": table,
                 "method": LOOP_METHOD,
-                **{k: v for k, v in _summary(distances).items() if k not in ("p95_mm", "p95_bound_mm")},
+                **metrics.in_mm(metrics.error_summary(distances)),
             }
         )
     for model, mean in (("paper", paper_points), ("loop", loop_mean)):
         for noise, reference in (("with noise", noisy), ("without noise", points)):
             claims.append(
-                _summary(
+                _claim_row(
                     metrics.registered_distances(mean, reference),
                     model=model,
                     configurations=where,
@@ -279,7 +267,7 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
                 )
             )
         claims.append(
-            _summary(
+            _claim_row(
                 np.linalg.norm(noisy - mean, axis=-1),
                 model=model,
                 configurations=where,

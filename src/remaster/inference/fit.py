@@ -31,7 +31,7 @@ from ..files import read_json
 from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
-from . import identifiability, samplers
+from . import identifiability, metrics, samplers
 from .blocks import BlockModel, paper_model
 from .model import SIGMA, display_scale, display_unit
 
@@ -95,7 +95,7 @@ def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimiz
     kabsch = registration.kabsch(robot, measured)
 
     def rms(t_nr):
-        return float(np.sqrt(np.mean((transform_points(t_nr, robot) - measured) ** 2)))
+        return float(metrics.rms_per_axis(transform_points(t_nr, robot) - measured))
 
     return Registration(three, tuple(int(r) for r in rows[triple]), kabsch, rms(three), rms(kabsch))
 

@@ -1,7 +1,8 @@
 """The paper's accuracy metrics (section Quantifying Positional Accuracy) as array functions.
 
 Arrays in, arrays out, SI throughout (m, rad); the stage that turns them into tables in mm is
-`remaster.evaluation.accuracy`.
+`remaster.evaluation.accuracy`. Every summary of errors is `error_summary` (one vocabulary of
+statistics: mean, rmse, q2.5, q97.5, p95, count), shown in mm through `in_mm` where a table is made.
 
 - relative accuracy (eq. dist_equation): within each group of configurations that reached the
   same Cartesian pose, how much the distance between two measured marker positions differs from
@@ -16,11 +17,18 @@ Arrays in, arrays out, SI throughout (m, rad); the stage that turns them into ta
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 
+from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..units import MM
+from .bounds import QUANTILE
 
-QUANTILES = (0.025, 0.975)
+# the statistics `error_summary` knows: name -> the quantile it is, None for a moment
+STATISTICS = {"mean": None, "rmse": None, "q2.5": 0.025, "q97.5": 0.975, "p95": QUANTILE}
+INTERVAL = ("mean", "q2.5", "q97.5")  # the paper's: the mean and its 95 % interval
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval is mean +- Z95 std
 
 
@@ -62,17 +70,43 @@ def post_registration_errors(p_ref, p_pred) -> np.ndarray:
     return np.linalg.norm(p_ref - p_pred, axis=-1)
 
 
-def interval_summary(values) -> dict[str, float | int]:
-    """Mean, 2.5 % and 97.5 % quantiles (the paper's 95 % interval) and count of the finite
-    values, in the values' unit. No finite value: count 0 and NaN statistics (never an error)."""
-    values = np.asarray(values, dtype=float).ravel()
+def error_summary(errors, statistics: Sequence[str] = INTERVAL) -> dict[str, float | int]:
+    """The one summary of errors (any shape, flattened; m, or any one unit): the `statistics` asked,
+    in that order, then `count`, of the finite errors, in the errors' unit. The vocabulary:
+    'mean'; 'rmse' (root mean square); 'q2.5', 'q97.5' (the ends of the paper's 95 % interval);
+    'p95' (the 95th percentile). No finite error: count 0 and NaN statistics (never an error).
+    Tables show it through `in_mm`."""
+    unknown = [s for s in statistics if s not in STATISTICS]
+    if unknown:
+        raise ValueError(f"unknown statistics {unknown}: the summary knows {list(STATISTICS)}")
+    values = np.asarray(errors, dtype=float).ravel()
     values = values[np.isfinite(values)]  # a copy of the caller's values: partitioned in place below
     if values.size == 0:
-        return {"mean": np.nan, "q2.5": np.nan, "q97.5": np.nan, "count": 0}
-    mean = float(values.mean())  # before the partition reorders them
-    # in place: a second copy of 140 million errors (2000 draws at 70,000 configurations) is 1.1 GB
-    low, high = np.quantile(values, QUANTILES, overwrite_input=True)
-    return {"mean": mean, "q2.5": float(low), "q97.5": float(high), "count": int(values.size)}
+        return {**{s: np.nan for s in statistics}, "count": 0}
+    out = {}
+    for name in statistics:  # the moments before the partition reorders the values
+        if name == "mean":
+            out[name] = float(values.mean())
+        elif name == "rmse":
+            out[name] = float(np.sqrt(np.mean(values**2)))
+    quantiles = [s for s in statistics if STATISTICS[s] is not None]
+    if quantiles:
+        # in place: a second copy of 140 million errors (2000 draws at 70,000 configurations) is 1.1 GB
+        found = np.quantile(values, [STATISTICS[s] for s in quantiles], overwrite_input=True)
+        out.update({s: float(v) for s, v in zip(quantiles, found)})
+    return {**{s: out[s] for s in statistics}, "count": int(values.size)}
+
+
+def in_mm(summary: Mapping[str, float | int]) -> dict[str, float | int]:
+    """An `error_summary` of errors in m as a table shows it: each statistic in mm, named
+    '<statistic>_mm', and count, in the summary's order."""
+    return {(k if k == "count" else f"{k}_mm"): (v if k == "count" else v / MM) for k, v in summary.items()}
+
+
+def rms_per_axis(residuals) -> np.ndarray:
+    """RMS per axis of residual vectors (..., n, 3): sqrt of the mean square over rows and axes, in
+    their unit (the RMSE of `error_summary` over sqrt 3)."""
+    return np.sqrt(np.mean(np.asarray(residuals, dtype=float) ** 2, axis=(-2, -1)))
 
 
 def probable_tcps(chain: KinematicChain, q, marker, draws_offsets, draws_sigma, rng: np.random.Generator) -> np.ndarray:
@@ -139,14 +173,9 @@ def random_configurations(chain: KinematicChain, n: int, rng: np.random.Generato
 def registered_distances(model_points, reference_points) -> np.ndarray:
     """Distances (m, n) m between model points (n, 3) or (m, n, 3) and m sets of reference points
     (m, n, 3) after the least-squares rigid motion of the model's points onto each set (Kabsch,
-    batched): the error a sensor registered over these n points would see."""
+    batched: `robot.registration.rigid_fits`): the error a sensor registered over these n points would see."""
     reference = np.asarray(reference_points, dtype=float)
     model = np.broadcast_to(np.asarray(model_points, dtype=float), reference.shape)
-    centre_m, centre_r = model.mean(axis=1, keepdims=True), reference.mean(axis=1, keepdims=True)
-    a, b = model - centre_m, reference - centre_r
-    u, _, vt = np.linalg.svd(np.swapaxes(a, 1, 2) @ b)  # (m, 3, 3) covariances; matmul, not einsum: 10x faster
-    v, ut = np.swapaxes(vt, 1, 2), np.swapaxes(u, 1, 2)
-    flip = np.ones((len(reference), 3))
-    flip[:, 2] = np.sign(np.linalg.det(v @ ut))  # a rotation, never a reflection
-    rotation = v @ (flip[:, :, None] * ut)
-    return np.linalg.norm(a @ np.swapaxes(rotation, 1, 2) - b, axis=-1)
+    rotations, centre_m, centre_r = registration.rigid_fits(model, reference)
+    a, b = model - centre_m[:, None], reference - centre_r[:, None]
+    return np.linalg.norm(a @ np.swapaxes(rotations, 1, 2) - b, axis=-1)

@@ -85,7 +85,7 @@ from .settings import LoopSettings
 MEASURES = (
     ("rmse_mm", "post-registration RMSE (mm)"),
     ("rms_per_axis_mm", "RMS per axis (mm)"),
-    ("mean_error_mm", "mean post-registration error (mm)"),
+    ("mean_mm", "mean post-registration error (mm)"),
     ("relative_mean_mm", "mean relative error (mm)"),
 )
 

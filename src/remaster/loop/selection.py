@@ -46,30 +46,21 @@ def with_companions(candidate: str, added, remaining) -> tuple[str, ...]:
 # --------------------------------------------------------------------------- accuracy measures
 
 
+ACCURACY = ("rmse", "mean", "q97.5")  # of the post-registration errors (`metrics.error_summary`)
+
+
 def accuracy(measured, predicted, poses) -> dict:
     """Post-registration and relative accuracy (mm) of predictions (n, 3) against measurements
     (n, 3), both in the sensor frame; poses (n,) group the relative measure's pairs
     (`remaster.inference.metrics`)."""
     error = np.asarray(measured) - np.asarray(predicted)
-    if not len(error):  # a set without measured rows (a campaign without a validation set): nothing to say
-        nan = float("nan")
-        return {
-            "points": 0,
-            "rmse_mm": nan,
-            "rms_per_axis_mm": nan,
-            "mean_error_mm": nan,
-            "error_q97.5_mm": nan,
-            "relative_pairs": 0,
-            "relative_mean_mm": None,
-        }
-    norms = metrics.post_registration_errors(measured, predicted)
-    relative = metrics.interval_summary(metrics.relative_errors(measured, predicted, poses))
+    measured_any = len(error) > 0  # none in a set without measured rows (a campaign without a validation set)
+    norms = metrics.post_registration_errors(measured, predicted) if measured_any else np.empty(0)
+    relative = metrics.relative_errors(measured, predicted, poses) if measured_any else np.empty(0)
+    relative = metrics.error_summary(relative, ("mean",))
     return {
-        "points": int(len(norms)),
-        "rmse_mm": float(np.sqrt(np.mean(norms**2)) / MM),
-        "rms_per_axis_mm": float(np.sqrt(np.mean(error**2)) / MM),
-        "mean_error_mm": float(norms.mean() / MM),
-        "error_q97.5_mm": float(np.quantile(norms, 0.975) / MM),
+        **metrics.in_mm(metrics.error_summary(norms, ACCURACY)),
+        "rms_per_axis_mm": float(metrics.rms_per_axis(error) / MM) if measured_any else float("nan"),
         "relative_pairs": relative["count"],
         "relative_mean_mm": relative["mean"] / MM if relative["count"] else None,
     }

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..inference.bounds import QUANTILE, bound_from_covariances, bound_from_moments
 from ..planning import design_posterior as dp
 from ..robot.kinematics import KinematicChain
 from ..robot.planning import joint_range
@@ -81,9 +82,9 @@ class Design:
 def _summary(information: np.ndarray, eval_jacobian: np.ndarray) -> tuple[float, float, float, np.ndarray]:
     """(p95 of the bounds m, their mean m, log det information, Sigma) of a state."""
     sigma_matrix = dp.covariance(information)
-    bounds = dp.position_bounds(dp.position_covariances(eval_jacobian, sigma_matrix))
+    bounds = bound_from_covariances(dp.position_covariances(eval_jacobian, sigma_matrix))
     sign, logdet = np.linalg.slogdet(information)
-    return float(np.quantile(bounds, dp.QUANTILE)), float(np.mean(bounds)), float(logdet), sigma_matrix
+    return float(np.quantile(bounds, QUANTILE)), float(np.mean(bounds)), float(logdet), sigma_matrix
 
 
 def candidate_objectives(
@@ -103,11 +104,11 @@ def candidate_objectives(
         s_inv = np.linalg.inv(np.eye(3) + np.einsum("cip,cpj->cij", jc, b))
         g = (a @ jc.reshape(-1, p).T).reshape(n_eval, 3, len(jc), 3).transpose(2, 0, 1, 3)  # (c, E, 3, 3)
         reduced = base[None] - np.einsum("ceij,cjk,celk->ceil", g, s_inv, g, optimize=True)
-        bounds = dp.bound_from_moments(
+        bounds = bound_from_moments(
             np.trace(reduced, axis1=-2, axis2=-1), np.sum(reduced * reduced, axis=(-2, -1))
         )  # (c, E)
         out[begin : begin + len(jc)] = (
-            np.quantile(bounds, dp.QUANTILE, axis=1) if statistic == "p95" else np.mean(bounds, axis=1)
+            np.quantile(bounds, QUANTILE, axis=1) if statistic == "p95" else np.mean(bounds, axis=1)
         )
     return out
 

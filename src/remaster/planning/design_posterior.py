@@ -19,11 +19,9 @@ tracker noise is then well conditioned.
 
 The predicted position at a configuration q has the covariance C(q) = J_q Sigma J_q^T (3, 3) m^2,
 and its 95 % bound is the 95th percentile of |p - p_mean| under N(0, C), the quantity `remaster
-predict` reports from posterior draws (bound95_mm). |x|^2 is a sum of l_i chi2_1 (l_i the eigenvalues
-of C); it is taken as c chi2_nu with c = sum l_i^2 / sum l_i, nu = (sum l_i)^2 / sum l_i^2 (the
-Welch-Satterthwaite match of the first two moments): exact for an isotropic C (nu = 3) and for a
-rank-one one (nu = 1), within a few percent between, and it needs only the trace and the Frobenius
-norm of C, which a design's thousands of candidates x evaluation points can afford.
+predict` reports from posterior draws (bound95_mm): `inference.bounds.bound_from_covariances`, which
+needs only the trace and the Frobenius norm of C, what a design's thousands of candidates x
+evaluation points can afford.
 """
 
 from __future__ import annotations
@@ -39,7 +37,6 @@ from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
 
 COMPLETE_BLOCKS = ("marker_offset", "link_geometry")
-QUANTILE = 0.95
 # std (display units: mm, deg) standing in for the flat prior of the registration and zero-offsets
 VAGUE_STD = 100.0
 # configurations per Jacobian evaluation: bounds the (2P, n, 3) stacked predictions in memory
@@ -149,24 +146,6 @@ def position_covariances(eval_jacobian, sigma_matrix) -> np.ndarray:
     """C(q) = J_q Sigma J_q^T (E, 3, 3) m^2 of Jacobians (E, 3, P) m per display unit."""
     j = np.asarray(eval_jacobian, dtype=float)
     return np.einsum("eip,pq,ejq->eij", j, sigma_matrix, j, optimize=True)
-
-
-def bound_from_moments(trace, frobenius2, quantile: float = QUANTILE) -> np.ndarray:
-    """95 % bound of |x| (m) for x ~ N(0, C) from tr C and |C|_F^2 (any shape, m^2 and m^4): the
-    Welch-Satterthwaite c chi2_nu (module docstring)."""
-    from scipy.special import chdtri
-
-    trace = np.maximum(np.asarray(trace, dtype=float), 0.0)
-    frobenius2 = np.maximum(np.asarray(frobenius2, dtype=float), 1e-300)
-    c = frobenius2 / np.maximum(trace, 1e-300)
-    nu = np.clip(trace**2 / frobenius2, 1.0, 3.0)
-    return np.sqrt(c * chdtri(nu, 1.0 - quantile))
-
-
-def position_bounds(covariances, quantile: float = QUANTILE) -> np.ndarray:
-    """95 % bounds (E,) m of positions with covariances (E, 3, 3) m^2."""
-    c = np.asarray(covariances, dtype=float)
-    return bound_from_moments(np.trace(c, axis1=-2, axis2=-1), np.sum(c * c, axis=(-2, -1)), quantile)
 
 
 def woodbury_update(sigma_matrix, whitened_jacobian) -> np.ndarray:

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, require_columns
 from ..robot.kinematics import KinematicChain
 from .joint_tour import joint_tour
 
@@ -120,13 +120,7 @@ def configurations(table: pd.DataFrame, chain: KinematicChain, source: str, urdf
         raise InputError("no configurations (no rows)", file=source)
     n = chain.n_joints
     names = [f"q{j + 1}" for j in range(n)]
-    missing = [c for c in names if c not in table.columns]
-    if missing:
-        raise InputError(
-            f"missing joint column(s), the robot has {n} joints (got: {', '.join(map(str, table.columns))})",
-            file=source,
-            key=", ".join(missing),
-        )
+    require_columns(table, names, file=source, kind="joint", note=f"the robot has {n} joints", listed=True)
     extra = sorted(
         (c for c in map(str, table.columns) if re.fullmatch(r"q\d+", c) and c not in names), key=lambda c: int(c[1:])
     )

@@ -23,6 +23,7 @@ from ..evaluation.acceptance import DIAGNOSES, UNTESTED, Acceptance
 from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
 from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
 from ..evaluation.workspace import claim_rows
+from ..inference import metrics
 from ..inference.fit import LaplaceReport, disagreeing
 from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
@@ -98,7 +99,7 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses) -> dict:
         "mean (mm)": mean,
         "U(mean) (mm)": k * u,
         "k": k,
-        "p95 (mm)": float(np.quantile(errors_mm, 0.95)) if count else np.nan,
+        "p95 (mm)": metrics.error_summary(errors_mm, ("p95",))["p95"] if count else np.nan,
         "points": count,
     }
 
@@ -329,8 +330,8 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
             with_them, without = _mean_with_and_without(inputs.configuration_errors, method, validation)
             parts.append(f"{name} {with_them:.3g} / {without:.3g}")
         kept, after = found["with_flagged_rows"]["validation"]["after"], inputs.loop.after["validation"]
-        if kept["mean_error_mm"] is not None and after["mean_error_mm"] is not None:  # null: no row to average
-            parts.append(f"loop-closed {kept['mean_error_mm']:.3g} / {after['mean_error_mm']:.3g}")
+        if kept["mean_mm"] is not None and after["mean_mm"] is not None:  # null: no row to average
+            parts.append(f"loop-closed {kept['mean_mm']:.3g} / {after['mean_mm']:.3g}")
         out.append(
             f"{label}: validation set: {len(validation)} rows flagged as gross errors by the final model (rows "
             f"{validation}); validation mean error with them / without them (mm): {'; '.join(parts)}"

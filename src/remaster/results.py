@@ -1,0 +1,61 @@
+"""The one reader of the results the workflow wrote: the command line (`remaster predict`,
+`compensate`, `plan --from-results`) and the workflow's scripts read a stage's files back through it.
+
+A result is named by its key, the name the workflow's rules give the input (and `layout.SENSOR_RESULTS`
+the file under a sensor's results folder): the registration, the Laplace fit and the loop closure's
+report come back typed (`fit.Registration`, `fit.LaplaceReport`, `LoopReport`), every other file as
+its suffix says (JSON or YAML content, a CSV or Parquet table). A file not there is an InputError
+naming it and what to run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from . import layout
+from .errors import InputError
+from .files import read_csv, read_json, read_parquet, read_yaml
+from .inference.fit import LaplaceReport, Registration
+from .loop.result import LoopReport
+
+TYPED = {"registration": Registration.read, "laplace": LaplaceReport.read, "loop": LoopReport.read}
+BY_SUFFIX = {".json": read_json, ".yaml": read_yaml, ".csv": read_csv, ".parquet": read_parquet}
+NOT_WRITTEN = "not written: run `snakemake -j2` on the campaign first"
+NO_RESULTS = "no results of this campaign and sensor: run `snakemake -j2` first, or give the results folder it wrote"
+
+
+def read_result(key: str, path: str | Path) -> Any:
+    """The result `key` from its file `path` (module docstring); InputError naming the file when it
+    is not there, unreadable, or a report without a key the later stages read."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(NOT_WRITTEN, file=str(path))
+    if key in TYPED:
+        return TYPED[key](path)
+    if path.suffix not in BY_SUFFIX:
+        raise InputError(f"no reader for a {path.suffix or 'suffix-less'} file", file=str(path))
+    return BY_SUFFIX[path.suffix](path)
+
+
+def read_results(paths: Mapping[str, str | Path], keys: Iterable[str] | None = None) -> dict[str, Any]:
+    """{key: `read_result`} of the files paths[key] (e.g. a workflow job's named inputs), for every
+    key of `keys` (default: every key of paths)."""
+    return {key: read_result(key, paths[key]) for key in (paths if keys is None else keys)}
+
+
+def sensor_folder(results_dir: str | Path, campaign: str, sensor: str) -> Path:
+    """The results folder of one campaign's sensor: results_dir/layout.SENSOR_FOLDER."""
+    return Path(results_dir) / layout.SENSOR_FOLDER.format(campaign=campaign, sensor=sensor)
+
+
+def sensor_results(folder: str | Path, keys: Iterable[str] | None = None) -> dict[str, Any]:
+    """{key: `read_result`} of the results in a sensor's results folder (`sensor_folder`) named by
+    `keys` of `layout.SENSOR_RESULTS` (default every one); InputError naming the folder when the
+    workflow has not filled it, or the first file it has not written."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(NO_RESULTS, file=str(folder))
+    keys = list(layout.SENSOR_RESULTS if keys is None else keys)
+    return read_results({key: folder / layout.SENSOR_RESULTS[key] for key in keys})
