@@ -72,7 +72,7 @@ CANDIDATE_POSES = 300  # simulator: Latin-hypercube poses of the planner's candi
 EXCHANGE_N = 60  # simulator: the exchange pass is measured up to this N (its cost grows with N x candidates)
 SENSOR = "laser_tracker"
 # the blocks of docs/planning.md (planner.md whole) and README.md (its verdicts) that show the results
-# (tests/test_design.py checks them)
+# (tests/planning/test_design.py checks them)
 DOCUMENTS = (REPO / "docs" / "planning.md", REPO / "README.md")
 BEGIN, END = "<!-- bench_planner:begin -->", "<!-- bench_planner:end -->"
 UR5 = REPO / "data" / "raw" / "jacobi-ur5-gts3800"

@@ -76,7 +76,7 @@ CANDIDATE_POSES = 300
 CYCLIC_SCALE = 0.25
 OUT = REPO / "benchmarks" / "results"
 # the blocks of docs/planning.md (robust_planner.md whole) and README.md (its verdicts) that show the
-# results (tests/test_design_discrepancy.py checks them)
+# results (tests/planning/test_robust_design.py checks them)
 DOCUMENTS = (REPO / "docs" / "planning.md", REPO / "README.md")
 BEGIN, END = "<!-- bench_robust_design:begin -->", "<!-- bench_robust_design:end -->"
 

@@ -5,7 +5,7 @@ configurations inside the measured joint ranges (`domain.MeasuredDomain`); and t
 one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
 percentile of the registered error there.
 
-Not a benchmark itself: the harness that tests/test_truth_claims.py and tests/test_joint_harmonics.py
+Not a benchmark itself: the harness that tests/workflow/test_truth_claims.py and tests/loop/test_joint_harmonics.py
 (small campaigns) and benchmarks/bench_truth_claims.py and bench_cyclic_case.py (campaigns of the
 paper's size) share, with the config.yaml the workflow runs (validated against its schema, defaults
 filled). The campaign goes through the pipeline's own stages in-process (registration,

@@ -1,6 +1,6 @@
 """Bad input gets a clear error naming the file, key or column and rows, a non-zero exit and no
 partial result (docs/bad-input.md). One test per catalogue entry not already proved elsewhere:
-tests/test_campaign.py, tests/test_kinematics.py and tests/test_registration.py hold the others."""
+tests/campaigns/test_campaign.py, tests/robot/test_kinematics.py and tests/robot/test_registration.py hold the others."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from remaster.errors import InputError, KinematicsError, require_columns
 from remaster.inference import metrics
 from remaster.robot import kinematics, registration
 
+from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
 from .conftest import REPO
-from .test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 TINY_FIT = {
@@ -198,7 +198,7 @@ def test_non_serial_urdf_in_a_campaign_names_the_urdf(tmp_path):
 
 
 def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
-    from .test_campaign import SMALL_URDF
+    from .campaigns.test_campaign import SMALL_URDF
 
     bad_limit = SMALL_URDF.replace(
         '<joint name="j2" type="revolute">', '<joint name="j2" type="revolute"><limit lower="-1.5" upper="one"/>'
@@ -212,7 +212,7 @@ def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
 
 
 def test_urdf_limits_upside_down(tmp_path):
-    from .test_campaign import SMALL_URDF
+    from .campaigns.test_campaign import SMALL_URDF
 
     swapped = SMALL_URDF.replace(
         '<joint name="j1" type="revolute">', '<joint name="j1" type="revolute"><limit lower="1.0" upper="-1.0"/>'

@@ -1,0 +1,413 @@
+"""Putting a calibration to work: predicted positions, compensated commands (exact under the
+calibrated model, nearest to the nominal ones), bounds from the posterior, bad input, and the
+closed loop on the simulator: compensated commands sent to the twin's true robot."""
+
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from remaster import files, layout, spatial
+from remaster.calibration import compensation, prediction
+from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
+from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
+from remaster.cli import main as cli
+from remaster.errors import InputError
+from remaster.inference import blocks, fit
+from remaster.inference.model import SIGMA
+from remaster.robot import kinematics
+from remaster.units import DEG, MM
+
+from ..conftest import REPO
+from ..evaluation.test_workspace import at_start, fitted, laplace_content
+
+MARKER = np.array([0.0, 0.0, 0.08])
+EFFECTS = ("joint_compliance", "marker_offset", "link_geometry")
+
+
+def loop_values(chain, rng) -> dict:
+    values = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.3 * DEG) for j in range(chain.n_joints)}
+    values.update({f"joint_compliance.q{j + 1}": rng.normal(0.0, 3e-5) for j in range(chain.n_joints)})
+    values.update({f"marker_offset.{a}": rng.normal(0.0, 5e-4) for a in "xyz"})
+    for _, column, name in blocks.link_labels(chain):
+        values[name] = rng.normal(0.0, 5e-4 if column == 0 else 0.05 * DEG)
+    return values
+
+
+def synthetic_robot(chain, rng, spread=1e-5, draws=400, held=None, tcp=None, **given) -> compensation.CalibratedRobot:
+    """A loop-closed model with random values (`given` ones replaced: zero_offsets_q4=0.01) and Gaussian
+    posterior rows of std `spread` (SI) around them."""
+    values = {**loop_values(chain, rng), **{k.replace("_q", ".q"): v for k, v in given.items()}}
+    setup = {
+        "registration.x": 0.8,
+        "registration.y": -0.2,
+        "registration.z": 0.1,
+        "registration.alpha": 0.3,
+        "registration.beta": -0.01,
+        "registration.gamma": 0.02,
+        "sensor_scale.s": 2e-5,
+    }
+    names = [n for n in values if n not in (held or {})]
+    every = {**values, **setup}
+    samples = pd.DataFrame({n: every[n] + spread * rng.standard_normal(draws) for n in names + list(setup)})
+    samples[SIGMA] = 2e-5
+    calibration = prediction.Calibration(
+        "loop", {**values, **(held or {})}, EFFECTS, blocks.ModelSettings(), samples[names]
+    )
+    return compensation.CalibratedRobot(
+        chain,
+        calibration,
+        MARKER if tcp is None else np.asarray(tcp),
+        tcp is None,
+        setup,
+        spatial.homogeneous(spatial.rot_z(0.4), [1.0, 2.0, 0.5]),
+        samples,
+        dict(held or {}),
+        0.5 * DEG,
+        absorbed=frozenset(held or {}),
+    )
+
+
+def commands(chain, rng, n=12):
+    return rng.uniform(np.maximum(chain.lower, -2.0) * 0.8, np.minimum(chain.upper, 2.0) * 0.8, (n, chain.n_joints))
+
+
+# --------------------------------------------------------------------------- pieces
+
+
+def test_the_flange_pose_carries_the_point(iiwa, rng):
+    """Predictor.flange_poses (new) and Predictor.points (the fit's) agree: the link geometry and
+    the joint-space effects act on the flange, the marker offset on the marker."""
+    robot = synthetic_robot(iiwa, rng)
+    q = commands(iiwa, rng)
+    predictor = robot.predictor(q)
+    values = robot.calibration.values
+    poses = predictor.flange_poses(values)
+    offset = np.array([values[f"marker_offset.{a}"] for a in "xyz"])
+    np.testing.assert_allclose(
+        poses[:, :3, :3] @ (MARKER + offset) + poses[:, :3, 3], predictor.points(values), atol=1e-12
+    )
+
+
+def test_sensor_frame_round_trip(iiwa, rng):
+    robot = synthetic_robot(iiwa, rng)
+    points = rng.uniform(-1, 1, (20, 3))
+    np.testing.assert_allclose(robot.in_frame(robot.from_sensor(points), "sensor"), points, atol=1e-12)
+
+
+def test_compensated_commands_put_the_calibrated_robot_where_the_nominal_one_was(iiwa, rng):
+    """Under the calibrated model the compensated command reproduces the nominal command's point
+    and flange orientation, and among all such commands it is the nearest to the nominal one
+    (first-order optimality: the change lies in the row space of the constraint Jacobian)."""
+    robot = synthetic_robot(iiwa, rng)
+    q0 = commands(iiwa, rng)
+    out = compensation.compensate(robot, "robot", 200, rng, commands=q0)
+    assert (out["status"] == compensation.REACHED).all()
+    q = out[[f"q{j + 1}" for j in range(7)]].to_numpy()
+    nominal = kinematics.ForwardKinematics(iiwa, q0)
+    np.testing.assert_allclose(robot.robot_points(q), nominal.points(MARKER), atol=2e-9)
+    rotations = robot.predictor(q).flange_poses(robot.calibration.values)[:, :3, :3]
+    np.testing.assert_allclose(rotations, nominal.flange_poses()[:, :3, :3], atol=2e-9)
+    assert np.all(out["error_mm"] < 1e-5) and np.all(out["nominal_error_mm"] > 0.1)
+    evaluate = compensation._calibrated_evaluate(robot)
+    for i in range(3):
+        base_points, base_frames = evaluate(q[i : i + 1])
+        columns = []
+        for j in range(7):
+            step = q[i : i + 1].copy()
+            step[0, j] += 1e-6
+            p, r = evaluate(step)
+            dr = r[0] @ base_frames[0].T  # I + skew(small rotation)
+            columns.append(np.concatenate([(p - base_points)[0], [dr[2, 1], dr[0, 2], dr[1, 0]]]) / 1e-6)
+        jacobian = np.array(columns).T  # (6, 7)
+        change = q[i] - q0[i]
+        null = np.linalg.svd(jacobian)[2][-1]  # the one direction that moves neither point nor flange
+        assert abs(null @ change) < 1e-4 * np.linalg.norm(change)
+
+
+def test_a_six_joint_robot_and_target_positions_with_seeds(rng, ur5_dh):
+    """Target positions (robot frame) with seed commands on a DH robot: the nominal solution is
+    the nominal model's IK of the point from the seed, the compensated one puts the calibrated
+    point on the target."""
+    robot = synthetic_robot(ur5_dh, rng)
+    q_true = commands(ur5_dh, rng, 8)
+    targets = kinematics.ForwardKinematics(ur5_dh, q_true).points(MARKER)
+    out = compensation.compensate(robot, "robot", 100, rng, targets=targets, seeds=q_true + 0.05)
+    assert (out["status"] == compensation.REACHED).all(), out["reason"].tolist()
+    q = out[[f"q{j + 1}" for j in range(6)]].to_numpy()
+    nominal = out[[f"nominal_q{j + 1}" for j in range(6)]].to_numpy()
+    np.testing.assert_allclose(kinematics.ForwardKinematics(ur5_dh, nominal).points(MARKER), targets, atol=2e-9)
+    np.testing.assert_allclose(robot.robot_points(q), targets, atol=2e-9)
+
+
+def test_targets_out_of_reach_and_beyond_the_limits_are_listed_with_the_reason(iiwa, rng):
+    robot = synthetic_robot(iiwa, rng, zero_offsets_q4=-0.01)  # true angle = command - 0.01 rad
+    q0 = commands(iiwa, rng, 3)
+    q0[1, 3] = iiwa.upper[3] - 1e-3  # so the compensated command is past joint 4's upper limit
+    targets = kinematics.ForwardKinematics(iiwa, q0).points(MARKER)
+    targets[0] = [3.0, 0.0, 0.5]  # 3 m away: beyond the iiwa's reach
+    out = compensation.compensate(robot, "robot", 50, rng, targets=targets, seeds=q0)
+    assert out.loc[0, "status"] == compensation.NOT_REACHED
+    assert re.fullmatch(r"nominal model: out of reach: no convergence, closest [0-9.e+]+ mm away", out.loc[0, "reason"])
+    assert np.isnan(out.loc[0, "q1"]) and out.loc[2, "status"] == compensation.REACHED
+    summary = compensation.not_reached_summary(out)
+    assert summary.startswith(f"{(out['status'] != 'reached').sum()} of 3 targets not reached (row")
+    beyond = re.fullmatch(r"calibrated model: joint 4 beyond its limits by ([0-9.]+) deg", out.loc[1, "reason"])
+    assert beyond and 0.3 < float(beyond.group(1)) < 1.0  # 0.57 deg of zero-offset less the 0.06 deg margin, +-
+
+
+def test_bounds_follow_the_posterior_spread(iiwa, rng):
+    """Tenfold wider posterior rows give tenfold wider bounds (parameters only; the linearised
+    model is exact to ~1e-3 at these sizes), and the held zero-offset's tolerance widens the
+    robot-frame bound, not the sensor-frame one (the registration holds it there)."""
+    q = commands(iiwa, rng, 10)
+    narrow = compensation.predict(
+        synthetic_robot(iiwa, np.random.default_rng(1), 1e-6), q, "robot", 2000, np.random.default_rng(2)
+    )
+    wide = compensation.predict(
+        synthetic_robot(iiwa, np.random.default_rng(1), 1e-5), q, "robot", 2000, np.random.default_rng(2)
+    )
+    np.testing.assert_allclose(wide["bound95_mm"] / narrow["bound95_mm"], 10.0, rtol=0.01)
+    np.testing.assert_allclose(wide["x"], narrow["x"], atol=1e-12)
+    held = synthetic_robot(iiwa, np.random.default_rng(1), 1e-6, held={"zero_offsets.q1": 0.0})
+    in_robot = compensation.predict(held, q, "robot", 2000, np.random.default_rng(2))
+    radius = np.linalg.norm(in_robot[["x", "y"]].to_numpy(), axis=1)
+    # joint 1 at 0.5 deg (1 sigma): the bound is about 1.96 sigma * radius (a rotation about base Z)
+    np.testing.assert_allclose(in_robot["bound95_mm"], 1.96 * 0.5 * DEG * radius / MM, rtol=0.15)
+    in_sensor = compensation.predict(held, q, "sensor", 2000, np.random.default_rng(2))
+    assert np.all(in_sensor["bound95_mm"] < 0.1 * in_robot["bound95_mm"])
+
+
+def test_a_tcp_leaves_the_marker_effects_out_and_says_so(iiwa, rng):
+    robot = synthetic_robot(iiwa, rng, tcp=[0.0, 0.0, 0.2])
+    assert "marker_offset" not in robot.blocks and "not applied to a TCP" in robot.notes("sensor")[0]
+    q = commands(iiwa, rng, 4)
+    poses = robot.predictor(q).flange_poses(robot.calibration.values)
+    np.testing.assert_allclose(robot.robot_points(q), poses[:, :3, :3] @ [0.0, 0.0, 0.2] + poses[:, :3, 3], atol=1e-12)
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+def test_bad_commands_name_the_file_column_and_rows(iiwa):
+    table = pd.DataFrame({f"q{j + 1}": [0.1, 0.2, 0.3] for j in range(7)})
+    with pytest.raises(InputError, match=r"c.csv: q6, q7: missing joint column\(s\) \(got: q1"):
+        compensation.joint_commands(table.drop(columns=["q6", "q7"]), iiwa, "c.csv")
+    bad = table.astype(object)
+    bad.loc[1, "q3"] = "abc"
+    bad.loc[2, "q3"] = np.nan
+    with pytest.raises(InputError, match=r"c.csv: q3: not a finite number \(rows 1, 2\)"):
+        compensation.joint_commands(bad, iiwa, "c.csv")
+    far = table.copy()
+    far.loc[2, "q4"] = 120.0  # degrees given for radians
+    with pytest.raises(
+        InputError, match=r"c.csv: q4: beyond the joint limits .* rad \(commands are in rad\) \(row 2\)"
+    ):
+        compensation.joint_commands(far, iiwa, "c.csv")
+    with pytest.raises(InputError, match="c.csv: no rows"):
+        compensation.joint_commands(table.iloc[:0], iiwa, "c.csv")
+    assert compensation.joint_commands(pd.DataFrame({"x": [1.0]}), iiwa, "c.csv", required=False) is None
+
+
+def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys):
+    campaign = str(REPO / "data" / "raw" / "kuka-twin")
+    out = tmp_path / "out.csv"
+    common = ["--campaign", campaign, "--sensor", "laser_tracker", "--out", str(out)]
+    assert cli(["predict", *common, "--results", str(tmp_path / "nowhere"), "--commands", "c.csv"]) == 2
+    assert "nowhere/kuka-twin/laser_tracker: no results of this campaign and sensor" in capsys.readouterr().err
+    (tmp_path / "results" / "kuka-twin" / "laser_tracker").mkdir(parents=True)
+    assert cli(["predict", *common, "--results", str(tmp_path / "results"), "--commands", "c.csv"]) == 2
+    assert "laser_tracker/registration.json: not written: run `snakemake -j2` on the campaign first" in (
+        capsys.readouterr().err
+    )
+    assert (
+        cli(
+            [
+                "compensate",
+                "--campaign",
+                campaign,
+                "--sensor",
+                "camera",
+                "--results",
+                str(tmp_path / "results"),
+                "--targets",
+                "t.csv",
+            ]
+        )
+        == 2
+    )
+    assert "no results of this campaign and sensor" in capsys.readouterr().err
+    for bad in (["--draws", "0"], ["--model", "full"]):
+        with pytest.raises(SystemExit) as exited:
+            cli(["predict", *common, "--commands", "c.csv", *bad])
+        assert exited.value.code == 2
+    err = capsys.readouterr().err
+    assert "--draws: must be at least 1, got 0" in err and "--model: invalid choice: 'full'" in err
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- closed loop on the simulator
+
+
+def twin(model: str, tmp_path_factory):
+    """The twin's laser-tracker calibration (fitted in-process, shared with test_workspace) and
+    its true robot and sensor. The twin drifts: a calibration's zero-offsets are those of its drift
+    block's time origin, the first measurement, so the true robot is taken then (`at_start`)."""
+    campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
+    results = {
+        "registration": fit.registration_stage(campaign, "laser_tracker"),
+        "laplace": laplace,
+        "summary": fit.mode_summary(laplace),
+        "paper_samples": None,
+        "loop": report,
+        "loop_samples": samples,
+        "gp": None,
+    }
+    truth = files.read_json(REPO / "data" / "truth" / "kuka-twin.json")
+    sensor = sensor_from_truth(truth, "laser_tracker", campaign.sensors["laser_tracker"].marker)
+    return (
+        campaign,
+        compensation.calibrated_robot(campaign, "laser_tracker", model, results),
+        robot_from_truth(truth),
+        sensor,
+    )
+
+
+def closed_loop(frame: str, tmp_path_factory):
+    """The twin's validation configurations as a nominal program, compensated in `frame` by the
+    loop-closed model and sent to the simulator's true robot: (table, true miss of the nominal
+    commands, true miss of the compensated ones) in m, for the commands the compensation reached.
+    A command within a degree of a joint limit may have no compensated twin inside the limits:
+    such a row must say so, and only such a row may."""
+    campaign, robot, true_robot, sensor = twin("loop", tmp_path_factory)
+    q0 = campaign.sensors["laser_tracker"].q("validation")
+    out = compensation.compensate(robot, frame, 1000, np.random.default_rng(5), commands=q0)
+    reached = (out["status"] == compensation.REACHED).to_numpy()
+    chain = campaign.chain
+    at_a_limit = np.min(np.minimum(q0 - chain.lower, chain.upper - q0), axis=1) < np.radians(1.0)
+    assert reached.mean() > 0.95 and not np.any(~reached & ~at_a_limit)
+    assert out.loc[~reached, "reason"].str.contains("beyond its limits").all()
+    out, q0 = out[reached], q0[reached]
+    q = out[[f"q{j + 1}" for j in range(7)]].to_numpy()
+    where = true_sensor_positions if frame == "sensor" else true_marker_positions
+    targets = out[["target_x", "target_y", "target_z"]].to_numpy()
+    return (
+        out,
+        np.linalg.norm(where(campaign.chain, true_robot, sensor, q0, at_start(q0)) - targets, axis=1),
+        np.linalg.norm(where(campaign.chain, true_robot, sensor, q, at_start(q)) - targets, axis=1),
+    )
+
+
+def test_compensated_commands_reach_the_twins_targets_on_its_true_robot(tmp_path_factory):
+    """Targets where the nominal cell (nominal kinematics, the campaign's initial registration)
+    puts them in the laser tracker's frame: the nominal commands miss by millimetres, the
+    compensated ones reach them to within the tracker's noise (10 um per axis)."""
+    out, nominal_miss, miss = closed_loop("sensor", tmp_path_factory)
+    noise = np.sqrt(3) * 10e-6  # RMS length of the tracker's noise vector
+    assert np.sqrt(np.mean(nominal_miss**2)) > 1e-3
+    assert np.sqrt(np.mean(miss**2)) < noise
+    np.testing.assert_allclose(out["nominal_error_mm"] * MM, nominal_miss, rtol=0.05, atol=2 * noise)
+
+
+def test_in_the_robot_frame_the_unseen_joint_1_zero_is_in_the_bound(tmp_path_factory):
+    """In the robot frame the compensated commands miss by joint 1's true zero-offset (0.48 deg,
+    which no sensor sees: the registration absorbs it) times the radius, and the 95 % bounds,
+    which draw it at the controller marks' tolerance, cover every row."""
+    out, _, miss = closed_loop("robot", tmp_path_factory)
+    assert np.sqrt(np.mean(miss**2)) > 1e-3
+    assert np.all(miss <= out["bound95_mm"].to_numpy() * MM)
+
+
+def test_the_posterior_holds_the_true_errors_of_the_compensated_commands(tmp_path_factory):
+    """One calibration is one realization: the true errors at all commands come from one parameter
+    error, so the share of rows inside their own 95 % bound is not 95 % by promise (88 % here). What
+    the posterior does promise, and this checks, is that the true positions are a plausible draw
+    from it: the truth's total squared deviation over every command ranks inside the central 95 % of
+    the draws', and in the draws' leading principal directions the truth's whitened coordinates
+    have a chi-square within its 95 % range."""
+    campaign, robot, true_robot, sensor = twin("loop", tmp_path_factory)
+    q0 = campaign.sensors["laser_tracker"].q("validation")
+    out = compensation.compensate(robot, "sensor", 200, np.random.default_rng(5), commands=q0)
+    q = out[[f"q{j + 1}" for j in range(7)]].to_numpy()
+    draws, _ = robot.draw_points(q, "sensor", 2000, np.random.default_rng(7))
+    centre = draws.mean(axis=0)
+    error = true_sensor_positions(campaign.chain, true_robot, sensor, q, at_start(q)) - centre
+    spread = draws - centre
+    rank = np.mean(np.sum(spread**2, axis=(1, 2)) < np.sum(error**2))
+    assert 0.025 < rank < 0.975
+    _, singular, directions = np.linalg.svd(spread.reshape(len(draws), -1), full_matrices=False)
+    leading = 20
+    whitened = directions[:leading] @ error.ravel() / (singular[:leading] / np.sqrt(len(draws)))
+    assert stats.chi2(leading).ppf(0.025) < np.sum(whitened**2) < stats.chi2(leading).ppf(0.975)
+
+
+# --------------------------------------------------------------------------- the command line, end to end
+
+
+@pytest.fixture(scope="module")
+def twin_results(tmp_path_factory):
+    """A results folder as `snakemake -j2` writes it for the twin's laser tracker (the loop closure
+    fitted in-process; the paper model without MCMC samples)."""
+    campaign, laplace, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
+    root = tmp_path_factory.mktemp("results")
+    folder = root / "kuka-twin" / "laser_tracker"
+    files.write_json(folder / layout.REGISTRATION, fit.registration_stage(campaign, "laser_tracker").report())
+    files.write_json(folder / layout.LAPLACE, laplace_content("kuka-twin", "laser_tracker"))
+    files.write_csv(folder / layout.SUMMARY, fit.mode_summary(laplace).reset_index())
+    files.write_parquet(folder / layout.DEFAULT_SAMPLES, pd.DataFrame())
+    report.write(folder / layout.LOOP_CLOSURE)
+    files.write_parquet(folder / layout.LOOP_SAMPLES, samples)
+    files.write_parquet(folder / layout.LOOP_GP, pd.DataFrame())
+    return root, campaign
+
+
+def test_predict_and_compensate_from_the_command_line(twin_results, tmp_path, capsys, monkeypatch):
+    root, campaign = twin_results
+    monkeypatch.chdir(REPO)  # the campaign's URDF path is the repository's
+    q = campaign.sensors["laser_tracker"].q("validation")[:6]
+    program = tmp_path / "program.csv"
+    files.write_csv(program, pd.DataFrame(q, columns=[f"q{j + 1}" for j in range(7)]))
+    common = ["--campaign", "data/raw/kuka-twin", "--sensor", "laser_tracker", "--results", str(root), "--draws", "300"]
+    assert cli(["predict", *common, "--commands", str(program), "--out", str(tmp_path / "p.csv")]) == 0
+    predicted = files.read_csv(tmp_path / "p.csv")
+    assert len(predicted) == 6 and predicted["bound95_mm"].notna().all()
+    assert "the zero-offset of q1, which these data do not see" in capsys.readouterr().err
+    assert (
+        cli(["compensate", *common, "--frame", "sensor", "--targets", str(program), "--out", str(tmp_path / "c.csv")])
+        == 0
+    )
+    compensated = files.read_csv(tmp_path / "c.csv")
+    assert (compensated["status"] == compensation.REACHED).all() and (compensated["nominal_error_mm"] > 0.5).all()
+    # targets: the compensated ones' targets, one moved 3 m away; exit 3, every row written
+    targets = compensated[["target_x", "target_y", "target_z"]].rename(columns=lambda c: c[-1])
+    targets.loc[4, "x"] += 3.0
+    files.write_csv(tmp_path / "t.csv", targets)
+    assert (
+        cli(
+            [
+                "compensate",
+                *common,
+                "--frame",
+                "sensor",
+                "--targets",
+                str(tmp_path / "t.csv"),
+                "--out",
+                str(tmp_path / "c2.csv"),
+            ]
+        )
+        == 3
+    )
+    assert "1 of 6 targets not reached (row 4): see the column reason" in capsys.readouterr().err
+    again = files.read_csv(tmp_path / "c2.csv")
+    assert len(again) == 6 and again.loc[4, "reason"].startswith("nominal model: out of reach")
+    # from targets alone (seeded at the nearest optimization configuration) the other rows are reached
+    reached = again.drop(index=4)
+    assert (reached["status"] == compensation.REACHED).all() and (reached["error_mm"] < 1e-6).all()
+    files.write_csv(tmp_path / "bad.csv", pd.DataFrame({"a": [1.0], "b": [2.0]}))
+    assert cli(["compensate", *common, "--targets", str(tmp_path / "bad.csv"), "--out", str(tmp_path / "c3.csv")]) == 2
+    assert (
+        "bad.csv: x, y, z or q1..q7: neither target positions nor joint commands (got: a, b)" in capsys.readouterr().err
+    )
+    assert not (tmp_path / "c3.csv").exists()

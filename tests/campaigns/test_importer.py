@@ -1,0 +1,285 @@
+"""`remaster import`: hand-written controller and sensor CSV exports become a campaign folder in SI
+units; unmatched rows are listed, never dropped; bad cells name the file, the line and the column."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from remaster import cli, files
+from remaster.campaigns import folders, importer
+from remaster.errors import InputError
+
+from ..conftest import IIWA_URDF
+
+# A 3-joint arm as standard DH rows: no URDF file needed.
+ROBOT = {
+    "dh": {"convention": "standard", "rows": [[0.0, math.pi / 2, 0.3, 0.0], [0.4, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]]}
+}
+
+CONTROLLER = """\
+point,A1,A2,A3,phase,stamp
+P1,10,20,30,optimization,2024-05-02T10:00:00
+P2,-15.5,45,0,optimization,2024-05-02T10:00:10
+P3,90,0,-45,optimization,2024-05-02T10:00:20
+P4,0,0,0,validation,2024-05-02T10:00:30
+P5,30,60,-90,optimization,2024-05-02T10:00:40
+P6,-60,30,45,optimization,2024-05-02T10:00:50
+"""
+
+TRACKER = """\
+id,X,Y,Z
+P3,1000,-250.5,300
+P1,1500,0,20
+
+P2,,,
+P4,1200.25,10,5
+P6,900,400,-100
+P5,1100,-300,150
+"""
+SEEN = [
+    [1.5, 0.0, 0.02],
+    [np.nan] * 3,
+    [1.0, -0.2505, 0.3],
+    [1.20025, 0.01, 0.005],
+    [1.1, -0.3, 0.15],
+    [0.9, 0.4, -0.1],
+]
+DEGREES = [[10, 20, 30], [-15.5, 45, 0], [90, 0, -45], [0, 0, 0], [30, 60, -90], [-60, 30, 45]]
+
+
+def write_import(tmp_path, controller=CONTROLLER, tracker=TRACKER, sensor=None, controller_section=None):
+    (tmp_path / "controller.csv").write_text(controller, encoding="utf-8")
+    (tmp_path / "tracker.csv").write_text(tracker, encoding="utf-8")
+    config = {
+        "name": "cell3",
+        "date": "2024-05-02",
+        "description": "hand-written exports",
+        "robot": ROBOT,
+        "controller": {
+            "file": "controller.csv",
+            "joints": ["A1", "A2", "A3"],
+            "unit": "deg",
+            "set": "phase",
+            "key": "point",
+            "time": "stamp",
+            **(controller_section or {}),
+        },
+        "sensors": {
+            "laser_tracker": {
+                "kind": "laser_tracker",
+                "marker": [-0.1, 0.0, 0.02],
+                "noise": 1e-5,
+                "file": "tracker.csv",
+                "xyz": ["X", "Y", "Z"],
+                "unit": "mm",
+                "match": "key",
+                "key": "id",
+                **(sensor or {}),
+            }
+        },
+    }
+    files.write_yaml(tmp_path / "import.yaml", config)
+    return tmp_path / "import.yaml"
+
+
+def test_import_by_key_gives_si_values(tmp_path):
+    config = write_import(tmp_path)
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    assert folder == tmp_path / "raw" / "cell3"
+    campaign = folders.read_campaign(folder, repo_root=tmp_path)
+    table = campaign.sensors["laser_tracker"].table
+    assert campaign.n_joints == 3 and campaign.date.isoformat() == "2024-05-02"
+    assert table["set"].tolist() == ["optimization"] * 3 + ["validation"] + ["optimization"] * 2
+    assert table["pose"].tolist() == [0, 1, 2, 0, 3, 4] and table["solution"].tolist() == [0] * 6
+    np.testing.assert_allclose(table[["q1", "q2", "q3"]].to_numpy(), np.radians(DEGREES), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(table[["x", "y", "z"]].to_numpy(), SEEN, rtol=0, atol=1e-15)
+    assert str(table["time"].dtype) == "datetime64[ns, UTC]"
+    assert table["time"].iloc[1] == pd.Timestamp("2024-05-02T10:00:10Z")
+    section = report["sensors"]["laser_tracker"]
+    assert section["matched"] == 6 and section["unmatched"] == [] and section["not_measured"] == []
+    assert section["marker_not_seen"] == [{"file": str(tmp_path / "tracker.csv"), "line": 5, "key": "P2"}]
+    assert json.loads((folder / importer.REPORT_FILE).read_text()) == report
+
+
+def test_import_is_deterministic_and_refuses_to_overwrite(tmp_path):
+    config = write_import(tmp_path)
+    folder, _ = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    with pytest.raises(InputError, match="exists already"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path, overwrite=True)
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_match_by_time_lists_the_unmatched_sensor_row(tmp_path):
+    tracker = """\
+t;x;y;z
+2024-05-02T12:00:00.2+02:00;1,5;0;0,02
+2024-05-02 10:00:10.4;1,0;0,1;0,2
+2024-05-02T10:00:19.7Z;1,1;0,1;0,2
+2024-05-02T10:00:45Z;1,2;0,1;0,2
+2024-05-02T10:00:40Z;0,9;0,4;-0,1
+2024-05-02T10:00:50Z;1,1;-0,3;0,15
+"""
+    config = write_import(
+        tmp_path,
+        tracker=tracker,
+        sensor={
+            "xyz": ["x", "y", "z"],
+            "unit": "m",
+            "match": "time",
+            "key": None,
+            "time": "t",
+            "tolerance": 0.5,
+            "delimiter": ";",
+            "decimal": ",",
+        },
+        controller_section={"time": "stamp", "key": None},
+    )
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
+    np.testing.assert_allclose(
+        table[["x", "y", "z"]].to_numpy(),
+        [[1.5, 0, 0.02], [1.0, 0.1, 0.2], [1.1, 0.1, 0.2], [np.nan] * 3, [0.9, 0.4, -0.1], [1.1, -0.3, 0.15]],
+        atol=1e-15,
+    )
+    assert table["time"].iloc[0] == pd.Timestamp("2024-05-02T10:00:00Z")  # the controller's time
+    section = report["sensors"]["laser_tracker"]
+    assert section["matched"] == 5 and report["unmatched_rows"] == 1
+    [unmatched] = section["unmatched"]
+    assert unmatched["file"] == str(tmp_path / "tracker.csv") and unmatched["line"] == 5
+    assert unmatched["time"] == "2024-05-02T10:00:45Z" and "nearest 5 s away" in unmatched["reason"]
+    assert section["not_measured"] == [
+        {"file": str(tmp_path / "controller.csv"), "line": 5, "time": "2024-05-02T10:00:30"}
+    ]
+
+
+def test_two_sensor_rows_near_one_controller_row_keep_the_nearest(tmp_path):
+    tracker = (
+        "t,x,y,z\n2024-05-02T10:00:00.3,1,0,0\n2024-05-02T10:00:00.1,2,0,0\n2024-05-02T10:00:10,1,1,0\n"
+        "2024-05-02T10:00:20,1,0,1\n2024-05-02T10:00:40,1,1,1\n"
+    )
+    config = write_import(
+        tmp_path,
+        tracker=tracker,
+        sensor={"xyz": ["x", "y", "z"], "unit": "m", "match": "time", "key": None, "time": "t", "tolerance": 1.0},
+        controller_section={"time": "stamp", "key": None},
+    )
+    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    table = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].table
+    assert table["x"].iloc[0] == 2.0
+    [unmatched] = report["sensors"]["laser_tracker"]["unmatched"]
+    assert unmatched["line"] == 2 and "already matched by line 3" in unmatched["reason"]
+
+
+def test_non_numeric_cell_names_file_line_and_column(tmp_path):
+    config = write_import(tmp_path, controller=CONTROLLER.replace("P3,90,0", "P3,90,abc"))
+    with pytest.raises(InputError) as error:
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    message = str(error.value)
+    assert "controller.csv" in message and "A2" in message and "line 4" in message and "'abc'" in message
+    assert not (tmp_path / "raw" / "cell3").exists()
+
+
+def test_missing_column_is_named(tmp_path):
+    config = write_import(tmp_path, tracker=TRACKER.replace("id,X,Y,Z", "id,X,Y,Zmm"))
+    with pytest.raises(
+        InputError,
+        match=r"tracker\.csv: Z: missing column\(s\) \(named by `sensors/laser_tracker/xyz` of the import configuration; got: id, X, Y, Zmm\)",
+    ):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+
+
+def test_duplicate_keys_are_named(tmp_path):
+    config = write_import(tmp_path, tracker=TRACKER + "P3,1,2,3\n")
+    with pytest.raises(InputError, match=r"tracker\.csv: id: duplicate keys .* on lines 2, 9: 'P3', 'P3'"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+
+
+def test_ragged_row_and_bad_time_name_their_line(tmp_path):
+    with pytest.raises(InputError, match=r"c\.csv: line 3 has 2 fields, the header has 3"):
+        importer.parse_csv("a,b,c\n1,2,3\n4,5\n", "c.csv")
+    config = write_import(
+        tmp_path, controller=CONTROLLER.replace("10:00:20", "ten past"), controller_section={"time": "stamp"}
+    )
+    with pytest.raises(InputError, match=r"controller\.csv: stamp: not a time \(time_format iso\) on line 4"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+
+
+def test_configuration_errors_name_the_key(tmp_path):
+    config = write_import(tmp_path, sensor={"unit": "inch"})
+    with pytest.raises(InputError, match="import.yaml: sensors/laser_tracker/unit: must be one of mm, m"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    config = write_import(tmp_path, controller_section={"joints": ["A1", "A2"]})
+    with pytest.raises(InputError, match="controller/joints: names 2 joint columns but the robot has 3"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    config = write_import(tmp_path, sensor={"match": "time", "tolerance": 0.5}, controller_section={"time": None})
+    with pytest.raises(InputError, match="controller/time: missing"):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+
+
+def test_cli_import(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    config = write_import(tmp_path)
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(tmp_path / "raw")]) == 0
+    assert "0 unmatched sensor rows" in capsys.readouterr().out
+    config = write_import(tmp_path, tracker=TRACKER.replace("1200.25", "12OO.25"))
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(tmp_path / "raw"), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("remaster import: error: ") and "tracker.csv: X: not a finite number on line 6" in err
+
+
+def test_contract_check_after_import_names_the_exports(tmp_path):
+    """Degrees declared as radians pass the parser but not the campaign reader: the error names
+    the controller log's columns and lines, not the staged Parquet file."""
+    config = write_import(tmp_path, controller_section={"unit": "rad"})
+    with pytest.raises(InputError) as error:
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    message = str(error.value)
+    assert message.startswith(str(tmp_path / "controller.csv")) and "A1, A2, A3" in message
+    assert "lines 2, 3, 4, 6, 7" in message
+    assert "(campaign table laser_tracker)" in message and ".parquet" not in message
+
+
+def test_urdf_next_to_the_configuration_is_copied_into_the_campaign(tmp_path):
+    shutil.copyfile(IIWA_URDF, tmp_path / "arm.urdf")
+    joints = [f"A{j}" for j in range(1, 8)]
+    rows = [
+        [0, 30, 0, -60, 0, 45, 0],
+        [20, 40, 0, -80, 10, 30, 0],
+        [-30, 50, 0, -40, 0, 60, 0],
+        [45, 20, 0, -90, -20, 40, 0],
+        [-10, 60, 0, -30, 0, 20, 0],
+        [60, 35, 0, -70, 30, 50, 0],
+    ]
+    controller = (
+        "point,"
+        + ",".join(joints)
+        + "\n"
+        + "".join(f"P{i + 1}," + ",".join(map(str, row)) + "\n" for i, row in enumerate(rows))
+    )
+    tracker = "id,X,Y,Z\n" + "".join(
+        f"P{i + 1},{800 + 37 * i},{-200 + 91 * i**2},{500 - 55 * i}\n" for i in range(len(rows))
+    )
+    config = write_import(
+        tmp_path,
+        controller=controller,
+        tracker=tracker,
+        controller_section={"joints": joints, "set": None, "time": None},
+    )
+    meta = files.read_yaml(config)
+    meta["robot"] = {"urdf": "arm.urdf", "base": "iiwa_link_0", "flange": "iiwa_link_ee"}
+    files.write_yaml(config, meta)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    folder, _ = folders.import_campaign(config, tmp_path / "raw", repo_root=elsewhere)
+    assert (folder / "arm.urdf").read_bytes() == IIWA_URDF.read_bytes()
+    campaign = folders.read_campaign(folder, repo_root=elsewhere)
+    assert campaign.robot["urdf"] == "arm.urdf" and campaign.n_joints == 7
+    assert campaign.sensors["laser_tracker"].table["set"].eq("optimization").all()

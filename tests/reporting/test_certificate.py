@@ -1,0 +1,319 @@
+"""The calibration certificate: numbers from the result files, an honest uncertainty of a mean
+error (CR2, t), both models' corrections with U (95 %), and the warnings a user must read."""
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+
+from remaster.inference.fit import LaplaceReport
+from remaster.inference.uncertainty import coverage_factor
+from remaster.reporting import certificate
+
+from ..conftest import loop_report
+
+
+def test_the_pose_clustered_uncertainty_of_a_mean_error_covers_95_percent():
+    """Configurations of one pose share most of their error: a naive std / sqrt(n) would be too
+    small by sqrt(configurations per pose); the clustered u (CR2) with k = t(poses - 1) gives about
+    95 % coverage."""
+    rng = np.random.default_rng(5)
+    covered, naive_covered = [], []
+    poses = np.repeat(np.arange(30), 4)
+    for _ in range(2000):
+        errors = 2.0 + rng.normal(0, 1.0, 30)[poses] + rng.normal(0, 0.3, len(poses))
+        mean, u, count, dof = certificate.mean_with_uncertainty(errors, poses)
+        covered.append(abs(mean - 2.0) <= coverage_factor(dof) * u)
+        naive_covered.append(abs(mean - 2.0) <= 2 * errors.std(ddof=1) / np.sqrt(count))
+    assert dof == 29 and 0.935 <= np.mean(covered) <= 0.965  # binomial sd 0.5 %; equal poses: exactly t(29)
+    assert np.mean(naive_covered) < 0.8
+    assert np.isnan(certificate.mean_with_uncertainty([1.0, 2.0], [0, 0])[1])  # one pose: no u
+
+
+def _inputs(outliers=(), closed=True):
+    laplace = LaplaceReport(
+        ("zero_offsets.q2",),
+        np.zeros(1),
+        np.ones(1),
+        np.eye(1),
+        1e-3,
+        1e-3,
+        1e-4,
+        ("zero_offsets.q1", "zero_offsets.q2"),
+        {"zero_offsets.q1": 0.0},
+        (),
+        tuple(outliers),
+        (4,),
+        40,
+    )
+    rows = []
+    for method, level in ((certificate.BEFORE, 3.0), (certificate.AFTER, 1.0)):
+        for k in range(20):
+            rows.append(
+                {
+                    "set": "validation",
+                    "registration": certificate.AS_IS,
+                    "method": method,
+                    "row": 100 + k,
+                    "pose": k // 2,
+                    "error_mm": level + 0.1 * (k % 2) + 0.01 * k,
+                }
+            )
+    errors = pd.DataFrame(rows)
+    residuals = pd.DataFrame(
+        {
+            "when": "after",
+            "set": "validation",
+            "point": np.arange(20),
+            "row": 100 + np.arange(20),
+            "x_m": 2e-5 + 1e-6 * (np.arange(20) // 2),
+            "y_m": 0.0,
+            "z_m": 0.0,
+        }
+    )  # rows of 10 poses
+    claims = pd.DataFrame(
+        [
+            {
+                "model": m,
+                "configurations": c,
+                "frame": "registered",
+                "noise": "with noise",
+                "mean_mm": v,
+                "p95_mm": 2 * v,
+                "p95_bound_mm": 3 * v,
+                "count": 100,
+            }
+            for m, c, v in (
+                ("paper", "optimization", 1.0),
+                ("loop", "optimization", 0.02),
+                ("paper", "random", 1.1),
+                ("loop", "random", 0.5),
+                ("paper", "domain", 1.05),
+                ("loop", "domain", 0.03),
+            )
+        ]
+    )
+    workspace = {
+        "holds": {"loop": {"holds": "inside the measured ranges"}},
+        "domain": {
+            "ranges": "q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+            "held_joints": ["q2"],
+            "tool_axis_spread_deg": 17.6,
+            "covers_the_limits": False,
+            "holds": "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
+        },
+        "coverage": {"joint_range_fraction": [0.9, 0.0], "tool_axis_spread_deg": 17.6},
+        "warnings": ["the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)"],
+        "held_note": "",
+    }
+    verdict = "closed" if closed else "not closed: 0.1 mm left per axis"
+    refit = "the MCMC refit did not meet R-hat <= 1.05 and ESS >= 200 after 4 runs (last: R-hat 1.079, ESS 71)"
+    loop = loop_report(
+        effects=["joint_compliance"],
+        closure={"closed": closed, "verdict": verdict},
+        warnings=([] if closed else [f"loop {verdict}"]) + [refit],
+        gross_errors={"optimization": list(outliers), "validation": [], "with_flagged_rows": {}},
+    )
+    offsets = pd.DataFrame(
+        [
+            {
+                "joint": "j1",
+                "model": "paper",
+                "correction_deg": 0.0,
+                "std_deg": np.nan,
+                "status": "held: not identifiable",
+            },
+            {
+                "joint": "j2",
+                "model": "paper",
+                "correction_deg": 0.19,
+                "std_deg": 0.009,
+                "u_between_deg": 0.0,
+                "U_deg": 0.018,
+                "k": 2.0,
+                "status": "estimated",
+            },
+            {
+                "joint": "j2",
+                "model": "loop",
+                "correction_deg": 0.2,
+                "std_deg": 0.0001,
+                "u_between_deg": 0.002,
+                "U_deg": 0.0045,
+                "k": 2.26,
+                "status": "estimated",
+            },
+        ]
+    )
+    return certificate.CertificateInputs(laplace, errors, residuals, claims, workspace, loop, offsets)
+
+
+SUMMARY = {
+    "campaign": "c",
+    "date": "2020-01-01",
+    "robot": {"name": "arm", "serial": "S-1", "joints": ["j1", "j2"]},
+    "sensors": {"laser_tracker": {"kind": "laser_tracker"}},
+}
+
+
+def test_a_certificate_says_before_after_corrections_and_warnings():
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": _inputs(outliers=(7,), closed=False)})
+    assert "serial S-1" in cert.heading[0] and "40 points used" in cert.heading[1] and "1 not seen" in cert.heading[1]
+    accuracy = cert.accuracy.set_index(["Where", "Model"])
+    before = accuracy.loc[("validation set (measured)", "controller's zero-offsets")]
+    assert before["mean (mm)"] == np.mean([3.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])
+    assert before["points"] == 20 and before["U(mean) (mm)"] > 0
+    loop = accuracy.loc[("validation set (measured)", "loop-closed (added: joint_compliance (robot))")]
+    pose_means = 0.02 + 0.001 * np.arange(10)  # the loop's rows found their poses through the table's rows
+    assert np.isclose(loop["mean (mm)"], pose_means.mean())
+    # equal poses: CR2 is the spread of the pose means / sqrt(10), with k = t_0.975(9)
+    assert np.isclose(loop["U(mean) (mm)"], 2.262157 * pose_means.std(ddof=1) / np.sqrt(10))
+    # a claim's p95 is the bound on this arm's own 95th percentile, not the pooled quantile (2 x mean)
+    limits = "claimed across the joint limits (priors where the data did not reach)"
+    assert accuracy.loc[(limits, "loop-closed"), "p95 (mm)"] == 1.5
+    assert accuracy.loc[("claimed inside the measured ranges", "loop-closed"), "p95 (mm)"] == 3 * 0.03
+    # both models, the loop-closed one first, each U as controller_offsets.csv gives it
+    corrections = cert.corrections
+    assert corrections["Model"].str.startswith("loop-closed").tolist() == [True, False, False]
+    loop_j2, paper_j2 = corrections.iloc[0], corrections.iloc[2]
+    assert loop_j2["U(Correction) (deg)"] == 0.0045 and loop_j2["u_between (deg)"] == 0.002
+    assert paper_j2["U(Correction) (deg)"] == 0.018 and paper_j2["Model"].startswith("zero-offsets only")
+    held = corrections.iloc[1]
+    assert np.isnan(held["Correction (deg)"]) and held["Status"].startswith("held")
+    verdict = cert.verdicts.iloc[0]
+    assert (
+        verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
+        and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
+    )
+    assert verdict["Holds"] == "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg"
+    assert verdict["After: model"].startswith("loop-closed")
+    assert verdict["Inside the measured ranges: p95 (mm)"] == 3 * 0.03
+    assert verdict["Across the joint limits: p95 (mm)"] == 1.5
+    assert any("optimization set: 1 rows flagged as gross errors" in w and "[7]" in w for w in cert.warnings)
+    assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
+    assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)
+    assert "Laser Tracker: the next campaign must add: joint 2 over more of its range (measured: held at 0 deg)" in (
+        cert.warnings
+    )
+    assert cert.warnings[0].endswith(
+        "over the joint ranges measured: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg; every measured "
+        "tool axis within 18 deg of one direction; beyond them, the claim across the joint limits carries the "
+        "priors of what the data did not reach"
+    )
+    text = certificate.to_markdown(cert)
+    assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
+
+
+def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
+    """A cross_check.csv as `fit.cross_check` writes it: every parameter, `disagreement` the
+    methods that disagree on it ("" where none)."""
+    names = ["zero_offsets.q2", "noise.sigma"]
+    return pd.DataFrame(
+        {
+            "parameter": names,
+            "z_emcee": [5.2 if "emcee" in disagree.get(n, "") else 0.3 for n in names],
+            "disagrees_emcee": ["emcee" in disagree.get(n, "") for n in names],
+            "disagreement": [disagree.get(n, "") for n in names],
+        }
+    )
+
+
+def test_samplers_that_disagree_are_in_the_verdict_and_the_warnings(tmp_path):
+    """A disagreement no longer stops the campaign: the certificate is made, its verdict says the
+    fit is not confirmed by a second sampler and names the parameter and the method, and so do its
+    warnings; agreeing samplers confirm it; no cross-check read says so."""
+    from remaster import files
+
+    path = files.write_csv(tmp_path / "cross_check.csv", _cross_check({"zero_offsets.q2": "emcee, laplace"}))
+    inputs = dataclasses.replace(_inputs(), cross_check=files.read_csv(path))
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
+    verdict = cert.verdicts.iloc[0]["Samplers"]
+    assert verdict == (
+        "the fit is not confirmed by a second sampler: they disagree on zero_offsets.q2 (emcee, laplace)"
+    )
+    warning = next(w for w in cert.warnings if "not confirmed" in w)
+    assert (
+        warning.startswith("Laser Tracker: the fit is not confirmed by a second sampler")
+        and "zero_offsets.q2" in warning
+    )
+    assert "not confirmed by a second sampler" in certificate.to_markdown(cert)
+    # agreeing samplers, as read back from a file whose `disagreement` column is empty (NaN)
+    path = files.write_csv(tmp_path / "agree.csv", _cross_check({}))
+    agreed = certificate.certificate(
+        SUMMARY, {"laser_tracker": dataclasses.replace(inputs, cross_check=files.read_csv(path))}
+    )
+    assert agreed.verdicts.iloc[0]["Samplers"] == certificate.CONFIRMED
+    assert not any("not confirmed" in w for w in agreed.warnings)
+    unchecked = certificate.certificate(SUMMARY, {"laser_tracker": _inputs()})
+    assert unchecked.verdicts.iloc[0]["Samplers"] == certificate.NOT_CHECKED
+
+
+def test_certificate_rows_take_missing_values_without_a_crash():
+    """None and NaN where numbers or sections are expected: blanks in the certificate, no crash."""
+    inputs = _inputs()
+    offsets = inputs.controller_offsets.copy().astype(object)
+    offsets.loc[1, "U_deg"] = None
+    offsets.loc[1, "correction_deg"] = np.nan
+    loop = dataclasses.replace(inputs.loop, closure={}, warnings=[])
+    inputs = dataclasses.replace(inputs, controller_offsets=offsets, loop=loop)
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": inputs})
+    paper_j2 = cert.corrections.iloc[2]
+    assert np.isnan(paper_j2["U(Correction) (deg)"]) and np.isnan(paper_j2["Correction (deg)"])
+    assert cert.verdicts.iloc[0]["Loop"] == ""
+    assert certificate.to_markdown(cert).startswith("# Calibration certificate: c")
+    # no validation rows at all: the verdict's after-values are blank, not an IndexError
+    empty = dataclasses.replace(inputs, configuration_errors=inputs.configuration_errors.iloc[:0])
+    verdict = certificate.certificate(SUMMARY, {"laser_tracker": empty}).verdicts.iloc[0]
+    assert np.isnan(verdict["Before: mean (mm)"]) and np.isnan(verdict["After: p95 (mm)"])
+
+
+def test_a_held_registration_parameter_is_a_warning():
+    inputs = _inputs()
+    laplace = dataclasses.replace(inputs.laplace, held={"zero_offsets.q1": 0.0, "registration.y": 0.0})
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
+    assert any("registration.y held" in w for w in cert.warnings)
+    assert not any(
+        "do not determine the registration" in w
+        for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings
+    )
+
+
+def _acceptance(verdict, diagnosis, recommended):
+    from remaster.evaluation.acceptance import Acceptance
+
+    checks = {m: {"passed": verdict == "pass", "p_value": 0.0} for m in ("loop", "paper")}
+    text = "fail: ... the added effects did not hold on new poses" if diagnosis else "pass"
+    return Acceptance(
+        "laser_tracker",
+        verdict,
+        diagnosis,
+        text,
+        recommended,
+        None,
+        checks,
+        0.01,
+        0.95,
+        100,
+        20,
+        (),
+        (text,) if diagnosis else (),
+    )
+
+
+def test_the_acceptance_test_gives_the_verdict_its_after_and_its_warning():
+    """A failure on the validation set is a line of the verdict and a warning, and 'After' is the model
+    the acceptance test recommends: the paper's when the loop's added effects did not hold."""
+    inputs = _inputs()
+    untested = certificate.certificate(SUMMARY, {"laser_tracker": inputs}).verdicts.iloc[0]
+    assert untested["Acceptance"] == certificate.NOT_TESTED and untested["After: model"].startswith("loop-closed")
+    passed = dataclasses.replace(inputs, acceptance=_acceptance("pass", None, "loop"))
+    verdict = certificate.certificate(SUMMARY, {"laser_tracker": passed}).verdicts.iloc[0]
+    assert verdict["Acceptance"] == "pass" and verdict["After: mean (mm)"] == untested["After: mean (mm)"]
+    failed = dataclasses.replace(inputs, acceptance=_acceptance("fail", "effects_did_not_hold", "paper"))
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": failed})
+    verdict = cert.verdicts.iloc[0]
+    assert verdict["Acceptance"] == "fail: the added effects did not hold on new poses"
+    paper = np.mean([1.0 + 0.1 * (k % 2) + 0.01 * k for k in range(20)])  # the paper model's validation errors
+    assert verdict["After: model"] == "remastered zero-offsets" and verdict["After: mean (mm)"] == paper
+    assert any(w.startswith("Laser Tracker: fail: ") and "did not hold" in w for w in cert.warnings)
+    assert "| fail: the added effects did not hold on new poses |" in certificate.to_markdown(cert)
