@@ -313,7 +313,7 @@ def sample(
     seeded by the Laplace covariance, run on until the convergence criteria hold
     (settings["convergence"]: max_rhat, min_ess; its kept part doubled at most
     settings["max_doublings"] times); emcee: walkers in a Laplace-sized ball around the MAP (one
-    ensemble, every walker a chain for R-hat and ESS), doubled the same way.
+    ensemble, its walkers split in two halves for R-hat), doubled the same way.
     """
     target = PosteriorTarget(model)
     start, covariance = laplace.start()
@@ -337,7 +337,7 @@ def sample(
             rng,
             settings["chains"],
             overdispersed_starts(start, covariance, settings["chains"], rng),
-            enough=_converged_chains(settings.get("convergence")),
+            enough=_converged_chains(target.names, settings.get("convergence")),
             max_doublings=settings.get("max_doublings", 0),
             covariance=covariance,
             n_samples=settings["samples"],
@@ -354,7 +354,7 @@ def sample(
                 n_walkers=settings["walkers"],
                 n_steps=settings["steps"],
                 burn_in=settings["burn_in"],
-                enough=converged_ensemble(settings.get("convergence")),
+                enough=converged_ensemble(target.names, settings.get("convergence")),
                 max_doublings=settings.get("max_doublings", 0),
             )
         ]
@@ -381,50 +381,44 @@ def overdispersed_starts(start, covariance, n_chains: int, rng: np.random.Genera
     return starts
 
 
-def _meets(chains, criteria: Mapping) -> bool:
-    """Whether chains (a list of `diagnostics` layouts) meet the cross-check's criteria
-    (max_rhat, min_ess), judged as `sampler_diagnostics` judges them (`converged` on `_extremes`).
-    R-hat first: a run that misses it needs no ESS, the costlier part on an ensemble of a hundred
-    walkers, and that is most runs the test sees."""
-    max_rhat = float(np.max(diagnostics.convergence(chains, ["rhat"])["rhat"]))
-    if not max_rhat <= criteria["max_rhat"]:  # NaN too
-        return False
-    min_ess = float(np.min(diagnostics.convergence(chains, ["ess_bulk"])["ess_bulk"]))
-    return converged({"max_rhat": max_rhat, "min_ess": min_ess}, criteria["max_rhat"], criteria["min_ess"])
-
-
-def _converged_chains(criteria: Mapping | None):
-    """The test that chains (list of `samplers.Chain`) meet the cross-check's criteria (`_meets`);
-    None without criteria."""
+def _converged_chains(names, criteria: Mapping | None):
+    """The test that chains meet the cross-check's criteria (max_rhat, min_ess), judged as
+    `sampler_diagnostics` judges them; None without criteria."""
     if criteria is None:
         return None
-    return lambda chains: _meets(chains, criteria)
+
+    def enough(chains) -> bool:
+        report = diagnostics.chain_report(chains, list(names))
+        return converged(_extremes(report), criteria["max_rhat"], criteria["min_ess"])
+
+    return enough
 
 
 def _extremes(report: pd.DataFrame) -> dict:
-    """{'max_rhat', 'min_ess', 'min_ess_tail'} of a `diagnostics.chain_report`: the largest R-hat,
-    the smallest bulk ESS (the one the criteria judge, as the former ESS of the mean was) and the
-    smallest tail ESS (reported beside it); NaN when any parameter's is NaN (a parameter whose
-    chains never move has no R-hat: that is not convergence, and a max that skipped it would say
-    it is)."""
-
-    def extreme(function, column: str) -> float:
-        values = report[column].to_numpy(dtype=float)
-        return float(function(values)) if values.size else math.nan
-
+    """{'max_rhat', 'min_ess'} of a `diagnostics.chain_report`, NaN when any parameter's is NaN
+    (a parameter whose chains never move has no R-hat: that is not convergence, and a max that
+    skipped it would say it is)."""
+    rhat = report["rhat"].to_numpy(dtype=float)
+    ess = report["ess"].to_numpy(dtype=float)
     return {
-        "max_rhat": extreme(np.max, "rhat"),
-        "min_ess": extreme(np.min, "ess_bulk"),
-        "min_ess_tail": extreme(np.min, "ess_tail"),
+        "max_rhat": float(np.max(rhat)) if rhat.size else math.nan,
+        "min_ess": float(np.min(ess)) if ess.size else math.nan,
     }
 
 
-def converged_ensemble(criteria: Mapping | None):
+def converged_ensemble(names, criteria: Mapping | None):
     """The test that an ensemble's kept paths (n_steps, n_walkers, P) meet the cross-check's
-    criteria (`_meets`, every walker a chain); None without criteria."""
+    criteria (max_rhat, min_ess), judged as `sampler_diagnostics` judges it (the walkers' two
+    halves as two chains); None without criteria."""
     if criteria is None:
         return None
-    return lambda paths: _meets([paths], criteria)
+
+    def enough(paths: np.ndarray) -> bool:
+        half = paths.shape[1] // 2
+        report = diagnostics.chain_report([paths[:, :half], paths[:, half:]], list(names))
+        return converged(_extremes(report), criteria["max_rhat"], criteria["min_ess"])
+
+    return enough
 
 
 def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
@@ -462,22 +456,23 @@ def trace_frame(chains: list[samplers.Chain], every: int = 100) -> pd.DataFrame:
 
 
 def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
-    """Samples back into per-chain (n, W, P) arrays, the layout the diagnostics take (every
-    walker of an ensemble one chain)."""
+    """Samples back into per-chain (n, W, P) arrays, the layout the diagnostics take."""
     out = []
     for _, part in frame.groupby("chain", sort=True):
         walkers = int(part["walker"].max()) + 1
         values = part.sort_values(["step", "walker"])[list(names)].to_numpy()
         out.append(values.reshape(-1, walkers, len(names)))
+    if len(out) == 1 and out[0].shape[1] >= 4:  # one ensemble: its two halves of walkers as two chains
+        half = out[0].shape[1] // 2
+        out = [out[0][:, :half], out[0][:, half:]]
     return out
 
 
 def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
-    """JSON-ready: per-parameter report (`diagnostics.chain_report`: rank-normalised R-hat, bulk
-    and tail ESS, MCSE of the mean), acceptance, the smallest bulk ESS (`min_ess`, the criterion's)
-    and its rate per second, the smallest tail ESS, and how often the run doubled to meet its
-    criteria. min_ess and max_rhat are NaN (null in the file) when a parameter's is: `converged`
-    then says no, as it must for a chain that never moved."""
+    """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second, and
+    how often the run doubled to meet its criteria. min_ess and max_rhat are NaN (null in the
+    file) when a parameter's is: `converged` then says no, as it must for a chain that never
+    moved."""
     frame = samples_frame(chains)
     names = list(chains[0].names)
     report = diagnostics.chain_report(chains_of(frame, names), names)
@@ -492,7 +487,6 @@ def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
         "seconds": seconds,
         "min_ess": extremes["min_ess"],
         "min_ess_per_second": extremes["min_ess"] / seconds if seconds > 0 else None,
-        "min_ess_tail": extremes["min_ess_tail"],
         "max_rhat": extremes["max_rhat"],
         "rhat_undefined": [n for n, r in report["rhat"].items() if not np.isfinite(r)],
         "parameters": report.reset_index().to_dict(orient="records"),
@@ -523,10 +517,10 @@ def cross_check(
     tolerance: float,
     max_rhat: float,
     min_ess: float,
-    floor: float,
+    floor: float = 0.1,
 ) -> pd.DataFrame:
     """Every method's posterior mean and std per parameter and its disagreement with the default
-    sampler in units of combined Monte Carlo error (`diagnostics.agreement`), as a flat table:
+    sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
     parameter, then mean_<method>, std_<method>, z_<method>, checked_<method>, disagrees_<method>
     (SI), and `disagreement`: the methods that disagree on the parameter ("" where none does).
 
@@ -537,9 +531,8 @@ def cross_check(
     fit is not confirmed by a second sampler (`disagreeing`). A method that did not converge (the
     paper's sampler usually: its chain does not travel far enough in 2e5 small steps) is shown
     with its z and checked_<method> False, since its means carry a bias its MCSE does not
-    measure. `floor` (fit/cross_check/floor in the configuration, 0.1 by default): the combined
-    error is at least this fraction of the posterior std, because least squares has no Monte Carlo
-    error and ESS estimates from chains a few dozen autocorrelation times long underestimate it
+    measure. `floor`: the combined error is at least this fraction of the posterior std, because
+    autocorrelation times from chains of a few dozen tau underestimate the Monte Carlo error
     (seen: 1 false alarm in a 50-campaign fleet at 0.05); a difference of 0.1 std in a posterior
     mean is far below what the posterior itself leaves uncertain. A method without diagnostics
     counts as not converged.
@@ -551,7 +544,7 @@ def cross_check(
     lap_mean = np.append(laplace.theta_map, laplace.sigma_mean)
     lap_std = np.append(laplace.std, laplace.sigma_std)
     results["laplace"] = (lap_mean, lap_std, np.zeros_like(lap_mean))
-    table = diagnostics.agreement(results, names, floor, reference="default")
+    table = diagnostics.cross_check(results, names, tolerance=None, reference="default", floor=floor)
     enforced = ["default", "laplace"] + [
         m for m in samples if m != "default" and converged(sampler_reports.get(m), max_rhat, min_ess)
     ]

@@ -140,19 +140,18 @@ class Chain:
         return len(self.samples) // self.n_walkers
 
     def per_walker(self) -> np.ndarray:
-        """(n_steps, n_walkers, P): every walker's path, the layout the diagnostics take."""
+        """(n_steps, n_walkers, P): the layout autocorrelation estimates need."""
         return self.samples.reshape(self.n_steps, self.n_walkers, len(self.names))
 
     def summary(self) -> str:
-        """Human-readable: method, acceptance, and per parameter mean, std, R-hat, bulk and tail ESS,
-        MCSE of the mean (`diagnostics.chain_report`)."""
+        """Human-readable: method, acceptance, and per parameter mean, std, tau, ESS, MCSE."""
         from ..diagnostics import chain_report  # diagnostics never imports samplers: no cycle
 
         head = (
             f"{self.method}: {self.n_steps} kept steps x {self.n_walkers} walker(s), "
             f"acceptance {self.acceptance_rate:.3f}"
         )
-        table = chain_report([self])[["mean", "std", "rhat", "ess_bulk", "ess_tail", "mcse_mean"]]
+        table = chain_report([self])[["mean", "std", "tau", "ess", "mcse"]]
         return head + "\n" + table.to_string(float_format=lambda v: f"{v:.6g}")
 
 
@@ -203,7 +202,7 @@ class LaplaceResult:
         return out
 
     def moments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(mean, std, mcse), each (P,), for `diagnostics.agreement`. mcse is 0: no Monte Carlo."""
+        """(mean, std, mcse), each (P,), for `diagnostics.cross_check`. mcse is 0: no Monte Carlo."""
         mean = np.append(self.theta_map, self.sigma_mean)
         std = np.append(self.std, self.sigma_std)
         return mean, std, np.zeros_like(mean)

@@ -103,7 +103,7 @@ def refit(
             n_walkers=walkers,
             n_steps=steps,
             burn_in=burn_in,
-            enough=fit.converged_ensemble(criteria),
+            enough=fit.converged_ensemble(target.names, criteria),
             max_doublings=int(criteria["max_doublings"]),
         )
         chains = [ensemble]
