@@ -31,6 +31,9 @@ from remaster.loop.settings import settings_from
 
 from ..conftest import REPO, validated_config
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 MM = 1e-3
 SIZES = {"optimization": {"poses": 16, "configurations": 80}, "validation": {"poses": 8, "configurations": 40}}
 BUMP = {"translation_m": [1.5e-3, 0.0, 0.0], "rotation_deg": [0.0, 0.0, 0.03]}

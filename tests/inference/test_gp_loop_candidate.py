@@ -16,6 +16,9 @@ from remaster.loop import loop_closure, noise_floor
 from ..conftest import REPO, loop_settings
 from .test_gp_residual import NOISE, readings, smooth_residual
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 
 def test_independent_noise_is_not_a_residual_to_model():
     rng = np.random.default_rng(10)

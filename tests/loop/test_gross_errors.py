@@ -22,6 +22,9 @@ from remaster.reporting import certificate
 
 from ..conftest import REPO, loop_settings
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 NOISE = 1e-5  # the laser tracker's, m per axis
 OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]
 COMPLIANCE = {

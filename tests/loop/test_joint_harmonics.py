@@ -28,6 +28,9 @@ from remaster.reporting import figures_loop, tables_loop
 
 from ..conftest import REPO, loop_report, loop_settings
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 NOISE = {"tracker": 1.0e-5, "motion_capture": 3.0e-5}  # m per axis
 
 

@@ -20,6 +20,9 @@ from remaster.robot.gravity import gravity_torques
 
 from ..conftest import REPO, loop_report, loop_settings
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 NOISE = 1e-5  # the laser tracker's, m per axis
 LAPLACE_ONLY = loop_settings(mcmc=None)
 OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]

@@ -19,6 +19,9 @@ from remaster.inference import blocks, fit
 
 from ..conftest import REPO
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 LOG_2PI = math.log(2.0 * math.pi)
 
 

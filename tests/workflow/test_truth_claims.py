@@ -15,6 +15,9 @@ from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors
 
 from ..conftest import REPO
 
+# these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
+pytestmark = pytest.mark.slow
+
 SIZES = {"optimization": {"poses": 16, "configurations": 80}, "validation": {"poses": 8, "configurations": 40}}
 
 
