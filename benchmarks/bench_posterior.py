@@ -56,7 +56,11 @@ def min_ess_per_second(method, run) -> tuple[float, float, float]:
     chains = run()
     seconds = time.perf_counter() - started
     report = diagnostics.chain_report([c for chain in chains for c in _split(chain)], chains[0].names)
-    return seconds, float(report["ess"].min()), float(report["ess"].min()) / seconds
+    return (
+        seconds,
+        float(report[["ess_bulk", "ess_tail"]].min().min()),
+        float(report[["ess_bulk", "ess_tail"]].min().min()) / seconds,
+    )
 
 
 def _split(chain):

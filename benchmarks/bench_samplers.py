@@ -92,7 +92,7 @@ def per_call_seconds(function, argument) -> float:
 
 def report(label: str, seconds: float, chain: samplers.Chain, model: LinearPaperModel, baseline: float | None):
     table = diagnostics.chain_report([chain])
-    ess = float(table["ess"].min())
+    ess = float(table[["ess_bulk", "ess_tail"]].min().min())
     error = float(np.max(np.abs(table["mean"].to_numpy() - model.exact_mean) / model.exact_std))
     rate = ess / seconds
     ratio = f"{rate / baseline:7.1f}x" if baseline else "    1.0x"

@@ -1,24 +1,30 @@
-"""Convergence and agreement diagnostics for posterior samples: tau, ESS, split-R-hat, cross-checks.
+"""Convergence and agreement diagnostics for posterior samples: R-hat, bulk and tail ESS, MCSE,
+cross-checks between methods.
 
 Sample layouts accepted everywhere: (n, P) one chain in time order; (n, W, P) an ensemble of W
 walkers (emcee); or any object with `per_walker()` returning (n, W, P), such as `samplers.Chain`.
 
-The Monte Carlo standard error of a posterior mean is std / sqrt(ESS), ESS = n W / tau, tau the
-integrated autocorrelation time (emcee's estimator, Sokal's automatic window with c = 5).
+The estimators are arviz-stats' (Vehtari, Gelman, Simpson, Carpenter and Buerkner 2021, "Rank-
+normalization, folding, and localization: an improved R-hat"): the rank-normalised split R-hat
+(the larger of the bulk and the folded one), the bulk ESS (rank-normalised), the tail ESS (the
+smaller of the 5 % and 95 % quantiles' ESS) and the Monte Carlo standard error of the mean. Every
+walker is a chain for the ESS and the MCSE. R-hat compares the chains as given: an ensemble is one
+chain, its walkers pooled step by step in time order (the walkers of an affine-invariant ensemble
+move by each other's positions, so they are not the independent chains R-hat compares; the fit
+passes the two halves of one ensemble as two chains).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
 
 from .errors import RemasterError
 
-TAU_RELIABLE = 50  # tau is trusted when the chain is at least this many tau long (emcee's default)
-MCSE_FLOOR = 0.05  # cross-check errors are at least this fraction of the posterior std
+TAU_RELIABLE = 50  # tau is trusted when a walker is at least this many tau long (emcee's default)
+TAIL = (0.05, 0.95)  # the quantiles whose ESS is the tail ESS (Vehtari et al. 2021)
 
 
 class SamplerDisagreement(RemasterError, RuntimeError):
@@ -44,130 +50,95 @@ def _walkers(samples) -> np.ndarray:
     return x
 
 
-@dataclass(frozen=True)
-class Autocorrelation:
-    """tau (P,) integrated autocorrelation time in steps; reliable (P,) True where the chain is
-    at least TAU_RELIABLE tau long; n steps per walker; n_walkers."""
+def _per_parameter(function, chains: np.ndarray, **options) -> np.ndarray:
+    """(P,) an arviz-stats array statistic of chains (C, n, P), NaN where it cannot be computed
+    (too few draws, a NaN sample) rather than a warning."""
+    import warnings
 
-    tau: np.ndarray
-    reliable: np.ndarray
-    n: int
-    n_walkers: int
+    from arviz_stats.base import array_stats  # imports scipy.stats: not in jobs that only read results
 
-    @property
-    def ess(self) -> np.ndarray:
-        """(P,) effective sample size n W / tau."""
-        return self.n * self.n_walkers / self.tau
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        statistic = getattr(array_stats, function)
+        return np.asarray(statistic(chains, chain_axis=0, draw_axis=1, **options), dtype=float).reshape(-1)
 
 
-def autocorrelation(samples, tol: float = TAU_RELIABLE) -> Autocorrelation:
-    """Integrated autocorrelation time of each parameter, never raising on short chains.
-
-    For an ensemble the autocorrelation functions of the walkers are averaged (emcee's
-    estimator). A chain shorter than tol * tau gets its (underestimated) tau with reliable False;
-    a parameter that never moves, or a chain under 4 steps, gets tau = n (ESS = W), unreliable.
-    """
-    x = _walkers(samples)
-    n, w, p = x.shape
-    if n < 4:
-        return Autocorrelation(np.full(p, float(n)), np.zeros(p, bool), n, w)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tau = _integrated_time(x, window_factor=5.0)
-    stuck = ~np.isfinite(tau)
-    tau[stuck] = n
-    return Autocorrelation(tau, (tol * tau <= n) & ~stuck, n, w)
-
-
-def _integrated_time(x: np.ndarray, window_factor: float) -> np.ndarray:
-    """(P,) Sokal's windowed estimate of tau for x (n, W, P): the walkers' normalised
-    autocorrelation functions (by FFT, zero-padded past twice the next power of two) averaged,
-    tau(M) = 1 + 2 sum_{t=1..M} rho(t), at the smallest window M >= window_factor tau(M) (the
-    last lag when none is). The same estimator as emcee.autocorr.integrated_time, written here
-    so that a job reading chains does not import emcee (and with it scipy.stats)."""
-    n, w, p = x.shape
-    size = 1 << max(n - 1, 0).bit_length()  # the next power of two >= n
-    tau = np.empty(p)
-    for d in range(p):
-        rho = np.zeros(n)
-        for k in range(w):  # summed walker by walker, in order: the same floating-point sums as emcee
-            series = x[:, k, d]
-            f = np.fft.fft(series - np.mean(series), n=2 * size)
-            acf = np.fft.ifft(f * np.conjugate(f))[:n].real
-            rho += acf / acf[0]
-        rho /= w
-        taus = 2.0 * np.cumsum(rho) - 1.0
-        short = np.arange(n) < window_factor * taus
-        tau[d] = taus[np.argmin(short) if short.any() else n - 1]
-    return tau
-
-
-def integrated_autocorr_time(samples) -> np.ndarray:
-    """(P,) integrated autocorrelation time in steps; see `autocorrelation` for the flag."""
-    return autocorrelation(samples).tau
-
-
-def effective_sample_size(samples) -> np.ndarray:
-    """(P,) n W / tau."""
-    return autocorrelation(samples).ess
-
-
-def split_rhat(chains: Sequence) -> np.ndarray:
-    """(P,) Gelman-Rubin potential scale reduction over the halves of every chain.
+def rhat(chains: Sequence) -> np.ndarray:
+    """(P,) rank-normalised split R-hat (the larger of bulk and folded) across chains.
 
     chains: list of (n, P) (or (n, W, P) / `Chain`, flattened in time order: an ensemble counts
-    as one chain). All are cut to the shortest length; each is split into its first and last
-    halves, so a single drifting chain is caught too. With h the half length:
-    R = sqrt(((h - 1) / h W + B / h) / W), W the mean within-half variance, B / h the variance
-    of the half means. About 1 for converged chains; > 1.01 - 1.1 means run longer.
+    as one chain); all are cut to the shortest. Each is split into its first and last halves, so a
+    single drifting chain is caught too; one chain alone is given as its two halves (arviz-stats
+    compares two chains at least), so its four quarters are compared. About 1 for converged
+    chains; above 1.01 - 1.05 means run longer. NaN for a parameter that never moves, a NaN
+    sample, or chains under 4 samples.
     """
-    flat = [_walkers(c) for c in chains]
-    flat = [c.reshape(-1, c.shape[-1]) for c in flat]
+    flat = [c.reshape(-1, c.shape[-1]) for c in map(_walkers, chains)]
+    if len(flat) == 1:
+        half = len(flat[0]) // 2
+        flat = [flat[0][:half], flat[0][len(flat[0]) - half :]]
     n = min(len(c) for c in flat)
-    h = n // 2
-    if h < 2:
-        raise ValueError(f"split-R-hat needs chains of at least 4 samples, the shortest has {n}")
-    halves = np.stack([part for c in flat for part in (c[:h], c[len(c) - h :])])  # (2C, h, P)
-    within = halves.var(axis=1, ddof=1).mean(axis=0)
-    between_over_h = halves.mean(axis=1).var(axis=0, ddof=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.sqrt(((h - 1) / h * within + between_over_h) / within)
+    return _per_parameter("rhat", np.stack([c[:n] for c in flat]), method="rank")
+
+
+def walker_chains(chains: Sequence) -> np.ndarray:
+    """(C, n, P): every walker of every chain as one chain, all cut to the shortest length."""
+    walkers = [_walkers(c) for c in chains]
+    n = min(len(w) for w in walkers)
+    return np.concatenate([np.moveaxis(w[:n], 1, 0) for w in walkers])
+
+
+def effective_sample_size(samples, method: str = "bulk") -> np.ndarray:
+    """(P,) the bulk ("bulk") or tail ("tail") effective sample size of one chain (n, P) or an
+    ensemble (n, W, P), every walker a chain; NaN where it cannot be computed."""
+    options = {"prob": TAIL} if method == "tail" else {}
+    return _per_parameter("ess", walker_chains([samples]), method=method, **options)
 
 
 def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.DataFrame:
-    """Per parameter, over all chains pooled: mean, std, q2.5, q97.5 (SI), tau (mean over chains,
-    steps), ess (sum over chains), rhat (split, across chains), mcse = std / sqrt(ess), and
-    tau_reliable (every chain at least 50 tau long).
+    """Per parameter, over all chains pooled: mean, std, q2.5, q97.5 (SI); mcse (of the mean, SI);
+    ess_bulk, ess_tail (every walker a chain); rhat (across the chains as given, `rhat`); tau =
+    draws / ess_bulk (steps per effective sample, per walker) and tau_reliable (the walkers at
+    least 50 tau long).
 
     Never raises on what a failed run leaves: a parameter that never moves has rhat NaN (no
-    spread to compare) and ess = the number of walkers; NaN samples give NaN statistics; chains
+    spread to compare), ess one per walker and mcse 0; NaN samples give NaN statistics; chains
     too short for a split R-hat (under 4 states) have rhat NaN, empty ones NaN everywhere and
     ess 0. A NaN rhat or ess is not convergence (`inference.fit.converged`)."""
     if names is None:
         names = getattr(chains[0], "names", None)
-    walkers = [_walkers(c) for c in chains]
-    pooled = np.concatenate([w.reshape(-1, w.shape[-1]) for w in walkers])
-    p = pooled.shape[1]
+    walkers = walker_chains(chains)  # (C, n, P)
+    n_chains, n, p = walkers.shape
+    pooled = walkers.reshape(-1, p)
     names = list(names) if names is not None else [f"theta[{i}]" for i in range(p)]
-    autocorr = [autocorrelation(w) for w in walkers]
     with np.errstate(invalid="ignore", divide="ignore"):
-        ess = np.sum([np.where(a.n > 0, a.ess, 0.0) for a in autocorr], axis=0)
         if len(pooled) >= 2:
             std = pooled.std(axis=0, ddof=1)
             q_low, q_high = np.quantile(pooled, [0.025, 0.975], axis=0)
         else:
             std = q_low = q_high = np.full(p, np.nan)
-        shortest = min(len(w) * w.shape[1] for w in walkers)
+        stuck = std == 0  # no spread: arviz would count every draw as independent
+        if n:
+            ess_bulk = np.where(stuck, n_chains, _per_parameter("ess", walkers, method="bulk"))
+            ess_tail = np.where(stuck, n_chains, _per_parameter("ess", walkers, method="tail", prob=TAIL))
+            mcse = np.where(stuck, 0.0, _per_parameter("mcse", walkers, method="mean"))
+        else:
+            ess_bulk = ess_tail = np.zeros(p)
+            mcse = np.full(p, np.nan)
+        tau = n * n_chains / ess_bulk
+        shortest = min(len(_walkers(c)) * _walkers(c).shape[1] for c in chains)
         table = pd.DataFrame(
             {
                 "mean": pooled.mean(axis=0) if len(pooled) else np.full(p, np.nan),
                 "std": std,
                 "q2.5": q_low,
                 "q97.5": q_high,
-                "tau": np.mean([a.tau for a in autocorr], axis=0),
-                "ess": ess,
-                "rhat": split_rhat(walkers) if shortest >= 4 else np.full(p, np.nan),
-                "mcse": std / np.sqrt(ess),
-                "tau_reliable": np.all([a.reliable for a in autocorr], axis=0),
+                "mcse": mcse,
+                "ess_bulk": ess_bulk,
+                "ess_tail": ess_tail,
+                "rhat": rhat(chains) if shortest >= 4 else np.full(p, np.nan),
+                "tau": tau,
+                "tau_reliable": (TAU_RELIABLE * tau <= n) & ~stuck,
             },
             index=pd.Index(names, name="parameter"),
         )
@@ -185,7 +156,8 @@ def cross_check(
     names: Sequence[str],
     tolerance: float | None = 4.0,
     reference: str | None = None,
-    floor: float = MCSE_FLOOR,
+    *,
+    floor: float,
 ) -> pd.DataFrame:
     """Compare posterior means of several methods parameter by parameter.
 
@@ -195,11 +167,11 @@ def cross_check(
 
         z = (mean - mean_ref) / max(sqrt(mcse^2 + mcse_ref^2), floor * max(std, std_ref)).
 
-    The floor (5 % of the larger posterior std) is there because least squares has no Monte Carlo
-    error (mcse 0) and a very long chain has almost none: without it, differences far below the
-    posterior width that no one cares about (the Laplace approximation's own bias, O(1/k)) would
-    count as disagreements. So a method agrees if it is within `tolerance` Monte Carlo errors, or
-    within tolerance * 5 % = 0.2 posterior std at the default tolerance of 4.
+    `floor` (the configuration's fit/cross_check floor, 0.1 by default: one floor for every
+    cross-check) is there because least squares has no Monte Carlo error (mcse 0) and a very long
+    chain has almost none: without it, differences far below the posterior width that no one cares
+    about (the Laplace approximation's own bias, O(1/k)) would count as disagreements. So a method
+    agrees if it is within `tolerance` Monte Carlo errors, or within tolerance * floor posterior std.
 
     Returns a DataFrame indexed by parameter with columns (quantity, method) for quantity in
     mean, std, z (z = 0 for the reference); attrs hold reference, tolerance and floor. With a

@@ -174,6 +174,7 @@ def test_the_command_line_writes_a_robust_design_and_refuses_a_discrepancy_witho
     import pandas as pd
 
     from remaster import cli
+
     from .test_design import _robot_arguments
 
     out = tmp_path / "robust.csv"

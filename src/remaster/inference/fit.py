@@ -395,11 +395,11 @@ def _converged_chains(names, criteria: Mapping | None):
 
 
 def _extremes(report: pd.DataFrame) -> dict:
-    """{'max_rhat', 'min_ess'} of a `diagnostics.chain_report`, NaN when any parameter's is NaN
-    (a parameter whose chains never move has no R-hat: that is not convergence, and a max that
-    skipped it would say it is)."""
+    """{'max_rhat', 'min_ess'} of a `diagnostics.chain_report` (min_ess: the smaller of the bulk
+    and the tail ESS), NaN when any parameter's is NaN (a parameter whose chains never move has
+    no R-hat: that is not convergence, and a max that skipped it would say it is)."""
     rhat = report["rhat"].to_numpy(dtype=float)
-    ess = report["ess"].to_numpy(dtype=float)
+    ess = np.minimum(report["ess_bulk"].to_numpy(dtype=float), report["ess_tail"].to_numpy(dtype=float))
     return {
         "max_rhat": float(np.max(rhat)) if rhat.size else math.nan,
         "min_ess": float(np.min(ess)) if ess.size else math.nan,
@@ -517,7 +517,7 @@ def cross_check(
     tolerance: float,
     max_rhat: float,
     min_ess: float,
-    floor: float = 0.1,
+    floor: float,
 ) -> pd.DataFrame:
     """Every method's posterior mean and std per parameter and its disagreement with the default
     sampler in units of combined Monte Carlo error (`diagnostics.cross_check`), as a flat table:
@@ -531,10 +531,10 @@ def cross_check(
     fit is not confirmed by a second sampler (`disagreeing`). A method that did not converge (the
     paper's sampler usually: its chain does not travel far enough in 2e5 small steps) is shown
     with its z and checked_<method> False, since its means carry a bias its MCSE does not
-    measure. `floor`: the combined error is at least this fraction of the posterior std, because
-    autocorrelation times from chains of a few dozen tau underestimate the Monte Carlo error
-    (seen: 1 false alarm in a 50-campaign fleet at 0.05); a difference of 0.1 std in a posterior
-    mean is far below what the posterior itself leaves uncertain. A method without diagnostics
+    measure. `floor` (fit/cross_check/floor, the one floor of every cross-check): the combined
+    error is at least this fraction of the posterior std, because an ESS from chains of a few
+    dozen autocorrelation times is itself uncertain; a difference of 0.1 std in a posterior mean is
+    far below what the posterior itself leaves uncertain. A method without diagnostics
     counts as not converged.
     """
     names = list(laplace.names) + [SIGMA]

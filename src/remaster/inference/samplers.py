@@ -144,14 +144,14 @@ class Chain:
         return self.samples.reshape(self.n_steps, self.n_walkers, len(self.names))
 
     def summary(self) -> str:
-        """Human-readable: method, acceptance, and per parameter mean, std, tau, ESS, MCSE."""
+        """Human-readable: method, acceptance, and per parameter mean, std, MCSE, bulk and tail ESS, R-hat."""
         from ..diagnostics import chain_report  # diagnostics never imports samplers: no cycle
 
         head = (
             f"{self.method}: {self.n_steps} kept steps x {self.n_walkers} walker(s), "
             f"acceptance {self.acceptance_rate:.3f}"
         )
-        table = chain_report([self])[["mean", "std", "tau", "ess", "mcse"]]
+        table = chain_report([self])[["mean", "std", "mcse", "ess_bulk", "ess_tail", "rhat"]]
         return head + "\n" + table.to_string(float_format=lambda v: f"{v:.6g}")
 
 
