@@ -239,20 +239,18 @@ def acceptance_text(acceptance: Acceptance | None) -> str:
     return f"fail: {DIAGNOSES.get(acceptance.diagnosis, acceptance.diagnosis or 'no diagnosis')}"
 
 
-def _after(rows: dict, acceptance: Acceptance | None) -> dict:
-    """The validation row the certificate calls "after": the acceptance test's recommended model (the
-    paper's when the loop's added effects did not hold on new poses), else the last validation row
-    (the loop-closed model)."""
+def _after(rows: dict) -> dict:
+    """The validation row the certificate calls "after": the last validation row, the loop-closed
+    model's (recommended before the validation set was read; a failed acceptance test is the
+    verdict, not a reason to recommend another model)."""
     validation = [r for (where, _), r in rows.items() if where == "validation set (measured)"]
-    if acceptance is not None and acceptance.recommended == "paper":
-        return rows.get(("validation set (measured)", "remastered zero-offsets"), {})
     return (validation or [{}])[-1]
 
 
 def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     by = {(r["Where"], r["Model"]): r for r in rows}
     before = by.get(("validation set (measured)", "controller's zero-offsets"), {})
-    after = _after(by, inputs.acceptance)
+    after = _after(by)
     inside = by.get((CLAIMED["domain"], "loop-closed"), {})
     limits = by.get((CLAIMED["random"], "loop-closed"), {})
     samplers, disagree = second_sampler(inputs)

@@ -44,8 +44,8 @@ CAPTIONS = {
     "ranges, with what falls short of the limits), whether a second sampler confirms the fit "
     "(Samplers: the samplers' cross-check, with the parameters they disagree on), and the acceptance test "
     "(Acceptance: the validation errors checked against the loop-closed model's claim at the validation "
-    "configurations, noise included; a failure with its diagnosis). After is the model the acceptance test "
-    "recommends: the paper's when the added effects did not hold on new poses.",
+    "configurations: the instrument's noise and the model error the loop declared; a failure with its "
+    "diagnosis). After is the loop-closed model whatever the acceptance test says: a failure is the verdict.",
     "certificate_accuracy": "Accuracy before and after (mm): on the validation set (registration from the "
     "optimization set; U the expanded uncertainty (95 %) of the mean, clustered by pose: CR2, k = t(poses - 1)), "
     "and as the posteriors claim it at the measured configurations, inside the measured joint "
