@@ -84,6 +84,80 @@ def test_under_a_correct_model_the_p_value_is_uniform_and_fails_at_the_stated_ra
         assert low <= failed <= high, (level, failed)
 
 
+def _missing_effect_p_values(trials: int, rng: np.random.Generator, declared: float | None) -> np.ndarray:
+    """p-values of a model that lacks an effect present in both sets: the marker's positions scaled
+    by 1 + 4e-4 about the origin (0.1 mm at 0.25 m, several times the 0.02 mm noise), fitted by a
+    translation. With `declared` None the claim's noise is the sigma fitted on the optimization
+    set (which took the effect up); else the instrument's stated noise and that declared model
+    error per axis."""
+    sigma, n_opt, n_val, draws, scale = 0.02e-3, 30, 20, 400, 4e-4
+    out = []
+    for _ in range(trials):
+        points_opt, points_val = rng.uniform(-0.5, 0.5, (n_opt, 3)), rng.uniform(-0.5, 0.5, (n_val, 3))
+        measured_opt = points_opt * (1 + scale) + sigma * rng.standard_normal((n_opt, 3))
+        measured_val = points_val * (1 + scale) + sigma * rng.standard_normal((n_val, 3))
+        residual = measured_opt - points_opt
+        mean = residual.mean(axis=0)
+        fitted = float(np.sqrt(np.sum((residual - mean) ** 2) / (3 * n_opt - 3)))
+        theta = mean + fitted / np.sqrt(n_opt) * rng.standard_normal((draws, 3))
+        model = Translation(points_val, measured_val)
+        claim = Claim(model.predict(mean), model, theta, np.full(draws, fitted), (), "the fit's posterior")
+        if declared is not None:
+            claim = dataclasses.replace(claim, instrument=np.full((n_val, 3), sigma), declared=declared)
+        out.append(acceptance.check(measured_val, claim, 0.01, 0.95, rng, PLAUSIBLE)["p_value"])
+    return np.array(out)
+
+
+def test_the_instruments_noise_fails_a_model_missing_an_effect_the_fitted_sigma_hides():
+    """The same wrong model, the same data: against its fitted sigma (which absorbed the missing
+    scale) the test passes at about the rate it would a correct model; against the instrument's
+    stated noise it fails every time; with the model error the loop measured declared, it passes."""
+    rng = np.random.default_rng(11)
+    hidden = _missing_effect_p_values(200, rng, declared=None)
+    assert np.mean(hidden < 0.01) < 0.05  # the fitted sigma cannot see it
+    stated = _missing_effect_p_values(200, rng, declared=0.0)
+    assert np.mean(stated < 0.01) >= 0.99
+    # the effect's RMS per axis: 4e-4 times the RMS of a coordinate uniform on [-0.5, 0.5]
+    declared = _missing_effect_p_values(200, rng, declared=4e-4 * np.sqrt(1 / 12))
+    assert np.mean(declared < 0.01) < 0.05
+
+
+def test_a_correct_model_against_the_instruments_noise_fails_at_the_stated_rate():
+    rng = np.random.default_rng(12)
+    sigma, n_opt, n_val, draws = 0.02e-3, 30, 20, 400
+    p = []
+    for _ in range(400):
+        truth = rng.normal(0.0, 1e-3, 3)
+        points_val = rng.uniform(-0.5, 0.5, (n_val, 3))
+        mean = truth + sigma * rng.standard_normal((n_opt, 3)).mean(axis=0)
+        measured_val = points_val + truth + sigma * rng.standard_normal((n_val, 3))
+        theta = mean + sigma / np.sqrt(n_opt) * rng.standard_normal((draws, 3))
+        model = Translation(points_val, measured_val)
+        claim = Claim(model.predict(mean), model, theta, np.full(draws, 5 * sigma), (), "exact posterior")
+        claim = dataclasses.replace(claim, instrument=np.full((n_val, 3), sigma))  # the draws' sigma is not used
+        p.append(acceptance.check(measured_val, claim, 0.05, 0.95, rng, PLAUSIBLE)["p_value"])
+    p = np.array(p)
+    assert stats.kstest(p, "uniform").pvalue > 0.01
+    low, high = stats.binom.ppf([0.005, 0.995], len(p), 0.05)
+    assert low <= np.sum(p < 0.05) <= high
+
+
+def test_a_unit_slip_fails_as_a_model_that_does_not_describe_the_arm():
+    """A marker offset in mm where metres are expected: the residual is metres, the fitted sigma as
+    large, and the p-value alone would pass; the plausible residual fails it, naming the units."""
+    rng = np.random.default_rng(13)
+    points = rng.uniform(-0.5, 0.5, (20, 3))
+    measured = points + 0.1 * rng.standard_normal((20, 3))  # metres of scatter
+    model = Translation(points, measured)
+    theta = 0.1 / np.sqrt(30) * rng.standard_normal((400, 3))
+    claim = Claim(model.predict(np.zeros(3)), model, theta, np.full(400, 0.1), (), "a fit that took a slip up")
+    result = acceptance.check(measured, claim, 0.01, 0.95, rng, PLAUSIBLE)
+    assert result["p_value"] >= 0.01 and not result["plausible"] and not result["passed"]
+    verdict, diagnosis = acceptance.diagnose({"loop": result, "paper": result})
+    assert (verdict, diagnosis) == (FAIL, IMPLAUSIBLE)
+    assert "units" in acceptance.DIAGNOSES[diagnosis]
+
+
 def test_a_shifted_validation_set_fails_and_its_refit_explains_it():
     rng = np.random.default_rng(3)
     sigma, n, draws = 0.02e-3, 20, 400
