@@ -6,8 +6,11 @@ independent noise; what the model still lacks makes the estimate depend on which
 measured, so that two campaigns of one arm differ by more than either posterior allows. The
 jackknife sees that: the model is refitted at its posterior mode (from the full fit's mode, same
 blocks, held parameters, priors and noise shape) leaving out one group of whole poses at a time, the
-groups of whole poses assigned as the cross-validation assigns its folds (`evidence.pose_folds`, K = loop_closure/jackknife_groups), and
-the spread of the K estimates gives u_J (`uncertainty.jackknife_variance`). The component beyond
+groups contiguous in time (`selection.TimeBlocked`: the time column, or the row order as the
+measurement order; K = loop_closure/jackknife_groups), so that each refit sees a design that lacks a
+whole stretch of the campaign rather than a thinned copy of the same design (groups of poses
+assigned in turn measure resampling noise and add nothing on dense designs), and the spread of
+the K estimates gives u_J (`uncertainty.jackknife_variance`). The component beyond
 the posterior's own std is u_between = sqrt(max(u_J^2 - u_p^2, 0)), u_p the Laplace std of the full
 fit (`uncertainty.between_design`). The residual GP, when added, is not refitted: it is the
 parametric model's zero-offsets that are certified.
@@ -25,7 +28,7 @@ from ..inference import evidence
 from ..inference.blocks import Readings
 from ..inference.uncertainty import between_design, jackknife_variance
 from ..units import DEG
-from .selection import Fitted
+from .selection import Fitted, TimeBlocked
 
 ZERO_OFFSET_PREFIX = "zero_offsets."
 MIN_GROUPS = 3  # two groups give a spread of one difference: no estimate of a variance worth the name
@@ -66,7 +69,8 @@ def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
     groups = min(groups, len(np.unique(poses)))  # a campaign of fewer poses: one pose per group
     if groups < MIN_GROUPS:
         return {"groups": groups, "method": f"not computed: fewer than {MIN_GROUPS} poses", "parameters": {}}
-    folds = evidence.pose_folds(poses, groups)
+    in_time = TimeBlocked.of(fitted.model.data, poses, groups)
+    folds = in_time.folds if in_time else evidence.pose_folds(poses, groups)
     estimates = leave_group_out(fitted, folds)
     u_jackknife = np.sqrt(jackknife_variance(estimates))
     u_posterior = fitted.mode.std
@@ -83,7 +87,8 @@ def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
             }
     return {
         "groups": int(len(np.unique(folds))),
-        "method": "delete-a-group jackknife over pose-grouped folds (assigned as the cross-validation assigns its folds), the mode "
-        "refitted without each; u_between = sqrt(max(u_jackknife^2 - u_posterior^2, 0))",
+        "method": "delete-a-group jackknife over groups of whole poses contiguous in time ("
+        + (in_time.order if in_time else "poses in turn")
+        + "), the mode refitted without each; u_between = sqrt(max(u_jackknife^2 - u_posterior^2, 0))",
         "parameters": out,
     }

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
@@ -77,6 +77,14 @@ class Fitted:
     mode: evidence.PosteriorMode
     reduction: Reduction
     cv: evidence.CrossValidation
+    _other_folds: dict = field(default_factory=dict, repr=False)
+
+    def cross_validated(self, folds: np.ndarray) -> evidence.CrossValidation:
+        """The cross-validation over other folds (n,) (the time blocks), computed once per folds."""
+        key = np.asarray(folds).tobytes()
+        if key not in self._other_folds:
+            self._other_folds[key] = evidence.cross_validate(self.mode, folds)
+        return self._other_folds[key]
 
     @property
     def model(self) -> BlockModel:
@@ -137,12 +145,23 @@ class Signature:
         return float(1.0 - np.sum((self.residual - self.effect) ** 2) / np.sum(self.residual**2))
 
 
-def score(current: Fitted, candidate: Fitted, settings: LoopSettings) -> dict:
-    """A candidate's scores against the current fit (JSON-ready), and whether it passes."""
+def time_blocked_gain(current: evidence.CrossValidation, candidate: evidence.CrossValidation) -> dict:
+    """The candidate's paired fall over the time blocks (`evidence.cv_gain`), keys prefixed time_blocked_."""
+    return {f"time_blocked_{k}": v for k, v in evidence.cv_gain(current, candidate).items()}
+
+
+def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: np.ndarray | None = None) -> dict:
+    """A candidate's scores against the current fit (JSON-ready), and whether it passes; blocked
+    (n,): the time blocks (`TimeBlocked`) a candidate must also not lose on, None without them."""
     out = {
         "log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
         "bic_gain": current.mode.bic() - candidate.mode.bic(),
         **evidence.cv_gain(current.cv, candidate.cv),
+        **(
+            {}
+            if blocked is None
+            else time_blocked_gain(current.cross_validated(blocked), candidate.cross_validated(blocked))
+        ),
         "sigma_mm": candidate.mode.sigma / MM,
         "parameters": list(candidate.reduction.kept),
         "dropped": dict(candidate.reduction.dropped),
@@ -182,10 +201,15 @@ def cv_threshold(settings: LoopSettings, n_folds: int | None = None) -> float:
 
 def passes(scores: Mapping, settings: LoopSettings) -> bool:
     """The selection's rule, for a parametric candidate and the residual GP alike: the evidence gain
-    exceeds min_log_evidence_gain AND the cross-validated fall exceeds `cv_threshold` standard errors."""
+    exceeds min_log_evidence_gain AND the pose-grouped cross-validated fall exceeds `cv_threshold`
+    standard errors AND, where the campaign has time blocks, the fall over blocks contiguous in time
+    is positive: the effect also predicts poses it did not interpolate between (folds of whole poses
+    assigned in turn are each a thinned copy of the same design)."""
+    blocked = scores.get("time_blocked_cv_mse_fall_mm2")
     return bool(
         scores["log_evidence_gain"] > settings.min_log_evidence_gain
         and scores["cv_mse_fall_in_se"] > cv_threshold(settings, scores.get("cv_folds"))
+        and (blocked is None or blocked > 0)
     )
 
 
@@ -232,6 +256,8 @@ def select(
     poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
     sensor is a laser tracker, whose range/transverse noise is then offered."""
     folds = selection_folds(poses, settings.cv_folds)
+    in_time = TimeBlocked.of(data, poses, settings.cv_folds)
+    blocked = in_time.folds if in_time else None
     base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
@@ -268,7 +294,7 @@ def select(
             signature = signatures[number][candidate] = Signature(
                 residual, fitted.model.predict(fitted.theta) - prediction
             )
-            scores[candidate] = {**score(current, fitted, settings), "explained_fraction": signature.explained}
+            scores[candidate] = {**score(current, fitted, settings, blocked), "explained_fraction": signature.explained}
         passing = [c for c in fits if scores[c]["passed"]]
         best = max(passing, key=lambda c: scores[c]["log_evidence_gain"]) if passing else None
         rounds.append({"round": number, "model": list(blocks.BASE) + added, "scores": scores, "added": best})
@@ -290,7 +316,6 @@ def select(
     # can take up model error (a joint-space error seen from the tracker head looks transverse)
     offer_noise = tracker and settings.tracker_noise is not None
     rotation = current.model.sensor_rotation(current.theta)
-    in_time = TimeBlocked.of(data, poses, settings.cv_folds)
     if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
         noise_choice = None
         if offer_noise:
@@ -299,7 +324,7 @@ def select(
             rotation = current.model.sensor_rotation(current.theta)
         time_blocked = in_time.report(path) if in_time else None
         return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice, time_blocked)
-    gp, scores = _score_gp(current, data, rotation, folds, settings)
+    gp, scores = _score_gp(current, data, rotation, folds, settings, in_time)
     if not removed and forward_end is not None and forward_end["added"] is None:
         last = forward_end  # tried in the round where no parametric effect passed, on that round's model
     else:
@@ -472,7 +497,7 @@ class TimeBlocked:
         ((name, fit) in order) and, given the GP's inputs, the residual GP on current's residuals
         scored over the time blocks (hyperparameters refitted without the held-out block, as with
         the pose folds): its fall, in standard errors, and its gain."""
-        steps = {name: evidence.cross_validate(f.mode, self.folds).rmse / MM / math.sqrt(3.0) for name, f in path}
+        steps = {name: f.cross_validated(self.folds).rmse / MM / math.sqrt(3.0) for name, f in path}
         out = {
             "folds": int(len(np.unique(self.folds))),
             "order": self.order,
@@ -480,19 +505,24 @@ class TimeBlocked:
             "rms_per_axis_mm": steps,
         }
         if current is not None:
-            before = evidence.cross_validate(current.mode, self.folds)
-            gp = loop_candidate.fit_and_score(
-                data.q,
-                current.residuals() @ rotation,
-                before.held_out @ rotation,
-                self.folds,
-                int(settings.residual_gp["subset"]),
-                int(settings.residual_gp["inducing"]),
-            )
-            gain = evidence.cv_gain(before, evidence.CrossValidation(gp.mse, gp.points))
+            gain = self.gp_gain(current, data, rotation, settings)
             steps[GP] = gain["cv_rmse_mm"] / math.sqrt(3.0)
             out["residual_gp"] = {**gain, "structure_found": bool(gain["cv_mse_fall_in_se"] > cv_threshold(settings))}
         return out
+
+    def gp_gain(self, current: Fitted, data: Readings, rotation: np.ndarray, settings: LoopSettings) -> dict:
+        """The residual GP on current's residuals scored over the time blocks (hyperparameters
+        refitted without the held-out block): `evidence.cv_gain` against current."""
+        before = current.cross_validated(self.folds)
+        gp = loop_candidate.fit_and_score(
+            data.q,
+            current.residuals() @ rotation,
+            before.held_out @ rotation,
+            self.folds,
+            int(settings.residual_gp["subset"]),
+            int(settings.residual_gp["inducing"]),
+        )
+        return evidence.cv_gain(before, evidence.CrossValidation(gp.mse, gp.points))
 
 
 def choose_noise(
@@ -712,12 +742,17 @@ def _noise_shapes(model: BlockModel, shaped: BlockModel) -> np.ndarray:
 
 
 def _score_gp(
-    current: Fitted, data: Readings, rotation: np.ndarray, folds: np.ndarray, settings: LoopSettings
+    current: Fitted,
+    data: Readings,
+    rotation: np.ndarray,
+    folds: np.ndarray,
+    settings: LoopSettings,
+    in_time: TimeBlocked | None = None,
 ) -> tuple[loop_candidate.Candidate, dict]:
     """The Gaussian process on the current fit's residuals (robot frame) and its scores by the
     parametric candidates' rule: evidence gain (`remaster.inference.gp.evidence_gain`: exact or Titsias,
-    hyperparameters integrated, against iid noise with sigma integrated alike) and pose-grouped
-    cross-validated fall."""
+    hyperparameters integrated, against iid noise with sigma integrated alike), pose-grouped
+    cross-validated fall, and its fall over the time blocks (`TimeBlocked.gp_gain`)."""
     residual = current.residuals()
     gp = gp_candidate(current, data, rotation, folds, settings)
     signature = Signature(residual, gp.gp.mean(data.q) @ rotation.T)
@@ -729,5 +764,7 @@ def _score_gp(
         "explained_fraction": signature.explained,
         "evidence": gp.evidence.report(),
     }
+    if in_time is not None:
+        scores.update({f"time_blocked_{k}": v for k, v in in_time.gp_gain(current, data, rotation, settings).items()})
     scores["passed"] = passes(scores, settings)
     return gp, scores
