@@ -185,7 +185,7 @@ def _predict(args: argparse.Namespace) -> None:
     write_csv(args.out, table)
     print(
         f"{args.out}: {len(table)} predicted positions ({args.model} model, {args.frame} frame); largest "
-        f"95 % bound {table['bound95_mm'].max():.4g} mm"
+        f"95 % bound {table['bound95_mm'].max():.4g} mm{compensation.near_summary(table)}"
     )
 
 
@@ -209,7 +209,7 @@ def _compensate(args: argparse.Namespace) -> int:
     reached = out["status"] == compensation.REACHED
     print(
         f"{args.out}: {int(reached.sum())} of {len(out)} targets reached ({args.model} model, {args.frame} frame); "
-        f"largest 95 % bound {out['bound95_mm'].max():.4g} mm"
+        f"largest 95 % bound {out['bound95_mm'].max():.4g} mm{compensation.near_summary(out)}"
     )
     left = compensation.not_reached_summary(out)
     if left:

@@ -8,6 +8,8 @@ from remaster.evaluation import domain
 from remaster.inference import metrics
 from remaster.units import DEG
 
+MARKER = np.array([0.0, 0.0, 0.1])  # m, flange frame
+
 
 def readings(iiwa, rng, fraction: float, held=(2,)) -> np.ndarray:
     """200 readings spanning `fraction` of each joint's range about its centre, the `held` joints
@@ -23,7 +25,7 @@ def readings(iiwa, rng, fraction: float, held=(2,)) -> np.ndarray:
 def test_the_intervals_are_the_readings_extremes_and_a_joint_never_moved_is_held(iiwa, rng):
     q = readings(iiwa, rng, 0.6, held=(2, 6))
     q[5:, 6] += 0.001 * DEG  # jitter below HELD_WIDTH: held too, at the middle of what it read
-    measured = domain.MeasuredDomain.of(iiwa, q)
+    measured = domain.MeasuredDomain.of(iiwa, q, MARKER)
     np.testing.assert_array_equal(measured.held, [False, False, True, False, False, False, True])
     np.testing.assert_allclose(measured.lower[:2], q[:, :2].min(axis=0))
     np.testing.assert_allclose(measured.upper[3:6], q[:, 3:6].max(axis=0))
@@ -43,25 +45,23 @@ def test_the_intervals_are_the_readings_extremes_and_a_joint_never_moved_is_held
 def test_the_claims_hold_across_the_limits_only_when_every_joint_and_the_tool_covered_them(iiwa, rng):
     """90 % of every range and tool axes spread wide: across the limits; one joint short of 90 %,
     or (`readings` turn joints 5 and 6 widely) the tool held: inside the measured ranges."""
-    wide = domain.MeasuredDomain.of(iiwa, readings(iiwa, rng, 0.95, held=()))
+    wide = domain.MeasuredDomain.of(iiwa, readings(iiwa, rng, 0.95, held=()), MARKER)
     assert wide.tool_axis_spread_deg >= domain.MIN_TOOL_SPREAD_DEG
     assert wide.covers_the_limits and wide.holds() == domain.ACROSS
     short = readings(iiwa, rng, 0.95, held=())
     lower, upper = metrics.joint_space_bounds(iiwa)
     short[:, 3] = np.clip(short[:, 3], lower[3], lower[3] + 0.85 * (upper[3] - lower[3]))
-    assert not domain.MeasuredDomain.of(iiwa, short).covers_the_limits
-    tool_held = domain.MeasuredDomain(wide.lower, wide.upper, wide.limits_lower, wide.limits_upper, 12.0)
+    assert not domain.MeasuredDomain.of(iiwa, short, MARKER).covers_the_limits
+    tool_held = domain.MeasuredDomain(wide.lower, wide.upper, wide.limits_lower, wide.limits_upper, 12.0, wide.nearness)
     assert not tool_held.covers_the_limits and tool_held.holds().startswith(domain.INSIDE)
 
 
-def test_domain_configurations_lie_inside_the_intervals_and_repeat(iiwa, rng):
-    measured = domain.MeasuredDomain.of(iiwa, readings(iiwa, rng, 0.3))
+def test_domain_configurations_lie_near_the_data_and_repeat(iiwa, rng):
+    measured = domain.MeasuredDomain.of(iiwa, readings(iiwa, rng, 0.3), MARKER)
     q = measured.configurations("KUKA iiwa #1", 500, seed=7)
     assert q.shape == (500, 7)
-    assert (q >= measured.lower).all() and (q <= measured.upper).all()
+    assert (q >= measured.limits_lower).all() and (q <= measured.limits_upper).all()
     assert (q[:, 2] == 10 * DEG).all()  # the held joint stays at its value
-    # uniform inside: each moved joint's draws fill its interval (max gap far below the width)
-    spread = (q.max(axis=0) - q.min(axis=0)) / np.where(measured.held, 1.0, measured.upper - measured.lower)
-    assert np.delete(spread, 2).min() > 0.95
+    assert measured.nearness.inside(q).all()
     np.testing.assert_array_equal(q, measured.configurations("KUKA iiwa #1", 500, seed=7))
     assert not np.array_equal(q, measured.configurations("KUKA iiwa #2", 500, seed=7))

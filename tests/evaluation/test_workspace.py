@@ -29,6 +29,7 @@ DRAWS, RANDOM = 400, 300  # fewer than the pipeline's 2000 x 1000: the quantiles
 CONFIG = validated_config(files.read_yaml(REPO / "config.yaml"))  # the schema fills the defaults
 _fitted = {}
 _laplace_content = {}
+MARKER = np.array([0.0, 0.0, 0.1])  # m, flange frame
 
 
 # --------------------------------------------------------------------------- pieces
@@ -109,7 +110,7 @@ def test_a_calibration_that_holds_inside_its_ranges_only_says_what_to_add(iiwa, 
     every joint short of the range the claims across the limits need."""
     q = rng.uniform(-0.12, 0.12, (40, 7))
     q[:, 2] = 0.0
-    measured = domain.MeasuredDomain.of(iiwa, q)
+    measured = domain.MeasuredDomain.of(iiwa, q, MARKER)
     assert measured.held[2] and measured.tool_axis_spread_deg < domain.MIN_TOOL_SPREAD_DEG
     suggestions = workspace._suggestions(measured, ["link_geometry.F3.length"])
     assert "joint 3 over more of its range (measured: held at 0 deg)" in suggestions

@@ -20,7 +20,11 @@ nominal model's positions (in the sensor frame through the campaign's initial re
 an uncalibrated cell places them), and bounds from K posterior draws d (whole MCMC rows):
 `bound95_mm`, the 95th percentile over d of |p_d(q) - p(q)|; `bound95_with_noise_mm`, the same with
 each draw's N(0, sigma_d^2 I3) added (sigma_d: the fit's noise, or the GP's noise with a residual
-GP): what the same sensor would read there.
+GP): what the same sensor would read there. Every command is flagged: `distance_to_data_mm`, how
+far the marker moves (at most, to first order) from the nearest configuration the fit measured,
+and `near_data`, within the data's own spacing (`robot.nearness`). Far from the data a bound is
+what the model and its priors say, not what was measured: a user who relies on it there should
+measure there.
 
 **compensate**: each target is a point t and a flange orientation R0, both from a nominal
 solution q0. Nominal joint commands give it directly (t and R0: where the nominal model puts the
@@ -60,6 +64,7 @@ from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..robot.nearness import Nearness
 from ..units import MM
 
 MODELS = ("paper", "loop")
@@ -89,7 +94,8 @@ class CalibratedRobot:
     included; empty without MCMC); held: {zero-offset: value} the data cannot see, held_tolerance
     (rad) of the controller's marks; gp: the loop's residual GP (robot frame, at the marker);
     absorbed: the held zero-offsets a registration absorbs (the others, e.g. a joint whose axis
-    the marker lies on, are unseen in the sensor frame too)."""
+    the marker lies on, are unseen in the sensor frame too); near: how near a command is to the
+    configurations the fit measured (`robot.nearness`)."""
 
     chain: KinematicChain
     calibration: Calibration
@@ -102,6 +108,7 @@ class CalibratedRobot:
     held_tolerance: float
     gp: ResidualGP | None = None
     absorbed: frozenset[str] = frozenset()
+    near: Nearness | None = None
 
     @property
     def blocks(self) -> tuple[str, ...]:
@@ -272,6 +279,7 @@ def calibrated_robot(
         tolerance,
         gp,
         absorbed,
+        Nearness.of(campaign.chain, campaign.sensors[sensor].fit_readings(laplace.outlier_rows), marker),
     )
 
 
@@ -354,6 +362,18 @@ def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Ge
     table["correction_mm"] = np.linalg.norm(points - nominal, axis=1) / MM
     table["bound95_mm"] = _bounds_mm(draws, points)
     table["bound95_with_noise_mm"] = _bounds_mm(noisy, points)
+    return with_nearness(table, robot.near, q)
+
+
+def with_nearness(table: pd.DataFrame, near: Nearness | None, q) -> pd.DataFrame:
+    """table with `distance_to_data_mm` (how far the marker moves, at most to first order, from the
+    nearest configuration the fit measured) and `near_data` (within the data's own spacing: where
+    the bounds are claimed) per command q (n, N); unchanged without a nearness."""
+    if near is None:
+        return table
+    distance = near.distance(q)
+    table["distance_to_data_mm"] = distance / MM
+    table["near_data"] = distance <= near.radius
     return table
 
 
@@ -547,7 +567,19 @@ def compensate(
         table.loc[at, "nominal_error_mm"] = (
             np.linalg.norm(robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
         )
-    return table
+    return with_nearness(table, robot.near, q)  # a target not reached: no distance, not near
+
+
+def near_summary(table: pd.DataFrame) -> str:
+    """'; 12 of 40 commands far from the measured configurations (near_data False: there the bound is
+    the model's and its priors', not measured)' or ''."""
+    if "near_data" not in table.columns or table["near_data"].all():
+        return ""
+    far = int((~table["near_data"].astype(bool)).sum())
+    return (
+        f"; {far} of {len(table)} commands far from the measured configurations (near_data False: there the bound "
+        "is the model's and its priors', not measured)"
+    )
 
 
 def not_reached_summary(table: pd.DataFrame) -> str:

@@ -130,6 +130,12 @@ class SensorData:
     def n_missing(self) -> int:
         return int(self.missing_rows.size)
 
+    def fit_readings(self, excluded=()) -> np.ndarray:
+        """(n, N) rad: the readings a fit used, the optimization rows whose marker was seen less the
+        `excluded` rows (gross errors); every optimization row when that leaves none."""
+        rows = np.setdiff1d(self.measured_rows("optimization"), np.asarray(excluded, dtype=int))
+        return self.q()[rows] if len(rows) else self.q("optimization")
+
     def point_std(self, rows) -> np.ndarray | None:
         """The instrument's per-point std (len(rows), 3) m per axis of the sensor frame at table
         rows (0-based) from the optional `std` or `std_x, std_y, std_z` columns; None without them."""

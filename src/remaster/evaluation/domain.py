@@ -6,10 +6,14 @@ orientation, and so where its claims hold (docs/methods.md, "Where a calibration
   span less than `HELD_WIDTH` is *held*: an interval of zero width, at its value.
 - **Tool orientations**: the largest angle between a measured flange z axis and their mean direction
   (nominal kinematics), deg.
-- **Domain configurations** (`MeasuredDomain.configurations`): random configurations uniform inside
-  the joint intervals (a held joint at its value), from the generator of (seed, 'domain', robot
-  slug): as the robot's random configurations across the limits (`prediction.robot_configurations`),
-  the same for the same robot, seed and intervals.
+- **Nearness** (`robot.nearness.Nearness`): how far the marker moves from the nearest measured
+  configuration, each joint's difference weighted by its lever arm to the marker; a configuration
+  is *near the data* when that distance is at most the data's own spacing. The joint intervals are
+  a box around a thin set (a design that keeps the tool facing the sensor leaves most of its box
+  unmeasured), so the claims are made near the data, not in the box.
+- **Domain configurations** (`MeasuredDomain.configurations`): random configurations near the data
+  (a measured configuration moved by at most the data's spacing, within the limits), from the
+  generator of (seed, 'domain', robot slug): the same for the same robot, seed and data.
 
 Where the claims hold (`MeasuredDomain.holds`): "across the joint limits" when every joint's interval
 covers at least `FULL_RANGE_FRACTION` of its range (limits, +-pi where unlimited) and the measured tool
@@ -30,6 +34,7 @@ import numpy as np
 from .. import identity, seeding
 from ..inference import metrics
 from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..robot.nearness import Nearness
 from ..units import DEG
 
 FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
@@ -42,17 +47,19 @@ ACROSS, INSIDE = "across the joint limits", "inside the measured ranges"
 class MeasuredDomain:
     """lower, upper (N,) rad: each joint's measured interval; limits_lower, limits_upper (N,) rad:
     its limits (+-pi where unlimited); tool_axis_spread_deg: the largest angle between a measured
-    flange z axis and their mean direction."""
+    flange z axis and their mean direction; nearness: how near a configuration is to the measured
+    ones (`robot.nearness`)."""
 
     lower: np.ndarray
     upper: np.ndarray
     limits_lower: np.ndarray
     limits_upper: np.ndarray
     tool_axis_spread_deg: float
+    nearness: Nearness
 
     @classmethod
-    def of(cls, chain: KinematicChain, q) -> MeasuredDomain:
-        """The domain of readings q (n, N) rad, n >= 1."""
+    def of(cls, chain: KinematicChain, q, marker) -> MeasuredDomain:
+        """The domain of readings q (n, N) rad, n >= 1, of a marker (3,) m in the flange frame."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         lower, upper = metrics.joint_space_bounds(chain)
         axes = ForwardKinematics(chain, q).flange_poses()[:, :3, 2]
@@ -62,7 +69,8 @@ class MeasuredDomain:
         low, high = q.min(axis=0), q.max(axis=0)
         held = high - low < HELD_WIDTH
         centre = 0.5 * (low + high)  # a held joint: one value
-        return cls(np.where(held, centre, low), np.where(held, centre, high), lower, upper, spread)
+        nearness = Nearness.of(chain, q, marker)
+        return cls(np.where(held, centre, low), np.where(held, centre, high), lower, upper, spread, nearness)
 
     @property
     def held(self) -> np.ndarray:
@@ -81,10 +89,11 @@ class MeasuredDomain:
         )
 
     def configurations(self, robot: str, n: int, seed: int) -> np.ndarray:
-        """n configurations (n, N) rad uniform inside the intervals, held joints at their value,
-        from the generator of (seed, 'domain', robot slug)."""
+        """n configurations (n, N) rad near the data (`Nearness.draw`, within the limits; a held
+        joint stays at its value), from the generator of (seed, 'domain', robot slug)."""
         rng = seeding.generator(seed, "domain", identity.robot_slug(robot))
-        return self.lower + (self.upper - self.lower) * rng.uniform(size=(n, len(self.lower)))
+        q = self.nearness.draw(n, rng, self.limits_lower, self.limits_upper)
+        return np.where(self.held, self.lower, q)
 
     def ranges_text(self) -> str:
         """Each joint's interval in degrees: 'q1 -161 to 167 deg (96 % of its range), ..., q3 held at 0 deg'."""
@@ -133,6 +142,13 @@ class MeasuredDomain:
                 for j, (low, high, fraction) in enumerate(zip(self.lower, self.upper, self.range_fraction))
             ],
             "held_joints": [f"q{j + 1}" for j in np.flatnonzero(self.held)],
+            "near": {
+                "measured_configurations": int(len(self.nearness.measured)),
+                "spacing_mm": float(self.nearness.radius * 1e3),
+                "lever_arms_mm": [float(r * 1e3) for r in self.nearness.lever],
+                "meaning": "a configuration is near the data when the marker moves at most spacing_mm (to first "
+                "order) from the nearest measured configuration",
+            },
             "tool_axis_spread_deg": self.tool_axis_spread_deg,
             "full_range_fraction": FULL_RANGE_FRACTION,
             "min_tool_spread_deg": MIN_TOOL_SPREAD_DEG,

@@ -8,8 +8,8 @@ Configurations, three sets:
   valid either way; beyond as many rows as there are random configurations, that many evenly spaced
   rows, so that the posterior draws' points (draws x rows x 3) stay within a job's memory on a
   campaign of any size);
-- 'domain': random configurations inside the measured domain, each joint uniform in the interval
-  the fit's readings spanned, a held joint at its value (`domain.MeasuredDomain`);
+- 'domain': random configurations near the measured ones (within the data's own spacing, in how
+  far the marker moves), a held joint at its value (`domain.MeasuredDomain`, `robot.nearness`);
 - 'random': the robot's one fixed set of random configurations across the joint limits
   (`prediction.robot_configurations`, shared with the comparison by prediction), where the
   parameters the data did not determine spread by their priors.
@@ -180,8 +180,7 @@ def _suggestions(domain: MeasuredDomain, dominated: list[str]) -> list[str]:
 def fit_domain(chain: KinematicChain, sensor: SensorData, outlier_rows=()) -> MeasuredDomain:
     """The measured domain of the readings the fit used: the optimization rows whose marker was seen,
     less the rows flagged as gross errors (every optimization row when that leaves none)."""
-    rows = np.setdiff1d(sensor.measured_rows("optimization"), np.asarray(outlier_rows, dtype=int))
-    return MeasuredDomain.of(chain, sensor.q()[rows] if len(rows) else sensor.q("optimization"))
+    return MeasuredDomain.of(chain, sensor.fit_readings(outlier_rows), sensor.marker)
 
 
 @dataclass(frozen=True, eq=False)

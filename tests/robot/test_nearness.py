@@ -1,0 +1,55 @@
+"""Nearness to the measured configurations, in how far the marker moves (`remaster.robot.nearness`):
+lever arms against a closed form, the distance against the marker's real motion, the spacing and
+the draws near the data."""
+
+import numpy as np
+
+from remaster.robot import nearness
+from remaster.robot.kinematics import ForwardKinematics, chain_from_dh
+
+MARKER = np.array([0.0, 0.0, 0.1])
+
+
+def planar_arm():
+    """Two revolute joints about parallel z axes, links of 0.5 and 0.3 m: the marker (at the flange
+    origin plus 0.1 m along z) lies 0.8 m from joint 1's axis and 0.3 m from joint 2's when straight."""
+    return chain_from_dh([[0.5, 0.0, 0.0, 0.0], [0.3, 0.0, 0.0, 0.0]], "standard", name="planar")
+
+
+def test_lever_arms_of_a_planar_arm_are_its_reach_to_the_marker():
+    chain = planar_arm()
+    q = np.array([[0.0, 0.0], [0.0, np.pi / 2]])  # straight, then the elbow bent: 0.8 m, then sqrt(0.5^2 + 0.3^2)
+    np.testing.assert_allclose(nearness.lever_arms(chain, q, MARKER), [0.8, 0.3], atol=1e-12)
+
+
+def test_the_distance_bounds_the_markers_motion_to_first_order(iiwa, rng):
+    """Small moves from measured configurations: the marker moves at most the stated distance
+    (to first order), and not far less on average."""
+    measured = rng.uniform(-1.0, 1.0, (50, 7))
+    near = nearness.Nearness.of(iiwa, measured, MARKER)
+    step = 1e-3 * rng.standard_normal((50, 7))
+    moved = np.linalg.norm(
+        ForwardKinematics(iiwa, measured + step).points(MARKER) - ForwardKinematics(iiwa, measured).points(MARKER),
+        axis=1,
+    )
+    stated = np.abs(step) @ near.lever
+    assert np.all(moved <= stated * 1.01)
+    assert np.median(moved / stated) > 0.2
+
+
+def test_the_data_are_inside_and_far_configurations_are_not(iiwa, rng):
+    """A thin design (joints within 0.1 rad of one configuration and of another): its own
+    configurations are inside, draws near them too, configurations across the box between the two
+    clusters are outside."""
+    a, b = np.zeros(7), np.full(7, 1.0)
+    measured = np.concatenate([a + 0.1 * rng.uniform(-1, 1, (40, 7)), b + 0.1 * rng.uniform(-1, 1, (40, 7))])
+    near = nearness.Nearness.of(iiwa, measured, MARKER)
+    assert np.mean(near.inside(measured)) >= 0.95  # the spacing is the 95th percentile of the data's own
+    drawn = near.draw(300, np.random.default_rng(1))
+    assert near.inside(drawn).all()
+    box = rng.uniform(measured.min(axis=0), measured.max(axis=0), (300, 7))
+    assert np.mean(near.inside(box)) < 0.1
+    # a joint on whose axis the marker lies has no lever arm: the draws leave it where it was measured
+    held = nearness.Nearness(measured, np.append(near.lever[:6], 0.0), near.radius)
+    q = held.draw(100, np.random.default_rng(2))
+    assert np.isin(q[:, 6], measured[:, 6]).all()
