@@ -171,7 +171,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     # a claim's p95 is the bound on this arm's own 95th percentile, not the pooled quantile (2 x mean)
     limits = "claimed across the joint limits (priors where the data did not reach)"
     assert accuracy.loc[(limits, "loop-closed"), "p95 (mm)"] == 1.5
-    assert accuracy.loc[("claimed inside the measured ranges", "loop-closed"), "p95 (mm)"] == 3 * 0.03
+    assert accuracy.loc[("claimed near the measured configurations", "loop-closed"), "p95 (mm)"] == 3 * 0.03
     # both models, the loop-closed one first, each U as controller_offsets.csv gives it
     corrections = cert.corrections
     assert corrections["Model"].str.startswith("loop-closed").tolist() == [True, False, False]
@@ -185,10 +185,14 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
         verdict["U(Before: mean) (mm)"] == before["U(mean) (mm)"]
         and verdict["U(After: mean) (mm)"] == loop["U(mean) (mm)"]
     )
-    assert verdict["Holds"] == "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg"
+    assert verdict["Holds"] == (
+        "inside the measured ranges: q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg; "
+        + certificate.NOT_DETERMINED
+    )
     assert verdict["After: model"].startswith("loop-closed")
-    assert verdict["Inside the measured ranges: p95 (mm)"] == 3 * 0.03
-    assert verdict["Across the joint limits: p95 (mm)"] == 1.5
+    assert verdict["Near the measured configurations: p95 (mm)"] == 3 * 0.03
+    # joint 2 never turned: the number across the limits would be the priors', so none is given
+    assert np.isnan(verdict["Across the joint limits: p95 (mm)"])
     assert any("optimization set: 1 rows flagged as gross errors" in w and "[7]" in w for w in cert.warnings)
     assert any(w.startswith("Laser Tracker: loop closure: loop not closed") for w in cert.warnings)
     assert any("loop closure: the MCMC refit did not meet" in w for w in cert.warnings)

@@ -19,7 +19,7 @@ Where the claims hold (`MeasuredDomain.holds`): "across the joint limits" when e
 covers at least `FULL_RANGE_FRACTION` of its range (limits, +-pi where unlimited) and the measured tool
 axes spread at least `MIN_TOOL_SPREAD_DEG` (joints that each moved far, but in combinations that
 kept the tool pointing one way, leave the other orientations unmeasured: kuka-cubes); otherwise
-"inside the measured ranges", naming them. The claim across the limits is still made, apart: there
+"near the measured configurations", naming what falls short. The claim across the limits is still made, apart: there
 the parameters the data did not determine spread by their priors.
 
 SI inside (rad); degrees only in the texts and in `report()`.
@@ -40,7 +40,7 @@ from ..units import DEG
 FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
 MIN_TOOL_SPREAD_DEG = 30.0  # and the spread of the measured tool axes
 HELD_WIDTH = 0.01 * DEG  # readings spanning less: the joint was held (a controller's jitter, not a motion)
-ACROSS, INSIDE = "across the joint limits", "inside the measured ranges"
+ACROSS, INSIDE = "across the joint limits", "near the measured configurations"
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,7 +121,7 @@ class MeasuredDomain:
 
     def holds(self) -> str:
         """Where the claims hold: ACROSS, or INSIDE with what falls short of the limits (the ranges
-        themselves are the certificate's "Valid for", `ranges_text`): 'inside the measured ranges
+        themselves are the certificate's "Valid for", `ranges_text`): 'near the measured configurations
         (q3 held at 0 deg; tool axes within 18 deg of one direction)'."""
         if self.covers_the_limits:
             return ACROSS

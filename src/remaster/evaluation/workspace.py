@@ -43,7 +43,7 @@ Two kinds of claim:
 
 Where the claims hold is the measured domain's verdict (`domain.MeasuredDomain.holds`): "across the
 joint limits" only when every joint's interval covers `domain.FULL_RANGE_FRACTION` of its range and
-the tool axes spread `domain.MIN_TOOL_SPREAD_DEG`; otherwise "inside the measured ranges", and the
+the tool axes spread `domain.MIN_TOOL_SPREAD_DEG`; otherwise "near the measured configurations", and the
 claim across the limits is shown apart, as the claim with the priors of what the data did not reach.
 (Comparing the model's own claim at random configurations with its own claim at the measured ones
 cannot see what the model cannot represent: that ratio is kept as information only.) The report
@@ -364,10 +364,11 @@ def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_repo
         }
     if not domain.covers_the_limits:
         warnings.append(
-            f"the claims hold {INSIDE} only ({domain.short_text()}): there the loop-closed model's p95 bound "
-            f"is {shown(_claim(claims, 'loop', 'domain', 'p95_bound_mm'))} mm (registration fitted, with noise); "
-            f"across the joint limits, with the priors of what the data did not reach, "
-            f"{shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} mm"
+            f"the claims hold near the measured configurations only ({domain.short_text()}): there the "
+            f"loop-closed model's p95 bound is {shown(_claim(claims, 'loop', 'domain', 'p95_bound_mm'))} mm "
+            "(registration fitted, with noise); across the joint limits the accuracy is not determined: the data "
+            "did not reach there, and the priors of what they did not reach would give "
+            f"{shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} mm, a statement of the priors, not a bound"
         )
     if suggestions:  # one line: the joints, the tool orientations and the prior-dominated parameters
         warnings.append(f"the next campaign must add: {'; '.join(suggestions)}")

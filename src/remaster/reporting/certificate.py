@@ -107,7 +107,7 @@ def _row(sensor: str, where: str, model: str, errors_mm, poses) -> dict:
 # the claims' rows: configurations of workspace_accuracy.csv -> where (`workspace.CONFIGURATIONS`)
 CLAIMED = {
     "optimization": "claimed at the measured configurations",
-    "domain": "claimed inside the measured ranges",
+    "domain": "claimed near the measured configurations",
     "random": "claimed across the joint limits (priors where the data did not reach)",
 }
 
@@ -225,6 +225,10 @@ def _disagreement_text(disagree: dict[str, list[str]]) -> str:
 
 
 NOT_TESTED = "not tested"  # the acceptance column without acceptance.json
+NOT_DETERMINED = (
+    "across the joint limits not determined: the data did not reach there, so a bound would be the priors', "
+    "not a measurement"
+)
 
 
 def acceptance_text(acceptance: Acceptance | None) -> str:
@@ -254,6 +258,7 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     inside = by.get((CLAIMED["domain"], "loop-closed"), {})
     limits = by.get((CLAIMED["random"], "loop-closed"), {})
     samplers, disagree = second_sampler(inputs)
+    across = bool(inputs.workspace["domain"].get("covers_the_limits", True))
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
         "Sensor": sensor_label(sensor),
@@ -263,10 +268,12 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "U(After: mean) (mm)": after.get("U(mean) (mm)", np.nan),
         "After: p95 (mm)": after.get("p95 (mm)", np.nan),
         "After: model": after.get("Model", ""),
-        "Inside the measured ranges: p95 (mm)": inside.get("p95 (mm)", np.nan),
-        "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan),
+        "Near the measured configurations: p95 (mm)": inside.get("p95 (mm)", np.nan),
+        # where the data did not reach the limits the priors decide the number there: not determined
+        "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan) if across else np.nan,
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
-        "Holds": inputs.workspace["domain"]["holds"],  # naming the measured ranges (`domain.MeasuredDomain.holds`)
+        # naming the measured ranges (`domain.MeasuredDomain.holds`)
+        "Holds": inputs.workspace["domain"]["holds"] + ("" if across else f"; {NOT_DETERMINED}"),
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
         "Acceptance": acceptance_text(inputs.acceptance),
     }

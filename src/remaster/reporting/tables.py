@@ -87,7 +87,7 @@ CAPTIONS = {
     "error at a random configuration of a random draw; 95% bound: this arm's own 95th "
     "percentile stays below it with 95 % posterior probability. Holds: 'across the joint limits' "
     "when every joint's measured range covers 90 % of its limits and the measured tool axes "
-    "spread 30 deg, else 'inside the measured ranges'.",
+    "spread 30 deg, else 'near the measured configurations'.",
     "workspace_warnings": "What the report warns about each calibration: where its claims hold (the measured "
     "ranges) against the claim across the joint limits, what the next campaign must add, and "
     "parameters the data barely moved from their prior.",
