@@ -18,7 +18,7 @@ fit's (`simulation.true_chain`).
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,8 @@ from remaster import files, identity
 from remaster.calibration import compensation, prediction
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
-from remaster.evaluation import workspace
+from remaster.evaluation import acceptance, workspace
+from remaster.evaluation.acceptance import Acceptance
 from remaster.inference import fit, metrics
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
@@ -66,7 +67,8 @@ class TruthCheck:
     readings the fit used (the measured domain's rows); planned_error_mm, planned_bound_mm, planned_q:
     the same as error_mm and bound_mm at the validation set's commands (the planner's own
     configurations, drawn like the measured ones, not between them); samples: the loop closure's
-    posterior samples (SI)."""
+    posterior samples (SI); acceptance: the acceptance test on the validation set (config.yaml's
+    settings)."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -85,6 +87,7 @@ class TruthCheck:
     planned_bound_mm: np.ndarray | None = None
     planned_q: np.ndarray | None = None
     samples: pd.DataFrame | None = None
+    acceptance: Acceptance | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -120,12 +123,15 @@ class TruthCheck:
         }
 
 
-def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000, seed: int = 5) -> TruthCheck:
-    """Simulate `spec`, calibrate its `sensor` as the pipeline does, and hold `remaster predict`
-    (loop model, sensor frame) to the truth at `n_random` configurations uniform within the joint
-    limits and `n_random` inside the measured joint ranges; and the loop model's workspace claims
-    (`draws` posterior draws, `n_random` configurations each) inside the measured ranges and across
-    the limits to the true 95th percentile there."""
+def check(
+    spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000, seed: int = 5, without: tuple = ()
+) -> TruthCheck:
+    """Simulate `spec`, calibrate its `sensor` as the pipeline does (the loop closure offered every
+    candidate but those `without`), and hold `remaster predict` (loop model, sensor frame) to the
+    truth at `n_random` configurations uniform within the joint limits and `n_random` near the
+    measured configurations; and the loop model's workspace claims (`draws` posterior draws,
+    `n_random` configurations each) near the data and across the limits to the true 95th percentile
+    there; and run the acceptance test."""
     simulated = scenario.simulate(spec, chain)
     root = Path(tempfile.mkdtemp())
     folder = root / spec["name"]
@@ -140,6 +146,7 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     registered = fit.registration_stage(campaign, sensor)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
+    settings = replace(settings, candidates=tuple(c for c in settings.candidates if c not in without))
     result = loop_closure.loop_closure_stage(
         campaign, sensor, registered, laplace, np.random.default_rng(seed), settings
     )
@@ -203,8 +210,15 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
     at_planned = compensation.predict(robot, q_planned, "sensor", draws, rng)
     true_planned = true_sensor_positions(campaign.chain, true_robot, device, q_planned, np.zeros(len(q_planned)))
     planned_error = np.linalg.norm(at_planned[["x", "y", "z"]].to_numpy() - true_planned, axis=1) / 1e-3
-    measured_rows = np.setdiff1d(
-        campaign.sensors[sensor].measured_rows("optimization"), np.asarray(laplace.outlier_rows, dtype=int)
+    accepted = acceptance.acceptance_stage(
+        campaign,
+        sensor,
+        registered.t_nr,
+        laplace,
+        None,
+        LoopResults(report, result.samples, result.gp),
+        np.random.default_rng(seed),
+        config["acceptance"],
     )
     return TruthCheck(
         tuple(report.effects_added),
@@ -219,9 +233,10 @@ def check(spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000
         q_domain,
         held_to_truth,
         report,
-        campaign.sensors[sensor].q()[measured_rows],
+        campaign.sensors[sensor].fit_readings(laplace.outlier_rows),
         planned_error,
         at_planned["bound95_mm"].to_numpy(),
         q_planned,
         result.samples,
+        accepted,
     )

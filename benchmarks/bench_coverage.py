@@ -1,0 +1,205 @@
+"""Does every stated 95 % hold? The claims of a calibration against simulated truths it did not make,
+over many seeds.
+
+Small iiwa campaigns (25 configurations over 6 poses to fit, 16 to validate, a 10 um laser tracker)
+go through the pipeline's own stages in-process (`truth_claims.check`: registration, the paper's
+fit, the loop closure with config.yaml's settings, `remaster predict`, the workspace claims, the
+acceptance test). Truths, each written by the simulator, not in the fit's parametrization:
+zero-offsets only; rigid link errors (every fixed transform moved); cyclic joint errors; joint
+compliance under a payload. Designs: joint 3 held (the iiwa planner's default) and every joint
+turning. Per (truth, design, seed):
+
+- near the data: the share of `remaster predict`'s commands (at the workspace claims' own
+  configurations near the measured ones) whose true error exceeds their 95 % bound;
+- the workspace claim near the data (the bound on one arm's p95) over the true p95 there;
+- the acceptance test's verdict (correct models: should fail at the level);
+- the loop-closed zero-offset corrections, with their combined standard uncertainty.
+
+Then, per truth and seed, the corrections of the two designs of the same robot (same truth, other
+poses): how often they differ by more than 3 combined standard uncertainties; and the acceptance
+test's rejection rate on a model missing an effect present in both sets (compliance in the truth,
+the loop without its compliance candidate).
+
+Writes benchmarks/results/coverage.json and coverage.md, and the table into docs/validation.md
+between its bench_coverage markers. Run from the repository root:
+    .venv/bin/python benchmarks/bench_coverage.py [--seeds N] [--first SEED] [--jobs J]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.truth_claims import REPO, check  # noqa: E402
+from remaster.campaigns.arm_kinds import chain_of, cyclic_truth, iiwa_scenario  # noqa: E402
+
+RESULTS = REPO / "benchmarks" / "results"
+VALIDATION_DOC = REPO / "docs" / "validation.md"
+BEGIN, END = "<!-- bench_coverage:begin -->", "<!-- bench_coverage:end -->"
+TRUTHS = {
+    "zero-offsets": {},
+    "rigid links": {"link_errors": {"translation_std": 1.0e-4, "rotation_std": 2.0e-4, "seed": 9}},
+    "cyclic": {"cyclic_error": cyclic_truth()},
+    "compliance": {
+        "joint_compliance": [0.0, 2.5e-5, 0.0, 3.0e-5, 0.0, 5.0e-5, 0.0],
+        "payload": {"mass": 2.5, "com": [0.0, 0.0, 0.03]},
+    },
+}
+DESIGNS = {"q3 held": {}, "every joint": {"q3": "free"}}
+MISSING = ("compliance", ("joint_compliance",))  # the truth, and the candidates the loop is not offered
+
+
+def one(task: tuple) -> dict:
+    """The numbers of one (truth, design, seed, without) campaign."""
+    truth, design, seed, without = task
+    spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design])
+    checked = check(spec, chain_of(spec, REPO), "laser_tracker", n_random=200, draws=400, seed=seed, without=without)
+    claim = checked.claims["domain"]
+    table = checked.report.parameters.set_index("parameter")
+    between = (checked.report.between_design.get("loop") or {}).get("parameters", {})
+    corrections = {}
+    for name, row in table.iterrows():
+        if str(name).startswith("zero_offsets.") and row["status"] == "estimated":
+            u_between = math.radians(between.get(name, {}).get("u_between_deg", 0.0))
+            corrections[str(name)] = [float(row["mean"]), math.hypot(float(row["std"]), u_between)]
+    return {
+        "truth": truth,
+        "design": design,
+        "seed": seed,
+        "without": list(without),
+        "effects": list(checked.effects),
+        "outside_share_near": 1.0 - checked.domain_held_fraction,
+        "claim_over_true_p95_near": claim.p95_bound_mm / claim.true_p95_mm,
+        "acceptance": checked.acceptance.verdict,
+        "acceptance_p": (checked.acceptance.checks.get("loop") or {}).get("p_value"),
+        "corrections": corrections,
+    }
+
+
+def pairs(runs: list[dict]) -> list[float]:
+    """|difference| / combined u of each zero-offset estimated in both designs of one truth and seed."""
+    by = {(r["truth"], r["seed"], r["design"]): r for r in runs if not r["without"]}
+    out = []
+    for (truth, seed, design), run in by.items():
+        if design != "q3 held" or (truth, seed, "every joint") not in by:
+            continue
+        other = by[(truth, seed, "every joint")]["corrections"]
+        for name, (mean, u) in run["corrections"].items():
+            if name in other:
+                out.append(abs(mean - other[name][0]) / math.hypot(u, other[name][1]))
+    return out
+
+
+def summary(runs: list[dict]) -> dict:
+    correct = [r for r in runs if not r["without"]]
+    rows = []
+    for truth in TRUTHS:
+        for design in DESIGNS:
+            part = [r for r in correct if r["truth"] == truth and r["design"] == design]
+            if not part:
+                continue
+            outside = np.array([r["outside_share_near"] for r in part])
+            ratio = np.array([r["claim_over_true_p95_near"] for r in part])
+            rows.append(
+                {
+                    "truth": truth,
+                    "design": design,
+                    "seeds": len(part),
+                    "outside_mean": float(outside.mean()),
+                    "outside_max": float(outside.max()),
+                    "claim_ratio_min": float(ratio.min()),
+                    "claim_ratio_max": float(ratio.max()),
+                    "acceptance_failed": int(sum(r["acceptance"] == "fail" for r in part)),
+                }
+            )
+    z = np.array(pairs(runs))
+    missing = [r for r in runs if r["without"]]
+    return {
+        "rows": rows,
+        "corrections_pairs": int(z.size),
+        "corrections_beyond_3u": float(np.mean(z > 3.0)) if z.size else None,
+        "missing_effect_runs": len(missing),
+        "missing_effect_rejected": float(np.mean([r["acceptance"] == "fail" for r in missing])) if missing else None,
+    }
+
+
+def markdown(record: dict) -> str:
+    s = record["summary"]
+    lines = [
+        f"Measured {record['date']} by `benchmarks/bench_coverage.py` ({record['seeds']} seeds from {record['first']}; "
+        "small iiwa campaigns, a 10 um laser tracker):",
+        "",
+        "| truth | design | seeds | commands outside their bound near the data: mean | max | claim / true p95 near the data: min | max | acceptance failed |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in s["rows"]:
+        lines.append(
+            f"| {r['truth']} | {r['design']} | {r['seeds']} | {100 * r['outside_mean']:.1f} % | "
+            f"{100 * r['outside_max']:.0f} % | {r['claim_ratio_min']:.2f} | {r['claim_ratio_max']:.2f} | "
+            f"{r['acceptance_failed']} of {r['seeds']} |"
+        )
+    beyond = s["corrections_beyond_3u"]
+    rejected = s["missing_effect_rejected"]
+    lines += [
+        "",
+        f"Zero-offset corrections of the two designs of one robot: {s['corrections_pairs']} pairs, "
+        + (
+            f"{100 * beyond:.1f} % differ by more than 3 combined standard uncertainties."
+            if beyond is not None
+            else "none."
+        ),
+        "A model missing an effect present in both sets (compliance, the loop not offered it): the acceptance test "
+        + (
+            f"failed {100 * rejected:.0f} % of {s['missing_effect_runs']} campaigns."
+            if rejected is not None
+            else "not run."
+        ),
+    ]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first", type=int, default=100)
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--truths", nargs="+", default=list(TRUTHS))
+    args = parser.parse_args()
+    seeds = range(args.first, args.first + args.seeds)
+    tasks = [(t, d, s, ()) for t in args.truths for d in DESIGNS for s in seeds]
+    if MISSING[0] in args.truths:
+        tasks += [(MISSING[0], "every joint", s, MISSING[1]) for s in seeds]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        runs = []
+        for run in pool.map(one, tasks):
+            runs.append(run)
+            print(
+                f"{run['truth']:13s} {run['design']:12s} seed {run['seed']}{' without ' + ','.join(run['without']) if run['without'] else ''}: "
+                f"outside {100 * run['outside_share_near']:5.1f} %, claim/true {run['claim_over_true_p95_near']:.2f}, "
+                f"acceptance {run['acceptance']} (p {run['acceptance_p']}), effects {run['effects']}",
+                flush=True,
+            )
+    record = {"date": date.today().isoformat(), "seeds": args.seeds, "first": args.first, "runs": runs}
+    record["summary"] = summary(runs)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "coverage.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    text = markdown(record)
+    (RESULTS / "coverage.md").write_text(text + "\n", encoding="utf-8")
+    doc = VALIDATION_DOC.read_text(encoding="utf-8")
+    if BEGIN in doc and END in doc:
+        head, rest = doc.split(BEGIN, 1)
+        VALIDATION_DOC.write_text(f"{head}{BEGIN}\n{text}\n{END}{rest.split(END, 1)[1]}", encoding="utf-8")
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
