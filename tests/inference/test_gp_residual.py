@@ -92,3 +92,28 @@ def test_titsias_is_a_lower_bound_and_exact_with_every_row_inducing():
     assert residual.titsias_bound(q, y, hyper, len(q)) == pytest.approx(exact, abs=1e-3)
     for m in (5, 15, 30, 45):
         assert residual.titsias_bound(q, y, hyper, m) <= exact
+
+
+def test_joint_draws_have_the_marginals_and_move_together_where_readings_are_near():
+    """Draws across readings: each reading's mean and variance are `mean` and `variance` (over 4000
+    draws, within their sampling error); two readings far closer than a lengthscale move together,
+    two far apart do not; the exact covariance under every row inducing is reproduced."""
+    rng = np.random.default_rng(8)
+    q = readings(rng, 60)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    hyper = Hyperparameters(np.array([1.0, 1.0, np.inf, 1.0, 1.0, 1.0, 1.0]), 2e-4, NOISE)
+    gp = residual.ResidualGP(q, y, hyper, inducing=len(q))
+    at = np.vstack([readings(rng, 3), readings(rng, 1) + 0.01])
+    at[3] = at[0] + 0.01  # a reading next to the first
+    draws = gp.draws(at, 4000, np.random.default_rng(9))
+    assert draws.shape == (4000, 4, 3)
+    np.testing.assert_allclose(draws.mean(axis=0), gp.mean(at), atol=5 * np.sqrt(gp.variance(at).max() / 4000))
+    np.testing.assert_allclose(draws.var(axis=0), np.repeat(gp.variance(at)[:, None], 3, axis=1), rtol=0.1)
+    # with every row inducing (DTC = the exact GP) the draws' covariance is the exact posterior's
+    k_ss = kernel(at, at, hyper)
+    k_sn = kernel(at, q, hyper)
+    exact = k_ss - k_sn @ np.linalg.solve(kernel(q, q, hyper) + NOISE**2 * np.eye(len(q)), k_sn.T)
+    centred = draws[:, :, 0] - draws[:, :, 0].mean(axis=0)
+    np.testing.assert_allclose(centred.T @ centred / 4000, exact, atol=0.1 * exact.diagonal().max())
+    correlation = np.corrcoef(centred.T)
+    assert correlation[0, 3] > 0.9 and abs(correlation[0, 1]) < 0.3

@@ -52,7 +52,7 @@ where the names say so.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -133,8 +133,8 @@ class Claim:
     """What a model claims at the validation readings: reference (n, 3) m its prediction at the
     posterior mean (sensor frame, a residual GP's mean added); model: the parametric model on those
     readings; theta (m, P) its posterior draws' free parameters, sigma (m,) m their noise std;
-    gp_std (n,) m the residual GP's marginal std at each reading (None without one), gp_mean (n, 3)
-    m its mean (sensor frame) or 0; effects: the model's blocks; source: where the draws come from;
+    gp_draws: count -> rng -> (count, n, 3) m draws of the residual GP at the readings, jointly across
+    them, sensor frame (None without one), gp_mean (n, 3) m its mean (sensor frame) or 0; effects: the model's blocks; source: where the draws come from;
     instrument (n, 3) m: the instrument's noise std per reading and axis, declared m: the model error
     per axis the calibration declares; without `instrument` the draws' own sigma is the noise."""
 
@@ -144,7 +144,7 @@ class Claim:
     sigma: np.ndarray
     effects: tuple[str, ...]
     source: str
-    gp_std: np.ndarray | None = None
+    gp_draws: Callable[[int, np.random.Generator], np.ndarray] | None = None
     gp_mean: np.ndarray | float = 0.0
     instrument: np.ndarray | None = None
     declared: float = 0.0
@@ -152,9 +152,8 @@ class Claim:
     def replicates(self, rows, rng: np.random.Generator) -> np.ndarray:
         """Replicated validation readings (k, n, 3) m of the draws `rows` (k,): each draw's
         prediction, its GP draw when there is a GP, and the claimed noise."""
-        points = self.model.predict(self.theta[rows]) + self.gp_mean
-        if self.gp_std is not None:
-            points = points + self.gp_std[None, :, None] * rng.standard_normal(points.shape)
+        points = self.model.predict(self.theta[rows])
+        points = points + (self.gp_mean if self.gp_draws is None else self.gp_draws(len(points), rng))
         if self.instrument is not None:
             claimed = np.sqrt(self.instrument**2 + self.declared**2)
             return points + claimed[None] * rng.standard_normal(points.shape)
@@ -293,8 +292,8 @@ def loop_model(chain: KinematicChain, data: Readings, marker, t_nr, report: Loop
 def loop_claim(model: BlockModel, loop: LoopResults, count: int, rng: np.random.Generator, label: str = "") -> Claim:
     """The loop-closed model (`loop_model`) at the validation readings: its MCMC refit's draws (the
     Laplace approximation's diagonal when the refit ran without MCMC), plus its residual GP when it
-    added one (mean at the reference; drawn from its marginal at each configuration, its noise std
-    the noise, as `workspace` propagates it)."""
+    added one (mean at the reference; drawn jointly across the readings, its noise std the noise
+    when the campaign states none, as `workspace` propagates it)."""
     report, samples = loop.report, loop.samples
     names = list(model.names)
     if samples is not None and not samples.empty:
@@ -324,7 +323,7 @@ def loop_claim(model: BlockModel, loop: LoopResults, count: int, rng: np.random.
         np.full(count, gp.hyper.noise_std),
         tuple(report.effects_added),
         source + " with its residual GP",
-        np.sqrt(gp.variance(model.data.q)),
+        lambda count, rng: gp.draws(model.data.q, count, rng) @ rotation.T,
         correction,
     )
 

@@ -136,13 +136,12 @@ def _with_noise(points, sigma, rng: np.random.Generator):
 
 
 def _gp_draws(gp: ResidualGP | None, q, count: int, rng: np.random.Generator):
-    """The residual GP's mean (n, 3) m at readings q (n, N) and `count` draws (count, n, 3) of it
-    (marginal at each configuration); zeros without a GP (and no random draw)."""
+    """The residual GP's mean (n, 3) m at readings q (n, N) and `count` draws (count, n, 3) of it,
+    jointly across the configurations (`ResidualGP.draws`: each draw's p95 over them is one of a
+    function the robot could have); zeros without a GP (and no random draw)."""
     if gp is None:
         return 0.0, 0.0
-    mean = gp.mean(q)
-    std = np.sqrt(gp.variance(q))
-    return mean, mean + std[None, :, None] * rng.standard_normal((count, len(q), 3))
+    return gp.mean(q), gp.draws(q, count, rng)
 
 
 def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, rng: np.random.Generator):
@@ -293,7 +292,7 @@ def workspace_accuracy(
     (empty or None when it added none); robot: the robot's identity (its random configurations come
     from the propagation's seed and it); rng draws the posterior rows, the noise and the held
     zero-offsets. With a residual GP the loop-closed model's mean includes its correction, each draw
-    a draw of it (mean + its marginal std at each configuration, independently per configuration),
+    a draw of it jointly across the configurations (`ResidualGP.draws`),
     and the noise is the GP's white part: far from the data its variance, back to its prior, is
     what the claim carries."""
     posterior = _posterior(paper_summary, laplace, loop, rng, propagation.draws)

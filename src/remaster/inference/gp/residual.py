@@ -38,6 +38,7 @@ CHUNK = 8192  # rows per block when accumulating over all n
 RELEVANT_RANGE = 0.5  # lengthscales crossed over the measured range: the residual depends on that joint
 SIGNAL_BOUNDS = (1e-4, 10.0)  # s over rms(r)
 NOISE_BOUNDS = (1e-3, 10.0)  # noise over rms(r)
+DRAW_BLOCK = 2000  # readings drawn jointly at once: a (2000, 2000) factor, 32 MB
 JITTER = 1e-8  # relative to s^2, for the inducing covariance's Cholesky factor
 
 
@@ -139,6 +140,33 @@ class ResidualGP:
         explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
         left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)
         return np.maximum(self.hyper.signal_std**2 - explained + left, 0.0)
+
+    def draws(self, q, count: int, rng: np.random.Generator) -> np.ndarray:
+        """`count` draws (count, n*, 3) m of g at readings q (n*, N), jointly across the readings, so
+        that a statistic over readings (a p95, an RMS) is one of a function the robot could have: the
+        part the inducing inputs carry, K*m A^-1/2 z (z ~ N(0, I) per inducing input and axis),
+        plus the part they do not, K** - Q** (Q** = K*m Kmm^-1 Km*), drawn jointly within blocks of
+        DRAW_BLOCK readings (a Cholesky factor each; independent between blocks, which only a
+        campaign of more readings than that sees). Each reading's marginal is `mean`, `variance`."""
+        import scipy.linalg
+
+        q = np.asarray(q, dtype=float)
+        k_sm = kernel(q, self.inducing, self.hyper)
+        shared = scipy.linalg.solve_triangular(self._a_factor[0], k_sm.T, lower=True)  # (m, n*): K*m A^-1 Km* = B^T B
+        z = rng.standard_normal((count, len(self.inducing), 3))
+        out = self.mean(q)[None] + self.hyper.noise_std * np.einsum("mn,kmc->knc", shared, z)
+        whitened = scipy.linalg.solve_triangular(self._k_factor[0], k_sm.T, lower=True)  # Q** = W^T W
+        for begin in range(0, len(q), DRAW_BLOCK):
+            block = slice(begin, begin + DRAW_BLOCK)
+            rest = kernel(q[block], q[block], self.hyper) - whitened[:, block].T @ whitened[:, block]
+            rest[np.diag_indices(len(rest))] += JITTER * self.hyper.signal_std**2
+            try:
+                factor = np.linalg.cholesky(rest)
+            except np.linalg.LinAlgError:  # round-off made it indefinite: the nearest PSD factor
+                values, vectors = np.linalg.eigh(rest)
+                factor = vectors * np.sqrt(np.clip(values, 0.0, None))
+            out[:, block] += np.einsum("ij,kjc->kic", factor, rng.standard_normal((count, len(rest), 3)))
+        return out
 
 
 def titsias_bound(q, residuals, hyper: Hyperparameters, inducing: int) -> float:
