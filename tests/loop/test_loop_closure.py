@@ -303,9 +303,10 @@ def test_mcmc_refit_gives_the_added_parameters_uncertainty_and_a_json_report(iiw
     result = closed(iiwa, simulated(iiwa, "joint_compliance", truth), settings, seed=1)
     report = json.loads(json.dumps(result.report.to_json(), allow_nan=False))
     mcmc = report["refit"]["mcmc"]
-    assert mcmc["chains"] == 2 and mcmc["converged"] and mcmc["max_rhat"] <= 1.05 and mcmc["min_ess"] >= 200
-    last = mcmc["attempts"][-1]
-    assert len(result.samples) == 2 * (last["samples"] - last["burn_in"])
+    assert mcmc["converged"] and mcmc["max_rhat"] <= 1.05 and mcmc["min_ess"] >= 200
+    last = mcmc["attempts"][-1]  # the independence sampler's two chains, or the ensemble that followed it
+    kept = last["samples"] - last["burn_in"]
+    assert len(result.samples) == (2 if last["sampler"] == "metropolis_independence" else last["walkers"]) * kept
     parameters = {p["parameter"]: p for p in report["refit"]["parameters"]}
     for j in (1, 3, 5):  # the compliant joints: the truth within the posterior's reach
         row = parameters[f"joint_compliance.q{j + 1}"]
