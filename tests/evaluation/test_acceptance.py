@@ -371,8 +371,9 @@ def test_a_distorted_motion_capture_frame_fails_and_is_not_taken_for_a_move():
     result, _ = accepted(spec, "motion_capture", without=("sensor_distortion",))
     loop, paper = result.checks["loop"], result.checks["paper"]
     assert result.verdict == FAIL and loop["p_value"] < result.level
-    # a non-rigid error: the refit registration neither passes nor removes the share a move would
-    assert not loop["refit"]["passed"] and loop["refit"]["excess_removed"] < result.registration_share
+    # a non-rigid error: the refit registration does not remove the share a move would (it may pass
+    # the claim, which holds the declared model error: passing is not taken for a move)
+    assert loop["refit"]["excess_removed"] < result.registration_share
     assert result.diagnosis == NOT_CONFIRMED
     assert loop["noise"] == acceptance.INSTRUMENT and paper["noise"] == acceptance.INSTRUMENT
 
@@ -382,7 +383,7 @@ def test_a_clean_campaign_passes():
     assert result.verdict == PASS and result.diagnosis is None and result.warnings == ()
 
 
-def test_a_single_effect_campaign_passes_with_the_effect_and_fails_without_it():
+def test_a_single_effect_campaign_passes_with_the_effect_and_the_paper_model_declares_what_it_lacks():
     truth = {
         "joint_compliance": [0.0, 2.5e-5, 0.0, 3.0e-5, 0.0, 5.0e-5, 0.0],
         "payload": {"mass": 2.5, "com": [0.0, 0.0, 0.03]},
@@ -390,8 +391,11 @@ def test_a_single_effect_campaign_passes_with_the_effect_and_fails_without_it():
     result, _ = accepted(iiwa_scenario("compliance", seed=34, plan={"sets": SIZES}, truth=truth), "laser_tracker")
     assert "joint_compliance" in result.checks["loop"]["effects"]
     assert result.verdict == PASS
-    # the paper's model lacks the compliance its validation errors show: its own check sees it
-    assert not result.checks["paper"]["passed"]
+    # the paper's model lacks the compliance: it declares the residual the loop measured it leaves
+    # (more than the loop-closed model's), and its claim holds only that far
+    loop, paper = result.checks["loop"], result.checks["paper"]
+    assert paper["declared_model_error_mm"] > loop["declared_model_error_mm"]
+    assert paper["replicate_median_mm"] > loop["replicate_median_mm"]
 
 
 def test_a_twin_like_campaign_passes():
