@@ -213,7 +213,7 @@ def check(
     accepted = acceptance.acceptance_stage(
         campaign,
         sensor,
-        registered.t_nr,
+        results["registration"].t_nr,
         laplace,
         None,
         LoopResults(report, result.samples, result.gp),

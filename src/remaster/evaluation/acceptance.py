@@ -14,9 +14,10 @@ but the verdict.
   T_d = RMS of (p_d(q) + n_d - p_ref(q)), n_d the noise the calibration claims: the instrument's
   own (the per-point std columns where the table has them, else the sensor's stated `noise`) and
   the model error the calibration declares, both independent per axis. The declared model error
-  is what the loop closure measured on the optimization set beyond the noise floor (the
-  structured residual per axis of its pose-grouped cross-validation: the final model's for the
-  loop-closed model, the zero-offset model's for the paper's); a campaign that is "not closed"
+  is zero where the loop closure says "closed" (the claim is then the noise), else what it
+  measured on the optimization set beyond the noise floor (the structured residual per axis of
+  its pose-grouped cross-validation: the final model's for the loop-closed model, the zero-offset
+  model's for the paper's); a campaign that is "not closed"
   thus passes only as far as it declared its residual, and the certificate states it. Without a
   stated noise, point std or repeats the test falls back to each draw's fitted sigma (the
   tracker's range / transverse shape when the loop chose it), which absorbs what the model lacks:
@@ -498,15 +499,18 @@ def instrument_noise(sensor, rows) -> np.ndarray | None:
 
 
 def declared_model_error(closure: Mapping | None, model: str) -> float | None:
-    """The model error per axis (m) a calibration declares: the structured residual the loop
-    closure measured beyond the noise floor (pose-grouped cross-validation on the optimization
-    set), of its final model ("loop") or of the zero-offset model ("paper"); None when the closure
-    knew no noise floor."""
+    """The model error per axis (m) a calibration declares: zero where the loop closure found it
+    closed (its residual at the sensor's noise: that is the claim), else the structured residual it
+    measured beyond the noise floor (pose-grouped cross-validation on the optimization set), of its
+    final model ("loop") or of the zero-offset model ("paper"); None when the closure knew no noise
+    floor."""
     rounds = (closure or {}).get("rounds") or []
     if not rounds:
         return None
-    structured = rounds[-1 if model == "loop" else 0].get("structured_mm")
-    return None if structured is None else float(structured) * MM
+    step = rounds[-1 if model == "loop" else 0]
+    if step.get("closed") is None or step.get("structured_mm") is None:
+        return None
+    return 0.0 if step["closed"] else float(step["structured_mm"]) * MM
 
 
 def acceptance_stage(
