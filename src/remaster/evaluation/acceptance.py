@@ -10,7 +10,7 @@ but the verdict.
   prediction at its posterior mean with the optimization set's registration as fitted (a residual
   GP, when the loop added one, at its mean);
 - its replicates, one per posterior draw d (whole rows of the posterior: the registration and every
-  parameter; the loop's residual GP drawn from its marginal at each configuration):
+  parameter; the loop's residual GP drawn jointly across the configurations):
   T_d = RMS of (p_d(q) + n_d - p_ref(q)), n_d the noise the calibration claims: the instrument's
   own (the per-point std columns where the table has them, else the sensor's stated `noise`) and
   the model error the calibration declares, both independent per axis. The declared model error
