@@ -6,7 +6,8 @@ Run from the repository root: python benchmarks/bench_claim_coverage.py [sensor]
 truth (its link errors, rigid motions of every fixed transform in the simulator's own form, come from
 their own seed), new poses and noise. Each campaign goes through
 registration, the paper's fit and the loop closure with config.yaml's settings; its claims
-(`evaluation.workspace`, 400 draws, registration fitted, with noise) at 300 random configurations across
+(`evaluation.workspace`, 400 draws, registration fitted, without noise as the truth is noise-free) at
+300 random configurations across
 the joint limits and at 300 inside the measured joint ranges (joint 3 held at 0, as the twin's planner
 holds it) are held against the simulator's true marker positions there. Printed per seed: the rms of
 z = (posterior mean - truth) / posterior std over the loop's compliance and drift parameters, the worst
@@ -98,7 +99,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
         "worst_z": float(z[worst]),
     }
     for where, q in q_sets.items():
-        claim = workspace.claim_rows(claims, "loop", where).iloc[0]
+        claim = workspace.claim_rows(claims, "loop", where, noise="without noise").iloc[0]
         true_points = true_marker_positions(
             campaign.chain, scenario.robot_from_truth(truth), device, q, np.zeros(len(q))
         )

@@ -1,8 +1,8 @@
 """A calibration held to a simulated truth it did not make: what `remaster predict` says against where
 the true robot puts the marker, at random configurations across the joint limits and at random
 configurations inside the measured joint ranges (`domain.MeasuredDomain`); and the workspace claims
-(`workspace.workspace_accuracy`: the loop-closed model, registration fitted, with noise, the bound on
-one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
+(`workspace.workspace_accuracy`: the loop-closed model, registration fitted, without noise as the
+truth is noise-free, the bound on one arm's 95th percentile) inside the measured ranges and across the limits against the true 95th
 percentile of the registered error there.
 
 Not a benchmark itself: the harness that tests/workflow/test_truth_claims.py and tests/loop/test_joint_harmonics.py
@@ -42,7 +42,7 @@ REPO = Path(__file__).resolve().parents[1]
 @dataclass(frozen=True)
 class Claim:
     """The workspace claim of the loop-closed model at one set of configurations (registration
-    fitted, with noise), mm: p95 (pooled) and p95_bound (one arm's 95th percentile, the
+    fitted, without noise), mm: p95 (pooled) and p95_bound (one arm's 95th percentile, the
     certificate's), against the true 95th percentile of the registered error of its posterior
     mean there (noise-free)."""
 
@@ -201,7 +201,7 @@ def check(
             campaign.chain, true_robot, device, configurations, np.zeros(len(configurations))
         )
         registered = metrics.registered_distances(mean, true_points[None])[0]
-        row = workspace.claim_rows(claims, "loop", where).iloc[0]
+        row = workspace.claim_rows(claims, "loop", where, noise="without noise").iloc[0]
         held_to_truth[where] = Claim(
             float(row["p95_mm"]), float(row["p95_bound_mm"]), float(np.quantile(registered, 0.95) / 1e-3)
         )

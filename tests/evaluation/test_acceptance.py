@@ -104,7 +104,8 @@ def _missing_effect_p_values(trials: int, rng: np.random.Generator, declared: fl
         claim = Claim(model.predict(mean), model, theta, np.full(draws, fitted), (), "the fit's posterior")
         if declared is not None:
             claim = dataclasses.replace(claim, instrument=np.full((n_val, 3), sigma), declared=declared)
-        out.append(acceptance.check(measured_val, claim, 0.01, 0.95, rng, PLAUSIBLE)["p_value"])
+        checked = acceptance.check(measured_val, claim, 0.01, 0.95, rng, PLAUSIBLE)
+        out.append((checked["p_value"], (checked["at_noise"] or {}).get("p_value", np.nan)))
     return np.array(out)
 
 
@@ -114,12 +115,16 @@ def test_the_instruments_noise_fails_a_model_missing_an_effect_the_fitted_sigma_
     stated noise it fails every time; with the model error the loop measured declared, it passes."""
     rng = np.random.default_rng(11)
     hidden = _missing_effect_p_values(200, rng, declared=None)
-    assert np.mean(hidden < 0.01) < 0.05  # the fitted sigma cannot see it
+    assert np.mean(hidden[:, 0] < 0.01) < 0.05  # the fitted sigma cannot see it
+    assert np.isnan(hidden[:, 1]).all()  # nor is there an instrument's noise to test against
     stated = _missing_effect_p_values(200, rng, declared=0.0)
-    assert np.mean(stated < 0.01) >= 0.99
+    assert np.mean(stated[:, 0] < 0.01) >= 0.99
+    assert (stated[:, 1] == stated[:, 0]).all()  # nothing declared: the two tests are one
     # the effect's RMS per axis: 4e-4 times the RMS of a coordinate uniform on [-0.5, 0.5]
     declared = _missing_effect_p_values(200, rng, declared=4e-4 * np.sqrt(1 / 12))
-    assert np.mean(declared < 0.01) < 0.05
+    assert np.mean(declared[:, 0] < 0.01) < 0.05
+    # against the noise alone (what a closed loop would claim) the model still fails every time
+    assert np.mean(declared[:, 1] < 0.01) >= 0.99
 
 
 def test_a_correct_model_against_the_instruments_noise_fails_at_the_stated_rate():

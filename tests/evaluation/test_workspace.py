@@ -341,3 +341,35 @@ def test_the_cubes_calibration_warned_before_the_transfer_proved_it(tmp_path_fac
     assert claim(result.claims, "loop")["p95_mm"] >= np.quantile(observed, 0.95) / 1e-3
     assert result.report["holds"]["loop"]["holds"] == domain.INSIDE
     assert any("tool orientations" in s for s in result.report["next_campaign_should_add"])
+
+
+def test_the_datas_part_of_a_claim_conditions_on_what_the_priors_decide():
+    """A Gaussian posterior of three parameters: `a` as wide as its prior (the data did not move
+    it), `b` determined (a tenth of its prior), and a registration `r` (no prior) that trades with
+    `a`. The data's part fixes `a` at its mean and takes out of `r` what went with it (the
+    Gaussian conditional: r | a has std 0.1 here), and leaves `b` as it was."""
+    rng = np.random.default_rng(3)
+    count = 4000
+    a = rng.normal(0.0, 1.0, count)
+    b = rng.normal(0.0, 0.1, count)
+    r = 2.0 * a + rng.normal(0.0, 0.1, count)
+    draws = [{"a": x, "b": y, "r": z} for x, y, z in zip(a.tolist(), b.tolist(), r.tolist())]
+    posterior = workspace._Posterior(
+        None, None, draws, np.zeros(count), {}, 0.0, {}, None, prior_std={"a": 1.0, "b": 1.0}
+    )
+    data = posterior.data_draws()
+    values = {n: np.array([d[n] for d in data]) for n in ("a", "b", "r")}
+    assert np.std(values["a"]) < 1e-3  # of its 1.0 (the eigenvector holds a sliver of b)
+    assert np.allclose(values["b"], b, atol=1e-3)
+    assert abs(np.std(values["r"]) - 0.1) < 0.01
+    # a posterior the data determine has no direction the priors decide: the draws are unchanged
+    narrow = workspace._Posterior(
+        None, None, draws, np.zeros(count), {}, 0.0, {}, None, prior_std={"a": 10.0, "b": 1.0}
+    )
+    assert narrow.data_draws() is draws
+
+
+def test_the_priors_decide_a_bound_whose_datas_part_is_below_half_of_it():
+    assert workspace.priors_decide(3.0, 0.9)
+    assert not workspace.priors_decide(0.037, 0.039)
+    assert not workspace.priors_decide(1.0, np.nan)  # the split unknown: nothing is taken away

@@ -20,7 +20,9 @@ nominal model's positions (in the sensor frame through the campaign's initial re
 an uncalibrated cell places them), and bounds from K posterior draws d (whole MCMC rows):
 `bound95_mm`, the 95th percentile over d of |p_d(q) - p(q)|; `bound95_with_noise_mm`, the same with
 each draw's N(0, sigma_d^2 I3) added (sigma_d: the fit's noise, or the GP's noise with a residual
-GP): what the same sensor would read there. Every command is flagged: `distance_to_data_mm`, how
+GP): what the same sensor would read there. Where the loop is not closed, each draw carries the
+model error it declares (`LoopReport.declared_model_error`, per axis), so the bounds hold as far
+as that residual was measured. Every command is flagged: `distance_to_data_mm`, how
 far the marker moves (at most, to first order) from the nearest configuration the fit measured,
 and `near_data`, within the data's own spacing (`robot.nearness`). Far from the data a bound is
 what the model and its priors say, not what was measured: a user who relies on it there should
@@ -95,7 +97,9 @@ class CalibratedRobot:
     (rad) of the controller's marks; gp: the loop's residual GP (robot frame, at the marker);
     absorbed: the held zero-offsets a registration absorbs (the others, e.g. a joint whose axis
     the marker lies on, are unseen in the sensor frame too); near: how near a command is to the
-    configurations the fit measured (`robot.nearness`)."""
+    configurations the fit measured (`robot.nearness`); declared (m): the model error per axis the
+    calibration declares (`LoopReport.declared_model_error`: zero where the loop closed), drawn
+    independently per axis and command in every bound, as the acceptance test claims it."""
 
     chain: KinematicChain
     calibration: Calibration
@@ -109,6 +113,7 @@ class CalibratedRobot:
     gp: ResidualGP | None = None
     absorbed: frozenset[str] = frozenset()
     near: Nearness | None = None
+    declared: float = 0.0
 
     @property
     def blocks(self) -> tuple[str, ...]:
@@ -144,6 +149,11 @@ class CalibratedRobot:
                 if has
             ]
             out.append(f"the loop's {' and '.join(left)} were measured at the marker: not applied to a TCP")
+        if self.declared > 0:
+            out.append(
+                f"the loop is not closed: the bounds include the model error it declares, {self.declared / MM:.3g} mm "
+                "per axis (what it measured beyond the sensor's noise)"
+            )
         if self.samples.empty:
             out.append("no posterior samples: no bounds")
         return out
@@ -208,6 +218,8 @@ class CalibratedRobot:
         if self._gp_applies():
             std = np.sqrt(self.gp.variance(q))
             points = points + self.gp.mean(q) + std[None, :, None] * rng.standard_normal(points.shape)
+        if self.declared > 0:
+            points = points + self.declared * rng.standard_normal(points.shape)
         if frame == "sensor":
             points = np.stack([self.in_frame(p, frame, d) for p, d in zip(points, draws)])
         return points, points + sigma[:, None, None] * rng.standard_normal(points.shape)
@@ -280,6 +292,7 @@ def calibrated_robot(
         gp,
         absorbed,
         Nearness.of(campaign.chain, campaign.sensors[sensor].fit_readings(laplace.outlier_rows), marker),
+        loop.declared_model_error(model) or 0.0,
     )
 
 

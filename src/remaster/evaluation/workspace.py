@@ -30,7 +30,9 @@ Two kinds of claim:
 - **Registration fitted** (the workspace-wide claim): the error a sensor registered over those
   configurations would see. For each posterior draw d of the loop-closed model, the model under
   test is moved onto the draw's points by least squares (`metrics.registered_distances`) and
-  |T_d p_model(q) - (p_d(q) + n_d)| is its error at q. Held zero-offsets are drawn at the
+  |T_d p_model(q) - (p_d(q) + n_d)| is its error at q ("with noise"; "without noise" leaves n_d
+  out). Where the loop is not closed, p_d carries the model error it declares
+  (`LoopReport.declared_model_error`), drawn per axis and configuration. Held zero-offsets are drawn at the
   controller marks' tolerance here too: the registration removes joint 1's, but one held only
   because these data never turned it (the last joint when the tool keeps one orientation) moves
   the marker at other poses. The loop-closed posterior is the reference
@@ -59,7 +61,7 @@ SI inside (m, rad); the returned tables are in mm.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -102,8 +104,13 @@ CLAIM_COLUMNS = [
     "q97.5_mm",
     "p95_mm",
     "p95_bound_mm",
+    "p95_bound_data_mm",
     "count",
 ]
+# A claim whose bound the data determine less than half of (the rest is what the priors of the
+# parameters the data barely moved, and the controller marks' tolerance of a held joint, supply:
+# more than three quarters of its square) is the priors' statement, not a measurement: not determined
+PRIORS_DECIDE = 0.5
 HELD_NOTE = (
     "held zero-offsets ({held}) are held in the draws, as in the paper's rows: these robot-frame numbers "
     "hold up to a rotation about base Z that only a registration fixes"
@@ -128,6 +135,13 @@ def _claim_row(distances_m, **labels) -> dict:
     (`bounds.bound_on_percentile_over_configurations`)."""
     summary = metrics.in_mm(metrics.error_summary(distances_m, (*metrics.INTERVAL, "p95")))
     return {**labels, **summary, "p95_bound_mm": bound_on_percentile_over_configurations(distances_m) / MM}
+
+
+def priors_decide(bound_mm: float, data_part_mm: float) -> bool:
+    """Whether the priors, not the data, decide a claim's bound: its part with every parameter the
+    data barely moved at its posterior mean (and held joints at their marks) is below
+    PRIORS_DECIDE of it. False when the split is unknown (NaN)."""
+    return bool(np.isfinite(bound_mm) and np.isfinite(data_part_mm) and data_part_mm < PRIORS_DECIDE * bound_mm)
 
 
 def _with_noise(points, sigma, rng: np.random.Generator):
@@ -187,7 +201,10 @@ class _Posterior:
     """The posterior as `workspace_accuracy` propagates it: the loop-closed and the paper's
     calibrations; the loop's draws ({parameter: value} each, every parameter) with their noise std
     sigma (m); the held zero-offsets {name: rad}, drawn at the marks' tolerance (rad); what the data
-    cannot see {name: value}, held in the paper's tables; the residual GP, None without one."""
+    cannot see {name: value}, held in the paper's tables; the parameters the data barely moved
+    from their prior (`LoopReport.prior_dominated`); the residual GP, None without one; the
+    model error per axis (m) the loop declares (`LoopReport.declared_model_error`, zero where it
+    closed), drawn independently per axis and configuration in the claims."""
 
     loop: Calibration
     paper: Calibration
@@ -197,6 +214,32 @@ class _Posterior:
     tolerance: float
     unseen: dict[str, float]
     gp: ResidualGP | None
+    declared: float = 0.0
+    prior_std: Mapping[str, float] = field(default_factory=dict)
+
+    def data_draws(self) -> list[dict]:
+        """The draws with what the priors decide taken out, held zero-offsets at their marks (their
+        tolerance not drawn). In units of each parameter's prior std, the directions in which the
+        posterior's spread is more than PRIOR_DOMINATED of the prior's (eigenvectors of the draws'
+        covariance there: combinations of parameters the data left to the priors) are what the
+        priors decide; every parameter (the registration included) is conditioned on them at their
+        mean, by regression on them over the draws (the Gaussian conditional), so that what the
+        other parameters trade with those directions goes with them."""
+        names = [n for n in self.prior_std if n in self.draws[0]] if self.draws else []
+        if not names:
+            return self.draws
+        scale = np.array([self.prior_std[n] for n in names])
+        standard = np.array([[d[n] for n in names] for d in self.draws]) / scale
+        standard -= standard.mean(axis=0)
+        spread, directions = np.linalg.eigh(np.atleast_2d(np.cov(standard, rowvar=False)))
+        decided = standard @ directions[:, spread > PRIOR_DOMINATED**2]  # (K, r) the priors' coordinates
+        if decided.shape[1] == 0:
+            return self.draws
+        every = [n for n, v in self.draws[0].items() if isinstance(v, float)]
+        values = np.array([[d[n] for n in every] for d in self.draws])
+        slope = np.linalg.lstsq(decided, values - values.mean(axis=0), rcond=None)[0]
+        data = values - decided @ slope
+        return [{**d, **dict(zip(every, row))} for d, row in zip(self.draws, data.tolist())]
 
 
 def _posterior(paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopResults, rng, count: int) -> _Posterior:
@@ -222,7 +265,20 @@ def _posterior(paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopRe
         # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
         unseen={n: calibration.values[n] for n in loop.report.unseen_by_data if n in calibration.values},
         gp=gp,
+        declared=loop.report.declared_model_error("loop") or 0.0,
+        prior_std=_prior_std(loop.report.parameters),
     )
+
+
+def _prior_std(parameters: pd.DataFrame) -> dict[str, float]:
+    """{parameter: prior std (SI)} of the estimated parameters with a prior (the loop's parameter
+    table: std / posterior_to_prior_std)."""
+    table = parameters[(parameters["status"] == "estimated") & (parameters["posterior_to_prior_std"] > 0)]
+    return {
+        str(n): float(s) / float(r)
+        for n, s, r in zip(table["parameter"], table["std"], table["posterior_to_prior_std"])
+        if np.isfinite(float(s) / float(r))
+    }
 
 
 def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posterior, rng) -> tuple[list, list]:
@@ -235,9 +291,16 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
     loop_mean = predictor.points(posterior.loop.values) + correction
     # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
     # (a registration removes joint 1's; one held only because the tool never turned stays)
-    points = predictor.points_of_draws(_held_draws(posterior.draws, posterior.held, posterior.tolerance, rng))
-    points = points + corrections
+    points_parametric = predictor.points_of_draws(
+        _held_draws(posterior.draws, posterior.held, posterior.tolerance, rng)
+    )
+    points = points_parametric + corrections
+    if posterior.declared > 0:  # a loop not closed claims what it measured beyond the noise
+        points = points + posterior.declared * rng.standard_normal(points.shape)
     noisy = _with_noise(points, posterior.sigma, rng)
+    # the part the data determine: the same draws with what the priors decide held (same noise)
+    data_points = predictor.points_of_draws(posterior.data_draws()) + (points - points_parametric)
+    data_noisy = data_points + (noisy - points)
     paper_points = posterior.paper.predictor(chain, q, marker).points(posterior.paper.values)
     tables = {table: noise for table, (at, noise) in THEORETICAL_TABLES.items() if at == where}
     if tables:  # the paper's tables' convention: what the data cannot see, held
@@ -254,16 +317,16 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
             }
         )
     for model, mean in (("paper", paper_points), ("loop", loop_mean)):
-        for noise, reference in (("with noise", noisy), ("without noise", points)):
-            claims.append(
-                _claim_row(
-                    metrics.registered_distances(mean, reference),
-                    model=model,
-                    configurations=where,
-                    frame="registered",
-                    noise=noise,
-                )
+        for noise, reference, data in (("with noise", noisy, data_noisy), ("without noise", points, data_points)):
+            row = _claim_row(
+                metrics.registered_distances(mean, reference),
+                model=model,
+                configurations=where,
+                frame="registered",
+                noise=noise,
             )
+            data_bound = bound_on_percentile_over_configurations(metrics.registered_distances(mean, data))
+            claims.append({**row, "p95_bound_data_mm": data_bound / MM})
         claims.append(
             _claim_row(
                 np.linalg.norm(noisy - mean, axis=-1),
@@ -361,13 +424,27 @@ def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_repo
             "limits_over_measured": limits / measured if measured > 0 else np.inf,
             "holds": where,
         }
+    near, near_data = (_claim(claims, "loop", "domain", c) for c in ("p95_bound_mm", "p95_bound_data_mm"))
+    determined = not priors_decide(near, near_data)
     if not domain.covers_the_limits:
         warnings.append(
-            f"the claims hold near the measured configurations only ({domain.short_text()}): there the "
-            f"loop-closed model's p95 bound is {shown(_claim(claims, 'loop', 'domain', 'p95_bound_mm'))} mm "
-            "(registration fitted, with noise); across the joint limits the accuracy is not determined: the data "
-            "did not reach there, and the priors of what they did not reach would give "
-            f"{shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} mm, a statement of the priors, not a bound"
+            f"the claims hold near the measured configurations only ({domain.short_text()})"
+            + (
+                f": there the loop-closed model's p95 bound is {shown(near)} mm (registration fitted, with noise)"
+                if determined
+                else ""
+            )
+            + "; across the joint limits the accuracy is not determined: the data did not reach there, and the "
+            f"priors of what they did not reach would give {shown(_claim(claims, 'loop', 'random', 'p95_bound_mm'))} "
+            "mm, a statement of the priors, not a bound"
+        )
+    if not determined:
+        warnings.append(
+            f"near the measured configurations the accuracy is not determined either: of the loop-closed model's p95 "
+            f"bound there ({shown(near)} mm) the data determine {shown(near_data)} mm; the rest is what the priors "
+            "decide: the combinations of parameters the data barely moved from their prior"
+            + (f" ({', '.join(dominated)} among them)" if dominated else "")
+            + ", and the held joints' marks"
         )
     if suggestions:  # one line: the joints, the tool orientations and the prior-dominated parameters
         warnings.append(f"the next campaign must add: {'; '.join(suggestions)}")
@@ -394,6 +471,7 @@ def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_repo
             "tool_axis_spread_deg": domain.tool_axis_spread_deg,
         },
         "prior_dominated": dominated,
+        "near_determined": determined,
         "unseen_anywhere": list(nowhere),
         "next_campaign_should_add": suggestions,
         "warnings": warnings,
@@ -405,7 +483,8 @@ def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_repo
 
 def workspace_table(claims: Mapping[str, pd.DataFrame], reports: Mapping[str, dict]) -> pd.DataFrame:
     """One campaign's claims, every sensor: Sensor, Model, Configurations, Frame, Noise, Mean (mm),
-    2.5 % / 97.5 % / 95 % quantiles (mm), the bound on the arm's own 95 % quantile (mm), Count, and
+    2.5 % / 97.5 % / 95 % quantiles (mm), the bound on the arm's own 95 % quantile (mm) and its part
+    the data determine (what the priors decide held: `priors_decide`), Count, and
     where the model holds (its report's verdict)."""
     frames = []
     for sensor, frame in claims.items():
@@ -423,6 +502,7 @@ def workspace_table(claims: Mapping[str, pd.DataFrame], reports: Mapping[str, di
                     "97.5% (mm)": frame["q97.5_mm"],
                     "95% (mm)": frame["p95_mm"],
                     "95% bound (mm)": frame["p95_bound_mm"],
+                    "95% bound, the data's part (mm)": frame["p95_bound_data_mm"],
                     "Count": frame["count"].astype(int),
                     "Holds": frame["model"].map(holds),
                 }

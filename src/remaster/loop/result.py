@@ -115,6 +115,20 @@ class LoopReport:
         """{effect added: 'robot', 'sensor' or 'unattributed'} (`remaster.loop.sides`)."""
         return sides_of(self.effects_added)
 
+    def declared_model_error(self, model: str) -> float | None:
+        """The model error per axis (m) a calibration declares: zero where the closure found the
+        loop closed (its residual at the sensor's noise: that is the claim), else the structured
+        residual it measured beyond the noise floor (pose-grouped cross-validation on the
+        optimization set), of the final model ("loop") or of the zero-offset model ("paper"); None
+        when the closure knew no noise floor."""
+        rounds = (self.closure or {}).get("rounds") or []
+        if not rounds:
+            return None
+        step = rounds[-1 if model == "loop" else 0]
+        if step.get("closed") is None or step.get("structured_mm") is None:
+            return None
+        return 0.0 if step["closed"] else float(step["structured_mm"]) * MM
+
     @property
     def unseen_by_data(self) -> tuple[str, ...]:
         """Parameters the data cannot see at all."""

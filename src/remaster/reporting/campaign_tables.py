@@ -138,5 +138,5 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
 
 
 def certificate_record(cert: certificate.Certificate) -> dict:
-    """certificate.json: the campaign, the certificate's heading and its warnings."""
-    return {"campaign": cert.campaign, "heading": cert.heading, "warnings": cert.warnings}
+    """certificate.json: the campaign, the certificate's first screen (a line per sensor), heading and warnings."""
+    return {"campaign": cert.campaign, "brief": cert.brief, "heading": cert.heading, "warnings": cert.warnings}

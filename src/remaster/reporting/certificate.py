@@ -14,7 +14,8 @@ one (Bell-McCaffrey, `uncertainty.cr2_mean`) and U = k u with k = t_0.975(poses 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -22,7 +23,7 @@ import pandas as pd
 from ..evaluation.acceptance import DIAGNOSES, UNTESTED, Acceptance
 from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
 from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
-from ..evaluation.workspace import claim_rows
+from ..evaluation.workspace import claim_rows, priors_decide
 from ..inference import metrics
 from ..inference.fit import LaplaceReport, disagreeing
 from ..inference.uncertainty import coverage_factor, cr2_mean
@@ -66,7 +67,8 @@ NOT_CHECKED = "not cross-checked"
 class Certificate:
     """heading: lines naming the campaign, robot, date and sensors; accuracy: one row per sensor
     and model (mm); corrections: per sensor, model (loop-closed, zero-offsets only) and joint, the
-    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text."""
+    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text;
+    brief: the first screen, a line per sensor (`brief_line`)."""
 
     campaign: str
     heading: list[str]
@@ -74,6 +76,7 @@ class Certificate:
     corrections: pd.DataFrame
     verdicts: pd.DataFrame
     warnings: list[str]
+    brief: list[str] = field(default_factory=list)
 
 
 def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
@@ -163,7 +166,11 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                         "mean (mm)": float(claim["mean_mm"].iloc[0]),
                         "U(mean) (mm)": np.nan,
                         "p95 (mm)": float(claim["p95_bound_mm"].iloc[0]),
-                        "points": int(claim["count"].iloc[0]),
+                        "p95, the data's part (mm)": float(claim["p95_bound_data_mm"].iloc[0])
+                        if "p95_bound_data_mm" in claim
+                        else np.nan,
+                        # a claim is taken over configurations, each drawn `draws` times: count the configurations
+                        "points": int(claim["count"].iloc[0]) // int(inputs.workspace["draws"]),
                     }
                 )
     return rows
@@ -231,6 +238,12 @@ NOT_DETERMINED = (
 )
 
 
+NEAR_NOT_DETERMINED = (
+    "near the measured configurations not determined either: the priors of the parameters the data barely "
+    "moved supply most of the bound there"
+)
+
+
 def acceptance_text(acceptance: Acceptance | None) -> str:
     """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`evaluation.acceptance`), or
     NOT_TESTED."""
@@ -259,6 +272,8 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     limits = by.get((CLAIMED["random"], "loop-closed"), {})
     samplers, disagree = second_sampler(inputs)
     across = bool(inputs.workspace["domain"].get("covers_the_limits", True))
+    near = inside.get("p95 (mm)", np.nan)
+    near_determined = not priors_decide(near, inside.get("p95, the data's part (mm)", np.nan))
     # each mean beside its U, so that the table rounds it to what U supports (`tables.formatted`)
     return {
         "Sensor": sensor_label(sensor),
@@ -268,15 +283,63 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
         "U(After: mean) (mm)": after.get("U(mean) (mm)", np.nan),
         "After: p95 (mm)": after.get("p95 (mm)", np.nan),
         "After: model": after.get("Model", ""),
-        "Near the measured configurations: p95 (mm)": inside.get("p95 (mm)", np.nan),
+        # where the priors supply most of the bound near the data too: not determined there either
+        "Near the measured configurations: p95 (mm)": near if near_determined else np.nan,
         # where the data did not reach the limits the priors decide the number there: not determined
         "Across the joint limits: p95 (mm)": limits.get("p95 (mm)", np.nan) if across else np.nan,
         "Loop": (inputs.loop.closure or {}).get("verdict") or "",
         # naming the measured ranges (`domain.MeasuredDomain.holds`)
-        "Holds": inputs.workspace["domain"]["holds"] + ("" if across else f"; {NOT_DETERMINED}"),
+        "Holds": inputs.workspace["domain"]["holds"]
+        + ("" if across else f"; {NOT_DETERMINED}")
+        + ("" if near_determined else f"; {NEAR_NOT_DETERMINED}"),
         "Samplers": samplers + (f": they disagree on {_disagreement_text(disagree)}" if disagree else ""),
         "Acceptance": acceptance_text(inputs.acceptance),
     }
+
+
+def _declared_text(acceptance: Acceptance | None) -> str:
+    """What the acceptance test says of a declared model error: '' when none was declared."""
+    loop = (acceptance.checks.get("loop") or {}) if acceptance is not None else {}
+    declared = loop.get("declared_model_error_mm")
+    if not declared:
+        return ""
+    alone = loop.get("at_noise") or {}
+    return f" (as far as the {declared:.3g} mm per axis of model error it declares" + (
+        "; not to the sensor's noise)" if alone.get("passed") is False else ")"
+    )
+
+
+def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
+    """The first screen's line of one sensor: the acceptance verdict, the error after with its U on
+    the validation set, where the calibration holds, what is not determined and why, and what the
+    next campaign must add (the parameters the data barely moved counted, listed below)."""
+    mean, u, p95 = (verdict[k] for k in ("After: mean (mm)", "U(After: mean) (mm)", "After: p95 (mm)"))
+    after = (
+        f"error after {mean:.3g} mm mean (U {u:.2g} mm, 95 %), p95 {p95:.3g} mm on the validation set"
+        if np.isfinite(mean)
+        else "no validation error measured"
+    )
+    workspace = inputs.workspace
+    near_determined = NEAR_NOT_DETERMINED not in verdict["Holds"]
+    holds = workspace["domain"]["holds"] if near_determined else "at the measured configurations (the validation set's)"
+    undetermined = []
+    if not workspace["domain"].get("covers_the_limits", True):
+        undetermined.append("the accuracy across the joint limits (the data did not reach there)")
+    if not near_determined:
+        undetermined.append("the accuracy near the measured configurations (the priors supply most of its bound)")
+    dominated = list(workspace.get("prior_dominated") or ())
+    if dominated:
+        undetermined.append(f"{len(dominated)} parameters the data barely moved from their prior")
+    wanted = [w for w in workspace.get("next_campaign_should_add") or () if not w.startswith("poses that move")]
+    if dominated:
+        wanted.append("poses that move the parameters left to their prior")
+    loop = (inputs.loop.closure or {}).get("verdict") or "no closure test"
+    return (
+        f"{sensor_label(sensor)}: acceptance {verdict['Acceptance']}{_declared_text(inputs.acceptance)}; "
+        f"{after}; loop {loop}; holds {holds}; "
+        f"not determined: {'; '.join(undetermined) or 'nothing'}; "
+        f"the next campaign should add: {'; '.join(wanted) or 'nothing'}."
+    )
 
 
 def valid_for(sensor: str, inputs: CertificateInputs) -> str:
@@ -387,7 +450,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items())
         + "."
     ]
-    accuracy, corrections, verdicts, warnings = [], [], [], []
+    accuracy, corrections, verdicts, warnings, brief = [], [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
         found = inputs.loop.gross_errors
@@ -403,14 +466,16 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         rows = accuracy_rows(sensor, inputs)
         accuracy += rows
         corrections += correction_rows(sensor, inputs)
-        verdicts.append({"Campaign": summary["campaign"], **_verdict(sensor, inputs, rows)})
+        verdict = _verdict(sensor, inputs, rows)
+        verdicts.append({"Campaign": summary["campaign"], **verdict})
+        brief.append(brief_line(sensor, inputs, verdict))
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "
         "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose (CR2, k from "
         "t with poses - 1 degrees of freedom); the claims are the loop-closed posterior propagated with the sensor's noise, and a "
         "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
-        "probability. Corrections: add to the controller's zero (true angle = reading + correction). "
+        "probability; its points are the configurations it is taken over. Corrections: add to the controller's zero (true angle = reading + correction). "
         "Type in the loop-closed model's corrections where the controller takes its other effects too "
         "(loop.urdf, loop_effects.yaml): once those are modelled its zero-offsets are the joints' own; a "
         "controller that takes zero-offsets alone gets the zero-offset model's, which also absorb what "
@@ -426,6 +491,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         pd.DataFrame(corrections),
         pd.DataFrame(verdicts),
         warnings,
+        brief,
     )
 
 
@@ -436,7 +502,9 @@ def to_markdown(cert: Certificate) -> str:
     parts = [
         f"# Calibration certificate: {cert.campaign}",
         "",
-        *cert.heading,
+        cert.heading[0],
+        "",
+        *[f"- {line}" for line in cert.brief],
         "",
         "## Verdict",
         "",
@@ -447,6 +515,10 @@ def to_markdown(cert: Certificate) -> str:
         "## Zero-offset corrections to apply",
         "",
         table(cert.corrections),
+        "## How these numbers were made",
+        "",
+        *cert.heading[1:],
+        "",
         "## Valid for, and warnings",
         "",
     ]

@@ -205,7 +205,7 @@ def _campaign_section(name: str, content: dict, caption) -> Section:
     lead_figures = [f for f in content["figures"] if f.startswith(CERTIFICATE_FIGURES)] if cert else []
     return Section(
         name,
-        [*cert.get("heading", []), *_summary_notes(content["summary"])],
+        [*cert.get("brief", []), *cert.get("heading", []), *_summary_notes(content["summary"])],
         [(caption(t), table) for t, table in content["tables"].items() if t not in lead],
         [(caption(f), png) for f, png in content["figures"].items() if f not in lead_figures],
         warnings=list(cert.get("warnings", [])),
