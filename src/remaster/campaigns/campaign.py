@@ -329,6 +329,18 @@ def _positive_length(value: Any, key: str, source: str) -> float | None:
     return float(value)
 
 
+def check_folder_name(name: str, source: str) -> None:
+    """A campaign's `name` is the name of its folder, and writers (`remaster import`, `remaster
+    simulate`) join it to the folder they write into: it must be one path component, or they would
+    write outside that folder."""
+    if name in (".", "..") or any(c in name for c in "/\\\0") or name != name.strip():
+        raise InputError(
+            f"must be a folder name (one path component: no '/', '\\', '..' or surrounding blanks), got {name!r}",
+            file=source,
+            key="name",
+        )
+
+
 def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     """Check campaign.yaml's content (as loaded) against the contract; return a normalised copy.
 
@@ -352,6 +364,7 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     name = meta["name"]
     if not isinstance(name, str) or not name.strip():
         raise InputError(f"must be a non-empty string, got {name!r}", file=source, key="name")
+    check_folder_name(name, source)
     description = meta.get("description")
     if description is None:
         description = ""

@@ -299,7 +299,7 @@ def _zone(name: str) -> dt.tzinfo:
 
 def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
     """campaign.yaml's content of an import configuration: its own keys and each sensor's kind,
-    marker and noise, validated (`validate_metadata`)."""
+    marker, noise and mpe, validated (`validate_metadata`)."""
     campaign_yaml = {k: v for k, v in config.items() if k != "controller"}
     if sensors:  # campaign.yaml's part of each sensor section; validate_metadata names what is missing
         campaign_yaml["sensors"] = {n: {k: v for k, v in s.items() if k in SENSOR_KEYS} for n, s in sensors.items()}
@@ -313,7 +313,7 @@ def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
             n: {
                 "kind": s["kind"],
                 "marker": s["marker"].tolist(),
-                **({} if s["noise"] is None else {"noise": s["noise"]}),
+                **{key: s[key] for key in ("noise", "mpe") if s[key] is not None},
             }
             for n, s in meta["sensors"].items()
         },
