@@ -2,9 +2,19 @@
 
 from __future__ import annotations
 
+import reprlib
 from collections.abc import Iterable, Mapping
+from typing import Any
 
 MAX_ROWS_SHOWN = 10
+MAX_VALUE_SHOWN = 120  # characters of a value quoted in a message
+
+# A value read from a file can be nested and huge (YAML aliases expand a 1 kB file into a structure
+# of billions of elements): reprlib walks only the first levels and items of it, so quoting it costs
+# no more than the text shown.
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 3, 80, 80, 40
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = _REPR.maxfrozenset = _REPR.maxdeque = 8
 
 
 def format_rows(rows: Iterable[int], noun: str = "row") -> str:
@@ -14,6 +24,13 @@ def format_rows(rows: Iterable[int], noun: str = "row") -> str:
     if len(rows) > MAX_ROWS_SHOWN:
         shown += f", ... ({len(rows)} in all)"
     return f"{noun} {shown}" if len(rows) == 1 else f"{noun}s {shown}"
+
+
+def shown(value: Any) -> str:
+    """repr(value) for a message, shortened ('...') to at most MAX_VALUE_SHOWN characters whatever
+    the size of the value."""
+    text = _REPR.repr(value)
+    return text if len(text) <= MAX_VALUE_SHOWN else text[: MAX_VALUE_SHOWN - 3] + "..."
 
 
 class RemasterError(Exception):
