@@ -278,6 +278,16 @@ def test_config_misspelt_key(tmp_path):
 
 
 @pytest.mark.workflow
+def test_config_key_given_twice(tmp_path):
+    config = tmp_path / "twice.yaml"
+    config.write_text("seed: 1\nseed: 2\n")
+    result = subprocess.run(
+        SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert_refused(result, f"{config}: seed: line 2: duplicate key (first on line 1)")
+
+
+@pytest.mark.workflow
 def test_config_raw_dir_that_does_not_exist(tmp_path):
     result = dry_run(tmp_path, {"raw_dir": str(tmp_path / "nowhere")})
     assert_refused(result, "bad-config.yaml", f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory")
