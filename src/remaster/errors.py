@@ -6,6 +6,8 @@ import reprlib
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+import numpy as np
+
 MAX_ROWS_SHOWN = 10
 MAX_VALUE_SHOWN = 120  # characters of a value quoted in a message
 
@@ -98,3 +100,23 @@ def require_columns(
         details.append(f"got: {', '.join(map(str, columns))}")
     message = f"missing {kind + ' ' if kind else ''}column(s){' of ' + of if of else ''}"
     raise InputError(message + (f" ({'; '.join(details)})" if details else ""), file=file, key=", ".join(missing))
+
+
+def refuse_millimetres(
+    values, limit: float, what: str, *, file: str | None, key: str, error: type[InputError] = InputError
+) -> None:
+    """The one check that lengths given in metres are plausible: an InputError (or `error`) naming
+    the file and the key when a magnitude reaches `limit` (m), "looks like mm": millimetres written
+    for metres are the likely slip. `what` names the bound ("the largest offset of a marker from
+    the flange"). A 2-D table of values (rows, columns) names its offending rows."""
+    values = np.abs(np.asarray(values, dtype=float))
+    beyond = values >= limit
+    if not beyond.any():
+        return
+    rows = np.flatnonzero(beyond.any(axis=1)) if values.ndim == 2 else None
+    raise error(
+        f"{values[beyond].max():g} m is not below {limit:g} m, {what}: looks like mm written for m (write metres)",
+        file=file,
+        key=key,
+        rows=rows,
+    )

@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, KinematicsError, require_columns, shown
+from ..errors import InputError, KinematicsError, refuse_millimetres, require_columns, shown
 from ..robot import registration
-from ..robot.kinematics import DH_CONVENTIONS, KinematicChain
+from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
 from ..robot.priors import check_override
 from . import capacity
 
@@ -41,6 +41,12 @@ TIME_COLUMN = "time"
 STD_COLUMN = "std"
 AXIS_STD_COLUMNS = ("std_x", "std_y", "std_z")
 MAX_STD = 0.01  # m: a per-point std above 10 mm is a unit mistake (millimetres stored as metres)
+# A sensor's stated noise or mpe (m) of 10 mm or more: a motion-capture system's is under 1 mm and a
+# laser tracker's tens of um, so a value that large is one written in mm (or in um as mm).
+MAX_NOISE = MAX_STD
+# The marker's offset from the flange (m): a marker sits on the flange or on a tool that a
+# measurement can follow, well within a metre; 1 m or more is the offset written in mm.
+MAX_MARKER_OFFSET = 1.0
 MAX_POSITION = 20.0  # m: a marker farther than this from the sensor's origin is a unit mistake
 # Joint readings in degrees stored as radians: a reading beyond one turn (2 pi) or beyond the robot's
 # joint limits by more than this margin cannot be a controller's reading in rad.
@@ -291,6 +297,14 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
                 rows=malformed,
             )
         checked["dh"] = {"convention": convention, "rows": [[float(v) for v in row] for row in rows]}
+        refuse_millimetres(
+            [[row[0], row[2]] for row in checked["dh"]["rows"]],
+            MAX_LINK_LENGTH,
+            "the longest plausible link (a, d)",
+            file=source,
+            key="robot/dh/rows",
+            error=KinematicsError,
+        )
         if dh.get("flange") is not None:
             flange = dh["flange"]
             if not isinstance(flange, (list, tuple)) or len(flange) != 4:
@@ -303,6 +317,14 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
                 _number_list(row, 4, "robot/dh/flange", source, "a 4x4 matrix of numbers", KinematicsError)
                 for row in flange
             ]
+            refuse_millimetres(
+                [row[3] for row in checked["dh"]["flange"][:3]],
+                MAX_LINK_LENGTH,
+                "the longest plausible link",
+                file=source,
+                key="robot/dh/flange",
+                error=KinematicsError,
+            )
     return checked
 
 
@@ -322,7 +344,19 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
             "missing (the marker centre [x, y, z] in the flange frame, m)", file=source, key=f"{where}/marker"
         )
     marker = _number_list(spec["marker"], 3, f"{where}/marker", source, "3 finite numbers [x, y, z] (m)")
+    refuse_millimetres(
+        marker,
+        MAX_MARKER_OFFSET,
+        "the largest plausible offset of a marker from the flange",
+        file=source,
+        key=f"{where}/marker",
+    )
     noise, mpe = (_positive_length(spec.get(key), f"{where}/{key}", source) for key in ("noise", "mpe"))
+    for key, value in (("noise", noise), ("mpe", mpe)):
+        if value is not None:
+            refuse_millimetres(
+                value, MAX_NOISE, "the largest plausible noise or mpe of a sensor", file=source, key=f"{where}/{key}"
+            )
     return {"kind": kind, "marker": np.array(marker), "noise": noise, "mpe": mpe}
 
 

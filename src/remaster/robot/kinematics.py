@@ -20,9 +20,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import _kernels, spatial
-from ..errors import KinematicsError
+from ..errors import KinematicsError, refuse_millimetres
 
 DH_CONVENTIONS = ("standard", "modified")
+# A link's length (m) in a URDF origin or a DH table: the largest industrial arms reach about 4 m in
+# all, so a single length of 5 m or more between base and flange is one written in mm. Checked where
+# a robot description is read (a URDF here, a DH table by the campaign reader), not in chain_from_dh,
+# which a fit also calls on its trial tables.
+MAX_LINK_LENGTH = 5.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -299,6 +304,14 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         name, kind = joint.get("name"), joint.get("type")
         where = f"joint {name}"
         origin = origin_transform(joint, where)
+        refuse_millimetres(
+            origin[:3, 3],
+            MAX_LINK_LENGTH,
+            "the longest plausible link",
+            file=source,
+            key=f"{where}/origin/xyz",
+            error=KinematicsError,
+        )
         child = joint.find("child").get("link")
         if kind == "fixed":
             pending = pending @ origin
