@@ -268,63 +268,69 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
                 f"{' and '.join(frames)} name URDF links, but there is no `urdf`", file=source, key=f"robot/{frames[0]}"
             )
     if "dh" in robot:
-        dh = _mapping(robot["dh"], "robot/dh", source, KinematicsError)
-        _check_keys(dh, DH_KEYS, "robot/dh", source, KinematicsError)
-        convention = dh.get("convention")
-        if convention not in DH_CONVENTIONS:
-            raise KinematicsError(
-                f"must be one of {', '.join(DH_CONVENTIONS)}, got {shown(convention)}",
-                file=source,
-                key="robot/dh/convention",
-            )
-        rows = dh.get("rows")
-        if not isinstance(rows, (list, tuple)) or not rows:
-            raise KinematicsError(
-                f"must be a non-empty list of [a, alpha, d, theta] rows, got {shown(rows)}",
-                file=source,
-                key="robot/dh/rows",
-            )
-        malformed = [
-            i
-            for i, row in enumerate(rows)
-            if not (isinstance(row, (list, tuple)) and len(row) == 4 and all(_is_number(v) for v in row))
-        ]
-        if malformed:
-            raise KinematicsError(
-                "each row must be 4 finite numbers [a (m), alpha (rad), d (m), theta (rad)]",
-                file=source,
-                key="robot/dh/rows",
-                rows=malformed,
-            )
-        checked["dh"] = {"convention": convention, "rows": [[float(v) for v in row] for row in rows]}
-        refuse_millimetres(
-            [[row[0], row[2]] for row in checked["dh"]["rows"]],
-            MAX_LINK_LENGTH,
-            "the longest plausible link (a, d)",
+        checked["dh"] = _validate_dh(robot["dh"], source)
+    return checked
+
+
+def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
+    """The `robot/dh` section checked (see `validate_robot`), as a plain copy."""
+    dh = _mapping(dh, "robot/dh", source, KinematicsError)
+    _check_keys(dh, DH_KEYS, "robot/dh", source, KinematicsError)
+    convention = dh.get("convention")
+    if convention not in DH_CONVENTIONS:
+        raise KinematicsError(
+            f"must be one of {', '.join(DH_CONVENTIONS)}, got {shown(convention)}",
+            file=source,
+            key="robot/dh/convention",
+        )
+    rows = dh.get("rows")
+    if not isinstance(rows, (list, tuple)) or not rows:
+        raise KinematicsError(
+            f"must be a non-empty list of [a, alpha, d, theta] rows, got {shown(rows)}",
             file=source,
             key="robot/dh/rows",
-            error=KinematicsError,
         )
-        if dh.get("flange") is not None:
-            flange = dh["flange"]
-            if not isinstance(flange, (list, tuple)) or len(flange) != 4:
-                raise KinematicsError(
-                    f"must be a 4x4 matrix (4 rows of 4 numbers), got {shown(flange)}",
-                    file=source,
-                    key="robot/dh/flange",
-                )
-            checked["dh"]["flange"] = [
-                _number_list(row, 4, "robot/dh/flange", source, "a 4x4 matrix of numbers", KinematicsError)
-                for row in flange
-            ]
-            refuse_millimetres(
-                [row[3] for row in checked["dh"]["flange"][:3]],
-                MAX_LINK_LENGTH,
-                "the longest plausible link",
+    malformed = [
+        i
+        for i, row in enumerate(rows)
+        if not (isinstance(row, (list, tuple)) and len(row) == 4 and all(_is_number(v) for v in row))
+    ]
+    if malformed:
+        raise KinematicsError(
+            "each row must be 4 finite numbers [a (m), alpha (rad), d (m), theta (rad)]",
+            file=source,
+            key="robot/dh/rows",
+            rows=malformed,
+        )
+    checked = {"convention": convention, "rows": [[float(v) for v in row] for row in rows]}
+    refuse_millimetres(
+        [[row[0], row[2]] for row in checked["rows"]],
+        MAX_LINK_LENGTH,
+        "the longest plausible link (a, d)",
+        file=source,
+        key="robot/dh/rows",
+        error=KinematicsError,
+    )
+    if dh.get("flange") is not None:
+        flange = dh["flange"]
+        if not isinstance(flange, (list, tuple)) or len(flange) != 4:
+            raise KinematicsError(
+                f"must be a 4x4 matrix (4 rows of 4 numbers), got {shown(flange)}",
                 file=source,
                 key="robot/dh/flange",
-                error=KinematicsError,
             )
+        checked["flange"] = [
+            _number_list(row, 4, "robot/dh/flange", source, "a 4x4 matrix of numbers", KinematicsError)
+            for row in flange
+        ]
+        refuse_millimetres(
+            [row[3] for row in checked["flange"][:3]],
+            MAX_LINK_LENGTH,
+            "the longest plausible link",
+            file=source,
+            key="robot/dh/flange",
+            error=KinematicsError,
+        )
     return checked
 
 
