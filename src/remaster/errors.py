@@ -28,7 +28,7 @@ def format_rows(rows: Iterable[int], noun: str = "row") -> str:
     return f"{noun} {shown}" if len(rows) == 1 else f"{noun}s {shown}"
 
 
-def shown(value: Any) -> str:
+def quoted(value: Any) -> str:
     """repr(value) for a message, shortened ('...') to at most MAX_VALUE_SHOWN characters whatever
     the size of the value."""
     text = _REPR.repr(value)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, KinematicsError, refuse_millimetres, require_columns, shown
+from ..errors import InputError, KinematicsError, quoted, refuse_millimetres, require_columns
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
 from ..robot.priors import check_override
@@ -212,7 +212,7 @@ def _number_list(
 ) -> list[float]:
     """A list of `length` finite numbers, or an error naming `key`."""
     if not isinstance(value, (list, tuple)) or len(value) != length or not all(_is_number(v) for v in value):
-        raise error(f"must be {what}, got {shown(value)}", file=source, key=key)
+        raise error(f"must be {what}, got {quoted(value)}", file=source, key=key)
     return [float(v) for v in value]
 
 
@@ -228,7 +228,7 @@ def _parse_date(value: Any, source: str) -> dt.date:
             return dt.date.fromisoformat(value.strip())
         except ValueError:
             pass
-    raise InputError(f"must be an ISO date YYYY-MM-DD, got {shown(value)}", file=source, key="date")
+    raise InputError(f"must be an ISO date YYYY-MM-DD, got {quoted(value)}", file=source, key="date")
 
 
 def validate_robot(robot: Any, source: str) -> dict[str, Any]:
@@ -246,7 +246,7 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
     if "serial" in robot:  # optional: the physical unit, so that campaigns of one robot can be compared
         if not (isinstance(robot["serial"], str) and robot["serial"].strip()):
             raise KinematicsError(
-                f"must be a non-empty string, got {shown(robot['serial'])}", file=source, key="robot/serial"
+                f"must be a non-empty string, got {quoted(robot['serial'])}", file=source, key="robot/serial"
             )
         checked["serial"] = robot["serial"]
     if "priors" in robot:  # optional: this robot's tolerances for the loop closure's extension blocks
@@ -257,7 +257,7 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
             value = robot.get(key)
             if (key == "urdf" or value is not None) and not (isinstance(value, str) and value.strip()):
                 raise KinematicsError(
-                    f"must be a non-empty string, got {shown(value)}", file=source, key=f"robot/{key}"
+                    f"must be a non-empty string, got {quoted(value)}", file=source, key=f"robot/{key}"
                 )
             if value is not None:
                 checked[key] = value
@@ -279,14 +279,14 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
     convention = dh.get("convention")
     if convention not in DH_CONVENTIONS:
         raise KinematicsError(
-            f"must be one of {', '.join(DH_CONVENTIONS)}, got {shown(convention)}",
+            f"must be one of {', '.join(DH_CONVENTIONS)}, got {quoted(convention)}",
             file=source,
             key="robot/dh/convention",
         )
     rows = dh.get("rows")
     if not isinstance(rows, (list, tuple)) or not rows:
         raise KinematicsError(
-            f"must be a non-empty list of [a, alpha, d, theta] rows, got {shown(rows)}",
+            f"must be a non-empty list of [a, alpha, d, theta] rows, got {quoted(rows)}",
             file=source,
             key="robot/dh/rows",
         )
@@ -315,7 +315,7 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
         flange = dh["flange"]
         if not isinstance(flange, (list, tuple)) or len(flange) != 4:
             raise KinematicsError(
-                f"must be a 4x4 matrix (4 rows of 4 numbers), got {shown(flange)}",
+                f"must be a 4x4 matrix (4 rows of 4 numbers), got {quoted(flange)}",
                 file=source,
                 key="robot/dh/flange",
             )
@@ -343,7 +343,7 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
     kind = spec.get("kind")
     if kind not in SENSOR_KINDS:
         raise InputError(
-            f"unknown kind {shown(kind)}; use one of {', '.join(SENSOR_KINDS)}", file=source, key=f"{where}/kind"
+            f"unknown kind {quoted(kind)}; use one of {', '.join(SENSOR_KINDS)}", file=source, key=f"{where}/kind"
         )
     if "marker" not in spec:
         raise InputError(
@@ -371,7 +371,7 @@ def _positive_length(value: Any, key: str, source: str) -> float | None:
     if value is None:
         return None
     if not _is_number(value) or value <= 0:
-        raise InputError(f"must be a positive number (m), got {shown(value)}", file=source, key=key)
+        raise InputError(f"must be a positive number (m), got {quoted(value)}", file=source, key=key)
     return float(value)
 
 
@@ -381,7 +381,7 @@ def check_folder_name(name: str, source: str) -> None:
     write outside that folder."""
     if name in (".", "..") or any(c in name for c in "/\\\0") or name != name.strip():
         raise InputError(
-            f"must be a folder name (one path component: no '/', '\\', '..' or surrounding blanks), got {shown(name)}",
+            f"must be a folder name (one path component: no '/', '\\', '..' or surrounding blanks), got {quoted(name)}",
             file=source,
             key="name",
         )
@@ -409,13 +409,13 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
     _check_keys(meta, REQUIRED_KEYS + OPTIONAL_KEYS, "", source)
     name = meta["name"]
     if not isinstance(name, str) or not name.strip():
-        raise InputError(f"must be a non-empty string, got {shown(name)}", file=source, key="name")
+        raise InputError(f"must be a non-empty string, got {quoted(name)}", file=source, key="name")
     check_folder_name(name, source)
     description = meta.get("description")
     if description is None:
         description = ""
     if not isinstance(description, str):
-        raise InputError(f"must be text, got {shown(description)}", file=source, key="description")
+        raise InputError(f"must be text, got {quoted(description)}", file=source, key="description")
     sensors = _mapping(meta["sensors"], "sensors", source)
     if not sensors:
         raise InputError("names no sensor", file=source, key="sensors")

@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, require_columns, shown
+from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, quoted, require_columns
 from ..units import DEG
 from .campaign import (
     _JOINT_COLUMN,
@@ -230,14 +230,14 @@ def _text(section: Mapping, key: str, where: str, source: str, default: str | No
     value = section.get(key)
     value = default if value is None else value
     if value is not None and not (isinstance(value, str) and value.strip()):
-        raise InputError(f"must be a non-empty string, got {shown(value)}", file=source, key=f"{where}/{key}")
+        raise InputError(f"must be a non-empty string, got {quoted(value)}", file=source, key=f"{where}/{key}")
     return value
 
 
 def _choice(section: Mapping, key: str, choices, where: str, source: str, default: str | None = None) -> str:
     value = section.get(key, default)
     if value not in choices:
-        got = "missing" if value is None else f"got {shown(value)}"
+        got = "missing" if value is None else f"got {quoted(value)}"
         raise InputError(f"must be one of {', '.join(choices)} ({got})", file=source, key=f"{where}/{key}")
     return value
 
@@ -252,7 +252,7 @@ def _columns(section: Mapping, key: str, where: str, source: str, default=None, 
         or len(set(value)) != len(value)
     ):
         wanted = f"{length} distinct column names" if length else "a list of distinct column names"
-        raise InputError(f"must be {wanted}, got {shown(value)}", file=source, key=f"{where}/{key}")
+        raise InputError(f"must be {wanted}, got {quoted(value)}", file=source, key=f"{where}/{key}")
     return tuple(value)
 
 
@@ -264,14 +264,14 @@ def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
     decimal = _choice(section, "decimal", (".", ","), where, source, ".")
     if len(delimiter) != 1 or delimiter == decimal:
         raise InputError(
-            f"must be one character other than the decimal mark {shown(decimal)}, got {shown(delimiter)}",
+            f"must be one character other than the decimal mark {quoted(decimal)}, got {quoted(delimiter)}",
             file=source,
             key=f"{where}/delimiter",
         )
     time_format = _text(section, "time_format", where, source, "iso")
     if time_format not in TIME_FORMATS and "%" not in time_format:
         raise InputError(
-            f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', got {shown(time_format)}",
+            f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', got {quoted(time_format)}",
             file=source,
             key=f"{where}/time_format",
         )
@@ -280,7 +280,7 @@ def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
         _zone(timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise InputError(
-            f"unknown time zone {shown(timezone)} (an IANA name such as Europe/Berlin)",
+            f"unknown time zone {quoted(timezone)} (an IANA name such as Europe/Berlin)",
             file=source,
             key=f"{where}/timezone",
         ) from None
@@ -367,7 +367,7 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
             and tolerance > 0
         ):
             raise InputError(
-                f"must be a positive number of seconds for match: time, got {shown(tolerance)}",
+                f"must be a positive number of seconds for match: time, got {quoted(tolerance)}",
                 file=source,
                 key=f"{where}/tolerance",
             )
