@@ -375,10 +375,12 @@ def _positive_length(value: Any, key: str, source: str) -> float | None:
     return float(value)
 
 
-def check_folder_name(name: str, source: str) -> None:
+def check_folder_name(name: Any, source: str) -> None:
     """A campaign's `name` is the name of its folder, and writers (`remaster import`, `remaster
     simulate`) join it to the folder they write into: it must be one path component, or they would
     write outside that folder."""
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(f"must be a non-empty string, got {quoted(name)}", file=source, key="name")
     if name in (".", "..") or any(c in name for c in "/\\\0") or name != name.strip():
         raise InputError(
             f"must be a folder name (one path component: no '/', '\\', '..' or surrounding blanks), got {quoted(name)}",
@@ -408,8 +410,6 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
         )
     _check_keys(meta, REQUIRED_KEYS + OPTIONAL_KEYS, "", source)
     name = meta["name"]
-    if not isinstance(name, str) or not name.strip():
-        raise InputError(f"must be a non-empty string, got {quoted(name)}", file=source, key="name")
     check_folder_name(name, source)
     description = meta.get("description")
     if description is None:
