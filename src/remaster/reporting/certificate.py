@@ -431,12 +431,13 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
 
 def to_markdown(cert: Certificate) -> str:
     """The certificate as a Markdown page (numbers rounded as every table is)."""
+    from .tables import markdown_text
     from .tables import to_markdown as table
 
     parts = [
-        f"# Calibration certificate: {cert.campaign}",
+        f"# Calibration certificate: {markdown_text(cert.campaign)}",
         "",
-        *cert.heading,
+        *map(markdown_text, cert.heading),
         "",
         "## Verdict",
         "",
@@ -450,5 +451,5 @@ def to_markdown(cert: Certificate) -> str:
         "## Valid for, and warnings",
         "",
     ]
-    parts += [f"- {w}" for w in cert.warnings] or ["- none"]
+    parts += [f"- {markdown_text(w)}" for w in cert.warnings] or ["- none"]
     return "\n".join(parts) + "\n"
