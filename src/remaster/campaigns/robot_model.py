@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, KinematicsError
+from ..errors import InputError, KinematicsError, quoted
 from ..files import read_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from ..robot.kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
@@ -87,7 +87,7 @@ def load_chain(
         urdf_path = next((p for p in candidates if p.is_file()), None)
         if urdf_path is None:
             raise KinematicsError(
-                f"URDF file {robot['urdf']!r} not found (looked for {', '.join(str(p) for p in candidates)})",
+                f"URDF file {quoted(robot['urdf'])} not found (looked for {', '.join(str(p) for p in candidates)})",
                 file=source,
                 key="robot/urdf",
             )

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import _kernels, spatial
-from ..errors import KinematicsError, refuse_millimetres
+from ..errors import KinematicsError, quoted, refuse_millimetres
 
 DH_CONVENTIONS = ("standard", "modified")
 # A link's length (m) in a URDF origin or a DH table: the largest industrial arms reach about 4 m in
@@ -82,9 +82,9 @@ def _floats(text: str | None, count: int, default: float, where: str) -> np.ndar
     try:
         values = np.array([float(v) for v in text.split()])
     except ValueError:
-        raise KinematicsError(f"cannot read numbers from {text!r}", key=where) from None
+        raise KinematicsError(f"cannot read numbers from {quoted(text)}", key=where) from None
     if values.shape != (count,):
-        raise KinematicsError(f"expected {count} numbers, got {text!r}", key=where)
+        raise KinematicsError(f"expected {count} numbers, got {quoted(text)}", key=where)
     return values
 
 
@@ -95,7 +95,7 @@ def _number(text: str | None, default: float, where: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise KinematicsError(f"cannot read a number from {text!r}", key=where) from None
+        raise KinematicsError(f"cannot read a number from {quoted(text)}", key=where) from None
     if np.isnan(value):
         raise KinematicsError("is NaN", key=where)
     return value
