@@ -19,13 +19,17 @@ _REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 3, 80, 80, 40
 _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = _REPR.maxfrozenset = _REPR.maxdeque = 8
 
 
+def listed(items: Iterable) -> str:
+    """'3, 7, 9' or '0, 1, ... (250 in all)' for long lists: the first MAX_ROWS_SHOWN items as text."""
+    items = [str(item) for item in items]
+    shown = ", ".join(items[:MAX_ROWS_SHOWN])
+    return shown + (f", ... ({len(items)} in all)" if len(items) > MAX_ROWS_SHOWN else "")
+
+
 def format_rows(rows: Iterable[int], noun: str = "row") -> str:
     """'rows 3, 7, 9' or 'rows 0, 1, ... (250 in all)' for long lists ('line 4' with noun='line')."""
     rows = [int(r) for r in rows]
-    shown = ", ".join(str(r) for r in rows[:MAX_ROWS_SHOWN])
-    if len(rows) > MAX_ROWS_SHOWN:
-        shown += f", ... ({len(rows)} in all)"
-    return f"{noun} {shown}" if len(rows) == 1 else f"{noun}s {shown}"
+    return f"{noun} {listed(rows)}" if len(rows) == 1 else f"{noun}s {listed(rows)}"
 
 
 def quoted(value: Any) -> str:

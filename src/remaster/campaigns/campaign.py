@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, KinematicsError, quoted, refuse_millimetres, require_columns
+from ..errors import InputError, KinematicsError, listed, quoted, refuse_millimetres, require_columns
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
 from ..robot.priors import check_override
@@ -453,7 +453,7 @@ def _is_integer_column(series: pd.Series) -> bool:
 
 def _check_columns(df: pd.DataFrame, n_joints: int, source: str) -> None:
     """Column names: strings, unique, all required present, joint columns exactly q1..qN."""
-    not_text = [repr(c) for c in df.columns if not isinstance(c, str)]
+    not_text = [quoted(c) for c in df.columns if not isinstance(c, str)]
     if not_text:
         raise InputError(f"column names must be strings, got {', '.join(not_text)}", file=source)
     duplicated = sorted(set(df.columns[df.columns.duplicated()]))
@@ -572,9 +572,9 @@ def _check_rows(df: pd.DataFrame, n_joints: int, source: str, limits=None) -> No
     sets = df["set"].astype(object).to_numpy()
     unknown = np.flatnonzero([not (isinstance(s, str) and s in SETS) for s in sets])
     if unknown.size:
-        values = sorted({repr(sets[i]) for i in unknown})
+        values = sorted({quoted(sets[i]) for i in unknown})
         raise InputError(
-            f"unknown set value(s) {', '.join(values)}; use {' or '.join(SETS)}", file=source, key="set", rows=unknown
+            f"unknown set value(s) {listed(values)}; use {' or '.join(SETS)}", file=source, key="set", rows=unknown
         )
     if not np.any(sets == "optimization"):
         raise InputError("no optimization rows: the calibration needs some", file=source, key="set")

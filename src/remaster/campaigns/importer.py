@@ -125,7 +125,7 @@ class Export:
     def fail(self, column: str, what: str, positions) -> InputError:
         """InputError naming the file, the column, the lines of `positions` (0-based rows) and their cells."""
         positions = list(positions)
-        cells = ", ".join(repr(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
+        cells = ", ".join(quoted(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
         return InputError(f"{what} on {_lines(self.lines[positions])}: {cells}", file=self.source, key=column)
 
 
