@@ -111,8 +111,8 @@ def refuse_millimetres(
 ) -> None:
     """The one check that lengths given in metres are plausible: an InputError (or `error`) naming
     the file and the key when a magnitude reaches `limit` (m), "looks like mm": millimetres written
-    for metres are the likely slip. `what` names the bound ("the largest offset of a marker from
-    the flange"). A 2-D table of values (rows, columns) names its offending rows."""
+    for metres are the likely slip. `what` names the bound ("the bound of a plausible marker offset
+    from the flange"). A 2-D table of values (rows, columns) names its offending rows."""
     values = np.abs(np.asarray(values, dtype=float))
     beyond = values >= limit
     if not beyond.any():

@@ -306,7 +306,7 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
     refuse_millimetres(
         [[row[0], row[2]] for row in checked["rows"]],
         MAX_LINK_LENGTH,
-        "the longest plausible link (a, d)",
+        "the bound of a plausible link length (a, d)",
         file=source,
         key="robot/dh/rows",
         error=KinematicsError,
@@ -326,7 +326,7 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
         refuse_millimetres(
             [row[3] for row in checked["flange"][:3]],
             MAX_LINK_LENGTH,
-            "the longest plausible link",
+            "the bound of a plausible link length",
             file=source,
             key="robot/dh/flange",
             error=KinematicsError,
@@ -353,7 +353,7 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
     refuse_millimetres(
         marker,
         MAX_MARKER_OFFSET,
-        "the largest plausible offset of a marker from the flange",
+        "the bound of a plausible marker offset from the flange",
         file=source,
         key=f"{where}/marker",
     )
@@ -361,7 +361,7 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
     for key, value in (("noise", noise), ("mpe", mpe)):
         if value is not None:
             refuse_millimetres(
-                value, MAX_NOISE, "the largest plausible noise or mpe of a sensor", file=source, key=f"{where}/{key}"
+                value, MAX_NOISE, "the bound of a plausible sensor noise or mpe", file=source, key=f"{where}/{key}"
             )
     return {"kind": kind, "marker": np.array(marker), "noise": noise, "mpe": mpe}
 

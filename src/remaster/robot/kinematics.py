@@ -307,7 +307,7 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         refuse_millimetres(
             origin[:3, 3],
             MAX_LINK_LENGTH,
-            "the longest plausible link",
+            "the bound of a plausible link length",
             file=source,
             key=f"{where}/origin/xyz",
             error=KinematicsError,
