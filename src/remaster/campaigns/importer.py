@@ -27,7 +27,7 @@ controller:
   carry: [temperature]              # optional numeric columns copied into every sensor table
 sensors:
   laser_tracker:
-    kind: laser_tracker             # kind, marker, noise: as in campaign.yaml
+    kind: laser_tracker             # kind, marker, noise, mpe: as in campaign.yaml
     marker: [-0.1, 0.0, 0.02]
     noise: 1.0e-5
     file: tracker.csv
