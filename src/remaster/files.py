@@ -101,6 +101,8 @@ def load_yaml(text: str, source: str) -> Any:
         return loader.construct_document(node)
     except _Refused as exc:
         raise InputError(str(exc), file=source, key=exc.key) from None
+    except RecursionError:  # the parser recurses once per level: '[[[[...' a hundred thousand deep
+        raise InputError("YAML nested too deep to read: remaster's files need a few levels", file=source) from None
     except yaml.YAMLError as exc:
         tag = re.search(r"constructor for the tag '([^']*)'", str(getattr(exc, "problem", "")))
         if tag:  # e.g. !!python/object/apply: safe_load has no constructor for it

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from remaster import cli
+from remaster import cli, files
 from remaster.campaigns import folders
 from remaster.campaigns.campaign import validate_metadata
 from remaster.errors import InputError, KinematicsError
@@ -91,6 +91,13 @@ def test_campaign_yaml_with_nested_aliases_is_refused_within_a_second(tmp_path):
     assert time.perf_counter() - start < 1.0
     assert str(info.value).startswith(f"{path}: line 4: YAML alias *l0 refused")
     assert len(str(info.value)) < 300
+
+
+def test_yaml_nested_beyond_the_parsers_depth_is_an_input_error(tmp_path):
+    path = tmp_path / "campaign.yaml"
+    path.write_text("date: " + "[" * 100_000 + "]" * 100_000 + "\n")
+    with pytest.raises(InputError, match=r"campaign.yaml: YAML nested too deep to read"):
+        files.read_yaml(path)
 
 
 def test_a_huge_value_is_quoted_short_and_fast():
