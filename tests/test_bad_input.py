@@ -221,6 +221,61 @@ def test_urdf_limits_upside_down(tmp_path):
         kinematics.chain_from_urdf(swapped, "base", "tool", source="robot.urdf")
 
 
+@pytest.mark.parametrize(
+    ("key", "value", "shown"),
+    [
+        ("marker", [-100.0, 0.0, 20.0], "100 m is not below 1 m"),  # mm: a certificate with a 98 m error
+        ("noise", 10.0, "10 m is not below 0.01 m"),
+        ("noise", 0.01, "0.01 m is not below 0.01 m"),  # 10 um written as mm
+        ("mpe", 0.025, "0.025 m is not below 0.01 m"),
+    ],
+    ids=["marker in mm", "noise 10", "noise 0.01", "mpe in mm"],
+)
+def test_sensor_lengths_in_millimetres_are_refused(tmp_path, key, value, shown):
+    meta = metadata()
+    meta["sensors"][SENSOR][key] = value
+    problem = read_error(make_campaign(tmp_path, meta))
+    assert str(problem).startswith(f"{tmp_path / 'demo' / 'campaign.yaml'}: sensors/{SENSOR}/{key}: {shown}")
+    assert "looks like mm written for m" in str(problem)
+
+
+def test_plausible_sensor_lengths_are_kept(tmp_path):
+    meta = metadata()
+    meta["sensors"][SENSOR].update(marker=[0.5, -0.3, 0.2], noise=5e-3, mpe=9e-3)
+    sensor = folders.read_campaign(make_campaign(tmp_path, meta), repo_root=REPO).sensors[SENSOR]
+    assert (sensor.noise, sensor.mpe) == (5e-3, 9e-3)
+
+
+def test_robot_lengths_in_millimetres_are_refused(tmp_path):
+    from .campaigns.test_campaign import SMALL_URDF
+
+    in_mm = {**SMALL_DH, "rows": [SMALL_DH["rows"][0], [400.0, 0.0, 0.0, 0.0], SMALL_DH["rows"][2]]}
+    problem = read_error(
+        make_campaign(tmp_path / "dh", metadata(robot={"dh": in_mm}), {SENSOR: sensor_table(3)}), KinematicsError
+    )
+    assert str(problem).startswith(
+        f"{tmp_path / 'dh' / 'demo' / 'campaign.yaml'}: robot/dh/rows: 400 m is not below 5 m"
+    )
+    assert "looks like mm" in str(problem) and problem.rows == [1]
+    flange = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 150.0], [0, 0, 0, 1.0]]
+    problem = read_error(
+        make_campaign(
+            tmp_path / "flange", metadata(robot={"dh": {**SMALL_DH, "flange": flange}}), {SENSOR: sensor_table(3)}
+        ),
+        KinematicsError,
+    )
+    assert "robot/dh/flange: 150 m is not below 5 m" in str(problem) and "looks like mm" in str(problem)
+    problem = read_error(
+        small_urdf_campaign(
+            tmp_path / "urdf", SMALL_URDF.replace('<origin xyz="0.4 0 0"/>', '<origin xyz="400 0 0"/>')
+        ),
+        KinematicsError,
+    )
+    urdf = tmp_path / "urdf" / "demo" / "robot.urdf"
+    assert str(problem).startswith(f"{urdf}: joint j3/origin/xyz: 400 m is not below 5 m")
+    assert "looks like mm" in str(problem)
+
+
 # --------------------------------------------------------------------------- registration
 
 
@@ -275,6 +330,16 @@ def tiny(tmp_path_factory, iiwa):
 @pytest.mark.workflow
 def test_config_misspelt_key(tmp_path):
     assert_refused(dry_run(tmp_path, {"raw_dri": "data/raw"}), "'raw_dri' was unexpected")
+
+
+@pytest.mark.workflow
+def test_config_key_given_twice(tmp_path):
+    config = tmp_path / "twice.yaml"
+    config.write_text("seed: 1\nseed: 2\n")
+    result = subprocess.run(
+        SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert_refused(result, f"{config}: seed: line 2: duplicate key (first on line 1)")
 
 
 @pytest.mark.workflow

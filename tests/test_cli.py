@@ -121,6 +121,24 @@ def test_simulate_regenerates_a_campaign_that_reads(tmp_path, monkeypatch):
     assert (tmp_path / "truth" / "kuka-compliance.json").is_file()
 
 
+def test_simulate_refuses_no_copies_and_a_name_outside_its_folder(tmp_path, capsys, monkeypatch):
+    """--copies 0 used to exit 0 having written nothing; a scenario named '../x' would write its
+    campaign beside --raw-dir and its truth beside --truth-dir."""
+    monkeypatch.chdir(REPO)
+    scenario = REPO / "data" / "simulation" / "kuka-compliance.yaml"
+    outputs = ["--raw-dir", str(tmp_path / "sim" / "raw"), "--truth-dir", str(tmp_path / "sim" / "truth")]
+    with pytest.raises(SystemExit) as exited:
+        cli.main(["simulate", str(scenario), "--copies", "0", *outputs])
+    assert exited.value.code == 2
+    assert "argument --copies: must be at least 1, got 0" in capsys.readouterr().err
+    spec = files.read_yaml(scenario)
+    files.write_yaml(tmp_path / "escaping.yaml", {**spec, "name": "../escaped"})
+    assert cli.main(["simulate", str(tmp_path / "escaping.yaml"), *outputs]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'escaping.yaml'}: name: must be a folder name" in err and "'../escaped'" in err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["escaping.yaml"]
+
+
 def test_version_prints_the_installed_version(capsys):
     from importlib.metadata import version
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from .calibration import compensation
 from .campaigns import importer, scenario
+from .campaigns.campaign import check_folder_name
 from .campaigns.folders import import_campaign, read_campaign, write_campaign
 from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
@@ -37,6 +38,7 @@ def _simulate(args: argparse.Namespace) -> None:
         raise RemasterError(f"no scenario given and none found in {DEFAULT_SCENARIOS}")
     for path in paths:
         base = read_yaml(path)
+        check_folder_name(base.get("name") if isinstance(base, dict) else None, str(path))
         chain = load_chain(base["robot"], path.parent, Path.cwd(), source=str(path), name=base["name"])
         for spec, seed in scenario.copies(base, args.copies, args.seed):
             campaign = scenario.simulate(spec, chain, seed=seed)
@@ -265,7 +267,7 @@ def _simulate_command(commands) -> None:
     simulate.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     simulate.add_argument(
         "--copies",
-        type=int,
+        type=_positive,
         default=None,
         metavar="N",
         help="a fleet: N campaigns <name>-001 ... from seeds seed, seed + 1, ... (new poses and noise)",

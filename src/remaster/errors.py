@@ -2,18 +2,41 @@
 
 from __future__ import annotations
 
+import reprlib
 from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
 
 MAX_ROWS_SHOWN = 10
+MAX_VALUE_SHOWN = 120  # characters of a value quoted in a message
+
+# A value read from a file can be nested and huge (YAML aliases expand a 1 kB file into a structure
+# of billions of elements): reprlib walks only the first levels and items of it, so quoting it costs
+# no more than the text shown.
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 3, 80, 80, 40
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = _REPR.maxfrozenset = _REPR.maxdeque = 8
+
+
+def listed(items: Iterable) -> str:
+    """'3, 7, 9' or '0, 1, ... (250 in all)' for long lists: the first MAX_ROWS_SHOWN items as text."""
+    items = [str(item) for item in items]
+    shown = ", ".join(items[:MAX_ROWS_SHOWN])
+    return shown + (f", ... ({len(items)} in all)" if len(items) > MAX_ROWS_SHOWN else "")
 
 
 def format_rows(rows: Iterable[int], noun: str = "row") -> str:
     """'rows 3, 7, 9' or 'rows 0, 1, ... (250 in all)' for long lists ('line 4' with noun='line')."""
     rows = [int(r) for r in rows]
-    shown = ", ".join(str(r) for r in rows[:MAX_ROWS_SHOWN])
-    if len(rows) > MAX_ROWS_SHOWN:
-        shown += f", ... ({len(rows)} in all)"
-    return f"{noun} {shown}" if len(rows) == 1 else f"{noun}s {shown}"
+    return f"{noun} {listed(rows)}" if len(rows) == 1 else f"{noun}s {listed(rows)}"
+
+
+def quoted(value: Any) -> str:
+    """repr(value) for a message, shortened ('...') to at most MAX_VALUE_SHOWN characters whatever
+    the size of the value."""
+    text = _REPR.repr(value)
+    return text if len(text) <= MAX_VALUE_SHOWN else text[: MAX_VALUE_SHOWN - 3] + "..."
 
 
 class RemasterError(Exception):
@@ -81,3 +104,23 @@ def require_columns(
         details.append(f"got: {', '.join(map(str, columns))}")
     message = f"missing {kind + ' ' if kind else ''}column(s){' of ' + of if of else ''}"
     raise InputError(message + (f" ({'; '.join(details)})" if details else ""), file=file, key=", ".join(missing))
+
+
+def refuse_millimetres(
+    values, limit: float, what: str, *, file: str | None, key: str, error: type[InputError] = InputError
+) -> None:
+    """The one check that lengths given in metres are plausible: an InputError (or `error`) naming
+    the file and the key when a magnitude reaches `limit` (m), "looks like mm": millimetres written
+    for metres are the likely slip. `what` names the bound ("the bound of a plausible marker offset
+    from the flange"). A 2-D table of values (rows, columns) names its offending rows."""
+    values = np.abs(np.asarray(values, dtype=float))
+    beyond = values >= limit
+    if not beyond.any():
+        return
+    rows = np.flatnonzero(beyond.any(axis=1)) if values.ndim == 2 else None
+    raise error(
+        f"{values[beyond].max():g} m is not below {limit:g} m, {what}: looks like mm written for m (write metres)",
+        file=file,
+        key=key,
+        rows=rows,
+    )

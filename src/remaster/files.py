@@ -45,16 +45,64 @@ def plain(value: Any) -> Any:
 # --------------------------------------------------------------------------- YAML and JSON
 
 
-def read_yaml(path: str | Path) -> Any:
-    """Content of a YAML file (yaml.safe_load); InputError naming the file if missing or malformed,
-    or if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply)."""
-    path = Path(path)
+class _Refused(yaml.YAMLError):
+    """A YAML document remaster refuses although YAML allows it; the message says why, `key` where."""
+
+    def __init__(self, message: str, key: str | None = None):
+        super().__init__(message)
+        self.key = key
+
+
+class _PlainLoader(yaml.SafeLoader):
+    """yaml.SafeLoader without aliases: `*name` repeats what `&name` marks, and nested repetitions
+    expand a 1 kB file into billions of values ("billion laughs") that exhaust time and memory as
+    soon as anything walks them. remaster's YAML files need none."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise _Refused(
+                f"line {event.start_mark.line + 1}: YAML alias *{event.anchor} refused: remaster reads plain YAML "
+                "without anchors and aliases (their expansion can exhaust memory); write the value out"
+            )
+        return super().compose_node(parent, index)
+
+
+def _duplicate_keys(node: yaml.Node, path: tuple[str, ...] = ()) -> None:
+    """_Refused, naming the key's path and lines, when a mapping of the document gives a key twice:
+    YAML loaders keep the last one silently, so a value written first would be quietly ignored."""
+    if isinstance(node, yaml.MappingNode):
+        first: dict[tuple[str, str], int] = {}
+        for key_node, value_node in node.value:
+            key = str(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "?"
+            line = key_node.start_mark.line + 1
+            if isinstance(key_node, yaml.ScalarNode) and (key_node.tag, key) in first:
+                raise _Refused(
+                    f"line {line}: duplicate key (first on line {first[key_node.tag, key]}): YAML would keep only "
+                    "the last value, so remaster refuses the file",
+                    key="/".join((*path, key)),
+                )
+            first.setdefault((key_node.tag, key), line)
+            _duplicate_keys(value_node, (*path, key))
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _duplicate_keys(item, (*path, str(index)))
+
+
+def load_yaml(text: str, source: str) -> Any:
+    """The content of YAML `text` with plain YAML's types only (a yaml.SafeLoader), refusing
+    aliases and duplicate keys; InputError naming `source` (and the key and line) otherwise."""
+    loader = _PlainLoader(text)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    try:
-        return yaml.safe_load(text)
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _duplicate_keys(node)
+        return loader.construct_document(node)
+    except _Refused as exc:
+        raise InputError(str(exc), file=source, key=exc.key) from None
+    except RecursionError:  # the parser recurses once per level: '[[[[...' a hundred thousand deep
+        raise InputError("YAML nested too deep to read: remaster's files need a few levels", file=source) from None
     except yaml.YAMLError as exc:
         tag = re.search(r"constructor for the tag '([^']*)'", str(getattr(exc, "problem", "")))
         if tag:  # e.g. !!python/object/apply: safe_load has no constructor for it
@@ -63,9 +111,23 @@ def read_yaml(path: str | Path) -> Any:
             raise InputError(
                 f"{line}YAML tag {tag.group(1)!r} refused: remaster reads plain YAML (yaml.safe_load) "
                 f"and never builds objects from tags; nothing was executed",
-                file=str(path),
+                file=source,
             ) from None
-        raise InputError(f"not valid YAML: {exc}", file=str(path)) from None
+        raise InputError(f"not valid YAML: {exc}", file=source) from None
+    finally:
+        loader.dispose()
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Content of a YAML file (`load_yaml`); InputError naming the file if missing or malformed,
+    if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply), an alias or a
+    duplicate key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    return load_yaml(text, str(path))
 
 
 def write_yaml(path: str | Path, data: Any) -> Path:

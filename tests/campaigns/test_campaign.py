@@ -348,6 +348,8 @@ TABLE_ERRORS = {
     "solution text": (retyped("solution", str), "solution", None, "integer"),
     "joint integer": (lambda t: t.assign(q3=1), "q3", None, "float"),
     "x text": (retyped("x", str), "x", None, "float"),
+    "x float16": (retyped("x", np.float16), "x", None, "has dtype float16: float16 keeps about 3 significant digits"),
+    "joint float32": (retyped("q2", np.float32), "q2", None, "has dtype float32: float32 keeps about 6 significant"),
     "set numbers": (lambda t: t.assign(set=1), "set", None, "strings"),
     "time text": (retyped("time", str), "time", None, "timestamp"),
     "extra column text": (lambda t: t.assign(operator="me"), "operator", None, "numeric"),

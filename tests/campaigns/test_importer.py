@@ -235,6 +235,30 @@ def test_cli_import(tmp_path, capsys, monkeypatch):
     assert err.startswith("remaster import: error: ") and "tracker.csv: X: not a finite number on line 6" in err
 
 
+@pytest.mark.parametrize("name", ["../escaped", "absolute", "a/b", ".."])
+def test_a_name_that_is_not_one_folder_is_refused_and_nothing_is_written(tmp_path, capsys, monkeypatch, name):
+    """The name is joined to --raw-dir: '../x' or an absolute name used to put campaign.yaml and the
+    Parquet file outside it, then exit 2 saying that nothing was written."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    name = str(tmp_path / "outside") if name == "absolute" else name
+    config = write_import(work)
+    files.write_yaml(config, {**files.read_yaml(config), "name": name})
+    before = sorted(tmp_path.rglob("*"))
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(work / "raw")]) == 2
+    err = capsys.readouterr().err
+    assert "import.yaml: name: must be a folder name (one path component" in err and repr(name) in err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_the_instruments_mpe_is_kept(tmp_path):
+    config = write_import(tmp_path, sensor={"mpe": 2.5e-5})
+    folder, _ = folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    assert files.read_yaml(folder / "campaign.yaml")["sensors"]["laser_tracker"]["mpe"] == 2.5e-5
+    assert folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"].mpe == 2.5e-5
+
+
 def test_contract_check_after_import_names_the_exports(tmp_path):
     """Degrees declared as radians pass the parser but not the campaign reader: the error names
     the controller log's columns and lines, not the staged Parquet file."""

@@ -6,17 +6,19 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from remaster import cli
+from remaster import cli, files
 from remaster.campaigns import folders
+from remaster.campaigns.campaign import validate_metadata
 from remaster.errors import InputError, KinematicsError
 from remaster.robot import kinematics
 
 from ..conftest import REPO
-from .test_campaign import make_campaign
+from .test_campaign import make_campaign, metadata
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 
@@ -69,13 +71,90 @@ def test_scenario_with_a_python_tag_is_refused_by_the_cli(tmp_path, capsys):
     assert not marker.exists() and not (tmp_path / "raw").exists() and not (tmp_path / "truth").exists()
 
 
+def billion_laughs(levels: int = 9) -> str:
+    """A `date` of nested aliases: 9 levels of 9 repetitions, under 1 kB of text, expand to 9**9
+    strings (a message quoting it used to take minutes and gigabytes)."""
+    lines = ["date:", '  - &l0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    lines += [f"  - &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]" for i in range(1, levels)]
+    return "\n".join(lines) + "\n"
+
+
+def test_campaign_yaml_with_nested_aliases_is_refused_within_a_second(tmp_path):
+    folder = make_campaign(tmp_path)
+    path = folder / "campaign.yaml"
+    text = path.read_text().replace("date: 2018-06-12\n", billion_laughs())
+    path.write_text(text)
+    assert len(text.encode()) < 1100
+    start = time.perf_counter()
+    with pytest.raises(InputError) as info:
+        folders.read_campaign(folder, repo_root=REPO)
+    assert time.perf_counter() - start < 1.0
+    assert str(info.value).startswith(f"{path}: line 4: YAML alias *l0 refused")
+    assert len(str(info.value)) < 300
+
+
+def test_yaml_nested_beyond_the_parsers_depth_is_an_input_error(tmp_path):
+    path = tmp_path / "campaign.yaml"
+    path.write_text("date: " + "[" * 100_000 + "]" * 100_000 + "\n")
+    with pytest.raises(InputError, match=r"campaign.yaml: YAML nested too deep to read"):
+        files.read_yaml(path)
+
+
+def test_a_huge_value_is_quoted_short_and_fast():
+    """Whatever builds the value (here Python, sharing one list 9**9 times), a message quotes its start."""
+    value = ["lol"] * 9
+    for _ in range(8):
+        value = [value] * 9
+    start = time.perf_counter()
+    with pytest.raises(InputError) as info:
+        validate_metadata({**metadata(), "date": value}, source="campaign.yaml")
+    assert time.perf_counter() - start < 1.0
+    message = str(info.value)
+    assert message.startswith("campaign.yaml: date: must be an ISO date YYYY-MM-DD, got [[[[") and "..." in message
+    assert len(message) < 300
+
+
+@pytest.mark.parametrize(
+    ("where", "line", "key"),
+    [("top", 10, "name"), ("sensor", 10, "sensors/laser_tracker/noise"), ("list item", 10, "robot/dh/rows/0/x")],
+)
+def test_a_duplicate_key_is_refused_with_file_key_and_line(tmp_path, where, line, key):
+    folder = make_campaign(tmp_path)
+    path = folder / "campaign.yaml"
+    text = path.read_text()
+    if where == "top":
+        text += "name: demo\n"
+    elif where == "sensor":
+        text += "    noise: 3.0e-02\n"
+    else:  # a key repeated in a mapping that is an item of a list
+        text = text.replace("robot: {urdf:", "robot: {dh: {rows: [{x: 1, x: 2}]}, urdf:")
+        line = 4
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        folders.read_campaign(folder, repo_root=REPO)
+    assert str(info.value).startswith(f"{path}: {key}: line {line}: duplicate key (first on line ")
+    assert info.value.file == str(path) and info.value.key == key
+
+
+def test_a_scenario_with_a_duplicate_key_is_refused_by_the_cli(tmp_path, capsys):
+    spec = (REPO / "data" / "simulation" / "kuka-twin.yaml").read_text() + "seed: 7\n"
+    (tmp_path / "twice.yaml").write_text(spec)
+    argv = ["simulate", str(tmp_path / "twice.yaml"), "--raw-dir", str(tmp_path / "raw")]
+    assert cli.main([*argv, "--truth-dir", str(tmp_path / "truth")]) == 2
+    error = capsys.readouterr().err
+    line = len(spec.splitlines())
+    assert f"twice.yaml: seed: line {line}: duplicate key (first on line " in error
+    assert not (tmp_path / "raw").exists() and not (tmp_path / "truth").exists()
+
+
 @pytest.mark.workflow
 def test_config_with_a_python_tag_is_refused_by_the_workflow(tmp_path):
     """Snakemake reads config files with PyYAML's FullLoader, which has no constructor for
-    object/apply (refused before remaster's Snakefile runs) and turns python/name into an object
-    that the schema then refuses."""
+    object/apply (refused before remaster's Snakefile runs) and turns python/name into an object;
+    remaster's Snakefile reads the file again with its own loader, which refuses the tag."""
     marker = tmp_path / "pwned"
-    for kind, fragment in (("object/apply", "not valid JSON or YAML"), ("name", "is not of type 'string'")):
+    refused = "line 1: YAML tag 'tag:yaml.org,2002:python/name:os.system' refused"
+    for kind, fragment in (("object/apply", "not valid JSON or YAML"), ("name", refused)):
         config = tmp_path / f"config-{kind.replace('/', '-')}.yaml"
         config.write_text(f"results_dir: {payloads(marker)[kind]}\n")
         result = subprocess.run(
@@ -133,7 +212,11 @@ def test_no_pickle_eval_exec_or_unsafe_yaml_in_the_code():
 
 
 def test_yaml_is_read_with_safe_load_only():
+    """One YAML reader, files.load_yaml, on a yaml.SafeLoader; nothing else parses YAML."""
     files_source = (REPO / "src" / "remaster" / "files.py").read_text()
-    assert "yaml.safe_load(" in files_source
-    calls = re.findall(r"yaml\.(\w+)\(", "".join(p.read_text() for p in (REPO / "src").rglob("*.py")))
-    assert set(calls) <= {"safe_load", "safe_dump"}, calls
+    assert "class _PlainLoader(yaml.SafeLoader):" in files_source
+    assert len(re.findall(r"_PlainLoader\(", files_source)) == 2  # its definition and load_yaml's one use
+    sources = "".join(p.read_text() for p in (REPO / "src").rglob("*.py"))
+    calls = re.findall(r"yaml\.(\w+)\(", sources)
+    assert set(calls) <= {"safe_dump"}, calls
+    assert set(re.findall(r"yaml\.\w*Loader\b", sources)) == {"yaml.SafeLoader"}

@@ -321,3 +321,20 @@ def test_the_acceptance_test_gives_the_verdict_and_its_warning_and_chooses_no_mo
     assert verdict["After: mean (mm)"] == untested["After: mean (mm)"]
     assert any(w.startswith("Laser Tracker: fail: ") and "not confirmed" in w for w in cert.warnings)
     assert "| fail: the calibration is not confirmed |" in certificate.to_markdown(cert)
+
+
+def test_names_from_campaign_yaml_are_text_in_the_markdown_never_markup():
+    """campaign.yaml's robot serial, the campaign and the robot name reach certificate.md: raw HTML
+    or a Markdown link in them must show as text (Markdown viewers render HTML)."""
+    script = "<script>alert(1)</script>"
+    summary = {
+        **SUMMARY,
+        "campaign": f"c{script}",
+        "robot": {**SUMMARY["robot"], "name": "[arm](javascript:alert(1))", "serial": script},
+    }
+    cert = certificate.certificate(summary, {"laser_tracker": _inputs()})
+    text = certificate.to_markdown(cert)
+    assert "<script" not in text and "](" not in text.replace("\\](", "")
+    assert text.startswith("# Calibration certificate: c&lt;script&gt;alert(1)&lt;/script&gt;")
+    assert "serial &lt;script&gt;alert(1)&lt;/script&gt;" in text and "\\[arm\\](javascript:alert(1))" in text
+    assert "| c&lt;script&gt;alert(1)&lt;/script&gt; |" in text  # in the verdict table too

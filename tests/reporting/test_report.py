@@ -1,8 +1,12 @@
 """The HTML report is one self-contained page with every table and figure it is given."""
 
 import base64
+import html
+import re
+import urllib.parse
 
 import pandas as pd
+import pytest
 
 from remaster.reporting import report
 
@@ -67,8 +71,23 @@ def test_a_file_column_is_a_column_of_links_beside_the_page():
         }
     )
     page = report.table_html("files", table)
-    assert '<a href="demo/laser_tracker/calibrated/loop.urdf">demo/laser_tracker/calibrated/loop.urdf</a>' in page
+    assert '<a href="./demo/laser_tracker/calibrated/loop.urdf">demo/laser_tracker/calibrated/loop.urdf</a>' in page
     assert "a &lt;calibrated&gt; URDF" in page and page.count("<a href") == 1  # only the File column links
+
+
+@pytest.mark.parametrize(
+    "folder",
+    ["javascript:alert(1)", "JavaScript:alert(1)", " javascript:alert(1)", "//evil.example", "data:text/html,x"],
+)
+def test_no_campaign_folder_name_makes_a_link_leave_the_results(folder):
+    """A campaign folder's name becomes the start of a File link: it can never give it a scheme or a host."""
+    page = report.table_html("files", pd.DataFrame({"File": [f"{folder}/laser_tracker/calibrated/loop.urdf"]}))
+    href = html.unescape(re.search(r'<a href="([^"]*)">', page).group(1))
+    assert urllib.parse.urlsplit(href).scheme == "" and ":" not in href and " " not in href
+    assert urllib.parse.urljoin("https://lab.example/results/report.html", href).startswith(
+        "https://lab.example/results/"
+    )
+    assert f">{html.escape(folder)}/laser_tracker/calibrated/loop.urdf</a>" in page
 
 
 def test_numbers_are_rounded_to_their_uncertainty_in_every_text_form(tmp_path):

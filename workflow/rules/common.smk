@@ -7,8 +7,15 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
-from remaster import layout
+from remaster import files, layout
 from remaster.campaigns.robot_model import robot_files, robot_section
+
+# Snakemake has already loaded the config files, keeping the last of a key given twice: read the YAML
+# ones again with remaster's loader, which refuses that (and aliases) naming the file, the key and the
+# line. JSON ones are left to Snakemake: a JSON file need not be YAML (tabs).
+for configfile in workflow.configfiles:
+    if Path(configfile).suffix.lower() != ".json":
+        files.read_yaml(configfile)
 
 validate(config, workflow.source_path("../schemas/config.schema.yaml"))
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import pandas as pd
 
-from ..errors import InputError, format_rows
+from ..errors import InputError, format_rows, quoted
 from ..files import plain, read_parquet, read_yaml, write_json, write_parquet, write_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from . import importer
@@ -65,7 +65,9 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
     folder_name = folder.resolve().name
     if meta["name"] != folder_name:
         raise InputError(
-            f"is {meta['name']!r} but the folder is named {folder_name!r}; they must be equal", file=source, key="name"
+            f"is {quoted(meta['name'])} but the folder is named {quoted(folder_name)}; they must be equal",
+            file=source,
+            key="name",
         )
     chain = load_chain(meta["robot"], folder, repo_root, source=source, name=meta["name"])
 

@@ -27,7 +27,7 @@ controller:
   carry: [temperature]              # optional numeric columns copied into every sensor table
 sensors:
   laser_tracker:
-    kind: laser_tracker             # kind, marker, noise: as in campaign.yaml
+    kind: laser_tracker             # kind, marker, noise, mpe: as in campaign.yaml
     marker: [-0.1, 0.0, 0.02]
     noise: 1.0e-5
     file: tracker.csv
@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, require_columns
+from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, quoted, require_columns
 from ..units import DEG
 from .campaign import (
     _JOINT_COLUMN,
@@ -125,7 +125,7 @@ class Export:
     def fail(self, column: str, what: str, positions) -> InputError:
         """InputError naming the file, the column, the lines of `positions` (0-based rows) and their cells."""
         positions = list(positions)
-        cells = ", ".join(repr(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
+        cells = ", ".join(quoted(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
         return InputError(f"{what} on {_lines(self.lines[positions])}: {cells}", file=self.source, key=column)
 
 
@@ -230,14 +230,14 @@ def _text(section: Mapping, key: str, where: str, source: str, default: str | No
     value = section.get(key)
     value = default if value is None else value
     if value is not None and not (isinstance(value, str) and value.strip()):
-        raise InputError(f"must be a non-empty string, got {value!r}", file=source, key=f"{where}/{key}")
+        raise InputError(f"must be a non-empty string, got {quoted(value)}", file=source, key=f"{where}/{key}")
     return value
 
 
 def _choice(section: Mapping, key: str, choices, where: str, source: str, default: str | None = None) -> str:
     value = section.get(key, default)
     if value not in choices:
-        got = "missing" if value is None else f"got {value!r}"
+        got = "missing" if value is None else f"got {quoted(value)}"
         raise InputError(f"must be one of {', '.join(choices)} ({got})", file=source, key=f"{where}/{key}")
     return value
 
@@ -252,7 +252,7 @@ def _columns(section: Mapping, key: str, where: str, source: str, default=None, 
         or len(set(value)) != len(value)
     ):
         wanted = f"{length} distinct column names" if length else "a list of distinct column names"
-        raise InputError(f"must be {wanted}, got {value!r}", file=source, key=f"{where}/{key}")
+        raise InputError(f"must be {wanted}, got {quoted(value)}", file=source, key=f"{where}/{key}")
     return tuple(value)
 
 
@@ -264,14 +264,14 @@ def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
     decimal = _choice(section, "decimal", (".", ","), where, source, ".")
     if len(delimiter) != 1 or delimiter == decimal:
         raise InputError(
-            f"must be one character other than the decimal mark {decimal!r}, got {delimiter!r}",
+            f"must be one character other than the decimal mark {quoted(decimal)}, got {quoted(delimiter)}",
             file=source,
             key=f"{where}/delimiter",
         )
     time_format = _text(section, "time_format", where, source, "iso")
     if time_format not in TIME_FORMATS and "%" not in time_format:
         raise InputError(
-            f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', got {time_format!r}",
+            f"must be {', '.join(TIME_FORMATS)} or a strptime pattern such as '%Y-%m-%d %H:%M:%S', got {quoted(time_format)}",
             file=source,
             key=f"{where}/time_format",
         )
@@ -280,7 +280,9 @@ def _file_spec(section: Mapping, where: str, source: str) -> FileSpec:
         _zone(timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise InputError(
-            f"unknown time zone {timezone!r} (an IANA name such as Europe/Berlin)", file=source, key=f"{where}/timezone"
+            f"unknown time zone {quoted(timezone)} (an IANA name such as Europe/Berlin)",
+            file=source,
+            key=f"{where}/timezone",
         ) from None
     carry = _columns(section, "carry", where, source) if section.get("carry") is not None else ()
     clash = sorted(c for c in carry if c in _RESERVED or _JOINT_COLUMN.fullmatch(c))
@@ -299,7 +301,7 @@ def _zone(name: str) -> dt.tzinfo:
 
 def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
     """campaign.yaml's content of an import configuration: its own keys and each sensor's kind,
-    marker and noise, validated (`validate_metadata`)."""
+    marker, noise and mpe, validated (`validate_metadata`)."""
     campaign_yaml = {k: v for k, v in config.items() if k != "controller"}
     if sensors:  # campaign.yaml's part of each sensor section; validate_metadata names what is missing
         campaign_yaml["sensors"] = {n: {k: v for k, v in s.items() if k in SENSOR_KEYS} for n, s in sensors.items()}
@@ -313,7 +315,7 @@ def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
             n: {
                 "kind": s["kind"],
                 "marker": s["marker"].tolist(),
-                **({} if s["noise"] is None else {"noise": s["noise"]}),
+                **{key: s[key] for key in ("noise", "mpe") if s[key] is not None},
             }
             for n, s in meta["sensors"].items()
         },
@@ -365,7 +367,7 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
             and tolerance > 0
         ):
             raise InputError(
-                f"must be a positive number of seconds for match: time, got {tolerance!r}",
+                f"must be a positive number of seconds for match: time, got {quoted(tolerance)}",
                 file=source,
                 key=f"{where}/tolerance",
             )

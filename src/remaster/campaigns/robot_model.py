@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from ..errors import KinematicsError
+from ..errors import InputError, KinematicsError, quoted
+from ..files import read_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from ..robot.kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
 from .campaign import validate_robot
@@ -36,8 +36,8 @@ def robot_section(folder: str | Path) -> Mapping:
     """campaign.yaml's `robot` section as written, for planning a workflow before the campaign is
     read; {} when it does not parse (reading the campaign says why, with file and key)."""
     try:
-        robot = yaml.safe_load((Path(folder) / CAMPAIGN_FILE).read_text(encoding="utf-8")).get("robot")
-    except (OSError, yaml.YAMLError, AttributeError):
+        robot = read_yaml(Path(folder) / CAMPAIGN_FILE).get("robot")
+    except (OSError, InputError, AttributeError):
         return {}
     return robot if isinstance(robot, Mapping) else {}
 
@@ -87,7 +87,7 @@ def load_chain(
         urdf_path = next((p for p in candidates if p.is_file()), None)
         if urdf_path is None:
             raise KinematicsError(
-                f"URDF file {robot['urdf']!r} not found (looked for {', '.join(str(p) for p in candidates)})",
+                f"URDF file {quoted(robot['urdf'])} not found (looked for {', '.join(str(p) for p in candidates)})",
                 file=source,
                 key="robot/urdf",
             )

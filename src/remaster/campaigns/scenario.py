@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, quoted
 from ..robot import planning, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import SECONDS_PER_HOUR
@@ -46,14 +46,14 @@ def _vector(mapping: dict, key: str, n: int, scale: float = 1.0, where: str = "t
         return None
     array = np.asarray(value, dtype=float)
     if array.shape != (n,):
-        raise InputError(f"expected {n} numbers, got {value!r}", key=f"{where}/{key}")
+        raise InputError(f"expected {n} numbers, got {quoted(value)}", key=f"{where}/{key}")
     return array * scale
 
 
 def _std(mapping: dict, key: str, where: str) -> float:
     value = mapping.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-        raise InputError(f"needs a standard deviation >= 0, got {value!r}", key=f"{where}/{key}")
+        raise InputError(f"needs a standard deviation >= 0, got {quoted(value)}", key=f"{where}/{key}")
     return float(value)
 
 
@@ -64,13 +64,13 @@ def _own_draw(sizes: dict, where: str, rng: np.random.Generator) -> np.random.Ge
         return rng
     seed = sizes["seed"]
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(f"must be an integer >= 0, got {seed!r}", key=f"{where}/seed")
+        raise InputError(f"must be an integer >= 0, got {quoted(seed)}", key=f"{where}/seed")
     return np.random.default_rng(seed)
 
 
 def _checked_keys(mapping, known: tuple[str, ...], where: str, hint: str = "") -> dict:
     if not isinstance(mapping, dict):
-        raise InputError(f"must be a mapping with keys {', '.join(known)}, got {mapping!r}", key=where)
+        raise InputError(f"must be a mapping with keys {', '.join(known)}, got {quoted(mapping)}", key=where)
     unknown = [k for k in mapping if k not in known]
     if unknown:
         raise InputError(f"unknown key (known: {', '.join(known)}){hint}", key=f"{where}/{unknown[0]}")
@@ -282,7 +282,7 @@ class Holding:
 
 def _angle(value, chain: KinematicChain, joint: int, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise InputError(f"must be an angle (rad) or {planning.FREE!r}, got {value!r}", key=key)
+        raise InputError(f"must be an angle (rad) or {quoted(planning.FREE)}, got {quoted(value)}", key=key)
     if not chain.lower[joint] <= value <= chain.upper[joint]:
         raise InputError(
             f"{value:g} rad is outside joint {joint + 1}'s limits [{chain.lower[joint]:g}, {chain.upper[joint]:g}] rad",
@@ -375,7 +375,7 @@ def inject_gross_errors(xyz, sets, spec, rng: np.random.Generator, where: str) -
         or not 0 < size[0] <= size[1]
     ):
         raise InputError(
-            f"needs [low, high] mm with 0 < low <= high, got {size!r}", key=f"{where}/gross_errors/size_mm"
+            f"needs [low, high] mm with 0 < low <= high, got {quoted(size)}", key=f"{where}/gross_errors/size_mm"
         )
     xyz = np.array(xyz, dtype=float)
     sets = np.asarray(sets)
@@ -385,7 +385,7 @@ def inject_gross_errors(xyz, sets, spec, rng: np.random.Generator, where: str) -
         measured = np.flatnonzero((sets == set_name) & np.all(np.isfinite(xyz), axis=1))
         if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= len(measured):
             raise InputError(
-                f"needs a whole number of rows from 0 to the set's {len(measured)} measured rows, got {count!r}",
+                f"needs a whole number of rows from 0 to the set's {len(measured)} measured rows, got {quoted(count)}",
                 key=f"{where}/gross_errors/{set_name}",
             )
         chosen = np.sort(rng.choice(measured, size=count, replace=False))
@@ -437,7 +437,7 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
             count = size.get("configurations")
             if isinstance(count, bool) or not isinstance(count, int) or count < 1:
                 raise InputError(
-                    f"must be a whole number > 0, got {count!r}", key=f"plan/sets/{set_name}/configurations"
+                    f"must be a whole number > 0, got {quoted(count)}", key=f"plan/sets/{set_name}/configurations"
                 )
             plan = planning.plan_random(
                 chain,
@@ -509,7 +509,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
     plan_spec = _checked_keys(spec.get("plan"), PLAN_KEYS, "plan")
     design = plan_spec.get("design", LATIN_HYPERCUBE)
     if design not in DESIGNS:
-        raise InputError(f"unknown design {design!r} (known: {', '.join(DESIGNS)})", key="plan/design")
+        raise InputError(f"unknown design {quoted(design)} (known: {', '.join(DESIGNS)})", key="plan/design")
     held = holding(plan_spec, chain, design)
     readings, discarded, target, rotation = _plan(plan_spec, design, chain, robot, sensors, held, rng)
     elapsed = np.arange(len(readings)) * float(plan_spec["seconds_per_configuration"])

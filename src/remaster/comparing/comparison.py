@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd  # scipy.special is imported where it is used: table jobs load this module
 
 from ..calibration.prediction import ZERO_OFFSET_PREFIX
-from ..errors import InputError, require_columns
+from ..errors import InputError, quoted, require_columns
 from ..identity import robot_identity
 from ..inference.model import display_value
 from ..labels import paper_order
@@ -131,7 +131,7 @@ def _iso_date(value: Any, label: str) -> str:
     try:
         return dt.date.fromisoformat(str(value).strip()).isoformat()
     except ValueError:
-        raise InputError(f"must be an ISO date YYYY-MM-DD, got {value!r}", file=label, key="date") from None
+        raise InputError(f"must be an ISO date YYYY-MM-DD, got {quoted(value)}", file=label, key="date") from None
 
 
 def _zero_offsets(entry: Entry, label: str) -> pd.DataFrame:

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, require_columns
+from ..errors import InputError, quoted, require_columns
 from ..robot.kinematics import KinematicChain
 from .joint_tour import joint_tour
 
@@ -194,9 +194,9 @@ def _check_settings(fmt: str, settings: Settings) -> None:
     for key in ("speed", "acceleration", "dwell"):
         value = getattr(settings, key)
         if not (np.isfinite(value) and (value > 0 or (key == "dwell" and value == 0))):
-            raise InputError(f"must be a positive number, got {value!r}", key=key)
+            raise InputError(f"must be a positive number, got {quoted(value)}", key=key)
         if key != "dwell" and fmt != "urscript" and value > 100:
-            raise InputError(f"is a percentage for {fmt}: at most 100, got {value!r}", key=key)
+            raise InputError(f"is a percentage for {fmt}: at most 100, got {quoted(value)}", key=key)
     if fmt == "rapid" and settings.acceleration < RAPID_MIN_ACCELERATION:
         raise InputError(
             f"RAPID's AccSet takes at least {RAPID_MIN_ACCELERATION:g} % (less acts as {RAPID_MIN_ACCELERATION:g} %), "
@@ -334,7 +334,7 @@ _COMMENT_MARK = {"urscript": "#", "krl": ";", "rapid": "!"}
 def _floats(text: str, where: str, source: str) -> list[float]:
     cells = [t.strip() for t in text.split(",")]
     if not all(re.fullmatch(_NUMBER, t) for t in cells):
-        raise InputError(f"{where}: not a list of numbers: {text.strip()!r}", file=source)
+        raise InputError(f"{where}: not a list of numbers: {quoted(text.strip())}", file=source)
     return [float(t) for t in cells]
 
 
@@ -343,7 +343,7 @@ def _krl_joints(text: str, where: str, source: str) -> list[float]:
     for item in text.split(","):
         match = re.fullmatch(rf"\s*(?:E6AXIS\s*:|AXIS\s*:)?\s*([AE]\d)\s+({_NUMBER})\s*", item, re.I)
         if not match:
-            raise InputError(f"{where}: cannot read axis value {item.strip()!r}", file=source)
+            raise InputError(f"{where}: cannot read axis value {quoted(item.strip())}", file=source)
         values[match.group(1).upper()] = float(match.group(2))
     robot = [values.get(f"A{j}") for j in range(1, 7)]
     if None in robot or set(values) - {f"A{j}" for j in range(1, 7)} - {"E1"}:

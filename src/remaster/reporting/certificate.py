@@ -497,14 +497,15 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
 
 def to_markdown(cert: Certificate) -> str:
     """The certificate as a Markdown page (numbers rounded as every table is)."""
+    from .tables import markdown_text
     from .tables import to_markdown as table
 
     parts = [
-        f"# Calibration certificate: {cert.campaign}",
+        f"# Calibration certificate: {markdown_text(cert.campaign)}",
         "",
-        cert.heading[0],
+        markdown_text(cert.heading[0]),
         "",
-        *[f"- {line}" for line in cert.brief],
+        *[f"- {markdown_text(line)}" for line in cert.brief],
         "",
         "## Verdict",
         "",
@@ -517,10 +518,10 @@ def to_markdown(cert: Certificate) -> str:
         table(cert.corrections),
         "## How these numbers were made",
         "",
-        *cert.heading[1:],
+        *map(markdown_text, cert.heading[1:]),
         "",
         "## Valid for, and warnings",
         "",
     ]
-    parts += [f"- {w}" for w in cert.warnings] or ["- none"]
+    parts += [f"- {markdown_text(w)}" for w in cert.warnings] or ["- none"]
     return "\n".join(parts) + "\n"

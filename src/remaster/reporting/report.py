@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import html
+import urllib.parse
 from dataclasses import dataclass, field
 
 import pandas as pd
@@ -59,9 +60,16 @@ class Section:
 LINK_COLUMN = "File"  # a column of paths from the results folder (where the page is): shown as links
 
 
+def relative_href(path: str) -> str:
+    """A path from the page's folder as an href that can only be one: percent-encoded, so that a
+    campaign folder named `javascript:alert(1)` or `https:` gives no scheme, and after "./", so
+    that `//host` names no other host."""
+    return "./" + urllib.parse.quote(path, safe="/")
+
+
 def _td(column: str, cell: str) -> str:
     text = html.escape(cell)
-    return f'<td><a href="{text}">{text}</a></td>' if column == LINK_COLUMN else f"<td>{text}</td>"
+    return f'<td><a href="{relative_href(cell)}">{text}</a></td>' if column == LINK_COLUMN else f"<td>{text}</td>"
 
 
 def table_html(caption: str, table: pd.DataFrame) -> str:

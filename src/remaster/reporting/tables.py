@@ -7,6 +7,7 @@ render any such table; `write_table` writes CSV, Markdown and LaTeX side by side
 
 from __future__ import annotations
 
+import html
 import math
 import re
 from pathlib import PurePath
@@ -245,11 +246,21 @@ def formatted(table: pd.DataFrame) -> list[list[str]]:
     return rows
 
 
+def markdown_text(text) -> str:
+    """Text as a Markdown page shows it, never as markup: Markdown viewers render raw HTML, so a
+    robot's serial or a sensor's name from campaign.yaml holding `<script>` would run; `[...]` would
+    make a link and `|` split a table cell."""
+    escaped = html.escape(str(text), quote=False)
+    for plain, kept in (("|", "\\|"), ("[", "\\["), ("]", "\\]")):
+        escaped = escaped.replace(plain, kept)
+    return escaped
+
+
 def to_markdown(table: pd.DataFrame) -> str:
-    """A GitHub-style Markdown table (numbers as `formatted` gives them)."""
-    header = "| " + " | ".join(str(c) for c in table.columns) + " |"
+    """A GitHub-style Markdown table (numbers as `formatted` gives them, text as `markdown_text`)."""
+    header = "| " + " | ".join(markdown_text(c) for c in table.columns) + " |"
     rule = "|" + "|".join("---" for _ in table.columns) + "|"
-    rows = ["| " + " | ".join(cells) + " |" for cells in formatted(table)]
+    rows = ["| " + " | ".join(markdown_text(cell) for cell in cells) + " |" for cells in formatted(table)]
     return "\n".join([header, rule, *rows]) + "\n"
 
 
@@ -283,7 +294,7 @@ def write_table(stem: str | PurePath, table: pd.DataFrame, caption: str, label: 
     stem = PurePath(stem)
     return [
         write_csv(stem.with_suffix(".csv"), table),
-        write_text(stem.with_suffix(".md"), f"**{caption}**\n\n" + to_markdown(table)),
+        write_text(stem.with_suffix(".md"), f"**{markdown_text(caption)}**\n\n" + to_markdown(table)),
         write_text(stem.with_suffix(".tex"), to_latex(table, caption, label)),
     ]
 

@@ -20,9 +20,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import _kernels, spatial
-from ..errors import KinematicsError
+from ..errors import KinematicsError, quoted, refuse_millimetres
 
 DH_CONVENTIONS = ("standard", "modified")
+# A link's length (m) in a URDF origin or a DH table: the largest industrial arms reach about 4 m in
+# all, so a single length of 5 m or more between base and flange is one written in mm. Checked where
+# a robot description is read (a URDF here, a DH table by the campaign reader), not in chain_from_dh,
+# which a fit also calls on its trial tables.
+MAX_LINK_LENGTH = 5.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,9 +82,9 @@ def _floats(text: str | None, count: int, default: float, where: str) -> np.ndar
     try:
         values = np.array([float(v) for v in text.split()])
     except ValueError:
-        raise KinematicsError(f"cannot read numbers from {text!r}", key=where) from None
+        raise KinematicsError(f"cannot read numbers from {quoted(text)}", key=where) from None
     if values.shape != (count,):
-        raise KinematicsError(f"expected {count} numbers, got {text!r}", key=where)
+        raise KinematicsError(f"expected {count} numbers, got {quoted(text)}", key=where)
     return values
 
 
@@ -90,7 +95,7 @@ def _number(text: str | None, default: float, where: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise KinematicsError(f"cannot read a number from {text!r}", key=where) from None
+        raise KinematicsError(f"cannot read a number from {quoted(text)}", key=where) from None
     if np.isnan(value):
         raise KinematicsError("is NaN", key=where)
     return value
@@ -299,6 +304,14 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
         name, kind = joint.get("name"), joint.get("type")
         where = f"joint {name}"
         origin = origin_transform(joint, where)
+        refuse_millimetres(
+            origin[:3, 3],
+            MAX_LINK_LENGTH,
+            "the bound of a plausible link length",
+            file=source,
+            key=f"{where}/origin/xyz",
+            error=KinematicsError,
+        )
         child = joint.find("child").get("link")
         if kind == "fixed":
             pending = pending @ origin

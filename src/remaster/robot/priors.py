@@ -19,7 +19,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from ..errors import InputError
+from ..errors import InputError, quoted
 from ..units import SECONDS_PER_HOUR
 
 DEG = math.pi / 180.0
@@ -110,7 +110,7 @@ def _checked_values(values: Mapping, where: str, source: str) -> dict[str, float
             )
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
             raise InputError(
-                f"must be a positive number (a standard deviation in the unit its name gives), got {value!r}",
+                f"must be a positive number (a standard deviation in the unit its name gives), got {quoted(value)}",
                 file=source,
                 key=f"{where}/{key}",
             )
@@ -121,11 +121,13 @@ def _checked_values(values: Mapping, where: str, source: str) -> dict[str, float
 def check_override(override, source: str) -> None:
     """Refuse a campaign's `robot.priors` that is not {arm_class?, KEYS key: positive number}."""
     if not isinstance(override, Mapping):
-        raise InputError(f"must be a mapping of priors, got {override!r}", file=source, key="robot/priors")
+        raise InputError(f"must be a mapping of priors, got {quoted(override)}", file=source, key="robot/priors")
     arm_class = override.get(CLASS_KEY)
     if arm_class is not None and arm_class not in CLASSES:
         raise InputError(
-            f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file=source, key=f"robot/priors/{CLASS_KEY}"
+            f"must be one of {', '.join(CLASSES)}, got {quoted(arm_class)}",
+            file=source,
+            key=f"robot/priors/{CLASS_KEY}",
         )
     _checked_values(override, "robot/priors", source)
 
@@ -140,11 +142,13 @@ def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: 
     arm_class = override.get(CLASS_KEY) or config.get(CLASS_KEY)
     if arm_class not in CLASSES:  # a campaign's class is checked above: this one is the config's
         raise InputError(
-            f"must be one of {', '.join(CLASSES)}, got {arm_class!r}", file="config", key=f"priors/{CLASS_KEY}"
+            f"must be one of {', '.join(CLASSES)}, got {quoted(arm_class)}", file="config", key=f"priors/{CLASS_KEY}"
         )
     if not isinstance(config.get(arm_class), Mapping):
         raise InputError(
-            f"must be a mapping of priors, got {config.get(arm_class)!r}", file="config", key=f"priors/{arm_class}"
+            f"must be a mapping of priors, got {quoted(config.get(arm_class))}",
+            file="config",
+            key=f"priors/{arm_class}",
         )
     values = _checked_values(config[arm_class], f"priors/{arm_class}", "config")
     missing = [k for k in KEYS if k not in values]
