@@ -1,87 +1,83 @@
-"""The uncertainty budget: GUM's quadrature, degrees of freedom and systematic term with known answers."""
+"""The uncertainty budget by Monte Carlo: known answers of a closed-form claim (u per source, the
+distance's 95th percentile), its coverage of rows it never fitted, and the table's rows."""
+
+import dataclasses
 
 import numpy as np
 from scipy import stats
 
-from remaster.evaluation import budget
-from remaster.inference.fit import LaplaceReport
+from remaster.evaluation import acceptance, budget
+from remaster.evaluation.acceptance import Claim
+
+from .test_acceptance import Translation
+
+SIGMA, N_FIT, N_VALIDATION, DRAWS = 0.02e-3, 30, 40, 2000
 
 
-def _laplace(jacobian, sigma):
-    names = tuple(f"registration.{k}" for k in "xyz") + ("zero_offsets.q2", "zero_offsets.q3")
-    covariance = sigma**2 * np.linalg.inv(jacobian.T @ jacobian)
-    return LaplaceReport(
-        names,
-        np.zeros(5),
-        np.sqrt(np.diag(covariance)),
-        covariance,
-        sigma,
-        sigma,
-        sigma / 50,
-        names,
-        {},
-        (),
-        (),
-        (),
-        40,
-    )
+def _claim(rng: np.random.Generator, declared: float = 0.0, effect: float = 0.0):
+    """A translation fitted on N_FIT rows (exact posterior N(mean, sigma^2 / N_FIT I3), flat prior,
+    sigma known) and validated on N_VALIDATION new rows; `effect`: a scale the model lacks (in both
+    sets), `declared`: the model error per axis it declares. Returns (measured, claim)."""
+    truth = rng.normal(0.0, 1e-3, 3)
+    points_fit, points = rng.uniform(-0.5, 0.5, (N_FIT, 3)), rng.uniform(-0.5, 0.5, (N_VALIDATION, 3))
+    fit = points_fit * (1 + effect) + truth + SIGMA * rng.standard_normal((N_FIT, 3))
+    measured = points * (1 + effect) + truth + SIGMA * rng.standard_normal((N_VALIDATION, 3))
+    mean = (fit - points_fit).mean(axis=0)
+    theta = mean + SIGMA / np.sqrt(N_FIT) * rng.standard_normal((DRAWS, 3))
+    model = Translation(points, measured)
+    claim = Claim(model.predict(mean), model, theta, np.full(DRAWS, SIGMA), (), "exact posterior")
+    return measured, dataclasses.replace(claim, instrument=np.full((N_VALIDATION, 3), SIGMA), declared=declared)
 
 
-def test_a_toy_budget_by_hand():
-    """With the least-squares covariance sigma^2 (J^T J)^-1 the mean prediction variance over the
-    3n residuals is sigma^2 P / 3n (the trace of the hat matrix is P): one fitted-parameter row.
-    u_c is the root sum of squares of the noise, the MPE / sqrt(3) and that row; its dof by
-    Welch-Satterthwaite (only the fitted row is finite: 3n - P - 1), U = t_0.975(nu) u_c; the model
-    discrepancy is systematic: not in u_c, its 95 % bound added to U."""
-    rng = np.random.default_rng(2)
-    jacobian = rng.normal(size=(120, 5))
-    sigma, noise, mpe = 0.5e-3, 0.1e-3, 0.3e-3
-    residuals = rng.normal(0, sigma, (40, 3))
-    laplace = _laplace(jacobian, sigma)
-    assert np.isclose(budget.propagated(jacobian, laplace.covariance, range(5)), sigma * np.sqrt(5 / 120))
-    rows = budget.budget_rows(jacobian, laplace, noise, residuals, loop_sigma=0.12e-3, mpe=mpe)
-    by = {r["Component"]: r for r in rows}
-    fitted = sigma * np.sqrt(5 / 120)
-    assert np.isclose(by["fitted parameters (registration and zero-offsets)"]["u per axis (mm)"], fitted * 1e3)
-    assert not any(r["Component"] in ("registration", "zero-offsets") for r in rows)  # no split equal by construction
-    assert by["measurement noise"]["Type"] == "B" and by["measurement noise"]["dof"] == np.inf
-    instrument = by["instrument MPE"]
-    assert instrument["Distribution"] == "rectangular" and np.isclose(instrument["u per axis (mm)"], 0.3 / np.sqrt(3))
-    combined = np.sqrt(noise**2 + mpe**2 / 3 + fitted**2)
-    nu = combined**4 / (fitted**4 / (120 - 5 - 1))
-    assert np.isclose(by["combined u_c"]["u per axis (mm)"], combined * 1e3) and np.isclose(
-        by["combined u_c"]["dof"], nu
-    )
-    shares = [
-        by[c]["share of u_c^2 (%)"]
-        for c in ("measurement noise", "instrument MPE", "fitted parameters (registration and zero-offsets)")
+def test_each_source_and_the_distances_95th_percentile_have_their_known_values():
+    measured, claim = _claim(np.random.default_rng(1))
+    result = acceptance.claim_budget(measured, claim, np.random.default_rng(2), mpe=0.05e-3)
+    u = {part["source"]: part["u_per_axis_mm"] for part in result["sources"]}
+    assert set(u) == {acceptance.CALIBRATION, acceptance.NOISE}
+    assert np.isclose(u[acceptance.CALIBRATION], SIGMA / np.sqrt(N_FIT) / 1e-3, rtol=0.05)
+    assert np.isclose(u[acceptance.NOISE], SIGMA / 1e-3, rtol=0.03)
+    assert np.isclose(sum(p["share_percent"] for p in result["sources"]), 100.0)
+    combined = SIGMA * np.sqrt(1 + 1 / N_FIT)
+    assert np.isclose(result["combined_u_per_axis_mm"], combined / 1e-3, rtol=0.03)
+    # a 3-D Gaussian error: its distance's 95th percentile is u sqrt(chi2_3(0.95)) = 2.80 u
+    assert np.isclose(result["U95_distance_mm"], combined * np.sqrt(stats.chi2.ppf(0.95, 3)) / 1e-3, rtol=0.03)
+    assert result["U95_position_distance_mm"] < 0.3 * result["U95_distance_mm"]
+    assert result["mpe_mm"] == 0.05
+
+
+def test_the_budget_covers_rows_it_never_fitted_and_a_missing_effect_only_when_declared():
+    """Over 200 campaigns of a correct model, 95 % of the validation rows lie within U; a model
+    missing an effect falls short unless it declares the error it measured."""
+    rng = np.random.default_rng(3)
+    within = [acceptance.claim_budget(*_claim(rng), rng)["validation_within_U95"] for _ in range(200)]
+    # each campaign's share moves with its posterior mean's error: the mean over campaigns is 95 %
+    assert 0.94 <= np.mean(within) <= 0.96
+    effect = 4e-4  # 0.1 mm at 0.25 m, several times the noise
+    short = [acceptance.claim_budget(*_claim(rng, effect=effect), rng)["validation_within_U95"] for _ in range(50)]
+    assert np.mean(short) < 0.6
+    rms = effect * np.sqrt(1 / 12)  # the effect's RMS per axis over coordinates uniform on [-0.5, 0.5]
+    declared = [
+        acceptance.claim_budget(*_claim(rng, declared=rms, effect=effect), rng)["validation_within_U95"]
+        for _ in range(50)
     ]
-    assert np.isclose(sum(shares), 100.0)
-    k = stats.t.ppf(0.975, nu)
-    expanded = next(r for r in rows if r["Component"].startswith("expanded U"))
-    assert np.isclose(expanded["u per axis (mm)"], k * combined * 1e3) and f"{k:.2f}" in expanded["Component"]
-    discrepancy = by["model discrepancy"]
-    assert discrepancy["Type"] == "systematic" and np.isnan(discrepancy["share of u_c^2 (%)"])
-    assert np.isclose(discrepancy["u per axis (mm)"], np.sqrt(sigma**2 - noise**2) * 1e3)
-    bound = np.quantile(np.abs(residuals), 0.95)
-    assert np.isclose(by["model discrepancy, 95 % bound"]["u per axis (mm)"], bound * 1e3)
-    assert np.isclose(by["U + model discrepancy bound"]["u per axis (mm)"], (k * combined + bound) * 1e3)
-    after = by["model discrepancy after the loop closure"]
-    assert np.isclose(after["u per axis (mm)"], np.sqrt(0.12**2 - 0.1**2))
+    assert np.mean(declared) >= 0.9
 
 
-def test_without_a_stated_noise_or_mpe_the_rows_say_what_they_hold():
-    """No noise stated: no row is called sensor noise; the fit's sigma is the residual scatter (Type
-    A, 3n - P - 1 dof) holding the noise and the model discrepancy together, and no systematic row
-    can be split off; no MPE stated: its row says so and adds nothing."""
-    jacobian = np.random.default_rng(3).normal(size=(60, 5))
-    rows = budget.budget_rows(jacobian, _laplace(jacobian, 1e-3), None)
-    by = {r["Component"]: r for r in rows}
-    assert not any("sensor noise" in r["Component"] for r in rows)
-    scatter = by["residual scatter: noise and model discrepancy together"]
-    assert scatter["Type"] == "A" and scatter["dof"] == 60 - 5 - 1 and np.isclose(scatter["u per axis (mm)"], 1.0)
-    assert "model discrepancy" not in by and "not stated" in by["instrument MPE"]["source"]
-    assert np.isnan(by["instrument MPE"]["u per axis (mm)"])
-    assert np.isclose(by["combined u_c"]["u per axis (mm)"], np.sqrt(1.0 + 5 / 60))
-    a, b = 1.0, 5 / 60  # the two variances (mm^2), both of 54 dof
-    assert np.isclose(by["combined u_c"]["dof"], 54 * (a + b) ** 2 / (a**2 + b**2))
+def test_the_table_gives_each_source_the_us_and_the_coverage_and_says_when_there_is_no_budget():
+    measured, claim = _claim(np.random.default_rng(4), declared=0.01e-3)
+    result = acceptance.claim_budget(measured, claim, np.random.default_rng(5))
+    accepted = dataclasses.make_dataclass("Accepted", [("budget", object), ("diagnosis_text", str)])
+    table = budget.budget_table(
+        {
+            "laser_tracker": accepted(result, ""),
+            "motion_capture": accepted(None, "not tested: 2 measured validation rows"),
+        }
+    )
+    tracker = table[table["Sensor"] == "Laser Tracker"].set_index("Component")
+    assert np.isclose(tracker.loc[acceptance.DECLARED, "u per axis (mm)"], 0.01, rtol=0.05)
+    assert np.isclose(
+        tracker.loc["U (95 %) of a measurement against the prediction", "value (mm)"], result["U95_distance_mm"]
+    )
+    assert "instrument MPE (stated)" not in tracker.index  # none stated: no row
+    other = table[table["Sensor"] == "Motion Capture"]
+    assert other["Component"].tolist() == ["no budget"] and "not tested" in other["note"].iloc[0]

@@ -94,6 +94,12 @@ STATISTIC = (
     "calibration claims: the instrument's and the model error it declares"
 )
 INSTRUMENT, FITTED = "the instrument's stated noise", "the fitted sigma (no stated noise, point std or repeats)"
+# the sources of a claim's replicates (`Claim.parts`), as the uncertainty budget names them
+CALIBRATION = "calibration: the posterior of the registration and every parameter"
+GP_SOURCE = "residual GP: what no parametric effect explains, drawn jointly"
+DECLARED = "model error the calibration declares (the loop not closed)"
+NOISE = "instrument noise (stated noise or point std)"
+FITTED_NOISE = "the fitted sigma: noise and whatever the model lacks together (no noise stated)"
 
 
 # --------------------------------------------------------------------------- the check itself
@@ -156,15 +162,27 @@ class Claim:
     def replicates(self, rows, rng: np.random.Generator) -> np.ndarray:
         """Replicated validation readings (k, n, 3) m of the draws `rows` (k,): each draw's
         prediction, its GP draw when there is a GP, and the claimed noise."""
+        return self.reference + sum(self.parts(rows, rng).values())
+
+    def parts(self, rows, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """The replicates' deviations from the reference, (k, n, 3) m each, by source (`SOURCES`):
+        the posterior of the parameters, the residual GP (when there is one), the declared model
+        error (when there is one) and the noise; independent, so their variances add."""
         points = self.model.predict(self.theta[rows])
-        points = points + (self.gp_mean if self.gp_draws is None else self.gp_draws(len(points), rng))
+        gp = self.gp_mean if self.gp_draws is None else self.gp_draws(len(points), rng)
+        out = {CALIBRATION: points + self.gp_mean - self.reference}
+        if self.gp_draws is not None:
+            out[GP_SOURCE] = gp - self.gp_mean
         if self.instrument is not None:
-            claimed = np.sqrt(self.instrument**2 + self.declared**2)
-            return points + claimed[None] * rng.standard_normal(points.shape)
+            if self.declared > 0:
+                out[DECLARED] = self.declared * rng.standard_normal(points.shape)
+            out[NOISE] = self.instrument[None] * rng.standard_normal(points.shape)
+            return out
         draws = _noise_draws(self.sigma[rows], self.model.measured, points.shape, rng, self.model.noise)
         # a loop model on a table with per-point stds: each row's noise is sigma times its weight
         weights = getattr(getattr(self.model, "data", None), "weights", None)
-        return points + (draws if weights is None else draws * weights)
+        out[FITTED_NOISE] = draws if weights is None else draws * weights
+        return out
 
 
 CHUNK_VALUES = 2**21  # draws x rows x 3 values replicated at once: 16 MB per array whatever the campaign's size
@@ -250,6 +268,42 @@ def _replicated(claim: Claim, rng: np.random.Generator, refit: bool = True) -> t
         if refit:
             replicates_refit.append(rms_per_axis(refit_residuals(claim.reference, replicated)[0]))
     return np.concatenate(replicates), (np.concatenate(replicates_refit) if refit else None)
+
+
+def claim_budget(measured, claim: Claim, rng: np.random.Generator, mpe: float | None = None) -> dict:
+    """The uncertainty budget of a claim at the validation configurations by Monte Carlo (JCGM 101):
+    its replicates (`Claim.parts`, as many draws as fit in CHUNK_VALUES) split by source, each with
+    its u per axis (RMS over draws, configurations and axes) and share of the variance (the sources
+    are independent, so their variances add, nothing counted twice); the combined u per axis; the
+    measurand's 95 % quantile, the 3-D distance |e| pooled over draws and configurations (what a
+    measurement by this instrument at a validation configuration differs from the prediction by),
+    and the same without the instrument (the calibrated position's own error); and its check on
+    rows the fit never saw: the share of the validation rows measured (n, 3) m within it. mpe (m):
+    the instrument's stated MPE, given for reference (it bounds the noise the budget already holds).
+    JSON-ready, mm."""
+    rows = np.arange(min(len(claim.theta), max(1, CHUNK_VALUES // claim.reference.size)))
+    parts = claim.parts(rows, rng)
+    total = sum(parts.values())
+    position = total - parts.get(NOISE, 0.0) - parts.get(FITTED_NOISE, 0.0)
+    u = {source: float(np.sqrt(np.mean(part**2))) for source, part in parts.items()}
+    variance = sum(v**2 for v in u.values())
+    bound = float(np.quantile(np.linalg.norm(total, axis=-1), QUANTILE))
+    observed = np.linalg.norm(np.asarray(measured, dtype=float) - claim.reference, axis=-1)
+    return {
+        "sources": [
+            {"source": source, "u_per_axis_mm": value / MM, "share_percent": 100 * value**2 / variance}
+            for source, value in u.items()
+        ],
+        "combined_u_per_axis_mm": float(np.sqrt(np.mean(total**2)) / MM),
+        "U95_distance_mm": bound / MM,
+        "U95_position_distance_mm": float(np.quantile(np.linalg.norm(position, axis=-1), QUANTILE) / MM),
+        "validation_within_U95": float(np.mean(observed <= bound)),
+        "validation_rows": int(len(observed)),
+        "draws": int(len(rows)),
+        "mpe_mm": None if mpe is None else float(mpe) / MM,
+        "quantity": "the 3-D distance between a measurement at a validation configuration and the calibration's "
+        "prediction there: its 95th percentile over posterior draws and configurations (Monte Carlo, JCGM 101)",
+    }
 
 
 # --------------------------------------------------------------------------- the models' claims
@@ -433,9 +487,10 @@ class Acceptance:
     diagnosis: None or one of DIAGNOSES, diagnosis_text its sentence with the numbers; move: the
     registration refit's move (mm, deg) when the diagnosis is a moved sensor, else None; checks:
     {'loop', 'paper': `check`}; level, registration_share, plausible_residual_mm, draws: the
-    settings; validation_rows:
-    rows used; gross_errors_left_out: validation rows flagged by the gross-error screen and left
-    out; warnings: plain text; source: the file it was read from (not written)."""
+    settings; validation_rows: rows used; gross_errors_left_out: validation rows flagged by the
+    gross-error screen and left out; warnings: plain text; budget: the loop-closed claim's
+    uncertainty budget (`claim_budget`; None when not tested); source: the file it was read from
+    (not written)."""
 
     sensor: str
     verdict: str
@@ -450,6 +505,7 @@ class Acceptance:
     validation_rows: int
     gross_errors_left_out: tuple[int, ...]
     warnings: tuple[str, ...]
+    budget: Mapping | None = None
     statistic: str = STATISTIC
     campaign: str | None = None
     source: str = field(default="acceptance.json", compare=False)
@@ -498,7 +554,7 @@ def _untested(rows: int) -> tuple[str, dict]:
         f"not tested: {rows} measured validation rows (at least {MIN_VALIDATION_ROWS} needed); "
         "measure a validation set to accept this calibration"
     )
-    return text, {"verdict": UNTESTED, "diagnosis": None, "move": None, "checks": {}}
+    return text, {"verdict": UNTESTED, "diagnosis": None, "move": None, "checks": {}, "budget": None}
 
 
 def _warnings(checks: Mapping, diagnosis: str | None, effects, flagged, level: float, plausible_mm: float) -> list[str]:
@@ -597,6 +653,7 @@ def acceptance_stage(
             "checks": checks,
         }
         warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
+        verdict["budget"] = claim_budget(data.measured, claims["loop"], rng, measured.mpe)
     return Acceptance(
         sensor=measured.name,
         diagnosis_text=text,

@@ -24,7 +24,7 @@ from ..calibration import exports
 from ..campaigns.campaign import Campaign
 from ..evaluation import accuracy, budget, iso9283, workspace
 from ..evaluation.acceptance import Acceptance
-from ..inference.fit import LaplaceReport, Registration
+from ..inference.fit import LaplaceReport
 from ..loop.result import LoopReport
 from . import certificate, tables, tables_loop
 
@@ -102,9 +102,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
             "workspace_warnings": workspace.warnings_table(workspaces),
             "controller_offsets": exports.offsets_table(offsets),
             "calibrated_files": exports.files_table(label, sensors, "dh" in campaign.robot),
-            "uncertainty_budget": budget.budget_table(
-                campaign, _each(files, "registration", Registration.read), laplaces, loops
-            ),
+            "uncertainty_budget": budget.budget_table(acceptances),
         }
     )
     cert = certificate.certificate(

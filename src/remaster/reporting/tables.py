@@ -22,14 +22,12 @@ from ..labels import paper_order, sensor_label
 from ..units import shown, shown_to
 
 CAPTIONS = {
-    "uncertainty_budget": "Uncertainty budget (GUM) of a remastered position (zero-offset model) against its "
-    "measurement, per axis, each row with its type (A from these data, B stated), distribution and degrees "
-    "of freedom: the stated noise (with none stated, the residual scatter that holds noise and model "
-    "discrepancy together), the instrument's maximum permissible error (rectangular, u = MPE / sqrt(3)), "
-    "the fitted parameters (registration and zero-offsets together, correlations included); u_c, its "
-    "Welch-Satterthwaite degrees of freedom and U = k u_c with k from t (95 %); the model discrepancy is "
-    "systematic: not in u_c, its 95 % bound over the measured configurations added to U; and the "
-    "discrepancy left after the loop closure.",
+    "uncertainty_budget": "Uncertainty budget of the recommended (loop-closed) calibration at the validation "
+    "configurations, by Monte Carlo (JCGM 101): a measurement there against the prediction, each independent "
+    "source with its u per axis and share of the variance (the posterior of the registration and every "
+    "parameter, the residual GP, the model error declared where the loop is not closed, the instrument's "
+    "noise); U (95 %) is the 95th percentile of the 3-D distance, with the instrument and without it, and "
+    "the share of the validation rows (never fitted) within it checks it. A stated MPE is shown for reference.",
     "iso9283": "ISO 9283 pose characteristics on the validation set (registration from the optimization set): "
     "position accuracy AP (distance from the command to the barycentre of its cycles; with one cycle, "
     "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
