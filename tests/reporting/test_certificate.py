@@ -81,6 +81,7 @@ def _inputs(outliers=(), closed=True):
                 "mean_mm": v,
                 "p95_mm": 2 * v,
                 "p95_bound_mm": 3 * v,
+                "p95_bound_data_mm": 3 * v * (0.1 if (m, c) == ("loop", "random") else 0.9),
                 "count": 100,
             }
             for m, c, v in (
@@ -94,6 +95,12 @@ def _inputs(outliers=(), closed=True):
         ]
     )
     workspace = {
+        "draws": 20,
+        "prior_dominated": ["link_geometry.F2.x"],
+        "next_campaign_should_add": [
+            "joint 2 over more of its range (measured: held at 0 deg)",
+            "poses that move link_geometry.F2.x (the data barely moved them from their prior)",
+        ],
         "holds": {"loop": {"holds": "inside the measured ranges"}},
         "domain": {
             "ranges": "q1 -150 to 160 deg (90 % of its range), q2 held at 0 deg",
@@ -206,6 +213,31 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     )
     text = certificate.to_markdown(cert)
     assert text.startswith("# Calibration certificate: c") and "| j2 | 0.190 | 0.018 |" in text
+    # a claim's points are its configurations (count / draws), not draws times configurations
+    assert accuracy.loc[(limits, "loop-closed"), "points"] == 5
+    # the first screen: a line per sensor before any table, the method after the tables
+    brief = cert.brief[0]
+    assert brief.startswith("Laser Tracker: acceptance not tested; error after ")
+    assert "not determined: the accuracy across the joint limits" in brief and "1 parameters the data" in brief
+    assert "the next campaign should add: joint 2 over more of its range" in brief
+    assert text.index(brief) < text.index("## Verdict") < text.index("## How these numbers were made")
+    assert text.index("## How these numbers were made") < text.index("Errors are post-registration distances")
+
+
+def test_near_the_data_the_priors_can_decide_and_the_certificate_then_gives_no_number():
+    """The loop-closed claim near the measured configurations, 0.09 mm, of which the data determine
+    0.009 mm: the priors' statement, so the verdict leaves it blank and says why, and the first
+    screen says the accuracy holds at the measured configurations only."""
+    inputs = _inputs()
+    claims = inputs.workspace_accuracy.copy()
+    near = (claims["model"] == "loop") & (claims["configurations"] == "domain")
+    claims.loc[near, "p95_bound_data_mm"] = 0.009
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, workspace_accuracy=claims)})
+    verdict = cert.verdicts.iloc[0]
+    assert np.isnan(verdict["Near the measured configurations: p95 (mm)"])
+    assert verdict["Holds"].endswith(certificate.NEAR_NOT_DETERMINED)
+    assert "holds at the measured configurations" in cert.brief[0]
+    assert "the accuracy near the measured configurations (the priors supply most of its bound)" in cert.brief[0]
 
 
 def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
