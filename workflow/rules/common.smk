@@ -128,6 +128,12 @@ def gives_dh(campaign):
     return "dh" in robot_section(Path(RAW, campaign))
 
 
+def gives_ur_form(campaign):
+    """Whether a campaign gets a UR's kinematics_config (`exports.ur_form`): a six-row DH table."""
+    dh = robot_section(Path(RAW, campaign)).get("dh")
+    return isinstance(dh, dict) and len(dh.get("rows") or ()) == 6
+
+
 def sensor_inputs(**patterns):
     """unpack() input function: each named `pattern` (with {campaign} and {sensor}) for every sensor
     of the campaign, named `<name>__<sensor>` (`remaster.stage_inputs` reads them back by name)."""
@@ -194,8 +200,13 @@ def table_files(names):
 
 
 def calibrated_file_inputs(wildcards):
-    """The calibrated files the calibrated-files table lists (DH tables for a DH campaign)."""
-    names = [*CALIBRATED_FILES, *(CALIBRATED_DH_FILES if gives_dh(wildcards.campaign) else ())]
+    """The calibrated files the calibrated-files table lists (DH tables for a DH campaign, the
+    kinematics_configs of a UR)."""
+    names = [
+        *CALIBRATED_FILES,
+        *(CALIBRATED_DH_FILES if gives_dh(wildcards.campaign) else ()),
+        *(CALIBRATED_UR_FILES if gives_ur_form(wildcards.campaign) else ()),
+    ]
     return {
         f"{Path(name).stem}_{Path(name).suffix[1:]}__{s}": f"{RESULTS}/{wildcards.campaign}/{s}/calibrated/{name}"
         for name in names

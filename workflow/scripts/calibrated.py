@@ -1,5 +1,5 @@
 """One sensor's calibration in the robot's own terms: workspace claims, calibrated URDFs, effects,
-controller offsets and, for a DH campaign, the calibrated DH tables."""
+controller offsets and, for a DH campaign, the calibrated DH tables (and a UR's kinematics_configs)."""
 
 from snakemake.iocontainers import Snakemake
 
@@ -35,3 +35,6 @@ with files.log_to(snakemake.log[0]):
     if result.dh is not None:
         files.write_yaml(out.paper_dh, result.dh["paper"])
         files.write_yaml(out.loop_dh, result.dh["loop"])
+    if result.ur is not None:
+        files.write_yaml(out.paper_ur, result.ur["paper"])
+        files.write_yaml(out.loop_ur, result.ur["loop"])

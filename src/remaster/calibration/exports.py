@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from .. import spatial
-from ..calibration import dh_table
+from ..calibration import dh_table, ur_kinematics
 from ..calibration.prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError
@@ -283,6 +283,27 @@ def calibrated_dh_tables(
     return out
 
 
+def ur_form(campaign: Campaign) -> bool:
+    """Whether a campaign gets Universal Robots' kinematics_config: a six-row DH table (a UR arm is
+    given as its controller's DH table), whose joints all turn about z (`ur_kinematics.applies`)."""
+    dh = campaign.robot.get("dh") if isinstance(campaign.robot, Mapping) else None
+    return bool(dh) and len(dh.get("rows", ())) == 6 and ur_kinematics.applies(campaign.chain)
+
+
+def calibrated_ur_configs(
+    campaign: Campaign, sensor: str, summary: pd.DataFrame, loop_report: LoopReport, label: str = ""
+) -> dict[str, dict]:
+    """{'paper', 'loop': kinematics_config} of a UR campaign (`ur_kinematics.kinematics_config`),
+    with what each cannot hold at the sensor's configurations."""
+    data = campaign.sensors[sensor]
+    return {
+        c.model: ur_kinematics.kinematics_config(
+            campaign.chain, c.values, data.q(), data.marker, f"{campaign.name}/{sensor}, {c.model} model"
+        )
+        for c in (paper_calibration(summary, label=label), loop_calibration(loop_report, label=label))
+    }
+
+
 FILES = {
     "paper.urdf": "the paper's model: zero-offsets in the joint origins",
     "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins",
@@ -322,10 +343,17 @@ def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def files_table(campaign: str, sensors, dh: bool = False) -> pd.DataFrame:
+UR_FILES = {
+    "paper_ur_kinematics.yaml": "the paper's model as ur_description's kinematics_config (UR ROS driver)",
+    "loop_ur_kinematics.yaml": "the loop-closed model's zero-offsets and link geometry as ur_description's "
+    "kinematics_config, with what it cannot hold",
+}
+
+
+def files_table(campaign: str, sensors, dh: bool = False, ur: bool = False) -> pd.DataFrame:
     """Sensor, File (path from the results folder, where report.html is), What: the calibrated files
-    (with the DH tables when the campaign gives one)."""
-    files = {**FILES, **(DH_FILES if dh else {})}
+    (with the DH tables when the campaign gives one, and the kinematics_configs of a UR)."""
+    files = {**FILES, **(DH_FILES if dh else {}), **(UR_FILES if ur else {})}
     return pd.DataFrame(
         [
             {"Sensor": s, "File": f"{campaign}/{s}/calibrated/{name}", "What": what}

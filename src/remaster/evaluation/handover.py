@@ -1,6 +1,7 @@
 """Everything a calibration hands over for one sensor once its loop is closed: the workspace
 claims (`workspace.workspace_accuracy`), the calibrated URDFs and controller offsets
-(`exports.calibrated_stage`) and, for a campaign given as a DH table, the calibrated DH tables."""
+(`exports.calibrated_stage`) and, for a campaign given as a DH table, the calibrated DH tables (and
+for a UR, its kinematics_config)."""
 
 from __future__ import annotations
 
@@ -21,11 +22,13 @@ from ..loop.result import LoopResults
 @dataclass(frozen=True)
 class CalibratedOutputs:
     """workspace: the claims; files: URDFs, effects and offsets; dh: {'paper', 'loop': DH table}
-    when the campaign gives a DH table, else None."""
+    when the campaign gives a DH table, else None; ur: {'paper', 'loop': kinematics_config} for a
+    UR (`exports.ur_form`), else None."""
 
     workspace: workspace.WorkspaceAccuracy
     files: exports.CalibratedFiles
     dh: dict | None
+    ur: dict | None = None
 
 
 def calibrated_outputs_stage(
@@ -58,4 +61,9 @@ def calibrated_outputs_stage(
         if "dh" in campaign.robot
         else None
     )
-    return CalibratedOutputs(claims, files, dh)
+    ur = (
+        exports.calibrated_ur_configs(campaign, sensor, summary, loop.report, label=label)
+        if exports.ur_form(campaign)
+        else None
+    )
+    return CalibratedOutputs(claims, files, dh, ur)

@@ -101,7 +101,7 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
             "workspace_accuracy": workspace.workspace_table(claims, workspaces),
             "workspace_warnings": workspace.warnings_table(workspaces),
             "controller_offsets": exports.offsets_table(offsets),
-            "calibrated_files": exports.files_table(label, sensors, "dh" in campaign.robot),
+            "calibrated_files": exports.files_table(label, sensors, "dh" in campaign.robot, exports.ur_form(campaign)),
             "uncertainty_budget": budget.budget_table(acceptances),
         }
     )
