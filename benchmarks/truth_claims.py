@@ -44,11 +44,17 @@ class Claim:
     """The workspace claim of the loop-closed model at one set of configurations (registration
     fitted, without noise), mm: p95 (pooled) and p95_bound (one arm's 95th percentile, the
     certificate's), against the true 95th percentile of the registered error of its posterior
-    mean there (noise-free)."""
+    mean there (noise-free); p95_bound_data_mm: the bound's part the data determine
+    (`workspace.priors_decide`: below half of it the certificate says "not determined")."""
 
     p95_mm: float
     p95_bound_mm: float
     true_p95_mm: float
+    p95_bound_data_mm: float = float("nan")
+
+    @property
+    def determined(self) -> bool:
+        return not workspace.priors_decide(self.p95_bound_mm, self.p95_bound_data_mm)
 
     @property
     def covers(self) -> bool:
@@ -203,7 +209,10 @@ def check(
         registered = metrics.registered_distances(mean, true_points[None])[0]
         row = workspace.claim_rows(claims, "loop", where, noise="without noise").iloc[0]
         held_to_truth[where] = Claim(
-            float(row["p95_mm"]), float(row["p95_bound_mm"]), float(np.quantile(registered, 0.95) / 1e-3)
+            float(row["p95_mm"]),
+            float(row["p95_bound_mm"]),
+            float(np.quantile(registered, 0.95) / 1e-3),
+            float(row["p95_bound_data_mm"]),
         )
     # at the validation set's commands (drawn after everything above, so that it changes none of it)
     q_planned = campaign.sensors[sensor].q("validation")
