@@ -357,7 +357,7 @@ def test_the_datas_part_of_a_claim_conditions_on_what_the_priors_decide():
     posterior = workspace._Posterior(
         None, None, draws, np.zeros(count), {}, 0.0, {}, None, prior_std={"a": 1.0, "b": 1.0}
     )
-    data = posterior.data_draws()
+    data = posterior.data_draws
     values = {n: np.array([d[n] for d in data]) for n in ("a", "b", "r")}
     assert np.std(values["a"]) < 1e-3  # of its 1.0 (the eigenvector holds a sliver of b)
     assert np.allclose(values["b"], b, atol=1e-3)
@@ -366,7 +366,7 @@ def test_the_datas_part_of_a_claim_conditions_on_what_the_priors_decide():
     narrow = workspace._Posterior(
         None, None, draws, np.zeros(count), {}, 0.0, {}, None, prior_std={"a": 10.0, "b": 1.0}
     )
-    assert narrow.data_draws() is draws
+    assert narrow.data_draws is draws
 
 
 def test_the_priors_decide_a_bound_whose_datas_part_is_below_half_of_it():

@@ -62,6 +62,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
@@ -138,8 +139,8 @@ def _claim_row(distances_m, **labels) -> dict:
 
 
 def priors_decide(bound_mm: float, data_part_mm: float) -> bool:
-    """Whether the priors, not the data, decide a claim's bound: its part with every parameter the
-    data barely moved at its posterior mean (and held joints at their marks) is below
+    """Whether the priors, not the data, decide a claim's bound: its part the data determine (what the
+    priors decide held at its mean, held joints at their marks: `_Posterior.data_draws`) is below
     PRIORS_DECIDE of it. False when the split is unknown (NaN)."""
     return bool(np.isfinite(bound_mm) and np.isfinite(data_part_mm) and data_part_mm < PRIORS_DECIDE * bound_mm)
 
@@ -201,10 +202,10 @@ class _Posterior:
     """The posterior as `workspace_accuracy` propagates it: the loop-closed and the paper's
     calibrations; the loop's draws ({parameter: value} each, every parameter) with their noise std
     sigma (m); the held zero-offsets {name: rad}, drawn at the marks' tolerance (rad); what the data
-    cannot see {name: value}, held in the paper's tables; the parameters the data barely moved
-    from their prior (`LoopReport.prior_dominated`); the residual GP, None without one; the
+    cannot see {name: value}, held in the paper's tables; the residual GP, None without one; the
     model error per axis (m) the loop declares (`LoopReport.declared_model_error`, zero where it
-    closed), drawn independently per axis and configuration in the claims."""
+    closed), drawn independently per axis and configuration in the claims; each estimated
+    parameter's prior std (SI), for `data_draws`."""
 
     loop: Calibration
     paper: Calibration
@@ -217,6 +218,7 @@ class _Posterior:
     declared: float = 0.0
     prior_std: Mapping[str, float] = field(default_factory=dict)
 
+    @cached_property
     def data_draws(self) -> list[dict]:
         """The draws with what the priors decide taken out, held zero-offsets at their marks (their
         tolerance not drawn). In units of each parameter's prior std, the directions in which the
@@ -299,7 +301,7 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
         points = points + posterior.declared * rng.standard_normal(points.shape)
     noisy = _with_noise(points, posterior.sigma, rng)
     # the part the data determine: the same draws with what the priors decide held (same noise)
-    data_points = predictor.points_of_draws(posterior.data_draws()) + (points - points_parametric)
+    data_points = predictor.points_of_draws(posterior.data_draws) + (points - points_parametric)
     data_noisy = data_points + (noisy - points)
     paper_points = posterior.paper.predictor(chain, q, marker).points(posterior.paper.values)
     tables = {table: noise for table, (at, noise) in THEORETICAL_TABLES.items() if at == where}
