@@ -25,7 +25,7 @@ from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
 from .files import read_csv, read_yaml, write_csv, write_figure, write_json, write_text
 from .planning import design, plan, programs, robust_design
-from .results import sensor_folder, sensor_results
+from .results import check_made_from, sensor_folder, sensor_results
 from .robot import priors
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -173,6 +173,7 @@ def _program(args: argparse.Namespace) -> None:
 def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
     campaign = read_campaign(args.campaign, Path.cwd())
     results = sensor_results(sensor_folder(args.results, Path(args.campaign).name, args.sensor))
+    check_made_from(args.results, args.campaign, Path.cwd())
     label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
     robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
     for note in robot.notes(args.frame):

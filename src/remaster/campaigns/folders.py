@@ -16,6 +16,7 @@ from typing import Any
 
 import pandas as pd
 
+from .. import provenance
 from ..errors import InputError, format_rows, quoted
 from ..files import plain, read_parquet, read_yaml, write_json, write_parquet, write_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
@@ -28,7 +29,7 @@ from .campaign import (
     sensor_data,
     validate_metadata,
 )
-from .robot_model import load_chain
+from .robot_model import load_chain, robot_files
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +49,23 @@ def campaign_folder(files) -> Path:
             file=", ".join(map(str, files)) or "(no input files)",
         )
     return next(iter(folders.values()))
+
+
+def campaign_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path]:
+    """The files a campaign is read from: campaign.yaml, its Parquet tables, a URDF in its folder
+    and the robot description it names outside it (a shared URDF, found from `repo_root`). The
+    workflow declares them as a campaign's inputs (changing one reruns that campaign's jobs only)
+    and the audit hashes them; a README or licence beside them is not an input."""
+    folder = Path(folder)
+    inside = [folder / CAMPAIGN_FILE, *sorted(folder.glob("*.parquet")), *sorted(folder.glob("*.urdf"))]
+    return inside + robot_files(folder, repo_root)
+
+
+def campaign_digests(folder: str | Path, repo_root: str | Path = ".") -> dict[str, str]:
+    """{file name: SHA-256} of `campaign_files`, keyed by name so that the same campaign copied
+    elsewhere has the same digests: what the audit records of a campaign (`audit.folder_digest` of
+    it is the campaign's content hash, `content_sha256`)."""
+    return provenance.file_digests(campaign_files(folder, repo_root), relative_to_parent=True)
 
 
 def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Campaign:
