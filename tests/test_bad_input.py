@@ -211,6 +211,30 @@ def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
     assert problem.file.endswith("robot.urdf") and problem.key == "joint j3/origin/xyz"
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ('<origin xyz="0.4 0 0"/>', '<origin xyz="0.4 nan 0"/>', "joint j3/origin/xyz"),
+        ('<origin xyz="0.2 0 0"/>', '<origin xyz="0.2 0 0" rpy="0 inf 0"/>', "joint flange/origin/rpy"),
+        (
+            '<child link="l3"/>\n    <origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>',
+            '<child link="l3"/>\n    <origin xyz="0.4 0 0"/><axis xyz="0 NaN 1"/>',
+            "joint j3/axis",
+        ),
+    ],
+    ids=["origin nan", "rpy inf", "axis nan"],
+)
+def test_non_finite_urdf_origins_and_axes_name_the_urdf_and_the_joint(tmp_path, old, new, key):
+    """A NaN in a joint's origin used to be read and to surface at the fit as 'points_robot:
+    non-finite point coordinates', naming neither the URDF nor the joint."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    assert old in SMALL_URDF
+    problem = read_error(small_urdf_campaign(tmp_path, SMALL_URDF.replace(old, new)), KinematicsError)
+    assert str(problem).startswith(f"{tmp_path / 'demo' / 'robot.urdf'}: {key}: non-finite number(s) in ")
+    assert problem.key == key
+
+
 def test_urdf_limits_upside_down(tmp_path):
     from .campaigns.test_campaign import SMALL_URDF
 
