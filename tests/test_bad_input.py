@@ -20,6 +20,7 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError, require_columns
 from remaster.inference import metrics
+from remaster.reporting import figures
 from remaster.robot import kinematics, registration
 
 from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
@@ -298,6 +299,30 @@ def test_robot_lengths_in_millimetres_are_refused(tmp_path):
     urdf = tmp_path / "urdf" / "demo" / "robot.urdf"
     assert str(problem).startswith(f"{urdf}: joint j3/origin/xyz: 400 m is not below 5 m")
     assert "looks like mm" in str(problem)
+
+
+def test_a_dh_table_without_length_is_refused_and_a_fit_with_no_free_zero_offset_is_drawn_as_a_note(tmp_path):
+    """A DH table whose every a and d is 0 (joint axes through one point: the arm's reach is 0) used
+    to be read; its fit held every zero-offset and the figures died dividing by their count (0)."""
+    rows = [[0.0, math.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, -math.pi / 2, 0.0, 0.1]]
+    problem = read_error(
+        make_campaign(tmp_path, metadata(robot={"dh": {**SMALL_DH, "rows": rows}}), {SENSOR: sensor_table(3)}),
+        KinematicsError,
+    )
+    assert str(problem).startswith(
+        f"{tmp_path / 'demo' / 'campaign.yaml'}: robot/dh/rows: every link length (a and d of every row) is 0"
+    )
+    assert problem.key == "robot/dh/rows"
+    # one length is enough to be read
+    rows[1][0] = 0.4
+    folders.read_campaign(
+        make_campaign(tmp_path / "long", metadata(robot={"dh": {**SMALL_DH, "rows": rows}}), {SENSOR: sensor_table(3)}),
+        repo_root=REPO,
+    )
+    # whatever else leaves the fit no free zero-offset (a one-joint robot), its figures say so
+    held = pd.DataFrame({"step": [0, 1], "chain": [0, 0], "registration.x": [0.0, 0.1]})
+    for figure in (figures.zero_offset_trace(held, 1, "t"), figures.zero_offset_histograms(held, "t")):
+        assert figures.NO_FREE_ZERO_OFFSET in [text.get_text() for ax in figure.axes for text in ax.texts]
 
 
 # --------------------------------------------------------------------------- registration
