@@ -236,6 +236,51 @@ def test_non_finite_urdf_origins_and_axes_name_the_urdf_and_the_joint(tmp_path, 
     assert problem.key == key
 
 
+def _not_utf8(path: Path) -> None:
+    path.write_bytes(b"<?xml version='1.0'?>\n<robot name='\xe9'/>\n")  # Latin-1, not UTF-8
+
+
+def _a_directory(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    path.mkdir()
+
+
+def _a_symlink_loop(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    path.symlink_to(path.name)
+
+
+@pytest.mark.parametrize(
+    ("spoil", "shown"),
+    [
+        (_not_utf8, "line 2: not UTF-8 text: byte 0xe9 (invalid continuation byte): save the file as UTF-8"),
+        (_a_directory, "is a directory, not a file"),
+        (_a_symlink_loop, "cannot read: Too many levels of symbolic links"),
+    ],
+    ids=["not utf-8", "directory", "symlink loop"],
+)
+def test_unreadable_files_are_named_not_a_traceback(tmp_path, spoil, shown):
+    """A URDF, campaign.yaml, a JSON report or a CSV that is not UTF-8, a directory, or a symlink
+    loop used to end in UnicodeDecodeError, IsADirectoryError or OSError naming no input."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    folder = small_urdf_campaign(tmp_path, SMALL_URDF)
+    spoil(folder / "robot.urdf")
+    problem = read_error(folder)
+    assert str(problem) == f"{folder / 'robot.urdf'}: {shown}"
+    spoil(folder / "campaign.yaml")
+    assert str(read_error(folder)) == f"{folder / 'campaign.yaml'}: {shown}"
+    for reader in (files.read_json, files.read_yaml, files.read_csv):
+        path = tmp_path / f"file.{reader.__name__}"
+        path.write_text("{}")
+        spoil(path)
+        with pytest.raises(InputError) as info:
+            reader(path)
+        assert str(info.value).startswith(f"{path}: ")
+        if reader is not files.read_csv:  # pandas says itself what it cannot decode
+            assert str(info.value) == f"{path}: {shown}"
+
+
 def test_urdf_limits_upside_down(tmp_path):
     from .campaigns.test_campaign import SMALL_URDF
 

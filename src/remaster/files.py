@@ -118,16 +118,32 @@ def load_yaml(text: str, source: str) -> Any:
         loader.dispose()
 
 
+def read_text(path: str | Path, encoding: str = "utf-8") -> str:
+    """The text of a file; InputError naming it when it is missing, a directory, not text in
+    `encoding` (the line and byte that are not), or unreadable (permissions, a symlink loop): the
+    operating system's exceptions would otherwise end a run in a traceback naming no input."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding=encoding)
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"line {line}: not UTF-8 text: byte 0x{exc.object[exc.start]:02x} ({exc.reason}): save the file as UTF-8",
+            file=str(path),
+        ) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
+
+
 def read_yaml(path: str | Path) -> Any:
     """Content of a YAML file (`load_yaml`); InputError naming the file if missing or malformed,
     if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply), an alias or a
     duplicate key."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    return load_yaml(text, str(path))
+    return load_yaml(read_text(path), str(path))
 
 
 def write_yaml(path: str | Path, data: Any) -> Path:
@@ -138,11 +154,9 @@ def write_yaml(path: str | Path, data: Any) -> Path:
 
 def read_json(path: str | Path) -> Any:
     """Content of a JSON file; InputError naming the file if missing or malformed."""
-    path = Path(path)
+    text = read_text(path)
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
 
@@ -184,6 +198,10 @@ def read_csv(path: str | Path) -> pd.DataFrame:
         raise InputError("file not found", file=str(path)) from None
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", file=str(path)) from None
+    except OSError as exc:  # permissions, a symlink loop
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
 
 
 def write_csv(path: str | Path, table: pd.DataFrame) -> Path:

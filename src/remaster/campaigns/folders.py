@@ -18,7 +18,7 @@ import pandas as pd
 
 from .. import provenance
 from ..errors import InputError, format_rows, quoted
-from ..files import plain, read_parquet, read_yaml, write_json, write_parquet, write_yaml
+from ..files import plain, read_parquet, read_text, read_yaml, write_json, write_parquet, write_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from . import importer
 from .campaign import (
@@ -155,14 +155,7 @@ def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapp
 
 def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
     """`importer.parse_csv` of a file (UTF-8, with or without a byte-order mark)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text: {exc}", file=str(path)) from None
-    return importer.parse_csv(text, str(path), delimiter)
+    return importer.parse_csv(read_text(path, "utf-8-sig"), str(path), delimiter)
 
 
 def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
