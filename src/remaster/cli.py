@@ -490,11 +490,25 @@ def parser() -> argparse.ArgumentParser:
     return main
 
 
+# the options that name a file a command writes
+OUTPUT_OPTIONS = ("out", "table")
+
+
+def _refuse_directories(args: argparse.Namespace) -> None:
+    """An output option naming a directory is refused before anything is computed or written (its
+    write would fail only after the others' files were written)."""
+    for name in OUTPUT_OPTIONS:
+        value = getattr(args, name, None)
+        if value is not None and Path(value).is_dir():
+            raise InputError(f"{value} is a directory: give a file name", key=f"--{name}")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     if getattr(args, "poses", None) is not None and getattr(args, "configurations", None) is None:
         parser().error("--poses needs --configurations")
     try:
+        _refuse_directories(args)
         status = args.run(args)
     except RemasterError as exc:
         print(f"remaster {args.command}: error: {exc}", file=sys.stderr)

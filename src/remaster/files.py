@@ -12,6 +12,7 @@ import datetime as dt
 import json
 import logging
 import math
+import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -178,11 +179,29 @@ def write_json(path: str | Path, data: Any) -> Path:
     return write_text(path, text + "\n")
 
 
+@contextlib.contextmanager
+def _written(path: Path):
+    """A file beside `path` to write to (hidden, same suffix: writers infer the format from it),
+    moved into place once written, its folder created first. A write that fails (a directory in
+    the file's place, a full disk, no permission) leaves neither a partial file nor a changed
+    earlier one, and is an InputError naming `path` rather than an OSError's traceback."""
+    partial = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        yield partial
+        partial.replace(path)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc}", file=str(path)) from None
+    finally:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
+
+
 def write_text(path: str | Path, text: str) -> Path:
     """Write text (UTF-8, newlines as given) to `path`, creating its folder."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8", newline="\n")
+    with _written(path) as partial:
+        partial.write_text(text, encoding="utf-8", newline="\n")
     return path
 
 
@@ -207,8 +226,8 @@ def read_csv(path: str | Path) -> pd.DataFrame:
 def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
     """Write a table as CSV without its index, floats at full precision; same data, same bytes."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(path, index=False, float_format="%.17g", lineterminator="\n")
+    with _written(path) as partial:
+        table.to_csv(partial, index=False, float_format="%.17g", lineterminator="\n")
     return path
 
 
@@ -226,8 +245,8 @@ def read_parquet(path: str | Path) -> pd.DataFrame:
 def write_parquet(path: str | Path, table: pd.DataFrame) -> Path:
     """Write a table as Parquet (pyarrow) without its index; same data, same bytes."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.Table.from_pandas(table, preserve_index=False), path)
+    with _written(path) as partial:
+        pq.write_table(pa.Table.from_pandas(table, preserve_index=False), partial)
     return path
 
 
@@ -239,11 +258,14 @@ def write_figure(stem: str | Path, figure) -> list[Path]:
     import matplotlib.pyplot as plt  # here: a job that writes no figure does not load matplotlib
 
     stem = Path(stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
-    figure.savefig(paths[0], dpi=120, metadata={"Software": None})
-    figure.savefig(paths[1], metadata={"Creator": None, "Producer": None, "CreationDate": None})
-    plt.close(figure)
+    try:
+        with _written(paths[0]) as partial:
+            figure.savefig(partial, dpi=120, metadata={"Software": None})
+        with _written(paths[1]) as partial:
+            figure.savefig(partial, metadata={"Creator": None, "Producer": None, "CreationDate": None})
+    finally:
+        plt.close(figure)
     return paths
 
 
