@@ -442,3 +442,45 @@ def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configuratio
     assert any(w.startswith(f"only {poses} poses") for w in report.warnings)
     folds = {e["cv_folds"] for entries in report.candidates.values() for e in entries if "cv_folds" in e}
     assert folds == {poses}
+
+
+def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_says_why(tmp_path, caplog):
+    """Six optimization rows in three poses (the reader's minimum for the iiwa is 5): the
+    provisional screen saw half of them as gross errors (a fit that is almost exact has a robust
+    scale near 0), which left the paper fit undetermined (ValueError), and the loop closure's
+    jackknife refits without a pose ended in LinAlgError. Now every row is kept, the loop closure
+    keeps the zero-offset model, and its report says the data are too few (a warning the
+    certificate shows)."""
+    from remaster.campaigns.arm_kinds import iiwa_scenario
+    from remaster.campaigns.robot_model import load_chain
+    from remaster.loop.jackknife import TOO_FEW
+
+    spec = iiwa_scenario(
+        "six-rows",
+        seed=5,
+        plan={
+            "sets": {
+                "optimization": {"poses": 3, "configurations": 6},
+                "validation": {"poses": 2, "configurations": 8},
+            }
+        },
+    )
+    out = scenario.simulate(spec, load_chain(spec["robot"], REPO, REPO))
+    campaign = folders.read_campaign(folders.write_campaign(tmp_path / "six-rows", out.metadata, out.tables), REPO)
+    assert (campaign.sensors["laser_tracker"].table["set"] == "optimization").sum() == 6
+    registered = fit.registration_stage(campaign, "laser_tracker")
+    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    assert len(laplace.outlier_rows) == 0 and "too few data to screen, every point kept" in caplog.text
+    report = loop_closure.loop_closure_stage(
+        campaign, "laser_tracker", registered, laplace, np.random.default_rng(0), LAPLACE_ONLY
+    ).report
+    assert report.effects_added == ()
+    assert {m: j["method"] for m, j in report.between_design.items()} == {"paper": TOO_FEW, "loop": TOO_FEW}
+    too_few = [w for w in report.warnings if w.startswith("too few data for the candidates")]
+    assert too_few == [
+        "too few data for the candidates: the optimization set's 6 measured configurations in 3 poses do not "
+        "determine the paper and loop models once a group of poses is left out; the cross-validated scores (each "
+        "candidate's and the closure test's) rest on such fits, and the between-design component of the "
+        "zero-offsets is not computed (their uncertainty is the posterior's alone); the zero-offset model is kept: "
+        "measure more poses"
+    ]

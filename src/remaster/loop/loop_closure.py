@@ -75,7 +75,7 @@ from ..robot.priors import priors_from
 from ..units import MM
 from . import gross, harmonics, joint_form, noise_floor
 from .harmonics import harmonics_report
-from .jackknife import zero_offset_jackknife
+from .jackknife import too_few_warning, zero_offset_jackknife
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
@@ -379,6 +379,9 @@ def close_loop(
         name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
         for name, fitted in (("paper", base), ("loop", final))
     }
+    too_few = too_few_warning(
+        between, len(data["optimization"].rows), len(np.unique(poses["optimization"])), not selection.added
+    )
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,
@@ -394,7 +397,7 @@ def close_loop(
         before=before,
         after=after,
         **_refit_fields(final, mcmc, before_table, after_table),
-        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings)),
+        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings)) + ((too_few,) if too_few else ()),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
