@@ -484,3 +484,40 @@ def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_say
         "zero-offsets is not computed (their uncertainty is the posterior's alone); the zero-offset model is kept: "
         "measure more poses"
     ]
+
+
+@pytest.mark.parametrize("column", ["time", "temperature"])
+def test_a_missing_time_stamp_or_temperature_says_why_the_drift_is_not_offered(column):
+    """One time stamp (or, without a time column, one temperature) missing used to remove the drift
+    candidate without a word: the loop closure now says so, naming the file, the column and the
+    row, and tries every other candidate."""
+    import pandas as pd
+
+    from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
+
+    spec = iiwa_scenario(
+        "no-time",
+        seed=5,
+        plan={
+            "sets": {
+                "optimization": {"poses": 6, "configurations": 24},
+                "validation": {"poses": 2, "configurations": 8},
+            }
+        },
+    )
+    chain, sensor = simulated_sensor(spec, "laser_tracker", REPO)
+    table = sensor.table.copy()
+    if column == "temperature":
+        table = table.drop(columns="time").assign(temperature=np.linspace(20.0, 21.0, len(table)))
+    table.loc[7, column] = pd.NaT if column == "time" else np.nan
+    sensor = dataclasses.replace(sensor, table=table)
+    registration = fit.register(chain, sensor)
+    _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
+    report = loop_closure.close_loop(
+        chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(0), LAPLACE_ONLY
+    ).report
+    assert (
+        f"drift not offered: laser_tracker.parquet: {column}: no value on table row 7: a drift is a rate over that "
+        "column, so every row needs a value; fill them in for the loop closure to test a drift"
+    ) in report.warnings
+    assert "drift" not in report.candidates and "joint_compliance" in report.candidates

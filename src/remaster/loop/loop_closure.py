@@ -382,6 +382,13 @@ def close_loop(
     too_few = too_few_warning(
         between, len(data["optimization"].rows), len(np.unique(poses["optimization"])), not selection.added
     )
+    gaps = data["optimization"].drift_gaps
+    drift_left_out = (  # the candidate is not offered: never silently
+        f"drift not offered: {sensor.name}.parquet: {gaps}: a drift is a rate over that column, so every row "
+        "needs a value; fill them in for the loop closure to test a drift"
+        if "drift" in settings.candidates and gaps
+        else None
+    )
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,
@@ -397,7 +404,8 @@ def close_loop(
         before=before,
         after=after,
         **_refit_fields(final, mcmc, before_table, after_table),
-        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings)) + ((too_few,) if too_few else ()),
+        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings))
+        + tuple(w for w in (too_few, drift_left_out) if w),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
