@@ -102,7 +102,8 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
     rng = np.random.default_rng(args.seed)
     if args.from_results is not None:
         results = Path(args.from_results)
-        campaign = read_campaign(args.campaign or Path("data") / "raw" / results.parent.name, Path.cwd())
+        folder = args.campaign or Path("data") / "raw" / results.parent.name
+        campaign = read_campaign(folder, Path.cwd())
         sensor = campaign.sensors.get(results.name)
         if sensor is None:
             raise InputError(
@@ -111,6 +112,7 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
                 file=str(results),
             )
         found = sensor_results(results, ("registration", "laplace", "loop"))
+        check_made_from(results.parent.parent, folder, Path.cwd())  # results_dir/<campaign>/<sensor>
         start = plan.campaign_start(campaign, sensor, found, options, _design_priors(args, campaign))
         print(f"{results}: {start.note}")
     else:

@@ -445,6 +445,13 @@ def test_a_campaign_changed_since_its_results_were_made_is_refused(twin_results,
         assert f"its content SHA-256 is {now}, the results were made from {made_from}" in err
         assert "(files that differ: campaign.yaml)" in err
         assert not out.exists()
+    # the next configurations of the campaign are planned from its results under the same rule
+    plan = ["plan", "--from-results", str(root / "kuka-twin" / "laser_tracker"), "--campaign", str(copy)]
+    assert cli([*plan, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"remaster plan: error: {root / layout.AUDIT}: campaigns/kuka-twin/content_sha256: ")
+    assert f"its content SHA-256 is {now}, the results were made from {made_from}" in err
+    assert not (tmp_path / "next.csv").exists()
     with pytest.raises(InputError, match=r"audit.json: not written: `snakemake -j2` writes it"):
         check_made_from(tmp_path / "no-run", copy, REPO)
     files.write_json(tmp_path / "other-run" / layout.AUDIT, audit.audit_record({"tiny": {}}, {}, {}))
