@@ -270,6 +270,10 @@ def test_unreadable_files_are_named_not_a_traceback(tmp_path, spoil, shown):
     assert str(problem) == f"{folder / 'robot.urdf'}: {shown}"
     spoil(folder / "campaign.yaml")
     assert str(read_error(folder)) == f"{folder / 'campaign.yaml'}: {shown}"
+    if spoil is _a_directory:  # a folder named like a sensor's table is no table either
+        fresh = small_urdf_campaign(tmp_path / "fresh", SMALL_URDF)
+        _a_directory(fresh / f"{SENSOR}.parquet")
+        assert str(read_error(fresh)) == f"{fresh / SENSOR}.parquet: {shown}"
     for reader in (files.read_json, files.read_yaml, files.read_csv):
         path = tmp_path / f"file.{reader.__name__}"
         path.write_text("{}")

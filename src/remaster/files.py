@@ -234,6 +234,8 @@ def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
 def read_parquet(path: str | Path) -> pd.DataFrame:
     """A Parquet table; InputError naming the file if it is missing or cannot be read."""
     path = Path(path)
+    if path.is_dir():  # pd.read_parquet would read a folder as a partitioned data set
+        raise InputError("is a directory, not a file", file=str(path))
     if not path.is_file():
         raise InputError("file not found", file=str(path))
     try:
