@@ -79,7 +79,8 @@ def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_r
     name = Path(campaign_folder).resolve().name
     recorded = read_json(path)
     key = f"campaigns/{name}"
-    record = recorded.get("campaigns", {}).get(name) if isinstance(recorded, dict) else None
+    campaigns = recorded.get("campaigns") if isinstance(recorded, dict) else None
+    record = campaigns.get(name) if isinstance(campaigns, dict) else None
     if not isinstance(record, dict) or not isinstance(record.get("files"), dict):
         raise InputError(
             f"the run that wrote these results did not include campaign {name}: run `snakemake -j2` on it",
