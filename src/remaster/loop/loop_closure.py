@@ -256,6 +256,21 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     return warnings
 
 
+def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, settings: LoopSettings) -> list[str]:
+    """The report's warnings on what the data lack: too few rows for the jackknife and the
+    candidates (`jackknife.too_few_warning`), and a drift candidate left out because its time or
+    temperature column has rows without a value (never silently)."""
+    data, poses = screened.data["optimization"], screened.poses["optimization"]
+    too_few = too_few_warning(between, len(data.rows), len(np.unique(poses)), not screened.selection.added)
+    warnings = [too_few] if too_few else []
+    if "drift" in settings.candidates and data.drift_gaps:
+        warnings.append(
+            f"drift not offered: {sensor.name}.parquet: {data.drift_gaps}: a drift is a rate over that column, so "
+            "every row needs a value; fill them in for the loop closure to test a drift"
+        )
+    return warnings
+
+
 def _noise_model(selection: Selection, sensor: SensorData, settings: LoopSettings, frame_problem) -> dict:
     """loop_closure.json's `noise_model`: the one chosen, or why a tracker's was not offered."""
     return selection.noise or {
@@ -379,16 +394,6 @@ def close_loop(
         name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
         for name, fitted in (("paper", base), ("loop", final))
     }
-    too_few = too_few_warning(
-        between, len(data["optimization"].rows), len(np.unique(poses["optimization"])), not selection.added
-    )
-    gaps = data["optimization"].drift_gaps
-    drift_left_out = (  # the candidate is not offered: never silently
-        f"drift not offered: {sensor.name}.parquet: {gaps}: a drift is a rate over that column, so every row "
-        "needs a value; fill them in for the loop closure to test a drift"
-        if "drift" in settings.candidates and gaps
-        else None
-    )
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,
@@ -404,8 +409,10 @@ def close_loop(
         before=before,
         after=after,
         **_refit_fields(final, mcmc, before_table, after_table),
-        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings))
-        + tuple(w for w in (too_few, drift_left_out) if w),
+        warnings=tuple(
+            _warnings(closed, screened, gp_section, mcmc, settings)
+            + _data_warnings(sensor, screened, between, settings)
+        ),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
