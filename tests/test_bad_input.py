@@ -20,6 +20,7 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError, require_columns
 from remaster.inference import metrics
+from remaster.reporting import figures
 from remaster.robot import kinematics, registration
 
 from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
@@ -211,6 +212,79 @@ def test_unreadable_urdf_numbers_name_file_and_element(tmp_path):
     assert problem.file.endswith("robot.urdf") and problem.key == "joint j3/origin/xyz"
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ('<origin xyz="0.4 0 0"/>', '<origin xyz="0.4 nan 0"/>', "joint j3/origin/xyz"),
+        ('<origin xyz="0.2 0 0"/>', '<origin xyz="0.2 0 0" rpy="0 inf 0"/>', "joint flange/origin/rpy"),
+        (
+            '<child link="l3"/>\n    <origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>',
+            '<child link="l3"/>\n    <origin xyz="0.4 0 0"/><axis xyz="0 NaN 1"/>',
+            "joint j3/axis",
+        ),
+    ],
+    ids=["origin nan", "rpy inf", "axis nan"],
+)
+def test_non_finite_urdf_origins_and_axes_name_the_urdf_and_the_joint(tmp_path, old, new, key):
+    """A NaN in a joint's origin used to be read and to surface at the fit as 'points_robot:
+    non-finite point coordinates', naming neither the URDF nor the joint."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    assert old in SMALL_URDF
+    problem = read_error(small_urdf_campaign(tmp_path, SMALL_URDF.replace(old, new)), KinematicsError)
+    assert str(problem).startswith(f"{tmp_path / 'demo' / 'robot.urdf'}: {key}: non-finite number(s) in ")
+    assert problem.key == key
+
+
+def _not_utf8(path: Path) -> None:
+    path.write_bytes(b"<?xml version='1.0'?>\n<robot name='\xe9'/>\n")  # Latin-1, not UTF-8
+
+
+def _a_directory(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    path.mkdir()
+
+
+def _a_symlink_loop(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    path.symlink_to(path.name)
+
+
+@pytest.mark.parametrize(
+    ("spoil", "shown"),
+    [
+        (_not_utf8, "line 2: not UTF-8 text: byte 0xe9 (invalid continuation byte): save the file as UTF-8"),
+        (_a_directory, "is a directory, not a file"),
+        (_a_symlink_loop, "cannot read: Too many levels of symbolic links"),
+    ],
+    ids=["not utf-8", "directory", "symlink loop"],
+)
+def test_unreadable_files_are_named_not_a_traceback(tmp_path, spoil, shown):
+    """A URDF, campaign.yaml, a JSON report or a CSV that is not UTF-8, a directory, or a symlink
+    loop used to end in UnicodeDecodeError, IsADirectoryError or OSError naming no input."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    folder = small_urdf_campaign(tmp_path, SMALL_URDF)
+    spoil(folder / "robot.urdf")
+    problem = read_error(folder)
+    assert str(problem) == f"{folder / 'robot.urdf'}: {shown}"
+    spoil(folder / "campaign.yaml")
+    assert str(read_error(folder)) == f"{folder / 'campaign.yaml'}: {shown}"
+    if spoil is _a_directory:  # a folder named like a sensor's table is no table either
+        fresh = small_urdf_campaign(tmp_path / "fresh", SMALL_URDF)
+        _a_directory(fresh / f"{SENSOR}.parquet")
+        assert str(read_error(fresh)) == f"{fresh / SENSOR}.parquet: {shown}"
+    for reader in (files.read_json, files.read_yaml, files.read_csv):
+        path = tmp_path / f"file.{reader.__name__}"
+        path.write_text("{}")
+        spoil(path)
+        with pytest.raises(InputError) as info:
+            reader(path)
+        assert str(info.value).startswith(f"{path}: ")
+        if reader is not files.read_csv:  # pandas says itself what it cannot decode
+            assert str(info.value) == f"{path}: {shown}"
+
+
 def test_urdf_limits_upside_down(tmp_path):
     from .campaigns.test_campaign import SMALL_URDF
 
@@ -274,6 +348,30 @@ def test_robot_lengths_in_millimetres_are_refused(tmp_path):
     urdf = tmp_path / "urdf" / "demo" / "robot.urdf"
     assert str(problem).startswith(f"{urdf}: joint j3/origin/xyz: 400 m is not below 5 m")
     assert "looks like mm" in str(problem)
+
+
+def test_a_dh_table_without_length_is_refused_and_a_fit_with_no_free_zero_offset_is_drawn_as_a_note(tmp_path):
+    """A DH table whose every a and d is 0 (joint axes through one point: the arm's reach is 0) used
+    to be read; its fit held every zero-offset and the figures died dividing by their count (0)."""
+    rows = [[0.0, math.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, -math.pi / 2, 0.0, 0.1]]
+    problem = read_error(
+        make_campaign(tmp_path, metadata(robot={"dh": {**SMALL_DH, "rows": rows}}), {SENSOR: sensor_table(3)}),
+        KinematicsError,
+    )
+    assert str(problem).startswith(
+        f"{tmp_path / 'demo' / 'campaign.yaml'}: robot/dh/rows: every link length (a and d of every row) is 0"
+    )
+    assert problem.key == "robot/dh/rows"
+    # one length is enough to be read
+    rows[1][0] = 0.4
+    folders.read_campaign(
+        make_campaign(tmp_path / "long", metadata(robot={"dh": {**SMALL_DH, "rows": rows}}), {SENSOR: sensor_table(3)}),
+        repo_root=REPO,
+    )
+    # whatever else leaves the fit no free zero-offset (a one-joint robot), its figures say so
+    held = pd.DataFrame({"step": [0, 1], "chain": [0, 0], "registration.x": [0.0, 0.1]})
+    for figure in (figures.zero_offset_trace(held, 1, "t"), figures.zero_offset_histograms(held, "t")):
+        assert figures.NO_FREE_ZERO_OFFSET in [text.get_text() for ax in figure.axes for text in ax.texts]
 
 
 # --------------------------------------------------------------------------- registration

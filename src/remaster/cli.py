@@ -25,7 +25,7 @@ from .campaigns.robot_model import load_chain
 from .errors import InputError, RemasterError
 from .files import read_csv, read_yaml, write_csv, write_figure, write_json, write_text
 from .planning import design, plan, programs, robust_design
-from .results import sensor_folder, sensor_results
+from .results import check_made_from, sensor_folder, sensor_results
 from .robot import priors
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
@@ -102,7 +102,8 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
     rng = np.random.default_rng(args.seed)
     if args.from_results is not None:
         results = Path(args.from_results)
-        campaign = read_campaign(args.campaign or Path("data") / "raw" / results.parent.name, Path.cwd())
+        folder = args.campaign or Path("data") / "raw" / results.parent.name
+        campaign = read_campaign(folder, Path.cwd())
         sensor = campaign.sensors.get(results.name)
         if sensor is None:
             raise InputError(
@@ -111,6 +112,7 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
                 file=str(results),
             )
         found = sensor_results(results, ("registration", "laplace", "loop"))
+        check_made_from(results.parent.parent, folder, Path.cwd())  # results_dir/<campaign>/<sensor>
         start = plan.campaign_start(campaign, sensor, found, options, _design_priors(args, campaign))
         print(f"{results}: {start.note}")
     else:
@@ -173,6 +175,7 @@ def _program(args: argparse.Namespace) -> None:
 def _calibrated(args: argparse.Namespace) -> tuple[object, compensation.CalibratedRobot]:
     campaign = read_campaign(args.campaign, Path.cwd())
     results = sensor_results(sensor_folder(args.results, Path(args.campaign).name, args.sensor))
+    check_made_from(args.results, args.campaign, Path.cwd())
     label = str(Path(args.results) / Path(args.campaign).name / args.sensor)
     robot = compensation.calibrated_robot(campaign, args.sensor, args.model, results, args.tcp, label)
     for note in robot.notes(args.frame):
@@ -489,11 +492,25 @@ def parser() -> argparse.ArgumentParser:
     return main
 
 
+# the options that name a file a command writes
+OUTPUT_OPTIONS = ("out", "table")
+
+
+def _refuse_directories(args: argparse.Namespace) -> None:
+    """An output option naming a directory is refused before anything is computed or written (its
+    write would fail only after the others' files were written)."""
+    for name in OUTPUT_OPTIONS:
+        value = getattr(args, name, None)
+        if value is not None and Path(value).is_dir():
+            raise InputError(f"{value} is a directory: give a file name", key=f"--{name}")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     if getattr(args, "poses", None) is not None and getattr(args, "configurations", None) is None:
         parser().error("--poses needs --configurations")
     try:
+        _refuse_directories(args)
         status = args.run(args)
     except RemasterError as exc:
         print(f"remaster {args.command}: error: {exc}", file=sys.stderr)

@@ -12,6 +12,7 @@ import datetime as dt
 import json
 import logging
 import math
+import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -118,16 +119,32 @@ def load_yaml(text: str, source: str) -> Any:
         loader.dispose()
 
 
+def read_text(path: str | Path, encoding: str = "utf-8") -> str:
+    """The text of a file; InputError naming it when it is missing, a directory, not text in
+    `encoding` (the line and byte that are not), or unreadable (permissions, a symlink loop): the
+    operating system's exceptions would otherwise end a run in a traceback naming no input."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding=encoding)
+    except FileNotFoundError:
+        raise InputError("file not found", file=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"line {line}: not UTF-8 text: byte 0x{exc.object[exc.start]:02x} ({exc.reason}): save the file as UTF-8",
+            file=str(path),
+        ) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
+
+
 def read_yaml(path: str | Path) -> Any:
     """Content of a YAML file (`load_yaml`); InputError naming the file if missing or malformed,
     if it holds a tag plain YAML has no constructor for (e.g. !!python/object/apply), an alias or a
     duplicate key."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    return load_yaml(text, str(path))
+    return load_yaml(read_text(path), str(path))
 
 
 def write_yaml(path: str | Path, data: Any) -> Path:
@@ -138,11 +155,9 @@ def write_yaml(path: str | Path, data: Any) -> Path:
 
 def read_json(path: str | Path) -> Any:
     """Content of a JSON file; InputError naming the file if missing or malformed."""
-    path = Path(path)
+    text = read_text(path)
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
 
@@ -164,11 +179,29 @@ def write_json(path: str | Path, data: Any) -> Path:
     return write_text(path, text + "\n")
 
 
+@contextlib.contextmanager
+def _written(path: Path):
+    """A file beside `path` to write to (hidden, same suffix: writers infer the format from it),
+    moved into place once written, its folder created first. A write that fails (a directory in
+    the file's place, a full disk, no permission) leaves neither a partial file nor a changed
+    earlier one, and is an InputError naming `path` rather than an OSError's traceback."""
+    partial = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        yield partial
+        partial.replace(path)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc}", file=str(path)) from None
+    finally:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
+
+
 def write_text(path: str | Path, text: str) -> Path:
     """Write text (UTF-8, newlines as given) to `path`, creating its folder."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8", newline="\n")
+    with _written(path) as partial:
+        partial.write_text(text, encoding="utf-8", newline="\n")
     return path
 
 
@@ -184,19 +217,25 @@ def read_csv(path: str | Path) -> pd.DataFrame:
         raise InputError("file not found", file=str(path)) from None
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", file=str(path)) from None
+    except OSError as exc:  # permissions, a symlink loop
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
 
 
 def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
     """Write a table as CSV without its index, floats at full precision; same data, same bytes."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(path, index=False, float_format="%.17g", lineterminator="\n")
+    with _written(path) as partial:
+        table.to_csv(partial, index=False, float_format="%.17g", lineterminator="\n")
     return path
 
 
 def read_parquet(path: str | Path) -> pd.DataFrame:
     """A Parquet table; InputError naming the file if it is missing or cannot be read."""
     path = Path(path)
+    if path.is_dir():  # pd.read_parquet would read a folder as a partitioned data set
+        raise InputError("is a directory, not a file", file=str(path))
     if not path.is_file():
         raise InputError("file not found", file=str(path))
     try:
@@ -208,8 +247,8 @@ def read_parquet(path: str | Path) -> pd.DataFrame:
 def write_parquet(path: str | Path, table: pd.DataFrame) -> Path:
     """Write a table as Parquet (pyarrow) without its index; same data, same bytes."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.Table.from_pandas(table, preserve_index=False), path)
+    with _written(path) as partial:
+        pq.write_table(pa.Table.from_pandas(table, preserve_index=False), partial)
     return path
 
 
@@ -221,11 +260,14 @@ def write_figure(stem: str | Path, figure) -> list[Path]:
     import matplotlib.pyplot as plt  # here: a job that writes no figure does not load matplotlib
 
     stem = Path(stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
-    figure.savefig(paths[0], dpi=120, metadata={"Software": None})
-    figure.savefig(paths[1], metadata={"Creator": None, "Producer": None, "CreationDate": None})
-    plt.close(figure)
+    try:
+        with _written(paths[0]) as partial:
+            figure.savefig(partial, dpi=120, metadata={"Software": None})
+        with _written(paths[1]) as partial:
+            figure.savefig(partial, metadata={"Creator": None, "Producer": None, "CreationDate": None})
+    finally:
+        plt.close(figure)
     return paths
 
 

@@ -14,6 +14,7 @@ CAMPAIGN_FILE = "campaign.yaml"
 SHARED_ROBOTS = "data/robots"  # under the repository root: URDFs that several campaigns refer to
 
 SENSOR_FOLDER = "{campaign}/{sensor}"  # under results_dir
+AUDIT = "audit.json"  # under results_dir: what every result of the run was made from (`remaster.audit`)
 
 # the initial registration and the zero-offset fit (the paper's model)
 REGISTRATION = "registration.json"

@@ -14,8 +14,9 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from . import layout
-from .errors import InputError
+from . import audit, layout
+from .campaigns.folders import campaign_digests
+from .errors import InputError, listed
 from .files import read_csv, read_json, read_parquet, read_yaml
 from .inference.fit import LaplaceReport, Registration
 from .loop.result import LoopReport
@@ -59,3 +60,43 @@ def sensor_results(folder: str | Path, keys: Iterable[str] | None = None) -> dic
         raise InputError(NO_RESULTS, file=str(folder))
     keys = list(layout.SENSOR_RESULTS if keys is None else keys)
     return read_results({key: folder / layout.SENSOR_RESULTS[key] for key in keys})
+
+
+def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_root: str | Path = ".") -> None:
+    """InputError unless the campaign folder is, byte for byte, the campaign the results in
+    `results_dir` were made from: its content hash (`campaigns.folders.campaign_digests`, as the
+    audit computes it) equal to the one results_dir/layout.AUDIT recorded. A campaign edited after
+    its run (a marker offset, a row, its URDF) would otherwise be used with results it did not make,
+    and give a quiet wrong number. The message names the campaign, both hashes and the files that
+    differ."""
+    path = Path(results_dir) / layout.AUDIT
+    if not path.is_file():
+        raise InputError(
+            "not written: `snakemake -j2` writes it when its run completes; the results are used only with "
+            "the campaign whose content hash it records",
+            file=str(path),
+        )
+    name = Path(campaign_folder).resolve().name
+    recorded = read_json(path)
+    key = f"campaigns/{name}"
+    campaigns = recorded.get("campaigns") if isinstance(recorded, dict) else None
+    record = campaigns.get(name) if isinstance(campaigns, dict) else None
+    if not isinstance(record, dict) or not isinstance(record.get("files"), dict):
+        raise InputError(
+            f"the run that wrote these results did not include campaign {name}: run `snakemake -j2` on it",
+            file=str(path),
+            key=key,
+        )
+    now = campaign_digests(campaign_folder, repo_root)
+    if audit.folder_digest(now) == record.get("content_sha256"):
+        return
+    made = record["files"]
+    differ = sorted(f for f in set(now) | set(made) if now.get(f) != made.get(f))
+    raise InputError(
+        f"the campaign {campaign_folder} has changed since these results were made from it: its content SHA-256 "
+        f"is {audit.folder_digest(now)}, the results were made from {record.get('content_sha256')}"
+        + (f" (files that differ: {listed(differ)})" if differ else "")
+        + ": run `snakemake -j2` again, or give the campaign the results were made from",
+        file=str(path),
+        key=f"{key}/content_sha256",
+    )

@@ -3,20 +3,23 @@ calibrated model, nearest to the nominal ones), bounds from the posterior, bad i
 closed loop on the simulator: compensated commands sent to the twin's true robot."""
 
 import re
+import shutil
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import files, layout, spatial
+from remaster import audit, files, layout, spatial
 from remaster.calibration import compensation, prediction
+from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.cli import main as cli
 from remaster.errors import InputError
 from remaster.inference import blocks, fit
 from remaster.inference.model import SIGMA
+from remaster.results import check_made_from
 from remaster.robot import kinematics
 from remaster.units import DEG, MM
 
@@ -360,6 +363,8 @@ def twin_results(tmp_path_factory):
     report.write(folder / layout.LOOP_CLOSURE)
     files.write_parquet(folder / layout.LOOP_SAMPLES, samples)
     files.write_parquet(folder / layout.LOOP_GP, pd.DataFrame())
+    digests = {"kuka-twin": folders.campaign_digests(REPO / "data" / "raw" / "kuka-twin", REPO)}
+    files.write_json(root / layout.AUDIT, audit.audit_record(digests, {}, {}))
     return root, campaign
 
 
@@ -411,3 +416,46 @@ def test_predict_and_compensate_from_the_command_line(twin_results, tmp_path, ca
         "bad.csv: x, y, z or q1..q7: neither target positions nor joint commands (got: a, b)" in capsys.readouterr().err
     )
     assert not (tmp_path / "c3.csv").exists()
+
+
+def test_a_campaign_changed_since_its_results_were_made_is_refused(twin_results, tmp_path, capsys, monkeypatch):
+    """The results are the twin's as it was when they were made (its audit.json records its content
+    hash): a copy of the twin elsewhere is the same campaign, the copy with its laser tracker's
+    marker moved by 1 cm is not, and predict and compensate refuse it naming the audit, the
+    campaign, both hashes and the file that differs; nothing is written. Results without an audit,
+    or whose audit does not know the campaign, are refused too."""
+    root, _ = twin_results
+    monkeypatch.chdir(REPO)  # the campaign's URDF path is the repository's
+    copy = tmp_path / "kuka-twin"
+    shutil.copytree(REPO / "data" / "raw" / "kuka-twin", copy)
+    check_made_from(root, copy, REPO)  # renaming the folder's path changes nothing
+    made_from = files.read_json(root / layout.AUDIT)["campaigns"]["kuka-twin"]["content_sha256"]
+    text = (copy / "campaign.yaml").read_text()
+    (copy / "campaign.yaml").write_text(text.replace("marker: [-0.1, 0.0, 0.02]", "marker: [-0.1, 0.0, 0.03]"))
+    now = audit.folder_digest(folders.campaign_digests(copy, REPO))
+    assert now != made_from
+    files.write_csv(tmp_path / "q.csv", pd.DataFrame(np.zeros((1, 7)), columns=[f"q{j + 1}" for j in range(7)]))
+    common = ["--campaign", str(copy), "--sensor", "laser_tracker", "--results", str(root)]
+    for command, given in (("predict", "--commands"), ("compensate", "--targets")):
+        out = tmp_path / f"{command}.csv"
+        assert cli([command, *common, given, str(tmp_path / "q.csv"), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"remaster {command}: error: {root / layout.AUDIT}: campaigns/kuka-twin/content_sha256: " in err
+        assert f"the campaign {copy} has changed since these results were made from it" in err
+        assert f"its content SHA-256 is {now}, the results were made from {made_from}" in err
+        assert "(files that differ: campaign.yaml)" in err
+        assert not out.exists()
+    # the next configurations of the campaign are planned from its results under the same rule
+    plan = ["plan", "--from-results", str(root / "kuka-twin" / "laser_tracker"), "--campaign", str(copy)]
+    assert cli([*plan, "--budget", "2", "--out", str(tmp_path / "next.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"remaster plan: error: {root / layout.AUDIT}: campaigns/kuka-twin/content_sha256: ")
+    assert f"its content SHA-256 is {now}, the results were made from {made_from}" in err
+    assert not (tmp_path / "next.csv").exists()
+    with pytest.raises(InputError, match=r"audit.json: not written: `snakemake -j2` writes it"):
+        check_made_from(tmp_path / "no-run", copy, REPO)
+    files.write_json(tmp_path / "other-run" / layout.AUDIT, audit.audit_record({"tiny": {}}, {}, {}))
+    with pytest.raises(
+        InputError, match=r"other-run/audit.json: campaigns/kuka-twin: the run that wrote these results"
+    ):
+        check_made_from(tmp_path / "other-run", copy, REPO)

@@ -442,3 +442,82 @@ def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configuratio
     assert any(w.startswith(f"only {poses} poses") for w in report.warnings)
     folds = {e["cv_folds"] for entries in report.candidates.values() for e in entries if "cv_folds" in e}
     assert folds == {poses}
+
+
+def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_says_why(tmp_path, caplog):
+    """Six optimization rows in three poses (the reader's minimum for the iiwa is 5): the
+    provisional screen saw half of them as gross errors (a fit that is almost exact has a robust
+    scale near 0), which left the paper fit undetermined (ValueError), and the loop closure's
+    jackknife refits without a pose ended in LinAlgError. Now every row is kept, the loop closure
+    keeps the zero-offset model, and its report says the data are too few (a warning the
+    certificate shows)."""
+    from remaster.campaigns.arm_kinds import iiwa_scenario
+    from remaster.campaigns.robot_model import load_chain
+    from remaster.loop.jackknife import TOO_FEW
+
+    spec = iiwa_scenario(
+        "six-rows",
+        seed=5,
+        plan={
+            "sets": {
+                "optimization": {"poses": 3, "configurations": 6},
+                "validation": {"poses": 2, "configurations": 8},
+            }
+        },
+    )
+    out = scenario.simulate(spec, load_chain(spec["robot"], REPO, REPO))
+    campaign = folders.read_campaign(folders.write_campaign(tmp_path / "six-rows", out.metadata, out.tables), REPO)
+    assert (campaign.sensors["laser_tracker"].table["set"] == "optimization").sum() == 6
+    registered = fit.registration_stage(campaign, "laser_tracker")
+    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    assert len(laplace.outlier_rows) == 0 and "too few data to screen, every point kept" in caplog.text
+    report = loop_closure.loop_closure_stage(
+        campaign, "laser_tracker", registered, laplace, np.random.default_rng(0), LAPLACE_ONLY
+    ).report
+    assert report.effects_added == ()
+    assert {m: j["method"] for m, j in report.between_design.items()} == {"paper": TOO_FEW, "loop": TOO_FEW}
+    too_few = [w for w in report.warnings if w.startswith("too few data for the candidates")]
+    assert too_few == [
+        "too few data for the candidates: the optimization set's 6 measured configurations in 3 poses do not "
+        "determine the paper and loop models once a group of poses is left out; the cross-validated scores (each "
+        "candidate's and the closure test's) rest on such fits, and the between-design component of the "
+        "zero-offsets is not computed (their uncertainty is the posterior's alone); the zero-offset model is kept: "
+        "measure more poses"
+    ]
+
+
+@pytest.mark.parametrize("column", ["time", "temperature"])
+def test_a_missing_time_stamp_or_temperature_says_why_the_drift_is_not_offered(column):
+    """One time stamp (or, without a time column, one temperature) missing used to remove the drift
+    candidate without a word: the loop closure now says so, naming the file, the column and the
+    row, and tries every other candidate."""
+    import pandas as pd
+
+    from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
+
+    spec = iiwa_scenario(
+        "no-time",
+        seed=5,
+        plan={
+            "sets": {
+                "optimization": {"poses": 6, "configurations": 24},
+                "validation": {"poses": 2, "configurations": 8},
+            }
+        },
+    )
+    chain, sensor = simulated_sensor(spec, "laser_tracker", REPO)
+    table = sensor.table.copy()
+    if column == "temperature":
+        table = table.drop(columns="time").assign(temperature=np.linspace(20.0, 21.0, len(table)))
+    table.loc[7, column] = pd.NaT if column == "time" else np.nan
+    sensor = dataclasses.replace(sensor, table=table)
+    registration = fit.register(chain, sensor)
+    _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
+    report = loop_closure.close_loop(
+        chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(0), LAPLACE_ONLY
+    ).report
+    assert (
+        f"drift not offered: laser_tracker.parquet: {column}: no value on table row 7: a drift is a rate over that "
+        "column, so every row needs a value; fill them in for the loop closure to test a drift"
+    ) in report.warnings
+    assert "drift" not in report.candidates and "joint_compliance" in report.candidates

@@ -5,7 +5,9 @@ program's table becomes a campaign through `remaster import`."""
 
 from __future__ import annotations
 
+import errno
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -311,3 +313,35 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
     assert "--out: would overwrite the configurations" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv"]
     assert pd.read_csv(tmp_path / "good.csv").shape == table.shape
+
+
+def test_an_output_that_is_a_directory_or_on_a_full_disk_is_an_error_naming_it(tmp_path, capsys, monkeypatch):
+    """`--out` naming a directory, and a disk that fills while the program is written, used to end in
+    IsADirectoryError or OSError tracebacks (a full disk leaving half a program): exit 2, the file
+    named, nothing written and no partial file left."""
+    table_of(np.radians([[0, 30, 0, -60, 0, 60, 0]])).to_csv(tmp_path / "good.csv", index=False)
+    (tmp_path / "out").mkdir()
+    for option, args in (
+        ("--out", program_args("iiwa", tmp_path / "good.csv", "krl", tmp_path / "out")),
+        (
+            "--table",
+            program_args("iiwa", tmp_path / "good.csv", "krl", tmp_path / "p.src", "--table", tmp_path / "out"),
+        ),
+    ):
+        assert cli.main([str(a) for a in args]) == 2
+        assert capsys.readouterr().err == (
+            f"remaster program: error: {option}: {tmp_path / 'out'} is a directory: give a file name\n"
+        )
+    write_text = Path.write_text
+
+    def full_disk(self, text, *args, **kwargs):
+        write_text(self, text[: len(text) // 2], *args, **kwargs)  # half of it reaches the disk
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", full_disk)
+    assert cli.main(program_args("iiwa", tmp_path / "good.csv", "krl", tmp_path / "p.src")) == 2
+    assert capsys.readouterr().err == (
+        f"remaster program: error: {tmp_path / 'p.src'}: cannot write: No space left on device\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out"]
+    assert list((tmp_path / "out").iterdir()) == []

@@ -8,7 +8,8 @@ from pathlib import Path
 from snakemake.utils import validate
 
 from remaster import files, layout
-from remaster.campaigns.robot_model import robot_files, robot_section
+from remaster.campaigns import folders
+from remaster.campaigns.robot_model import robot_section
 
 # Snakemake has already loaded the config files, keeping the last of a key given twice: read the YAML
 # ones again with remaster's loader, which refuses that (and aliases) naming the file, the key and the
@@ -109,12 +110,9 @@ SENSOR = f"{RESULTS}/{layout.SENSOR_FOLDER}"
 
 
 def campaign_files(wildcards):
-    """The files a campaign is read from: campaign.yaml, its Parquet tables, a URDF in its folder
-    and the robot description it names outside it (a shared URDF), so that changing one reruns
-    that campaign's jobs only; a README or licence beside them is not an input."""
-    folder = Path(RAW, wildcards.campaign)
-    inside = [folder / "campaign.yaml", *sorted(folder.glob("*.parquet")), *sorted(folder.glob("*.urdf"))]
-    return [str(p) for p in inside + robot_files(folder)]
+    """The files a campaign is read from (`folders.campaign_files`: the audit hashes the same), so
+    that changing one reruns that campaign's jobs only."""
+    return [str(p) for p in folders.campaign_files(Path(RAW, wildcards.campaign))]
 
 
 def sensors_of(campaign):

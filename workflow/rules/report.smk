@@ -28,14 +28,13 @@ rule audit:
         campaigns=[f for c in CAMPAIGNS for f in campaign_files(SimpleNamespace(campaign=c))],
         results=[f for c in CAMPAIGNS for f in audited_results(c)],
     output:
-        audit=f"{RESULTS}/audit.json",
+        audit=f"{RESULTS}/{layout.AUDIT}",
     log:
         f"{RESULTS}/logs/audit.log",
     resources:
         mem_mb=1000,
         runtime=10,
     params:
-        campaigns={c: campaign_files(SimpleNamespace(campaign=c)) for c in CAMPAIGNS},
         results={c: audited_results(c) for c in CAMPAIGNS},
         config=config,
     script:

@@ -4,6 +4,7 @@ code's hash, the seed and every result's hash."""
 from snakemake.iocontainers import Snakemake
 
 from remaster import audit, files, provenance
+from remaster.campaigns import folders
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -12,7 +13,11 @@ snakemake: Snakemake = globals()["snakemake"]
 with files.log_to(snakemake.log[0]):
     p = snakemake.params
     record = audit.audit_record(
-        {c: provenance.file_digests(paths, relative_to_parent=True) for c, paths in p.campaigns.items()},
+        # the digests `remaster predict` and `compensate` compute again to check a campaign is unchanged
+        {
+            c: folders.campaign_digests(folder)
+            for c, folder in folders.campaign_folders(snakemake.input.campaigns).items()
+        },
         {c: provenance.file_digests(paths) for c, paths in p.results.items()},
         dict(p.config),
         provenance.package_digests(),

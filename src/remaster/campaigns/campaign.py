@@ -311,6 +311,16 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
         key="robot/dh/rows",
         error=KinematicsError,
     )
+    if not any(row[0] or row[2] for row in checked["rows"]):
+        # every joint axis then passes through one point and the flange only turns about it: the
+        # marker's positions can be collinear or fix no zero-offset, and the fit's figures found
+        # none to draw (a ZeroDivisionError) instead of this table being named
+        raise KinematicsError(
+            "every link length (a and d of every row) is 0: the arm has no length (its reach is 0 m, every joint "
+            "axis passes through one point); give the robot's lengths in metres",
+            file=source,
+            key="robot/dh/rows",
+        )
     if dh.get("flange") is not None:
         flange = dh["flange"]
         if not isinstance(flange, (list, tuple)) or len(flange) != 4:

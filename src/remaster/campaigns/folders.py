@@ -16,8 +16,9 @@ from typing import Any
 
 import pandas as pd
 
+from .. import provenance
 from ..errors import InputError, format_rows, quoted
-from ..files import plain, read_parquet, read_yaml, write_json, write_parquet, write_yaml
+from ..files import plain, read_parquet, read_text, read_yaml, write_json, write_parquet, write_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from . import importer
 from .campaign import (
@@ -28,7 +29,7 @@ from .campaign import (
     sensor_data,
     validate_metadata,
 )
-from .robot_model import load_chain
+from .robot_model import load_chain, robot_files
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +49,23 @@ def campaign_folder(files) -> Path:
             file=", ".join(map(str, files)) or "(no input files)",
         )
     return next(iter(folders.values()))
+
+
+def campaign_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path]:
+    """The files a campaign is read from: campaign.yaml, its Parquet tables, a URDF in its folder
+    and the robot description it names outside it (a shared URDF, found from `repo_root`). The
+    workflow declares them as a campaign's inputs (changing one reruns that campaign's jobs only)
+    and the audit hashes them; a README or licence beside them is not an input."""
+    folder = Path(folder)
+    inside = [folder / CAMPAIGN_FILE, *sorted(folder.glob("*.parquet")), *sorted(folder.glob("*.urdf"))]
+    return inside + robot_files(folder, repo_root)
+
+
+def campaign_digests(folder: str | Path, repo_root: str | Path = ".") -> dict[str, str]:
+    """{file name: SHA-256} of `campaign_files`, keyed by name so that the same campaign copied
+    elsewhere has the same digests: what the audit records of a campaign (`audit.folder_digest` of
+    it is the campaign's content hash, `content_sha256`)."""
+    return provenance.file_digests(campaign_files(folder, repo_root), relative_to_parent=True)
 
 
 def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Campaign:
@@ -137,14 +155,7 @@ def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapp
 
 def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
     """`importer.parse_csv` of a file (UTF-8, with or without a byte-order mark)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text: {exc}", file=str(path)) from None
-    return importer.parse_csv(text, str(path), delimiter)
+    return importer.parse_csv(read_text(path, "utf-8-sig"), str(path), delimiter)
 
 
 def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, KinematicsError, quoted
-from ..files import read_yaml
+from ..files import read_text, read_yaml
 from ..layout import CAMPAIGN_FILE, SHARED_ROBOTS
 from ..robot.kinematics import KinematicChain, chain_from_dh, chain_from_urdf, max_chain_difference
 from .campaign import validate_robot
@@ -84,7 +84,9 @@ def load_chain(
     urdf_chain = dh_chain = None
     if "urdf" in robot:
         candidates = urdf_candidates(robot["urdf"], folder, repo_root)
-        urdf_path = next((p for p in candidates if p.is_file()), None)
+        # a directory or a symlink (a loop, a dangling one) in the URDF's place is named by the reader
+        # rather than passed over as "not found"
+        urdf_path = next((p for p in candidates if p.is_file() or p.is_dir() or p.is_symlink()), None)
         if urdf_path is None:
             raise KinematicsError(
                 f"URDF file {quoted(robot['urdf'])} not found (looked for {', '.join(str(p) for p in candidates)})",
@@ -93,7 +95,7 @@ def load_chain(
             )
         try:
             urdf_chain = chain_from_urdf(
-                urdf_path.read_text(encoding="utf-8"), robot.get("base"), robot.get("flange"), source=str(urdf_path)
+                read_text(urdf_path), robot.get("base"), robot.get("flange"), source=str(urdf_path)
             )
         except KinematicsError as exc:
             if exc.key not in ("base", "flange"):

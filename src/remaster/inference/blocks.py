@@ -58,6 +58,7 @@ import pandas as pd
 
 from .. import _kernels, spatial
 from ..campaigns.campaign import SensorData
+from ..errors import format_rows
 from ..noise import RangeTransverse
 from ..robot.gravity import Payload, assumed_payload, loaded_torques
 from ..robot.kinematics import LINK_MOTION, KernelForm, KinematicChain, perturbed_transforms
@@ -150,7 +151,9 @@ class Readings:
     drift_unit 's' or 'K'; harmonic_orders: K of the `joint_harmonics` block (orders 1..K);
     weights (n, 3): the instrument's per-point std of each axis over its
     RMS over the sensor's measured rows (`point_weights`), None when the table gives none: the
-    likelihood's noise of row i, axis a is then sigma weights[i, a], sigma still in metres.
+    likelihood's noise of row i, axis a is then sigma weights[i, a], sigma still in metres;
+    drift_gaps: why drift is None although the table has a time or temperature column
+    (`drift_gaps`: the rows without a value), so that the loop closure can say so.
     """
 
     rows: np.ndarray
@@ -162,6 +165,7 @@ class Readings:
     drift_unit: str | None = None
     harmonic_orders: int = 2
     weights: np.ndarray | None = None
+    drift_gaps: str | None = None
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
@@ -175,32 +179,53 @@ class Readings:
         return getattr(self, key)
 
 
+def _drift_column(table: pd.DataFrame, column: str | None) -> str | None:
+    """The column a drift is a rate of: `column`, else `time`, else the first numeric column whose
+    name holds 'temperature'; None when the table has none."""
+    if column is not None:
+        return column
+    if "time" in table.columns:
+        return "time"
+    return next(
+        (c for c in table.columns if "temperature" in c.lower() and pd.api.types.is_numeric_dtype(table[c].dtype)),
+        None,
+    )
+
+
+def _drift_values(series: pd.Series) -> tuple[np.ndarray, str]:
+    """(values from the first measurement, unit 's' or 'K'); NaN where the series has no value."""
+    if pd.api.types.is_datetime64_any_dtype(series.dtype):
+        return (series - series.min()).dt.total_seconds().to_numpy(dtype=float), "s"
+    values = series.to_numpy(dtype=float)
+    return values - values[0], "K"
+
+
 def drift_variable(table: pd.DataFrame, column: str | None = None) -> tuple[np.ndarray, str, str] | None:
     """(values (n_rows,) in s or K from the first measurement, column, unit 's' or 'K') of the
-    column a drift is a rate of, or None when the table has none (or it is not finite)."""
+    column a drift is a rate of, or None when the table has none (or it is not finite:
+    `drift_gaps` says where)."""
+    column = _drift_column(table, column)
     if column is None:
-        if "time" in table.columns:
-            column = "time"
-        else:
-            column = next(
-                (
-                    c
-                    for c in table.columns
-                    if "temperature" in c.lower() and pd.api.types.is_numeric_dtype(table[c].dtype)
-                ),
-                None,
-            )
-            if column is None:
-                return None
-    series = table[column]
-    if pd.api.types.is_datetime64_any_dtype(series.dtype):
-        values = (series - series.min()).dt.total_seconds().to_numpy(dtype=float)
-        unit = "s"
-    else:
-        values = series.to_numpy(dtype=float)
-        values = values - values[0]
-        unit = "K"
+        return None
+    values, unit = _drift_values(table[column])
     return (values, column, unit) if np.all(np.isfinite(values)) else None
+
+
+def drift_gaps(table: pd.DataFrame, column: str | None = None) -> str | None:
+    """Why a table's drift column cannot carry a drift although it has one: '<column>: no value on
+    table rows ...' (a missing time stamp or temperature, or the first row's temperature missing,
+    which every value is taken from); None when it has none or every value is there."""
+    column = _drift_column(table, column)
+    if column is None:
+        return None
+    series = table[column]
+    missing = np.flatnonzero(series.isna().to_numpy())
+    if not missing.size:
+        values, _ = _drift_values(series)
+        if np.all(np.isfinite(values)):
+            return None
+        missing = np.flatnonzero(~np.isfinite(values))
+    return f"{column}: no value on table {format_rows(missing)}"
 
 
 def readings(
@@ -226,6 +251,7 @@ def readings(
         None if drift is None else drift[2],
         harmonic_orders=settings.harmonic_orders,
         weights=point_weights(sensor, rows),
+        drift_gaps=None if drift is not None else drift_gaps(sensor.table, settings.drift_column),
     )
 
 

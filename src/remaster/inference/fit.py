@@ -138,6 +138,19 @@ def flag_outliers(model: BlockModel, alpha: float) -> np.ndarray:
     sigma_r = 1.4826 * np.median(residual)
     threshold = math.sqrt(scipy.special.chdtri(3, alpha / model.n_points))  # chi2(3).isf, without scipy.stats' import
     far = np.linalg.norm(residual, axis=1) > threshold * sigma_r
+    if 3 * (model.n_points - int(far.sum())) <= len(model.names) + 1:
+        # a set barely larger than the fit needs is fitted almost exactly, so the robust scale is
+        # near 0 and good rows look far; leaving them out would leave the fit undetermined (a
+        # ValueError naming no row): keep every row, the loop closure's screen judges them again
+        log.warning(
+            "%d of %d points look like gross errors, but the fit without them would be undetermined "
+            "(%d parameters and sigma): too few data to screen, every point kept (rows %s)",
+            int(far.sum()),
+            model.n_points,
+            len(model.names),
+            model.data.rows[far].tolist(),
+        )
+        return model.data.rows[:0]
     return model.data.rows[far]
 
 

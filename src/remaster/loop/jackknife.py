@@ -32,6 +32,24 @@ from .selection import Fitted, TimeBlocked
 
 ZERO_OFFSET_PREFIX = "zero_offsets."
 MIN_GROUPS = 3  # two groups give a spread of one difference: no estimate of a variance worth the name
+TOO_FEW = "not computed: too few data: without one group of poses the rest do not determine the model's parameters"
+
+
+def too_few_warning(between: dict, rows: int, poses: int, kept: bool) -> str | None:
+    """The loop report's warning when a jackknife of `between` ({model: `zero_offset_jackknife`})
+    found the data too few (`rows` measured optimization configurations in `poses` poses), or None;
+    `kept`: the selection added no effect (the zero-offset model is the loop's)."""
+    models = [name for name, result in between.items() if result["method"] == TOO_FEW]
+    if not models:
+        return None
+    return (
+        f"too few data for the candidates: the optimization set's {rows} measured configurations in {poses} poses "
+        f"do not determine the {' and '.join(models)} model{'s' if len(models) > 1 else ''} once a group of poses is "
+        "left out; the cross-validated scores (each candidate's and the closure test's) rest on such fits, and the "
+        "between-design component of the zero-offsets is not computed (their uncertainty is the posterior's alone)"
+        + ("; the zero-offset model is kept" if kept else "")
+        + ": measure more poses"
+    )
 
 
 def subset(data: Readings, keep: np.ndarray) -> Readings:
@@ -71,7 +89,13 @@ def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
         return {"groups": groups, "method": f"not computed: fewer than {MIN_GROUPS} poses", "parameters": {}}
     in_time = TimeBlocked.of(fitted.model.data, poses, groups)
     folds = in_time.folds if in_time else evidence.pose_folds(poses, groups)
-    estimates = leave_group_out(fitted, folds)
+    try:
+        estimates = leave_group_out(fitted, folds)
+    except np.linalg.LinAlgError:
+        # a small optimization set (the reader's minimum is just enough for the full fit) leaves
+        # some parameter undetermined once a group of poses is out: no spread to estimate, and the
+        # report says so rather than the loop closure ending in a traceback
+        return {"groups": groups, "method": TOO_FEW, "parameters": {}}
     u_jackknife = np.sqrt(jackknife_variance(estimates))
     u_posterior = fitted.mode.std
     u_between, dof = between_design(u_posterior, u_jackknife, groups)

@@ -75,7 +75,7 @@ from ..robot.priors import priors_from
 from ..units import MM
 from . import gross, harmonics, joint_form, noise_floor
 from .harmonics import harmonics_report
-from .jackknife import zero_offset_jackknife
+from .jackknife import too_few_warning, zero_offset_jackknife
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
@@ -256,6 +256,21 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     return warnings
 
 
+def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, settings: LoopSettings) -> list[str]:
+    """The report's warnings on what the data lack: too few rows for the jackknife and the
+    candidates (`jackknife.too_few_warning`), and a drift candidate left out because its time or
+    temperature column has rows without a value (never silently)."""
+    data, poses = screened.data["optimization"], screened.poses["optimization"]
+    too_few = too_few_warning(between, len(data.rows), len(np.unique(poses)), not screened.selection.added)
+    warnings = [too_few] if too_few else []
+    if "drift" in settings.candidates and data.drift_gaps:
+        warnings.append(
+            f"drift not offered: {sensor.name}.parquet: {data.drift_gaps}: a drift is a rate over that column, so "
+            "every row needs a value; fill them in for the loop closure to test a drift"
+        )
+    return warnings
+
+
 def _noise_model(selection: Selection, sensor: SensorData, settings: LoopSettings, frame_problem) -> dict:
     """loop_closure.json's `noise_model`: the one chosen, or why a tracker's was not offered."""
     return selection.noise or {
@@ -394,7 +409,10 @@ def close_loop(
         before=before,
         after=after,
         **_refit_fields(final, mcmc, before_table, after_table),
-        warnings=tuple(_warnings(closed, screened, gp_section, mcmc, settings)),
+        warnings=tuple(
+            _warnings(closed, screened, gp_section, mcmc, settings)
+            + _data_warnings(sensor, screened, between, settings)
+        ),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),

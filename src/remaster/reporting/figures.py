@@ -49,10 +49,25 @@ def finished(fig, title: str):
     return fig
 
 
+def note(text: str, title: str) -> plt.Figure:
+    """A figure that says why there is nothing to draw: a figure of nothing is a sentence, never an
+    error of the plotting."""
+    fig, ax = plt.subplots(figsize=(6.0, 3.0))
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, wrap=True)
+    ax.set_axis_off()
+    return finished(fig, title)
+
+
+# every zero-offset held (a robot with one joint, or joints whose axes coincide): the fit has none
+NO_FREE_ZERO_OFFSET = "no free zero-offset: the data determine none (fit/laplace.json says which are held and why)"
+
+
 def zero_offset_trace(trace: pd.DataFrame, burn_in: int, title: str) -> plt.Figure:
     """Fig. zero_offset_trace: each free zero-offset (deg) against the step, one line per chain,
     with the burn-in boundary. `trace` has step and chain columns and one column per parameter (SI)."""
     columns = _zero_offset_columns(trace)
+    if not columns:
+        return note(NO_FREE_ZERO_OFFSET, title)
     fig, axes = _grid(len(columns))
     for ax, name in zip(axes, columns):
         for number, chain in trace.groupby("chain"):
@@ -72,6 +87,8 @@ def zero_offset_histograms(samples: pd.DataFrame, title: str, truth_deg: dict[st
     """Fig. zero_offset_histograms: the posterior of each free zero-offset (deg), with its
     mean; `truth_deg` (simulations only, never read by the pipeline itself) may mark the truth."""
     columns = _zero_offset_columns(samples)
+    if not columns:
+        return note(NO_FREE_ZERO_OFFSET, title)
     fig, axes = _grid(len(columns))
     for ax, name in zip(axes, columns):
         values = samples[name].to_numpy() / DEG

@@ -19,7 +19,7 @@ import pandas as pd  # noqa: E402
 from ..campaigns.campaign import SETS  # noqa: E402
 from ..loop.selection import Signature  # noqa: E402
 from ..units import MM  # noqa: E402
-from .figures import _grid, error_histogram_axes, finished  # noqa: E402
+from .figures import _grid, error_histogram_axes, finished, note  # noqa: E402
 
 AXES = ("x", "y", "z")
 
@@ -111,11 +111,9 @@ def residual_by_joint(rows: pd.DataFrame, gp: Mapping | None, title: str) -> plt
     """The residual the parametric effects leave (robot frame, mm) against the joint the residual
     GP finds most relevant (deg), per axis, with its median in 30 bins; rows: the GP's training
     rows (`loop_candidate.training_frame`), gp: loop_closure.json's `residual_gp` section."""
-    fig, ax = plt.subplots(figsize=(6.0, 3.0))
     if rows.empty or gp is None:
-        ax.text(0.5, 0.5, "residual GP not tried", ha="center", va="center", transform=ax.transAxes)
-        ax.set_axis_off()
-        return finished(fig, title)
+        return note("residual GP not tried", title)
+    fig, ax = plt.subplots(figsize=(6.0, 3.0))
     joint = gp["most_relevant_joint"] or max(gp["relevance"], key=gp["relevance"].get)
     angle = np.degrees(rows[joint].to_numpy(float))
     edges = np.linspace(angle.min(), angle.max() + 1e-9, 31)
@@ -141,11 +139,7 @@ def harmonic_functions(section: Mapping | None, title: str) -> plt.Figure:
     added."""
     functions = (section or {}).get("functions") or {}
     if not functions:
-        fig, ax = plt.subplots(figsize=(6.0, 3.0))
-        text = "joint_harmonics not added" if section is None else "no joint's harmonics named"
-        ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
-        ax.set_axis_off()
-        return finished(fig, title)
+        return note("joint_harmonics not added" if section is None else "no joint's harmonics named", title)
     fig, axes = _grid(len(functions))
     for ax, (joint, function) in zip(axes, functions.items()):
         angle = np.asarray(function["angle_deg"])

@@ -85,6 +85,10 @@ def _floats(text: str | None, count: int, default: float, where: str) -> np.ndar
         raise KinematicsError(f"cannot read numbers from {quoted(text)}", key=where) from None
     if values.shape != (count,):
         raise KinematicsError(f"expected {count} numbers, got {quoted(text)}", key=where)
+    if not np.isfinite(values).all():
+        # float() reads 'nan' and 'inf': a pose or an axis built from them reaches the fit as
+        # non-finite marker positions that name neither this file nor the joint
+        raise KinematicsError(f"non-finite number(s) in {quoted(text)}: needs {count} finite numbers", key=where)
     return values
 
 
