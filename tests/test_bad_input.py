@@ -541,3 +541,25 @@ def test_the_one_column_check_names_the_file_the_missing_columns_and_what_it_has
     assert raised.value.file == "plan.csv" and raised.value.key == "q2, q4"
     with pytest.raises(InputError, match=r"^s.parquet: sigma: missing column\(s\) of the posterior samples$"):
         require_columns(table, ["sigma"], file="s.parquet", of="the posterior samples")
+
+
+@pytest.mark.workflow
+@pytest.mark.parametrize("damage", ["empty parquet", "latin-1 yaml", "yaml list"])
+def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny, damage):
+    """Graph building reads no campaign's data: a damaged campaign beside a good one still gives a
+    plan with both campaigns' jobs (its own first job reports the file with the reader's message;
+    `--keep-going` runs the others to the end)."""
+    raw = tmp_path / "raw"
+    shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
+    shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
+    if damage == "empty parquet":
+        (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
+    elif damage == "latin-1 yaml":
+        text = (raw / "broken" / "campaign.yaml").read_text(encoding="utf-8")
+        (raw / "broken" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
+    else:
+        (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+    result = dry_run(tmp_path, {"raw_dir": str(raw), "results_dir": str(tmp_path / "results"), **TINY_FIT})
+    assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
+    planned = result.stdout
+    assert "campaign=tiny" in planned and "campaign=broken" in planned

@@ -129,7 +129,7 @@ def gives_dh(campaign):
 def gives_ur_form(campaign):
     """Whether a campaign gets a UR's kinematics_config (`exports.ur_form`): a six-row DH table."""
     dh = robot_section(Path(RAW, campaign)).get("dh")
-    return isinstance(dh, dict) and len(dh.get("rows") or ()) == 6
+    return isinstance(dh, dict) and isinstance(dh.get("rows"), list) and len(dh["rows"]) == 6
 
 
 def sensor_inputs(**patterns):
@@ -156,11 +156,21 @@ def every_pair_inputs(**patterns):
     }
 
 
-def largest_sensor_rows(campaign):
-    """Rows of the campaign's largest sensor, from the Parquet footers (no data read)."""
+def parquet_rows(path):
+    """Rows of a Parquet table from its footer; 0 when it does not read: the campaign's first job
+    reports the file with the reader's message, and the other campaigns' jobs go on."""
+    import pyarrow
     import pyarrow.parquet
 
-    return max((pyarrow.parquet.read_metadata(p).num_rows for p in Path(RAW, campaign).glob("*.parquet")), default=0)
+    try:
+        return pyarrow.parquet.read_metadata(path).num_rows
+    except (OSError, pyarrow.ArrowException):
+        return 0
+
+
+def largest_sensor_rows(campaign):
+    """Rows of the campaign's largest sensor, from the Parquet footers (no data read)."""
+    return max((parquet_rows(p) for p in Path(RAW, campaign).glob("*.parquet")), default=0)
 
 
 def campaign_mem_mb(wildcards, attempt):
@@ -216,8 +226,15 @@ def robots():
     """robot slug -> robot identity, for every robot of the run."""
     from remaster import files
     from remaster import identity
+    from remaster.errors import RemasterError
 
-    keys = {identity.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")) for c in CAMPAIGNS}
+    keys = set()
+    for c in CAMPAIGNS:
+        # a campaign.yaml that does not read is its own jobs' to report (file, key): the others go on
+        try:
+            keys.add(identity.robot_identity(files.read_yaml(f"{RAW}/{c}/campaign.yaml")))
+        except (RemasterError, OSError, AttributeError, TypeError):
+            continue
     return {identity.robot_slug(k): k for k in sorted(keys)}
 
 
