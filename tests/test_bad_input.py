@@ -563,3 +563,28 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
     assert "campaign=tiny" in planned and "campaign=broken" in planned
+
+
+@pytest.mark.workflow
+@pytest.mark.slow
+def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, tiny):
+    """A real run of two campaigns, one with a 0-byte Parquet file: `snakemake -j1` (the default
+    profile keeps going) exits non-zero, the damaged campaign's job log names its file, and the good
+    campaign gets its certificate."""
+    raw = tmp_path / "raw"
+    shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
+    shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
+    metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
+    files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
+    (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
+    results = tmp_path / "results"
+    config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
+    result = subprocess.run(
+        SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=1800
+    )
+    output = result.stdout + result.stderr
+    assert result.returncode != 0, output[-2000:]
+    assert (results / "tiny" / "certificate.md").is_file(), output[-3000:]
+    assert not (results / "broken" / "certificate.md").exists()
+    logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
+    assert "motion_capture.parquet" in logs

@@ -218,7 +218,7 @@ def test_a_certificate_says_before_after_corrections_and_warnings():
     # the first screen: a line per sensor before any table, the method after the tables
     brief = cert.brief[0]
     assert brief.startswith("Laser Tracker: acceptance not tested; error after ")
-    assert "not determined: the accuracy across the joint limits" in brief and "1 parameters the data" in brief
+    assert "not determined: the accuracy across the joint limits" in brief and "1 parameter the data" in brief
     assert "the next campaign should add: joint 2 over more of its range" in brief
     assert text.index(brief) < text.index("## Verdict") < text.index("## How these numbers were made")
     assert text.index("## How these numbers were made") < text.index("Errors are post-registration distances")

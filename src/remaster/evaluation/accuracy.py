@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import logging
 from dataclasses import dataclass, replace
 from importlib import resources
 
@@ -50,6 +51,7 @@ import pandas as pd
 
 from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
+from ..errors import InputError
 from ..inference import metrics
 from ..inference.fit import LaplaceReport, Registration
 from ..inference.model import (
@@ -65,6 +67,8 @@ from ..labels import paper_order, sensor_label
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import shown
+
+log = logging.getLogger(__name__)
 
 METHODS = ("Vernier", "Bayesian")
 # Vernier scored as the paper scored it (its three-point registration T_NR, Theta1 = 0) and, beside
@@ -450,11 +454,7 @@ def _validation(chain: KinematicChain, data: SetData, robots: dict[str, Remaster
                     method=method,
                 )
             )
-        refit = (
-            robot.registered_to(chain, data.q[seen], data.positions[seen], marker)
-            if seen.size >= MIN_REGISTRATION_POINTS
-            else None
-        )
+        refit = _refit(robot, chain, data, seen, marker)
         for metric, registered, label in (
             (POST_REGISTRATION, robot, REGISTRATION_AS_FITTED),
             (POST_REGISTRATION_REFIT, refit, REGISTRATION_REFIT),
@@ -465,6 +465,19 @@ def _validation(chain: KinematicChain, data: SetData, robots: dict[str, Remaster
     order = list(VALIDATION_METRICS)
     rows.sort(key=lambda r: (order.index(r["metric"]), SCORED_METHODS.index(r["method"])))
     return rows, frames
+
+
+def _refit(robot: Remastered, chain: KinematicChain, data: SetData, seen, marker) -> Remastered | None:
+    """The robot with its registration refitted on a set's seen rows; None (no refit rows) with
+    fewer than MIN_REGISTRATION_POINTS or points on a line (a set of one or two marker positions:
+    a pose's configurations may all put the marker at one point), which fix no rigid transform."""
+    if seen.size < MIN_REGISTRATION_POINTS:
+        return None
+    try:
+        return robot.registered_to(chain, data.q[seen], data.positions[seen], marker)
+    except InputError as exc:
+        log.warning("%s: no registration refit on this set's %d points: %s", robot.method, seen.size, exc)
+        return None
 
 
 def tcp_scatter(

@@ -170,7 +170,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                         if "p95_bound_data_mm" in claim
                         else np.nan,
                         # a claim is taken over configurations, each drawn `draws` times: count the configurations
-                        "points": int(claim["count"].iloc[0]) // int(inputs.workspace["draws"]),
+                        "points": int(claim["count"].iloc[0]) // max(int(inputs.workspace.get("draws") or 1), 1),
                     }
                 )
     return rows
@@ -329,7 +329,8 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
         undetermined.append("the accuracy near the measured configurations (the priors supply most of its bound)")
     dominated = list(workspace.get("prior_dominated") or ())
     if dominated:
-        undetermined.append(f"{len(dominated)} parameters the data barely moved from their prior")
+        count = len(dominated)
+        undetermined.append(f"{count} parameter{'s' if count != 1 else ''} the data barely moved from their prior")
     wanted = [w for w in workspace.get("next_campaign_should_add") or () if not w.startswith("poses that move")]
     if dominated:
         wanted.append("poses that move the parameters left to their prior")
