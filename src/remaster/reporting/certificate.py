@@ -330,7 +330,10 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
     dominated = list(workspace.get("prior_dominated") or ())
     if dominated:
         count = len(dominated)
-        undetermined.append(f"{count} parameter{'s' if count != 1 else ''} the data barely moved from their prior")
+        many = count != 1
+        undetermined.append(
+            f"{count} parameter{'s' if many else ''} the data barely moved from {'their' if many else 'its'} prior"
+        )
     wanted = [w for w in workspace.get("next_campaign_should_add") or () if not w.startswith("poses that move")]
     if dominated:
         wanted.append("poses that move the parameters left to their prior")
