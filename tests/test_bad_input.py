@@ -403,6 +403,16 @@ def dry_run(tmp_path, settings: dict) -> subprocess.CompletedProcess:
     )
 
 
+def real_run(tmp_path, raw) -> tuple[subprocess.CompletedProcess, Path]:
+    """`snakemake -j1` on the campaigns in `raw` with the tiny fit settings: (its result, the results folder)."""
+    results = tmp_path / "results"
+    config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
+    result = subprocess.run(
+        SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=1800
+    )
+    return result, results
+
+
 def assert_refused(result: subprocess.CompletedProcess, *fragments: str) -> None:
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
@@ -506,11 +516,7 @@ def test_bad_campaign_fails_the_real_run_and_leaves_no_output(tmp_path, tiny):
     joints = [f"q{j}" for j in range(1, 8)]
     table[joints] = np.degrees(table[joints])
     files.write_parquet(raw / "tiny" / "motion_capture.parquet", table)
-    results = tmp_path / "results"
-    config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
-    result = subprocess.run(
-        SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=600
-    )
+    result, results = real_run(tmp_path, raw)
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
     failed = re.findall(r"Error in rule (\w+):", output)
@@ -577,11 +583,7 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
     files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
     (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
-    results = tmp_path / "results"
-    config = files.write_yaml(tmp_path / "config.yaml", {"raw_dir": str(raw), "results_dir": str(results), **TINY_FIT})
-    result = subprocess.run(
-        SNAKEMAKE + ["-j1", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=1800
-    )
+    result, results = real_run(tmp_path, raw)
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
     assert (results / "tiny" / "certificate.md").is_file(), output[-3000:]
