@@ -19,7 +19,7 @@ import logging
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
@@ -199,6 +199,58 @@ class PosteriorTarget:
     def residuals(self, theta_model) -> np.ndarray:
         """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
         return self.model.residuals(theta_model).ravel()
+
+
+@dataclass(frozen=True)
+class SigmaMarginalTarget:
+    """The posterior of a model's free parameters with sigma integrated out, for the samplers.
+
+    Under Jeffreys' prior the log-posterior is -(N + 2) log sigma - SS(theta) / (2 sigma^2) + log
+    prior(theta), N = 3n, so sigma integrates out in closed form: log p(theta) = -(N + 1) / 2
+    log SS(theta) + log prior(theta), and given theta, SS / sigma^2 is chi-square with N + 1 degrees
+    of freedom. Sampling theta alone removes the coupling of sigma with theta's scale (the joint
+    mode's sigma is sqrt(N / (N + 1)) times its marginal's, with theta's spread in proportion),
+    which a Laplace approximation about the joint mode misses; `with_sigma` then draws sigma exactly."""
+
+    model: BlockModel
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.model.names
+
+    @property
+    def scale(self) -> np.ndarray:
+        return self.model.scale
+
+    def log_prob(self, theta) -> float:
+        return float(self.log_prob_many(np.asarray(theta, dtype=float)[None, :])[0])
+
+    def log_prob_many(self, thetas) -> np.ndarray:
+        """Log marginal posterior (m,) of m vectors (m, P), up to a constant, a slice at a time
+        (`PosteriorTarget.log_prob_many`)."""
+        thetas = np.asarray(thetas, dtype=float)
+        size = max(1, POINTS_PER_CALL // max(self.model.n_points, 1))
+        power = 0.5 * (3 * self.model.n_points + 1)
+        parts = []
+        for k in range(0, len(thetas), size):
+            part = thetas[k : k + size]
+            with np.errstate(divide="ignore"):
+                value = -power * np.log(self.model.sum_squares(part))
+            parts.append(value + self.model.log_prior(part))
+        return np.concatenate(parts) if parts else np.empty(0)
+
+    def with_sigma(self, chain: samplers.Chain, rng: np.random.Generator) -> samplers.Chain:
+        """`chain` over theta (the model's own parameters) with sigma drawn from p(sigma | theta) for
+        each sample, appended as the last parameter, and the joint log-posterior as log_prob."""
+        theta = chain.samples
+        energy = self.model.sum_squares(theta)
+        sigma = np.sqrt(energy / rng.chisquare(3 * self.model.n_points + 1, len(theta)))
+        return replace(
+            chain,
+            samples=np.column_stack([theta, sigma]),
+            log_prob=self.model.log_posterior(theta, sigma),
+            names=self.names + (SIGMA,),
+        )
 
 
 # --------------------------------------------------------------------------- fitting

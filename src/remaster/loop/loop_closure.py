@@ -28,9 +28,10 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    present when it was added): chosen before it, an anisotropic noise takes up model error.
    After every step the closure test (`remaster.loop.noise_floor`) compares the cross-validated residual
    with the sensor's noise and says what share of the structured residual the step removed.
-3. Refit the final model by MCMC (independence Metropolis from the Laplace approximation; where
-   that misses the project's convergence criteria, emcee's ensemble run longer until it meets
-   them, or reported as not converged) so
+3. Refit the final model by MCMC (independence Metropolis, sigma integrated out, from a proposal
+   that follows where the posterior leaves its Laplace approximation; where that misses the
+   project's convergence criteria, emcee's ensemble run longer until it meets them, or reported
+   as not converged) so
    that every parameter carries uncertainty; say which parameters the data barely moved from
    their prior.
    Before the refit, gross errors are screened with the final model (`remaster.loop.gross`): every

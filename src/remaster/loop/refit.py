@@ -30,10 +30,9 @@ PRIOR_DOMINATED = 0.5
 MIN_WALKERS = 32  # the ensemble's walkers: at least this, and 2 P + 2 for P parameters
 
 
-def _diagnosed(chains, folds, started: float, criteria) -> tuple[dict, bool]:
-    """(sampler diagnostics in the model's own parameters, whether they meet the criteria)."""
-    back = [folds.back(c) for c in chains] if folds is not None else chains
-    report = fit.sampler_diagnostics(back, time.perf_counter() - started)
+def _diagnosed(chains, started: float, criteria) -> tuple[dict, bool]:
+    """(sampler diagnostics of chains in the model's own parameters, whether they meet the criteria)."""
+    report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
     return report, fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
 
 
@@ -52,68 +51,85 @@ def _attempt(sampler: str, run: dict, report: dict, done: bool) -> dict:
 def refit(
     mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
 ) -> tuple[list[samplers.Chain], dict]:
-    """Chains of the model's posterior by independence Metropolis from its Laplace approximation
-    (`samplers.metropolis_independence`), in the coordinates where that approximation fits best
-    (`gauge.sampling_coordinates`: the model's exact symmetries folded out). When that run misses
-    the criteria (every R-hat <= max_rhat and every ESS >= min_ess), the Laplace approximation is
-    too far from the posterior for an independence sampler, and emcee's ensemble (2 P + 2 walkers,
-    at least MIN_WALKERS) runs from the same mode, a burn-in as long as the first run, then as many
-    steps again, doubled until the criteria hold, at most max_doublings times. Returns the chains, in the model's own
-    parameters, and a JSON-ready report: the last run's diagnostics, every attempt (with its
-    sampler), the coordinates, and `converged`."""
-    target = fit.PosteriorTarget(mode.model)
-    mean = np.append(mode.theta, mode.sigma)
-    covariance = mode.covariance
-    # the model's exact symmetries are curved ridges in its own parameters, straight in folded ones
-    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(target, mode.model, mean, covariance, rng)
+    """Chains of the model's posterior by independence Metropolis (`samplers.metropolis_independence`)
+    over the model's parameters with sigma integrated out (`fit.SigmaMarginalTarget`; sigma is
+    then drawn exactly for each sample), in the coordinates where the Laplace approximation fits
+    best (`gauge.sampling_coordinates`: the model's exact symmetries folded out), from a proposal
+    that follows the valleys along which the posterior leaves that approximation
+    (`samplers.RidgeProposal`; a Student-t when there is none), its kept steps doubled until the
+    criteria hold (every R-hat <= max_rhat and every ESS >= min_ess), at most max_doublings times.
+    When they still miss, emcee's ensemble (2 P + 2 walkers, at least
+    MIN_WALKERS) runs on the joint posterior from the same mode, a burn-in as long as the first
+    run, then as many steps again, doubled until the criteria hold, at most max_doublings times.
+    Returns the chains, in the model's own parameters, and a JSON-ready report: the last run's
+    diagnostics, every attempt (with its sampler), the coordinates, the bent directions, and
+    `converged`."""
+    marginal = fit.SigmaMarginalTarget(mode.model)
+    target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(
+        marginal, mode.model, mode.theta, mode.covariance[:-1, :-1], rng
+    )
     run, criteria = dict(settings.mcmc), settings.convergence
     attempts = []
     started = time.perf_counter()
-    chains = samplers.run_chains(
-        samplers.metropolis_independence,
-        target,
-        rng,
-        int(run["chains"]),
-        mean,
-        mean=mean,
-        covariance=covariance,
-        n_samples=int(run["samples"]),
-        burn_in=int(run["burn_in"]),
-        dof=PROPOSAL_DOF_PER_PARAMETER * len(mean),
-        inflation=PROPOSAL_INFLATION,
-    )
-    report, done = _diagnosed(chains, folds, started, criteria)
-    attempts.append(_attempt("metropolis_independence", run, report, done))
+    dof = PROPOSAL_DOF_PER_PARAMETER * len(mean)
+    proposal = samplers.RidgeProposal.fit(target, mean, covariance, dof, PROPOSAL_INFLATION)
+    coordinates["bent"] = [] if proposal is None else proposal.report(target.names)
+    # proposals are independent of the state, so a longer run is a fresh one: doubled until the
+    # criteria hold, as the ensemble's is, at most max_doublings times
+    for doubling in range(int(criteria["max_doublings"]) + 1):
+        length = {**run, "samples": int(run["burn_in"]) + (int(run["samples"]) - int(run["burn_in"])) * 2**doubling}
+        chains = samplers.run_chains(
+            samplers.metropolis_independence,
+            target,
+            rng,
+            int(run["chains"]),
+            mean,
+            mean=mean,
+            covariance=covariance,
+            n_samples=length["samples"],
+            burn_in=int(run["burn_in"]),
+            dof=dof,
+            inflation=PROPOSAL_INFLATION,
+            proposal=proposal,
+        )
+        chains = [marginal.with_sigma(c if folds is None else folds.back(c), rng) for c in chains]
+        report, done = _diagnosed(chains, started, criteria)
+        attempts.append(_attempt("metropolis_independence", length, report, done))
+        if done:
+            break
     if not done:
-        # the Laplace approximation is too far from the posterior for an independence sampler (a
-        # ridge that data leave to the priors bends it): an ensemble follows the ridge, from the
-        # same mode, run on until the criteria hold (bench: 25-configuration campaigns where 16
-        # times the independence sampler's steps left R-hat 1.3-2.2 converge in 12-60 s)
+        # the proposal is too far from the posterior for an independence sampler: an ensemble
+        # follows the posterior's shape, from the same mode, run on until the criteria hold
         started = time.perf_counter()
-        walkers = max(MIN_WALKERS, 2 * len(mean) + 2)
+        joint = fit.PosteriorTarget(mode.model)
+        centre, spread = np.append(mode.theta, mode.sigma), np.sqrt(np.diag(mode.covariance))
+        back = None
+        if folds is not None:
+            back = gauge.Gauge(folds.folds, joint.names)
+            centre, folded_covariance = back.laplace(centre, mode.covariance, joint.scale)
+            joint, spread = gauge.FoldedTarget(joint, back), np.sqrt(np.diag(folded_covariance))
+        walkers = max(MIN_WALKERS, 2 * len(centre) + 2)
         # the ensemble starts in the Laplace ball and must first spread along the ridges: a burn-in
         # as long as the first run's samples (with the first run's 500 steps it was still drifting
         # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
         steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
         ensemble = samplers.run_emcee(
-            target,
+            joint,
             rng,
-            mean,
-            np.sqrt(np.diag(covariance)),
+            centre,
+            spread,
             n_walkers=walkers,
             n_steps=steps,
             burn_in=burn_in,
-            enough=fit.converged_ensemble(target.names, criteria),
+            enough=fit.converged_ensemble(joint.names, criteria),
             max_doublings=int(criteria["max_doublings"]),
         )
-        chains = [ensemble]
-        report, done = _diagnosed(chains, folds, started, criteria)
+        chains = [ensemble if back is None else back.back(ensemble)]
+        report, done = _diagnosed(chains, started, criteria)
         kept = (steps - burn_in) * 2 ** ensemble.settings["doublings"]
         attempts.append(
             _attempt("emcee", {"samples": burn_in + kept, "burn_in": burn_in, "walkers": walkers}, report, done)
         )
-    if folds is not None:
-        chains = [folds.back(c) for c in chains]
     return chains, {
         **report,
         "converged": done,
