@@ -576,9 +576,15 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
 def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, tiny):
     """A real run of two campaigns, one with a 0-byte Parquet file: `snakemake -j1` (the default
     profile keeps going) exits non-zero, the damaged campaign's job log names its file, and the good
-    campaign gets its certificate."""
+    campaign gets its certificate. The good one's validation set repeats two optimization rows bit
+    for bit: its certificate says so, naming the rows."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
+    table = pd.read_parquet(raw / "tiny" / "laser_tracker.parquet")
+    columns = [c for c in table.columns if c[0] == "q" and c[1:].isdigit()] + ["x", "y", "z"]
+    validation = np.flatnonzero(table["set"] == "validation")[:2]
+    table.loc[validation, columns] = table.loc[np.flatnonzero(table["set"] == "optimization")[:2], columns].to_numpy()
+    table.to_parquet(raw / "tiny" / "laser_tracker.parquet", index=False)
     shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
     metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
     files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
@@ -587,6 +593,9 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
     assert (results / "tiny" / "certificate.md").is_file(), output[-3000:]
+    certificate = (results / "tiny" / "certificate.md").read_text()
+    assert "2 of its rows repeat optimization rows bit for bit" in certificate
+    assert f"rows {validation[0]}, {validation[1]}, 0-based" in certificate
     assert not (results / "broken" / "certificate.md").exists()
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs

@@ -109,6 +109,23 @@ def test_valid_campaign_round_trips(tmp_path):
         sensor.q("test")
 
 
+def test_validation_rows_that_copy_optimization_rows_are_found(tmp_path):
+    """A validation row whose joints and position equal an optimization row's is a copy; the same
+    configuration measured again (its position differs by the sensor's noise) is not."""
+    table = sensor_table(n_validation=4)
+    columns = [f"q{j}" for j in range(1, 8)] + ["x", "y", "z"]
+    table.loc[7, columns] = table.loc[2, columns].to_numpy()
+    table.loc[9, columns] = table.loc[4, columns].to_numpy()
+    table.loc[8, columns] = table.loc[3, columns].to_numpy()
+    table.loc[8, "x"] += 3e-5  # measured again: not a copy
+    sensor = read_campaign(make_campaign(tmp_path, tables={SENSOR: table}), repo_root=REPO).sensors[SENSOR]
+    np.testing.assert_array_equal(sensor.validation_copies(), [7, 9])
+    assert (
+        len(read_campaign(make_campaign(tmp_path, name="clean"), repo_root=REPO).sensors[SENSOR].validation_copies())
+        == 0
+    )
+
+
 def test_write_campaign_is_deterministic(tmp_path):
     first = make_campaign(tmp_path / "a")
     second = make_campaign(tmp_path / "b")

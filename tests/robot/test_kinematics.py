@@ -202,6 +202,24 @@ def test_non_serial_and_unsupported_urdfs_are_rejected():
         kinematics.chain_from_urdf("<robot", "a", "b")
 
 
+def test_a_mimic_joint_on_the_chain_is_refused_and_one_off_it_ignored():
+    """A joint whose angle follows another's (<mimic>) cannot carry a zero-offset of its own: on
+    the chain it is refused, naming the URDF and the joint; a gripper finger off the chain is not."""
+    links = "".join(f'<link name="{n}"/>' for n in "abc")
+    joint = '<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/><axis xyz="0 0 1"/>{3}</joint>'
+    mimic = '<mimic joint="j1" multiplier="-1"/>'
+    on_chain = f'<robot name="r">{links}{joint.format("j1", "a", "b", "")}{joint.format("j2", "b", "c", mimic)}</robot>'
+    with pytest.raises(KinematicsError, match=r"robot.urdf: joint j2: mimics joint 'j1'") as info:
+        kinematics.chain_from_urdf(on_chain, "a", "c", source="robot.urdf")
+    assert "refused" in str(info.value)
+    off_chain = (
+        f'<robot name="r">{links}<link name="f"/>{joint.format("j1", "a", "b", "")}{joint.format("j2", "b", "c", "")}'
+        f"{joint.format('finger', 'b', 'f', mimic)}</robot>"
+    )
+    chain = kinematics.chain_from_urdf(off_chain, "a", "c", source="robot.urdf")
+    assert chain.joint_names == ("j1", "j2")
+
+
 def test_bad_dh_tables_are_rejected():
     with pytest.raises(KinematicsError, match="dh/convention"):
         kinematics.chain_from_dh(UR5_DH, "craig")

@@ -118,6 +118,16 @@ class SensorData:
         """Measured marker centres (n, 3) in m, sensor frame, NaN rows where the marker was not seen."""
         return self.table.loc[self.set_mask(set_name), list(POSITION_COLUMNS)].to_numpy(dtype=float)
 
+    def validation_copies(self) -> np.ndarray:
+        """0-based rows of the validation set whose joint readings and measured position both equal
+        an optimization row's, bit for bit: a copy, not a new measurement (a second reading of the
+        same configuration differs at least by the sensor's noise), so it tests the fit on data it saw."""
+        columns = list(self.joint_columns + POSITION_COLUMNS)
+        seen = self.table.loc[self.set_mask("optimization") & self.measured_mask, columns]
+        validation = self.table.loc[self.set_mask("validation") & self.measured_mask, columns]
+        copied = validation.merge(seen.drop_duplicates(), on=columns, how="left", indicator=True)["_merge"] == "both"
+        return validation.index.to_numpy()[copied.to_numpy()]
+
     @property
     def measured_mask(self) -> np.ndarray:
         """Boolean (n_rows,): rows with a finite measured position."""

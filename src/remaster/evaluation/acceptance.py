@@ -63,7 +63,7 @@ import numpy as np
 import pandas as pd
 
 from .. import noise, spatial
-from ..errors import InputError, report_reader, require_columns
+from ..errors import InputError, format_rows, report_reader, require_columns
 from ..files import read_json, write_json
 from ..inference import blocks
 from ..inference.blocks import BlockModel, ModelSettings, Readings
@@ -654,6 +654,13 @@ def acceptance_stage(
         }
         warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
         verdict["budget"] = claim_budget(data.measured, claims["loop"], rng, measured.mpe)
+    copies = measured.validation_copies()
+    if len(copies):
+        warnings.append(
+            f"validation set: {len(copies)} of its rows repeat optimization rows bit for bit (joint readings "
+            f"and measured position; {format_rows(copies)}, 0-based): they test the fit on data "
+            "it saw, so the acceptance test and the errors after calibration flatter it"
+        )
     return Acceptance(
         sensor=measured.name,
         diagnosis_text=text,

@@ -326,6 +326,16 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             raise KinematicsError(
                 f"joint type {kind!r} is not supported (revolute, continuous and fixed are)", file=source, key=where
             )
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            # its angle is another joint's times a ratio: the readings would hold it, and the
+            # zero-offset fit would give it an offset of its own, which a mimic joint cannot have
+            raise KinematicsError(
+                f"mimics joint {mimic.get('joint')!r} (<mimic>): a joint of the chain from {base!r} to "
+                f"{flange!r} must move on its own; refused (a mimic joint off the chain, e.g. a gripper's, is ignored)",
+                file=source,
+                key=where,
+            )
         if names:
             inertias.append(body_inertia)
         axis = _joint_axis(joint, where, source)
