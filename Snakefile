@@ -14,6 +14,20 @@ include: "workflow/rules/comparison.smk"
 include: "workflow/rules/report.smk"
 
 
+# one writer per results folder: Snakemake locks the folder it runs in, not results_dir, which two
+# checkouts may share (`remaster.writer_lock`; a killed run's lock is taken over)
+onstart:
+    writer_lock.take(RESULTS)
+
+
+onsuccess:
+    writer_lock.release(RESULTS)
+
+
+onerror:
+    writer_lock.release(RESULTS)
+
+
 rule all:
     default_target: True
     input:

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files
+from remaster import files, writer_lock
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError, require_columns
@@ -599,3 +599,20 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     assert not (results / "broken" / "certificate.md").exists()
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs
+
+
+@pytest.mark.workflow
+def test_a_results_folder_another_run_is_writing_is_refused(tmp_path, tiny):
+    """Two checkouts given one results_dir: the second run stops before any job, naming the lock and
+    its holder, and writes nothing; once the holder is gone its lock is taken over."""
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    try:
+        writer_lock.take(tmp_path / "results", pid=holder.pid)
+        result, results = real_run(tmp_path, tiny / "raw")
+        assert_refused(
+            result, writer_lock.LOCK_FILE, "another run is writing this results folder", f"process {holder.pid}"
+        )
+        assert sorted(p.name for p in results.iterdir()) == [writer_lock.LOCK_FILE]
+    finally:
+        holder.kill()
+        holder.wait()
