@@ -62,13 +62,31 @@ def sensor_results(folder: str | Path, keys: Iterable[str] | None = None) -> dic
     return read_results({key: folder / layout.SENSOR_RESULTS[key] for key in keys})
 
 
+def _changed_results(results_dir: Path, recorded: Mapping | None, made_in: str | None) -> list[str]:
+    """The result files (paths under results_dir) whose content is no longer the one whose SHA-256
+    the audit recorded; a recorded file no longer there is left to its reader (`NOT_WRITTEN`)."""
+    if not isinstance(recorded, Mapping) or not made_in:
+        return []
+    changed = []
+    for made, digest in sorted(recorded.items()):
+        try:
+            relative = Path(made).relative_to(made_in)
+        except ValueError:
+            continue
+        file = results_dir / relative
+        if file.is_file() and audit.sha256(file.read_bytes()) != digest:
+            changed.append(str(relative))
+    return changed
+
+
 def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_root: str | Path = ".") -> None:
     """InputError unless the campaign folder is, byte for byte, the campaign the results in
     `results_dir` were made from: its content hash (`campaigns.folders.campaign_digests`, as the
     audit computes it) equal to the one results_dir/layout.AUDIT recorded. A campaign edited after
     its run (a marker offset, a row, its URDF) would otherwise be used with results it did not make,
     and give a quiet wrong number. The message names the campaign, both hashes and the files that
-    differ."""
+    differ. The campaign's result files that are there must also still have the SHA-256 the audit
+    recorded: one edited, truncated or corrupted since (its time stamp kept) is named."""
     path = Path(results_dir) / layout.AUDIT
     if not path.is_file():
         raise InputError(
@@ -89,6 +107,15 @@ def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_r
         )
     now = campaign_digests(campaign_folder, repo_root)
     if audit.folder_digest(now) == record.get("content_sha256"):
+        made_in = (recorded.get("config") or {}).get("results_dir")
+        changed = _changed_results(Path(results_dir), record.get("results"), made_in)
+        if changed:
+            raise InputError(
+                f"{listed(changed)}: changed since the run that made them recorded their SHA-256 (edited, truncated "
+                "or corrupted): run `snakemake -j2` again (delete them first: their time stamps may not show it)",
+                file=str(path),
+                key=f"{key}/results",
+            )
         return
     made = record["files"]
     differ = sorted(f for f in set(now) | set(made) if now.get(f) != made.get(f))

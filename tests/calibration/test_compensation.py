@@ -2,6 +2,7 @@
 calibrated model, nearest to the nominal ones), bounds from the posterior, bad input, and the
 closed loop on the simulator: compensated commands sent to the twin's true robot."""
 
+import os
 import re
 import shutil
 
@@ -459,3 +460,23 @@ def test_a_campaign_changed_since_its_results_were_made_is_refused(twin_results,
         InputError, match=r"other-run/audit.json: campaigns/kuka-twin: the run that wrote these results"
     ):
         check_made_from(tmp_path / "other-run", copy, REPO)
+
+
+def test_a_result_changed_since_the_run_recorded_it_is_refused(tmp_path):
+    """The audit records the SHA-256 of every result file: one truncated afterwards (its time stamp
+    kept, so Snakemake sees nothing) is named when predict, compensate or plan check the results."""
+    results = tmp_path / "results"
+    report = results / "kuka-twin" / "laser_tracker" / layout.LOOP_CLOSURE
+    files.write_json(report, {"effects_added": []})
+    digests = {"kuka-twin": folders.campaign_digests(REPO / "data" / "raw" / "kuka-twin", REPO)}
+    made = f"{results}/kuka-twin/laser_tracker/{layout.LOOP_CLOSURE}"
+    recorded = {"kuka-twin": {made: audit.sha256(report.read_bytes())}}
+    files.write_json(results / layout.AUDIT, audit.audit_record(digests, recorded, {"results_dir": str(results)}))
+    check_made_from(results, REPO / "data" / "raw" / "kuka-twin", REPO)
+    stamp = report.stat().st_mtime_ns
+    report.write_bytes(report.read_bytes()[:-3])
+    os.utime(report, ns=(stamp, stamp))
+    with pytest.raises(
+        InputError, match=r"campaigns/kuka-twin/results: kuka-twin/laser_tracker/loop_closure.json: changed"
+    ):
+        check_made_from(results, REPO / "data" / "raw" / "kuka-twin", REPO)
