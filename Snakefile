@@ -25,6 +25,11 @@ onsuccess:
 
 
 onerror:
+    # a failed job's output is removed and the reports after it did not run: older ones would show
+    # the numbers of results that are gone
+    for stale in results.stale_reports(RESULTS, {c: sensors_of(c) for c in CAMPAIGNS}):
+        stale.unlink()
+        print(f"removed {stale}: a result it was made from failed in this run")
     writer_lock.release(RESULTS)
 
 

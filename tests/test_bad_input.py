@@ -576,7 +576,8 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
 def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, tiny):
     """A real run of two campaigns, one with a 0-byte Parquet file: `snakemake -j1` (the default
     profile keeps going) exits non-zero, the damaged campaign's job log names its file, and the good
-    campaign gets its certificate. The good one's validation set repeats two optimization rows bit
+    campaign gets its certificate; what an earlier run left of the damaged one (its certificate, the
+    run's report) is removed. The good one's validation set repeats two optimization rows bit
     for bit: its certificate says so, naming the rows."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
@@ -589,6 +590,10 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
     files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
     (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
+    earlier = tmp_path / "results"  # what an earlier run left: the broken campaign's certificate, the report
+    (earlier / "broken").mkdir(parents=True)
+    (earlier / "broken" / "certificate.md").write_text("an earlier run's verdict")
+    (earlier / "report.html").write_text("an earlier run's report")
     result, results = real_run(tmp_path, raw)
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
@@ -596,7 +601,9 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     certificate = (results / "tiny" / "certificate.md").read_text()
     assert "2 of its rows repeat optimization rows bit for bit" in certificate
     assert f"rows {validation[0]}, {validation[1]}, 0-based" in certificate
-    assert not (results / "broken" / "certificate.md").exists()
+    assert not (results / "broken" / "certificate.md").exists()  # the earlier one removed: its results failed
+    assert not (results / "report.html").exists()
+    assert "removed" in output and "a result it was made from failed in this run" in output
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs
 

@@ -127,3 +127,37 @@ def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_r
         file=str(path),
         key=f"{key}/content_sha256",
     )
+
+
+CAMPAIGN_REPORTS = ("certificate.md", "certificate.json")  # under results_dir/<campaign>
+RUN_REPORTS = ("report.html", layout.AUDIT)  # under results_dir: every campaign's
+
+
+def stale_reports(results_dir: str | Path, sensors: Mapping[str, Iterable[str]]) -> list[Path]:
+    """The reports in results_dir that no longer describe their results, after a run in which a job
+    failed (its output removed, so the reports after it did not run): a campaign's certificate when
+    a result of one of its sensors (`sensors`: {campaign: sensor names}) that it reads is missing or
+    newer than it, and then the run's report and audit, which cover every campaign. Kept, they would
+    show the numbers of a run whose results are gone."""
+    results_dir = Path(results_dir)
+    stale: list[Path] = []
+    for campaign, names in sensors.items():
+        reports = [results_dir / campaign / name for name in CAMPAIGN_REPORTS]
+        reports = [r for r in reports if r.is_file()]
+        if not reports:
+            continue
+        inputs = [
+            results_dir / layout.SENSOR_FOLDER.format(campaign=campaign, sensor=sensor) / name
+            for sensor in names
+            for name in (*SENSOR_RESULTS_READ, layout.ACCEPTANCE)
+        ]
+        oldest = min(r.stat().st_mtime_ns for r in reports)
+        if any(not i.is_file() or i.stat().st_mtime_ns > oldest for i in inputs):
+            stale += reports
+    if stale:
+        stale += [results_dir / name for name in RUN_REPORTS if (results_dir / name).is_file()]
+    return stale
+
+
+# what the certificate reads of each sensor besides its acceptance test (the samplers' are optional)
+SENSOR_RESULTS_READ = (layout.REGISTRATION, layout.LAPLACE, layout.LOOP_CLOSURE)

@@ -5,6 +5,7 @@ closed loop on the simulator: compensated commands sent to the twin's true robot
 import os
 import re
 import shutil
+import time
 
 import numpy as np
 import pandas as pd
@@ -12,6 +13,7 @@ import pytest
 from scipy import stats
 
 from remaster import audit, files, layout, spatial
+from remaster import results as results_module
 from remaster.calibration import compensation, prediction
 from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
@@ -480,3 +482,29 @@ def test_a_result_changed_since_the_run_recorded_it_is_refused(tmp_path):
         InputError, match=r"campaigns/kuka-twin/results: kuka-twin/laser_tracker/loop_closure.json: changed"
     ):
         check_made_from(results, REPO / "data" / "raw" / "kuka-twin", REPO)
+
+
+def test_reports_whose_results_failed_are_stale(tmp_path):
+    """After a failed job: a certificate with a result it reads missing or newer than it is stale,
+    and then the run's report and audit; a campaign whose results are all older is not."""
+    for campaign in ("good", "failed"):
+        for name in (*results_module.SENSOR_RESULTS_READ, layout.ACCEPTANCE):
+            files.write_json(tmp_path / campaign / "laser_tracker" / name, {})
+    past = time.time_ns() - 10**10
+    for path in tmp_path.rglob("*.json"):
+        os.utime(path, ns=(past, past))
+    for campaign in ("good", "failed"):
+        for name in results_module.CAMPAIGN_REPORTS:
+            (tmp_path / campaign / name).write_text("made")
+    (tmp_path / "report.html").write_text("made")
+    sensors = {"good": ["laser_tracker"], "failed": ["laser_tracker"]}
+    assert results_module.stale_reports(tmp_path, sensors) == []
+    (tmp_path / "failed" / "laser_tracker" / layout.LOOP_CLOSURE).unlink()
+    stale = results_module.stale_reports(tmp_path, sensors)
+    assert sorted(p.relative_to(tmp_path).as_posix() for p in stale) == [
+        "failed/certificate.json",
+        "failed/certificate.md",
+        "report.html",
+    ]
+    files.write_json(tmp_path / "failed" / "laser_tracker" / layout.LOOP_CLOSURE, {})  # newer than the certificate
+    assert len(results_module.stale_reports(tmp_path, sensors)) == 3
