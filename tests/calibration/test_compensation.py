@@ -6,6 +6,7 @@ import os
 import re
 import shutil
 import time
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -279,6 +280,24 @@ def twin(model: str, tmp_path_factory):
         robot_from_truth(truth),
         sensor,
     )
+
+
+def test_a_declared_model_error_is_in_every_bound(tmp_path_factory):
+    """A loop that is not closed declares its residual per axis, d (`LoopReport.declared_model_error`),
+    and predict's bound at a command then holds a draw of N(0, d^2 I3) besides the posterior's
+    own spread: with d far above that spread, the bound is d times the 95th percentile of a chi
+    with 3 degrees of freedom, within the Monte Carlo error of a quantile of 4,000 draws; with
+    d = 0 it is the posterior's alone, far below."""
+    campaign, robot, _, _ = twin("loop", tmp_path_factory)
+    q = campaign.sensors["laser_tracker"].q("validation")[:20]
+    declared = 1.0 * MM
+    own = compensation.predict(replace(robot, declared=0.0), q, "robot", 4000, np.random.default_rng(1))
+    wide = compensation.predict(replace(robot, declared=declared), q, "robot", 4000, np.random.default_rng(1))
+    assert (own["bound95_mm"] < 0.1 * declared / MM).all()
+    chi = stats.chi(3)
+    expected = declared * chi.ppf(0.95) / MM
+    monte_carlo = declared / MM * np.sqrt(0.95 * 0.05 / 4000) / chi.pdf(chi.ppf(0.95))
+    np.testing.assert_allclose(wide["bound95_mm"], expected, atol=4 * monte_carlo + own["bound95_mm"].max())
 
 
 def closed_loop(frame: str, tmp_path_factory):

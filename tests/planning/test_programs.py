@@ -75,7 +75,7 @@ def test_a_known_configuration_is_printed_as_known_strings(ur5, iiwa):
     six = programs.configurations(table_of([0.0, np.pi / 2, -np.pi / 4, np.pi, 1.0, -0.5]), ur5, "p.csv", "u")
     ur = programs.program_text(six, "urscript", SETTINGS["urscript"]).splitlines()
     assert "  movej([0.000000, 1.570796, -0.785398, 3.141593, 1.000000, -0.500000], a=0.5, v=0.5)" in ur
-    assert "  sleep(2)" in ur and "def remaster_campaign():" in ur and ur[-1] == "end"
+    assert "  sleep(2)" in ur and ur[0] == "def remaster_campaign():" and ur[-1] == "end"  # def in column 1 of line 1
     assert ur.index("def remaster_campaign():") < ur.index("  # point 1: plan row 0 (optimization pose 0 solution 0)")
     krl = programs.program_text(six, "krl", programs.Settings(20, 30, 1.5, "cell3")).splitlines()
     assert "  PTP {A1 0.0000, A2 90.0000, A3 -45.0000, A4 180.0000, A5 57.2958, A6 -28.6479}" in krl

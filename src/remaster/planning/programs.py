@@ -212,7 +212,9 @@ def _check_settings(fmt: str, settings: Settings) -> None:
 
 
 def _urscript(c: Configurations, s: Settings, header: list[str]) -> list[str]:
-    lines = [f"# {h}" for h in header] + [f"def {s.name}():"]
+    # `def` in the first column of the first line: the controller's socket interfaces run a script
+    # as a program only then, so the header is the program's first comments
+    lines = [f"def {s.name}():"] + [f"  # {h}" for h in header]
     for point, i in enumerate(range(len(c.q)), start=1):
         joints = ", ".join(_number(v, RAD_DECIMALS) for v in c.q[i])
         lines += [
