@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import cli, files
+from remaster import DISTRIBUTION, cli, files
 from remaster.campaigns import folders
 from remaster.robot import kinematics
 
@@ -145,4 +145,31 @@ def test_version_prints_the_installed_version(capsys):
     with pytest.raises(SystemExit) as done:
         cli.main(["--version"])
     assert done.value.code == 0
-    assert capsys.readouterr().out.strip() == f"remaster {version('remaster')}"
+    assert capsys.readouterr().out.strip() == f"remaster {version(DISTRIBUTION)}"
+
+
+@pytest.mark.slow
+def test_a_wheel_installs_the_remaster_command_under_a_free_distribution_name(tmp_path):
+    """`pip wheel .` builds remaster-robot (the index's `remaster` is another project), whose entry
+    point is the `remaster` command and which carries the paper's published numbers."""
+    import subprocess
+    import sys
+    import zipfile
+
+    built = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path), "."],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert built.returncode == 0, built.stderr[-2000:]
+    (wheel,) = tmp_path.glob("*.whl")
+    assert wheel.name.startswith("remaster_robot-")
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+        info = next(n for n in names if n.endswith(".dist-info/METADATA"))
+        entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
+        assert "Name: remaster-robot" in archive.read(info).decode()
+        assert "remaster = remaster.cli:main" in archive.read(entry).decode()
+    assert "remaster/data/paper_values.csv" in names and "remaster/cli.py" in names

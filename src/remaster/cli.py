@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import DISTRIBUTION
 from .calibration import compensation
 from .campaigns import importer, scenario
 from .campaigns.campaign import check_folder_name
@@ -481,7 +482,7 @@ def _compensate_command(commands) -> None:
 
 def parser() -> argparse.ArgumentParser:
     main = argparse.ArgumentParser(prog="remaster", description=" ".join(__doc__.split("\n\n")[0].split()))
-    main.add_argument("--version", action="version", version=f"%(prog)s {version('remaster')}")
+    main.add_argument("--version", action="version", version=f"%(prog)s {version(DISTRIBUTION)}")
     commands = main.add_subparsers(dest="command", required=True)
     _simulate_command(commands)
     _plan_command(commands)
