@@ -62,3 +62,20 @@ def test_the_table_finds_repeated_configurations_by_their_readings_or_says_rp_is
     first_two = SimpleNamespace(table=readings.iloc[:2], joint_columns=("q1", "q2"))
     once = iso9283.iso9283_table({"laser_tracker": first_two}, {"laser_tracker": _errors(range(2), residuals)})
     assert once["RP mean (mm)"].isna().all() and once["note"].str.startswith("RP not available").all()
+
+
+def test_the_per_pose_report_gives_each_repeated_configuration_its_axes_and_rp():
+    readings = pd.DataFrame({"q1": [0.1, 0.2, 0.1, 0.3, 0.1], "q2": [0.5, 0.5, 0.5, 0.0, 0.5], "pose": [7, 8, 7, 9, 7]})
+    residuals = np.array([[1.0, 0, -1], [2, 0, 0], [1.2, 0.3, -1], [0, 3, 0], [0.8, -0.3, -1]])
+    sensor = SimpleNamespace(table=readings, joint_columns=("q1", "q2"))
+    table = iso9283.iso9283_poses_table({"laser_tracker": sensor}, {"laser_tracker": _errors(range(5), residuals)})
+    assert len(table) == 2 and list(table["Model"]) == ["controller's zero-offsets", "remastered zero-offsets"]
+    row = table.iloc[1]
+    assert (row["first row"], row["plan pose"], row["cycles"]) == (0, 7, 3)
+    np.testing.assert_allclose(row[["APx (mm)", "APy (mm)", "APz (mm)"]].to_numpy(float), [1.0, 0.0, -1.0], atol=1e-12)
+    assert np.isclose(row["AP (mm)"], np.sqrt(2.0))
+    deviations = np.linalg.norm(residuals[[0, 2, 4]] - [1.0, 0.0, -1.0], axis=1)
+    assert np.isclose(row["RP (mm)"], deviations.mean() + 3 * deviations.std(ddof=1))
+    once = SimpleNamespace(table=readings.iloc[:2], joint_columns=("q1", "q2"))
+    none = iso9283.iso9283_poses_table({"laser_tracker": once}, {"laser_tracker": _errors(range(2), residuals)})
+    assert len(none) == 2 and none["note"].str.startswith("no configuration is measured more than once").all()

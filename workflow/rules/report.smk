@@ -7,6 +7,7 @@ REPORT_TABLES = [
     "registration_params",
     *TABLE_NAMES,
     "iso9283",
+    "iso9283_poses",
     "sensor_comparison",
     "loop_closure",
     "loop_closure_test",

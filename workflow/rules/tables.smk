@@ -15,6 +15,7 @@ CAMPAIGN_TABLES = [
     *TABLE_NAMES,
     "sensor_comparison",
     "iso9283",
+    "iso9283_poses",
     "loop_closure",
     "loop_closure_test",
     "loop_candidates",

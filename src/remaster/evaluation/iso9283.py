@@ -34,8 +34,9 @@ MODELS = ((VERNIER_LEAST_SQUARES, "controller's zero-offsets"), ("Bayesian", "re
 
 
 def pose_characteristics(residuals, groups) -> pd.DataFrame:
-    """Per configuration group: cycles, AP (m) and RP (m; NaN with one cycle). residuals (n, 3) m
-    attained minus commanded; groups (n,) integer labels of the configuration each row commands."""
+    """Per configuration group: cycles, APx, APy, APz (m, the barycentre's offset from the command
+    per axis), AP (m) and RP (m; NaN with one cycle). residuals (n, 3) m attained minus commanded;
+    groups (n,) integer labels of the configuration each row commands."""
     residuals, groups = np.asarray(residuals, dtype=float), np.asarray(groups)
     rows = []
     for label in np.unique(groups):
@@ -43,30 +44,80 @@ def pose_characteristics(residuals, groups) -> pd.DataFrame:
         centre = e.mean(axis=0)
         spread = np.linalg.norm(e - centre, axis=1)
         rp = spread.mean() + 3.0 * spread.std(ddof=1) if len(e) > 1 else np.nan
-        rows.append({"group": label, "cycles": len(e), "AP": float(np.linalg.norm(centre)), "RP": float(rp)})
-    return pd.DataFrame(rows, columns=["group", "cycles", "AP", "RP"])
+        rows.append(
+            {
+                "group": label,
+                "cycles": len(e),
+                **{f"AP{axis}": float(c) for axis, c in zip("xyz", centre)},
+                "AP": float(np.linalg.norm(centre)),
+                "RP": float(rp),
+            }
+        )
+    return pd.DataFrame(rows, columns=["group", "cycles", "APx", "APy", "APz", "AP", "RP"])
+
+
+def _validation_poses(data: SensorData, frame: pd.DataFrame, method: str) -> tuple[pd.DataFrame, np.ndarray]:
+    """(`pose_characteristics` of one model's validation rows, each row's configuration group)."""
+    group, _ = configuration_groups(data.table[list(data.joint_columns)].to_numpy(float))
+    part = frame[
+        (frame["set"] == "validation") & (frame["method"] == method) & (frame["registration"] == REGISTRATION_AS_FITTED)
+    ]
+    rows = part["row"].to_numpy(int)
+    residuals = part[["residual_x_mm", "residual_y_mm", "residual_z_mm"]].to_numpy(float) * MM
+    poses = pose_characteristics(residuals, group[rows])
+    first = {g: int(rows[np.flatnonzero(group[rows] == g)[0]]) for g in poses["group"]}
+    return poses.assign(first_row=[first[g] for g in poses["group"]]), group
+
+
+def iso9283_poses_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """ISO 9283's per-pose report: per sensor, model and configuration of the validation set measured
+    more than once (ISO's poses P1-P5, each over its cycles), cycles, APx, APy, APz, AP and RP (mm),
+    with the configuration's first table row and plan pose; one row saying so per sensor and model
+    when no configuration repeats. Arguments as `iso9283_table`'s."""
+    out = []
+    for sensor, data in sensors.items():
+        for method, label in MODELS:
+            poses, _ = _validation_poses(data, errors[sensor], method)
+            repeated = poses[poses["cycles"] > 1]
+            if repeated.empty:
+                out.append(
+                    {
+                        "Sensor": sensor_label(sensor),
+                        "Model": label,
+                        "note": "no configuration is measured more than once: ISO 9283 asks for 30 cycles to each pose",
+                    }
+                )
+            for _, pose in repeated.iterrows():
+                row = int(pose["first_row"])
+                out.append(
+                    {
+                        "Sensor": sensor_label(sensor),
+                        "Model": label,
+                        "first row": row,
+                        "plan pose": int(data.table["pose"].iloc[row]) if "pose" in data.table else np.nan,
+                        "cycles": int(pose["cycles"]),
+                        **{f"AP{a} (mm)": pose[f"AP{a}"] / MM for a in ("x", "y", "z", "")},
+                        "RP (mm)": pose["RP"] / MM,
+                        "note": "",
+                    }
+                )
+    columns = ["Sensor", "Model", "first row", "plan pose", "cycles"]
+    columns += [f"AP{a} (mm)" for a in ("x", "y", "z", "")] + ["RP (mm)", "note"]
+    return pd.DataFrame(out, columns=columns)
 
 
 def iso9283_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Per sensor and model (controller's and remastered zero-offsets): AP and RP (mm) over the
-    validation set's configurations with the optimization set's registration, the mean and the
-    worst over configurations, and what the design cannot give.
+    validation set's configurations with the optimization set's registration, pooled: the mean and
+    the worst over configurations (the per-pose report is `iso9283_poses_table`), and what the
+    design cannot give.
 
     sensors: name -> the campaign's sensor data (its table's rows are the errors' rows); errors:
     name -> `metrics/configuration_errors.csv` (row, set, registration, method, residual_{x,y,z}_mm)."""
     out = []
     for sensor, data in sensors.items():
-        group, _ = configuration_groups(data.table[list(data.joint_columns)].to_numpy(float))
-        frame = errors[sensor]
         for method, label in MODELS:
-            part = frame[
-                (frame["set"] == "validation")
-                & (frame["method"] == method)
-                & (frame["registration"] == REGISTRATION_AS_FITTED)
-            ]
-            rows = part["row"].to_numpy(int)
-            residuals = part[["residual_x_mm", "residual_y_mm", "residual_z_mm"]].to_numpy(float) * MM
-            poses = pose_characteristics(residuals, group[rows])
+            poses, _ = _validation_poses(data, errors[sensor], method)
             repeated = poses[poses["cycles"] > 1]
             note = (
                 f"RP from {len(repeated)} configurations measured {int(repeated['cycles'].min())} to "

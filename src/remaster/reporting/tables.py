@@ -33,6 +33,11 @@ CAPTIONS = {
     "the post-registration error) and position repeatability RP = l-bar + 3 S_l where a configuration "
     f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
     f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
+    "iso9283_poses": "ISO 9283 per pose, as the standard reports it: each configuration of the validation set "
+    "measured more than once (the standard's poses P1-P5, each over 30 cycles), its cycles, the offset of their "
+    "barycentre from the command per axis (APx, APy, APz) and in all (AP), and its repeatability RP = l-bar + "
+    "3 S_l; registration from the optimization set. The pooled numbers over every configuration are the "
+    "ISO 9283 table's.",
     "certificate_verdict": "Verdict per sensor: mean post-registration error on the validation set before (the "
     "controller's zero-offsets) and after (the loop-closed model, its effects chosen on the "
     "optimization set; never picked by these validation numbers), its 95th percentile, what the "
