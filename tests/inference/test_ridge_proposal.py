@@ -56,7 +56,7 @@ def test_the_bent_direction_is_found_and_the_straight_ones_left_gaussian():
     proposal = samplers.RidgeProposal.fit(TARGET, MODE, LAPLACE, dof=16.0, inflation=1.1)
     assert proposal is not None
     bent = proposal.report(NAMES)
-    assert len(bent) == 1 and abs(bent[0]["y1"]) == pytest.approx(1.0)
+    assert len(bent) == 1 and bent[0][0][0] == "y1" and abs(bent[0][0][1]) == pytest.approx(1.0)
     # the valley's floor is the twist: y2 = B (y1^2 - S^2), y1 the bent coordinate in y's units
     k = proposal.bent[0]
     y1 = proposal.basis[0, k] * proposal.knots[0]

@@ -728,13 +728,14 @@ class RidgeProposal:
             math.log(DEFENSIVE_SHARE) + self.fallback.log_density(x),
         )
 
-    def report(self, names: Sequence[str]) -> list[dict[str, float]]:
-        """Per bent direction, its main parts {parameter name: weight} (unit eigenvector)."""
+    def report(self, names: Sequence[str]) -> list[list[tuple[str, float]]]:
+        """Per bent direction, its four main parts (parameter name, weight in the unit eigenvector),
+        largest first (a list: a JSON object's keys are written sorted)."""
         out = []
         for k in self.bent:
             direction = self.basis[:, k] / np.linalg.norm(self.basis[:, k])
-            main = np.argsort(-np.abs(direction))[:4]
-            out.append({names[i]: round(float(direction[i]), 3) for i in main})
+            main = np.argsort(-np.abs(direction), kind="stable")[:4]
+            out.append([(names[i], round(float(direction[i]), 3)) for i in main])
         return out
 
 
