@@ -338,3 +338,22 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
             False,
             samplers._Progress(None, 10),
         )
+
+
+def test_points_no_frame_fits_are_named_by_the_sensor_file_and_rows(iiwa):
+    """A sensor table built in code (the reader refuses measured points on one line, a program need
+    not): the registration's refusal names the campaign's sensor file, the reason and the rows."""
+    from types import SimpleNamespace
+
+    from remaster.campaigns.campaign import SensorData
+
+    rng = np.random.default_rng(3)
+    table = pd.DataFrame({"set": ["optimization"] * 6, "pose": np.arange(6), "solution": np.zeros(6, int)})
+    for j, column in enumerate(rng.uniform(-1.0, 1.0, (7, 6))):
+        table[f"q{j + 1}"] = column
+    table["x"], table["y"], table["z"] = np.linspace(0.5, 1.0, 6), 0.2, 0.3  # on one line
+    sensor = SensorData("laser_tracker", "laser_tracker", np.array([0.0, 0.0, 0.05]), 3e-5, table)
+    campaign = SimpleNamespace(name="lined", chain=iiwa, sensors={"laser_tracker": sensor})
+    with pytest.raises(InputError, match=r"^lined/laser_tracker.parquet: the optimization set cannot register") as info:
+        fit.registration_stage(campaign, "laser_tracker")
+    assert "every measured point lies on one line" in str(info.value) and "rows 0, 1, 2, 3, 4, 5" in str(info.value)

@@ -26,7 +26,7 @@ import pandas as pd
 
 from .. import diagnostics, spatial
 from ..campaigns.campaign import Campaign, SensorData
-from ..errors import report_reader
+from ..errors import InputError, report_reader
 from ..files import read_json
 from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
@@ -711,8 +711,18 @@ def remastering(summary: pd.DataFrame, joint_names, campaign: str, sensor: str) 
 
 
 def registration_stage(campaign: Campaign, sensor: str) -> Registration:
-    """The initial registration of one sensor (`report()` is what registration.json holds)."""
-    return register(campaign.chain, campaign.sensors[sensor])
+    """The initial registration of one sensor (`report()` is what registration.json holds). A set of
+    points no frame can be fitted to (in the robot's model or as measured: on one line) is an
+    InputError naming the campaign's sensor file and its optimization rows."""
+    data = campaign.sensors[sensor]
+    try:
+        return register(campaign.chain, data)
+    except InputError as error:
+        raise InputError(
+            f"the optimization set cannot register the sensor: {error.key or 'points'}: {error.reason}",
+            file=f"{campaign.name}/{sensor}.parquet",
+            rows=data.measured_rows("optimization"),
+        ) from None
 
 
 def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=()):
