@@ -173,3 +173,22 @@ def test_a_wheel_installs_the_remaster_command_under_a_free_distribution_name(tm
         assert "Name: remaster-robot" in archive.read(info).decode()
         assert "remaster = remaster.cli:main" in archive.read(entry).decode()
     assert "remaster/data/paper_values.csv" in names and "remaster/cli.py" in names
+
+
+def test_long_commands_tell_a_terminal_what_they_do_and_nothing_else(monkeypatch):
+    """On a terminal, progress goes to standard error at most every PROGRESS_EVERY seconds; to a
+    pipe or a log, nothing (the callback is None)."""
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal = Terminal()
+    monkeypatch.setattr(cli.sys, "stderr", terminal)
+    tell = cli._progress("compensate")
+    tell("40 targets: inverse kinematics on the nominal model")
+    tell("38 commands: inverse kinematics on the calibrated model")  # within PROGRESS_EVERY: not shown
+    assert terminal.getvalue() == "remaster compensate: 40 targets: inverse kinematics on the nominal model\n"
+    monkeypatch.setattr(cli.sys, "stderr", io.StringIO())
+    assert cli._progress("compensate") is None

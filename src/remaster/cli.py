@@ -10,7 +10,9 @@ reached (each such row says why).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+import time
 from dataclasses import fields
 from importlib.metadata import version
 from pathlib import Path
@@ -31,6 +33,26 @@ from .robot import priors
 
 DEFAULT_SCENARIOS = Path("data") / "simulation"
 NOT_REACHED_STATUS = 3
+
+
+PROGRESS_EVERY = 2.0  # s: on a terminal, a long command says what it is doing at most this often
+
+
+def _progress(command: str):
+    """A progress callback that prints `remaster <command>: <text>` to a terminal's standard error,
+    at most every PROGRESS_EVERY seconds (the first at once); None when standard error is not a
+    terminal, so that logs and pipes get only the results and the errors."""
+    if not sys.stderr.isatty():
+        return None
+    last = [-math.inf]
+
+    def tell(text: str) -> None:
+        now = time.monotonic()
+        if now - last[0] >= PROGRESS_EVERY:
+            last[0] = now
+            print(f"remaster {command}: {text}", file=sys.stderr, flush=True)
+
+    return tell
 
 
 def _simulate(args: argparse.Namespace) -> None:
@@ -120,7 +142,7 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
         chain = _plan_chain(args)
         start = plan.nominal_start(chain, _sensor_origin(args, chain), options, _design_priors(args))
     table = None if options.candidate_count() is not None else read_csv(args.candidates)
-    planned = plan.workspace_plan(start, options, rng, table, str(args.candidates))
+    planned = plan.workspace_plan(start, options, rng, table, str(args.candidates), _progress("plan"))
     for note in planned.notes:
         print(note)
     out = Path(args.out)
@@ -208,9 +230,10 @@ def _compensate(args: argparse.Namespace) -> int:
             targets=targets,
             seeds=q,
             candidates=campaign.sensors[args.sensor].q("optimization"),
+            progress=_progress("compensate"),
         )
     else:
-        out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)
+        out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q, progress=_progress("compensate"))
     write_csv(args.out, out)
     reached = out["status"] == compensation.REACHED
     print(

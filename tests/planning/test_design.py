@@ -71,9 +71,11 @@ def test_candidate_scores_equal_the_objective_after_a_direct_inverse():
 
 def test_the_greedy_bound_never_rises_and_stops_at_its_target(iiwa):
     _, model, _, candidates, evaluation = iiwa
-    greedy = design.greedy_design(candidates, evaluation, model.prior_information(), budget=25)
+    told = []
+    greedy = design.greedy_design(candidates, evaluation, model.prior_information(), budget=25, progress=told.append)
     p95 = greedy.bounds["bound_p95_mm"].to_numpy()
     assert len(greedy.chosen) == 25 and len(set(greedy.chosen)) == 25
+    assert len(told) == 25 and told[-1] == f"25 of at most 25 configurations chosen, p95 bound {p95[-1]:.4g} mm"
     assert np.all(np.diff(p95) <= 1e-12 * p95[:-1])
     assert np.all(np.diff(greedy.bounds["log_det_information"]) > 0)
     # a target between two rows of the budget run stops at the first row at or below it (same steps)

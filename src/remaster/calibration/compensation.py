@@ -511,12 +511,14 @@ def compensate(
     targets=None,
     seeds=None,
     candidates=None,
+    progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Compensated joint commands (see the module docstring), from nominal `commands` (n, N) rad or
     from `targets` (n, 3) m in `frame` with optional `seeds` (n, N) rad, else the nearest of
     `candidates` (m, N) rad (the campaign's optimization configurations). One row per input row:
     status, reason, target_x..z (m, frame), q1..qN, nominal_q1..qN (rad), largest_change_deg,
-    error_mm, bound95_mm, bound95_with_noise_mm, nominal_error_mm."""
+    error_mm, bound95_mm, bound95_with_noise_mm, nominal_error_mm. progress is told each stage."""
+    tell = progress or (lambda _: None)
     chain, point = robot.chain, robot.point
     nominal = _nominal_evaluate(chain, point)
     reasons: dict[int, str] = {}  # rows not reached
@@ -528,6 +530,7 @@ def compensate(
         t = np.atleast_2d(np.asarray(targets, dtype=float))
         t_nominal = t if frame == "robot" else spatial.transform_points(spatial.invert(robot.t_nr), t)
         start = np.asarray(seeds, dtype=float) if seeds is not None else _seeds(t_nominal, candidates, chain, point)
+        tell(f"{len(t)} targets: inverse kinematics on the nominal model")
         found = nearest_solution(lambda q: (nominal(q)[0], None), t_nominal, start)
         reasons.update(_why_not(found, range(len(t)), chain, "nominal model"))
         q0 = found.q
@@ -543,6 +546,7 @@ def compensate(
         t_robot = robot.from_sensor(t_frame)
         r_robot = np.einsum("ji,jk,nkl->nil", transform[:3, :3], robot.t_nr[:3, :3], r0)
     ok = np.array([i not in reasons for i in range(n)])
+    tell(f"{int(ok.sum())} commands: inverse kinematics on the calibrated model")
     solution = nearest_solution(_calibrated_evaluate(robot), t_robot[ok], q0[ok], r_robot[ok])
     rows = np.flatnonzero(ok)
     reasons.update(
@@ -572,6 +576,7 @@ def compensate(
         at = np.flatnonzero(reached)
         table.loc[at, "largest_change_deg"] = np.degrees(np.abs(q[at] - q0[at]).max(axis=1))
         points = robot.in_frame(robot.robot_points(q[at]), frame)
+        tell(f"{len(at)} commands reached: bounds from {count} posterior draws")
         draws, noisy = robot.draw_points(q[at], frame, count, rng)
         target = t_frame[at]
         table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM

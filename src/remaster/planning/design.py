@@ -23,6 +23,7 @@ configurations`, a seeded Generator), as the certificate's workspace claims are 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,11 +129,12 @@ def greedy_design(
     target: float | None = None,
     criterion: str = "workspace",
     statistic: str = "p95",
+    progress: Callable[[str], None] | None = None,
 ) -> Design:
     """Choose candidates greedily (module docstring). candidate_jacobian (C, 3, P) whitened;
     eval_jacobian (E, 3, P) m per display unit; prior_information (P, P) the starting information;
     budget: most configurations (default: every candidate); target (m): stop once the objective
-    (the statistic of the workspace bounds) is at or below it."""
+    (the statistic of the workspace bounds) is at or below it; progress: told after each choice."""
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
     if statistic not in STATISTICS:
@@ -166,6 +168,8 @@ def greedy_design(
         information = information + dp.information(candidate_jacobian[best][None])
         p95, mean, logdet, sigma_matrix = _summary(information, eval_jacobian)
         rows.append((len(chosen), p95 / MM, mean / MM, logdet))
+        if progress is not None:
+            progress(f"{len(chosen)} of at most {limit} configurations chosen, p95 bound {p95 / MM:.4g} mm")
         if reached():
             stopped = "target"
     if not reached() and len(chosen) == len(candidate_jacobian) and (budget is None or budget > len(chosen)):

@@ -49,6 +49,7 @@ SI inside (m, rad); the parameters in the error model's display units (`design_p
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -192,6 +193,7 @@ def robust_design(
     target: float | None = None,
     measured_jacobian=None,
     q_measured=None,
+    progress: Callable[[str], None] | None = None,
 ):
     """Choose candidates greedily by the expected squared error across the workspace with the
     discrepancy (module docstring). candidate_jacobian (C, 3, P) whitened at q_candidates (C, N) rad;
@@ -268,6 +270,8 @@ def robust_design(
         state.h = state.h + jb.T @ h_all[best]
         state.u = state.u + (discrepancy.kernel(q_candidates, q_candidates[best])[:, 0] / sigma**2)[:, None, None] * jb
         record()
+        if progress is not None:
+            progress(f"{len(chosen)} of at most {limit} configurations chosen, expected RMS {expected[-1]:.4g} mm")
         if reached():
             stopped = "target"
     if not reached() and len(chosen) == len(jc_all) and (budget is None or budget > len(chosen)):
