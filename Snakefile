@@ -15,13 +15,13 @@ include: "workflow/rules/report.smk"
 
 
 # one writer per results folder: Snakemake locks the folder it runs in, not results_dir, which two
-# checkouts may share (`remaster.writer_lock`; a killed run's lock is taken over)
+# checkouts may share (`remaster.results.take_lock`; a killed run's lock is taken over)
 onstart:
-    writer_lock.take(RESULTS)
+    results.take_lock(RESULTS)
 
 
 onsuccess:
-    writer_lock.release(RESULTS)
+    results.release_lock(RESULTS)
 
 
 onerror:
@@ -30,7 +30,7 @@ onerror:
     for stale in results.stale_reports(RESULTS, {c: sensors_of(c) for c in CAMPAIGNS}):
         stale.unlink()
         print(f"removed {stale}: a result it was made from failed in this run")
-    writer_lock.release(RESULTS)
+    results.release_lock(RESULTS)
 
 
 rule all:

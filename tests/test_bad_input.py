@@ -15,7 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files, writer_lock
+from remaster import files
+from remaster import results as results_module
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
 from remaster.errors import InputError, KinematicsError, require_columns
@@ -614,12 +615,12 @@ def test_a_results_folder_another_run_is_writing_is_refused(tmp_path, tiny):
     its holder, and writes nothing; once the holder is gone its lock is taken over."""
     holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
     try:
-        writer_lock.take(tmp_path / "results", pid=holder.pid)
+        results_module.take_lock(tmp_path / "results", pid=holder.pid)
         result, results = real_run(tmp_path, tiny / "raw")
         assert_refused(
-            result, writer_lock.LOCK_FILE, "another run is writing this results folder", f"process {holder.pid}"
+            result, results_module.LOCK_FILE, "another run is writing this results folder", f"process {holder.pid}"
         )
-        assert sorted(p.name for p in results.iterdir()) == [writer_lock.LOCK_FILE]
+        assert sorted(p.name for p in results.iterdir()) == [results_module.LOCK_FILE]
     finally:
         holder.kill()
         holder.wait()

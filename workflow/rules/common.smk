@@ -7,7 +7,7 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
-from remaster import files, layout, results, writer_lock
+from remaster import files, layout, results
 from remaster.campaigns import folders
 from remaster.campaigns.robot_model import robot_section
 

@@ -501,6 +501,44 @@ def _seeds(targets_nominal, candidates, chain: KinematicChain, point) -> np.ndar
     return candidates[np.concatenate(nearest)] if nearest else candidates[:0]
 
 
+def _compensated_table(chain, q, q0, t_frame, reached, no_nominal, reasons) -> pd.DataFrame:
+    """`compensate`'s table before its errors and bounds: row, status, reason, targets, commands."""
+    n = len(q0)
+    table = pd.DataFrame(
+        {
+            "row": np.arange(n),
+            "status": np.where(reached, REACHED, NOT_REACHED),
+            "reason": [reasons.get(i, "") for i in range(n)],
+        }
+    )
+    for k, axis in enumerate("xyz"):
+        table[f"target_{axis}"] = t_frame[:, k]
+    for j in range(chain.n_joints):
+        table[f"q{j + 1}"] = np.where(reached, q[:, j], np.nan)
+    for j in range(chain.n_joints):
+        table[f"nominal_q{j + 1}"] = np.where(no_nominal, np.nan, q0[:, j])
+    table["largest_change_deg"] = np.nan
+    for column in ("error_mm", "bound95_mm", "bound95_with_noise_mm", "nominal_error_mm"):
+        table[column] = np.nan
+    return table
+
+
+def _fill_errors(table: pd.DataFrame, robot: CalibratedRobot, frame: str, commands, at, drawing) -> None:
+    """The errors and 95 % bounds of the reached rows `at` of `compensate`'s table: commands are
+    (q, nominal q0, targets) at those rows; drawing is (posterior draws, rng)."""
+    q, q0, target = commands
+    count, rng = drawing
+    table.loc[at, "largest_change_deg"] = np.degrees(np.abs(q - q0).max(axis=1))
+    points = robot.in_frame(robot.robot_points(q), frame)
+    draws, noisy = robot.draw_points(q, frame, count, rng)
+    table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM
+    table.loc[at, "bound95_mm"] = _bounds_mm(draws, target)
+    table.loc[at, "bound95_with_noise_mm"] = _bounds_mm(noisy, target)
+    table.loc[at, "nominal_error_mm"] = (
+        np.linalg.norm(robot.in_frame(robot.robot_points(q0), frame) - target, axis=1) / MM
+    )
+
+
 def compensate(
     robot: CalibratedRobot,
     frame: str,
@@ -556,35 +594,11 @@ def compensate(
     q[rows] = solution.q
     reached = np.array([i not in reasons for i in range(n)])
 
-    table = pd.DataFrame(
-        {
-            "row": np.arange(n),
-            "status": np.where(reached, REACHED, NOT_REACHED),
-            "reason": [reasons.get(i, "") for i in range(n)],
-        }
-    )
-    for k, axis in enumerate("xyz"):
-        table[f"target_{axis}"] = t_frame[:, k]
-    for j in range(chain.n_joints):
-        table[f"q{j + 1}"] = np.where(reached, q[:, j], np.nan)
-    for j in range(chain.n_joints):
-        table[f"nominal_q{j + 1}"] = np.where(no_nominal, np.nan, q0[:, j])
-    table["largest_change_deg"] = np.nan
-    for column in ("error_mm", "bound95_mm", "bound95_with_noise_mm", "nominal_error_mm"):
-        table[column] = np.nan
+    table = _compensated_table(chain, q, q0, t_frame, reached, no_nominal, reasons)
     if reached.any():
         at = np.flatnonzero(reached)
-        table.loc[at, "largest_change_deg"] = np.degrees(np.abs(q[at] - q0[at]).max(axis=1))
-        points = robot.in_frame(robot.robot_points(q[at]), frame)
         tell(f"{len(at)} commands reached: bounds from {count} posterior draws")
-        draws, noisy = robot.draw_points(q[at], frame, count, rng)
-        target = t_frame[at]
-        table.loc[at, "error_mm"] = np.linalg.norm(points - target, axis=1) / MM
-        table.loc[at, "bound95_mm"] = _bounds_mm(draws, target)
-        table.loc[at, "bound95_with_noise_mm"] = _bounds_mm(noisy, target)
-        table.loc[at, "nominal_error_mm"] = (
-            np.linalg.norm(robot.in_frame(robot.robot_points(q0[at]), frame) - target, axis=1) / MM
-        )
+        _fill_errors(table, robot, frame, (q[at], q0[at], t_frame[at]), at, (count, rng))
     return with_nearness(table, robot.near, q)  # a target not reached: no distance, not near
 
 

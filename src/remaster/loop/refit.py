@@ -48,6 +48,41 @@ def _attempt(sampler: str, run: dict, report: dict, done: bool) -> dict:
     }
 
 
+def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.random.Generator):
+    """emcee on the joint posterior (sigma included) in the refit's folded coordinates, from the
+    mode's Laplace ball (`refit`'s fallback): (chains in the model's parameters, diagnostics,
+    converged, the attempt's record)."""
+    started = time.perf_counter()
+    joint = fit.PosteriorTarget(mode.model)
+    centre, spread = np.append(mode.theta, mode.sigma), np.sqrt(np.diag(mode.covariance))
+    back = None
+    if folds is not None:
+        back = gauge.Gauge(folds.folds, joint.names)
+        centre, folded_covariance = back.laplace(centre, mode.covariance, joint.scale)
+        joint, spread = gauge.FoldedTarget(joint, back), np.sqrt(np.diag(folded_covariance))
+    walkers = max(MIN_WALKERS, 2 * len(centre) + 2)
+    # the ensemble starts in the Laplace ball and must first spread along the ridges: a burn-in
+    # as long as the first run's samples (with the first run's 500 steps it was still drifting
+    # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
+    steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
+    ensemble = samplers.run_emcee(
+        joint,
+        rng,
+        centre,
+        spread,
+        n_walkers=walkers,
+        n_steps=steps,
+        burn_in=burn_in,
+        enough=fit.converged_ensemble(joint.names, criteria),
+        max_doublings=int(criteria["max_doublings"]),
+    )
+    chains = [ensemble if back is None else back.back(ensemble)]
+    report, done = _diagnosed(chains, started, criteria)
+    kept = (steps - burn_in) * 2 ** ensemble.settings["doublings"]
+    attempt = _attempt("emcee", {"samples": burn_in + kept, "burn_in": burn_in, "walkers": walkers}, report, done)
+    return chains, report, done, attempt
+
+
 def refit(
     mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
 ) -> tuple[list[samplers.Chain], dict]:
@@ -100,36 +135,8 @@ def refit(
     if not done:
         # the proposal is too far from the posterior for an independence sampler: an ensemble
         # follows the posterior's shape, from the same mode, run on until the criteria hold
-        started = time.perf_counter()
-        joint = fit.PosteriorTarget(mode.model)
-        centre, spread = np.append(mode.theta, mode.sigma), np.sqrt(np.diag(mode.covariance))
-        back = None
-        if folds is not None:
-            back = gauge.Gauge(folds.folds, joint.names)
-            centre, folded_covariance = back.laplace(centre, mode.covariance, joint.scale)
-            joint, spread = gauge.FoldedTarget(joint, back), np.sqrt(np.diag(folded_covariance))
-        walkers = max(MIN_WALKERS, 2 * len(centre) + 2)
-        # the ensemble starts in the Laplace ball and must first spread along the ridges: a burn-in
-        # as long as the first run's samples (with the first run's 500 steps it was still drifting
-        # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
-        steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
-        ensemble = samplers.run_emcee(
-            joint,
-            rng,
-            centre,
-            spread,
-            n_walkers=walkers,
-            n_steps=steps,
-            burn_in=burn_in,
-            enough=fit.converged_ensemble(joint.names, criteria),
-            max_doublings=int(criteria["max_doublings"]),
-        )
-        chains = [ensemble if back is None else back.back(ensemble)]
-        report, done = _diagnosed(chains, started, criteria)
-        kept = (steps - burn_in) * 2 ** ensemble.settings["doublings"]
-        attempts.append(
-            _attempt("emcee", {"samples": burn_in + kept, "burn_in": burn_in, "walkers": walkers}, report, done)
-        )
+        chains, report, done, attempt = _ensemble(mode, folds, run, criteria, rng)
+        attempts.append(attempt)
     return chains, {
         **report,
         "converged": done,

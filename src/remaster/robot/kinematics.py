@@ -282,6 +282,19 @@ def _joint_limits(joint: ET.Element, kind: str, where: str, source: str) -> tupl
     return lo, hi
 
 
+def _refuse_mimic(joint: ET.Element, base: str, flange: str, source: str) -> None:
+    """A movable joint of the chain that mimics another (<mimic>) is refused: its angle is another
+    joint's times a ratio, so the zero-offset fit cannot give it an offset of its own."""
+    mimic = joint.find("mimic")
+    if mimic is not None:
+        raise KinematicsError(
+            f"mimics joint {mimic.get('joint')!r} (<mimic>): a joint of the chain from {base!r} to "
+            f"{flange!r} must move on its own; refused (a mimic joint off the chain, e.g. a gripper's, is ignored)",
+            file=source,
+            key=f"joint {joint.get('name')}",
+        )
+
+
 def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source: str) -> KinematicChain:
     root, links, parent_of = _urdf_tree(xml_text, source)
     base, flange = _chain_ends(links, parent_of, base, flange, source)
@@ -326,16 +339,7 @@ def _chain_from_urdf(xml_text: str, base: str | None, flange: str | None, source
             raise KinematicsError(
                 f"joint type {kind!r} is not supported (revolute, continuous and fixed are)", file=source, key=where
             )
-        mimic = joint.find("mimic")
-        if mimic is not None:
-            # its angle is another joint's times a ratio: the readings would hold it, and the
-            # zero-offset fit would give it an offset of its own, which a mimic joint cannot have
-            raise KinematicsError(
-                f"mimics joint {mimic.get('joint')!r} (<mimic>): a joint of the chain from {base!r} to "
-                f"{flange!r} must move on its own; refused (a mimic joint off the chain, e.g. a gripper's, is ignored)",
-                file=source,
-                key=where,
-            )
+        _refuse_mimic(joint, base, flange, source)
         if names:
             inertias.append(body_inertia)
         axis = _joint_axis(joint, where, source)
