@@ -152,13 +152,18 @@ def test_version_prints_the_installed_version(capsys):
 def test_a_wheel_installs_the_remaster_command_under_a_free_distribution_name(tmp_path):
     """`pip wheel .` builds remaster-robot (the index's `remaster` is another project), whose entry
     point is the `remaster` command and which carries the paper's published numbers."""
+    import shutil
     import subprocess
     import sys
     import zipfile
 
+    source = tmp_path / "source"  # a copy: the build leaves its build/ folder there, not in the checkout
+    shutil.copytree(REPO / "src", source / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, source / name)
     built = subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path), "."],
-        cwd=REPO,
+        cwd=source,
         capture_output=True,
         text=True,
         timeout=600,
@@ -176,19 +181,29 @@ def test_a_wheel_installs_the_remaster_command_under_a_free_distribution_name(tm
 
 
 def test_long_commands_tell_a_terminal_what_they_do_and_nothing_else(monkeypatch):
-    """On a terminal, progress goes to standard error at most every PROGRESS_EVERY seconds; to a
-    pipe or a log, nothing (the callback is None)."""
+    """While a command runs on a terminal, what the library logs goes to standard error at most every
+    PROGRESS_EVERY seconds (warnings always); piped or logged, nothing; the handler goes with the command."""
     import io
+    import logging
 
     class Terminal(io.StringIO):
         def isatty(self):
             return True
 
+    library = logging.getLogger("remaster.calibration.compensation")
     terminal = Terminal()
     monkeypatch.setattr(cli.sys, "stderr", terminal)
-    tell = cli._progress("compensate")
-    tell("40 targets: inverse kinematics on the nominal model")
-    tell("38 commands: inverse kinematics on the calibrated model")  # within PROGRESS_EVERY: not shown
-    assert terminal.getvalue() == "remaster compensate: 40 targets: inverse kinematics on the nominal model\n"
-    monkeypatch.setattr(cli.sys, "stderr", io.StringIO())
-    assert cli._progress("compensate") is None
+    with cli._progress("compensate"):
+        library.info("%d targets: inverse kinematics on the nominal model", 40)
+        library.info("%d commands: inverse kinematics on the calibrated model", 38)  # within PROGRESS_EVERY
+        library.warning("a warning is always shown")
+    library.info("after the command: not shown")
+    assert terminal.getvalue().splitlines() == [
+        "remaster compensate: 40 targets: inverse kinematics on the nominal model",
+        "remaster compensate: a warning is always shown",
+    ]
+    piped = io.StringIO()
+    monkeypatch.setattr(cli.sys, "stderr", piped)
+    with cli._progress("compensate"):
+        library.info("not shown")
+    assert piped.getvalue() == ""

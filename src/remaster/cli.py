@@ -10,6 +10,8 @@ reached (each such row says why).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import math
 import sys
 import time
@@ -38,21 +40,37 @@ NOT_REACHED_STATUS = 3
 PROGRESS_EVERY = 2.0  # s: on a terminal, a long command says what it is doing at most this often
 
 
-def _progress(command: str):
-    """A progress callback that prints `remaster <command>: <text>` to a terminal's standard error,
-    at most every PROGRESS_EVERY seconds (the first at once); None when standard error is not a
-    terminal, so that logs and pipes get only the results and the errors."""
-    if not sys.stderr.isatty():
-        return None
-    last = [-math.inf]
+class _Progress(logging.Handler):
+    """What the library logs (INFO and above), as `remaster <command>: <message>` on a terminal's
+    standard error, at most every PROGRESS_EVERY seconds (the first at once; warnings always)."""
 
-    def tell(text: str) -> None:
+    def __init__(self, command: str):
+        super().__init__(logging.INFO)
+        self.command, self.last = command, -math.inf
+
+    def emit(self, record: logging.LogRecord) -> None:
         now = time.monotonic()
-        if now - last[0] >= PROGRESS_EVERY:
-            last[0] = now
-            print(f"remaster {command}: {text}", file=sys.stderr, flush=True)
+        if record.levelno > logging.INFO or now - self.last >= PROGRESS_EVERY:
+            self.last = now
+            print(f"remaster {self.command}: {record.getMessage()}", file=sys.stderr, flush=True)
 
-    return tell
+
+@contextlib.contextmanager
+def _progress(command: str):
+    """While a command runs, its progress on standard error when that is a terminal; nothing
+    when it is piped or logged, which then get only the results and the errors."""
+    if not sys.stderr.isatty():
+        yield
+        return
+    logger, handler = logging.getLogger("remaster"), _Progress(command)
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _simulate(args: argparse.Namespace) -> None:
@@ -142,7 +160,7 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
         chain = _plan_chain(args)
         start = plan.nominal_start(chain, _sensor_origin(args, chain), options, _design_priors(args))
     table = None if options.candidate_count() is not None else read_csv(args.candidates)
-    planned = plan.workspace_plan(start, options, rng, table, str(args.candidates), _progress("plan"))
+    planned = plan.workspace_plan(start, options, rng, table, str(args.candidates))
     for note in planned.notes:
         print(note)
     out = Path(args.out)
@@ -230,10 +248,9 @@ def _compensate(args: argparse.Namespace) -> int:
             targets=targets,
             seeds=q,
             candidates=campaign.sensors[args.sensor].q("optimization"),
-            progress=_progress("compensate"),
         )
     else:
-        out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q, progress=_progress("compensate"))
+        out = compensation.compensate(robot, args.frame, args.draws, rng, commands=q)
     write_csv(args.out, out)
     reached = out["status"] == compensation.REACHED
     print(
@@ -535,7 +552,8 @@ def main(argv: list[str] | None = None) -> int:
         parser().error("--poses needs --configurations")
     try:
         _refuse_directories(args)
-        status = args.run(args)
+        with _progress(args.command):
+            status = args.run(args)
     except RemasterError as exc:
         print(f"remaster {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -49,6 +49,7 @@ SI inside (m, rad); columns ending _mm or _deg are in those units.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -83,6 +84,8 @@ MAX_STEP = 0.5  # rad: a longer Gauss-Newton step is shortened to this (far from
 DIFFERENCE_STEP = 1e-7  # rad
 SINGULAR = 1e-9  # smallest over largest singular value of the Jacobian: singular below
 REACHED, NOT_REACHED = "reached", "not reached"
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -549,14 +552,12 @@ def compensate(
     targets=None,
     seeds=None,
     candidates=None,
-    progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Compensated joint commands (see the module docstring), from nominal `commands` (n, N) rad or
     from `targets` (n, 3) m in `frame` with optional `seeds` (n, N) rad, else the nearest of
     `candidates` (m, N) rad (the campaign's optimization configurations). One row per input row:
     status, reason, target_x..z (m, frame), q1..qN, nominal_q1..qN (rad), largest_change_deg,
-    error_mm, bound95_mm, bound95_with_noise_mm, nominal_error_mm. progress is told each stage."""
-    tell = progress or (lambda _: None)
+    error_mm, bound95_mm, bound95_with_noise_mm, nominal_error_mm. Each stage is logged (INFO)."""
     chain, point = robot.chain, robot.point
     nominal = _nominal_evaluate(chain, point)
     reasons: dict[int, str] = {}  # rows not reached
@@ -568,7 +569,7 @@ def compensate(
         t = np.atleast_2d(np.asarray(targets, dtype=float))
         t_nominal = t if frame == "robot" else spatial.transform_points(spatial.invert(robot.t_nr), t)
         start = np.asarray(seeds, dtype=float) if seeds is not None else _seeds(t_nominal, candidates, chain, point)
-        tell(f"{len(t)} targets: inverse kinematics on the nominal model")
+        log.info("%d targets: inverse kinematics on the nominal model", len(t))
         found = nearest_solution(lambda q: (nominal(q)[0], None), t_nominal, start)
         reasons.update(_why_not(found, range(len(t)), chain, "nominal model"))
         q0 = found.q
@@ -584,7 +585,7 @@ def compensate(
         t_robot = robot.from_sensor(t_frame)
         r_robot = np.einsum("ji,jk,nkl->nil", transform[:3, :3], robot.t_nr[:3, :3], r0)
     ok = np.array([i not in reasons for i in range(n)])
-    tell(f"{int(ok.sum())} commands: inverse kinematics on the calibrated model")
+    log.info("%d commands: inverse kinematics on the calibrated model", int(ok.sum()))
     solution = nearest_solution(_calibrated_evaluate(robot), t_robot[ok], q0[ok], r_robot[ok])
     rows = np.flatnonzero(ok)
     reasons.update(
@@ -597,7 +598,7 @@ def compensate(
     table = _compensated_table(chain, q, q0, t_frame, reached, no_nominal, reasons)
     if reached.any():
         at = np.flatnonzero(reached)
-        tell(f"{len(at)} commands reached: bounds from {count} posterior draws")
+        log.info("%d commands reached: bounds from %d posterior draws", len(at), count)
         _fill_errors(table, robot, frame, (q[at], q0[at], t_frame[at]), at, (count, rng))
     return with_nearness(table, robot.near, q)  # a target not reached: no distance, not near
 

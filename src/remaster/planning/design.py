@@ -23,7 +23,7 @@ configurations`, a seeded Generator), as the certificate's workspace claims are 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +43,8 @@ SCORE_BLOCK = 4_000_000
 BOUND_COLUMNS = ["n", "bound_p95_mm", "bound_mean_mm", "log_det_information"]
 EXCHANGE_PASSES = 3  # passes of the exchange over the chosen configurations (it usually settles in two)
 EXCHANGE_TOLERANCE = 1e-6  # relative fall of the objective a swap must give
+
+log = logging.getLogger(__name__)
 
 
 def evaluation_configurations(chain: KinematicChain, count: int, rng: np.random.Generator, within=None) -> np.ndarray:
@@ -129,12 +131,12 @@ def greedy_design(
     target: float | None = None,
     criterion: str = "workspace",
     statistic: str = "p95",
-    progress: Callable[[str], None] | None = None,
 ) -> Design:
     """Choose candidates greedily (module docstring). candidate_jacobian (C, 3, P) whitened;
     eval_jacobian (E, 3, P) m per display unit; prior_information (P, P) the starting information;
     budget: most configurations (default: every candidate); target (m): stop once the objective
-    (the statistic of the workspace bounds) is at or below it; progress: told after each choice."""
+    (the statistic of the workspace bounds) is at or below it. Each choice is logged (INFO): a
+    terminal running `remaster plan` shows it."""
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
     if statistic not in STATISTICS:
@@ -168,8 +170,7 @@ def greedy_design(
         information = information + dp.information(candidate_jacobian[best][None])
         p95, mean, logdet, sigma_matrix = _summary(information, eval_jacobian)
         rows.append((len(chosen), p95 / MM, mean / MM, logdet))
-        if progress is not None:
-            progress(f"{len(chosen)} of at most {limit} configurations chosen, p95 bound {p95 / MM:.4g} mm")
+        log.info("%d of at most %d configurations chosen, p95 bound %.4g mm", len(chosen), limit, p95 / MM)
         if reached():
             stopped = "target"
     if not reached() and len(chosen) == len(candidate_jacobian) and (budget is None or budget > len(chosen)):

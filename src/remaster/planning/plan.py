@@ -13,7 +13,6 @@ SI inside (m, rad); options given in mm are converted once, here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -249,12 +248,10 @@ def workspace_plan(
     rng: np.random.Generator,
     candidate_table: pd.DataFrame | None = None,
     label: str = "",
-    progress: Callable[[str], None] | None = None,
 ) -> WorkspacePlan:
     """The workspace design from `start`: candidates from `candidate_table` (a CSV of configurations,
     named `label` in messages) or generated from the sensor's sight line, the bound taken at
-    `options.evaluation` configurations across the limits or the candidates' ranges; progress is told
-    each configuration chosen."""
+    `options.evaluation` configurations across the limits or the candidates' ranges."""
     chain, model, information, measured = start.chain, start.model, start.information, start.measured
     notes = []
     if candidate_table is not None:
@@ -295,7 +292,6 @@ def workspace_plan(
             target=target,
             measured_jacobian=model.whitened_jacobian(measured),
             q_measured=measured,
-            progress=progress,
         )
     else:
         chosen = design.greedy_design(
@@ -306,7 +302,6 @@ def workspace_plan(
             target=target,
             criterion=options.criterion,
             statistic=options.statistic,
-            progress=progress,
         )
     if options.exchange:
         chosen = design.exchange_design(chosen, model.whitened_jacobian(q), model.jacobian(evaluation), information)

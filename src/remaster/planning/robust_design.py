@@ -49,7 +49,7 @@ SI inside (m, rad); the parameters in the error model's display units (`design_p
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +64,8 @@ CRITERION = "robust"  # `remaster plan --criterion robust`
 SCORE_CHUNK = 2048
 # a campaign's measured rows the discrepancy sums take: their kernel is (3M)^2 (3000 rows: 650 MB)
 MAX_MEASURED_ROWS = 3000
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,7 +195,6 @@ def robust_design(
     target: float | None = None,
     measured_jacobian=None,
     q_measured=None,
-    progress: Callable[[str], None] | None = None,
 ):
     """Choose candidates greedily by the expected squared error across the workspace with the
     discrepancy (module docstring). candidate_jacobian (C, 3, P) whitened at q_candidates (C, N) rad;
@@ -270,8 +271,7 @@ def robust_design(
         state.h = state.h + jb.T @ h_all[best]
         state.u = state.u + (discrepancy.kernel(q_candidates, q_candidates[best])[:, 0] / sigma**2)[:, None, None] * jb
         record()
-        if progress is not None:
-            progress(f"{len(chosen)} of at most {limit} configurations chosen, expected RMS {expected[-1]:.4g} mm")
+        log.info("%d of at most %d configurations chosen, expected RMS %.4g mm", len(chosen), limit, expected[-1])
         if reached():
             stopped = "target"
     if not reached() and len(chosen) == len(jc_all) and (budget is None or budget > len(chosen)):
