@@ -6,6 +6,11 @@ the file under a sensor's results folder): the registration, the Laplace fit and
 report come back typed (`fit.Registration`, `fit.LaplaceReport`, `LoopReport`), every other file as
 its suffix says (JSON or YAML content, a CSV or Parquet table). A file not there is an InputError
 naming it and what to run.
+
+The results folder's integrity is kept here too: results are used only with the campaign, and as
+the content, the audit recorded (`check_made_from`); one run writes a folder at a time
+(`take_lock`, `release_lock`); after a failed run, the reports whose results failed go
+(`stale_reports`).
 """
 
 from __future__ import annotations
