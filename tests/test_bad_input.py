@@ -5,6 +5,7 @@ tests/campaigns/test_campaign.py, tests/robot/test_kinematics.py and tests/robot
 from __future__ import annotations
 
 import math
+import os
 import re
 import shutil
 import subprocess
@@ -595,6 +596,8 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     (earlier / "broken").mkdir(parents=True)
     (earlier / "broken" / "certificate.md").write_text("an earlier run's verdict")
     (earlier / "report.html").write_text("an earlier run's report")
+    for made in (earlier / "broken" / "certificate.md", earlier / "report.html"):
+        os.utime(made, (946684800, 946684800))  # made before the campaigns changed (2000-01-01)
     result, results = real_run(tmp_path, raw)
     output = result.stdout + result.stderr
     assert result.returncode != 0, output[-2000:]
