@@ -140,6 +140,8 @@ def check_made_from(results_dir: str | Path, campaign_folder: str | Path, repo_r
 
 CAMPAIGN_REPORTS = ("certificate.md", "certificate.json")  # under results_dir/<campaign>
 RUN_REPORTS = ("report.html", layout.AUDIT)  # under results_dir: every campaign's
+# what the certificate reads of each sensor besides its acceptance test (the samplers' are optional)
+SENSOR_RESULTS_READ = (layout.REGISTRATION, layout.LAPLACE, layout.LOOP_CLOSURE)
 
 
 def stale_reports(results_dir: str | Path, sensors: Mapping[str, Iterable[str]]) -> list[Path]:
@@ -166,10 +168,6 @@ def stale_reports(results_dir: str | Path, sensors: Mapping[str, Iterable[str]])
     if stale:
         stale += [results_dir / name for name in RUN_REPORTS if (results_dir / name).is_file()]
     return stale
-
-
-# what the certificate reads of each sensor besides its acceptance test (the samplers' are optional)
-SENSOR_RESULTS_READ = (layout.REGISTRATION, layout.LAPLACE, layout.LOOP_CLOSURE)
 
 
 # One writer per results folder. Snakemake locks the folder it runs in (`.snakemake/locks`), not the
