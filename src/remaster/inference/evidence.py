@@ -185,12 +185,16 @@ def pose_folds(poses, n_folds: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """Held-out mean squared residual per point (m^2), one per fold (K,), points per fold, and
-    held_out (n, 3) m: each point's residual under the fit without its fold."""
+    """Held-out mean squared residual per point (m^2), one per fold (K,), points per fold,
+    held_out (n, 3) m: each point's residual under the fit without its fold, and noise_inflation:
+    what a correct model's pooled held-out mean square is, over its noise variance (3 per point):
+    a fit without the fold errs at the fold's rows by its parameters' spread as well as by the
+    noise (`cross_validate`); 1 where it is not known (a GP's folds), which never flatters a fit."""
 
     mse: np.ndarray
     points: np.ndarray
     held_out: np.ndarray | None = None
+    noise_inflation: float = 1.0
 
     @property
     def rmse(self) -> float:
@@ -199,12 +203,17 @@ class CrossValidation:
 
 
 def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
-    """Pose-grouped K-fold cross-validation of a model at its mode (module docstring); folds (n,)."""
+    """Pose-grouped K-fold cross-validation of a model at its mode (module docstring); folds (n,).
+
+    With it, the noise inflation of a correct model (`CrossValidation`): a held-out residual is
+    e_f - J_f (A^-1 J_t^T e_t) for noise e, A = J_t^T J_t + the priors' precision, so its expected
+    sum of squares is s^2 (3 n_f + tr(J_f A^-1 J_t^T J_t A^-1 J_f^T)) in the whitened units of the
+    step (the priors' pull towards their mean aside, which only narrows the spread)."""
     model, theta, sigma = mode.model, mode.theta, mode.sigma
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
     r = model.whitened(mode.residuals)
     precision = model._prior_precision * sigma**2
-    mse, points, held = [], [], np.empty_like(r)
+    mse, points, held, expected = [], [], np.empty_like(r), 0.0
     for fold in np.unique(folds):
         train = folds != fold
         j_train = jacobian[train].reshape(-1, len(theta))
@@ -214,7 +223,12 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
         held[~train] = held_out = model.residuals(theta + step)[~train]
         mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
         points.append(int((~train).sum()))
-    return CrossValidation(np.array(mse), np.array(points), held)
+        # tr(J_f A^-1 G_t A^-1 J_f^T) = tr(A^-1 G_t A^-1 G_f), G = J^T J: P x P whatever the rows
+        j_fold = jacobian[~train].reshape(-1, len(theta))
+        spread = np.linalg.lstsq(lhs, np.linalg.lstsq(lhs, j_train.T @ j_train, rcond=None)[0].T, rcond=None)[0]
+        expected += 3 * points[-1] + float(np.sum(spread * (j_fold.T @ j_fold)))
+    inflation = expected / (3 * sum(points)) if points else 1.0
+    return CrossValidation(np.array(mse), np.array(points), held, inflation)
 
 
 def time_folds(order, poses, n_folds: int) -> np.ndarray:
@@ -270,4 +284,6 @@ def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
         "cv_mse_fall_se_mm2": standard_error * 1e6,
         "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf,
         "cv_folds": k,
+        "cv_noise_inflation_before": current.noise_inflation,
+        "cv_noise_inflation": candidate.noise_inflation,
     }

@@ -514,21 +514,33 @@ def closure_report(
     they call for."""
     repeats, repeated = noise_floor.repeatability(data.q, data.measured)
     floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
-    steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0))]
+    # (name, held-out RMS per axis, a correct model's held-out inflation: `noise_floor.verdict`)
+    steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0), selection.base.cv.noise_inflation)]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
-            steps.append((r["added"], r["scores"][r["added"]]["cv_rmse_mm"] * MM / math.sqrt(3.0)))
+            scores = r["scores"][r["added"]]
+            steps.append(
+                (r["added"], scores["cv_rmse_mm"] * MM / math.sqrt(3.0), scores.get("cv_noise_inflation", 1.0))
+            )
         elif r.get("removed"):  # the model without it: the removed block's scores were taken against it
             name = "without " + " + ".join([r["removed"], *r.get("removed_with", [])])
             name += f" ({GP} present)" if r.get("with") == GP else ""  # named as the selection's path names it
-            steps.append((name, r["scores"][r["removed"]]["cv_rmse_before_mm"] * MM / math.sqrt(3.0)))
+            scores = r["scores"][r["removed"]]
+            steps.append(
+                (name, scores["cv_rmse_before_mm"] * MM / math.sqrt(3.0), scores.get("cv_noise_inflation_before", 1.0))
+            )
     in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
     rounds = [
-        {"after": name, **noise_floor.verdict(rms, floor, ratio), "time_blocked_rms_per_axis_mm": in_time.get(name)}
-        for name, rms in steps
+        {
+            "after": name,
+            **noise_floor.verdict(rms, floor, ratio, inflation),
+            "time_blocked_rms_per_axis_mm": in_time.get(name),
+        }
+        for name, rms, inflation in steps
     ]
     shares = {
-        name: noise_floor.share(before, after, floor, ratio) for (_, before), (name, after) in zip(steps, steps[1:])
+        name: noise_floor.share(before, after, floor, ratio, inflation)
+        for (_, before, inflation), (name, after, _) in zip(steps, steps[1:])
     }
     final = rounds[-1]
     warnings = []
