@@ -82,6 +82,9 @@ def one(task: tuple) -> dict:
         "seed": seed,
         "without": list(without),
         "effects": list(checked.effects),
+        "closure": {
+            k: (checked.report.closure or {}).get("rounds", [{}])[-1].get(k) for k in ("closed", "ratio_to_floor")
+        },
         "outside_share_near": 1.0 - checked.domain_held_fraction,
         "claim_over_true_p95_near": claim.p95_bound_mm / claim.true_p95_mm,
         "claim_determined_near": claim.determined,

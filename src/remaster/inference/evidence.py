@@ -270,19 +270,29 @@ def t_threshold(normal_standard_errors: float, n_folds: int) -> float:
 
 
 def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
-    """Paired comparison over the same folds: the fall of the held-out mean squared residual,
-    its standard error over folds, their ratio, and both pooled RMSEs (mm)."""
+    """Paired comparison over the same folds: the fall of the held-out mean squared residual (its
+    mean over folds and its standard error, mm^2), both pooled RMSEs (mm), each fold's relative
+    fall 1 - after / before, and the decision's statistic `cv_mse_fall_in_se`: the mean over folds
+    of log(before / after) over its standard error. On the log scale a fold whose error was large
+    before weighs as much as the others, no more: a candidate that removes most of the error in
+    every fold is not held back because one fold had more error to remove (the differences' spread
+    would then be that fold's), and one fold whose fit departs cannot outweigh the rest."""
     difference = current.mse - candidate.mse
     k = len(difference)
     standard_error = float(np.std(difference, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
     mean = float(np.mean(difference))
+    tiny = np.finfo(float).tiny
+    log_fall = np.log(np.maximum(current.mse, tiny)) - np.log(np.maximum(candidate.mse, tiny))
+    log_se = float(np.std(log_fall, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
+    log_mean = float(np.mean(log_fall))
     return {
         "cv_rmse_before_mm": current.rmse * 1e3,
         "cv_rmse_mm": candidate.rmse * 1e3,
         "cv_gain": 1.0 - candidate.rmse / current.rmse,
         "cv_mse_fall_mm2": mean * 1e6,
         "cv_mse_fall_se_mm2": standard_error * 1e6,
-        "cv_mse_fall_in_se": mean / standard_error if standard_error > 0 else math.inf,
+        "cv_fold_falls": (1.0 - candidate.mse / np.maximum(current.mse, tiny)).tolist(),
+        "cv_mse_fall_in_se": log_mean / log_se if log_se > 0 else (math.inf if log_mean > 0 else -math.inf),
         "cv_folds": k,
         "cv_noise_inflation_before": current.noise_inflation,
         "cv_noise_inflation": candidate.noise_inflation,

@@ -57,7 +57,15 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-SCORE_COLUMNS = ("Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "CV fall / SE", "BIC gain", "Explained (%)")
+SCORE_COLUMNS = (
+    "Log evidence gain",
+    "CV RMSE (mm)",
+    "CV fall (%)",
+    "CV fall / SE",
+    "CV fall per fold (%)",
+    "BIC gain",
+    "Explained (%)",
+)
 
 
 def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
@@ -83,6 +91,10 @@ def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
         "CV RMSE (mm)": entry.get("cv_rmse_mm", nan),
         "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
         "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
+        # why an effect was or was not taken: each fold's fall, which the statistic weighs alike
+        "CV fall per fold (%)": " / ".join(f"{100.0 * f:.0f}" for f in entry["cv_fold_falls"])
+        if "cv_fold_falls" in entry
+        else nan,
         "BIC gain": entry.get("bic_gain", nan),
         "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
         "Added": verdict,
