@@ -440,8 +440,12 @@ def test_fewer_poses_than_folds_is_a_warning_not_a_traceback(poses, configuratio
         chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(0), loop_settings(mcmc=None)
     ).report
     assert any(w.startswith(f"only {poses} poses") for w in report.warnings)
-    folds = {e["cv_folds"] for entries in report.candidates.values() for e in entries if "cv_folds" in e}
-    assert folds == {poses}
+    # one pose per fold; a fold whose fit departed (the few poses left leave the registration almost
+    # free) is left out of its decision and named in the warnings
+    scored = [e for entries in report.candidates.values() for e in entries if "cv_folds" in e]
+    assert scored and all(e["cv_folds"] + len(e["cv_departed_folds"]) == poses for e in scored)
+    if any(e["cv_departed_folds"] for e in scored):
+        assert any(w.startswith("cross-validation folds whose fit departed") for w in report.warnings)
 
 
 def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_says_why(tmp_path, caplog):

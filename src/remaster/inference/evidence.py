@@ -183,23 +183,54 @@ def pose_folds(poses, n_folds: int) -> np.ndarray:
     return np.array([fold_of[p] for p in poses])
 
 
+# A fold whose held-out RMS per axis is this many times the full fit's sigma (which holds any model
+# error the fit has) after its fit was iterated to the fold's own mode has departed: the other folds
+# leave a combination almost free, and its error measures that, not the model
+DEPARTED_RATIO = 10.0
+
+
 @dataclass(frozen=True)
 class CrossValidation:
     """Held-out mean squared residual per point (m^2), one per fold (K,), points per fold,
-    held_out (n, 3) m: each point's residual under the fit without its fold, and noise_inflation:
+    held_out (n, 3) m: each point's residual under the fit without its fold, noise_inflation:
     what a correct model's pooled held-out mean square is, over its noise variance (3 per point):
     a fit without the fold errs at the fold's rows by its parameters' spread as well as by the
-    noise (`cross_validate`); 1 where it is not known (a GP's folds), which never flatters a fit."""
+    noise (`cross_validate`); 1 where it is not known (a GP's folds), which never flatters a fit;
+    departed (K,) bool: the folds whose fit departed (`DEPARTED_RATIO`), None where none was
+    tested. `rmse` and every decision leave the departed folds out."""
 
     mse: np.ndarray
     points: np.ndarray
     held_out: np.ndarray | None = None
     noise_inflation: float = 1.0
+    departed: np.ndarray | None = None
+
+    @property
+    def kept(self) -> np.ndarray:
+        """(K,) bool: the folds that did not depart."""
+        return np.ones(len(self.mse), bool) if self.departed is None else ~np.asarray(self.departed, bool)
 
     @property
     def rmse(self) -> float:
-        """Root of the pooled held-out mean squared residual per point (m)."""
-        return float(math.sqrt(np.sum(self.mse * self.points) / np.sum(self.points)))
+        """Root of the pooled held-out mean squared residual per point (m), over the kept folds
+        (every fold when all departed)."""
+        kept = self.kept if self.kept.any() else np.ones(len(self.mse), bool)
+        return float(math.sqrt(np.sum(self.mse[kept] * self.points[kept]) / np.sum(self.points[kept])))
+
+
+def _fold_mode(mode: PosteriorMode, train: np.ndarray) -> np.ndarray:
+    """The mode (P,) of the posterior of the rows `train` (n,) bool, the full fit's sigma held
+    (it only weighs the priors), iterated by Levenberg-Marquardt from the full fit's mode."""
+    model, sigma = mode.model, mode.sigma
+
+    def stacked(t):
+        weighted = model.weighted_residuals(t)[..., train, :]
+        return np.concatenate(
+            [weighted.reshape(weighted.shape[:-2] + (-1,)), sigma * model.prior_residuals(t)], axis=-1
+        )
+
+    jacobian = lambda t: forward_differences(stacked, t)  # noqa: E731
+    return samplers.least_squares_mode(stacked, mode.theta, model.scale, jacobian, method="lm").x
 
 
 def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
@@ -208,27 +239,36 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     With it, the noise inflation of a correct model (`CrossValidation`): a held-out residual is
     e_f - J_f (A^-1 J_t^T e_t) for noise e, A = J_t^T J_t + the priors' precision, so its expected
     sum of squares is s^2 (3 n_f + tr(J_f A^-1 J_t^T J_t A^-1 J_f^T)) in the whitened units of the
-    step (the priors' pull towards their mean aside, which only narrows the spread)."""
+    step (the priors' pull towards their mean aside, which only narrows the spread), pooled over the
+    kept folds. A fold whose linear step leaves its held-out RMS per axis above DEPARTED_RATIO times
+    the fit's sigma is fitted again, iterated to its own mode (`_fold_mode`); if it is still above,
+    it has departed (`CrossValidation.departed`)."""
     model, theta, sigma = mode.model, mode.theta, mode.sigma
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
     r = model.whitened(mode.residuals)
     precision = model._prior_precision * sigma**2
-    mse, points, held, expected = [], [], np.empty_like(r), 0.0
+    mse, points, held, expected, departed = [], [], np.empty_like(r), [], []
     for fold in np.unique(folds):
         train = folds != fold
         j_train = jacobian[train].reshape(-1, len(theta))
         lhs = j_train.T @ j_train + np.diag(precision)
         rhs = j_train.T @ r[train].ravel() - precision * theta
         step = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-        held[~train] = held_out = model.residuals(theta + step)[~train]
-        mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
+        held_out = model.residuals(theta + step)[~train]
         points.append(int((~train).sum()))
         # tr(J_f A^-1 G_t A^-1 J_f^T) = tr(A^-1 G_t A^-1 G_f), G = J^T J: P x P whatever the rows
         j_fold = jacobian[~train].reshape(-1, len(theta))
         spread = np.linalg.lstsq(lhs, np.linalg.lstsq(lhs, j_train.T @ j_train, rcond=None)[0].T, rcond=None)[0]
-        expected += 3 * points[-1] + float(np.sum(spread * (j_fold.T @ j_fold)))
-    inflation = expected / (3 * sum(points)) if points else 1.0
-    return CrossValidation(np.array(mse), np.array(points), held, inflation)
+        expected.append(3 * points[-1] + float(np.sum(spread * (j_fold.T @ j_fold))))
+        limit = 3.0 * (DEPARTED_RATIO * sigma) ** 2  # m^2 per point
+        if np.mean(np.sum(held_out**2, axis=1)) > limit:
+            held_out = model.residuals(_fold_mode(mode, train))[~train]
+        held[~train] = held_out
+        mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
+        departed.append(mse[-1] > limit)
+    kept = ~np.array(departed, bool) if not all(departed) else np.ones(len(departed), bool)
+    inflation = float(np.sum(np.array(expected)[kept]) / (3 * np.sum(np.array(points)[kept]))) if points else 1.0
+    return CrossValidation(np.array(mse), np.array(points), held, inflation, np.array(departed, bool))
 
 
 def time_folds(order, poses, n_folds: int) -> np.ndarray:
@@ -277,14 +317,16 @@ def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
     before weighs as much as the others, no more: a candidate that removes most of the error in
     every fold is not held back because one fold had more error to remove (the differences' spread
     would then be that fold's), and one fold whose fit departs cannot outweigh the rest."""
-    difference = current.mse - candidate.mse
+    kept = current.kept & candidate.kept  # a fold that departed in either fit decides nothing
+    before, after = current.mse[kept], candidate.mse[kept]
+    difference = before - after
     k = len(difference)
     standard_error = float(np.std(difference, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
-    mean = float(np.mean(difference))
+    mean = float(np.mean(difference)) if k else math.nan
     tiny = np.finfo(float).tiny
-    log_fall = np.log(np.maximum(current.mse, tiny)) - np.log(np.maximum(candidate.mse, tiny))
+    log_fall = np.log(np.maximum(before, tiny)) - np.log(np.maximum(after, tiny))
     log_se = float(np.std(log_fall, ddof=1) / math.sqrt(k)) if k > 1 else math.inf
-    log_mean = float(np.mean(log_fall))
+    log_mean = float(np.mean(log_fall)) if k else math.nan
     return {
         "cv_rmse_before_mm": current.rmse * 1e3,
         "cv_rmse_mm": candidate.rmse * 1e3,
@@ -292,7 +334,11 @@ def cv_gain(current: CrossValidation, candidate: CrossValidation) -> dict:
         "cv_mse_fall_mm2": mean * 1e6,
         "cv_mse_fall_se_mm2": standard_error * 1e6,
         "cv_fold_falls": (1.0 - candidate.mse / np.maximum(current.mse, tiny)).tolist(),
-        "cv_mse_fall_in_se": log_mean / log_se if log_se > 0 else (math.inf if log_mean > 0 else -math.inf),
+        # fewer than two folds kept: no decision (a candidate cannot pass on one fold)
+        "cv_mse_fall_in_se": -math.inf
+        if k < 2
+        else (log_mean / log_se if log_se > 0 else (math.inf if log_mean > 0 else -math.inf)),
+        "cv_departed_folds": np.flatnonzero(~kept).tolist(),
         "cv_folds": k,
         "cv_noise_inflation_before": current.noise_inflation,
         "cv_noise_inflation": candidate.noise_inflation,

@@ -248,6 +248,9 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
             )
         )
     warnings += gross_warnings(screened.flagged, screened.screens, screened.settled)
+    departed = departed_warning(screened.selection)
+    if departed:
+        warnings.append(departed)
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(
             f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
@@ -255,6 +258,26 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
             f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable"
         )
     return warnings
+
+
+def departed_warning(selection: Selection) -> str | None:
+    """The warning of cross-validation folds whose fit departed (`evidence.DEPARTED_RATIO`): which
+    folds, in which scores, left out of those decisions; None when none departed."""
+    where = {}
+    if selection.base.cv.departed is not None and selection.base.cv.departed.any():
+        where["the zero-offset model"] = np.flatnonzero(selection.base.cv.departed).tolist()
+    for r in selection.rounds:
+        for name, scores in (r.get("scores") or {}).items():
+            if scores.get("cv_departed_folds"):
+                where[f"{name} (round {r['round']})"] = scores["cv_departed_folds"]
+    if not where:
+        return None
+    listed = "; ".join(f"{name}: fold {', '.join(str(f + 1) for f in folds)}" for name, folds in where.items())
+    return (
+        f"cross-validation folds whose fit departed (held-out RMS above {evidence.DEPARTED_RATIO:g} x what "
+        f"a correct model gives, after iterating the fold's fit): {listed}; each was left out of its "
+        "decision, the others decide (the data leave a combination almost free without it)"
+    )
 
 
 def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, settings: LoopSettings) -> list[str]:

@@ -68,6 +68,15 @@ SCORE_COLUMNS = (
 )
 
 
+def _fold_falls(entry: dict) -> str | float:
+    """Each fold's fall of the held-out error (%), a fold whose fit departed named so (it decided
+    nothing: `evidence.DEPARTED_RATIO`); NaN without per-fold scores."""
+    if "cv_fold_falls" not in entry:
+        return float("nan")
+    departed = set(entry.get("cv_departed_folds") or ())
+    return " / ".join("departed" if i in departed else f"{100.0 * f:.0f}" for i, f in enumerate(entry["cv_fold_falls"]))
+
+
 def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
     """A candidate's row of `candidates_table`: its scores in one round (`entry`) of the selection
     (`step`: the round as loop_closure.json's rounds record it)."""
@@ -92,9 +101,7 @@ def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
         "CV fall (%)": 100.0 * entry.get("cv_gain", nan),
         "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
         # why an effect was or was not taken: each fold's fall, which the statistic weighs alike
-        "CV fall per fold (%)": " / ".join(f"{100.0 * f:.0f}" for f in entry["cv_fold_falls"])
-        if "cv_fold_falls" in entry
-        else nan,
+        "CV fall per fold (%)": _fold_falls(entry),
         "BIC gain": entry.get("bic_gain", nan),
         "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
         "Added": verdict,
