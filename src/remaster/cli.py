@@ -91,11 +91,11 @@ def _simulate(args: argparse.Namespace) -> None:
 
 def _plan_options(args: argparse.Namespace) -> plan.PlanOptions:
     names = [f.name for f in fields(plan.PlanOptions)]
-    given = {name: getattr(args, name) for name in names if name not in ("from_results", "marker", "sensor_origin")}
+    vectors = ("marker", "sensor_origin", "cube_centre")
+    given = {name: getattr(args, name) for name in names if name not in ("from_results", *vectors)}
     return plan.PlanOptions(
         **given,
-        marker=tuple(args.marker),
-        sensor_origin=None if args.sensor_origin is None else tuple(args.sensor_origin),
+        **{name: None if getattr(args, name) is None else tuple(getattr(args, name)) for name in vectors},
         from_results=args.from_results is not None,
     )
 
@@ -117,7 +117,10 @@ def _plan(args: argparse.Namespace) -> None:
         return
     chain = _plan_chain(args)
     origin = _sensor_origin(args, chain)
-    planned = plan.paper_plan(chain, origin, options, np.random.default_rng(args.seed))
+    if options.objective == plan.ISO9283:
+        planned = plan.iso9283_plan(chain, origin, options)
+    else:
+        planned = plan.paper_plan(chain, origin, options, np.random.default_rng(args.seed))
     write_csv(args.out, planned.table)
     print(f"{args.out}: {planned.summary}")
 
@@ -324,10 +327,16 @@ def _workspace_design_arguments(plan: argparse.ArgumentParser) -> None:
     plan.add_argument(
         "--objective",
         default="paper",
-        choices=["paper", "workspace"],
+        choices=["paper", "workspace", "iso9283"],
         help="paper: the paper's planner (joint 3 held); workspace: the configurations that most reduce the "
-        "calibrated model's predicted 95 %% bound across the workspace, chosen greedily (docs/planning.md)",
+        "calibrated model's predicted 95 %% bound across the workspace, chosen greedily (docs/planning.md); "
+        "iso9283: the ISO 9283 pose test, P1..P5 of --cube-centre/--cube-edge for --cycles cycles",
     )
+    plan.add_argument(
+        "--cube-centre", nargs=3, type=float, metavar=("X", "Y", "Z"), help="iso9283: the cube's centre (m, base frame)"
+    )
+    plan.add_argument("--cube-edge", type=float, metavar="E", help="iso9283: the cube's edge (m)")
+    plan.add_argument("--cycles", type=_positive, default=30, help="iso9283: cycles through P1..P5 (the standard: 30)")
     plan.add_argument("--budget", type=_positive, help="workspace: at most N configurations")
     plan.add_argument(
         "--target-mm",

@@ -345,3 +345,46 @@ def test_an_output_that_is_a_directory_or_on_a_full_disk_is_an_error_naming_it(t
     )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out"]
     assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_the_iso9283_pose_test_is_planned_and_programmed_in_its_cycles(tmp_path, iiwa):
+    """`remaster plan --objective iso9283`: the five ISO 9283 points of the cube, the flange at each
+    (forward kinematics of the planned configuration, not the planner's own record), one orientation
+    for all, each configuration commanded once per cycle P1..P5 for 30 cycles, so that a campaign of it
+    gives RP per pose (5 groups of 30 cycles); `remaster program --order as-given` keeps the cycles."""
+    from remaster.evaluation.iso9283 import pose_characteristics
+    from remaster.loop.noise_floor import configuration_groups
+    from remaster.robot import planning
+
+    plan = tmp_path / "iso.csv"
+    urdf, base, flange = FRAMES["iiwa"]
+    status = cli.main(
+        ["plan", "--urdf", str(urdf), "--base", base, "--flange", flange, "--sensor-origin", "1.6", "0.5", "1.0",
+         "--marker", "-0.1", "0", "0.02", "--objective", "iso9283", "--cube-centre", "0.6", "0.2", "0.5",
+         "--cube-edge", "0.2", "--set", "validation", "--out", str(plan)]
+    )  # fmt: skip
+    assert status == 0
+    table = pd.read_csv(plan)
+    names = [f"q{j}" for j in range(1, 8)]
+    assert len(table) == 150 and table["pose"].is_unique and set(table["set"]) == {"validation"}
+    assert table["iso_pose"].tolist()[:6] == ["P1", "P2", "P3", "P4", "P5", "P1"] and table["cycle"].max() == 30
+    frames = kinematics.ForwardKinematics(iiwa, table[names].to_numpy()).flange_poses()
+    points = planning.iso9283_points([0.6, 0.2, 0.5], 0.2)
+    np.testing.assert_allclose(frames[:, :3, 3], np.tile(points, (30, 1)), atol=1e-9)
+    np.testing.assert_allclose(
+        frames[:, :3, :3], np.broadcast_to(frames[0, :3, :3], frames[:, :3, :3].shape), atol=1e-9
+    )
+    groups, counts = configuration_groups(table[names].to_numpy())
+    assert counts.tolist() == [30] * 5
+    rng = np.random.default_rng(0)
+    characteristics = pose_characteristics(rng.normal(0.0, 1e-5, (150, 3)), groups)
+    assert characteristics["RP"].notna().all() and (characteristics["cycles"] == 30).all()
+
+    out = tmp_path / "iso_test.src"
+    assert cli.main(program_args("iiwa", plan, "krl", out, "--order", "as-given")) == 0
+    parsed = programs.parse_program(out.read_text(), "krl", str(out))
+    assert parsed.plan_rows.tolist() == list(range(150))
+    assert cli.main(["plan", "--urdf", str(urdf), "--base", base, "--flange", flange, "--sensor-origin", "1.6",
+                     "0.5", "1.0", "--objective", "iso9283", "--cube-centre", "2.6", "0", "0.5", "--cube-edge",
+                     "0.2", "--out", str(tmp_path / "far.csv")]) == 2  # fmt: skip
+    assert not (tmp_path / "far.csv").exists()

@@ -18,13 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import spatial
 from ..errors import InputError
 from ..robot import planning, registration
+from ..robot.ik import SRSInverseKinematics
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from . import design, design_posterior, plan_inputs, robust_design
 from .design_figures import bound_curve
 
 WORKSPACE = "workspace"
+ISO9283 = "iso9283"
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,9 @@ class PlanOptions:
     marker: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sensor_origin: tuple[float, float, float] | None = None
     from_results: bool = False
+    cube_centre: tuple[float, float, float] | None = None
+    cube_edge: float | None = None
+    cycles: int = 30
 
     @property
     def workspace_design(self) -> bool:
@@ -78,6 +84,17 @@ def check_options(options: PlanOptions) -> None:
         raise InputError(f"the exchange improves the workspace criterion, not {options.criterion}", key="--exchange")
     if options.discrepancy_mm is not None and options.criterion != robust_design.CRITERION:
         raise InputError("a discrepancy is the robust criterion's: add --criterion robust", key="--discrepancy-mm")
+    cube = {"--cube-centre": options.cube_centre is not None, "--cube-edge": options.cube_edge is not None}
+    if options.objective == ISO9283:
+        missing = [option for option, given in cube.items() if not given]
+        if missing:
+            raise InputError(
+                "the ISO 9283 pose test needs its cube: --cube-centre X Y Z and --cube-edge E (m)", key=missing[0]
+            )
+        if options.cube_edge <= 0:
+            raise InputError(f"must be a positive length (m), got {options.cube_edge:g}", key="--cube-edge")
+    elif any(cube.values()):
+        raise InputError("a cube is the ISO 9283 pose test's: add --objective iso9283", key="--objective")
     if options.workspace_design:
         if options.budget is None and options.target_mm is None:
             raise InputError("a workspace design needs --budget N, --target-mm X or both", key="--budget")
@@ -138,6 +155,52 @@ def paper_plan(chain: KinematicChain, origin, options: PlanOptions, rng: np.rand
     summary = (
         f"{len(table)} configurations of {table['pose'].nunique()} poses from "
         f"{plan.candidates} candidate poses; discarded: {plan.discarded}"
+    )
+    return PaperPlan(table, summary)
+
+
+def iso9283_plan(chain: KinematicChain, origin, options: PlanOptions) -> PaperPlan:
+    """The ISO 9283 pose test with the sensor at `origin` (3,) m: the five points P1..P5 of the
+    cube `options.cube_centre`, `cube_edge` (`planning.iso9283_points`), the flange turned towards
+    the sensor (one orientation for all, `planning.cube_orientation`), each reached by its first
+    usable inverse-kinematics solution, joint 3 at `options.q3`, and visited P1..P5 in turn for
+    `options.cycles` cycles (the standard asks for 30): each configuration is commanded once per
+    cycle, so that the campaign's ISO 9283 table gives AP over the cycles and RP for every pose.
+    Every row is its own pose of the campaign format (pose = cycle x 5 + point); `iso_pose` and
+    `cycle` name them. A point no solution reaches is refused with the reasons."""
+    centre = np.asarray(options.cube_centre, dtype=float)
+    sight = planning.SightLine(origin, np.asarray(options.marker, dtype=float))
+    rotation = planning.cube_orientation([centre], origin)
+    solver = SRSInverseKinematics(chain)
+    reached = []
+    for k, point in enumerate(planning.iso9283_points(centre, float(options.cube_edge))):
+        flange = spatial.homogeneous(rotation, point)
+        solutions, reasons = planning.usable_solutions(chain, flange, [sight], options.collision, options.q3, solver)
+        if len(solutions) == 0:
+            why = ", ".join(f"{n} {r}" for r, n in reasons.items() if n) or "no inverse-kinematics solution"
+            raise InputError(
+                f"ISO 9283 point P{k + 1} at {np.round(point, 3).tolist()} m is not reachable with the flange "
+                f"towards the sensor ({why}): move or shrink the cube",
+                key="--cube-centre",
+            )
+        reached.append(solutions[0])
+    cycles, points = int(options.cycles), len(reached)
+    q = np.tile(np.array(reached), (cycles, 1))
+    table = pd.DataFrame(
+        {
+            "set": options.set,
+            "pose": np.arange(cycles * points, dtype=np.int64),
+            "solution": np.zeros(cycles * points, dtype=np.int64),
+            "cycle": np.repeat(np.arange(1, cycles + 1), points),
+            "iso_pose": np.tile([f"P{k + 1}" for k in range(points)], cycles),
+        }
+    )
+    for j in range(chain.n_joints):
+        table[f"q{j + 1}"] = q[:, j]
+    for j in range(chain.n_joints):
+        table[f"q{j + 1}_deg"] = np.degrees(q[:, j])
+    summary = (
+        f"ISO 9283 pose test: P1..P{points} of a {options.cube_edge:g} m cube, {cycles} cycles ({len(table)} rows)"
     )
     return PaperPlan(table, summary)
 
