@@ -523,21 +523,9 @@ def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gros
     return out
 
 
-def closure_report(
-    selection: Selection,
-    data: Readings,
-    stated_noise: float | None,
-    ratio: float,
-    measured_noise: float | None = None,
-) -> dict:
-    """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
-    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
-    each round's cross-validated RMS per axis and verdict, each added step's share of the structured
-    residual, the final verdict, the chosen noise model's std against the floor, and the warnings
-    they call for."""
-    repeats, repeated = noise_floor.repeatability(data.q, data.measured)
-    floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
-    # (name, held-out RMS per axis, a correct model's held-out inflation: `noise_floor.verdict`)
+def _closure_steps(selection: Selection) -> list[tuple[str, float, float]]:
+    """(name, held-out RMS per axis (m), a correct model's held-out inflation: `noise_floor.verdict`)
+    of the zero-offset model and of the model after each added or removed step, in their order."""
     steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0), selection.base.cv.noise_inflation)]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
@@ -552,6 +540,24 @@ def closure_report(
             steps.append(
                 (name, scores["cv_rmse_before_mm"] * MM / math.sqrt(3.0), scores.get("cv_noise_inflation_before", 1.0))
             )
+    return steps
+
+
+def closure_report(
+    selection: Selection,
+    data: Readings,
+    stated_noise: float | None,
+    ratio: float,
+    measured_noise: float | None = None,
+) -> dict:
+    """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
+    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
+    each round's cross-validated RMS per axis and verdict, each added step's share of the structured
+    residual, the final verdict, the chosen noise model's std against the floor, and the warnings
+    they call for."""
+    repeats, repeated = noise_floor.repeatability(data.q, data.measured)
+    floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
+    steps = _closure_steps(selection)
     in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
     rounds = [
         {
