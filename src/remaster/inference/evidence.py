@@ -248,6 +248,7 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     r = model.whitened(mode.residuals)
     precision = model._prior_precision * sigma**2
     mse, points, held, expected, departed = [], [], np.empty_like(r), [], []
+    limit = 3.0 * (DEPARTED_RATIO * sigma) ** 2  # m^2 per point
     for fold in np.unique(folds):
         train = folds != fold
         j_train = jacobian[train].reshape(-1, len(theta))
@@ -260,7 +261,6 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
         j_fold = jacobian[~train].reshape(-1, len(theta))
         spread = np.linalg.lstsq(lhs, np.linalg.lstsq(lhs, j_train.T @ j_train, rcond=None)[0].T, rcond=None)[0]
         expected.append(3 * points[-1] + float(np.sum(spread * (j_fold.T @ j_fold))))
-        limit = 3.0 * (DEPARTED_RATIO * sigma) ** 2  # m^2 per point
         if np.mean(np.sum(held_out**2, axis=1)) > limit:
             held_out = model.residuals(_fold_mode(mode, train))[~train]
         held[~train] = held_out

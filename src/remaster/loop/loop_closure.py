@@ -274,8 +274,8 @@ def departed_warning(selection: Selection) -> str | None:
         return None
     listed = "; ".join(f"{name}: fold {', '.join(str(f + 1) for f in folds)}" for name, folds in where.items())
     return (
-        f"cross-validation folds whose fit departed (held-out RMS above {evidence.DEPARTED_RATIO:g} x what "
-        f"a correct model gives, after iterating the fold's fit): {listed}; each was left out of its "
+        f"cross-validation folds whose fit departed (held-out RMS per axis above {evidence.DEPARTED_RATIO:g} x "
+        f"the fit's sigma, after iterating the fold's fit): {listed}; each was left out of its "
         "decision, the others decide (the data leave a combination almost free without it)"
     )
 
