@@ -100,6 +100,26 @@ def test_a_known_configuration_is_printed_as_known_strings(ur5, iiwa):
     )
 
 
+@pytest.mark.parametrize("robot", ["ur5", "iiwa"])
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # the checker calls pyparsing's older names
+def test_rapid_programs_pass_a_rapid_checker_the_project_did_not_write(robot, request, rng):
+    """rapidchecker (PyPI: ABB RAPID grammar, indentation, keyword case, whitespace) accepts the
+    module as written and catches each of three broken copies, so the check has teeth."""
+    from rapidchecker.cli import check_file
+
+    chain = request.getfixturevalue(robot)
+    configs = programs.configurations(table_of(random_within_limits(chain, 6, rng)), chain, "p.csv", robot)
+    module = programs.program_text(configs, "rapid", SETTINGS["rapid"])
+    assert check_file(module) == []
+    broken = {
+        "a move without its semicolon": module.replace("tool0;", "tool0", 1),
+        "a procedure never ended": module.replace("  ENDPROC\n", ""),
+        "a keyword in lower case": module.replace("ENDMODULE", "endmodule"),
+    }
+    for what, text in broken.items():
+        assert check_file(text), what
+
+
 def test_formats_and_settings_the_robot_cannot_take_are_refused(ur5, iiwa):
     seven = programs.configurations(table_of(np.zeros(7)), iiwa, "p.csv", "i")
     with pytest.raises(InputError, match="urscript programs are written for 6 joints, the robot has 7"):
