@@ -137,5 +137,12 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
 
 
 def certificate_record(cert: certificate.Certificate) -> dict:
-    """certificate.json: the campaign, the certificate's first screen (a line per sensor), heading and warnings."""
-    return {"campaign": cert.campaign, "brief": cert.brief, "heading": cert.heading, "warnings": cert.warnings}
+    """certificate.json: the campaign, the certificate's first screen (a line per sensor), the verdict's words
+    per sensor (`Certificate.details`), heading and warnings."""
+    return {
+        "campaign": cert.campaign,
+        "brief": cert.brief,
+        "verdict_details": cert.details,
+        "heading": cert.heading,
+        "warnings": cert.warnings,
+    }

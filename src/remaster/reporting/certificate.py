@@ -67,8 +67,11 @@ NOT_CHECKED = "not cross-checked"
 class Certificate:
     """heading: lines naming the campaign, robot, date and sensors; accuracy: one row per sensor
     and model (mm); corrections: per sensor, model (loop-closed, zero-offsets only) and joint, the
-    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor (the report's overview); warnings: plain text;
-    brief: the first screen, a line per sensor (`brief_line`)."""
+    correction with U (95 %) (deg) or 'held'; verdicts: one row per sensor, the numbers of the verdict
+    (`VERDICT_COLUMNS`; the report's overview); warnings: plain text; brief: the first screen, a line
+    per sensor (`brief_line`); details: per sensor, the verdict's words the brief line and the
+    warnings carry (`DETAIL_COLUMNS`: the model "after", the loop's verdict, where it holds, the
+    samplers), kept whole in certificate.json."""
 
     campaign: str
     heading: list[str]
@@ -77,6 +80,7 @@ class Certificate:
     verdicts: pd.DataFrame
     warnings: list[str]
     brief: list[str] = field(default_factory=list)
+    details: list[dict] = field(default_factory=list)
 
 
 def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
@@ -297,6 +301,36 @@ def _verdict(sensor: str, inputs: CertificateInputs, rows: list[dict]) -> dict:
     }
 
 
+# The verdict table's columns, read in a minute: the acceptance verdict, the error before and after
+# on the validation set with their U, and the two claims, "not determined" where the priors would
+# decide them; the words (model, loop, where it holds, samplers) are in the brief line above it.
+VERDICT_COLUMNS = (
+    "Campaign",
+    "Sensor",
+    "Acceptance",
+    "Before: mean (mm)",
+    "U(Before: mean) (mm)",
+    "After: mean (mm)",
+    "U(After: mean) (mm)",
+    "After: p95 (mm)",
+    "Near the measured configurations: p95 (mm)",
+    "Across the joint limits: p95 (mm)",
+)
+DETAIL_COLUMNS = ("Sensor", "After: model", "Loop", "Holds", "Samplers")
+NOT_DETERMINED_CELL = "not determined"  # a claim the priors would decide (`_verdict`), in the verdict table
+
+
+def verdict_row(verdict: Mapping) -> dict:
+    """The verdict table's row of one sensor's verdict (`_verdict`): its `VERDICT_COLUMNS`, a claim
+    the priors would decide written "not determined" (the brief line says why), never a blank."""
+    claims = ("Near the measured configurations: p95 (mm)", "Across the joint limits: p95 (mm)")
+    return {
+        c: (NOT_DETERMINED_CELL if c in claims and not np.isfinite(verdict[c]) else verdict[c])
+        for c in VERDICT_COLUMNS
+        if c in verdict
+    }
+
+
 def _declared_text(acceptance: Acceptance | None) -> str:
     """What the acceptance test says of a declared model error: '' when none was declared."""
     loop = (acceptance.checks.get("loop") or {}) if acceptance is not None else {}
@@ -338,9 +372,10 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
     if dominated:
         wanted.append("poses that move the parameters left to their prior")
     loop = (inputs.loop.closure or {}).get("verdict") or "no closure test"
+    samplers = "" if verdict["Samplers"] == CONFIRMED else f"; {verdict['Samplers']}"
     return (
         f"{sensor_label(sensor)}: acceptance {verdict['Acceptance']}{_declared_text(inputs.acceptance)}; "
-        f"{after}; loop {loop}; holds {holds}; "
+        f"{after}; model after: {verdict['After: model'] or 'none'}; loop {loop}{samplers}; holds {holds}; "
         f"not determined: {'; '.join(undetermined) or 'nothing'}; "
         f"the next campaign should add: {'; '.join(wanted) or 'nothing'}."
     )
@@ -454,7 +489,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items())
         + "."
     ]
-    accuracy, corrections, verdicts, warnings, brief = [], [], [], [], []
+    accuracy, corrections, verdicts, warnings, brief, details = [], [], [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
         found = inputs.loop.gross_errors
@@ -471,7 +506,8 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         accuracy += rows
         corrections += correction_rows(sensor, inputs)
         verdict = _verdict(sensor, inputs, rows)
-        verdicts.append({"Campaign": summary["campaign"], **verdict})
+        verdicts.append(verdict_row({"Campaign": summary["campaign"], **verdict}))
+        details.append({c: verdict[c] for c in DETAIL_COLUMNS})
         brief.append(brief_line(sensor, inputs, verdict))
         warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
@@ -496,6 +532,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         pd.DataFrame(verdicts),
         warnings,
         brief,
+        details,
     )
 
 
@@ -513,7 +550,7 @@ def to_markdown(cert: Certificate) -> str:
         "",
         "## Verdict",
         "",
-        table(cert.verdicts),
+        table(cert.verdicts.drop(columns="Campaign", errors="ignore")),  # the page names its campaign
         "## Accuracy before and after",
         "",
         table(cert.accuracy),
