@@ -378,3 +378,18 @@ def test_names_from_campaign_yaml_are_text_in_the_markdown_never_markup():
     from remaster.reporting.tables import to_markdown
 
     assert "| c&lt;script&gt;alert(1)&lt;/script&gt; |" in to_markdown(cert.verdicts)
+
+
+def test_the_certificate_says_which_urdf_to_load_and_how_far_each_is_from_the_loop_model():
+    inputs = _inputs()
+    far = {
+        name: {"median_mm": m, "p95_mm": 2 * m, "max_mm": 3 * m}
+        for name, m in (("paper.urdf", 0.55), ("loop.urdf", 0.54), ("rigid.urdf", 0.22))
+    }
+    urdfs = {"configurations": 1000, "distance_from_loop_model_mm": far, "not_followed": "the residual GP"}
+    workspace = {**inputs.workspace, "urdfs": urdfs}
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, workspace=workspace)})
+    line = next(w for w in cert.warnings if "rigid.urdf" in w)
+    assert line.startswith("Laser Tracker: a tool that loads a URDF alone should load rigid.urdf")
+    assert "rigid.urdf 0.22 mm median, 0.66 mm at most; loop.urdf 0.54 mm median" in line
+    assert not any("rigid.urdf" in w for w in certificate.certificate(SUMMARY, {"laser_tracker": inputs}).warnings)

@@ -26,6 +26,7 @@ CALIBRATED_OUTPUTS = dict(
     workspace=f"{LOOP}/workspace.json",
     paper=f"{CALIBRATED}/paper.urdf",
     loop=f"{CALIBRATED}/loop.urdf",
+    rigid=f"{CALIBRATED}/rigid.urdf",
     effects=f"{CALIBRATED}/loop_effects.yaml",
     offsets=f"{CALIBRATED}/controller_offsets.csv",
 )

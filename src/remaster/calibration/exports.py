@@ -306,7 +306,9 @@ def calibrated_ur_configs(
 
 FILES = {
     "paper.urdf": "the paper's model: zero-offsets in the joint origins",
-    "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins",
+    "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins (with loop_effects.yaml)",
+    "rigid.urdf": "the URDF nearest the loop-closed model near the measured configurations, for tools that load "
+    "a URDF alone (its distance from the loop model in workspace.json's urdfs and the certificate)",
     "loop_effects.yaml": "the loop-closed model's effects a URDF cannot hold",
     "controller_offsets.csv": "zero-offset corrections for the controller, both models",
 }

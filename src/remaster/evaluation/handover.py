@@ -1,32 +1,35 @@
 """Everything a calibration hands over for one sensor once its loop is closed: the workspace
 claims (`workspace.workspace_accuracy`), the calibrated URDFs and controller offsets
-(`exports.calibrated_stage`) and, for a campaign given as a DH table, the calibrated DH tables (and
-for a UR, its kinematics_config)."""
+(`exports.calibrated_stage`), the rigid URDF nearest the loop-closed model with every URDF's
+distance from it (`rigid_urdf`, in workspace.json's `urdfs`) and, for a campaign given as a DH
+table, the calibrated DH tables (and for a UR, its kinematics_config)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
 from .. import identity
 from ..calibration import exports
-from ..calibration.prediction import Propagation
+from ..calibration.prediction import Propagation, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
-from ..evaluation import workspace
+from ..evaluation import rigid_urdf, workspace
 from ..inference.fit import LaplaceReport
 from ..loop.result import LoopResults
 
 
 @dataclass(frozen=True)
 class CalibratedOutputs:
-    """workspace: the claims; files: URDFs, effects and offsets; dh: {'paper', 'loop': DH table}
+    """workspace: the claims (its report with the URDFs' distances from the loop model); files:
+    URDFs, effects and offsets; rigid_urdf: rigid.urdf's text; dh: {'paper', 'loop': DH table}
     when the campaign gives a DH table, else None; ur: {'paper', 'loop': kinematics_config} for a
     UR (`exports.ur_form`), else None."""
 
     workspace: workspace.WorkspaceAccuracy
     files: exports.CalibratedFiles
+    rigid_urdf: str
     dh: dict | None
     ur: dict | None = None
 
@@ -56,6 +59,15 @@ def calibrated_outputs_stage(
     )
     label = loop.report.source
     files = exports.calibrated_stage(campaign, sensor, summary, loop.report, label=label)
+    rigid = rigid_urdf.rigid_urdf_fit(
+        campaign,
+        sensor,
+        paper_calibration(summary, label=label),
+        loop_calibration(loop.report, label=label),
+        propagation.seed,
+    )
+    claims = replace(claims, report={**claims.report, "urdfs": rigid.report})
+    rigid_text, _ = exports.calibrated_urdf(campaign.chain, rigid.values)
     dh = (
         exports.calibrated_dh_tables(campaign, sensor, summary, loop.report, label=label)
         if "dh" in campaign.robot
@@ -66,4 +78,4 @@ def calibrated_outputs_stage(
         if exports.ur_form(campaign)
         else None
     )
-    return CalibratedOutputs(claims, files, dh, ur)
+    return CalibratedOutputs(claims, files, rigid_text, dh, ur)

@@ -399,6 +399,26 @@ def valid_for(sensor: str, inputs: CertificateInputs) -> str:
     )
 
 
+def urdf_line(sensor: str, inputs: CertificateInputs) -> list[str]:
+    """Which URDF to load, with each one's distance from the loop-closed model near the measured
+    configurations (workspace.json's `urdfs`, `evaluation.rigid_urdf`); none without them."""
+    urdfs = inputs.workspace.get("urdfs")
+    if not urdfs:
+        return []
+    far = urdfs["distance_from_loop_model_mm"]
+
+    def text(name: str) -> str:
+        d = far[name]
+        return f"{name} {d['median_mm']:.2g} mm median, {d['max_mm']:.2g} mm at most"
+
+    return [
+        f"{sensor_label(sensor)}: a tool that loads a URDF alone should load rigid.urdf, the rigid chain nearest the "
+        f"loop-closed model; from that model near the measured configurations ({urdfs['configurations']} drawn apart "
+        f"from those it was fitted to): {text('rigid.urdf')}; {text('loop.urdf')} (exact only with loop_effects.yaml "
+        f"applied beside it); {text('paper.urdf')}; not followed by any URDF: {urdfs['not_followed']}"
+    ]
+
+
 def _mean_with_and_without(errors: pd.DataFrame, method: str, rows) -> tuple[float, float]:
     """(mean error_mm of a method's validation rows (optimization registration), the same without
     the table rows `rows`)."""
@@ -509,7 +529,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         verdicts.append(verdict_row({"Campaign": summary["campaign"], **verdict}))
         details.append({c: verdict[c] for c in DETAIL_COLUMNS})
         brief.append(brief_line(sensor, inputs, verdict))
-        warnings += [valid_for(sensor, inputs), *warnings_of(sensor, inputs)]
+        warnings += [valid_for(sensor, inputs), *urdf_line(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "
         "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose (CR2, k from "

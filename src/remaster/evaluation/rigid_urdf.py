@@ -1,0 +1,130 @@
+"""The best URDF a URDF can be: the rigid chain nearest the loop-closed model where the data are.
+
+loop.urdf holds the loop-closed model's zero-offsets and link geometry and assumes its other effects
+(joint compliance, joint scale, harmonics, the residual GP) are applied beside it (loop_effects.yaml).
+A tool that loads a URDF alone gets none of them, and the loop's zero-offsets were fitted with them
+in place: loop.urdf alone can be as far from the loop model as paper.urdf. rigid.urdf is the chain a
+URDF can hold (every joint origin in full, the zero-offsets) fitted by least squares to the
+loop-closed model's marker positions at configurations near the measured ones
+(`domain.MeasuredDomain`'s nearness), the marker at the loop's marker offset for every model (the
+marker is the user's tool, not the URDF's). The residual GP is not followed (its mean is not a
+parametric effect), nor anything beyond the measured configurations.
+
+How far each URDF is from the loop model (median, 95th percentile and largest distance, mm) is
+measured on a second, independent set of configurations near the measured ones, so the rigid fit is
+scored on configurations it was not fitted to. SI inside (m, rad).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import identity, seeding
+from ..calibration.exports import calibrated_urdf
+from ..calibration.prediction import Calibration, Predictor
+from ..campaigns.campaign import Campaign
+from ..inference import samplers
+from ..inference.blocks import BlockModel, Readings
+from ..inference.evidence import forward_differences
+from ..robot.kinematics import KinematicChain
+from ..units import MM
+from .workspace import fit_domain
+
+RIGID_BLOCKS = ("marker_offset", "link_geometry")  # the marker offset held at the loop's value
+URDF_PREFIXES = ("zero_offsets.", "link_geometry.")  # what a URDF's joint origins hold
+CONFIGURATIONS = 1000  # near the measured ones, to fit and again (drawn apart) to score
+
+
+@dataclass(frozen=True)
+class RigidFit:
+    """values: {parameter: SI} of the zero-offsets and link geometry of the fitted chain (for
+    `exports.calibrated_urdf`); distances: {file: {median_mm, p95_mm, max_mm}} of paper.urdf,
+    loop.urdf and rigid.urdf from the loop-closed model over the scoring configurations;
+    configurations: how many were fitted to and scored on (each)."""
+
+    values: dict[str, float]
+    distances: dict[str, dict[str, float]]
+    configurations: int
+
+    @property
+    def report(self) -> dict:
+        """JSON-ready, for workspace.json's `urdfs`."""
+        return {
+            "configurations": self.configurations,
+            "where": "near the measured configurations (drawn apart from those the rigid fit used)",
+            "distance_from_loop_model_mm": self.distances,
+            "not_followed": "the residual GP, and anything beyond the measured configurations",
+        }
+
+
+def _urdf_part(values: Mapping[str, float]) -> dict[str, float]:
+    return {k: float(v) for k, v in values.items() if k.startswith(URDF_PREFIXES)}
+
+
+def _marker_part(values: Mapping[str, float]) -> dict[str, float]:
+    return {k: float(v) for k, v in values.items() if k.startswith("marker_offset.")}
+
+
+def _tool_holdable(chain: KinematicChain) -> bool:
+    """Whether the chain's URDF has a fixed joint after its last joint to hold the tool's link errors."""
+    return not calibrated_urdf(chain, {"link_geometry.tool.x": MM})[1]
+
+
+def fit_rigid(chain: KinematicChain, loop: Calibration, fit_q, marker) -> dict[str, float]:
+    """The zero-offsets and link geometry {parameter: SI} whose chain puts the marker (3,) m, at the
+    loop's marker offset, nearest (least squares) the loop-closed model's positions at readings
+    fit_q (n, N) rad, started from the loop's own values (directions the marker does not see stay
+    there; the tool's link errors held at 0 where the URDF has no fixed joint to hold them)."""
+    target = loop.predictor(chain, fit_q, marker).points(loop.values)
+    data = Readings(np.arange(len(fit_q)), np.asarray(fit_q, dtype=float), target)
+    names = BlockModel(chain, data, marker, np.eye(4), RIGID_BLOCKS).all_names
+    held = {n: 0.0 for n in names if not n.startswith(URDF_PREFIXES)} | _marker_part(loop.values)
+    if not _tool_holdable(chain):  # a chain that ends on its last joint: no fixed joint holds the tool's errors
+        held |= {n: 0.0 for n in names if n.startswith("link_geometry.tool.")}
+    model = BlockModel(chain, data, marker, np.eye(4), RIGID_BLOCKS, fixed=held)
+
+    def residuals(theta):
+        r = model.residuals(theta)
+        return r.reshape(r.shape[:-2] + (-1,))
+
+    start = model.vector(loop.values)
+    fitted = samplers.least_squares_mode(
+        residuals, start, model.scale, lambda t: forward_differences(residuals, t), method="lm"
+    ).x
+    return _urdf_part(model.values(fitted))
+
+
+def distances_mm(points, target) -> dict[str, float]:
+    """{median_mm, p95_mm, max_mm} of the distances between points (n, 3) and target (n, 3) m."""
+    d = np.linalg.norm(np.asarray(points) - np.asarray(target), axis=-1) / MM
+    return {"median_mm": float(np.median(d)), "p95_mm": float(np.quantile(d, 0.95)), "max_mm": float(d.max())}
+
+
+def rigid_urdf_fit(campaign: Campaign, sensor: str, paper: Calibration, loop: Calibration, seed: int) -> RigidFit:
+    """rigid.urdf's values and every URDF's distance from the loop-closed model (module docstring)
+    for one sensor of a campaign: `CONFIGURATIONS` readings near the measured ones to fit, as many
+    drawn apart to score, from the generators of (seed, 'rigid urdf', robot slug, 'fit'/'score')."""
+    chain, data = campaign.chain, campaign.sensors[sensor]
+    domain = fit_domain(chain, data)
+    slug = identity.robot_slug(identity.robot_identity(campaign))
+
+    def draw(purpose: str) -> np.ndarray:
+        rng = seeding.generator(seed, "rigid urdf", slug, purpose)
+        q = domain.nearness.draw(CONFIGURATIONS, rng, domain.limits_lower, domain.limits_upper)
+        return np.where(domain.held, domain.lower, q)
+
+    values = fit_rigid(chain, loop, draw("fit"), data.marker)
+    score_q = draw("score")
+    target = loop.predictor(chain, score_q, data.marker).points(loop.values)
+    marker = _marker_part(loop.values)
+    at = Predictor(chain, score_q, data.marker, RIGID_BLOCKS)
+    urdfs = {
+        "paper.urdf": _urdf_part(paper.values),
+        "loop.urdf": _urdf_part(loop.values),
+        "rigid.urdf": values,
+    }
+    distances = {name: distances_mm(at.points({**part, **marker}), target) for name, part in urdfs.items()}
+    return RigidFit(values, distances, CONFIGURATIONS)
