@@ -445,7 +445,9 @@ def _plan_command(commands) -> None:
 
 
 def _import_command(commands) -> None:
-    imp = commands.add_parser("import", help="build a campaign folder from a controller log and sensor CSV exports")
+    imp = commands.add_parser(
+        "import", help="build a campaign folder from a controller log (CSV or a ROS 2 MCAP bag) and sensor CSV exports"
+    )
     imp.add_argument(
         "--config",
         required=True,

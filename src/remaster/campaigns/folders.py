@@ -1,5 +1,5 @@
 """Campaign folders on disk: reading and checking one, writing one, finding a job's, and importing
-a controller's and sensors' CSV exports into one.
+a controller's and sensors' CSV exports (or a ROS 2 bag of the controller's joint states) into one.
 
 A campaign folder is campaign.yaml plus one <sensor>.parquet per sensor (docs/campaign-format.md).
 `read_campaign` checks the folder against that contract and returns a `campaign.Campaign`.
@@ -158,6 +158,26 @@ def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
     return importer.parse_csv(read_text(path, "utf-8-sig"), str(path), delimiter)
 
 
+def read_bag(path: str | Path, spec: importer.ControllerSpec) -> importer.Export:
+    """The joint states of a ROS 2 MCAP bag as the controller log (`bags.read_joint_states` of the
+    topic spec.bag.topic, then `importer.joint_state_export`); InputError naming the file when it
+    is missing, a folder (a rosbag2 folder: name the .mcap file in it) or unreadable."""
+    from . import bags  # the MCAP readers, loaded only by an import from a bag
+
+    path = Path(path)
+    if path.is_dir():
+        inside = ", ".join(sorted(p.name for p in path.glob("*.mcap"))) or "none in it"
+        raise InputError(f"is a folder, not an MCAP file: name the .mcap file (found: {inside})", file=str(path))
+    try:
+        with path.open("rb") as stream:
+            states = bags.read_joint_states(stream, spec.bag.topic, str(path))
+    except FileNotFoundError:
+        raise InputError("file not found (the MCAP bag named by controller/bag)", file=str(path)) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
+    return importer.joint_state_export(states, spec, str(path))
+
+
 def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
     """The URDF to copy into the campaign folder: one found next to the configuration only
     (not under the repository root, nor shared in data/robots)."""
@@ -173,7 +193,7 @@ def import_campaign(
     config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None, overwrite: bool = False
 ) -> tuple[Path, dict[str, Any]]:
     """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
-    files, write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
+    files (or the controller's MCAP bag), write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
     it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
     with `read_campaign`. Returns (folder, report).
 
@@ -198,7 +218,11 @@ def import_campaign(
     def export(file: importer.FileSpec) -> importer.Export:
         return read_export(config_dir / file.file, file.delimiter)
 
-    controller, sensors = export(spec.controller.file), {n: export(s.file) for n, s in spec.sensors.items()}
+    if spec.controller.bag is not None:
+        controller = read_bag(config_dir / spec.controller.file.file, spec.controller)
+    else:
+        controller = export(spec.controller.file)
+    sensors = {n: export(s.file) for n, s in spec.sensors.items()}
     result = importer.build_campaign(spec, controller, sensors)
     metadata = result.metadata
     urdf = _local_urdf(metadata["robot"], config_dir, repo_root)

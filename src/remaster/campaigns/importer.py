@@ -40,6 +40,28 @@ sensors:
     time_format: iso                # and timezone, delimiter, decimal, carry: as for the controller
 ```
 
+The controller log may instead be a ROS 2 bag (rosbag2, MCAP storage) of sensor_msgs/msg/JointState
+messages; the sensors are then matched by time (`match: time`, each sensor naming its `time` column):
+
+```yaml
+controller:
+  bag: joints.mcap                  # relative to this configuration file; a rosbag2 MCAP file
+  topic: /joint_states              # its sensor_msgs/msg/JointState messages; other topics are ignored
+  joints: [joint_a1, joint_a2, joint_a3, joint_a4, joint_a5, joint_a6, joint_a7]  # JointState names, in joint order
+  stamp: header                     # header (default: header.stamp) | log (the bag's log time)
+```
+
+Each message on the topic is one controller row, in log-time order: the positions of the named
+joints (rad, JointState's unit: no `unit` key, or `unit: rad`), whatever order the message lists
+its names in (velocity and effort are not read and may be empty), and its time (UTC, to the ns).
+As with a CSV log without these columns, every row is in the optimization set, its own pose
+(numbered in order) and solution 0: `set`, `pose`, `solution` and `key`, and the CSV settings
+(`file`, `time`, `time_format`, `timezone`, `delimiter`, `decimal`, `carry`), are refused with a
+bag. Errors name the bag: not an MCAP file, the topic absent (with the topics it has) or carrying
+another type, a message without one of the joints (its index, 1-based on the topic, its log time
+and the names it has), positions not one per name, a position not finite, an unset (zero) header
+stamp, no message. In the report and in errors a bag's rows are its messages ("message 3").
+
 Every controller row becomes one row of every sensor table (SI: rad, m), in the log's order; a
 row no sensor row matched keeps x, y, z NaN (marker not seen, as the contract says). Sensor rows
 that match no controller row are listed in import_report.json (file, 1-based line, key or time,
@@ -47,8 +69,8 @@ reason) inside the campaign folder, never silently dropped. The `time` column wr
 controller's time when the log has one, else the sensor's. Anything that cannot be parsed is an
 InputError naming the file, the column and the 1-based line (the header is line 1).
 
-This module works on text and tables only; `folders.import_campaign` reads the files and
-writes the campaign folder.
+This module works on text and tables only; `folders.import_campaign` reads the files (a bag's
+messages decoded by `bags.read_joint_states`) and writes the campaign folder.
 """
 
 from __future__ import annotations
@@ -58,7 +80,7 @@ import datetime as dt
 import io as _stringio
 import math
 import zoneinfo
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -91,6 +113,16 @@ TIME_FORMATS = ("iso", "unix_s", "unix_ms")  # or a strptime pattern (contains '
 FILE_KEYS = ("file", "time_format", "timezone", "delimiter", "decimal", "carry")
 CONTROLLER_KEYS = FILE_KEYS + ("joints", "unit", "set", "pose", "solution", "key", "time")
 SENSOR_IMPORT_KEYS = FILE_KEYS + ("xyz", "unit", "match", "key", "time", "tolerance")
+BAG_KEYS = ("bag", "topic", "joints", "stamp", "unit")
+BAG_STAMPS = {"header": "header.stamp", "log": "log time"}  # stamp -> the name of a bag's time in messages
+_NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a bag
+    "file": "give file (a CSV log) or bag (an MCAP bag), not both",
+    "set": "every joint state is in the optimization set",
+    "pose": "every joint state is its own pose, numbered in log-time order",
+    "solution": "every joint state is solution 0",
+    "key": "a bag has no key column: match the sensors by time",
+    "time": "a joint state's time is its header stamp or the bag's log time: choose with stamp",
+}
 _RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + (TIME_COLUMN,))
 
 
@@ -105,11 +137,17 @@ def _lines(lines) -> str:
 @dataclass(frozen=True, eq=False)
 class Export:
     """One CSV export as text. cells: (n_rows, n_columns) str, header as column names, cells
-    stripped; lines: (n_rows,) 1-based line of each row in the file (the header is line 1)."""
+    stripped; lines: (n_rows,) 1-based line of each row in the file (the header is line 1).
+
+    A bag's joint states (`joint_state_export`) are one too: a row per message, `lines` its 1-based
+    index on the topic, row_name "message", and `times` its times (UTC, ns) as decoded, the cells
+    of its time column being only their text."""
 
     source: str
     cells: pd.DataFrame
     lines: np.ndarray
+    row_name: str = "line"  # what `lines` count, as messages say it
+    times: pd.DatetimeIndex | None = None
 
     def column(self, name: str, config_key: str) -> pd.Series:
         """Cells of column `name`; InputError naming the file and the column if it is missing."""
@@ -126,7 +164,8 @@ class Export:
         """InputError naming the file, the column, the lines of `positions` (0-based rows) and their cells."""
         positions = list(positions)
         cells = ", ".join(quoted(self.cells[column].iloc[i]) for i in positions[:MAX_ROWS_SHOWN])
-        return InputError(f"{what} on {_lines(self.lines[positions])}: {cells}", file=self.source, key=column)
+        where = format_rows(self.lines[positions], self.row_name)
+        return InputError(f"{what} on {where}: {cells}", file=self.source, key=column)
 
 
 def parse_csv(text: str, source: str, delimiter: str = ",") -> Export:
@@ -186,9 +225,19 @@ class FileSpec:
 
 
 @dataclass(frozen=True)
+class BagSpec:
+    """A controller bag's topic of sensor_msgs/msg/JointState messages and the time of each:
+    stamp "header" (its header.stamp) or "log" (the bag's log time)."""
+
+    topic: str
+    stamp: str = "header"
+
+
+@dataclass(frozen=True)
 class ControllerSpec:
     """The controller log: joint columns (q1..qN order), their unit, optional set/pose/solution
-    columns, and the key and time columns used for matching."""
+    columns, and the key and time columns used for matching. For a bag (`bag` set): file.file is
+    the bag, joints are JointState names, unit rad and time the name of its stamp (BAG_STAMPS)."""
 
     file: FileSpec
     joints: tuple[str, ...]
@@ -198,6 +247,7 @@ class ControllerSpec:
     solution: str | None = None
     key: str | None = None
     time: str | None = None
+    bag: BagSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -242,7 +292,9 @@ def _choice(section: Mapping, key: str, choices, where: str, source: str, defaul
     return value
 
 
-def _columns(section: Mapping, key: str, where: str, source: str, default=None, length: int | None = None):
+def _columns(
+    section: Mapping, key: str, where: str, source: str, default=None, length: int | None = None, what: str = "column"
+):
     value = section.get(key, default)
     if (
         not isinstance(value, (list, tuple))
@@ -251,7 +303,7 @@ def _columns(section: Mapping, key: str, where: str, source: str, default=None, 
         or (length is not None and len(value) != length)
         or len(set(value)) != len(value)
     ):
-        wanted = f"{length} distinct column names" if length else "a list of distinct column names"
+        wanted = f"{length} distinct {what} names" if length else f"a list of distinct {what} names"
         raise InputError(f"must be {wanted}, got {quoted(value)}", file=source, key=f"{where}/{key}")
     return tuple(value)
 
@@ -327,13 +379,79 @@ def _controller_spec(config: Mapping, source: str) -> ControllerSpec:
     if "controller" not in config:
         raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
     section = _mapping(config["controller"], "controller", source)
-    _check_keys(section, CONTROLLER_KEYS, "controller", source)
+    _check_keys(section, CONTROLLER_KEYS + ("bag", "topic", "stamp"), "controller", source)
+    if section.get("bag") is not None:
+        return _bag_controller_spec(section, source)
+    if section.get("file") is None:
+        raise InputError(
+            "missing: file (a CSV log) or bag (a ROS 2 MCAP bag), relative to the configuration",
+            file=source,
+            key="controller/file",
+        )
+    stray = [k for k in ("topic", "stamp") if k in section]
+    if stray:
+        raise InputError("only applies to a bag (controller/bag)", file=source, key=f"controller/{stray[0]}")
     return ControllerSpec(
         file=_file_spec(section, "controller", source),
         joints=_columns(section, "joints", "controller", source),
         unit=_choice(section, "unit", tuple(ANGLE_UNITS), "controller", source),
         **{k: _text(section, k, "controller", source) for k in ("set", "pose", "solution", "key", "time")},
     )
+
+
+def _bag_controller_spec(section: Mapping, source: str) -> ControllerSpec:
+    """A `controller` section naming a bag (controller/bag), checked: the keys of a CSV log are
+    refused, saying why; a unit other than rad too (JointState positions are in rad)."""
+    for key in section:
+        if key not in BAG_KEYS:
+            why = _NOT_FOR_BAG.get(key, "a setting of a CSV log")
+            raise InputError(f"does not apply to a bag: {why}", file=source, key=f"controller/{key}")
+    bag = _text(section, "bag", "controller", source)
+    topic = _text(section, "topic", "controller", source)
+    if topic is None:
+        raise InputError(
+            "missing (the bag's topic of sensor_msgs/msg/JointState messages, e.g. /joint_states)",
+            file=source,
+            key="controller/topic",
+        )
+    if section.get("unit", "rad") != "rad":
+        raise InputError(
+            f"must be rad or absent for a bag (JointState positions are in rad), got {quoted(section['unit'])}",
+            file=source,
+            key="controller/unit",
+        )
+    stamp = _choice(section, "stamp", tuple(BAG_STAMPS), "controller", source, "header")
+    return ControllerSpec(
+        file=FileSpec(bag),
+        joints=_columns(section, "joints", "controller", source, what="joint"),
+        unit="rad",
+        time=BAG_STAMPS[stamp],
+        bag=BagSpec(topic, stamp),
+    )
+
+
+def _sensor_match(spec: SensorSpec, controller: ControllerSpec, source: str) -> None:
+    """InputError naming the configuration's key when the controller log cannot be matched as the
+    sensor asks: by key without a key column (a bag has none), by time without a time column."""
+    where = f"sensors/{spec.name}"
+    if controller.bag is not None and spec.match == "key":
+        raise InputError(
+            f"sensor {spec.name!r} is matched by key, but a bag's joint states have no key: use match: time",
+            file=source,
+            key=f"{where}/match",
+        )
+    if controller.bag is not None and spec.match == "time" and spec.time is None:
+        raise InputError(
+            "missing: the sensor's time column (with a controller bag there is no column name to default to)",
+            file=source,
+            key=f"{where}/time",
+        )
+    if getattr(controller, spec.match) is None:
+        raise InputError(
+            f"missing: sensor {spec.name!r} is matched by {spec.match}, so the controller log needs a {spec.match} column",
+            file=source,
+            key=f"controller/{spec.match}",
+        )
 
 
 def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
@@ -348,16 +466,10 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
         unit=_choice(section, "unit", tuple(LENGTH_UNITS), where, source),
         match=match,
         key=_text(section, "key", where, source, controller.key),
-        time=_text(section, "time", where, source, controller.time),
+        time=_text(section, "time", where, source, controller.time if controller.bag is None else None),
         tolerance=section.get("tolerance"),
     )
-    needed = getattr(controller, match)
-    if needed is None:
-        raise InputError(
-            f"missing: sensor {name!r} is matched by {match}, so the controller log needs a {match} column",
-            file=source,
-            key=f"controller/{match}",
-        )
+    _sensor_match(spec, controller, source)
     if match == "time":
         tolerance = spec.tolerance
         if not (
@@ -471,6 +583,63 @@ def _times(export: Export, column: str, config_key: str, spec: FileSpec) -> pd.D
     return pd.DatetimeIndex(values).as_unit("ns")
 
 
+# --------------------------------------------------------------------------- a bag's joint states
+
+
+def _utc(ns: int) -> str:
+    """A time in ns since the Unix epoch as ISO 8601 text in UTC, to the ns."""
+    return pd.Timestamp(int(ns), unit="ns", tz="UTC").isoformat()
+
+
+def _joint_positions(state, joints: tuple[str, ...], topic: str, source: str) -> list[float]:
+    """The positions (rad) of `joints`, in that order, in one JointState message (`bags.JointState`),
+    whatever the order of its names; InputError naming the bag, the topic and the message (its
+    index and log time) when one is missing or named twice, or its positions are not one per name
+    or not finite."""
+    where = f"message {state.index} (log time {_utc(state.log_time)})"
+    if len(state.position) != len(state.name):
+        raise InputError(
+            f"{where} has {len(state.name)} names but {len(state.position)} positions (one per name)",
+            file=source,
+            key=topic,
+        )
+    missing = [j for j in joints if j not in state.name]
+    twice = [j for j in joints if state.name.count(j) > 1]
+    if missing or twice:
+        what = f"no joint {', '.join(missing)}" if missing else f"joint {', '.join(twice)} more than once"
+        raise InputError(f"{where} has {what}; its names: {', '.join(state.name) or 'none'}", file=source, key=topic)
+    positions = [state.position[state.name.index(j)] for j in joints]
+    bad = [f"{j} = {p}" for j, p in zip(joints, positions) if not math.isfinite(p)]
+    if bad:
+        raise InputError(f"{where}: position not finite: {', '.join(bad)}", file=source, key=topic)
+    return positions
+
+
+def joint_state_export(states: Sequence, spec: ControllerSpec, source: str) -> Export:
+    """A bag's joint states (`bags.JointState`, in log-time order) as the controller log: a row per
+    message, the cells the positions of spec.joints (rad, as text that reads back to the same float)
+    and the text of its time (column spec.time), `lines` the messages' indices and `times` their
+    header stamps or log times (spec.bag.stamp; UTC, to the ns). InputError naming the bag
+    (`source`) and the topic for a message without one of the joints, positions not one per name or
+    not finite, or a header stamp never set (0)."""
+    bag = spec.bag
+    q = [_joint_positions(state, spec.joints, bag.topic, source) for state in states]
+    lines = np.array([state.index for state in states], dtype=np.int64)
+    ns = np.array([state.stamp if bag.stamp == "header" else state.log_time for state in states], dtype=np.int64)
+    unset = np.flatnonzero(ns == 0)
+    if unset.size:
+        raise InputError(
+            f"header stamp 0 (never set by the publisher) on {format_rows(lines[unset], 'message')}: "
+            "use stamp: log to take the bag's log time",
+            file=source,
+            key=bag.topic,
+        )
+    times = pd.DatetimeIndex(pd.to_datetime(ns, unit="ns", utc=True)).as_unit("ns")
+    cells = {joint: [repr(float(row[j])) for row in q] for j, joint in enumerate(spec.joints)}
+    cells[spec.time] = [_utc(t) for t in ns]
+    return Export(source, pd.DataFrame(cells, dtype=object), lines, row_name="message", times=times)
+
+
 # --------------------------------------------------------------------------- matching
 
 
@@ -565,7 +734,10 @@ def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
         columns[name] = _numbers(export, column, "controller/joints", c.file.decimal, allow_missing=False) * scale
     matches = {s.match for s in spec.sensors.values()}
     key = _keys(export, c.key, "controller/key") if "key" in matches else None
-    time = _times(export, c.time, "controller/time", c.file) if c.time is not None else None
+    if export.times is not None:  # a bag's, as decoded
+        time = export.times
+    else:
+        time = _times(export, c.time, "controller/time", c.file) if c.time is not None else None
     if time is not None and "time" in matches:
         repeated = np.flatnonzero(pd.Series(time).duplicated(keep=False).to_numpy())
         if repeated.size:
@@ -666,7 +838,11 @@ def _sensor_table(
             for i in np.flatnonzero(rows < 0)
         ],
         "not_measured": [
-            {"file": controller_export.source, "line": int(controller_export.lines[i]), label: str(controller_shown[i])}
+            {
+                "file": controller_export.source,
+                controller_export.row_name: int(controller_export.lines[i]),
+                label: str(controller_shown[i]),
+            }
             for i in np.flatnonzero(~measured)
         ],
         "marker_not_seen": [
@@ -693,6 +869,7 @@ def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, E
             "file": controller.source,
             "rows": int(len(controller.cells)),
             "joint_unit": spec.controller.unit,
+            **({"topic": spec.controller.bag.topic, "stamp": spec.controller.bag.stamp} if spec.controller.bag else {}),
         },
         "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
         "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values()),
@@ -726,7 +903,7 @@ def in_exports(
             **dict(zip(joint_columns(len(c.joints)), c.joints)),
             **{k: getattr(c, k) or f"{k} (not a column: default)" for k in KEY_COLUMNS},
         }
-    where = f" on {_lines(lines)}" if len(lines) else ""
+    where = f" on {format_rows(lines, export.row_name)}" if len(lines) else ""
     return InputError(
         f"{exc.reason} (campaign table {sensor}){where}",
         file=export.source,
