@@ -307,11 +307,15 @@ def test_certificate_rows_take_missing_values_without_a_crash():
     assert np.isnan(verdict["Before: mean (mm)"]) and np.isnan(verdict["After: p95 (mm)"])
 
 
-def test_a_held_registration_parameter_is_a_warning():
+def test_a_held_registration_parameter_and_each_held_combination_are_warnings():
     inputs = _inputs()
-    laplace = dataclasses.replace(inputs.laplace, held={"zero_offsets.q1": 0.0, "registration.y": 0.0})
+    statement = "zero_offsets.q7 is held at the controller's value: 1 deg of it changes no measured point"
+    laplace = dataclasses.replace(
+        inputs.laplace, held={"zero_offsets.q1": 0.0, "registration.y": 0.0}, held_statements=(statement,)
+    )
     cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
     assert any("registration.y held" in w for w in cert.warnings)
+    assert f"Laser Tracker: {statement}" in cert.warnings
     assert not any(
         "do not determine the registration" in w
         for w in certificate.certificate(SUMMARY, {"laser_tracker": _inputs()}).warnings

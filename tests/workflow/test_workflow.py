@@ -12,7 +12,7 @@ import time
 import pytest
 
 from remaster import audit, files, provenance
-from remaster.campaigns import folders, robot_model, scenario
+from remaster.campaigns import folders, robot_model, scenario, simulation
 
 from ..conftest import REPO
 
@@ -402,3 +402,41 @@ def test_a_campaign_too_large_for_the_configured_memory_stops_at_its_first_job(t
     assert "rows in its largest sensor" in output and "max_job_memory_gb" in output
     assert not list((tiny / "small_memory").glob("*/campaign/summary.json"))
     assert not list((tiny / "small_memory").glob("*/*/registration.json"))
+
+
+def test_a_campaign_whose_marker_sits_on_the_last_axis_gets_its_certificate_beside_two_others(tiny, tmp_path, iiwa):
+    """The compliant tiny campaign measured again with the marker on joint 7's axis (its offset moves
+    no point): in one run with the two tiny campaigns, every campaign gets its certificate, and the
+    on-axis one names what its data cannot tell apart."""
+    import numpy as np
+
+    shutil.copytree(tiny / "raw", tmp_path / "raw")  # copy2: the time stamps too, so tiny's results still hold
+    if (tiny / "results").is_dir():
+        shutil.copytree(tiny / "results", tmp_path / "results")
+    source = folders.read_campaign(tmp_path / "raw" / "tiny2")
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
+    spec["sensors"]["laser_tracker"]["marker"] = [0.0, 0.0, 0.02]
+    rng = np.random.default_rng(7)
+    table = source.sensors["laser_tracker"].table.copy()
+    q = table[[f"q{j + 1}" for j in range(iiwa.n_joints)]].to_numpy()
+    sensor = scenario.sensors_of(spec)["laser_tracker"]
+    table[["x", "y", "z"]] = simulation.measure(iiwa, scenario.true_robot(spec, iiwa.n_joints, rng), sensor, q, rng)
+    metadata = files.read_yaml(tmp_path / "raw" / "tiny2" / "campaign.yaml")
+    metadata["name"] = "onaxis"
+    metadata["sensors"]["laser_tracker"]["marker"] = [0.0, 0.0, 0.02]
+    folders.write_campaign(tmp_path / "raw" / "onaxis", metadata, {"laser_tracker": table})
+    files.write_yaml(
+        tmp_path / "config.yaml",
+        {
+            **files.read_yaml(tiny / "config.yaml"),
+            "raw_dir": str(tmp_path / "raw"),
+            "results_dir": str(tmp_path / "results"),
+        },
+    )
+    result = run(tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    for name in ("tiny", "tiny2", "onaxis"):
+        assert (tmp_path / "results" / name / "certificate.md").is_file()
+    text = (tmp_path / "results" / "onaxis" / "certificate.md").read_text(encoding="utf-8")
+    assert "zero_offsets.q7 is held at the controller's value: 1 deg of it changes no measured point" in text
+    assert "| iiwa_joint_7 |  |  |  |  | held: not identifiable |" in text

@@ -483,6 +483,8 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
             "default sampler's"
         )
     out += gross_error_warnings(label, inputs)
+    # which combination the data cannot tell apart, per held parameter (the paper fit's own test)
+    out += [f"{label}: {statement}" for statement in inputs.laplace.held_statements]
     held_registration = [n for n in inputs.laplace.held if not n.startswith("zero_offsets.")]
     if held_registration:
         out.append(
