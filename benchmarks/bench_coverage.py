@@ -43,12 +43,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.doc_sections import write_section  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
 from remaster.campaigns.arm_kinds import chain_of, cyclic_truth, iiwa_scenario  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
 VALIDATION_DOC = REPO / "docs" / "validation.md"
-BEGIN, END = "<!-- bench_coverage:begin -->", "<!-- bench_coverage:end -->"
 TRUTHS = {
     "zero-offsets": {},
     "rigid links": {"link_errors": {"translation_std": 1.0e-4, "rotation_std": 2.0e-4, "seed": 9}},
@@ -260,10 +260,7 @@ def write(record: dict) -> None:
     (RESULTS / "coverage.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     text = markdown(record)
     (RESULTS / "coverage.md").write_text(text + "\n", encoding="utf-8")
-    doc = VALIDATION_DOC.read_text(encoding="utf-8")
-    if BEGIN in doc and END in doc:
-        head, rest = doc.split(BEGIN, 1)
-        VALIDATION_DOC.write_text(f"{head}{BEGIN}\n{text}\n{END}{rest.split(END, 1)[1]}", encoding="utf-8")
+    write_section(VALIDATION_DOC, "bench_coverage", text)
     print(text)
 
 

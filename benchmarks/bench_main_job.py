@@ -29,10 +29,13 @@ import time
 from datetime import date
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.doc_sections import write_section  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results" / "main_job.json"
 README = REPO / "benchmarks" / "README.md"
-BEGIN, END = "<!-- bench_main_job:begin -->", "<!-- bench_main_job:end -->"
 # The commit the change to a job per campaign and stage started from (it had a job per table and figure),
 # and the campaigns it had.
 DEFAULT_BASE = "4cb14a1"
@@ -117,11 +120,7 @@ def markdown(record: dict) -> str:
 def write(record: dict) -> None:
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    text = README.read_text(encoding="utf-8")
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        README.write_text(f"{head}{BEGIN}\n{markdown(record)}\n{END}{tail}", encoding="utf-8")
+    write_section(README, "bench_main_job", markdown(record))
 
 
 def commit_of(checkout: Path) -> str:

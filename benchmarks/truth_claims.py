@@ -74,7 +74,9 @@ class TruthCheck:
     the same as error_mm and bound_mm at the validation set's commands (the planner's own
     configurations, drawn like the measured ones, not between them); samples: the loop closure's
     posterior samples (SI); acceptance: the acceptance test on the validation set (config.yaml's
-    settings)."""
+    settings); elsewhere: at configurations another design measured (`check`'s elsewhere_q), the
+    loop model's true error and per-command bound and the zero-offset model's true error (mm,
+    arrays: `error_mm`, `bound_mm`, `paper_error_mm`), None without them."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -94,6 +96,7 @@ class TruthCheck:
     planned_q: np.ndarray | None = None
     samples: pd.DataFrame | None = None
     acceptance: Acceptance | None = None
+    elsewhere: dict | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -130,14 +133,22 @@ class TruthCheck:
 
 
 def check(
-    spec: dict, chain, sensor: str, n_random: int = 300, draws: int = 1000, seed: int = 5, without: tuple = ()
+    spec: dict,
+    chain,
+    sensor: str,
+    n_random: int = 300,
+    draws: int = 1000,
+    seed: int = 5,
+    without: tuple = (),
+    elsewhere_q=None,
 ) -> TruthCheck:
     """Simulate `spec`, calibrate its `sensor` as the pipeline does (the loop closure offered every
     candidate but those `without`), and hold `remaster predict` (loop model, sensor frame) to the
     truth at `n_random` configurations uniform within the joint limits and `n_random` near the
     measured configurations; and the loop model's workspace claims (`draws` posterior draws,
     `n_random` configurations each) near the data and across the limits to the true 95th percentile
-    there; and run the acceptance test."""
+    there; and run the acceptance test. With elsewhere_q (m, N) rad, e.g. another design's
+    commands: both models' `remaster predict` there against the truth (`TruthCheck.elsewhere`)."""
     simulated = scenario.simulate(spec, chain)
     root = Path(tempfile.mkdtemp())
     folder = root / spec["name"]
@@ -229,6 +240,7 @@ def check(
         np.random.default_rng(seed),
         config["acceptance"],
     )
+    elsewhere = None if elsewhere_q is None else _elsewhere(campaign, sensor, results, elsewhere_q, truth, draws, rng)
     return TruthCheck(
         tuple(report.effects_added),
         float(report.after["validation"]["rms_per_axis_mm"]),
@@ -248,4 +260,24 @@ def check(
         q_planned,
         result.samples,
         accepted,
+        elsewhere,
     )
+
+
+def _elsewhere(campaign, sensor: str, results: dict, q, truth: dict, draws: int, rng) -> dict:
+    """`TruthCheck.elsewhere` at configurations q (m, N) rad (drawn after everything else of
+    `check`, so that it changes none of it)."""
+    q = np.asarray(q, dtype=float)
+    device = scenario.sensor_from_truth(truth, sensor, campaign.sensors[sensor].marker)
+    true = true_sensor_positions(campaign.chain, scenario.robot_from_truth(truth), device, q, np.zeros(len(q)))
+    # as the workflow reads summary.csv: the parameter a column
+    results = {**results, "summary": results["summary"].reset_index()}
+    out = {}
+    for model in ("loop", "paper"):
+        robot = compensation.calibrated_robot(campaign, sensor, model, results)
+        predicted = compensation.predict(robot, q, "sensor", draws, rng)
+        out[model] = (
+            np.linalg.norm(predicted[["x", "y", "z"]].to_numpy() - true, axis=1) / 1e-3,
+            predicted["bound95_mm"].to_numpy(),
+        )
+    return {"error_mm": out["loop"][0], "bound_mm": out["loop"][1], "paper_error_mm": out["paper"][0]}

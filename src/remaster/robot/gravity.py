@@ -17,7 +17,14 @@ them into the last body, so Pinocchio's torques already include them. The rule:
 - otherwise (the bundled iiwa URDF ends with a massless flange; a DH table has no masses) the
   configured payload is added at the flange, as before.
 
-`Payload` says which of the two the torques assume, for the reports.
+An arm without mass data (a DH table, a URDF without inertials) would feel the payload alone, and
+its compliance could then only follow the payload's torque, not the sag of its own links. There a
+stand-in carries the arm's weight: a mass of STAND_IN_MASS at the middle of each moving link (halfway
+from its joint to the next joint, or to the flange for the last), so every joint's torque has the
+shape of the arm's own (its lever arms); each joint's fitted compliance absorbs the unknown scale
+(c_j times the mass that really hangs there). The payload's part of the torques stays the payload's.
+
+`Payload` says which of the two the torques assume, and whether the arm's masses are a stand-in.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from . import kinematics
 from .kinematics import KinematicChain, LinkInertia, pinocchio_model
 
 STANDARD_GRAVITY = 9.80665  # m/s^2
+STAND_IN_MASS = 1.0  # kg per moving link of an arm without mass data (module docstring): the compliance takes the scale
 
 
 def gravity_torques(
@@ -72,6 +80,7 @@ class Payload:
     com: tuple[float, float, float]
     links: tuple[str, ...] = ()
     configured_mass: float = 0.0
+    stand_in: bool = False
 
     def report(self) -> dict:
         """JSON-ready, with a sentence saying which payload the torques assume and why."""
@@ -88,8 +97,15 @@ class Payload:
                 f"({self.mass:.3g} kg) is added at the flange"
             )
             frame = "flange"
+        if self.stand_in:
+            why += (
+                f"; the arm has no mass data: {STAND_IN_MASS:g} kg at the middle of each moving link stands in "
+                "for its weight, so the torques have the shape of its own and each joint's compliance takes "
+                "the scale"
+            )
         return {
             "source": self.source,
+            "arm_masses": "stand-in" if self.stand_in else "the robot description's",
             "mass_kg": self.mass,
             "com_m": list(self.com),
             "com_frame": frame,
@@ -159,6 +175,19 @@ def urdf_tool(chain: KinematicChain) -> UrdfTool | None:
     return UrdfTool(tuple(massive), LinkInertia(mass, com, np.zeros((3, 3))), bare)
 
 
+def without_mass(chain: KinematicChain) -> bool:
+    """Whether the chain has no mass data (a DH table, a URDF without inertials): every body massless."""
+    return chain.inertias is None or not any(body.mass > 0.0 for body in chain.inertias)
+
+
+def stand_in(chain: KinematicChain) -> KinematicChain:
+    """The chain with STAND_IN_MASS at the middle of each moving link (module docstring): in joint
+    j's frame, halfway to joint j + 1's origin (to the flange for the last joint)."""
+    ends = [*(t[:3, 3] for t in chain.joint_transforms[1:]), chain.tool_transform[:3, 3]]
+    zero = np.zeros((3, 3))
+    return dataclasses.replace(chain, inertias=tuple(LinkInertia(STAND_IN_MASS, 0.5 * end, zero) for end in ends))
+
+
 def assumed_payload(chain: KinematicChain, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> Payload:
     """The payload `loaded_torques` assumes on this chain with this configured payload (kg, m
     flange frame): the URDF's tool when it carries one, else the configured payload."""
@@ -170,20 +199,22 @@ def _assumed(chain, tool: UrdfTool | None, payload_mass: float, payload_com) -> 
         com = tuple(float(c) for c in tool.inertia.com)
         return Payload("urdf", float(tool.inertia.mass), com, tool.links, float(payload_mass))
     com = tuple(float(c) for c in payload_com)
-    return Payload("configuration", float(payload_mass), com, (), float(payload_mass))
+    return Payload("configuration", float(payload_mass), com, (), float(payload_mass), without_mass(chain))
 
 
 def loaded_torques(chain: KinematicChain, q, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> LoadedTorques:
     """Gravity torques at q (n, N) with the payload the rule of the module docstring gives: the
     URDF's tool when it carries one (payload_mass is then not added), else payload_mass (kg) at
-    payload_com (m, flange frame) added at the flange; and the payload's part of them."""
+    payload_com (m, flange frame) added at the flange, on the stand-in masses of an arm without
+    mass data (`stand_in`); and the payload's part of them."""
     tool = urdf_tool(chain)
     payload = _assumed(chain, tool, payload_mass, payload_com)
     if tool is not None:
         torques = gravity_torques(chain, q)
         return LoadedTorques(torques, torques - gravity_torques(tool.bare_chain, q), payload)
-    torques = gravity_torques(chain, q, payload_mass, payload_com)
-    return LoadedTorques(torques, torques - gravity_torques(chain, q), payload)
+    arm = stand_in(chain) if payload.stand_in else chain
+    torques = gravity_torques(arm, q, payload_mass, payload_com)
+    return LoadedTorques(torques, torques - gravity_torques(arm, q), payload)
 
 
 def tool_report(chain: KinematicChain) -> dict | None:
