@@ -49,6 +49,9 @@ def test_the_rigid_urdf_follows_a_compliant_arm_closer_than_its_loop_urdf_and_pi
     # scored on configurations drawn apart from those fitted to: the rigid chain follows most of it
     assert far["rigid.urdf"]["median_mm"] < 0.5 * far["loop.urdf"]["median_mm"]
     assert far["rigid.urdf"]["max_mm"] < far["loop.urdf"]["max_mm"]
+    # ik.urdf: the links between the joints nominal, only the zero-offsets, base and tool fitted
+    assert all(k.startswith(rigid_urdf.IK_PREFIXES) for k, v in fit.ik_values.items() if v != 0.0)
+    assert far["rigid.urdf"]["median_mm"] <= far["ik.urdf"]["median_mm"] < far["paper.urdf"]["median_mm"]
     # the URDF written holds exactly the fitted chain: Pinocchio's forward kinematics of its flange
     xml, left = exports.calibrated_urdf(chain, fit.values)
     assert left == []

@@ -388,7 +388,7 @@ def test_the_certificate_says_which_urdf_to_load_and_how_far_each_is_from_the_lo
     inputs = _inputs()
     far = {
         name: {"median_mm": m, "p95_mm": 2 * m, "max_mm": 3 * m}
-        for name, m in (("paper.urdf", 0.55), ("loop.urdf", 0.54), ("rigid.urdf", 0.22))
+        for name, m in (("paper.urdf", 0.55), ("loop.urdf", 0.54), ("rigid.urdf", 0.22), ("ik.urdf", 0.31))
     }
     urdfs = {"configurations": 1000, "distance_from_loop_model_mm": far, "not_followed": "the residual GP"}
     workspace = {**inputs.workspace, "urdfs": urdfs}
@@ -396,4 +396,7 @@ def test_the_certificate_says_which_urdf_to_load_and_how_far_each_is_from_the_lo
     line = next(w for w in cert.warnings if "rigid.urdf" in w)
     assert line.startswith("Laser Tracker: a tool that loads a URDF alone should load rigid.urdf")
     assert "rigid.urdf 0.22 mm median, 0.66 mm at most; loop.urdf 0.54 mm median" in line
+    assert line.endswith(
+        "stays exact on ik.urdf (zero-offsets, base and tool only): ik.urdf 0.31 mm median, 0.93 mm at most"
+    )
     assert not any("rigid.urdf" in w for w in certificate.certificate(SUMMARY, {"laser_tracker": inputs}).warnings)

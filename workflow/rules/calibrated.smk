@@ -27,6 +27,7 @@ CALIBRATED_OUTPUTS = dict(
     paper=f"{CALIBRATED}/paper.urdf",
     loop=f"{CALIBRATED}/loop.urdf",
     rigid=f"{CALIBRATED}/rigid.urdf",
+    ik=f"{CALIBRATED}/ik.urdf",
     effects=f"{CALIBRATED}/loop_effects.yaml",
     offsets=f"{CALIBRATED}/controller_offsets.csv",
 )

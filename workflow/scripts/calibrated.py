@@ -31,6 +31,7 @@ with files.log_to(snakemake.log[0]):
     files.write_text(out.paper, result.files.paper_urdf)
     files.write_text(out.loop, result.files.loop_urdf)
     files.write_text(out.rigid, result.rigid_urdf)
+    files.write_text(out.ik, result.ik_urdf)
     files.write_yaml(out.effects, result.files.effects)
     files.write_csv(out.offsets, result.files.offsets)
     if result.dh is not None:

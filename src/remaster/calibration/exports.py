@@ -309,6 +309,7 @@ FILES = {
     "loop.urdf": "the loop-closed model: zero-offsets and link geometry in the joint origins (with loop_effects.yaml)",
     "rigid.urdf": "the URDF nearest the loop-closed model near the measured configurations, for tools that load "
     "a URDF alone (its distance from the loop model in workspace.json's urdfs and the certificate)",
+    "ik.urdf": "the same fit with only the zero-offsets, base and tool free: a closed-form IK solver stays exact on it",
     "loop_effects.yaml": "the loop-closed model's effects a URDF cannot hold",
     "controller_offsets.csv": "zero-offset corrections for the controller, both models",
 }

@@ -23,13 +23,14 @@ from ..loop.result import LoopResults
 @dataclass(frozen=True)
 class CalibratedOutputs:
     """workspace: the claims (its report with the URDFs' distances from the loop model); files:
-    URDFs, effects and offsets; rigid_urdf: rigid.urdf's text; dh: {'paper', 'loop': DH table}
+    URDFs, effects and offsets; rigid_urdf, ik_urdf: rigid.urdf's and ik.urdf's text; dh: {'paper', 'loop': DH table}
     when the campaign gives a DH table, else None; ur: {'paper', 'loop': kinematics_config} for a
     UR (`exports.ur_form`), else None."""
 
     workspace: workspace.WorkspaceAccuracy
     files: exports.CalibratedFiles
     rigid_urdf: str
+    ik_urdf: str
     dh: dict | None
     ur: dict | None = None
 
@@ -68,6 +69,7 @@ def calibrated_outputs_stage(
     )
     claims = replace(claims, report={**claims.report, "urdfs": rigid.report})
     rigid_text, _ = exports.calibrated_urdf(campaign.chain, rigid.values)
+    ik_text, _ = exports.calibrated_urdf(campaign.chain, rigid.ik_values)
     dh = (
         exports.calibrated_dh_tables(campaign, sensor, summary, loop.report, label=label)
         if "dh" in campaign.robot
@@ -78,4 +80,4 @@ def calibrated_outputs_stage(
         if exports.ur_form(campaign)
         else None
     )
-    return CalibratedOutputs(claims, files, rigid_text, dh, ur)
+    return CalibratedOutputs(claims, files, rigid_text, ik_text, dh, ur)

@@ -8,7 +8,10 @@ URDF can hold (every joint origin in full, the zero-offsets) fitted by least squ
 loop-closed model's marker positions at configurations near the measured ones
 (`domain.MeasuredDomain`'s nearness), the marker at the loop's marker offset for every model (the
 marker is the user's tool, not the URDF's). The residual GP is not followed (its mean is not a
-parametric effect), nor anything beyond the measured configurations.
+parametric effect), nor anything beyond the measured configurations. ik.urdf is the same fit with
+only the zero-offsets, the base and the tool free: the links between the joints keep their nominal
+geometry, so a closed-form inverse kinematics (IKFast, ur-analytic-ik: intersecting wrist axes)
+stays exact on it, at the accuracy it states.
 
 How far each URDF is from the loop model (median, 95th percentile and largest distance, mm) is
 measured on a second, independent set of configurations near the measured ones, so the rigid fit is
@@ -35,17 +38,22 @@ from .workspace import fit_domain
 
 RIGID_BLOCKS = ("marker_offset", "link_geometry")  # the marker offset held at the loop's value
 URDF_PREFIXES = ("zero_offsets.", "link_geometry.")  # what a URDF's joint origins hold
+# what keeps a closed-form IK solver exact: the zero-offsets, the base (the transform before joint 1)
+# and the tool; the links between the joints keep their nominal geometry (intersecting wrist axes)
+IK_PREFIXES = ("zero_offsets.", "link_geometry.F1.", "link_geometry.tool.")
 CONFIGURATIONS = 1000  # near the measured ones, to fit and again (drawn apart) to score
 
 
 @dataclass(frozen=True)
 class RigidFit:
     """values: {parameter: SI} of the zero-offsets and link geometry of the fitted chain (for
-    `exports.calibrated_urdf`); distances: {file: {median_mm, p95_mm, max_mm}} of paper.urdf,
-    loop.urdf and rigid.urdf from the loop-closed model over the scoring configurations;
+    `exports.calibrated_urdf`); ik_values: the same with only the zero-offsets, the base and the tool
+    free (`IK_PREFIXES`: ik.urdf); distances: {file: {median_mm, p95_mm, max_mm}} of paper.urdf,
+    loop.urdf, rigid.urdf and ik.urdf from the loop-closed model over the scoring configurations;
     configurations: how many were fitted to and scored on (each)."""
 
     values: dict[str, float]
+    ik_values: dict[str, float]
     distances: dict[str, dict[str, float]]
     configurations: int
 
@@ -73,15 +81,16 @@ def _tool_holdable(chain: KinematicChain) -> bool:
     return not calibrated_urdf(chain, {"link_geometry.tool.x": MM})[1]
 
 
-def fit_rigid(chain: KinematicChain, loop: Calibration, fit_q, marker) -> dict[str, float]:
+def fit_rigid(chain: KinematicChain, loop: Calibration, fit_q, marker, free=URDF_PREFIXES) -> dict[str, float]:
     """The zero-offsets and link geometry {parameter: SI} whose chain puts the marker (3,) m, at the
     loop's marker offset, nearest (least squares) the loop-closed model's positions at readings
-    fit_q (n, N) rad, started from the loop's own values (directions the marker does not see stay
+    fit_q (n, N) rad, the parameters named by `free` (prefixes) fitted and the others of the URDF's
+    at 0 (nominal), started from the loop's own values (directions the marker does not see stay
     there; the tool's link errors held at 0 where the URDF has no fixed joint to hold them)."""
     target = loop.predictor(chain, fit_q, marker).points(loop.values)
     data = Readings(np.arange(len(fit_q)), np.asarray(fit_q, dtype=float), target)
     names = BlockModel(chain, data, marker, np.eye(4), RIGID_BLOCKS).all_names
-    held = {n: 0.0 for n in names if not n.startswith(URDF_PREFIXES)} | _marker_part(loop.values)
+    held = {n: 0.0 for n in names if not n.startswith(free)} | _marker_part(loop.values)
     if not _tool_holdable(chain):  # a chain that ends on its last joint: no fixed joint holds the tool's errors
         held |= {n: 0.0 for n in names if n.startswith("link_geometry.tool.")}
     model = BlockModel(chain, data, marker, np.eye(4), RIGID_BLOCKS, fixed=held)
@@ -116,7 +125,9 @@ def rigid_urdf_fit(campaign: Campaign, sensor: str, paper: Calibration, loop: Ca
         q = domain.nearness.draw(CONFIGURATIONS, rng, domain.limits_lower, domain.limits_upper)
         return np.where(domain.held, domain.lower, q)
 
-    values = fit_rigid(chain, loop, draw("fit"), data.marker)
+    fit_q = draw("fit")
+    values = fit_rigid(chain, loop, fit_q, data.marker)
+    ik_values = fit_rigid(chain, loop, fit_q, data.marker, IK_PREFIXES)
     score_q = draw("score")
     target = loop.predictor(chain, score_q, data.marker).points(loop.values)
     marker = _marker_part(loop.values)
@@ -125,6 +136,7 @@ def rigid_urdf_fit(campaign: Campaign, sensor: str, paper: Calibration, loop: Ca
         "paper.urdf": _urdf_part(paper.values),
         "loop.urdf": _urdf_part(loop.values),
         "rigid.urdf": values,
+        "ik.urdf": ik_values,
     }
     distances = {name: distances_mm(at.points({**part, **marker}), target) for name, part in urdfs.items()}
-    return RigidFit(values, distances, CONFIGURATIONS)
+    return RigidFit(values, ik_values, distances, CONFIGURATIONS)

@@ -416,6 +416,12 @@ def urdf_line(sensor: str, inputs: CertificateInputs) -> list[str]:
         f"loop-closed model; from that model near the measured configurations ({urdfs['configurations']} drawn apart "
         f"from those it was fitted to): {text('rigid.urdf')}; {text('loop.urdf')} (exact only with loop_effects.yaml "
         f"applied beside it); {text('paper.urdf')}; not followed by any URDF: {urdfs['not_followed']}"
+        + (
+            f". A closed-form IK solver (intersecting wrist axes) stays exact on ik.urdf (zero-offsets, base and "
+            f"tool only): {text('ik.urdf')}"
+            if "ik.urdf" in far
+            else ""
+        )
     ]
 
 
