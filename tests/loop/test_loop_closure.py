@@ -384,6 +384,8 @@ def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
         candidates={
             "link_geometry": [scored],
             "marker_offset": [nothing_seen, {**scored, "round": 2, "bic_gain": 1.0}],
+            "joint_scale": [{**scored, "why_not": "cross-validated fall 2.1 SE, not above 2.87"}],
+            "drift": [{**scored, "log_evidence_gain": 20.0}],
         },
         rounds=[
             {"round": 1, "model": [], "added": "link_geometry"},
@@ -399,6 +401,9 @@ def test_candidates_table_keeps_a_skipped_candidate_with_its_reason():
         skipped[["Log evidence gain", "CV RMSE (mm)", "CV fall (%)", "BIC gain", "Explained (%)"]].to_numpy(float)
     ).all()
     assert table.loc[("marker_offset", 2), "BIC gain"] == 1.0 and table.loc[("marker_offset", 2), "Added"] == ""
+    # why a candidate was not added: what it missed, or what won the round
+    assert table.loc[("joint_scale", 1), "Added"] == "no: cross-validated fall 2.1 SE, not above 2.87"
+    assert table.loc[("drift", 1), "Added"] == "no: it passed, link_geometry gained more evidence this round"
 
 
 def test_the_selection_does_not_read_the_validation_set(iiwa):

@@ -25,6 +25,19 @@ def test_the_fold_threshold_is_students_t_at_the_normal_level():
     scores = {"log_evidence_gain": 50.0, "cv_mse_fall_in_se": 2.5, "cv_folds": 5}
     assert not selection.passes(scores, settings)
     assert selection.passes({**scores, "cv_mse_fall_in_se": 2.8}, settings)
+    # what it missed, with its numbers: the candidate table's reason for not adding it
+    assert selection.judged(dict(scores), settings)["why_not"] == "cross-validated fall 2.5 SE, not above 2.78"
+    lost = selection.judged({**scores, "log_evidence_gain": -1.0, "time_blocked_cv_mse_fall_mm2": -0.1}, settings)
+    assert not lost["passed"] and lost["why_not"].startswith("evidence gain -1 nats, not above 5")
+    assert lost["why_not"].endswith(
+        "no fall over the time blocks (it does not predict a stretch of the campaign it did not see)"
+    )
+    assert selection.judged({**scores, "cv_mse_fall_in_se": 2.8}, settings) == {
+        **scores,
+        "cv_mse_fall_in_se": 2.8,
+        "passed": True,
+        "why_not": "",
+    }
 
 
 def test_time_blocks_are_contiguous_runs_of_whole_poses():

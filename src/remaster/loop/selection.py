@@ -168,8 +168,7 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: n
         "weak": dict(candidate.reduction.weak),
         "condition_number": candidate.reduction.condition_number,
     }
-    out["passed"] = passes(out, settings)
-    return out
+    return judged(out, settings)
 
 
 def selection_folds(poses, n_folds: int) -> np.ndarray:
@@ -199,18 +198,36 @@ def cv_threshold(settings: LoopSettings, n_folds: int | None = None) -> float:
     return evidence.t_threshold(settings.cv_standard_errors, n_folds or settings.cv_folds)
 
 
+def shortfalls(scores: Mapping, settings: LoopSettings) -> list[str]:
+    """Which of the selection's criteria a candidate's scores miss, each with its numbers (`passes`):
+    empty when it passes."""
+    out = []
+    gain, needed = scores["log_evidence_gain"], settings.min_log_evidence_gain
+    if not gain > needed:
+        out.append(f"evidence gain {gain:.3g} nats, not above {needed:g}")
+    fall, threshold = scores["cv_mse_fall_in_se"], cv_threshold(settings, scores.get("cv_folds"))
+    if not fall > threshold:
+        out.append(f"cross-validated fall {fall:.3g} SE, not above {threshold:.3g}")
+    blocked = scores.get("time_blocked_cv_mse_fall_mm2")
+    if blocked is not None and not blocked > 0:
+        out.append("no fall over the time blocks (it does not predict a stretch of the campaign it did not see)")
+    return out
+
+
 def passes(scores: Mapping, settings: LoopSettings) -> bool:
     """The selection's rule, for a parametric candidate and the residual GP alike: the evidence gain
     exceeds min_log_evidence_gain AND the pose-grouped cross-validated fall exceeds `cv_threshold`
     standard errors AND, where the campaign has time blocks, the fall over blocks contiguous in time
     is positive: the effect also predicts poses it did not interpolate between (folds of whole poses
     assigned in turn are each a thinned copy of the same design)."""
-    blocked = scores.get("time_blocked_cv_mse_fall_mm2")
-    return bool(
-        scores["log_evidence_gain"] > settings.min_log_evidence_gain
-        and scores["cv_mse_fall_in_se"] > cv_threshold(settings, scores.get("cv_folds"))
-        and (blocked is None or blocked > 0)
-    )
+    return not shortfalls(scores, settings)
+
+
+def judged(scores: dict, settings: LoopSettings) -> dict:
+    """scores with `passed` (`passes`) and `why_not` (`shortfalls`, '; '-joined; '' when it passes)."""
+    missed = shortfalls(scores, settings)
+    scores["passed"], scores["why_not"] = not missed, "; ".join(missed)
+    return scores
 
 
 @dataclass(frozen=True, eq=False)
@@ -679,8 +696,7 @@ class GPPresentScoring:
             "parameters": list(current.reduction.kept),
             "evidence": "gp_joint" if self.exact else "gp_joint_fixed_mode",
         }
-        out["passed"] = passes(out, self.settings)
-        return out
+        return judged(out, self.settings)
 
     def removed(self, current: Fitted) -> None:
         self.gp = gp_candidate(
@@ -766,5 +782,4 @@ def _score_gp(
     }
     if in_time is not None:
         scores.update({f"time_blocked_{k}": v for k, v in in_time.gp_gain(current, data, rotation, settings).items()})
-    scores["passed"] = passes(scores, settings)
-    return gp, scores
+    return gp, judged(scores, settings)

@@ -105,7 +105,8 @@ CAPTIONS = {
     "set, read only here, with the optimization fit's parameters).",
     "loop_candidates": "Loop closure: every candidate effect's Laplace evidence gain (nats) under its priors, its "
     "pose-grouped cross-validated fall on the optimization set (and in standard errors), BIC "
-    "gain for reference, and the share of the residual it explains, per round; for a laser "
+    "gain for reference, and the share of the residual it explains, per round; Added says 'yes', or "
+    "why not (the criteria it missed, with their numbers, or that the round's added candidate gained more evidence); for a laser "
     "tracker, a last row for its range/transverse noise model (evidence gain against isotropic "
     "noise, or why it was not offered).",
     "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "

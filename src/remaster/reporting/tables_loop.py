@@ -77,6 +77,15 @@ def _fold_falls(entry: dict) -> str | float:
     return " / ".join("departed" if i in departed else f"{100.0 * f:.0f}" for i, f in enumerate(entry["cv_fold_falls"]))
 
 
+def _why_not(entry: dict, step: dict) -> str:
+    """A forward candidate not added: the criteria it missed (`selection.shortfalls`), or that it
+    passed and the round's added candidate gained more evidence; '' for a report without them."""
+    if entry.get("why_not"):
+        return f"no: {entry['why_not']}"
+    added = step.get("added")
+    return f"no: it passed, {added} gained more evidence this round" if entry.get("passed") and added else ""
+
+
 def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
     """A candidate's row of `candidates_table`: its scores in one round (`entry`) of the selection
     (`step`: the round as loop_closure.json's rounds record it)."""
@@ -89,7 +98,7 @@ def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
         if backward
         else "yes"
         if step.get("added") == name
-        else ""
+        else _why_not(entry, step)
     )
     return {
         "Sensor": sensor,
