@@ -117,3 +117,35 @@ def test_the_backward_pass_tries_a_block_out_with_the_companions_it_brought():
     backward = [r for r in report.rounds if r.get("pass") == "backward"]
     assert backward and all(r["removed"] != "link_geometry" for r in backward)
     assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 1.5 * sensor.noise
+
+
+def test_compliance_and_link_geometry_are_offered_together_when_neither_passes_alone(iiwa, monkeypatch):
+    """The pair's plumbing, the rule forced: a single block never passes, a model holding both
+    does. The first round offers each alone, none passes, then the pair is fitted, scored and added
+    with both blocks (the link geometry's marker offset with it); the candidates table names it."""
+    from remaster.reporting import tables_loop
+
+    real = selection.score
+
+    def both_or_nothing(current, fitted, settings, blocked=None):
+        out = real(current, fitted, settings, blocked)
+        both = {"joint_compliance", "link_geometry"} <= set(fitted.model.blocks)
+        return {**out, "passed": both, "why_not": "" if both else "forced: alone it never passes"}
+
+    monkeypatch.setattr(selection, "score", both_or_nothing)
+    truth = {
+        "joint_compliance": COMPLIANCE,
+        "payload": HEAVY,
+        "link_errors": {"translation_std": 2e-4, "rotation_std": 2e-4, "seed": 3},
+    }
+    settings = loop_settings(
+        mcmc=None, residual_gp=None, candidates=("joint_compliance", "link_geometry", "marker_offset")
+    )
+    report = closed(iiwa, simulated(iiwa, "compliance and links", truth), settings).report
+    first = report.rounds[0]
+    pair = selection.pair_name(("joint_compliance", "link_geometry"))
+    assert first["added"] == pair
+    assert {"joint_compliance", "link_geometry", "marker_offset"} <= set(report.effects_added)
+    table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
+    assert table.loc[(pair, 1), "Added"] == "yes"
+    assert table.loc[("joint_compliance", 1), "Added"] == "no: forced: alone it never passes"

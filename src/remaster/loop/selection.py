@@ -35,6 +35,15 @@ MIN_GP_POSES = 10  # fewer poses than this cannot tell a smooth residual from no
 # with the marker offset, which holds the tool link's error that only moves the marker
 # (`blocks.structural_redundancy`); offered alone, neither explains a rigid error of the tool.
 COMPANIONS = {"link_geometry": ("marker_offset",)}
+# Effects offered together when each was offered alone in a round and none passed: on an elastic arm
+# the sag (compliance) and the link errors trade against each other, so that each alone leaves the
+# other's share in the residual and cannot win, where both together can.
+PAIRS = (("joint_compliance", "link_geometry"),)
+
+
+def pair_name(pair) -> str:
+    """A pair's name in the candidates and rounds: 'joint_compliance + link_geometry'."""
+    return " + ".join(pair)
 
 
 def with_companions(candidate: str, added, remaining) -> tuple[str, ...]:
@@ -259,6 +268,49 @@ class Selection:
         return predicted + self.gp.gp.mean(data.q) @ self.rotation.T if self.gp_added else predicted
 
 
+@dataclass(frozen=True, eq=False)
+class _Round:
+    """What every candidate of one forward round is fitted from and scored against: the current fit
+    (`added` its extension blocks), the data, the folds and the time blocks (`blocked`, or None)."""
+
+    chain: KinematicChain
+    data: Readings
+    marker: np.ndarray
+    t_nr: np.ndarray
+    base_held: Mapping[str, float]
+    folds: np.ndarray
+    settings: LoopSettings
+    blocked: np.ndarray | None
+    current: Fitted
+    added: tuple[str, ...]
+
+    def record(self, name: str, brings: tuple[str, ...], scores: dict, fits: dict, signatures: dict) -> None:
+        """Fit the current model with the blocks `brings` and record, under `name`, its scores (or why
+        it was skipped), its fit and its signature in the round's dicts."""
+        current = self.current
+        try:
+            fitted = fit_blocks(
+                self.chain, self.data, self.marker, self.t_nr, self.added + brings, self.base_held, self.folds,
+                self.settings.priors, current.values(),
+            )  # fmt: skip
+        except np.linalg.LinAlgError as exc:
+            scores[name] = {"skipped": f"not identifiable: {exc}"}
+            return
+        if not fitted.reduction.kept:
+            scores[name] = {
+                "skipped": "no parameter of this block is visible in these data",
+                "dropped": dict(fitted.reduction.dropped),
+            }
+            return
+        fits[name] = fitted
+        prediction = current.model.predict(current.theta)
+        signature = signatures[name] = Signature(current.residuals(), fitted.model.predict(fitted.theta) - prediction)
+        scores[name] = {
+            **score(current, fitted, self.settings, self.blocked),
+            "explained_fraction": signature.explained,
+        }
+
+
 def select(
     chain: KinematicChain,
     data: Readings,
@@ -283,35 +335,15 @@ def select(
     path = [(BASE_STEP, base)]  # every model the closure test is taken after
     while remaining:
         number = len(rounds) + 1
-        residual, prediction = current.residuals(), current.model.predict(current.theta)
         scores, fits, signatures[number] = {}, {}, {}
+        offered = {c: with_companions(c, added, remaining) for c in remaining}
+        this = _Round(chain, data, marker, t_nr, base_held, folds, settings, blocked, current, tuple(added))
         for candidate in remaining:
-            try:
-                fitted = fit_blocks(
-                    chain,
-                    data,
-                    marker,
-                    t_nr,
-                    tuple(added) + with_companions(candidate, added, remaining),
-                    base_held,
-                    folds,
-                    settings.priors,
-                    current.values(),
-                )
-            except np.linalg.LinAlgError as exc:
-                scores[candidate] = {"skipped": f"not identifiable: {exc}"}
-                continue
-            if not fitted.reduction.kept:
-                scores[candidate] = {
-                    "skipped": "no parameter of this block is visible in these data",
-                    "dropped": dict(fitted.reduction.dropped),
-                }
-                continue
-            fits[candidate] = fitted
-            signature = signatures[number][candidate] = Signature(
-                residual, fitted.model.predict(fitted.theta) - prediction
-            )
-            scores[candidate] = {**score(current, fitted, settings, blocked), "explained_fraction": signature.explained}
+            this.record(candidate, offered[candidate], scores, fits, signatures[number])
+        if not any(scores[c]["passed"] for c in fits):  # each alone lost: the pairs that trade against each other
+            for pair in (p for p in PAIRS if all(b in fits for b in p)):
+                offered[pair_name(pair)] = tuple(dict.fromkeys(b for one in pair for b in offered[one]))
+                this.record(pair_name(pair), offered[pair_name(pair)], scores, fits, signatures[number])
         passing = [c for c in fits if scores[c]["passed"]]
         best = max(passing, key=lambda c: scores[c]["log_evidence_gain"]) if passing else None
         rounds.append({"round": number, "model": list(blocks.BASE) + added, "scores": scores, "added": best})
@@ -319,8 +351,9 @@ def select(
             break
         current = fits[best]
         path.append((best, current))
-        brought[best] = with_companions(best, added, remaining)
-        for block in brought[best]:
+        for member in dict(zip(map(pair_name, PAIRS), PAIRS)).get(best, (best,)):  # a pair: each its companions
+            brought[member] = offered[member]
+        for block in offered[best]:
             added.append(block)
             remaining.remove(block)
     forward_end = rounds[-1] if rounds else None
