@@ -67,3 +67,24 @@ def test_one_fold_can_neither_veto_nor_force_a_candidate():
     assert left_out["cv_departed_folds"] == [4] and left_out["cv_folds"] == 4
     one_left = evidence.cv_gain(_cv([1.0, 60.0], [False, True]), _cv([0.5, 0.6]))
     assert one_left["cv_mse_fall_in_se"] == -np.inf  # no decision on one fold
+
+
+def test_a_jackknife_group_whose_refit_departs_is_left_out_of_u_between_and_named():
+    """The clustered design as jackknife groups (each fold one pose, measured in turn, so the groups
+    contiguous in time are the folds: the spread configurations group 0): without them the
+    registration's orientation is almost free, the refit departs on them, and its estimate, which
+    measures that freedom rather than the design, is left out; the four others give u_between, and
+    the loop's warning names the group."""
+    from remaster.loop import jackknife
+    from remaster.loop.selection import Fitted
+
+    model, folds = _clustered_campaign(np.random.default_rng(3))
+    mode = evidence.posterior_mode(model)
+    poses = folds
+    assert (evidence.time_folds(np.arange(len(poses)), poses, 5) == folds).all()  # the row order as time
+    fitted = Fitted(mode, None, evidence.cross_validate(mode, folds))
+    result = jackknife.zero_offset_jackknife(fitted, poses, 5)
+    assert result["departed_groups"] == [0] and result["groups"] == 4
+    assert all(len(p["estimates_deg"]) == 4 for p in result["parameters"].values())
+    warning = jackknife.departed_groups_warning({"paper": result})
+    assert warning.startswith("jackknife groups whose refit departed") and "paper: group 0;" in warning

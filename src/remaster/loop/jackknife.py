@@ -10,7 +10,9 @@ groups contiguous in time (`selection.TimeBlocked`: the time column, or the row 
 measurement order; K = loop_closure/jackknife_groups), so that each refit sees a design that lacks a
 whole stretch of the campaign rather than a thinned copy of the same design (groups of poses
 assigned in turn measure resampling noise and add nothing on dense designs), and the spread of
-the K estimates gives u_J (`uncertainty.jackknife_variance`). The component beyond
+the K estimates gives u_J (`uncertainty.jackknife_variance`); a group whose refit departs (its
+error on the rows it left out above `evidence.DEPARTED_RATIO` times the fit's sigma) is left out
+of it and named (`departed_groups_warning`). The component beyond
 the posterior's own std is u_between = sqrt(max(u_J^2 - u_p^2, 0)), u_p the Laplace std of the full
 fit (`uncertainty.between_design`). The residual GP, when added, is not refitted: it is the
 parametric model's zero-offsets that are certified.
@@ -59,22 +61,42 @@ def subset(data: Readings, keep: np.ndarray) -> Readings:
         rows=data.rows[keep],
         q=data.q[keep],
         measured=data.measured[keep],
-        torques=data.torques[keep],
-        payload_torques=data.payload_torques[keep],
+        torques=None if data.torques is None else data.torques[keep],
+        payload_torques=None if data.payload_torques is None else data.payload_torques[keep],
         drift=None if data.drift is None else data.drift[keep],
         weights=None if data.weights is None else data.weights[keep],
     )
 
 
-def leave_group_out(fitted: Fitted, folds: np.ndarray) -> np.ndarray:
-    """(K, P) the model's mode refitted without each fold of folds (n,) in turn (sorted fold
-    labels), from the full fit's mode."""
+def leave_group_out(fitted: Fitted, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((K, P) the model's mode refitted without each fold of folds (n,) in turn (sorted fold
+    labels), from the full fit's mode; (K,) each refit's RMS per axis (m) on the fold it left out)."""
     data = fitted.model.data
-    estimates = []
+    estimates, held_out = [], []
     for fold in np.unique(folds):
         model = fitted.model.on(subset(data, folds != fold))
-        estimates.append(evidence.posterior_mode(model, fitted.theta).theta)
-    return np.array(estimates)
+        theta = evidence.posterior_mode(model, fitted.theta).theta
+        residuals = fitted.model.on(subset(data, folds == fold)).residuals(theta)
+        estimates.append(theta)
+        held_out.append(float(np.sqrt(np.mean(residuals**2))))
+    return np.array(estimates), np.array(held_out)
+
+
+def departed_groups_warning(between: dict) -> str | None:
+    """The loop report's warning when a jackknife of `between` ({model: `zero_offset_jackknife`})
+    left out groups whose refit departed, or None."""
+    named = [
+        f"{model}: group{'s' if len(r['departed_groups']) > 1 else ''} {', '.join(map(str, r['departed_groups']))}"
+        for model, r in between.items()
+        if r.get("departed_groups")
+    ]
+    if not named:
+        return None
+    return (
+        "jackknife groups whose refit departed (its error on the group it left out above "
+        f"{evidence.DEPARTED_RATIO:g} x the fit's sigma per axis: the rest leave a combination almost free without "
+        f"them): {'; '.join(named)}; each was left out of u_between, the others give it"
+    )
 
 
 def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
@@ -90,12 +112,24 @@ def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
     in_time = TimeBlocked.of(fitted.model.data, poses, groups)
     folds = in_time.folds if in_time else evidence.pose_folds(poses, groups)
     try:
-        estimates = leave_group_out(fitted, folds)
+        estimates, held_out = leave_group_out(fitted, folds)
     except np.linalg.LinAlgError:
         # a small optimization set (the reader's minimum is just enough for the full fit) leaves
         # some parameter undetermined once a group of poses is out: no spread to estimate, and the
         # report says so rather than the loop closure ending in a traceback
         return {"groups": groups, "method": TOO_FEW, "parameters": {}}
+    # a group whose refit departs (the others leave a combination almost free) measures that
+    # combination, not the design: left out, named, as the cross-validation's departed folds are
+    departed = held_out > evidence.DEPARTED_RATIO * fitted.mode.sigma
+    if np.count_nonzero(~departed) < MIN_GROUPS:
+        return {
+            "groups": groups,
+            "method": TOO_FEW,
+            "parameters": {},
+            "departed_groups": np.flatnonzero(departed).tolist(),
+        }
+    estimates = estimates[~departed]
+    groups = len(estimates)
     u_jackknife = np.sqrt(jackknife_variance(estimates))
     u_posterior = fitted.mode.std
     u_between, dof = between_design(u_posterior, u_jackknife, groups)
@@ -110,7 +144,8 @@ def zero_offset_jackknife(fitted: Fitted, poses, groups: int) -> dict:
                 "estimates_deg": (estimates[:, i] / DEG).tolist(),
             }
     return {
-        "groups": int(len(np.unique(folds))),
+        "groups": groups,
+        "departed_groups": np.flatnonzero(departed).tolist(),
         "method": "delete-a-group jackknife over groups of whole poses contiguous in time ("
         + (in_time.order if in_time else "poses in turn")
         + "), the mode refitted without each; u_between = sqrt(max(u_jackknife^2 - u_posterior^2, 0))",

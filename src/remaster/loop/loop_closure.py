@@ -76,7 +76,7 @@ from ..robot.priors import priors_from
 from ..units import MM
 from . import gross, harmonics, joint_form, noise_floor
 from .harmonics import harmonics_report
-from .jackknife import too_few_warning, zero_offset_jackknife
+from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
@@ -282,11 +282,12 @@ def departed_warning(selection: Selection) -> str | None:
 
 def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, settings: LoopSettings) -> list[str]:
     """The report's warnings on what the data lack: too few rows for the jackknife and the
-    candidates (`jackknife.too_few_warning`), and a drift candidate left out because its time or
+    candidates (`jackknife.too_few_warning`), jackknife groups whose refit departed
+    (`jackknife.departed_groups_warning`), and a drift candidate left out because its time or
     temperature column has rows without a value (never silently)."""
     data, poses = screened.data["optimization"], screened.poses["optimization"]
     too_few = too_few_warning(between, len(data.rows), len(np.unique(poses)), not screened.selection.added)
-    warnings = [too_few] if too_few else []
+    warnings = [w for w in (too_few, departed_groups_warning(between)) if w]
     if "drift" in settings.candidates and data.drift_gaps:
         warnings.append(
             f"drift not offered: {sensor.name}.parquet: {data.drift_gaps}: a drift is a rate over that column, so "
