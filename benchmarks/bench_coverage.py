@@ -43,7 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.doc_sections import write_section  # noqa: E402
+from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
 from remaster.campaigns.arm_kinds import chain_of, cyclic_truth, iiwa_scenario  # noqa: E402
 
@@ -256,12 +256,7 @@ def main() -> None:
 
 def write(record: dict) -> None:
     """coverage.json, coverage.md and the table in docs/validation.md."""
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "coverage.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    text = markdown(record)
-    (RESULTS / "coverage.md").write_text(text + "\n", encoding="utf-8")
-    write_section(VALIDATION_DOC, "bench_coverage", text)
-    print(text)
+    publish(RESULTS, "coverage", record, markdown(record), VALIDATION_DOC)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,6 @@ and the table into docs/validation.md between its bench_elastic markers. From th
 
 from __future__ import annotations
 
-import json
 import re
 import shutil
 import sys
@@ -35,7 +34,7 @@ from snakemake.utils import validate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.doc_sections import write_section  # noqa: E402
+from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO  # noqa: E402
 from remaster import files  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
@@ -121,12 +120,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         runs = [run(Path(tmp), mode) for mode in MODES]
     record = {"date": date.today().isoformat(), "runs": runs}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "elastic.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    text = markdown(record)
-    (RESULTS / "elastic.md").write_text(text + "\n", encoding="utf-8")
-    write_section(REPO / "docs" / "validation.md", "bench_elastic", text)
-    print(text)
+    publish(RESULTS, "elastic", record, markdown(record), REPO / "docs" / "validation.md")
 
 
 if __name__ == "__main__":

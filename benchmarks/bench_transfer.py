@@ -22,7 +22,6 @@ its bench_transfer markers. From the repository root:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -33,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.doc_sections import write_section  # noqa: E402
+from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
 from remaster.campaigns import scenario  # noqa: E402
 from remaster.campaigns.arm_kinds import TRACKER, chain_of, iiwa_scenario  # noqa: E402
@@ -146,12 +145,7 @@ def main() -> None:
     with ProcessPoolExecutor(args.jobs) as pool:
         runs = [row for rows in pool.map(one, tasks) for row in rows]
     record = {"date": date.today().isoformat(), "seeds": args.seeds, "runs": runs}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "transfer.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    text = markdown(record)
-    (RESULTS / "transfer.md").write_text(text + "\n", encoding="utf-8")
-    write_section(REPO / "docs" / "validation.md", "bench_transfer", text)
-    print(text)
+    publish(RESULTS, "transfer", record, markdown(record), REPO / "docs" / "validation.md")
 
 
 if __name__ == "__main__":

@@ -20,3 +20,15 @@ def write_section(page: Path, name: str, text: str) -> bool:
     head, rest = content.split(begin, 1)
     page.write_text(f"{head}{begin}\n{text}\n{end}{rest.split(end, 1)[1]}", encoding="utf-8")
     return True
+
+
+def publish(results: Path, name: str, record: dict, text: str, page: Path) -> None:
+    """A benchmark's record: results/<name>.json, its table as results/<name>.md and in `page`'s
+    section bench_<name> (`write_section`), and on the terminal."""
+    import json
+
+    results.mkdir(exist_ok=True)
+    (results / f"{name}.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    (results / f"{name}.md").write_text(text + "\n", encoding="utf-8")
+    write_section(page, f"bench_{name}", text)
+    print(text)
