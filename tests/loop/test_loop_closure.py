@@ -13,7 +13,7 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import SETS, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_chain
 from remaster.inference import blocks, fit
-from remaster.loop import loop_closure
+from remaster.loop import loop_closure, selection
 from remaster.reporting import figures_loop, tables_loop
 from remaster.robot import kinematics
 from remaster.robot.gravity import gravity_torques
@@ -259,8 +259,10 @@ def test_nothing_is_added_when_nothing_is_missing(iiwa):
     result = closed(iiwa, simulated(iiwa, "none"))
     report = json.loads(json.dumps(result.report.to_json(), allow_nan=False))
     assert report["effects_added"] == []
-    # drift too (the table has a time column), and the residual GP last
-    assert set(report["candidates"]) == set(blocks.EXTENSIONS) | {"residual_gp"}
+    # drift too (the table has a time column), compliance and link geometry together once neither
+    # passed alone, and the residual GP last
+    pair = selection.pair_name(("joint_compliance", "link_geometry"))
+    assert set(report["candidates"]) == set(blocks.EXTENSIONS) | {pair, "residual_gp"}
     assert all(not scores[0]["passed"] for scores in report["candidates"].values())
     assert report["closure"]["closed"] is True and report["residual_gp"]["structure_found"] is False
     assert report["validation_rmse_after_mm"] == report["validation_rmse_before_mm"]
