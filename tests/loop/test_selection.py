@@ -149,3 +149,33 @@ def test_compliance_and_link_geometry_are_offered_together_when_neither_passes_a
     table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
     assert table.loc[(pair, 1), "Added"] == "yes"
     assert table.loc[("joint_compliance", 1), "Added"] == "no: forced: alone it never passes"
+
+
+def test_the_link_priors_widen_only_where_their_evidence_asks(iiwa, tmp_path):
+    """Link errors of 2 mm and 0.86 deg (beyond the 1 mm and 0.1 deg priors) on a design that leaves
+    a direction weak: the evidence chooses a wider link prior; a robot whose only error is its
+    zero-offsets keeps the configured one."""
+    from benchmarks.bench_weak_design import campaign_of
+    from remaster.inference.blocks import readings
+
+    settings = loop_settings()
+    campaign = campaign_of(5, tmp_path)
+    sensor = campaign.sensors["laser_tracker"]
+    registration = fit.register(campaign.chain, sensor)
+    _, analysis, _ = fit.build_model(campaign.chain, sensor, registration.t_nr)
+    data = readings(campaign.chain, sensor, "optimization")
+    scale, evidence_at = selection.link_prior_scale(
+        campaign.chain, data, sensor.marker, registration.t_nr, analysis.held, settings.priors
+    )
+    assert scale > 1.0 and evidence_at[f"x{scale:g}"] == max(evidence_at.values())
+    widened = selection.scaled_priors(settings.priors, scale)
+    assert widened.values["link_rotation_deg"] == scale * settings.priors.values["link_rotation_deg"]
+    assert widened.values["marker_offset_mm"] == settings.priors.values["marker_offset_mm"]
+    exact = simulated(iiwa, "none")
+    registration = fit.register(iiwa, exact)
+    _, analysis, _ = fit.build_model(iiwa, exact, registration.t_nr)
+    data = readings(iiwa, exact, "optimization")
+    assert (
+        selection.link_prior_scale(iiwa, data, exact.marker, registration.t_nr, analysis.held, settings.priors)[0]
+        == 1.0
+    )

@@ -80,7 +80,18 @@ from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jac
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
-from .selection import BASE_STEP, GP, Selection, Signature, accuracy, cv_threshold, fold_warning, select
+from .selection import (
+    BASE_STEP,
+    GP,
+    Selection,
+    Signature,
+    accuracy,
+    cv_threshold,
+    fold_warning,
+    link_prior_scale,
+    scaled_priors,
+    select,
+)
 from .settings import LoopSettings
 
 MEASURES = (
@@ -378,6 +389,30 @@ EVIDENCE = (
 )
 
 
+def _link_priors(
+    chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
+) -> tuple[LoopSettings, dict]:
+    """The settings with the link geometry's prior at the scale its evidence chooses on the
+    optimization set (`selection.link_prior_scale`; the provisional gross errors left out), and
+    loop_closure.json's `link_prior_scale` (the scale and each scale's log evidence)."""
+    if "link_geometry" not in settings.candidates:
+        return settings, {"scale": 1.0, "log_evidence": {}, "why": "link_geometry not offered"}
+    data = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
+    scale, at = link_prior_scale(chain, data, sensor.marker, t_nr, base_held, settings.priors)
+    chosen = replace(settings, priors=scaled_priors(settings.priors, scale))
+    return chosen, {"scale": scale, "log_evidence": at, "why": "the scale with the highest evidence"}
+
+
+def _settings_report(settings: LoopSettings, chain: KinematicChain, link_scale: dict) -> dict:
+    """loop_closure.json's settings: the loop's, which payload the compliance's torques assume (the
+    configured one, or a URDF's own tool) and the link geometry's prior scale (`_link_priors`)."""
+    return {
+        **settings.report(),
+        "payload_assumed": settings.model.payload(chain).report(),
+        "link_prior_scale": link_scale,
+    }
+
+
 def close_loop(
     chain: KinematicChain,
     sensor: SensorData,
@@ -393,6 +428,7 @@ def close_loop(
     screen left out as gross errors: the first fit leaves them out, then every row of both sets is
     screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
     finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
+    settings, link_scale = _link_priors(chain, sensor, t_nr, base_held, settings, exclude)
     screened = _select_screened(chain, sensor, t_nr, base_held, settings, exclude)
     selection, data, poses, flagged = screened.selection, screened.data, screened.poses, screened.flagged
     base, final = selection.base, selection.final
@@ -424,8 +460,7 @@ def close_loop(
         sensor=sensor.name,
         evidence=EVIDENCE,
         selection_data="optimization set only",
-        # which payload the compliance's torques assume: the configured one, or a URDF's own tool
-        settings={**settings.report(), "payload_assumed": settings.model.payload(chain).report()},
+        settings=_settings_report(settings, chain, link_scale),
         **_selection_fields(selection),
         validation_rmse_before_mm=before["validation"]["rmse_mm"],
         validation_rmse_after_mm=after["validation"]["rmse_mm"],
