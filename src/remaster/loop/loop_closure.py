@@ -400,7 +400,12 @@ def _link_priors(
     data = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
     scale, at = link_prior_scale(chain, data, sensor.marker, t_nr, base_held, settings.priors)
     chosen = replace(settings, priors=scaled_priors(settings.priors, scale))
-    return chosen, {"scale": scale, "log_evidence": at, "why": "the scale with the highest evidence"}
+    why = (
+        "the scale with the highest evidence"
+        if at
+        else "the link geometry model is not determined: the configured priors"
+    )
+    return chosen, {"scale": scale, "log_evidence": at, "why": why}
 
 
 def _settings_report(settings: LoopSettings, chain: KinematicChain, link_scale: dict) -> dict:

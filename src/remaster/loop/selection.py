@@ -205,9 +205,9 @@ def link_prior_scale(chain, data: Readings, marker, t_nr, base_held, priors: Pri
             model, _ = blocks.extended_model(
                 chain, data, marker, t_nr, ("link_geometry", "marker_offset"), base_held, scaled_priors(priors, scale)
             )
-        except np.linalg.LinAlgError:
+            evidence_at[scale] = float(evidence.posterior_mode(model).log_evidence)
+        except np.linalg.LinAlgError:  # too few data for the model (the selection says so in its own words)
             return 1.0, {}
-        evidence_at[scale] = float(evidence.posterior_mode(model).log_evidence)
     return max(evidence_at, key=evidence_at.get), {f"x{k:g}": v for k, v in evidence_at.items()}
 
 
