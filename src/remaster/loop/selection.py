@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
@@ -315,6 +316,16 @@ class _Round:
     current: Fitted
     added: tuple[str, ...]
 
+    @cached_property
+    def residual(self) -> np.ndarray:
+        """The current fit's residuals (n, 3) m, once per round."""
+        return self.current.residuals()
+
+    @cached_property
+    def prediction(self) -> np.ndarray:
+        """The current fit's predictions (n, 3) m, once per round."""
+        return self.current.model.predict(self.current.theta)
+
     def record(self, name: str, brings: tuple[str, ...], scores: dict, fits: dict, signatures: dict) -> None:
         """Fit the current model with the blocks `brings` and record, under `name`, its scores (or why
         it was skipped), its fit and its signature in the round's dicts."""
@@ -334,8 +345,7 @@ class _Round:
             }
             return
         fits[name] = fitted
-        prediction = current.model.predict(current.theta)
-        signature = signatures[name] = Signature(current.residuals(), fitted.model.predict(fitted.theta) - prediction)
+        signature = signatures[name] = Signature(self.residual, fitted.model.predict(fitted.theta) - self.prediction)
         scores[name] = {
             **score(current, fitted, self.settings, self.blocked),
             "explained_fraction": signature.explained,
