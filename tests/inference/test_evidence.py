@@ -7,6 +7,7 @@ import pytest
 
 from remaster.campaigns import arm_kinds
 from remaster.inference import blocks, evidence, fit
+from remaster.robot.priors import Priors
 
 from ..conftest import REPO
 
@@ -43,6 +44,41 @@ def test_a_fold_whose_fit_departs_is_found_and_left_out_of_the_rmse():
     assert cv.departed.tolist() == [True, False, False, False, False]
     assert np.sqrt(cv.mse[0] / 3.0) > 100 * NOISE
     assert cv.rmse / np.sqrt(3.0) < 3.0 * NOISE
+
+
+def _with_link_geometry(model, scale: float):
+    """The model with the link geometry block under the configured industrial priors times scale."""
+    values = {"link_translation_mm": 1.0 * scale, "link_rotation_deg": 0.1 * scale}
+    priors = Priors("industrial", values)
+    return blocks.BlockModel(model.chain, model.data, model.marker, model.t_nr, ("link_geometry",), model.fixed, priors)
+
+
+def test_no_fold_moves_a_parameter_beyond_its_prior_range_unreported():
+    """Every fold of the clustered design, with the link geometry under its priors (at 0.01, 1 and
+    100 times their size): a fold whose fit moves a link parameter beyond PRIOR_RANGE prior standard
+    deviations from the full fit is departed; the departed spread fold's move is recorded too."""
+    for scale in (0.01, 1.0, 100.0):
+        model, folds = _clustered_campaign(np.random.default_rng(3))
+        cv = evidence.cross_validate(evidence.posterior_mode(_with_link_geometry(model, scale)), folds)
+        assert len(cv.prior_steps) == 5 and np.all(cv.prior_steps > 0)
+        assert not np.any((cv.prior_steps > evidence.PRIOR_RANGE) & ~cv.departed)
+        assert cv.departed[0]
+
+
+def test_a_fold_moving_a_parameter_beyond_its_prior_range_departs(monkeypatch):
+    """The prior-range test alone departs a fold: with the range narrowed below the moves the
+    clustered folds make (a few hundredths of a prior sd at 0.01 x the priors), the folds whose
+    held-out error is at the noise are departed by their move, which the held-out test does not see."""
+    model, folds = _clustered_campaign(np.random.default_rng(3))
+    mode = evidence.posterior_mode(_with_link_geometry(model, 0.01))
+    wide = evidence.cross_validate(mode, folds)
+    assert wide.departed.tolist() == [True, False, False, False, False]
+    monkeypatch.setattr(evidence, "PRIOR_RANGE", float(np.median(wide.prior_steps[1:])))
+    narrow = evidence.cross_validate(mode, folds)
+    assert np.all(narrow.mse[1:] < 3.0 * (evidence.DEPARTED_RATIO * mode.sigma) ** 2)  # not by their error
+    moved = narrow.prior_steps > evidence.PRIOR_RANGE
+    assert moved[1:].any() and not moved[1:].all()
+    assert narrow.departed.tolist() == [True] + moved[1:].tolist()
 
 
 def _cv(mse, departed=None):

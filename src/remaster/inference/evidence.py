@@ -187,6 +187,10 @@ def pose_folds(poses, n_folds: int) -> np.ndarray:
 # error the fit has) after its fit was iterated to the fold's own mode has departed: the other folds
 # leave a combination almost free, and its error measures that, not the model
 DEPARTED_RATIO = 10.0
+# A fold whose fit moves a parameter with a prior by more than this many prior standard deviations
+# from the full fit has departed as well: a normal prior puts 6e-7 of its mass that far out, and
+# leaving out a fifth of the rows moves a determined parameter by a fraction of its posterior width
+PRIOR_RANGE = 5.0
 
 
 @dataclass(frozen=True)
@@ -196,14 +200,17 @@ class CrossValidation:
     what a correct model's pooled held-out mean square is, over its noise variance (3 per point):
     a fit without the fold errs at the fold's rows by its parameters' spread as well as by the
     noise (`cross_validate`); 1 where it is not known (a GP's folds), which never flatters a fit;
-    departed (K,) bool: the folds whose fit departed (`DEPARTED_RATIO`), None where none was
-    tested. `rmse` and every decision leave the departed folds out."""
+    departed (K,) bool: the folds whose fit departed (`DEPARTED_RATIO`, `PRIOR_RANGE`), None
+    where none was tested; prior_steps (K,): each fold's largest move of a parameter with a prior
+    from the full fit, in prior standard deviations (0 for a model without priors). `rmse` and
+    every decision leave the departed folds out."""
 
     mse: np.ndarray
     points: np.ndarray
     held_out: np.ndarray | None = None
     noise_inflation: float = 1.0
     departed: np.ndarray | None = None
+    prior_steps: np.ndarray | None = None
 
     @property
     def kept(self) -> np.ndarray:
@@ -233,6 +240,12 @@ def _fold_mode(mode: PosteriorMode, train: np.ndarray) -> np.ndarray:
     return samplers.least_squares_mode(stacked, mode.theta, model.scale, jacobian, method="lm").x
 
 
+def _prior_steps(model: BlockModel, step: np.ndarray) -> float:
+    """The largest |step| (P,) of a parameter with a prior, in its prior standard deviations."""
+    finite = np.isfinite(model.prior_std)
+    return float(np.max(np.abs(step[finite]) / model.prior_std[finite])) if finite.any() else 0.0
+
+
 def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     """Pose-grouped K-fold cross-validation of a model at its mode (module docstring); folds (n,).
 
@@ -241,13 +254,14 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     sum of squares is s^2 (3 n_f + tr(J_f A^-1 J_t^T J_t A^-1 J_f^T)) in the whitened units of the
     step (the priors' pull towards their mean aside, which only narrows the spread), pooled over the
     kept folds. A fold whose linear step leaves its held-out RMS per axis above DEPARTED_RATIO times
-    the fit's sigma is fitted again, iterated to its own mode (`_fold_mode`); if it is still above,
-    it has departed (`CrossValidation.departed`)."""
+    the fit's sigma, or moves a parameter beyond PRIOR_RANGE of its prior, is fitted again, iterated
+    to its own mode (`_fold_mode`); if it is still beyond either, it has departed
+    (`CrossValidation.departed`)."""
     model, theta, sigma = mode.model, mode.theta, mode.sigma
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
     r = model.whitened(mode.residuals)
     precision = model._prior_precision * sigma**2
-    mse, points, held, expected, departed = [], [], np.empty_like(r), [], []
+    mse, points, held, expected, departed, prior_steps = [], [], np.empty_like(r), [], [], []
     limit = 3.0 * (DEPARTED_RATIO * sigma) ** 2  # m^2 per point
     for fold in np.unique(folds):
         train = folds != fold
@@ -261,14 +275,19 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
         j_fold = jacobian[~train].reshape(-1, len(theta))
         spread = np.linalg.lstsq(lhs, np.linalg.lstsq(lhs, j_train.T @ j_train, rcond=None)[0].T, rcond=None)[0]
         expected.append(3 * points[-1] + float(np.sum(spread * (j_fold.T @ j_fold))))
-        if np.mean(np.sum(held_out**2, axis=1)) > limit:
-            held_out = model.residuals(_fold_mode(mode, train))[~train]
+        fold_theta = theta + step
+        if np.mean(np.sum(held_out**2, axis=1)) > limit or _prior_steps(model, step) > PRIOR_RANGE:
+            fold_theta = _fold_mode(mode, train)
+            held_out = model.residuals(fold_theta)[~train]
         held[~train] = held_out
         mse.append(float(np.mean(np.sum(held_out**2, axis=1))))
-        departed.append(mse[-1] > limit)
+        prior_steps.append(_prior_steps(model, fold_theta - theta))
+        departed.append(mse[-1] > limit or prior_steps[-1] > PRIOR_RANGE)
     kept = ~np.array(departed, bool) if not all(departed) else np.ones(len(departed), bool)
     inflation = float(np.sum(np.array(expected)[kept]) / (3 * np.sum(np.array(points)[kept]))) if points else 1.0
-    return CrossValidation(np.array(mse), np.array(points), held, inflation, np.array(departed, bool))
+    return CrossValidation(
+        np.array(mse), np.array(points), held, inflation, np.array(departed, bool), np.array(prior_steps)
+    )
 
 
 def time_folds(order, poses, n_folds: int) -> np.ndarray:

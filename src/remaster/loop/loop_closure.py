@@ -272,8 +272,9 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
 
 
 def departed_warning(selection: Selection) -> str | None:
-    """The warning of cross-validation folds whose fit departed (`evidence.DEPARTED_RATIO`): which
-    folds, in which scores, left out of those decisions; None when none departed."""
+    """The warning of cross-validation folds whose fit departed (`evidence.DEPARTED_RATIO`,
+    `evidence.PRIOR_RANGE`): which folds, in which scores, left out of those decisions; None when
+    none departed."""
     where = {}
     if selection.base.cv.departed is not None and selection.base.cv.departed.any():
         where["the zero-offset model"] = np.flatnonzero(selection.base.cv.departed).tolist()
@@ -286,7 +287,8 @@ def departed_warning(selection: Selection) -> str | None:
     listed = "; ".join(f"{name}: fold {', '.join(str(f + 1) for f in folds)}" for name, folds in where.items())
     return (
         f"cross-validation folds whose fit departed (held-out RMS per axis above {evidence.DEPARTED_RATIO:g} x "
-        f"the fit's sigma, after iterating the fold's fit): {listed}; each was left out of its "
+        f"the fit's sigma, or a parameter moved beyond {evidence.PRIOR_RANGE:g} prior standard deviations, "
+        f"after iterating the fold's fit): {listed}; each was left out of its "
         "decision, the others decide (the data leave a combination almost free without it)"
     )
 
