@@ -80,3 +80,37 @@ def test_without_a_gp_the_parameters_are_the_least_squares_ones():
     np.testing.assert_allclose(result.theta, expected, rtol=1e-6)
     covariance = np.linalg.inv(j.T @ j / hyper.noise_std**2 + np.diag(precision / hyper.noise_std**2))
     np.testing.assert_allclose(result.std, np.sqrt(np.diag(covariance)), rtol=1e-6)
+
+
+def test_through_every_row_as_inducing_input_it_is_the_exact_form():
+    """The inducing-input form with the rows themselves as inducing inputs has Q = K and no trace
+    term: its evidence, parameters and held-out errors are the exact ones."""
+    mode, q, hyper, *_ = linear_case(np.random.default_rng(5), prior_std=(1e-3, 2e-3, 5e-4))
+    folds = np.arange(len(q)) % 4
+    exact = with_parameters.with_gp(mode, q, hyper, folds)
+    sparse = with_parameters.sparse_with_gp(mode, q, hyper, folds, inducing=len(q))
+    assert exact.method == "exact" and sparse.method == "titsias"
+    assert math.isclose(sparse.log_evidence, exact.log_evidence, rel_tol=0, abs_tol=1e-4)
+    np.testing.assert_allclose(sparse.theta, exact.theta, rtol=1e-6)
+    np.testing.assert_allclose(sparse.std, exact.std, rtol=1e-6)
+    np.testing.assert_allclose(sparse.cv.mse, exact.cv.mse, rtol=1e-6)
+    np.testing.assert_array_equal(sparse.cv.points, exact.cv.points)
+
+
+def test_fewer_inducing_inputs_bound_the_evidence_from_below_and_approach_it():
+    """Titsias' bound with theta integrated: below the exact log Z at every number of inducing
+    inputs, closer with more of them; the held-out errors of a smooth GP are close at a third of the
+    rows."""
+    mode, q, hyper, *_ = linear_case(np.random.default_rng(6), n=150)
+    folds = np.arange(len(q)) % 5
+    exact = with_parameters.with_gp(mode, q, hyper, folds)
+    bounds = [with_parameters.sparse_with_gp(mode, q, hyper, folds, inducing=m) for m in (10, 25, 50)]
+    gaps = [exact.log_evidence - b.log_evidence for b in bounds]
+    assert all(g > -1e-6 for g in gaps) and gaps[0] > gaps[1] > gaps[2]
+    np.testing.assert_allclose(bounds[-1].cv.mse, exact.cv.mse, rtol=0.1)
+
+
+def test_above_the_exact_size_the_inducing_form_is_taken(monkeypatch):
+    mode, q, hyper, *_ = linear_case(np.random.default_rng(7))
+    monkeypatch.setattr(with_parameters, "MAX_ROWS", 30)
+    assert with_parameters.with_gp(mode, q, hyper, np.arange(len(q)) % 4).method == "titsias"

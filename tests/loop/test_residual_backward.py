@@ -87,6 +87,20 @@ def test_a_block_is_kept_with_the_gp_present_only_when_the_truth_has_it(scale_er
         np.testing.assert_allclose(gp.residuals, final.residuals() @ final.model.sensor_rotation(final.theta))
 
 
+@pytest.mark.parametrize(("scale_error", "kept"), [(0.0, False), (1.0e-3, True)])
+def test_through_inducing_inputs_the_gp_present_scores_decide_as_the_exact_ones(monkeypatch, scale_error, kept):
+    """The same two cases with the exact size lowered below their 120 rows and 60 inducing inputs:
+    the parameters are integrated with the GP through the inducing form, and the decisions stand."""
+    from remaster.inference.gp import with_parameters
+
+    monkeypatch.setattr(with_parameters, "MAX_ROWS", 50)
+    monkeypatch.setattr(with_parameters, "INDUCING", 60)
+    (_, added, _, rounds, _), _ = forced(scale_error)
+    scores = rounds[0]["scores"]["sensor_scale"]
+    assert scores["evidence"] == "gp_joint" and scores["gp_method"] == "titsias"
+    assert scores["passed"] is kept and added == (["sensor_scale"] if kept else [])
+
+
 @pytest.mark.parametrize(("growth", "chosen"), [(0.0, "isotropic"), (4.0, "range_transverse")])
 def test_the_tracker_noise_is_chosen_for_what_the_residual_model_leaves(growth, chosen):
     """The simulator's tracker noise: isotropic, or its transverse std growing by 4 per metre of

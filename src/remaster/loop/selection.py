@@ -717,22 +717,23 @@ class GPPresentScoring:
     """How `residual_backward_pass` scores a block: the model with it and the model without it, each
     with the residual GP present, compared by the forward rule (`passes`) on their evidences and
     pose-grouped cross-validations with the parameters integrated together with the GP
-    (`remaster.inference.gp.with_parameters`; each model's GP hyperparameters fitted to its residuals). Above
-    `with_parameters.MAX_ROWS` rows, or once that comparison is not determined, the parameters stay at their
-    mode and the GP's gain on each model's residuals is added to its Laplace evidence
-    (`gp_joint_fixed_mode`), which the scores say. `gp`: the GP on the current model's residuals,
-    refitted after each removal."""
+    (`remaster.inference.gp.with_parameters`; each model's GP hyperparameters fitted to its residuals), exact
+    up to `with_parameters.MAX_ROWS` rows and through inducing inputs above (`gp_method`: exact or titsias).
+    Once that comparison is not determined, the parameters stay at their mode and the GP's gain on each
+    model's residuals is added to its Laplace evidence (`gp_joint_fixed_mode`), which the scores say.
+    `gp`: the GP on the current model's residuals, refitted after each removal."""
 
     round_keys = {"with": GP}
     step_suffix = f" ({GP} present)"
 
     def __init__(self, data: Readings, folds: np.ndarray, settings: LoopSettings, gp: loop_candidate.Candidate):
         self.data, self.folds, self.settings, self.gp = data, folds, settings, gp
-        self.exact = data.q.shape[0] <= with_parameters.MAX_ROWS
-        self._log_z, self._cv = None, None
+        self.joint = True
+        self._log_z, self._cv, self.method = None, None, None
 
     def _with_gp(self, fitted: Fitted, hyper: Hyperparameters) -> tuple[float, evidence.CrossValidation]:
         joint = with_parameters.with_gp(fitted.mode, self.data.q, hyper, self.folds)
+        self.method = joint.method
         return joint.log_evidence, joint.cv
 
     @staticmethod
@@ -743,17 +744,17 @@ class GPPresentScoring:
         )
 
     def start_round(self, current: Fitted) -> None:
-        if self.exact:
+        if self.joint:
             try:
                 self._log_z, self._cv = self._with_gp(current, self.gp.gp.hyper)
             except np.linalg.LinAlgError:  # not determined with the GP present: the fixed-mode scores, said so
-                self.exact = False
-        if not self.exact:
+                self.joint = False
+        if not self.joint:
             self._log_z, self._cv = self._fixed_mode(current, self.gp)
 
     def score(self, current: Fitted, without: Fitted) -> dict:
         rotation = without.model.sensor_rotation(without.theta)
-        if self.exact:
+        if self.joint:
             hyper = fit_hyperparameters(
                 self.data.q, without.residuals() @ rotation, int(self.settings.residual_gp["subset"]), self.gp.gp.hyper
             )
@@ -768,7 +769,8 @@ class GPPresentScoring:
             "log_evidence_without_with_gp": log_z_without,
             **evidence.cv_gain(cv_without, self._cv),
             "parameters": list(current.reduction.kept),
-            "evidence": "gp_joint" if self.exact else "gp_joint_fixed_mode",
+            "evidence": "gp_joint" if self.joint else "gp_joint_fixed_mode",
+            **({"gp_method": self.method} if self.joint else {}),
         }
         return judged(out, self.settings)
 

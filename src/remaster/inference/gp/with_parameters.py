@@ -28,9 +28,17 @@ other rows T by generalised least squares under C0_TT and the priors, and the fo
 J_H theta_T + K_HT C0_TT^-1 (y_T - J_T theta_T) (the best linear unbiased predictor of a model with
 a GP: kriging with the parametric trend); the error is the held-out mean squared residual per point.
 
-One n x n Cholesky factor per model and per fold: exact up to `MAX_ROWS` rows. The likelihood's
-per-point weights or a tracker's noise shape (`remaster.noise`) whiten r and J before this; the
-GP then lives in the whitened coordinates.
+One n x n Cholesky factor per model and per fold: exact up to `MAX_ROWS` rows. Above, the same
+model through m inducing inputs (`residual.INDUCING`, evenly spaced as the residual GP's own): K is
+replaced by Q = U U^T, U = K_nm L^-T (K_mm = L L^T), so that C0 = U U^T + s^2 I is inverted by
+Woodbury's identity with B = s^2 I_m + U^T U, and the evidence is Titsias' (2009) collapsed bound,
+the DTC marginal less 3 tr(K - Q) / (2 s^2): the trace term does not depend on theta, so the bound
+holds with theta integrated, and it is the exact log Z when the inducing inputs are the rows. Every
+sum over rows (U^T U, U^T J_a, U^T y_a, J^T J, J^T y, y^T y) is accumulated in chunks, per fold, so
+time is O(n m^2) and memory O(chunk m) whatever n; a fold's sums are the totals less its own, and its
+prediction is the projected process's mean J_H theta_T + U_H B_T^-1 U_T^T (y_T - J_T theta_T).
+The likelihood's per-point weights or a tracker's noise shape (`remaster.noise`) whiten r and J
+before this; the GP then lives in the whitened coordinates.
 
 SI inside (m, rad).
 """
@@ -44,6 +52,7 @@ import numpy as np
 from ..evidence import CrossValidation, PosteriorMode
 from .kernels import Hyperparameters, covariance_with_noise, kernel
 from .likelihood import LOG_2PI, dense_log_evidence
+from .residual import CHUNK, INDUCING, JITTER, evenly_spaced
 
 MAX_ROWS = 3000  # rows up to which the n x n factor is taken (about 2 s per factor at 3000 on two cores)
 MAX_NOISE_ROWS = 600  # rows up to which a noise shape is compared with the GP present (3n x 3n factors)
@@ -54,12 +63,14 @@ class WithGP:
     """A model's evidence and cross-validation with the residual GP present: log_evidence (nats, up
     to the flat blocks' constant), theta (P,) SI the parameters' posterior mean and std (P,) their
     posterior std with the GP present, cv: the pose-grouped cross-validation (held-out mean squared
-    residual per point, m^2, per fold; None when not asked for)."""
+    residual per point, m^2, per fold; None when not asked for); method: 'exact' (n x n factors) or
+    'titsias' (inducing inputs, module docstring)."""
 
     log_evidence: float
     theta: np.ndarray
     std: np.ndarray
     cv: CrossValidation | None
+    method: str = "exact"
 
 
 def _factor(q, hyper: Hyperparameters):
@@ -90,7 +101,7 @@ def with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None) -> WithG
     q = np.asarray(q, dtype=float)
     n, p = mode.model.n_points, len(mode.theta)
     if n > MAX_ROWS:
-        raise ValueError(f"{n} rows: the parameters are integrated with the GP up to {MAX_ROWS} rows")
+        return sparse_with_gp(mode, q, hyper, folds)
     jacobian = mode.jacobian.reshape(n, 3, p)
     y = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(n, 3)
     precision = np.asarray(mode.model._prior_precision, dtype=float)
@@ -145,3 +156,130 @@ def noise_shape_log_evidence(mode: PosteriorMode, q, hyper: Hyperparameters, sha
     for i in range(n):
         covariance[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] += blocks[i]
     return dense_log_evidence(y, mode.jacobian, np.asarray(mode.model._prior_precision, dtype=float), covariance)
+
+
+@dataclass
+class _Sums:
+    """Sums over a set of rows for the inducing-input form (module docstring): uu (m, m) U^T U,
+    uj (3, m, P) U^T J_a, uy (3, m) U^T y_a, jj (P, P) sum_a J_a^T J_a, jy (P,), yy, uu_trace
+    sum_i |u_i|^2 (tr Q) and the row count n."""
+
+    uu: np.ndarray
+    uj: np.ndarray
+    uy: np.ndarray
+    jj: np.ndarray
+    jy: np.ndarray
+    yy: float = 0.0
+    uu_trace: float = 0.0
+    n: int = 0
+
+    @classmethod
+    def zero(cls, m: int, p: int) -> _Sums:
+        return cls(np.zeros((m, m)), np.zeros((3, m, p)), np.zeros((3, m)), np.zeros((p, p)), np.zeros(p))
+
+    def add(self, u, jacobian, y) -> None:
+        """Rows u (k, m), jacobian (k, 3, P), y (k, 3)."""
+        self.uu += u.T @ u
+        self.uj += np.einsum("km,kap->amp", u, jacobian)
+        self.uy += (u.T @ y).T
+        self.jj += np.einsum("kap,kaq->pq", jacobian, jacobian)
+        self.jy += np.einsum("kap,ka->p", jacobian, y)
+        self.yy += float(np.sum(y * y))
+        self.uu_trace += float(np.sum(u * u))
+        self.n += len(u)
+
+    def minus(self, other: _Sums) -> _Sums:
+        return _Sums(*(getattr(self, f) - getattr(other, f) for f in _Sums.__dataclass_fields__))
+
+
+class _Inducing:
+    """U = K_nm L^-T at any rows, for m inducing inputs evenly spaced over q (n, N)."""
+
+    def __init__(self, q, hyper: Hyperparameters, inducing: int):
+        self.points, self.hyper = q[evenly_spaced(len(q), inducing)], hyper
+        k_mm = kernel(self.points, self.points, hyper)
+        k_mm[np.diag_indices(len(k_mm))] += JITTER * hyper.signal_std**2
+        self.factor = np.linalg.cholesky(k_mm)
+
+    def u(self, q) -> np.ndarray:
+        import scipy.linalg
+
+        return scipy.linalg.solve_triangular(self.factor, kernel(self.points, q, self.hyper), lower=True).T
+
+
+def _sparse_solution(sums: _Sums, noise2: float, precision) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """From one set's sums: theta (P,) = A^-1 b, A (P, P), y^T C0^-1 y and the factor of B (m, m)
+    (scipy's cho_factor), C0 = U U^T + noise2 I."""
+    import scipy.linalg
+
+    b_factor = scipy.linalg.cho_factor(noise2 * np.eye(len(sums.uu)) + sums.uu, lower=True)
+    solved_uj = scipy.linalg.cho_solve(b_factor, sums.uj.transpose(1, 0, 2).reshape(len(sums.uu), -1))
+    solved_uj = solved_uj.reshape(len(sums.uu), 3, -1).transpose(1, 0, 2)  # (3, m, P): B^-1 U^T J_a
+    solved_uy = scipy.linalg.cho_solve(b_factor, sums.uy.T).T  # (3, m)
+    a = (sums.jj - np.einsum("amp,amq->pq", sums.uj, solved_uj)) / noise2 + np.diag(precision)
+    b = (sums.jy - np.einsum("amp,am->p", sums.uj, solved_uy)) / noise2
+    quadratic = (sums.yy - float(np.sum(sums.uy * solved_uy))) / noise2
+    return np.linalg.solve(a, b), a, quadratic, b_factor
+
+
+def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, inducing: int | None = None) -> WithGP:
+    """`with_gp` through `inducing` inducing inputs (module docstring; None: `INDUCING`): Titsias'
+    bound as the evidence, the projected process's mean as each fold's prediction; method 'titsias'."""
+    import scipy.linalg
+
+    q = np.asarray(q, dtype=float)
+    n, p = mode.model.n_points, len(mode.theta)
+    jacobian = mode.jacobian.reshape(n, 3, p)
+    y = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(n, 3)
+    precision = np.asarray(mode.model._prior_precision, dtype=float)
+    proper, noise2 = precision > 0, hyper.noise_std**2
+    basis = _Inducing(q, hyper, INDUCING if inducing is None else inducing)
+    m = len(basis.points)
+    labels = np.zeros(n, int) if folds is None else np.unique(np.asarray(folds), return_inverse=True)[1].ravel()
+    per_fold = [_Sums.zero(m, p) for _ in range(labels.max() + 1)]
+    for begin in range(0, n, CHUNK):
+        rows = slice(begin, begin + CHUNK)
+        u = basis.u(q[rows])
+        for f in np.unique(labels[rows]):
+            at = labels[rows] == f
+            per_fold[f].add(u[at], jacobian[rows][at], y[rows][at])
+    total = per_fold[0]
+    for other in per_fold[1:]:
+        total = _Sums(*(getattr(total, f) + getattr(other, f) for f in _Sums.__dataclass_fields__))
+    theta, a, quadratic, b_factor = _sparse_solution(total, noise2, precision)
+    sign, log_det_a = np.linalg.slogdet(a)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
+    log_det_c0 = (n - m) * np.log(noise2) + 2.0 * float(np.sum(np.log(np.diag(b_factor[0]))))
+    trace = max(n * hyper.signal_std**2 - total.uu_trace, 0.0)  # tr(K - Q)
+    log_evidence = (
+        -0.5 * quadratic
+        + 0.5 * float(theta @ a @ theta)
+        - 1.5 * log_det_c0
+        - 0.5 * log_det_a
+        - 1.5 * n * LOG_2PI
+        + 0.5 * float(np.sum(np.log(precision[proper])))
+        + 0.5 * int((~proper).sum()) * LOG_2PI
+        + float(mode.model.noise_log_det)
+        - 3.0 * trace / (2.0 * noise2)
+    )
+    std = np.sqrt(np.diag(np.linalg.inv(a)))
+    if folds is None:
+        return WithGP(float(log_evidence), theta, std, None, "titsias")
+    trained = []  # per fold: theta_T and B_T^-1 U_T^T (y_T - J_T theta_T) (3, m)
+    for own in per_fold:
+        train = total.minus(own)
+        theta_t, _, _, factor_t = _sparse_solution(train, noise2, precision)
+        left = train.uy - np.einsum("amp,p->am", train.uj, theta_t)
+        trained.append((theta_t, scipy.linalg.cho_solve(factor_t, left.T)))
+    squares = np.zeros(len(per_fold))
+    for begin in range(0, n, CHUNK):
+        rows = slice(begin, begin + CHUNK)
+        u = basis.u(q[rows])
+        for f in np.unique(labels[rows]):
+            at = labels[rows] == f
+            theta_t, weights = trained[f]
+            predicted = jacobian[rows][at] @ theta_t + u[at] @ weights
+            squares[f] += float(np.sum((y[rows][at] - predicted) ** 2))
+    points = np.array([s.n for s in per_fold])
+    return WithGP(float(log_evidence), theta, std, CrossValidation(squares / points, points), "titsias")
