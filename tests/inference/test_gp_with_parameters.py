@@ -114,3 +114,26 @@ def test_above_the_exact_size_the_inducing_form_is_taken(monkeypatch):
     mode, q, hyper, *_ = linear_case(np.random.default_rng(7))
     monkeypatch.setattr(with_parameters, "MAX_ROWS", 30)
     assert with_parameters.with_gp(mode, q, hyper, np.arange(len(q)) % 4).method == "titsias"
+
+
+def _unit_shapes(rng, n):
+    """(n, 3, 3) positive definite shapes of a range/transverse kind: 1 along a direction, 2-4 across."""
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    across = rng.uniform(2.0, 4.0, n)[:, None, None]
+    outer = directions[:, :, None] * directions[:, None, :]
+    return across * (np.eye(3) - outer) + outer
+
+
+def test_the_shaped_noise_evidence_through_every_row_is_the_dense_one():
+    """The noise-shape comparison's inducing form with the rows as inducing inputs is the dense
+    density of the data at every noise scale; with fewer it stays below it."""
+    rng = np.random.default_rng(8)
+    mode, q, hyper, *_ = linear_case(rng, prior_std=(1e-3, 2e-3, 5e-4))
+    shapes = _unit_shapes(rng, len(q))
+    through_rows = with_parameters.ShapedNoiseEvidence(mode, q, hyper, shapes, inducing=len(q))
+    fewer = with_parameters.ShapedNoiseEvidence(mode, q, hyper, shapes, inducing=8)
+    for sigma in (5e-6, 1e-5, 3e-5):
+        dense = with_parameters.noise_shape_log_evidence(mode, q, hyper, sigma**2 * shapes)
+        assert math.isclose(through_rows(sigma), dense, rel_tol=0, abs_tol=1e-4)
+        assert fewer(sigma) < dense

@@ -633,14 +633,15 @@ def choose_noise(
 
     prior = settings.tracker_noise
     median, log_std = float(prior["growth_per_m"]), math.log(float(prior["growth_factor"]))
-    exact = hyper is not None and len(q) <= with_parameters.MAX_NOISE_ROWS
+    gp_present = hyper is not None
+    dense = gp_present and len(q) <= with_parameters.MAX_NOISE_ROWS
 
     def mode_at(log_growth: float) -> evidence.PosteriorMode:
         return evidence.posterior_mode(
             current.model.with_noise(noise.RangeTransverse(math.exp(log_growth))), current.theta
         )
 
-    if exact:  # the parameters and the GP integrated, the noise's scale at its maximum for each shape
+    if gp_present:  # the parameters and the GP integrated, the noise's scale at its maximum for each shape
         unit_shapes = {None: _noise_shapes(current.model, current.model)}
 
         def log_z_at(log_growth: float | None) -> float:
@@ -648,12 +649,14 @@ def choose_noise(
                 growth = noise.RangeTransverse(math.exp(log_growth))
                 unit_shapes[log_growth] = _noise_shapes(current.model, current.model.with_noise(growth))
             shapes = unit_shapes[log_growth]
+            if dense:
+                at_sigma = lambda sigma: with_parameters.noise_shape_log_evidence(  # noqa: E731
+                    current.mode, q, hyper, sigma**2 * shapes
+                )
+            else:  # through inducing inputs: the sums over rows once per shape, each sigma then cheap
+                at_sigma = with_parameters.ShapedNoiseEvidence(current.mode, q, hyper, shapes)
             found = scipy.optimize.minimize_scalar(
-                lambda log_sigma: (
-                    -with_parameters.noise_shape_log_evidence(
-                        current.mode, q, hyper, math.exp(2.0 * log_sigma) * shapes
-                    )
-                ),
+                lambda log_sigma: -at_sigma(math.exp(log_sigma)),
                 bounds=(math.log(hyper.noise_std) - 3.0, math.log(hyper.noise_std) + 3.0),
                 method="bounded",
                 options={"xatol": 0.01},
@@ -691,9 +694,11 @@ def choose_noise(
         "prior": {"growth_per_m_median": median, "growth_factor": float(prior["growth_factor"])},
         "growth_std_log": 1.0 / math.sqrt(curvature),
         "residual_model": "residual_gp present (gp_joint; the noise's scale at its maximum for each shape)"
-        if exact
-        else f"residual_gp added; above {with_parameters.MAX_NOISE_ROWS} rows the noise is compared without it"
-        if hyper is not None
+        if dense
+        else "residual_gp present (gp_joint through "
+        f"{with_parameters.NOISE_INDUCING} inducing inputs above {with_parameters.MAX_NOISE_ROWS} rows, Titsias' "
+        "bound; the noise's scale at its maximum for each shape)"
+        if gp_present
         else "the parametric effects (no residual GP added)",
         "log_evidence_isotropic": isotropic,
         "log_evidence_range_transverse": float(log_evidence),
