@@ -57,7 +57,7 @@ from .residual import CHUNK, INDUCING, JITTER, evenly_spaced
 MAX_ROWS = 3000  # rows up to which the n x n factor is taken (about 2 s per factor at 3000 on two cores)
 MAX_NOISE_ROWS = 600  # rows up to which a noise shape is compared with the GP present (3n x 3n factors)
 # inducing inputs of the noise comparison above MAX_NOISE_ROWS: the residual GP's own (the model the loop
-# corrects with); its sums cost 3n (3m)^2 per noise shape, 2.3 s at 10,000 rows
+# corrects with); its sums cost 3n (3m)^2 operations per noise shape
 NOISE_INDUCING = INDUCING
 NOISE_CHUNK = 1024  # rows per block of those sums (a (3 chunk, 3m) block: 30 MB at m = 400)
 
