@@ -78,26 +78,35 @@ def iid_log_likelihood(residuals) -> float:
     return -0.5 * k * (LOG_2PI + math.log(float(np.sum(r * r)) / k) + 1.0)
 
 
+def integrated_log_evidence(quadratic: float, a, b, log_det_covariance: float, size: int, precision) -> float:
+    """log Z of data y (size,) = J theta + e, e ~ N(0, C), theta ~ N(0, 1 / precision) (P,) (0: flat,
+    its improper constant left out), from quadratic = y^T C^-1 y, A = J^T C^-1 J + diag(precision)
+    (P, P), b = J^T C^-1 y (P,) and log|C|, however C was factored. Raises LinAlgError when A is not
+    positive definite (a flat parameter the data do not determine)."""
+    precision = np.asarray(precision, dtype=float)
+    sign, log_det_a = np.linalg.slogdet(a)
+    if sign <= 0:
+        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
+    proper = precision > 0
+    return float(
+        -0.5 * quadratic
+        + 0.5 * b @ np.linalg.solve(a, b)
+        - 0.5 * log_det_covariance
+        - 0.5 * log_det_a
+        - 0.5 * size * LOG_2PI
+        + 0.5 * np.sum(np.log(precision[proper]))
+        + 0.5 * int((~proper).sum()) * LOG_2PI
+    )
+
+
 def _dense_log_evidence(factor, y, jacobian, precision) -> float:
     """`dense_log_evidence` from the Cholesky factor (scipy's cho_factor) of the covariance."""
     import scipy.linalg
 
     solved_j, solved_y = scipy.linalg.cho_solve(factor, jacobian), scipy.linalg.cho_solve(factor, y)
     a = jacobian.T @ solved_j + np.diag(precision)
-    b = jacobian.T @ solved_y
-    sign, log_det_a = np.linalg.slogdet(a)
-    if sign <= 0:
-        raise np.linalg.LinAlgError("a parameter without prior is not determined by the data with the GP present")
-    proper = precision > 0
-    return float(
-        -0.5 * y @ solved_y
-        + 0.5 * b @ np.linalg.solve(a, b)
-        - float(np.sum(np.log(np.diag(factor[0]))))
-        - 0.5 * log_det_a
-        - 0.5 * len(y) * LOG_2PI
-        + 0.5 * np.sum(np.log(precision[proper]))
-        + 0.5 * int((~proper).sum()) * LOG_2PI
-    )
+    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+    return integrated_log_evidence(float(y @ solved_y), a, jacobian.T @ solved_y, log_det, len(y), precision)
 
 
 def dense_log_evidence(y, jacobian, precision, covariance) -> float:
