@@ -251,3 +251,51 @@ def metropolis_walk(
         states[i] = current
         log_probs[i] = lp
     return accepted, -1
+
+
+@_compiled(fastmath={"contract"})
+def orientation_residuals(rotations, tail, sensor, angles, measured):
+    """A full-pose probe's residual rotations log(M_i P_ki^T) as rotation vectors (m, n, 3) rad,
+    P_ki = sensor[k] rotations[0] Rz(angles[k, i, 0]) ... rotations[N-1] Rz(angles[k, i, N-1]) tail:
+    rotations (N, 3, 3) the kernel form's; tail (3, 3) the last basis's transpose, the tool's and
+    the probe's rotations; sensor (m, 3, 3); angles (m, n, N) rad; measured M (n, 3, 3).
+    `remaster.robot.kinematics.flange_rotations` and `spatial.matrix_to_rotation_vector` are the
+    reference."""
+    m, n, joints = angles.shape
+    out = np.empty((m, n, 3))
+    r = np.empty((3, 3))
+    t = np.empty((3, 3))
+    for k in range(m):
+        for i in range(n):
+            r[:, :] = sensor[k]
+            for j in range(joints):
+                for a in range(3):
+                    for b in range(3):
+                        t[a, b] = (
+                            r[a, 0] * rotations[j, 0, b] + r[a, 1] * rotations[j, 1, b] + r[a, 2] * rotations[j, 2, b]
+                        )
+                c, s = np.cos(angles[k, i, j]), np.sin(angles[k, i, j])
+                for a in range(3):
+                    r[a, 0] = c * t[a, 0] + s * t[a, 1]
+                    r[a, 1] = c * t[a, 1] - s * t[a, 0]
+                    r[a, 2] = t[a, 2]
+            for a in range(3):
+                for b in range(3):
+                    t[a, b] = r[a, 0] * tail[0, b] + r[a, 1] * tail[1, b] + r[a, 2] * tail[2, b]
+            # e = M t^T: only its antisymmetric part and trace are needed
+            e = measured[i]
+            e10 = e[1, 0] * t[0, 0] + e[1, 1] * t[0, 1] + e[1, 2] * t[0, 2]
+            e01 = e[0, 0] * t[1, 0] + e[0, 1] * t[1, 1] + e[0, 2] * t[1, 2]
+            e20 = e[2, 0] * t[0, 0] + e[2, 1] * t[0, 1] + e[2, 2] * t[0, 2]
+            e02 = e[0, 0] * t[2, 0] + e[0, 1] * t[2, 1] + e[0, 2] * t[2, 2]
+            e21 = e[2, 0] * t[1, 0] + e[2, 1] * t[1, 1] + e[2, 2] * t[1, 2]
+            e12 = e[1, 0] * t[2, 0] + e[1, 1] * t[2, 1] + e[1, 2] * t[2, 2]
+            trace = 0.0
+            for a in range(3):
+                trace += e[a, 0] * t[a, 0] + e[a, 1] * t[a, 1] + e[a, 2] * t[a, 2]
+            v0, v1, v2 = 0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)
+            sine = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            angle = np.arctan2(sine, 0.5 * (trace - 1.0))
+            ratio = 1.0 + angle * angle / 6.0 if sine < 1e-8 else angle / sine
+            out[k, i, 0], out[k, i, 1], out[k, i, 2] = ratio * v0, ratio * v1, ratio * v2
+    return out

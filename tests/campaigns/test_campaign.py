@@ -443,3 +443,78 @@ def test_a_job_asks_for_its_peak_and_its_own_snakemake_and_more_on_a_retry():
     assert first == int((0.5e9 + 36e6 + 768e6) / 1e6) + 1 == 1305  # the UR5 campaign's request
     assert capacity.job_request_mb(1_000, attempt=2) == int(1.5 * (0.5e9 + 36e6 + 768e6) / 1e6) + 1
     assert capacity.job_request_mb(100_000) > capacity.peak_estimate(100_000) / 1e6 + 520  # above the measured cost
+
+
+# --------------------------------------------------------------------------- a full-pose probe
+
+
+def full_pose(table: pd.DataFrame | None = None, seed: int = 1) -> pd.DataFrame:
+    """A valid table with a probe's orientation as rotation vectors (rad), one row not measured."""
+    table = sensor_table() if table is None else table
+    rng = np.random.default_rng(seed)
+    for axis, column in zip(("rx", "ry", "rz"), rng.uniform(-1.5, 1.5, (3, len(table)))):
+        table[axis] = column
+    table.loc[4, ["rx", "ry", "rz"]] = np.nan
+    return table
+
+
+def full_pose_metadata(**sensor) -> dict:
+    meta = metadata()
+    meta["sensors"][SENSOR].update({"orientation_noise": 1.7e-4, "probe_rotation": [0.0, 0.0, 0.5], **sensor})
+    return meta
+
+
+def test_a_full_pose_probe_is_read_with_its_noise_and_mounting(tmp_path):
+    table = full_pose()
+    campaign = read_campaign(make_campaign(tmp_path, full_pose_metadata(), {SENSOR: table}), repo_root=REPO)
+    sensor = campaign.sensors[SENSOR]
+    assert sensor.has_orientation and sensor.orientation_noise == 1.7e-4
+    np.testing.assert_allclose(
+        sensor.probe_rotation[:2, :2], [[math.cos(0.5), -math.sin(0.5)], [math.sin(0.5), math.cos(0.5)]]
+    )
+    rotations = sensor.orientations([3, 4])
+    assert np.isnan(rotations[1]).all()
+    np.testing.assert_allclose(rotations[0] @ rotations[0].T, np.eye(3), atol=1e-12)
+
+
+FULL_POSE_TABLE_ERRORS = {
+    # case: (mutation, column(s) named, rows named or None, words in the message)
+    "rz missing": (lambda t: t.drop(columns="rz"), "rz", None, "missing column"),
+    "partial nan": (with_values("ry", [2], np.nan), "rx, ry, rz", [2], "not all"),
+    "orientation of an unseen marker": (with_values(["x", "y", "z"], [5], np.nan), "rx, ry, rz", [5], "not seen"),
+    "degrees": (with_values("rx", [1, 6], 90.0), "rx, ry, rz", [1, 6], "longer than pi"),
+    "float32": (retyped("rx", np.float32), "rx", None, "float64"),
+}
+
+
+@pytest.mark.parametrize("case", FULL_POSE_TABLE_ERRORS)
+def test_full_pose_table_errors_name_file_column_and_rows(tmp_path, case):
+    mutate, column, rows, words = FULL_POSE_TABLE_ERRORS[case]
+    problem = read_error(make_campaign(tmp_path, full_pose_metadata(), {SENSOR: mutate(full_pose())}))
+    assert str(problem).startswith(str(tmp_path / "demo" / f"{SENSOR}.parquet"))
+    assert problem.key == column and problem.rows == rows and words in str(problem)
+
+
+@pytest.mark.parametrize(
+    "meta, table, key, words",
+    [
+        (metadata(), full_pose(), "orientation_noise", "need the sensor's noise"),
+        (full_pose_metadata(probe_rotation=None), full_pose(), "probe_rotation", "need the sensor's noise"),
+        (full_pose_metadata(orientation_noise=0.5), full_pose(), "orientation_noise", "not degrees"),
+        (full_pose_metadata(probe_rotation=[0.0, 1.0]), full_pose(), "probe_rotation", "rotation vector"),
+        (full_pose_metadata(), sensor_table(), None, "no orientation columns"),
+    ],
+    ids=[
+        "columns without noise",
+        "columns without mounting",
+        "noise in degrees",
+        "mounting of two numbers",
+        "keys without columns",
+    ],
+)
+def test_full_pose_keys_name_campaign_yaml_and_the_key(tmp_path, meta, table, key, words):
+    meta = json.loads(json.dumps(meta, default=str))
+    meta["sensors"][SENSOR] = {k: v for k, v in meta["sensors"][SENSOR].items() if v is not None}
+    problem = read_error(make_campaign(tmp_path, meta, {SENSOR: table}))
+    assert problem.file.endswith("campaign.yaml") and words in str(problem)
+    assert problem.key == f"sensors/{SENSOR}" + (f"/{key}" if key else "")

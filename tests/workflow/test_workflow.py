@@ -440,3 +440,28 @@ def test_a_campaign_whose_marker_sits_on_the_last_axis_gets_its_certificate_besi
     text = (tmp_path / "results" / "onaxis" / "certificate.md").read_text(encoding="utf-8")
     assert "zero_offsets.q7 is held at the controller's value: 1 deg of it changes no measured point" in text
     assert "| iiwa_joint_7 |  |  |  |  | held: not identifiable |" in text
+
+
+def test_a_full_pose_campaign_runs_end_to_end_and_its_certificate_says_what_orientation_added(tmp_path, iiwa):
+    """The bundled full-pose scenario with small sets: its probe sits on joint 7's axis, so its
+    points alone cannot see joint 7's zero-offset; the certificate says the orientations determine
+    it, and the zero-offset model's correction of joint 7 is estimated, not held."""
+    import pandas as pd
+
+    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-full-pose.yaml")
+    spec["name"] = "fullpose"
+    spec["plan"]["sets"] = {"optimization": {"configurations": 40}, "validation": {"configurations": 20}}
+    out = scenario.simulate(spec, iiwa)
+    folders.write_campaign(tmp_path / "raw" / "fullpose", out.metadata, out.tables)
+    files.write_yaml(
+        tmp_path / "config.yaml",
+        {"raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results"), **SMALL_FIT},
+    )
+    result = run(tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    text = (tmp_path / "results" / "fullpose" / "certificate.md").read_text(encoding="utf-8")
+    assert re.search(r"a full-pose probe, \d+ orientations fitted beside the points", text)
+    assert "they determine the zero-offset of q7, which the points alone leave undetermined" in text
+    corrections = pd.read_csv(tmp_path / "results" / "fullpose" / "tables" / "certificate_corrections.csv")
+    joint7 = corrections[corrections["Joint"] == "iiwa_joint_7"].set_index("Model")["Status"]
+    assert joint7.str.startswith("held").tolist() == [True, False]  # the loop's (points alone), the zero-offsets'

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..robot.kinematics import KinematicChain
-from .campaign import SensorData, sensor_data
+from .campaign import SensorData, sensor_data, validate_sensor_spec
 from .robot_model import load_chain
 from .scenario import simulate
 
@@ -65,7 +65,7 @@ def simulated_sensor(spec: dict, name: str, repo_root) -> tuple[KinematicChain, 
     meta = simulated.metadata["sensors"][name]
     table = simulated.tables[name]
     return chain, sensor_data(
-        name, {**meta, "marker": np.array(meta["marker"])}, table, chain.n_joints, "simulated.parquet"
+        name, validate_sensor_spec(name, meta, "simulated"), table, chain.n_joints, "simulated.parquet"
     )
 
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .. import spatial
 from ..errors import InputError, KinematicsError, listed, quoted, refuse_millimetres, require_columns
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
@@ -32,7 +33,7 @@ REQUIRED_KEYS = ("name", "date", "robot", "sensors")
 OPTIONAL_KEYS = ("description",)
 ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors")
 DH_KEYS = ("convention", "rows", "flange")
-SENSOR_KEYS = ("kind", "marker", "noise", "mpe")
+SENSOR_KEYS = ("kind", "marker", "noise", "mpe", "orientation_noise", "probe_rotation")
 
 KEY_COLUMNS = ("set", "pose", "solution")
 POSITION_COLUMNS = ("x", "y", "z")
@@ -41,6 +42,12 @@ TIME_COLUMN = "time"
 STD_COLUMN = "std"
 AXIS_STD_COLUMNS = ("std_x", "std_y", "std_z")
 MAX_STD = 0.01  # m: a per-point std above 10 mm is a unit mistake (millimetres stored as metres)
+# optional orientation of a full-pose probe (a 6-DoF laser-tracker probe, a motion-capture rigid
+# body): its frame's rotation in the sensor frame as a rotation vector (rad), NaN where not measured
+ORIENTATION_COLUMNS = ("rx", "ry", "rz")
+# A stated orientation noise (rad) of 0.1 rad (5.7 deg) or more is one written in degrees: a
+# 6-DoF probe's is a few hundredths of a degree, a motion-capture rigid body's a few tenths.
+MAX_ORIENTATION_NOISE = 0.1
 # A sensor's stated noise or mpe (m) of 10 mm or more: a motion-capture system's is under 1 mm and a
 # laser tracker's tens of um, so a value that large is one written in mm (or in um as mm).
 MAX_NOISE = MAX_STD
@@ -83,7 +90,9 @@ class SensorData:
     or None; table: the validated table, rows in stored order (RangeIndex = row numbers),
     `time` (if any) as UTC timestamps, extra columns untouched; mpe: the instrument's stated
     maximum permissible error of a coordinate (m, a bound: rectangular in the uncertainty budget)
-    or None.
+    or None; orientation_noise: the stated std (rad) of each component of a full-pose probe's
+    measured rotation, and probe_rotation (3, 3) the probe frame's nominal rotation in the flange
+    frame, both None unless the table has the orientation columns (`ORIENTATION_COLUMNS`).
     """
 
     name: str
@@ -92,6 +101,24 @@ class SensorData:
     noise: float | None
     table: pd.DataFrame = field(repr=False)
     mpe: float | None = None
+    orientation_noise: float | None = None
+    probe_rotation: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def has_orientation(self) -> bool:
+        """Whether the table holds a full-pose probe's orientation (`ORIENTATION_COLUMNS`)."""
+        return all(c in self.table.columns for c in ORIENTATION_COLUMNS)
+
+    def orientations(self, rows) -> np.ndarray:
+        """The probe frame's measured rotation (len(rows), 3, 3) in the sensor frame at table rows
+        (0-based), NaN where the orientation was not measured; ValueError without the columns."""
+        if not self.has_orientation:
+            raise ValueError(f"sensor {self.name!r} has no orientation columns {', '.join(ORIENTATION_COLUMNS)}")
+        vectors = self.table.loc[np.asarray(rows, dtype=int), list(ORIENTATION_COLUMNS)].to_numpy(dtype=float)
+        seen = np.all(np.isfinite(vectors), axis=1)
+        out = np.full((len(vectors), 3, 3), np.nan)
+        out[seen] = spatial.rotation_vector_to_matrix(vectors[seen])
+        return out
 
     @property
     def joint_columns(self) -> tuple[str, ...]:
@@ -354,7 +381,9 @@ def _validate_dh(dh: Any, source: str) -> dict[str, Any]:
     return checked
 
 
-def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
+def validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
+    """One sensor's entry of campaign.yaml checked: {'kind', 'marker' (3,) m, 'noise', 'mpe',
+    'orientation_noise', 'probe_rotation' (3, 3) or None}; InputError naming `source` and the key."""
     where = f"sensors/{name}"
     if not isinstance(name, str) or not SENSOR_NAME_PATTERN.fullmatch(name):
         raise InputError("a sensor name must be a file stem (letters, digits, _ . -)", file=source, key=where)
@@ -383,7 +412,28 @@ def _validate_sensor_spec(name: Any, spec: Any, source: str) -> dict[str, Any]:
             refuse_millimetres(
                 value, MAX_NOISE, "the bound of a plausible sensor noise or mpe", file=source, key=f"{where}/{key}"
             )
-    return {"kind": kind, "marker": np.array(marker), "noise": noise, "mpe": mpe}
+    out = {"kind": kind, "marker": np.array(marker), "noise": noise, "mpe": mpe}
+    return out | _orientation_spec(spec, where, source)
+
+
+def _orientation_spec(spec: Mapping, where: str, source: str) -> dict[str, Any]:
+    """A full-pose probe's `orientation_noise` (rad) and `probe_rotation` (rotation vector, rad)
+    as {'orientation_noise': float | None, 'probe_rotation': (3, 3) | None}."""
+    noise = spec.get("orientation_noise")
+    if noise is not None and (not _is_number(noise) or not 0 < noise < MAX_ORIENTATION_NOISE):
+        raise InputError(
+            f"must be a positive number below {MAX_ORIENTATION_NOISE:g} rad (the probe's orientation noise "
+            f"in rad, not degrees), got {quoted(noise)}",
+            file=source,
+            key=f"{where}/orientation_noise",
+        )
+    rotation = spec.get("probe_rotation")
+    if rotation is not None:
+        vector = _number_list(
+            rotation, 3, f"{where}/probe_rotation", source, "3 finite numbers: a rotation vector (rad)"
+        )
+        rotation = spatial.rotation_vector_to_matrix(np.array(vector, dtype=float))
+    return {"orientation_noise": None if noise is None else float(noise), "probe_rotation": rotation}
 
 
 def _positive_length(value: Any, key: str, source: str) -> float | None:
@@ -444,7 +494,7 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
         "date": _parse_date(meta["date"], source),
         "description": description,
         "robot": validate_robot(meta["robot"], source),
-        "sensors": {sensor: _validate_sensor_spec(sensor, spec, source) for sensor, spec in sensors.items()},
+        "sensors": {sensor: validate_sensor_spec(sensor, spec, source) for sensor, spec in sensors.items()},
     }
 
 
@@ -679,6 +729,49 @@ def _check_std(df: pd.DataFrame, source: str) -> None:
             )
 
 
+def _check_orientation(df: pd.DataFrame, source: str) -> None:
+    """The optional orientation columns: all of `rx, ry, rz` or none, float64, each row's three
+    finite or all three NaN (not measured), NaN where the marker was not seen, and each a rotation
+    vector of at most pi rad."""
+    present = [c for c in ORIENTATION_COLUMNS if c in df.columns]
+    if not present:
+        return
+    require_columns(
+        df, ORIENTATION_COLUMNS, file=source, note=f"an orientation needs all of {', '.join(ORIENTATION_COLUMNS)}"
+    )
+    for column in ORIENTATION_COLUMNS:
+        if not _is_float64_column(df[column]):
+            raise InputError(f"must hold float64 (rad), has dtype {df[column].dtype}", file=source, key=column)
+    vectors = df[list(ORIENTATION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)
+    nan = np.isnan(vectors)
+    key = ", ".join(ORIENTATION_COLUMNS)
+    partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
+    if partial.size:
+        raise InputError(
+            "some but not all of rx, ry, rz are NaN (NaN in all three marks an orientation not measured)",
+            file=source,
+            key=key,
+            rows=partial,
+        )
+    unseen = np.all(np.isnan(df[list(POSITION_COLUMNS)].to_numpy(dtype=float, na_value=np.nan)), axis=1)
+    orphan = np.flatnonzero(unseen & ~nan.all(axis=1))
+    if orphan.size:
+        raise InputError(
+            "an orientation on a row whose marker was not seen (x, y, z NaN): a probe measures both",
+            file=source,
+            key=key,
+            rows=orphan,
+        )
+    beyond = np.flatnonzero(~nan.any(axis=1) & ~(np.linalg.norm(np.where(nan, 0.0, vectors), axis=1) <= math.pi + 1e-9))
+    if beyond.size:
+        raise InputError(
+            "a rotation vector longer than pi rad (an angle in degrees stored as radians, or not a rotation vector)",
+            file=source,
+            key=key,
+            rows=beyond,
+        )
+
+
 def validate_sensor_table(
     df: pd.DataFrame, n_joints: int, sensor_name: str, source: str, *, limits=None
 ) -> pd.DataFrame:
@@ -701,6 +794,7 @@ def validate_sensor_table(
     table = df.reset_index(drop=True)
     _check_rows(table, n_joints, source, limits)
     _check_std(table, source)
+    _check_orientation(table, source)
     if TIME_COLUMN in table.columns:
         time = table[TIME_COLUMN]
         table[TIME_COLUMN] = time.dt.tz_localize("UTC") if time.dt.tz is None else time.dt.tz_convert("UTC")
@@ -708,18 +802,53 @@ def validate_sensor_table(
 
 
 def sensor_data(
-    name: str, spec: Mapping[str, Any], table: pd.DataFrame, n_joints: int, source: str, *, limits=None
+    name: str,
+    spec: Mapping[str, Any],
+    table: pd.DataFrame,
+    n_joints: int,
+    source: str,
+    *,
+    limits=None,
+    metadata_source: str = "campaign.yaml",
 ) -> SensorData:
     """SensorData from a validated sensor spec (see `validate_metadata`) and its raw table;
-    `limits` as in `validate_sensor_table`."""
-    return SensorData(
+    `limits` as in `validate_sensor_table`; `metadata_source` names the spec's file in messages."""
+    data = SensorData(
         name=name,
         kind=spec["kind"],
         marker=np.asarray(spec["marker"], dtype=float),
         noise=spec["noise"],
         table=validate_sensor_table(table, n_joints, name, source, limits=limits),
         mpe=spec.get("mpe"),
+        orientation_noise=spec.get("orientation_noise"),
+        probe_rotation=spec.get("probe_rotation"),
     )
+    _check_orientation_spec(data, source, metadata_source)
+    return data
+
+
+def _check_orientation_spec(data: SensorData, source: str, metadata_source: str) -> None:
+    """A table with orientation columns needs the sensor's `noise`, `orientation_noise` and
+    `probe_rotation` in campaign.yaml (their ratio weighs orientation against position), and
+    those keys need the columns."""
+    where = f"sensors/{data.name}"
+    if data.has_orientation:
+        for key in ("noise", "orientation_noise", "probe_rotation"):
+            if getattr(data, key) is None:
+                raise InputError(
+                    f"missing: {source} has orientation columns {', '.join(ORIENTATION_COLUMNS)}, which need the "
+                    "sensor's noise (m), orientation_noise (rad) and probe_rotation (the probe frame in the "
+                    "flange frame, a rotation vector in rad)",
+                    file=metadata_source,
+                    key=f"{where}/{key}",
+                )
+    elif data.orientation_noise is not None or data.probe_rotation is not None:
+        raise InputError(
+            f"orientation_noise and probe_rotation describe a full-pose probe, but {source} has no orientation "
+            f"columns {', '.join(ORIENTATION_COLUMNS)}",
+            file=metadata_source,
+            key=where,
+        )
 
 
 def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int = 2000) -> dict[str, Any]:
@@ -747,6 +876,12 @@ def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int 
             "marker_m": sensor.marker.tolist(),
             "noise_m": sensor.noise,
             "mpe_m": sensor.mpe,
+            "orientation_noise_rad": sensor.orientation_noise,
+            "orientation_rows": (
+                int(np.count_nonzero(np.all(np.isfinite(table[list(ORIENTATION_COLUMNS)].to_numpy(float)), axis=1)))
+                if sensor.has_orientation
+                else 0
+            ),
             "rows": int(len(table)),
             "sets": sets,
             "missing_rows": sensor.missing_rows.tolist(),

@@ -105,7 +105,13 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
     for sensor, spec in meta["sensors"].items():
         path = tables[sensor]
         sensors[sensor] = sensor_data(
-            sensor, spec, read_parquet(path), chain.n_joints, str(path), limits=(chain.lower, chain.upper)
+            sensor,
+            spec,
+            read_parquet(path),
+            chain.n_joints,
+            str(path),
+            limits=(chain.lower, chain.upper),
+            metadata_source=source,
         )
         if sensors[sensor].n_missing:
             log.info(

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import spatial
 from ..errors import InputError, quoted
 from ..robot import planning, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
@@ -24,6 +25,7 @@ from .simulation import (
     frame_distortion,
     looking_at,
     measure,
+    measure_orientations,
     same_frames_as_dh,
     sensor_move,
     sensor_side,
@@ -174,6 +176,9 @@ def sensors_of(spec: dict) -> dict[str, Sensor]:
             marker_error=np.asarray(s.get("marker_error", [0.0, 0.0, 0.0]), dtype=float),
             scale_error=float(s.get("scale_error", 0.0)),
             transverse_growth_per_m=float(s.get("transverse_growth_per_m", 0.0)),
+            orientation_noise=float(s.get("orientation_noise", 0.0)),
+            probe_rotation=spatial.rotation_vector_to_matrix(np.asarray(s.get("probe_rotation", [0.0] * 3), float)),
+            probe_rotation_error=np.asarray(s.get("probe_rotation_error", [0.0] * 3), dtype=float),
         )
     return out
 
@@ -467,9 +472,10 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
 
 
 def _measured(name: str, spec: dict, sensor: Sensor, chain, robot: TrueRobot, readings, elapsed, rng):
-    """(xyz (n, 3) m, the truth's record) of one sensor measuring the readings' configurations at
-    `elapsed` (n,) s: its noise, what happens to it (`sensor_side`), the rows it does not see (NaN)
-    and its glitches, as the scenario's `sensors/<name>` (`spec`) says."""
+    """(columns {x, y, z (m) and, for a full-pose probe, rx, ry, rz (rad)}, the truth's record) of
+    one sensor measuring the readings' configurations at `elapsed` (n,) s: its noise, what happens
+    to it (`sensor_side`), the rows it does not see (NaN) and its glitches, as the scenario's
+    `sensors/<name>` (`spec`) says."""
     q = readings[[f"q{j + 1}" for j in range(chain.n_joints)]].to_numpy()
     xyz = measure(chain, robot, sensor, q, rng, elapsed)
     move, distortion, sensor_record = sensor_side_of(spec, f"sensors/{name}")
@@ -479,12 +485,25 @@ def _measured(name: str, spec: dict, sensor: Sensor, chain, robot: TrueRobot, re
     glitches = spec.get("gross_errors")
     if glitches is not None:
         xyz, glitched = inject_gross_errors(xyz, readings["set"].to_numpy(), glitches, rng, f"sensors/{name}")
-    return xyz, {
+    columns = dict(zip(("x", "y", "z"), xyz.T))
+    if sensor.orientation_noise > 0:
+        orientation = measure_orientations(chain, robot, sensor, q, rng, elapsed)
+        orientation[np.sort(unseen)] = np.nan
+        columns |= dict(zip(("rx", "ry", "rz"), orientation.T))
+    return columns, {
         "kind": sensor.kind,
         "noise_m": sensor.noise,
         "scale_error": sensor.scale_error,
         **({"transverse_growth_per_m": sensor.transverse_growth_per_m} if sensor.transverse_growth_per_m else {}),
         "marker_error_m": sensor.marker_error.tolist(),
+        **(
+            {
+                "orientation_noise_rad": sensor.orientation_noise,
+                "probe_rotation_error_rad": sensor.probe_rotation_error.tolist(),
+            }
+            if sensor.orientation_noise > 0
+            else {}
+        ),
         "T_NR": sensor.robot_to_sensor.tolist(),
         "pose_in_robot": sensor.pose_in_robot.tolist(),
         "unseen_rows": sorted(int(i) for i in unseen),
@@ -518,9 +537,12 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
 
     out_tables, truth_sensors = {}, {}
     for name, sensor in sensors.items():
-        xyz, truth_sensors[name] = _measured(name, spec["sensors"][name], sensor, chain, robot, readings, elapsed, rng)
+        columns, truth_sensors[name] = _measured(
+            name, spec["sensors"][name], sensor, chain, robot, readings, elapsed, rng
+        )
         table = readings.copy()
-        table[["x", "y", "z"]] = xyz
+        for column, values in columns.items():
+            table[column] = values
         table["time"] = times
         out_tables[name] = table
     metadata = {
@@ -528,9 +550,7 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         "date": str(spec["date"]),
         "description": spec.get("description", ""),
         "robot": dict(spec["robot"]),
-        "sensors": {
-            name: {"kind": s.kind, "marker": s.marker.tolist(), "noise": s.noise} for name, s in sensors.items()
-        },
+        "sensors": {name: _sensor_metadata(s) for name, s in sensors.items()},
     }
     truth = {
         "campaign": spec["name"],
@@ -548,6 +568,16 @@ def simulate(spec: dict, chain: KinematicChain, seed: int | None = None) -> Simu
         # the Latin-hypercube truth files stay as they were; a cube campaign records its one orientation
         truth["planning"].update(design=design, flange_rotation=rotation.tolist())
     return SimulatedCampaign(metadata, out_tables, truth)
+
+
+def _sensor_metadata(sensor: Sensor) -> dict:
+    """campaign.yaml's entry of a simulated sensor: a full-pose probe's orientation noise and
+    nominal mounting besides the marker and noise."""
+    out = {"kind": sensor.kind, "marker": sensor.marker.tolist(), "noise": sensor.noise}
+    if sensor.orientation_noise > 0:
+        out["orientation_noise"] = sensor.orientation_noise
+        out["probe_rotation"] = spatial.matrix_to_rotation_vector(sensor.probe_rotation).tolist()
+    return out
 
 
 def robot_from_truth(truth: dict) -> TrueRobot:
@@ -574,8 +604,9 @@ def robot_from_truth(truth: dict) -> TrueRobot:
     )
 
 
-def sensor_from_truth(truth: dict, name: str, marker) -> Sensor:
-    """The true sensor `name` of a ground-truth record, with the campaign's nominal marker (3,) m."""
+def sensor_from_truth(truth: dict, name: str, marker, probe_rotation=None) -> Sensor:
+    """The true sensor `name` of a ground-truth record, with the campaign's nominal marker (3,) m
+    and, for a full-pose probe, its nominal mounting as a rotation vector (3,) rad."""
     record = truth["sensors"][name]
     return Sensor(
         name,
@@ -586,6 +617,9 @@ def sensor_from_truth(truth: dict, name: str, marker) -> Sensor:
         np.array(record["marker_error_m"]),
         float(record["scale_error"]),
         float(record.get("transverse_growth_per_m", 0.0)),
+        float(record.get("orientation_noise_rad", 0.0)),
+        np.eye(3) if probe_rotation is None else spatial.rotation_vector_to_matrix(np.asarray(probe_rotation, float)),
+        np.array(record.get("probe_rotation_error_rad", [0.0] * 3)),
     )
 
 

@@ -73,7 +73,11 @@ class Sensor:
     noise (m), scale error (dimensionless), the nominal marker (3,) in the flange frame and the
     error of that marker's true position (3,). transverse_growth_per_m: 0 for isotropic noise;
     otherwise `noise` is a tracker's range std and its transverse std is noise sqrt(1 + (g d)^2)
-    at distance d from the sensor (`remaster.noise`)."""
+    at distance d from the sensor (`remaster.noise`). orientation_noise (rad): a full-pose probe's
+    std of each component of its measured rotation (0: the sensor measures a point only);
+    probe_rotation (3, 3): the probe frame's nominal rotation in the flange frame, and
+    probe_rotation_error (3,) rad the rotation vector of its true frame from the nominal one
+    (applied in the probe's own frame)."""
 
     name: str
     kind: str
@@ -83,6 +87,9 @@ class Sensor:
     marker_error: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale_error: float = 0.0
     transverse_growth_per_m: float = 0.0
+    orientation_noise: float = 0.0
+    probe_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    probe_rotation_error: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def robot_to_sensor(self) -> np.ndarray:
@@ -194,6 +201,21 @@ def measure(
     along = np.sum(draw * u, axis=1, keepdims=True) * u
     ratio = np.sqrt(1.0 + (sensor.transverse_growth_per_m * np.linalg.norm(p_sensor, axis=1, keepdims=True)) ** 2)
     return p_sensor + along + ratio * (draw - along)
+
+
+def measure_orientations(
+    chain: KinematicChain, robot: TrueRobot, sensor: Sensor, q_readings, rng: np.random.Generator, elapsed_s=None
+) -> np.ndarray:
+    """A full-pose probe's readings of its own frame's rotation in the sensor frame, as rotation
+    vectors (n, 3) rad: the true rotation (the true chain at the true angles, the probe's true
+    mounting) turned by a noise rotation exp([e]) with e ~ N(0, orientation_noise^2 I), sensor frame.
+    A sensor scale error leaves rotations alone."""
+    q_true = true_joint_angles(chain, robot, q_readings, elapsed_s)
+    flange = ForwardKinematics(true_chain(chain, robot), q_true).flange_poses()[:, :3, :3]
+    probe = sensor.probe_rotation @ spatial.rotation_vector_to_matrix(sensor.probe_rotation_error)
+    true = sensor.robot_to_sensor[:3, :3] @ flange @ probe
+    noise = spatial.rotation_vector_to_matrix(rng.normal(0.0, sensor.orientation_noise, (len(true), 3)))
+    return spatial.matrix_to_rotation_vector(noise @ true)
 
 
 def true_sensor_positions(

@@ -65,7 +65,7 @@ from ..inference.model import (
 )
 from ..labels import paper_order, sensor_label
 from ..robot import registration
-from ..robot.kinematics import ForwardKinematics, KinematicChain
+from ..robot.kinematics import ForwardKinematics, KinematicChain, flange_rotations
 from ..units import shown
 
 log = logging.getLogger(__name__)
@@ -186,7 +186,9 @@ def registration_parameters(sensor_from_robot, t_nr) -> np.ndarray:
 class SetData:
     """One set's rows of a sensor table: rows (n,) 0-based table rows, q (n, N) rad, positions
     (n, 3) m in the sensor frame, NaN where the row is not used (marker unseen or flagged),
-    poses (n,) and solutions (n,) ints, unseen and flagged (n,) booleans."""
+    poses (n,) and solutions (n,) ints, unseen and flagged (n,) booleans; for a full-pose probe,
+    orientations (n, 3, 3) its measured rotations in the sensor frame (NaN where not measured)
+    and probe_rotation (3, 3) its nominal rotation in the flange frame, else None."""
 
     name: str
     rows: np.ndarray
@@ -196,6 +198,8 @@ class SetData:
     solutions: np.ndarray
     unseen: np.ndarray
     flagged: np.ndarray
+    orientations: np.ndarray | None = None
+    probe_rotation: np.ndarray | None = None
 
     @classmethod
     def of(cls, sensor: SensorData, set_name: str, flagged_rows=()) -> SetData:
@@ -216,6 +220,8 @@ class SetData:
             table["solution"].to_numpy(np.int64),
             unseen,
             flagged,
+            sensor.orientations(rows) if sensor.has_orientation else None,
+            sensor.probe_rotation,
         )
 
     @property
@@ -280,7 +286,19 @@ def _configuration_errors(
             "distance_from_base_mm": np.linalg.norm(robot_frame, axis=1) * TO_MM,
         }
     )
+    if data.orientations is not None:
+        frame["orientation_error_deg"] = np.degrees(orientation_errors(chain, data, robot, seen))
     return errors, frame
+
+
+def orientation_errors(chain: KinematicChain, data: SetData, robot: Remastered, at) -> np.ndarray:
+    """A full-pose probe's orientation errors (len(at),) rad at rows `at` of the set: the angle of
+    R_measured R_predicted^T, R_predicted the robot's flange at its zero-offsets, turned by its
+    registration and the probe's nominal mounting; NaN where the orientation was not measured."""
+    flange = flange_rotations(chain, data.q[at] + robot.zero_offsets)
+    predicted = robot.sensor_from_robot[:3, :3] @ flange @ data.probe_rotation
+    residual = spatial.matrix_to_rotation_vector(data.orientations[at] @ np.swapaxes(predicted, -1, -2))
+    return np.linalg.norm(residual, axis=-1)
 
 
 # --------------------------------------------------------------------------- the stage

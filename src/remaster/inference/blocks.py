@@ -153,7 +153,12 @@ class Readings:
     RMS over the sensor's measured rows (`point_weights`), None when the table gives none: the
     likelihood's noise of row i, axis a is then sigma weights[i, a], sigma still in metres;
     drift_gaps: why drift is None although the table has a time or temperature column
-    (`drift_gaps`: the rows without a value), so that the loop closure can say so.
+    (`drift_gaps`: the rows without a value), so that the loop closure can say so;
+    orientations (n, 3, 3): a full-pose probe's measured rotation in the sensor frame, NaN rows
+    where it was not measured, None for points alone; probe_rotation (3, 3): the probe frame's
+    nominal rotation in the flange frame; orientation_weight (m/rad): the stated position noise
+    over the stated orientation noise, so that an orientation residual (rad) times it is noise of
+    the same sigma as a coordinate's (`orientation_fields`).
     """
 
     rows: np.ndarray
@@ -166,6 +171,9 @@ class Readings:
     harmonic_orders: int = 2
     weights: np.ndarray | None = None
     drift_gaps: str | None = None
+    orientations: np.ndarray | None = None
+    probe_rotation: np.ndarray | None = None
+    orientation_weight: float = 1.0
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
@@ -228,10 +236,23 @@ def drift_gaps(table: pd.DataFrame, column: str | None = None) -> str | None:
     return f"{column}: no value on table {format_rows(missing)}"
 
 
+def orientation_fields(sensor: SensorData, rows) -> dict:
+    """{'orientations', 'probe_rotation', 'orientation_weight'} of `Readings` at table rows for a
+    sensor whose table holds a full-pose probe's orientation, {} otherwise."""
+    if not sensor.has_orientation:
+        return {}
+    return {
+        "orientations": sensor.orientations(rows),
+        "probe_rotation": np.asarray(sensor.probe_rotation, dtype=float),
+        "orientation_weight": float(sensor.noise) / float(sensor.orientation_noise),
+    }
+
+
 def readings(
     chain: KinematicChain, sensor: SensorData, set_name: str, settings: ModelSettings = ModelSettings(), exclude=()
 ) -> Readings:
-    """The measured rows of one set but the table rows in `exclude` (flagged gross errors).
+    """The measured rows of one set but the table rows in `exclude` (flagged gross errors), their
+    positions only (the loop closure's effects and residual models are of the marker's position).
     Gravity torques are taken at the readings: zero-offsets of a fraction of a degree change
     them by well under 1 %, a compliance deflection of a few microradians."""
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
@@ -477,9 +498,10 @@ class BlockModel:
             self._whitening = scaling[:, :, None] * np.broadcast_to(shape, (len(scaling), 3, 3))
             self.noise_log_det += float(np.sum(np.log(scaling)))
         self._has_prior = bool(np.any(self._prior_precision))
+        self._setup_orientation(data)
         # the paper's model (no extension block, isotropic noise: `paper_model`) has its sum of squares
         # and its random walk compiled: the samplers evaluate it hundreds of thousands of times
-        self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None
+        self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None and not self.has_orientation
         if self.compiled_posterior:
             self._start = self._kernel.start(self.marker)
             self._measured_t = np.ascontiguousarray(self.measured.T)
@@ -502,9 +524,56 @@ class BlockModel:
         self._kernel_first = np.searchsorted(joints[order], np.arange(self.chain.n_joints + 1))
         self._cos_q, self._sin_q = np.ascontiguousarray(np.cos(self.q.T)), np.ascontiguousarray(np.sin(self.q.T))
 
+    def _setup_orientation(self, data: Readings) -> None:
+        """The rows whose probe orientation was measured and their rotations (`orientation_residuals`)."""
+        self.has_orientation = data.orientations is not None
+        if not self.has_orientation:
+            self._orientation_at = np.empty(0, dtype=int)
+            return
+        if {"link_geometry", "sensor_distortion"} & set(self.blocks):
+            raise ValueError("a probe's orientation is modelled with the joint-space blocks only")
+        measured = np.asarray(data.orientations, dtype=float)
+        self._orientation_at = np.flatnonzero(np.all(np.isfinite(measured), axis=(1, 2)))
+        self._measured_rotations = np.ascontiguousarray(measured[self._orientation_at])
+        # what follows the last joint's z-aligned frame of the kernel form: the flange, then the probe
+        tool = self._kernel.bases[-1].T @ self.chain.tool_transform[:3, :3]
+        self._orientation_tail = np.ascontiguousarray(tool @ np.asarray(data.probe_rotation, dtype=float))
+
     @property
     def n_points(self) -> int:
+        """Measured positions (rows)."""
         return len(self.q)
+
+    @property
+    def n_orientations(self) -> int:
+        """Measured probe orientations (rows with one; 0 for points alone)."""
+        return len(self._orientation_at)
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of three components the likelihood sums over: positions, then orientations."""
+        return self.n_points + self.n_orientations
+
+    @property
+    def row_readings(self) -> np.ndarray:
+        """(n_rows,) the reading (0..n-1) each row of `weighted_residuals` belongs to: every
+        position's, then each measured orientation's."""
+        return np.concatenate([np.arange(self.n_points), self._orientation_at])
+
+    def orientation_residuals(self, theta) -> np.ndarray:
+        """log(R_measured R_predicted^T) as rotation vectors (n_o, 3) or (m, n_o, 3), rad, sensor
+        frame, from free parameters (P,) or (m, P): R_predicted = R_registration R_flange(angles)
+        R_probe at the rows whose orientation was measured."""
+        every = self.full(theta)
+        stack = np.atleast_2d(every)
+        out = _kernels.orientation_residuals(
+            self._kernel.rotations,
+            self._orientation_tail,
+            np.ascontiguousarray((correction_transforms(stack[:, :6]) @ self.t_nr)[:, :3, :3]),
+            np.ascontiguousarray(self.angles(stack)[:, self._orientation_at]),
+            self._measured_rotations,
+        )
+        return out if every.ndim == 2 else out[0]
 
     def full(self, theta) -> np.ndarray:
         """Free parameters (..., P) -> every parameter (..., P_all), held ones at their values."""
@@ -559,11 +628,22 @@ class BlockModel:
         return np.einsum("nij,...nj->...ni", self._whitening, residuals)
 
     def weighted_residuals(self, theta) -> np.ndarray:
-        """Whitened residuals (n, 3) or (m, n, 3): what the likelihood sums the squares of."""
-        return self.whitened(self.residuals(theta))
+        """Whitened residuals (n_rows, 3) or (m, n_rows, 3): what the likelihood sums the squares of;
+        a full-pose probe's orientation residuals (`orientation_residuals`) times the readings'
+        orientation_weight follow the n positions' rows."""
+        positions = self.whitened(self.residuals(theta))
+        if not self.has_orientation:
+            return positions
+        orientations = self.data.orientation_weight * self.orientation_residuals(theta)
+        return np.concatenate([positions, orientations], axis=-2)
 
     def weighted_jacobian(self, theta, step: float) -> np.ndarray:
-        """d whitened residuals / d free parameters, (3n, P)."""
+        """d whitened residuals / d free parameters, (3 n_rows, P)."""
+        if self.has_orientation:
+            theta = np.asarray(theta, dtype=float)
+            steps = step * np.eye(len(theta))
+            both = self.weighted_residuals(np.concatenate([theta + steps, theta - steps]))
+            return ((both[: len(theta)] - both[len(theta) :]) / (2 * step)).reshape(len(theta), -1).T
         jacobian = self.jacobian(theta, step)
         if self._whitening is None:
             return jacobian
@@ -579,13 +659,14 @@ class BlockModel:
     def log_posterior(self, theta, sigma):
         """The paper's: -(3n + 2) log sigma - E / (2 sigma^2) (flat prior on the registration and
         the zero-offsets, Jeffreys' on sigma), plus the extension blocks' priors (`log_prior`);
-        -inf where sigma <= 0. Scalar or (m,)."""
+        -inf where sigma <= 0; n counts a probe's orientations with its positions (`n_rows`).
+        Scalar or (m,)."""
         if np.ndim(sigma) == 0:  # one chain step: plain floats are several times cheaper
             sigma = float(sigma)
             if sigma <= 0.0:
                 value = -math.inf
             else:
-                value = -(3 * self.n_points + 2) * math.log(sigma) - float(self.sum_squares(theta)) / (
+                value = -(3 * self.n_rows + 2) * math.log(sigma) - float(self.sum_squares(theta)) / (
                     2.0 * sigma * sigma
                 )
         else:
@@ -593,7 +674,7 @@ class BlockModel:
             energy = self.sum_squares(theta)
             positive = sigma > 0
             safe = np.where(positive, sigma, 1.0)
-            value = -(3 * self.n_points + 2) * np.log(safe) - energy / (2.0 * safe**2)
+            value = -(3 * self.n_rows + 2) * np.log(safe) - energy / (2.0 * safe**2)
             value = np.where(positive, value, -np.inf)
         return value + self.log_prior(theta) if self._has_prior else value
 
@@ -718,19 +799,22 @@ class BlockModel:
         return states, log_probs, int(accepted), int(nan_at)
 
 
-def paper_model(chain: KinematicChain, q, measured, marker, t_nr, fixed=None, table_rows=None) -> BlockModel:
+def paper_model(
+    chain: KinematicChain, q, measured, marker, t_nr, fixed=None, table_rows=None, orientation: Mapping | None = None
+) -> BlockModel:
     """The paper's model (eqs. point_mod_transf and posterior, `remaster.inference.model`): the
     registration and zero-offsets alone, flat priors, isotropic noise, for one sensor's measured
     points. q (n, N) rad; measured (n, 3) m in the sensor frame, all finite (unseen points are
     excluded by the caller, who counts them); marker (3,) m, flange frame; t_nr (4, 4) the initial
     registration; fixed: {parameter name: value} held; table_rows (n,): the sensor table's row of
-    each point (default 0..n-1), the model's `data.rows`."""
+    each point (default 0..n-1), the model's `data.rows`; orientation: a full-pose probe's
+    `orientation_fields` at those rows (its orientations enter the likelihood beside the points)."""
     q = np.asarray(q, dtype=float)
     measured = np.asarray(measured, dtype=float)
     if measured.shape != (len(q), 3) or not np.all(np.isfinite(measured)):
         raise ValueError("measured must be finite with shape (n, 3) matching q")
     rows = np.arange(len(q)) if table_rows is None else np.asarray(table_rows, dtype=int)
-    return BlockModel(chain, Readings(rows, q, measured), marker, t_nr, (), fixed)
+    return BlockModel(chain, Readings(rows, q, measured, **(orientation or {})), marker, t_nr, (), fixed)
 
 
 # --------------------------------------------------------------------------- identifiability of extensions

@@ -38,6 +38,7 @@ from .fit import LaplaceReport, Registration, build_model
 from .model import by_parameter, display_scale
 
 SOURCE = "paper posterior mean; std from the pose-clustered sandwich covariance"
+SANDWICH_STEP = 1e-7  # central differences of the Jacobian (SI units of each parameter)
 
 
 def sandwich_covariance(jacobian, residuals, poses) -> np.ndarray:
@@ -57,10 +58,14 @@ def sandwich_covariance(jacobian, residuals, poses) -> np.ndarray:
 def discrepancy_summary(model: BlockModel, theta, poses, summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
     """The fit's summary (`fit.posterior_summary`, SI) with every estimated parameter's std and 95 %
     interval (mean +- 1.96 std) from the sandwich at theta (P,), the paper's fit of `model`
-    (outliers out); poses (n,) the model's rows' poses. And a JSON-ready report: each std over
+    (outliers out); poses (n,) the pose of each of the model's readings. And a JSON-ready report: each std over
     the paper posterior's."""
     theta = np.asarray(theta, dtype=float)
-    std = np.sqrt(np.diag(sandwich_covariance(-model.jacobian(theta), model.residuals(theta), poses)))
+    # a full-pose probe's orientations are rows of their reading's pose too
+    rows = model.row_readings
+    jacobian = model.weighted_jacobian(theta, SANDWICH_STEP)
+    covariance = sandwich_covariance(jacobian, model.weighted_residuals(theta), np.asarray(poses)[rows])
+    std = np.sqrt(np.diag(covariance))
     out = by_parameter(summary).copy()
     names = list(model.names)
     paper_std = out.loc[names, "std"].astype(float).to_numpy()

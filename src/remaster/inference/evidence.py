@@ -102,7 +102,7 @@ class PosteriorMode:
 def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
     """MAP of the model's posterior from `start` (P,) SI (default 0) and its Laplace approximation."""
     theta = np.zeros(len(model.names)) if start is None else np.asarray(start, dtype=float)
-    k = 3 * model.n_points
+    k = 3 * model.n_rows
     sigma = math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
     for _ in range(MAX_SIGMA_ROUNDS):
 

@@ -32,7 +32,7 @@ from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
 from . import identifiability, metrics, samplers
-from .blocks import BlockModel, paper_model
+from .blocks import BlockModel, orientation_fields, paper_model
 from .model import SIGMA, display_scale, display_unit
 
 log = logging.getLogger(__name__)
@@ -100,14 +100,25 @@ def register(chain: KinematicChain, sensor: SensorData, set_name: str = "optimiz
     return Registration(three, tuple(int(r) for r in rows[triple]), kabsch, rms(three), rms(kabsch))
 
 
-def build_model(chain: KinematicChain, sensor: SensorData, t_nr, set_name: str = "optimization", exclude=()):
+def build_model(
+    chain: KinematicChain,
+    sensor: SensorData,
+    t_nr,
+    set_name: str = "optimization",
+    exclude=(),
+    orientation: bool = True,
+):
     """(model with undetermined parameters held, identifiability analysis, rows without a
-    measurement). `exclude`: further table rows left out (flagged outliers)."""
+    measurement). `exclude`: further table rows left out (flagged outliers); orientation: a
+    full-pose probe's orientations enter the likelihood beside its points (False: points alone)."""
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
-    analysis = identifiability.analyse(paper_model(chain, q, measured, sensor.marker, t_nr))
-    model = paper_model(chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows)
+    orientation = orientation_fields(sensor, rows) if orientation else {}
+    analysis = identifiability.analyse(paper_model(chain, q, measured, sensor.marker, t_nr, orientation=orientation))
+    model = paper_model(
+        chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows, orientation=orientation
+    )
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
 
@@ -197,7 +208,10 @@ class PosteriorTarget:
         )
 
     def residuals(self, theta_model) -> np.ndarray:
-        """Residual vector (3n,) of the model parameters (sigma excluded), for least squares."""
+        """Residual vector (3n,) of the model parameters (sigma excluded), for least squares; a
+        full-pose probe's weighted orientation residuals follow (`BlockModel.weighted_residuals`)."""
+        if self.model.has_orientation:
+            return self.model.weighted_residuals(theta_model).ravel()
         return self.model.residuals(theta_model).ravel()
 
 
@@ -230,7 +244,7 @@ class SigmaMarginalTarget:
         (`PosteriorTarget.log_prob_many`)."""
         thetas = np.asarray(thetas, dtype=float)
         size = max(1, POINTS_PER_CALL // max(self.model.n_points, 1))
-        power = 0.5 * (3 * self.model.n_points + 1)
+        power = 0.5 * (3 * self.model.n_rows + 1)
         parts = []
         for k in range(0, len(thetas), size):
             part = thetas[k : k + size]
@@ -244,7 +258,7 @@ class SigmaMarginalTarget:
         each sample, appended as the last parameter, and the joint log-posterior as log_prob."""
         theta = chain.samples
         energy = self.model.sum_squares(theta)
-        sigma = np.sqrt(energy / rng.chisquare(3 * self.model.n_points + 1, len(theta)))
+        sigma = np.sqrt(energy / rng.chisquare(3 * self.model.n_rows + 1, len(theta)))
         return replace(
             chain,
             samples=np.column_stack([theta, sigma]),
@@ -300,6 +314,38 @@ def laplace_report(
     }
 
 
+def orientation_added(
+    result: samplers.LaplaceResult,
+    analysis: identifiability.Identifiability,
+    points: samplers.LaplaceResult,
+    points_analysis: identifiability.Identifiability,
+    model: BlockModel,
+) -> dict:
+    """What a full-pose probe's orientations added to the zero-offset fit, JSON-ready: the rows
+    fitted with one, the parameters held with points alone that the orientations determine, each
+    fit's sigma and parameter stds (`points`, `points_analysis`: the same rows' points alone), and
+    `information_ratio`: each std with the orientations over its std from the points alone at one
+    sigma (std / sigma of each fit), the data's part. The stds' own ratio also carries the change
+    of the one sigma, which pools the orientations' residuals with the positions' (where the model
+    lacks an effect of the positions, the orientations' small residuals pull it down)."""
+    points_std = dict(zip(points.names, points.std.tolist()))
+    sigmas = result.sigma_map / points.sigma_map
+    return {
+        "orientations_fitted": int(model.n_orientations),
+        "stated_noise_ratio_m_per_rad": float(model.data.orientation_weight),
+        "held_with_orientation": sorted(analysis.held),
+        "held_with_points_alone": sorted(points_analysis.held),
+        "determined_only_with_orientation": sorted(set(points_analysis.held) - set(analysis.held)),
+        "sigma_with_orientation_m": float(result.sigma_map),
+        "sigma_with_points_alone_m": float(points.sigma_map),
+        "std_with_orientation": dict(zip(result.names, result.std.tolist())),
+        "std_with_points_alone": points_std,
+        "information_ratio": {
+            n: float(s / points_std[n] / sigmas) for n, s in zip(result.names, result.std) if n in points_std
+        },
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class LaplaceReport:
     """The paper model's Laplace fit of one sensor as the later stages read it (`laplace.json`,
@@ -309,7 +355,8 @@ class LaplaceReport:
     controller's value; null_directions: the data's blind combinations ({name: weight} each);
     outlier_rows and marker_not_seen_rows: table rows left out of the fit;
     points_fitted (None when the report was made without the model); held_statements: one sentence
-    per held parameter, saying what the data cannot tell apart."""
+    per held parameter, saying what the data cannot tell apart; orientation: what a full-pose
+    probe's orientations added (`orientation_added`), None for points alone."""
 
     names: tuple[str, ...]
     theta_map: np.ndarray
@@ -325,6 +372,7 @@ class LaplaceReport:
     marker_not_seen_rows: tuple[int, ...]
     points_fitted: int | None
     held_statements: tuple[str, ...] = ()
+    orientation: dict | None = None
 
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> LaplaceReport:
@@ -345,12 +393,22 @@ class LaplaceReport:
             marker_not_seen_rows=tuple(int(r) for r in get("excluded_rows_marker_not_seen")),
             points_fitted=None if get("points_fitted") is None else int(get("points_fitted")),
             held_statements=tuple(str(x) for x in get("identifiability", "statements")),
+            orientation=content.get("orientation"),
         )
 
     @classmethod
     def read(cls, path) -> LaplaceReport:
         """From laplace.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
+
+    @property
+    def held_with_points_alone(self) -> dict[str, float]:
+        """{name: value} held by a model of the points alone (the loop closure's): `held`, plus what a
+        full-pose probe's orientations determined and the points alone do not (held at the
+        controller's value, as the identifiability analysis holds it)."""
+        if not self.orientation:
+            return dict(self.held)
+        return {**{n: 0.0 for n in self.orientation["held_with_points_alone"]}, **self.held}
 
     def check_names(self, names) -> None:
         """The fitted model's free parameters must be the report's: else the report belongs to
@@ -745,7 +803,14 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
     model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
     for statement in analysis.statements():
         log.info("%s: %s", sensor, statement)
-    return laplace_report(laplace_fit(model), analysis, excluded, outliers, model)
+    result = laplace_fit(model)
+    report = laplace_report(result, analysis, excluded, outliers, model)
+    if model.has_orientation:
+        points, points_analysis, _ = build_model(
+            campaign.chain, campaign.sensors[sensor], registration.t_nr, exclude=outliers, orientation=False
+        )
+        report["orientation"] = orientation_added(result, analysis, laplace_fit(points), points_analysis, model)
+    return report
 
 
 def sampling_stage(

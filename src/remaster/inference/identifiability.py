@@ -170,13 +170,13 @@ class LinearisedModel(Protocol):
     names: list[str]
     scale: np.ndarray
 
-    def jacobian(self, theta: np.ndarray, step: float) -> np.ndarray: ...
+    def weighted_jacobian(self, theta: np.ndarray, step: float) -> np.ndarray: ...
 
 
 def analyse(model: LinearisedModel, rcond: float = RELATIVE_THRESHOLD) -> Identifiability:
     """Analyse a model whose parameters are all free, at zero corrections."""
     theta = np.zeros(len(model.names))
-    jacobian = model.jacobian(theta, JACOBIAN_STEP)
+    jacobian = model.weighted_jacobian(theta, JACOBIAN_STEP)  # a full-pose probe's orientations included
     singular, _, _ = undetermined_directions(jacobian, model.scale, rcond)
     combinations, directions = hold_undetermined(jacobian, model.names, model.scale, rcond)
     keep = [i for i, n in enumerate(model.names) if n not in combinations]

@@ -737,6 +737,12 @@ def loop_closure_stage(
             settings, priors=priors_from(settings.priors_config, campaign.robot, f"{campaign.name}/campaign.yaml")
         )
     result = close_loop(
-        campaign.chain, campaign.sensors[sensor], registration.t_nr, laplace.held, rng, settings, laplace.outlier_rows
+        campaign.chain,
+        campaign.sensors[sensor],
+        registration.t_nr,
+        laplace.held_with_points_alone,  # the loop's models are of the positions
+        rng,
+        settings,
+        laplace.outlier_rows,
     )
     return replace(result, report=replace(result.report, campaign=campaign.name))

@@ -425,6 +425,47 @@ def urdf_line(sensor: str, inputs: CertificateInputs) -> list[str]:
     ]
 
 
+def orientation_line(sensor: str, inputs: CertificateInputs, noise_rad: float | None) -> list[str]:
+    """What a full-pose probe's orientations added (fit/laplace.json's `orientation`): the
+    zero-offsets they determine that the points alone leave held, how they narrow the others, and
+    the orientation error on the validation set before and after the zero-offset model, beside the
+    stated noise's (`noise_rad` per component, an angle of RMS sqrt(3) times it); none for points alone."""
+    added = inputs.laplace.orientation
+    if not added:
+        return []
+    only = [n.split(".")[-1] for n in added["determined_only_with_orientation"]]
+    ratios = [r for n, r in added["information_ratio"].items() if n.startswith("zero_offsets.")]
+    errors = inputs.configuration_errors
+    validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
+
+    def rms(method: str) -> float:
+        values = validation.loc[validation["method"] == method, "orientation_error_deg"].dropna().to_numpy(float)
+        return float(np.sqrt(np.mean(values**2))) if len(values) else np.nan
+
+    determined = (
+        f"they determine the zero-offset{'s' if len(only) > 1 else ''} of {', '.join(only)}, which the points "
+        "alone leave undetermined (held at the controller's value)"
+        if only
+        else "they determine no zero-offset that the points alone leave undetermined"
+    )
+    narrowed = (
+        f"; at one sigma they narrow the other zero-offsets' std to {min(ratios):.2g}-{max(ratios):.2g} times the "
+        f"points' alone (the fitted sigma {added['sigma_with_orientation_m'] / MM:.2g} mm with them, "
+        f"{added['sigma_with_points_alone_m'] / MM:.2g} mm without)"
+        if ratios
+        else ""
+    )
+    stated = (
+        f" (the stated noise alone: {np.degrees(noise_rad) * np.sqrt(3.0):.2g} deg)" if noise_rad is not None else ""
+    )
+    return [
+        f"{sensor_label(sensor)}: a full-pose probe, {added['orientations_fitted']} orientations fitted beside the "
+        f"points: {determined}{narrowed}. Orientation error on the validation set, RMS angle: {rms(BEFORE):.3g} deg "
+        f"with the controller's zero-offsets, {rms(AFTER):.3g} deg remastered{stated}. The loop closure compares its "
+        "effects on the positions alone."
+    ]
+
+
 def _mean_with_and_without(errors: pd.DataFrame, method: str, rows) -> tuple[float, float]:
     """(mean error_mm of a method's validation rows (optimization registration), the same without
     the table rows `rows`)."""
@@ -537,6 +578,7 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         verdicts.append(verdict_row({"Campaign": summary["campaign"], **verdict}))
         details.append({c: verdict[c] for c in DETAIL_COLUMNS})
         brief.append(brief_line(sensor, inputs, verdict))
+        brief += orientation_line(sensor, inputs, summary["sensors"][sensor].get("orientation_noise_rad"))
         warnings += [valid_for(sensor, inputs), *urdf_line(sensor, inputs), *warnings_of(sensor, inputs)]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "

@@ -608,6 +608,20 @@ class ForwardKinematics:
         return frames
 
 
+def flange_rotations(chain: KinematicChain, angles) -> np.ndarray:
+    """Flange orientations (..., 3, 3) in the base frame at joint angles (..., N) rad: the
+    rotation part of the chain alone (a full-pose probe's orientation needs no translation)."""
+    angles = np.asarray(angles, dtype=float)
+    k = spatial.skew(chain.joint_axes)
+    k2 = k @ k
+    cos, sin = np.cos(angles), np.sin(angles)
+    rotation = np.broadcast_to(np.eye(3), angles.shape[:-1] + (3, 3))
+    for j in range(chain.n_joints):
+        turn = np.eye(3) + sin[..., j, None, None] * k[j] + (1.0 - cos[..., j, None, None]) * k2[j]
+        rotation = rotation @ (chain.joint_transforms[j, :3, :3] @ turn)
+    return rotation @ chain.tool_transform[:3, :3]
+
+
 def marker_positions(chain: KinematicChain, q, marker, zero_offsets=None) -> np.ndarray:
     """Marker positions (n, 3) or (m, n, 3) in the base frame for joint readings q (n, N),
     a marker (3,) in the flange frame and optional zero-offsets (N,) or (m, N)."""
