@@ -498,8 +498,8 @@ def test_full_pose_table_errors_name_file_column_and_rows(tmp_path, case):
 @pytest.mark.parametrize(
     "meta, table, key, words",
     [
-        (metadata(), full_pose(), "orientation_noise", "need the sensor's noise"),
-        (full_pose_metadata(probe_rotation=None), full_pose(), "probe_rotation", "need the sensor's noise"),
+        (metadata(), full_pose(), "orientation_noise", "need the sensor's orientation_noise"),
+        (full_pose_metadata(probe_rotation=None), full_pose(), "probe_rotation", "need the sensor's orientation_noise"),
         (full_pose_metadata(orientation_noise=0.5), full_pose(), "orientation_noise", "not degrees"),
         (full_pose_metadata(probe_rotation=[0.0, 1.0]), full_pose(), "probe_rotation", "rotation vector"),
         (full_pose_metadata(), sensor_table(), None, "no orientation columns"),
@@ -518,3 +518,16 @@ def test_full_pose_keys_name_campaign_yaml_and_the_key(tmp_path, meta, table, ke
     problem = read_error(make_campaign(tmp_path, meta, {SENSOR: table}))
     assert problem.file.endswith("campaign.yaml") and words in str(problem)
     assert problem.key == f"sensors/{SENSOR}" + (f"/{key}" if key else "")
+
+
+def test_per_point_stds_stand_for_the_stated_noise_beside_an_orientation(tmp_path):
+    """With per-point std columns the sensor needs no stated noise: the orientations are weighed
+    against the RMS of the stds, the position noise the fit's sigma then stands for."""
+    from remaster.inference.blocks import orientation_fields
+
+    meta = full_pose_metadata()
+    del meta["sensors"][SENSOR]["noise"]
+    table = full_pose().assign(std=np.linspace(1e-5, 3e-5, 9))
+    sensor = read_campaign(make_campaign(tmp_path, meta, {SENSOR: table}), repo_root=REPO).sensors[SENSOR]
+    weight = orientation_fields(sensor, [0, 1])["orientation_weight"]
+    assert weight == pytest.approx(math.sqrt(np.mean(np.linspace(1e-5, 3e-5, 9) ** 2)) / 1.7e-4)

@@ -828,17 +828,19 @@ def sensor_data(
 
 
 def _check_orientation_spec(data: SensorData, source: str, metadata_source: str) -> None:
-    """A table with orientation columns needs the sensor's `noise`, `orientation_noise` and
-    `probe_rotation` in campaign.yaml (their ratio weighs orientation against position), and
-    those keys need the columns."""
+    """A table with orientation columns needs the sensor's `orientation_noise` and `probe_rotation`
+    in campaign.yaml, and its `noise` unless the table gives per-point std columns (the ratio of
+    the position noise to the orientation noise weighs one against the other); those keys need the
+    columns."""
     where = f"sensors/{data.name}"
     if data.has_orientation:
-        for key in ("noise", "orientation_noise", "probe_rotation"):
+        needed = ("orientation_noise", "probe_rotation") + (("noise",) if data.point_std([]) is None else ())
+        for key in needed:
             if getattr(data, key) is None:
                 raise InputError(
                     f"missing: {source} has orientation columns {', '.join(ORIENTATION_COLUMNS)}, which need the "
-                    "sensor's noise (m), orientation_noise (rad) and probe_rotation (the probe frame in the "
-                    "flange frame, a rotation vector in rad)",
+                    "sensor's orientation_noise (rad), probe_rotation (the probe frame in the flange frame, a "
+                    "rotation vector in rad) and noise (m; or the table's per-point std columns)",
                     file=metadata_source,
                     key=f"{where}/{key}",
                 )

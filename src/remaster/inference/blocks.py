@@ -238,13 +238,17 @@ def drift_gaps(table: pd.DataFrame, column: str | None = None) -> str | None:
 
 def orientation_fields(sensor: SensorData, rows) -> dict:
     """{'orientations', 'probe_rotation', 'orientation_weight'} of `Readings` at table rows for a
-    sensor whose table holds a full-pose probe's orientation, {} otherwise."""
+    sensor whose table holds a full-pose probe's orientation, {} otherwise. The weight is the
+    position noise sigma stands for over the stated orientation noise: the stated `noise`, or with
+    per-point std columns their RMS over the measured rows (what `point_weights` divides by)."""
     if not sensor.has_orientation:
         return {}
+    every = sensor.point_std(sensor.measured_rows())
+    position = float(sensor.noise) if every is None else math.sqrt(float(np.mean(every**2)))
     return {
         "orientations": sensor.orientations(rows),
         "probe_rotation": np.asarray(sensor.probe_rotation, dtype=float),
-        "orientation_weight": float(sensor.noise) / float(sensor.orientation_noise),
+        "orientation_weight": position / float(sensor.orientation_noise),
     }
 
 
