@@ -465,3 +465,8 @@ def test_a_full_pose_campaign_runs_end_to_end_and_its_certificate_says_what_orie
     corrections = pd.read_csv(tmp_path / "results" / "fullpose" / "tables" / "certificate_corrections.csv")
     joint7 = corrections[corrections["Joint"] == "iiwa_joint_7"].set_index("Model")["Status"]
     assert joint7.str.startswith("held").tolist() == [True, False]  # the loop's (points alone), the zero-offsets'
+    assert "which the orientations determine" in joint7.iloc[0]
+    # the loop-closed calibration carries the orientations' joint-7 offset (loop.urdf, the controller's offsets)
+    offsets = pd.read_csv(next((tmp_path / "results" / "fullpose").glob("*/calibrated/controller_offsets.csv")))
+    joint7 = offsets[offsets["joint"] == "iiwa_joint_7"].set_index("model")["correction_deg"]
+    assert joint7["loop"] == pytest.approx(joint7["paper"], abs=0.02) and abs(joint7["paper"] - 0.936) < 0.1

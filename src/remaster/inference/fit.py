@@ -404,11 +404,12 @@ class LaplaceReport:
     @property
     def held_with_points_alone(self) -> dict[str, float]:
         """{name: value} held by a model of the points alone (the loop closure's): `held`, plus what a
-        full-pose probe's orientations determined and the points alone do not (held at the
-        controller's value, as the identifiability analysis holds it)."""
+        full-pose probe's orientations determined and the points alone do not, held at this fit's
+        value (the points cannot move it; the calibration's outputs then carry it)."""
         if not self.orientation:
             return dict(self.held)
-        return {**{n: 0.0 for n in self.orientation["held_with_points_alone"]}, **self.held}
+        estimate = dict(zip(self.names, self.theta_map.tolist()))
+        return {**{n: estimate.get(n, 0.0) for n in self.orientation["held_with_points_alone"]}, **self.held}
 
     def check_names(self, names) -> None:
         """The fitted model's free parameters must be the report's: else the report belongs to

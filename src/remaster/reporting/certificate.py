@@ -192,10 +192,21 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     the posterior std and the between-design component together and k from t at their effective
     degrees of freedom (`calibrated.controller_offsets`): the loop-closed model's first."""
     offsets = inputs.controller_offsets
+    # the loop's points cannot see what a full-pose probe's orientations alone determine: held there at
+    # the zero-offset fit's value
+    oriented = {
+        f"q{n.split('.q')[-1]}" for n in (inputs.laplace.orientation or {}).get("determined_only_with_orientation", ())
+    }
     rows = []
     for model, label in CORRECTION_MODELS:
-        for _, r in offsets[offsets["model"] == model].iterrows():
+        for index, (_, r) in enumerate(offsets[offsets["model"] == model].iterrows()):
             estimated = r["status"] == "estimated"
+            status = r["status"]
+            if model == "loop" and f"q{index + 1}" in oriented:
+                status = (
+                    f"held at the zero-offset fit's {_number(r['correction_deg']):.4g} deg, which the orientations "
+                    "determine (the loop fits the points alone)"
+                )
             rows.append(
                 {
                     "Sensor": sensor_label(sensor),
@@ -205,7 +216,7 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                     "U(Correction) (deg)": _number(r.get("U_deg")) if estimated else np.nan,
                     "u_between (deg)": _number(r.get("u_between_deg")) if estimated else np.nan,
                     "k": _number(r.get("k")) if estimated else np.nan,
-                    "Status": r["status"],
+                    "Status": status,
                 }
             )
     return rows
