@@ -11,12 +11,19 @@ identification Jacobian:
 
 a_j(q) (3,) m/rad the marker's motion per radian of joint j (d predicted / d zero-offset j), the
 kernel on the circle of that joint (periodic, every harmonic order at once: the GP form of the
-`joint_harmonics` block), e ~ N(0, s^2 I). The covariance of the stacked residuals is dense (3n x
-3n: the a_j differ from row to row), so both forms are compared on at most `MAX_ROWS` rows evenly
-spaced over the data, each with its hyperparameters at the maximum of its evidence (the model's
-parameters integrated with the GP, `likelihood.dense_log_evidence`), their difference less half the
-difference of their hyperparameter counts times log 3n (each form pays for what it fitted). A joint
-is named when taking its f_j out (s_j -> 0, the rest held) costs more than `min_log_evidence_gain`.
+`joint_harmonics` block), e ~ N(0, s^2 I). The covariance of the stacked residuals is dense in 3n (the a_j differ from row to
+row), but the circle kernel is a Fourier series, exp(-(1 - cos d) / l^2) = e^-z I_0(z) + 2 sum_k
+e^-z I_k(z) cos(k d), z = 1 / l^2 (I_k the modified Bessel functions): f_j is a sum of the features
+a_j(q) cos(k q_j), a_j(q) sin(k q_j) with independent Gaussian weights, cut at the order `harmonics`
+beyond which less than `TAIL` of the kernel is left, for every lengthscale within its bounds. The
+joint form is then Bayesian linear regression on fixed features (`likelihood.feature_log_evidence`):
+its evidence comes from sums over the rows taken once, exact at any number of rows. The free GP's
+three axes share one n x n covariance (`likelihood.kron_log_evidence_and_gradient`). Both forms are
+compared on at most `MAX_ROWS` rows evenly spaced over the data (the free form's n x n factor per
+evaluation), each with its hyperparameters at the maximum of its evidence (the model's parameters
+integrated with the GP), their difference less half the difference of their hyperparameter counts
+times log 3n (each form pays for what it fitted). A joint is named when taking its f_j out (s_j ->
+0, the rest held) costs more than `min_log_evidence_gain`.
 
 A diagnostic: where the residual lives, told in the joints' own terms. Prediction keeps the free GP.
 SI inside (m, rad); the report is in degrees where its names say so.
@@ -30,10 +37,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kernels import Hyperparameters, circle_distances, kernel, turned_joints
-from .likelihood import dense_log_evidence_and_gradient
+from .likelihood import feature_log_evidence, kron_log_evidence_and_gradient
 from .residual import evenly_spaced
 
-MAX_ROWS = 250  # rows of the dense comparison (a 750 x 750 factor per evaluation)
+# rows of the comparison: the free form's n x n factor and inverse per evaluation (a few tenths of a
+# second at 1000 on two cores); the joint form's cost does not grow with them
+MAX_ROWS = 1000
+TAIL = 1e-8  # the share of k(0) the joint form's cut Fourier series may leave out (`harmonics`)
+NEGLIGIBLE = 1e-16  # a Fourier weight of the kernel below this is left out of the sums' evaluation
 LENGTH_BOUNDS = (
     0.05,
     20.0,
@@ -97,6 +108,49 @@ class JointErrorForm:
         }
 
 
+def harmonics(shortest: float) -> int:
+    """The order K at which the circle kernel's Fourier series (module docstring) may be cut for
+    every lengthscale of at least `shortest` (rad): what it leaves out, sum over |k| > K of
+    e^-z I_k(z), z = 1 / l^2, is below TAIL of k(0) = 1 (it is largest at the shortest lengthscale)."""
+    import scipy.special
+
+    weights = scipy.special.ive(np.arange(0, 4000), 1.0 / shortest**2)
+    left = 1.0 - (weights[0] + 2.0 * np.cumsum(weights[1:]))  # left[K - 1]: beyond order K
+    return int(np.argmax(left < TAIL)) + 1
+
+
+def fourier_weights(lengthscale: float, orders: int) -> tuple[np.ndarray, np.ndarray]:
+    """(weights (2K + 1,), d log weight / d log lengthscale (2K + 1,)) of the circle kernel's
+    features [cos 0q, cos q .. cos Kq, sin q .. sin Kq] at `lengthscale` (rad), K = orders; a weight
+    below NEGLIGIBLE is 0 (its derivative too)."""
+    import scipy.special
+
+    z = 1.0 / lengthscale**2
+    k = np.arange(orders + 2)
+    scaled = scipy.special.ive(k, z)  # e^-z I_k(z)
+    # d/dz (e^-z I_k) = (e^-z I_{k-1} + e^-z I_{k+1}) / 2 - e^-z I_k, with I_-1 = I_1
+    below = np.concatenate([[scaled[1]], scaled[:-2]])
+    slope = 0.5 * (below + scaled[1:]) - scaled[:-1]
+    weight = np.where(k[:-1] == 0, 1.0, 2.0) * scaled[:-1]
+    ratio = np.divide(slope, scaled[:-1], out=np.zeros_like(slope), where=scaled[:-1] > 0) * (-2.0 * z)
+    weights = np.concatenate([weight, weight[1:]])
+    ratios = np.concatenate([ratio, ratio[1:]])
+    small = weights < NEGLIGIBLE
+    return np.where(small, 0.0, weights), np.where(small, 0.0, ratios)
+
+
+def _features(q, directions, turned, orders: int) -> np.ndarray:
+    """Phi (3n, F): a_j(q_i) cos(k q_ij) and a_j(q_i) sin(k q_ij) per turned joint j (the joint's
+    2K + 1 columns together, in `fourier_weights`' order)."""
+    k = np.arange(orders + 1)
+    parts = []
+    for j in turned:
+        angle = q[:, j, None] * k
+        trig = np.concatenate([np.cos(angle), np.sin(angle[:, 1:])], axis=1)  # (n, 2K + 1)
+        parts.append(directions[:, :, j, None] * trig[:, None, :])  # (n, 3, 2K + 1)
+    return np.concatenate(parts, axis=2).reshape(3 * len(q), -1)
+
+
 def _maximise(objective, start: np.ndarray, bounds) -> tuple[np.ndarray, float]:
     """Maximise objective(x) -> (value, gradient) within bounds (L-BFGS-B)."""
     import scipy.optimize
@@ -110,6 +164,50 @@ def _maximise(objective, start: np.ndarray, bounds) -> tuple[np.ndarray, float]:
 
     found = scipy.optimize.minimize(negative, start, jac=True, method="L-BFGS-B", bounds=bounds)
     return found.x, -float(found.fun)
+
+
+def _joint_objective(q, y, directions, jacobian, precision, turned):
+    """The joint form's log evidence at x = (log s_j..., log l_j..., log noise) and its gradient,
+    with `without` joints' f_j taken out, from the sums of its features taken once."""
+    orders = harmonics(LENGTH_BOUNDS[0])
+    features = np.concatenate([jacobian, _features(q, directions, turned, orders)], axis=1)
+    gram, projected, yy = features.T @ features, features.T @ y, float(y @ y)
+    k, per = len(turned), 2 * orders + 1
+
+    def log_z(x: np.ndarray, without=()) -> tuple[float, np.ndarray]:
+        variances, ratios = [], []
+        for i in range(k):
+            weights, ratio = fourier_weights(math.exp(x[k + i]), orders)
+            variances.append(np.zeros(per) if i in without else math.exp(2.0 * x[i]) * weights)
+            ratios.append(ratio)
+        value, by_variance, by_noise = feature_log_evidence(
+            gram, projected, yy, len(y), precision, np.concatenate(variances), math.exp(x[-1])
+        )
+        by_variance = by_variance.reshape(k, per)
+        by_amplitude = 2.0 * by_variance.sum(axis=1)
+        by_length = np.sum(by_variance * np.array(ratios), axis=1)
+        return value, np.concatenate([by_amplitude, by_length, [by_noise]])
+
+    return log_z
+
+
+def _free_objective(q, y, jacobian, precision, turned):
+    """The free GP's log evidence at x = (log l_j..., log s, log noise) and its gradient, its three
+    axes sharing one n x n covariance."""
+    cosines = circle_distances(q[:, turned])
+    residuals, stacked = y.reshape(-1, 3), jacobian.reshape(len(q), 3, -1)
+
+    def log_z(x: np.ndarray) -> tuple[float, np.ndarray]:
+        lengths = np.full(q.shape[1], np.inf)
+        lengths[turned] = np.exp(x[: len(turned)])
+        hyper = Hyperparameters(lengths, math.exp(x[-2]), math.exp(x[-1]))
+        base = kernel(q, q, hyper)
+        covariance = base + hyper.noise_std**2 * np.eye(len(q))
+        derivatives = [base * 2.0 * c / length**2 for c, length in zip(cosines, lengths[turned])]
+        derivatives += [2.0 * base, 2.0 * hyper.noise_std**2 * np.eye(len(q))]
+        return kron_log_evidence_and_gradient(residuals, stacked, precision, covariance, derivatives)
+
+    return log_z
 
 
 def joint_error_form(
@@ -126,6 +224,7 @@ def joint_error_form(
     jacobian = (
         np.asarray(jacobian, dtype=float).reshape(-1, 3, jacobian.shape[-1])[rows].reshape(-1, jacobian.shape[-1])
     )
+    precision = np.asarray(precision, dtype=float)
     flat_y = y.ravel()
     n = len(q)
     turned = np.flatnonzero(turned_joints(q))
@@ -135,42 +234,8 @@ def joint_error_form(
     turned = turned[reach > UNSEEN * reach.max()]
     names = tuple(f"q{j + 1}" for j in turned)
     scale = math.sqrt(float(np.mean(y**2)))
-    identity = np.eye(3 * n)
 
-    # per turned joint: K_j's exponent and the outer product of its directions, fixed
-    cosines = list(circle_distances(q[:, turned]))
-    outers = []
-    for j in turned:
-        v = directions[:, :, j].ravel()
-        outers.append(np.outer(v, v))
-
-    def joint_terms(x: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-        """The joint form's covariance at x = (log s_j, log l_j, log noise) and its derivatives."""
-        k = len(turned)
-        amplitudes, lengths, noise = np.exp(x[:k]), np.exp(x[k : 2 * k]), math.exp(x[-1])
-        covariance = noise**2 * identity
-        by_amplitude, by_length = [], []
-        for c, o, a, length in zip(cosines, outers, amplitudes, lengths):
-            term = a**2 * np.repeat(np.repeat(np.exp(-c / length**2), 3, 0), 3, 1) * o
-            covariance += term
-            by_amplitude.append(2.0 * term)
-            by_length.append(term * np.repeat(np.repeat(2.0 * c / length**2, 3, 0), 3, 1))
-        return covariance, by_amplitude + by_length + [2.0 * noise**2 * identity]
-
-    def joint_log_z(x: np.ndarray) -> tuple[float, np.ndarray]:
-        covariance, derivatives = joint_terms(x)
-        return dense_log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
-
-    def free_log_z(x: np.ndarray) -> tuple[float, np.ndarray]:
-        lengths = np.full(q.shape[1], np.inf)
-        lengths[turned] = np.exp(x[: len(turned)])
-        hyper = Hyperparameters(lengths, math.exp(x[-2]), math.exp(x[-1]))
-        base = kernel(q, q, hyper)
-        covariance = np.kron(base, np.eye(3)) + hyper.noise_std**2 * identity
-        derivatives = [np.kron(base * 2.0 * c / length**2, np.eye(3)) for c, length in zip(cosines, lengths[turned])]
-        derivatives += [2.0 * np.kron(base, np.eye(3)), 2.0 * hyper.noise_std**2 * identity]
-        return dense_log_evidence_and_gradient(flat_y, jacobian, precision, covariance, derivatives)
-
+    joint_log_z = _joint_objective(q, flat_y, directions, jacobian, precision, turned)
     norms = np.array([math.sqrt(float(np.mean(directions[:, :, j] ** 2))) for j in turned])
     start_joint = np.concatenate(
         [
@@ -190,14 +255,12 @@ def joint_error_form(
     free_lengths = np.clip(free.lengthscales[turned], *LENGTH_BOUNDS)
     start_free = np.concatenate([np.log(free_lengths), [math.log(free.signal_std), math.log(free.noise_std)]])
     bounds_free = log_bounds * len(turned) + [(s - LOG_RANGE, s + LOG_RANGE) for s in start_free[-2:]]
-    x_free, log_z_free = _maximise(free_log_z, start_free, bounds_free)
+    x_free, log_z_free = _maximise(_free_objective(q, flat_y, jacobian, precision, turned), start_free, bounds_free)
 
     carried = []
     for i in range(len(turned)):
-        without = x_joint.copy()
-        without[i] = math.log(1e-12)  # f_j taken out, the rest held
-        try:
-            carried.append(log_z_joint - joint_log_z(without)[0])
+        try:  # f_j taken out, the rest held
+            carried.append(log_z_joint - joint_log_z(x_joint, without=(i,))[0])
         except np.linalg.LinAlgError:  # without it the rest cannot hold the data at all
             carried.append(math.inf)
     price = 0.5 * ((2 * len(turned) + 1) - (len(turned) + 2)) * math.log(3 * n)

@@ -6,8 +6,10 @@
   (`negative_log_marginal_likelihood`);
 - independent noise N(0, sigma^2) per component at sigma's maximum likelihood (`iid_log_likelihood`);
 - the evidence of a linear model y = J theta + e, e ~ N(0, S) with any dense covariance S and
-  theta ~ N(0, 1 / precision) integrated (`dense_log_evidence`), and its gradient in the
-  hyperparameters of S (`dense_log_evidence_and_gradient`).
+  theta ~ N(0, 1 / precision) integrated (`dense_log_evidence`); with S = C (x) I3, the three
+  axes sharing C, by n x n factors, and its gradient in the hyperparameters of C
+  (`kron_log_evidence_and_gradient`); and with S = noise^2 I + Phi diag(v) Phi^T for fixed
+  features Phi, from sums computed once, and its gradient (`feature_log_evidence`).
 
 SI inside (m, rad).
 """
@@ -120,20 +122,53 @@ def dense_log_evidence(y, jacobian, precision, covariance) -> float:
     return _dense_log_evidence(scipy.linalg.cho_factor(covariance, lower=True), y, jacobian, precision)
 
 
-def dense_log_evidence_and_gradient(y, jacobian, precision, covariance, derivatives) -> tuple[float, np.ndarray]:
-    """`dense_log_evidence` of y (m,) and its gradient with respect to the hyperparameters whose
-    covariance derivatives (k, m, m) are given: 1/2 a^T dS a - 1/2 tr(Pi dS), a = Pi y, with
-    Pi = S^-1 - S^-1 J A^-1 J^T S^-1 (the parameters integrated)."""
+def feature_log_evidence(gram, projected, yy: float, size: int, precision, variances, noise: float):
+    """log Z of data y (size,) = J theta + Phi w + e, e ~ N(0, noise^2 I), theta ~ N(0, 1 / precision)
+    (P,) (0: flat, its improper constant left out) and w ~ N(0, diag(variances)) (F,): Bayesian
+    linear regression on fixed features, from the sums X^T X = gram (P + F, P + F), X^T y = projected
+    (P + F,) and y^T y = yy of X = [J, Phi], computed once whatever the hyperparameters, so that each
+    evaluation costs O((P + F)^3) and none grows with the rows. A feature of variance 0 is left out.
+    Returns (log Z, d log Z / d log variances (F,), d log Z / d log noise)."""
+    import scipy.linalg
+
+    precision, variances = np.asarray(precision, dtype=float), np.asarray(variances, dtype=float)
+    p = len(precision)
+    kept = np.concatenate([np.arange(p), p + np.flatnonzero(variances > 0)])
+    weights = np.concatenate([precision, 1.0 / variances[variances > 0]])
+    tau = 1.0 / noise**2
+    g, b = gram[np.ix_(kept, kept)], projected[kept]
+    a = tau * g + np.diag(weights)
+    value = integrated_log_evidence(tau * yy, a, tau * b, size * math.log(noise**2), size, weights)
+    covariance = scipy.linalg.cho_solve(scipy.linalg.cho_factor(a, lower=True), np.eye(len(kept)))
+    mean = tau * covariance @ b
+    # d log Z / d (prior precision d_k) = (1 / d_k - Sigma_kk - mu_k^2) / 2; d_k = 1 / v_k
+    by_weight = 0.5 * (1.0 / weights[p:] - np.diag(covariance)[p:] - mean[p:] ** 2)
+    by_log_variance = np.zeros(len(variances))
+    by_log_variance[variances > 0] = -weights[p:] * by_weight
+    misfit = yy - 2.0 * b @ mean + mean @ g @ mean  # |y - X mu|^2
+    by_tau = -0.5 * misfit + 0.5 * size / tau - 0.5 * float(np.sum(covariance * g))
+    return value, by_log_variance, -2.0 * tau * by_tau
+
+
+def kron_log_evidence_and_gradient(y, jacobian, precision, covariance, derivatives) -> tuple[float, np.ndarray]:
+    """`dense_log_evidence` of residuals y (n, 3) whose three axes share the covariance C (n, n)
+    (S = C (x) I3, the free GP's), J = jacobian (n, 3, P), and its gradient with respect to the
+    hyperparameters whose derivatives dC (k, n, n) are given: 1/2 sum(W * dC), W = sum_a alpha_a
+    alpha_a^T - 3 C^-1 + sum_a (C^-1 J_a) A^-1 (C^-1 J_a)^T. n x n factors, not 3n x 3n."""
     import scipy.linalg
 
     y, jacobian, precision = (np.asarray(a, dtype=float) for a in (y, jacobian, precision))
     factor = scipy.linalg.cho_factor(covariance, lower=True)
     inverse = scipy.linalg.cho_solve(factor, np.eye(len(y)))
-    solved_j = inverse @ jacobian
-    a = jacobian.T @ solved_j + np.diag(precision)
-    projection = inverse - solved_j @ np.linalg.solve(a, solved_j.T)
-    alpha = projection @ y
-    value = _dense_log_evidence(factor, y, jacobian, precision)
-    outer = np.outer(alpha, alpha) - projection
-    gradient = np.array([0.5 * float(np.sum(outer * d)) for d in derivatives])
-    return value, gradient
+    solved_j = np.einsum("nm,map->nap", inverse, jacobian)  # C^-1 J_a per axis
+    solved_y = inverse @ y
+    a = np.einsum("nap,naq->pq", jacobian, solved_j) + np.diag(precision)
+    b = np.einsum("nap,na->p", jacobian, solved_y)
+    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+    value = integrated_log_evidence(float(np.sum(y * solved_y)), a, b, 3.0 * log_det, 3 * len(y), precision)
+    mean = np.linalg.solve(a, b)
+    alpha = solved_y - np.einsum("nap,p->na", solved_j, mean)
+    n = len(y)
+    flat = solved_j.reshape(n, -1)
+    w = alpha @ alpha.T - 3.0 * inverse + (solved_j @ np.linalg.inv(a)).reshape(n, -1) @ flat.T
+    return value, np.array([0.5 * float(np.sum(w * d)) for d in derivatives])
