@@ -455,7 +455,7 @@ def orientation_line(sensor: str, inputs: CertificateInputs, noise_rad: float | 
 
     determined = (
         f"they determine the zero-offset{'s' if len(only) > 1 else ''} of {', '.join(only)}, which the points "
-        "alone leave undetermined (held at the controller's value)"
+        "alone leave undetermined"
         if only
         else "they determine no zero-offset that the points alone leave undetermined"
     )
