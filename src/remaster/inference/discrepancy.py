@@ -93,7 +93,13 @@ def discrepancy_stage(
     """`discrepancy_summary` of one sensor of a campaign after its fit, at the Laplace fit's MAP
     (the model the fit had: its outliers left out)."""
     data = campaign.sensors[sensor]
-    model, _, _ = build_model(campaign.chain, data, registration.t_nr, exclude=laplace.outlier_rows)
+    model, _, _ = build_model(
+        campaign.chain,
+        data,
+        registration.t_nr,
+        exclude=laplace.outlier_rows,
+        orientation_weight=laplace.orientation_weight,
+    )
     laplace.check_names(model.names)
     poses = data.table.loc[model.data.rows, "pose"].to_numpy()
     out, report = discrepancy_summary(model, laplace.theta_map, poses, summary)

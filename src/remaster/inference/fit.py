@@ -107,20 +107,49 @@ def build_model(
     set_name: str = "optimization",
     exclude=(),
     orientation: bool = True,
+    orientation_weight: float | None = None,
 ):
     """(model with undetermined parameters held, identifiability analysis, rows without a
     measurement). `exclude`: further table rows left out (flagged outliers); orientation: a
-    full-pose probe's orientations enter the likelihood beside its points (False: points alone)."""
+    full-pose probe's orientations enter the likelihood beside its points (False: points alone),
+    weighed by `orientation_weight` (m/rad; None: the stated noises' ratio, `orientation_fields`)."""
     rows = np.setdiff1d(sensor.measured_rows(set_name), np.asarray(exclude, dtype=int))
     q = sensor.table[list(sensor.joint_columns)].to_numpy(float)[rows]
     measured = sensor.table[["x", "y", "z"]].to_numpy(float)[rows]
     orientation = orientation_fields(sensor, rows) if orientation else {}
+    if orientation and orientation_weight is not None:
+        orientation["orientation_weight"] = float(orientation_weight)
     analysis = identifiability.analyse(paper_model(chain, q, measured, sensor.marker, t_nr, orientation=orientation))
     model = paper_model(
         chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows, orientation=orientation
     )
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
+
+
+BALANCE_ROUNDS = 20  # at most this many refits while balancing a probe's orientations against its points
+BALANCE_TOLERANCE = 1e-3  # relative change of the weight at which the balance has settled
+
+
+def balanced_orientation(model: BlockModel) -> BlockModel:
+    """The model with a full-pose probe's orientations weighed by the fit's own residuals: weight =
+    RMS position residual / RMS orientation residual per component at the least-squares fit,
+    refitted from the readings' weight (the stated noises' ratio) until it settles. One sigma is
+    then the noise of both: where the zero-offset model lacks an effect of the positions (compliance,
+    link geometry), the stated ratio would let the orientations' smaller residuals pull it below the
+    positions' own, and every std with it. A model without orientations is returned as it is."""
+    if not model.has_orientation:
+        return model
+    for _ in range(BALANCE_ROUNDS):
+        theta = laplace_fit(model).theta_map
+        positions = float(np.sqrt(np.mean(model.whitened(model.residuals(theta)) ** 2)))
+        orientations = float(np.sqrt(np.mean(model.orientation_residuals(theta) ** 2)))
+        weight = positions / max(orientations, 1e-300)
+        previous = model.data.orientation_weight
+        model = model.on(replace(model.data, orientation_weight=weight))
+        if abs(weight - previous) <= BALANCE_TOLERANCE * previous:
+            break
+    return model
 
 
 def flag_outliers(model: BlockModel, alpha: float) -> np.ndarray:
@@ -322,17 +351,16 @@ def orientation_added(
     model: BlockModel,
 ) -> dict:
     """What a full-pose probe's orientations added to the zero-offset fit, JSON-ready: the rows
-    fitted with one, the parameters held with points alone that the orientations determine, each
+    fitted with one, their weight (m/rad, `balanced_orientation`), the parameters held with points alone that the orientations determine, each
     fit's sigma and parameter stds (`points`, `points_analysis`: the same rows' points alone), and
     `information_ratio`: each std with the orientations over its std from the points alone at one
-    sigma (std / sigma of each fit), the data's part. The stds' own ratio also carries the change
-    of the one sigma, which pools the orientations' residuals with the positions' (where the model
-    lacks an effect of the positions, the orientations' small residuals pull it down)."""
+    sigma (std / sigma of each fit), the data's part; the stds' own ratio also carries the change of
+    the one sigma."""
     points_std = dict(zip(points.names, points.std.tolist()))
     sigmas = result.sigma_map / points.sigma_map
     return {
         "orientations_fitted": int(model.n_orientations),
-        "stated_noise_ratio_m_per_rad": float(model.data.orientation_weight),
+        "weight_m_per_rad": float(model.data.orientation_weight),
         "held_with_orientation": sorted(analysis.held),
         "held_with_points_alone": sorted(points_analysis.held),
         "determined_only_with_orientation": sorted(set(points_analysis.held) - set(analysis.held)),
@@ -400,6 +428,12 @@ class LaplaceReport:
     def read(cls, path) -> LaplaceReport:
         """From laplace.json; InputError naming the file, and the key when one is missing."""
         return cls.of(read_json(path), source=str(path))
+
+    @property
+    def orientation_weight(self) -> float | None:
+        """The weight (m/rad) the fit gave a full-pose probe's orientations (`balanced_orientation`),
+        None for points alone: every later stage that rebuilds the model takes it."""
+        return None if not self.orientation else float(self.orientation["weight_m_per_rad"])
 
     @property
     def held_with_points_alone(self) -> dict[str, float]:
@@ -784,8 +818,14 @@ def registration_stage(campaign: Campaign, sensor: str) -> Registration:
         ) from None
 
 
-def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=()):
-    return build_model(campaign.chain, campaign.sensors[sensor], registration.t_nr, exclude=exclude)
+def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=(), orientation_weight=None):
+    return build_model(
+        campaign.chain,
+        campaign.sensors[sensor],
+        registration.t_nr,
+        exclude=exclude,
+        orientation_weight=orientation_weight,
+    )
 
 
 def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outlier_alpha: float) -> dict:
@@ -804,6 +844,8 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
     model, analysis, excluded = _model(campaign, sensor, registration, exclude=outliers)
     for statement in analysis.statements():
         log.info("%s: %s", sensor, statement)
+    stated = model.data.orientation_weight
+    model = balanced_orientation(model)
     result = laplace_fit(model)
     report = laplace_report(result, analysis, excluded, outliers, model)
     if model.has_orientation:
@@ -811,6 +853,7 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
             campaign.chain, campaign.sensors[sensor], registration.t_nr, exclude=outliers, orientation=False
         )
         report["orientation"] = orientation_added(result, analysis, laplace_fit(points), points_analysis, model)
+        report["orientation"]["stated_noise_ratio_m_per_rad"] = stated
     return report
 
 
@@ -825,7 +868,9 @@ def sampling_stage(
     progress=None,
 ) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
-    model, _, _ = _model(campaign, sensor, registration, exclude=laplace.outlier_rows)
+    model, _, _ = _model(
+        campaign, sensor, registration, exclude=laplace.outlier_rows, orientation_weight=laplace.orientation_weight
+    )
     laplace.check_names(model.names)
     started = time.perf_counter()
     chains = sample(model, laplace, method, settings, rng, progress)
