@@ -488,6 +488,10 @@ def _measured(name: str, spec: dict, sensor: Sensor, chain, robot: TrueRobot, re
     columns = dict(zip(("x", "y", "z"), xyz.T))
     if sensor.orientation_noise > 0:
         orientation = measure_orientations(chain, robot, sensor, q, rng, elapsed)
+        if move is not None:  # a bumped sensor sees the probe turned too (a distortion leaves rotations alone)
+            moved = readings["set"].to_numpy() == "validation"
+            turned = move[:3, :3] @ spatial.rotation_vector_to_matrix(orientation[moved])
+            orientation[moved] = spatial.matrix_to_rotation_vector(turned)
         orientation[np.sort(unseen)] = np.nan
         columns |= dict(zip(("rx", "ry", "rz"), orientation.T))
     return columns, {
