@@ -307,3 +307,47 @@ def test_urdf_next_to_the_configuration_is_copied_into_the_campaign(tmp_path):
     campaign = folders.read_campaign(folder, repo_root=elsewhere)
     assert campaign.robot["urdf"] == "arm.urdf" and campaign.n_joints == 7
     assert campaign.sensors["laser_tracker"].table["set"].eq("optimization").all()
+
+
+def test_a_full_pose_probe_imports_its_orientation_as_a_rotation_vector_or_a_quaternion(tmp_path):
+    """A 6-DoF probe's export: the same orientations as a rotation vector in degrees and as unit
+    quaternions (w, x, y, z; one given with w < 0, the same rotation) import to the same rotation
+    vectors in rad; an empty orientation stays NaN; a quaternion of norm 2 is refused by line."""
+    from remaster import spatial
+
+    vectors = np.array([[10.0, -20.0, 5.0], [0.0, 0.0, 0.0], [170.0, 10.0, 0.0], [-30.0, 0.0, 60.0], [1.0, 2.0, 3.0]])
+    rotations = spatial.rotation_vector_to_matrix(np.radians(vectors))
+    angles = np.linalg.norm(np.radians(vectors), axis=1)
+    axes = np.radians(vectors) / np.where(angles > 0, angles, 1.0)[:, None]
+    quaternions = np.column_stack([np.cos(angles / 2), np.sin(angles / 2)[:, None] * axes])
+    quaternions[3] *= -1.0
+    ids = ["P3", "P1", "P4", "P6", "P5"]
+    rows = {
+        "P3": (1000, -250.5, 300),
+        "P1": (1500, 0, 20),
+        "P4": (1200.25, 10, 5),
+        "P6": (900, 400, -100),
+        "P5": (1100, -300, 150),
+    }
+    probe = {"orientation_noise": 1e-4, "probe_rotation": [0.0, 0.0, 0.0]}
+    for name, columns, values, extra in (
+        ("vector", ["RX", "RY", "RZ"], vectors, {"orientation_unit": "deg"}),
+        ("quaternion", ["QW", "QX", "QY", "QZ"], quaternions, {}),
+    ):
+        lines = [",".join(["id", "X", "Y", "Z", *columns])]
+        lines += [",".join([i, *map(str, rows[i]), *(repr(float(x)) for x in v)]) for i, v in zip(ids, values)]
+        lines.append("P2,,,," + "," * (len(columns) - 1))
+        root = tmp_path / name
+        root.mkdir()
+        config = write_import(root, tracker="\n".join(lines) + "\n", sensor={**probe, "orientation": columns, **extra})
+        folder, _ = folders.import_campaign(config, root / "raw", repo_root=root)
+        sensor = folders.read_campaign(folder, repo_root=root).sensors["laser_tracker"]
+        table_rows = [int(i[1]) - 1 for i in ids]  # P1..P6 are the controller's rows 0..5
+        np.testing.assert_allclose(sensor.orientations(table_rows), rotations, atol=1e-12)
+        assert np.isnan(sensor.orientations([1])).all()  # P2: not seen
+    broken = "id,X,Y,Z,QW,QX,QY,QZ\nP1,1500,0,20,2,0,0,0\n"
+    config = write_import(tmp_path, tracker=broken, sensor={**probe, "orientation": ["QW", "QX", "QY", "QZ"]})
+    with pytest.raises(
+        InputError, match=r"tracker.csv: QW, QX, QY, QZ: not a unit quaternion \(w, x, y, z\) on line 2"
+    ):
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)

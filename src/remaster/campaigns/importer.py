@@ -37,6 +37,9 @@ sensors:
     key: point_id                   # this file's key column (default: the controller's key column name)
     time: t                         # this file's time column (default: the controller's time column name)
     tolerance: 0.5                  # s, match: time only (required there)
+    # a full-pose probe (with orientation_noise and probe_rotation above): its orientation columns,
+    # a rotation vector [RX, RY, RZ] with orientation_unit rad | deg, or a unit quaternion [QW, QX, QY, QZ]
+    # orientation: [QW, QX, QY, QZ]
     time_format: iso                # and timezone, delimiter, decimal, carry: as for the controller
 ```
 
@@ -94,6 +97,7 @@ from .campaign import (
     KEY_COLUMNS,
     MAX_POSITION,
     OPTIONAL_KEYS,
+    ORIENTATION_COLUMNS,
     POSITION_COLUMNS,
     REQUIRED_KEYS,
     SENSOR_KEYS,
@@ -112,7 +116,9 @@ MATCHES = ("key", "time")
 TIME_FORMATS = ("iso", "unix_s", "unix_ms")  # or a strptime pattern (contains '%')
 FILE_KEYS = ("file", "time_format", "timezone", "delimiter", "decimal", "carry")
 CONTROLLER_KEYS = FILE_KEYS + ("joints", "unit", "set", "pose", "solution", "key", "time")
-SENSOR_IMPORT_KEYS = FILE_KEYS + ("xyz", "unit", "match", "key", "time", "tolerance")
+SENSOR_IMPORT_KEYS = FILE_KEYS + ("xyz", "unit", "match", "key", "time", "tolerance", "orientation", "orientation_unit")
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+QUATERNION_NORM = 1e-3  # a unit quaternion's norm off 1 by more than this is not one (or not w, x, y, z)
 BAG_KEYS = ("bag", "topic", "joints", "stamp", "unit")
 BAG_STAMPS = {"header": "header.stamp", "log": "log time"}  # stamp -> the name of a bag's time in messages
 _NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a bag
@@ -123,7 +129,7 @@ _NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a b
     "key": "a bag has no key column: match the sensors by time",
     "time": "a joint state's time is its header stamp or the bag's log time: choose with stamp",
 }
-_RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + (TIME_COLUMN,))
+_RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + ORIENTATION_COLUMNS + (TIME_COLUMN,))
 
 
 def _lines(lines) -> str:
@@ -263,6 +269,10 @@ class SensorSpec:
     key: str | None = None
     time: str | None = None
     tolerance: float | None = None
+    orientation: tuple[str, ...] | None = (
+        None  # a full-pose probe's: rotation vector (3) or unit quaternion w, x, y, z (4)
+    )
+    orientation_unit: str | None = None  # rad | deg, a rotation vector's
 
 
 @dataclass(frozen=True)
@@ -367,7 +377,8 @@ def _campaign_metadata(config: Mapping, sensors: Mapping, source: str) -> dict:
             n: {
                 "kind": s["kind"],
                 "marker": s["marker"].tolist(),
-                **{key: s[key] for key in ("noise", "mpe") if s[key] is not None},
+                **{key: s[key] for key in ("noise", "mpe", "orientation_noise") if s[key] is not None},
+                **({} if s["probe_rotation"] is None else {"probe_rotation": sensors[n]["probe_rotation"]}),
             }
             for n, s in meta["sensors"].items()
         },
@@ -454,6 +465,79 @@ def _sensor_match(spec: SensorSpec, controller: ControllerSpec, source: str) -> 
         )
 
 
+def _orientation_columns(section: Mapping, where: str, source: str) -> dict[str, Any]:
+    """A full-pose probe's `orientation` columns: 3 (a rotation vector, with `orientation_unit` rad or
+    deg) or 4 (a unit quaternion w, x, y, z, without a unit); {} without them."""
+    if section.get("orientation") is None:
+        if section.get("orientation_unit") is not None:
+            raise InputError(
+                "is an orientation's: give the orientation columns", file=source, key=f"{where}/orientation_unit"
+            )
+        return {}
+    columns = _columns(section, "orientation", where, source)
+    if len(columns) not in (3, 4):
+        raise InputError(
+            f"must be 3 columns (a rotation vector) or 4 (a unit quaternion w, x, y, z), got {quoted(list(columns))}",
+            file=source,
+            key=f"{where}/orientation",
+        )
+    unit = section.get("orientation_unit")
+    if len(columns) == 3:
+        unit = _choice(section, "orientation_unit", tuple(ANGLE_UNITS), where, source)
+    elif unit is not None:
+        raise InputError(
+            "a quaternion has no unit: leave orientation_unit out", file=source, key=f"{where}/orientation_unit"
+        )
+    return {"orientation": columns, "orientation_unit": unit}
+
+
+def _orientations(spec: SensorSpec, export: Export, xyz: np.ndarray) -> np.ndarray | None:
+    """A full-pose probe's orientations (n_rows, 3) as rotation vectors (rad) from its export, NaN
+    where all its columns are empty (and refused where the positions xyz (n_rows, 3) are); None
+    without orientation columns."""
+    if spec.orientation is None:
+        return None
+    where = f"sensors/{spec.name}/orientation"
+    values = np.column_stack(
+        [_numbers(export, c, where, spec.file.decimal, allow_missing=True) for c in spec.orientation]
+    )
+    empty = np.isnan(values)
+    partial = np.flatnonzero(empty.any(axis=1) & ~empty.all(axis=1))
+    if partial.size:
+        raise InputError(
+            f"some but not all orientation columns empty on {_lines(export.lines[partial])}",
+            file=export.source,
+            key=", ".join(spec.orientation),
+        )
+    orphan = np.flatnonzero(np.isnan(xyz).all(axis=1) & ~empty.all(axis=1))
+    if orphan.size:
+        raise InputError(
+            f"an orientation where x, y, z are empty on {_lines(export.lines[orphan])}: a probe measures both",
+            file=export.source,
+            key=", ".join(spec.orientation),
+        )
+    seen = ~empty.any(axis=1)
+    out = np.full((len(values), 3), np.nan)
+    if len(spec.orientation) == 3:
+        out[seen] = values[seen] * ANGLE_UNITS[spec.orientation_unit]
+        return out
+    norm = np.linalg.norm(values, axis=1)
+    off = np.flatnonzero(seen & (np.abs(norm - 1.0) > QUATERNION_NORM))
+    if off.size:
+        raise InputError(
+            f"not a unit quaternion (w, x, y, z) on {_lines(export.lines[off])}",
+            file=export.source,
+            key=", ".join(spec.orientation),
+        )
+    quaternion = values[seen] / norm[seen, None]
+    quaternion *= np.where(quaternion[:, :1] < 0, -1.0, 1.0)  # w >= 0: the angle at most pi
+    sine = np.linalg.norm(quaternion[:, 1:], axis=1)
+    angle = 2.0 * np.arctan2(sine, quaternion[:, 0])
+    ratio = np.where(sine > 1e-12, angle / np.where(sine > 1e-12, sine, 1.0), 2.0)
+    out[seen] = ratio[:, None] * quaternion[:, 1:]
+    return out
+
+
 def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
     """One `sensors/<name>` section's export, checked against the controller log it is matched to:
     the column it is matched by, a time match's tolerance, no column carried from both."""
@@ -468,6 +552,7 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
         key=_text(section, "key", where, source, controller.key),
         time=_text(section, "time", where, source, controller.time if controller.bag is None else None),
         tolerance=section.get("tolerance"),
+        **_orientation_columns(section, where, source),
     )
     _sensor_match(spec, controller, source)
     if match == "time":
@@ -783,6 +868,7 @@ def _sensor_table(
     """One sensor's contract table, its section of the report, and the export row of each table row."""
     where = f"sensors/{spec.name}"
     xyz = _positions(spec, export)
+    orientations = _orientations(spec, export, xyz)
     sensor_time = (
         _times(export, spec.time, f"{where}/time", spec.file)
         if spec.time is not None and (spec.match == "time" or controller["time"] is None)
@@ -807,10 +893,11 @@ def _sensor_table(
     table = pd.DataFrame(controller["columns"])
     table["pose"] = table["pose"].astype(np.int64)
     table["solution"] = table["solution"].astype(np.int64)
-    for axis, column in enumerate(POSITION_COLUMNS):
-        values = np.full(n, np.nan)
-        values[measured] = xyz[source_row[measured], axis]
-        table[column] = values
+    read = dict(zip(POSITION_COLUMNS, xyz.T)) | dict(
+        zip(ORIENTATION_COLUMNS, () if orientations is None else orientations.T)
+    )
+    for column, values in read.items():  # a row no sensor row matched: NaN
+        table[column] = np.where(measured, values[np.maximum(source_row, 0)], np.nan)
     if controller["time"] is not None:
         table[TIME_COLUMN] = controller["time"]
     elif sensor_time is not None:
