@@ -351,3 +351,20 @@ def test_a_full_pose_probe_imports_its_orientation_as_a_rotation_vector_or_a_qua
         InputError, match=r"tracker.csv: QW, QX, QY, QZ: not a unit quaternion \(w, x, y, z\) on line 2"
     ):
         folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+
+
+@pytest.mark.parametrize(
+    "tracker, section, key, words",
+    [
+        ("id,X,Y,Z,RX,RY,RZ\nP1,1500,0,20,1,,2\n", {"orientation_unit": "deg"}, "RX, RY, RZ", "some but not all"),
+        ("id,X,Y,Z,RX,RY,RZ\nP1,,,,1,2,3\n", {"orientation_unit": "deg"}, "RX, RY, RZ", "a probe measures both"),
+        ("id,X,Y,Z,RX,RY,RZ\nP1,1500,0,20,1,2,3\n", {}, "sensors/laser_tracker/orientation_unit", "rad"),
+    ],
+    ids=["partial", "without a position", "no unit"],
+)
+def test_a_full_pose_probes_bad_orientation_is_named(tmp_path, tracker, section, key, words):
+    probe = {"orientation_noise": 1e-4, "probe_rotation": [0.0, 0.0, 0.0], "orientation": ["RX", "RY", "RZ"]}
+    config = write_import(tmp_path, tracker=tracker, sensor={**probe, **section})
+    with pytest.raises(InputError) as info:
+        folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
+    assert info.value.key == key and words in str(info.value)
