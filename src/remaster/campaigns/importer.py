@@ -269,10 +269,10 @@ class SensorSpec:
     key: str | None = None
     time: str | None = None
     tolerance: float | None = None
-    orientation: tuple[str, ...] | None = (
-        None  # a full-pose probe's: rotation vector (3) or unit quaternion w, x, y, z (4)
-    )
-    orientation_unit: str | None = None  # rad | deg, a rotation vector's
+    # a full-pose probe's orientation columns: a rotation vector (3, in orientation_unit rad or deg)
+    # or a unit quaternion w, x, y, z (4)
+    orientation: tuple[str, ...] | None = None
+    orientation_unit: str | None = None
 
 
 @dataclass(frozen=True)
