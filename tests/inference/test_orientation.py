@@ -142,3 +142,15 @@ def test_where_the_model_lacks_an_effect_of_the_positions_the_balance_keeps_thei
     }
     assert sigma["stated"] < 0.8 * sigma["points"]
     assert sigma["balanced"] == pytest.approx(sigma["points"], rel=0.05)
+
+
+def test_orientation_columns_without_an_orientation_on_the_fitted_rows_fit_the_points_alone():
+    """A probe that measured no orientation on the optimization rows: the fit is the points' alone
+    (no orientation rows, joint 7 held), not a fit with a weight of nothing."""
+    chain, sensor = arm_kinds.simulated_sensor(full_pose_scenario(seed=4, configurations=(30, 10)), SENSOR, REPO)
+    table = sensor.table.copy()
+    table.loc[table["set"] == "optimization", ["rx", "ry", "rz"]] = np.nan
+    sensor = dataclasses.replace(sensor, table=table)
+    model, analysis, _ = laplace_of(chain, sensor)
+    assert not model.has_orientation and model.n_rows == model.n_points == 30
+    assert "zero_offsets.q7" in analysis.held

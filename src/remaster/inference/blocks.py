@@ -156,9 +156,9 @@ class Readings:
     (`drift_gaps`: the rows without a value), so that the loop closure can say so;
     orientations (n, 3, 3): a full-pose probe's measured rotation in the sensor frame, NaN rows
     where it was not measured, None for points alone; probe_rotation (3, 3): the probe frame's
-    nominal rotation in the flange frame; orientation_weight (m/rad): the stated position noise
-    over the stated orientation noise, so that an orientation residual (rad) times it is noise of
-    the same sigma as a coordinate's (`orientation_fields`).
+    nominal rotation in the flange frame; orientation_weight (m/rad): what an orientation residual
+    (rad) is multiplied by to be noise of the same sigma as a coordinate's (the stated noises' ratio,
+    `orientation_fields`, then the fit's own, `fit.balanced_orientation`).
     """
 
     rows: np.ndarray
@@ -238,15 +238,19 @@ def drift_gaps(table: pd.DataFrame, column: str | None = None) -> str | None:
 
 def orientation_fields(sensor: SensorData, rows) -> dict:
     """{'orientations', 'probe_rotation', 'orientation_weight'} of `Readings` at table rows for a
-    sensor whose table holds a full-pose probe's orientation, {} otherwise. The weight is the
-    position noise sigma stands for over the stated orientation noise: the stated `noise`, or with
-    per-point std columns their RMS over the measured rows (what `point_weights` divides by)."""
+    sensor whose table holds a full-pose probe's orientation on some of those rows, {} otherwise
+    (the rows' points alone). The weight is the position noise sigma stands for over the stated
+    orientation noise: the stated `noise`, or with per-point std columns their RMS
+    (`point_std_scale`); the fit then balances it (`fit.balanced_orientation`)."""
     if not sensor.has_orientation:
         return {}
-    every = sensor.point_std(sensor.measured_rows())
-    position = float(sensor.noise) if every is None else math.sqrt(float(np.mean(every**2)))
+    orientations = sensor.orientations(rows)
+    if not np.any(np.all(np.isfinite(orientations), axis=(1, 2))):
+        return {}
+    scale = point_std_scale(sensor)
+    position = float(sensor.noise) if scale is None else scale
     return {
-        "orientations": sensor.orientations(rows),
+        "orientations": orientations,
         "probe_rotation": np.asarray(sensor.probe_rotation, dtype=float),
         "orientation_weight": position / float(sensor.orientation_noise),
     }
@@ -285,10 +289,14 @@ def point_weights(sensor: SensorData, rows) -> np.ndarray | None:
     RMS over every measured row of the sensor (both sets, so that sigma means the same in each),
     None without such columns: relative weights, the fit's sigma scales them."""
     std = sensor.point_std(rows)
-    if std is None:
-        return None
+    return None if std is None else std / point_std_scale(sensor)
+
+
+def point_std_scale(sensor: SensorData) -> float | None:
+    """The RMS (m) of the per-point std columns over every measured row of the sensor: the position
+    noise sigma stands for when they are given (`point_weights`); None without them."""
     every = sensor.point_std(sensor.measured_rows())
-    return std / math.sqrt(float(np.mean(every**2)))
+    return None if every is None else math.sqrt(float(np.mean(every**2)))
 
 
 # --------------------------------------------------------------------------- parameters of each block

@@ -450,6 +450,8 @@ def orientation_line(sensor: str, inputs: CertificateInputs, noise_rad: float | 
     validation = errors[(errors["set"] == "validation") & (errors["registration"] == AS_IS)]
 
     def rms(method: str) -> float:
+        if "orientation_error_deg" not in validation:
+            return np.nan
         values = validation.loc[validation["method"] == method, "orientation_error_deg"].dropna().to_numpy(float)
         return float(np.sqrt(np.mean(values**2))) if len(values) else np.nan
 
@@ -469,11 +471,16 @@ def orientation_line(sensor: str, inputs: CertificateInputs, noise_rad: float | 
     stated = (
         f" (the stated noise alone: {np.degrees(noise_rad) * np.sqrt(3.0):.2g} deg)" if noise_rad is not None else ""
     )
+    before, after = rms(BEFORE), rms(AFTER)
+    validated = (
+        f"Orientation error on the validation set, RMS angle: {before:.3g} deg with the controller's zero-offsets, "
+        f"{after:.3g} deg remastered{stated}"
+        if np.isfinite(before) and np.isfinite(after)
+        else "No orientation measured on the validation set: the orientation error after is not determined"
+    )
     return [
         f"{sensor_label(sensor)}: a full-pose probe, {added['orientations_fitted']} orientations fitted beside the "
-        f"points: {determined}{narrowed}. Orientation error on the validation set, RMS angle: {rms(BEFORE):.3g} deg "
-        f"with the controller's zero-offsets, {rms(AFTER):.3g} deg remastered{stated}. The loop closure compares its "
-        "effects on the positions alone."
+        f"points: {determined}{narrowed}. {validated}. The loop closure compares its effects on the positions alone."
     ]
 
 
