@@ -127,6 +127,49 @@ def test_the_instruments_noise_fails_a_model_missing_an_effect_the_fitted_sigma_
     assert np.mean(declared[:, 1] < 0.01) >= 0.99
 
 
+def _wide_posterior_claims(rng: np.random.Generator, effect: float) -> tuple[np.ndarray, Claim]:
+    """A translation fitted on 30 rows spread over a metre whose residual is 10 x the 0.02 mm noise
+    (a missing effect when `effect` > 0, else a correct model whose fitted sigma is that large, as
+    the draws' sigma says); validated on 20 rows in a 0.2 m box near the centre, where a missing
+    scale `effect` is small. The loop declared the residual it measured."""
+    sigma, n_opt, n_val, draws = 0.02e-3, 30, 20, 400
+    points_val = rng.uniform(-0.1, 0.1, (n_val, 3))
+    fitted = 10 * sigma if effect > 0 else sigma
+    mean = fitted * rng.standard_normal((n_opt, 3)).mean(axis=0)
+    measured_val = points_val * (1 + effect) + sigma * rng.standard_normal((n_val, 3))
+    theta = mean + fitted / np.sqrt(n_opt) * rng.standard_normal((draws, 3))
+    model = Translation(points_val, measured_val)
+    claim = Claim(model.predict(mean), model, theta, np.full(draws, fitted), (), "the fit's posterior")
+    declared = float(np.sqrt(max(fitted**2 - sigma**2, 0.0))) or 0.5 * sigma
+    return measured_val, dataclasses.replace(claim, instrument=np.full((n_val, 3), sigma), declared=declared)
+
+
+def test_what_a_closed_loop_would_claim_shrinks_the_posterior_to_the_noise():
+    """The check against the noise alone takes the posterior's spread a fit at the noise would
+    have: scaled by noise / fitted sigma, never widened. A model missing an effect whose posterior
+    the fitted sigma widened fails it though its validation rows lie where the effect is small
+    (the posterior's own spread would have passed it); a correct model that declared an error it
+    does not have fails it at the stated rate."""
+    rng = np.random.default_rng(21)
+    measured, claim = _wide_posterior_claims(rng, effect=4e-4)
+    closed = claim.closed()
+    assert closed.declared == 0.0 and closed.calibration_scale == pytest.approx(0.1)
+    assert dataclasses.replace(claim, sigma=claim.sigma / 20).closed().calibration_scale == 1.0
+    wide, shrunk = [], []
+    for _ in range(200):
+        measured, claim = _wide_posterior_claims(rng, effect=4e-4)
+        wide.append(acceptance.check(measured, dataclasses.replace(claim, declared=0.0), 0.01, 0.95, rng, PLAUSIBLE))
+        shrunk.append(acceptance.check(measured, claim, 0.01, 0.95, rng, PLAUSIBLE)["at_noise"])
+    assert np.mean([not c["passed"] for c in wide]) < 0.1  # the widened posterior hides the effect
+    assert np.mean([not c["passed"] for c in shrunk]) >= 0.99
+    p = []
+    for _ in range(400):
+        measured, claim = _wide_posterior_claims(rng, effect=0.0)
+        p.append(acceptance.check(measured, claim, 0.05, 0.95, rng, PLAUSIBLE)["at_noise"]["p_value"])
+    low, high = stats.binom.ppf([0.005, 0.995], len(p), 0.05)
+    assert low <= np.sum(np.array(p) < 0.05) <= high
+
+
 def test_a_correct_model_against_the_instruments_noise_fails_at_the_stated_rate():
     rng = np.random.default_rng(12)
     sigma, n_opt, n_val, draws = 0.02e-3, 30, 20, 400

@@ -25,9 +25,12 @@ but the verdict.
 - p = share of replicates with T_d >= T; the model FAILS when p < `level` (config
   `acceptance/level`). Under a correct model p is uniform and a model fails at the rate `level`.
   Where a model error was declared, the same test against the instrument's noise alone is
-  reported beside it (`at_noise`: what a closed loop would claim): a model missing an effect fails
-  that one whatever it declared, and the certificate says the calibration holds as far as it
-  declared, not to the sensor's noise.
+  reported beside it (`at_noise`: what a closed loop would claim, `Claim.closed`: the noise alone,
+  and the posterior's spread scaled down by the instrument's noise over the fitted sigma, as a fit
+  whose residual were the noise would have it; the fitted sigma's posterior alone is wide enough
+  to pass a model missing an effect): a model missing an effect fails that one whatever it
+  declared, and the certificate says the calibration holds as far as it declared, not to the
+  sensor's noise.
   A model whose validation RMS per axis exceeds `plausible_residual_mm` fails whatever its p: no
   calibrated arm is off by that much, a unit slip or a wrong robot description is.
 
@@ -146,7 +149,8 @@ class Claim:
     gp_draws: count -> rng -> (count, n, 3) m draws of the residual GP at the readings, jointly across
     them, sensor frame (None without one), gp_mean (n, 3) m its mean (sensor frame) or 0; effects: the model's blocks; source: where the draws come from;
     instrument (n, 3) m: the instrument's noise std per reading and axis, declared m: the model error
-    per axis the calibration declares; without `instrument` the draws' own sigma is the noise."""
+    per axis the calibration declares; without `instrument` the draws' own sigma is the noise;
+    calibration_scale: the factor on the posterior's deviations (1 but in `closed`)."""
 
     reference: np.ndarray
     model: BlockModel
@@ -158,6 +162,21 @@ class Claim:
     gp_mean: np.ndarray | float = 0.0
     instrument: np.ndarray | None = None
     declared: float = 0.0
+    calibration_scale: float = 1.0
+
+    def closed(self) -> Claim:
+        """What a closed loop would claim with this model: the instrument's noise alone, no declared
+        model error, and the posterior's spread as a fit whose residual is that noise would have it.
+        The posterior was made with the fitted sigma, which carries what the model lacks; its spread
+        grows with that sigma, so it is scaled by the instrument's RMS over the draws' median sigma
+        (never widened). Directions the priors decide shrink too, so the claim is, if anything,
+        narrower than such a fit's."""
+        if self.instrument is None:
+            return self
+        fitted = float(np.median(self.sigma))
+        instrument = float(np.sqrt(np.mean(np.asarray(self.instrument, dtype=float) ** 2)))
+        scale = min(1.0, instrument / fitted) if fitted > 0 else 1.0
+        return dataclasses.replace(self, declared=0.0, calibration_scale=scale)
 
     def replicates(self, rows, rng: np.random.Generator) -> np.ndarray:
         """Replicated validation readings (k, n, 3) m of the draws `rows` (k,): each draw's
@@ -170,7 +189,7 @@ class Claim:
         error (when there is one) and the noise; independent, so their variances add."""
         points = self.model.predict(self.theta[rows])
         gp = self.gp_mean if self.gp_draws is None else self.gp_draws(len(points), rng)
-        out = {CALIBRATION: points + self.gp_mean - self.reference}
+        out = {CALIBRATION: self.calibration_scale * (points + self.gp_mean - self.reference)}
         if self.gp_draws is not None:
             out[GP_SOURCE] = gp - self.gp_mean
         if self.instrument is not None:
@@ -209,13 +228,9 @@ def check(
     described = observed <= plausible
     at_noise = None
     if claim.instrument is not None:
-        # the same test against the instrument's noise alone: what "closed" would claim; a model
-        # missing an effect fails it, whatever error it declared
-        alone = (
-            replicates
-            if claim.declared == 0
-            else _replicated(dataclasses.replace(claim, declared=0.0), rng, refit=False)[0]
-        )
+        # the same test against what "closed" would claim (`Claim.closed`); a model missing an
+        # effect fails it, whatever error it declared
+        alone = replicates if claim.declared == 0 else _replicated(claim.closed(), rng, refit=False)[0]
         p_alone = p_value(observed, alone)
         at_noise = {
             "replicate_median_mm": float(np.median(alone) / MM),
