@@ -1,29 +1,44 @@
 """The whole workflow on one large simulated campaign: `snakemake -j2` end to end, its wall time,
 the seconds of each rule's jobs and the peak resident memory of each job.
 
-Run from the repository root: python benchmarks/bench_scale_workflow.py [rows] [folder]
+Run from the repository root: python benchmarks/bench_scale_workflow.py [rows ...] [--folder F]
 (default 100000 rows, folder a temporary one). The campaign is `bench_scale`'s (iiwa, laser
 tracker, random configurations four to a pose, 70 % optimization), the settings config.yaml's.
 Memory is sampled every 0.5 s from /proc (resident set of each job's process tree), so a peak
 shorter than that can be missed.
+
+Several sizes may be given (python benchmarks/bench_scale_workflow.py 10000 30000): each is run and
+recorded in benchmarks/results/scale_workflow.json (kept with its date and commit, so that sizes
+measured another day stay beside it), and the table, with how each rule's job-seconds grow between
+sizes measured the same day (the exponent b of seconds ~ rows^b), is written into
+benchmarks/README.md between its bench_scale_workflow markers. A size the workflow refuses (its
+first job's memory estimate) is recorded with Snakemake's exit status and the refusal.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import math
 import re
 import subprocess
 import sys
 import tempfile
 import time
 from collections import defaultdict
+from datetime import date
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench_scale import write_campaign  # noqa: E402
 
+from benchmarks.doc_sections import publish  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results"
 PAGE = 4096
 
 
@@ -49,9 +64,10 @@ def _job_of(command: str) -> str | None:
     return found.group(1) if found else None
 
 
-def run(rows: int, root: Path) -> int:
-    """Snakemake's exit status; the report is printed either way (a job killed for memory shows
-    where the memory went)."""
+def run(rows: int, root: Path) -> dict:
+    """The record of one size: Snakemake's exit status, wall seconds, and per rule its jobs'
+    seconds and peak resident memory; printed either way (a job killed for memory shows where the
+    memory went)."""
     raw, results = root / "raw", root / "results"
     name = f"scale-{rows}"
     if not (raw / name / "campaign.yaml").exists():
@@ -95,7 +111,80 @@ def run(rows: int, root: Path) -> int:
     others = {job: peak for job, peak in peaks.items() if job not in seconds}
     for job, peak in sorted(others.items()):
         print(f"{job + ' (script)':<40} {'':>11} {'':>5} {peak / 1e6:8.0f}")
-    return snakemake.returncode
+    refused = re.search(r"(?m)^.*(?:too large|refus).*$", (root / "snakemake.log").read_text())
+    return {
+        "rows": rows,
+        "date": date.today().isoformat(),
+        "commit": _commit(),
+        "exit": snakemake.returncode,
+        "wall_s": wall,
+        "refused": refused.group(0).strip() if refused and snakemake.returncode else None,
+        # the script's peak stands for its rule's (a job runs one script: workflow/scripts/<rule's script>.py)
+        "rules": {
+            rule: {"seconds": sum(spent), "jobs": len(spent), "peak_mb": _peak_of(rule, peaks) / 1e6}
+            for rule, spent in seconds.items()
+        },
+    }
+
+
+def _peak_of(rule: str, peaks: dict[str, int]) -> int:
+    """The peak resident bytes of the scripts a rule's jobs ran: the script named like the rule, or 0."""
+    return peaks.get(rule, 0)
+
+
+def _commit() -> str:
+    found = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True)
+    return found.stdout.strip() or "unknown"
+
+
+def growth(small: dict, large: dict) -> dict[str, float]:
+    """{rule: b} with seconds ~ rows^b between two sizes' records (rules of at least 2 s in both)."""
+    scale = math.log(large["rows"] / small["rows"])
+    out = {}
+    for rule, part in large["rules"].items():
+        before = small["rules"].get(rule)
+        if before and before["seconds"] >= 2 and part["seconds"] >= 2:
+            out[rule] = math.log(part["seconds"] / before["seconds"]) / scale
+    return out
+
+
+def markdown(records: list[dict]) -> str:
+    records = sorted(records, key=lambda r: r["rows"])
+    head = " | ".join(f"{r['rows']:,} rows ({r['date']}, {r['commit']})" for r in records)
+    lines = [
+        "Measured by `bench_scale_workflow.py`: `snakemake -j2` from empty results on one campaign of each size; "
+        "per rule the seconds of its jobs summed (job-seconds; 1 s stamps) and the peak resident memory of "
+        "its jobs, then how the seconds grow between sizes measured the same day (b in seconds ~ rows^b).",
+        "",
+        f"| | {head} |",
+        "|---|" + "---|" * len(records),
+        "| wall, exit | "
+        + " | ".join(
+            f"{r['wall_s'] / 60:.1f} min, exit {r['exit']}" + (f": {r['refused']}" if r.get("refused") else "")
+            for r in records
+        )
+        + " |",
+    ]
+    rules = sorted(
+        {rule for r in records for rule in r["rules"]}, key=lambda x: -records[-1]["rules"].get(x, {}).get("seconds", 0)
+    )
+    for rule in rules:
+        cells = []
+        for r in records:
+            part = r["rules"].get(rule)
+            cells.append(
+                "-"
+                if part is None
+                else f"{part['seconds']:.0f} s" + (f", {part['peak_mb']:.0f} MB" if part["peak_mb"] else "")
+            )
+        lines.append(f"| {rule} | " + " | ".join(cells) + " |")
+    pairs = [(a, b) for a, b in zip(records, records[1:]) if a["date"] == b["date"] and a["exit"] == b["exit"] == 0]
+    for small, large in pairs:
+        grown = growth(small, large)
+        if grown:
+            shown = ", ".join(f"{rule} {b:.2f}" for rule, b in sorted(grown.items(), key=lambda kv: -kv[1]))
+            lines += ["", f"Growth {small['rows']:,} to {large['rows']:,} rows: {shown}."]
+    return "\n".join(lines)
 
 
 def job_seconds(log: str) -> dict[str, list[float]]:
@@ -114,11 +203,20 @@ def job_seconds(log: str) -> dict[str, list[float]]:
 
 
 def main() -> None:
-    rows = int(sys.argv[1]) if len(sys.argv) > 1 else 100_000
-    if len(sys.argv) > 2:
-        sys.exit(run(rows, Path(sys.argv[2])))
-    with tempfile.TemporaryDirectory() as root:
-        sys.exit(run(rows, Path(root)))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("rows", type=int, nargs="*", default=[100_000])
+    parser.add_argument("--folder", type=Path, default=None, help="keep the campaigns and results here")
+    args = parser.parse_args()
+    stored = RESULTS / "scale_workflow.json"
+    kept = {r["rows"]: r for r in json.loads(stored.read_text())["runs"]} if stored.exists() else {}
+    for rows in args.rows:
+        if args.folder is not None:
+            kept[rows] = run(rows, args.folder)
+        else:
+            with tempfile.TemporaryDirectory() as root:
+                kept[rows] = run(rows, Path(root))
+    records = sorted(kept.values(), key=lambda r: r["rows"])
+    publish(RESULTS, "scale_workflow", {"runs": records}, markdown(records), REPO / "benchmarks" / "README.md")
 
 
 if __name__ == "__main__":

@@ -76,7 +76,10 @@ class TruthCheck:
     posterior samples (SI); acceptance: the acceptance test on the validation set (config.yaml's
     settings); elsewhere: at configurations another design measured (`check`'s elsewhere_q), the
     loop model's true error and per-command bound and the zero-offset model's true error (mm,
-    arrays: `error_mm`, `bound_mm`, `paper_error_mm`), None without them."""
+    arrays: `error_mm`, `bound_mm`, `paper_error_mm`; `own_outside`: `posterior_outside` there), None
+    without them; own_posterior: what the
+    calibration's own posterior expects of the seed-level statistics near the data
+    (`own_posterior_expectations`)."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -97,6 +100,7 @@ class TruthCheck:
     samples: pd.DataFrame | None = None
     acceptance: Acceptance | None = None
     elsewhere: dict | None = None
+    own_posterior: dict | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -241,6 +245,15 @@ def check(
         config["acceptance"],
     )
     elsewhere = None if elsewhere_q is None else _elsewhere(campaign, sensor, results, elsewhere_q, truth, draws, rng)
+    # its own generator, so that it changes nothing above
+    own = own_posterior_expectations(
+        robot,
+        q_domain,
+        at_domain["bound95_mm"].to_numpy(),
+        held_to_truth["domain"].p95_bound_mm,
+        draws,
+        np.random.default_rng([seed, 1]),
+    )
     return TruthCheck(
         tuple(report.effects_added),
         float(report.after["validation"]["rms_per_axis_mm"]),
@@ -261,7 +274,35 @@ def check(
         result.samples,
         accepted,
         elsewhere,
+        own,
     )
+
+
+def posterior_outside(robot, q, bound_mm, count: int, rng) -> np.ndarray:
+    """(count, n) bool: each of `count` fresh posterior draws of `robot` (a calibrated robot) taken as
+    the arm's truth, whether its marker at command q_i (n, N) lies outside the per-command bound
+    bound_mm (n,) about the prediction (sensor frame, as `remaster predict` states it)."""
+    in_sensor, _ = robot.draw_points(q, "sensor", count, rng)
+    mean = robot.in_frame(robot.robot_points(q), "sensor")
+    return np.linalg.norm(in_sensor - mean, axis=-1) / 1e-3 > np.asarray(bound_mm)[None]
+
+
+def own_posterior_expectations(robot, q, bound_mm, claim_mm: float, count: int, rng) -> dict:
+    """What a calibrated posterior expects of one arm, each of `count` fresh posterior draws taken
+    as the arm's truth, at configurations q (n, N): the chance that more than a quarter of the
+    commands fall outside their per-command bound bound_mm (n,), and that the workspace claim
+    claim_mm (the bound on one arm's p95, registered) is within 0.8-2 times the arm's p95, and
+    covers it (about 0.95 when the claim and the draws agree). What the truth does is then compared
+    with these chances: a rate the posterior itself expects is not a miscalibration."""
+    outside = np.mean(posterior_outside(robot, q, bound_mm, count, rng), axis=1)
+    in_robot, _ = robot.draw_points(q, "robot", count, rng)
+    p95 = np.quantile(metrics.registered_distances(robot.robot_points(q), in_robot), 0.95, axis=1) / 1e-3
+    ratio = claim_mm / p95
+    return {
+        "outside_above_25": float(np.mean(outside > 0.25)),
+        "claim_in_window": float(np.mean((ratio >= 0.8) & (ratio <= 2.0))),
+        "claim_covers": float(np.mean(ratio >= 1.0)),
+    }
 
 
 def _elsewhere(campaign, sensor: str, results: dict, q, truth: dict, draws: int, rng) -> dict:
@@ -272,12 +313,17 @@ def _elsewhere(campaign, sensor: str, results: dict, q, truth: dict, draws: int,
     true = true_sensor_positions(campaign.chain, scenario.robot_from_truth(truth), device, q, np.zeros(len(q)))
     # as the workflow reads summary.csv: the parameter a column
     results = {**results, "summary": results["summary"].reset_index()}
-    out = {}
+    out, robots = {}, {}
     for model in ("loop", "paper"):
-        robot = compensation.calibrated_robot(campaign, sensor, model, results)
-        predicted = compensation.predict(robot, q, "sensor", draws, rng)
+        robots[model] = compensation.calibrated_robot(campaign, sensor, model, results)
+        predicted = compensation.predict(robots[model], q, "sensor", draws, rng)
         out[model] = (
             np.linalg.norm(predicted[["x", "y", "z"]].to_numpy() - true, axis=1) / 1e-3,
             predicted["bound95_mm"].to_numpy(),
         )
-    return {"error_mm": out["loop"][0], "bound_mm": out["loop"][1], "paper_error_mm": out["paper"][0]}
+    return {
+        "error_mm": out["loop"][0],
+        "bound_mm": out["loop"][1],
+        "paper_error_mm": out["paper"][0],
+        "own_outside": posterior_outside(robots["loop"], q, out["loop"][1], draws, rng),
+    }

@@ -66,3 +66,12 @@ def test_the_claims_inside_the_measured_ranges_and_across_the_limits_cover_the_t
         assert (result.domain_q[:, 2] == 0.0).all()
         assert result.claims["domain"].p95_bound_mm < 10 * result.noise_mm
         assert result.claims["random"].p95_bound_mm > 10 * result.claims["domain"].p95_bound_mm
+
+
+def test_the_claim_near_the_data_is_the_posteriors_own_95_percent(checked):
+    """The workspace claim near the data, held to the calibration's own posterior (each fresh draw
+    taken as the arm, `own_posterior_expectations`), covers about 95 % of those arms: the claim and
+    the posterior it summarizes agree, so what the truth does across seeds can be read against what
+    the posterior expects."""
+    _, result = checked
+    assert 0.9 <= result.own_posterior["claim_covers"] <= 0.99, result.own_posterior
