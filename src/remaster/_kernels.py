@@ -200,6 +200,171 @@ def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, 
     return out
 
 
+@_compiled(fastmath={"contract"})
+def _expand_configuration(rotations, shifts, start, c_ref, s_ref, terms, norms, matrix):
+    """One configuration's marker position as a polynomial in w_j = (1, cos delta_j - 1,
+    sin delta_j), delta the zero-offsets' departure from a reference: Rz(phi + delta) = Rz(phi)
+    (I + (cos delta - 1) E1 + sin delta E2), E1 = diag(1, 1, 0), E2 x = (-x1, x0, 0), so the
+    position is multilinear in the w_j: terms (3^N, 3), term a = sum_j a_j 3^j. norms (3^N,): the
+    same of |position|^2, multilinear too as the joints' rotations keep lengths: |R Rz y + s|^2 =
+    |y|^2 + |s|^2 + 2 s.R Rz y. c_ref, s_ref (N,): cos and sin of each joint's reference angle
+    (reading and reference offset); matrix (3, 3) scratch."""
+    terms[0, :] = start
+    norms[0] = start[0] * start[0] + start[1] * start[1] + start[2] * start[2]
+    count = 1
+    for j in range(rotations.shape[0] - 1, -1, -1):
+        r, shift, c, s = rotations[j], shifts[j], c_ref[j], s_ref[j]
+        for row in range(3):
+            matrix[row, 0] = r[row, 0] * c + r[row, 1] * s
+            matrix[row, 1] = r[row, 1] * c - r[row, 0] * s
+            matrix[row, 2] = r[row, 2]
+        for a in range(count - 1, -1, -1):  # downwards: term a is read before 3a .. 3a + 2 are written
+            v0, v1, v2, carried = terms[a, 0], terms[a, 1], terms[a, 2], norms[a]
+            for d in range(3):
+                x0, x1, x2 = (v0, v1, v2) if d == 0 else ((v0, v1, 0.0) if d == 1 else (-v1, v0, 0.0))
+                out = 3 * a + d
+                cross = 0.0
+                for row in range(3):
+                    value = matrix[row, 0] * x0 + matrix[row, 1] * x1 + matrix[row, 2] * x2
+                    terms[out, row] = value
+                    cross += shift[row] * value
+                norms[out] = 2.0 * cross + (carried if d == 0 else 0.0)
+        norms[0] += shift[0] * shift[0] + shift[1] * shift[1] + shift[2] * shift[2]
+        for row in range(3):
+            terms[0, row] += shift[row]
+        count *= 3
+
+
+@_compiled(fastmath={"contract"})
+def expansion_sums(rotations, shifts, start, cos_q, sin_q, reference, t_nr, measured):
+    """The sums over configurations that give the paper's sum of squares at any parameters
+    (`expanded_sum_squares`) in a time that does not grow with them. reference (6 + N,) the
+    parameters the expansion is about; measured (3, n). Returns (cross (3^N, 3, 3) = sum_i e_i
+    P_ia^T, mixed (3^N, 3, 3) = sum_i P_ia P_i0^T, linear (3^N, 3) = sum_i P_ia, square (3^N,) =
+    sum_i (|p_i|^2's term a - 2 P_ia.P_i0), totals = (sum |e_i|^2, sum e_i (3), n)): P_ia the terms
+    of configuration i's robot-frame position (`_expand_configuration`), e_i its residual at the
+    reference. Every sum is of quantities that vanish with the departure from the reference or
+    with the residuals, so the sum of squares is assembled without cancelling large numbers."""
+    joints, n = cos_q.shape
+    size = 3**joints
+    cross, mixed = np.zeros((size, 3, 3)), np.zeros((size, 3, 3))
+    linear, square, totals = np.zeros((size, 3)), np.zeros(size), np.zeros(5)
+    terms, norms, matrix = np.empty((size, 3)), np.empty(size), np.empty((3, 3))
+    rotation, translation = np.empty((3, 3)), np.empty(3)
+    _registration(reference, t_nr, rotation, translation)
+    c_ref, s_ref = np.empty(joints), np.empty(joints)
+    cos_o, sin_o = np.cos(reference[6:]), np.sin(reference[6:])
+    e = np.empty(3)
+    for i in range(n):
+        for j in range(joints):
+            c_ref[j] = cos_q[j, i] * cos_o[j] - sin_q[j, i] * sin_o[j]
+            s_ref[j] = sin_q[j, i] * cos_o[j] + cos_q[j, i] * sin_o[j]
+        _expand_configuration(rotations, shifts, start, c_ref, s_ref, terms, norms, matrix)
+        for row in range(3):
+            e[row] = measured[row, i] - translation[row]
+            for col in range(3):
+                e[row] -= rotation[row, col] * terms[0, col]
+            totals[0] += e[row] * e[row]
+            totals[1 + row] += e[row]
+        p0, p1, p2 = terms[0, 0], terms[0, 1], terms[0, 2]
+        for a in range(size):
+            t0, t1, t2 = terms[a, 0], terms[a, 1], terms[a, 2]
+            for row in range(3):
+                cross[a, row, 0] += e[row] * t0
+                cross[a, row, 1] += e[row] * t1
+                cross[a, row, 2] += e[row] * t2
+            for row, t in ((0, t0), (1, t1), (2, t2)):
+                mixed[a, row, 0] += t * p0
+                mixed[a, row, 1] += t * p1
+                mixed[a, row, 2] += t * p2
+                linear[a, row] += t
+            square[a] += norms[a] - 2.0 * (t0 * p0 + t1 * p1 + t2 * p2)
+    totals[4] = n
+    return cross, mixed, linear, square, totals
+
+
+@_compiled(fastmath={"contract"})
+def _registration(every, t_nr, rotation, translation):
+    """The registration of parameters every (6 + N,): rotation (3, 3) = C T_NR's and translation
+    (3,) = (x, y, z) + C T_NR's, C = Rz Ry Rx of (alpha, beta, gamma), into the arrays given."""
+    correction = np.empty((3, 3))
+    _euler_zyx(every[3], every[4], every[5], correction)
+    for r in range(3):
+        translation[r] = every[r]
+        for c in range(3):
+            rotation[r, c] = 0.0
+            for h in range(3):
+                rotation[r, c] += correction[r, h] * t_nr[h, c]
+            translation[r] += correction[r, c] * t_nr[c, 3]
+
+
+@_compiled(fastmath={"contract"})
+def expanded_sum_squares(expansion, every, t_nr):
+    """`registered_sum_squares` from the sums of `expansion_sums` (expansion = its five arrays and
+    the reference): for m parameter vectors every (m, 6 + N), (m,). With r_i = e_i - u_i - v_i,
+    u_i = dR P_i0 + dt (the registration's change, dR = R - R_ref from the difference of the
+    two corrections, not of two rotations), v_i = R sum_(a > 0) w^a P_ia (the zero-offsets'):
+    sum |e|^2 - 2 sum e.u - 2 sum e.v + sum |u|^2 + 2 sum u.v + sum |v|^2, each a contraction of
+    the sums with w^a (`_expand_configuration`), |v_i|^2 by the polynomial of |p_i|^2."""
+    cross, mixed, linear, square, totals, reference = expansion
+    m, size, joints = every.shape[0], cross.shape[0], every.shape[1] - 6
+    out = np.empty(m)
+    weights = np.empty(size)
+    c_now, c_ref = np.empty((3, 3)), np.empty((3, 3))
+    _euler_zyx(reference[3], reference[4], reference[5], c_ref)
+    rotation, d_rot, d_t = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    nw, qw, bw = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    for k in range(m):
+        _euler_zyx(every[k, 3], every[k, 4], every[k, 5], c_now)
+        for r in range(3):
+            d_t[r] = every[k, r] - reference[r]
+            for c in range(3):
+                rotation[r, c] = 0.0
+                d_rot[r, c] = 0.0
+                for h in range(3):
+                    rotation[r, c] += c_now[r, h] * t_nr[h, c]
+                    d_rot[r, c] += (c_now[r, h] - c_ref[r, h]) * t_nr[h, c]
+                d_t[r] += (c_now[r, c] - c_ref[r, c]) * t_nr[c, 3]
+        weights[0] = 1.0
+        count = 1
+        for j in range(joints - 1, -1, -1):
+            delta = every[k, 6 + j] - reference[6 + j]
+            half = np.sin(0.5 * delta)
+            w1, w2 = -2.0 * half * half, np.sin(delta)
+            for a in range(count - 1, -1, -1):
+                x = weights[a]
+                weights[3 * a], weights[3 * a + 1], weights[3 * a + 2] = x, x * w1, x * w2
+            count *= 3
+        nw[:, :] = 0.0
+        qw[:, :] = 0.0
+        bw[:] = 0.0
+        lw = 0.0
+        for a in range(1, size):
+            w = weights[a]
+            if w == 0.0:
+                continue
+            for r in range(3):
+                bw[r] += w * linear[a, r]
+                for c in range(3):
+                    nw[r, c] += w * cross[a, r, c]
+                    qw[r, c] += w * mixed[a, r, c]
+            lw += w * square[a]
+        energy = totals[0] + lw + totals[4] * (d_t[0] * d_t[0] + d_t[1] * d_t[1] + d_t[2] * d_t[2])
+        for r in range(3):
+            energy -= 2.0 * d_t[r] * totals[1 + r]
+            moved = 0.0  # (dR P0 sum).dt and R bw . dt
+            for c in range(3):
+                energy -= 2.0 * d_rot[r, c] * cross[0, r, c] + 2.0 * rotation[r, c] * nw[r, c]
+                moved += d_rot[r, c] * linear[0, c] + rotation[r, c] * bw[c]
+                for h in range(3):
+                    # |dR P0|^2 and (dR P0).(R P_a): mixed[a][c, h] = sum P_a[c] P0[h]
+                    energy += d_rot[r, c] * mixed[0, c, h] * d_rot[r, h]
+                    energy += 2.0 * rotation[r, c] * qw[c, h] * d_rot[r, h]
+            energy += 2.0 * d_t[r] * moved
+        out[k] = energy
+    return out
+
+
 @_compiled()
 def metropolis_walk(
     rotations,
@@ -209,6 +374,7 @@ def metropolis_walk(
     sin_q,
     t_nr,
     measured,
+    expansion,
     fixed_values,
     free_index,
     theta,
@@ -222,8 +388,10 @@ def metropolis_walk(
     `samplers._walk` compiled: from (theta (P,) = free parameters and sigma, its log_prob), step i
     proposes theta + steps[i] and accepts when log_u[i] < the log-posterior ratio. Every state
     goes to states (m, P) and log_probs (m,). Returns (accepted, i) with i the first step whose
-    log-posterior is NaN (-1 when none): the caller raises. The same arithmetic, in the same
-    order, as the paper's model's `BlockModel.log_posterior`, so the chain is the Python loop's to the bit."""
+    log-posterior is NaN (-1 when none): the caller raises. The sum of squares by
+    `expanded_sum_squares` when expansion (`expansion_sums`' arrays and reference) holds terms,
+    else `registered_sum_squares`: the same arithmetic, in the same order, as the paper's model's
+    `BlockModel.log_posterior`, so the chain is the Python loop's to the bit."""
     m, p = steps.shape
     power = -(3 * cos_q.shape[1] + 2)
     every = fixed_values.copy().reshape(1, -1)
@@ -240,7 +408,10 @@ def metropolis_walk(
         else:
             for k in range(p - 1):
                 every[0, free_index[k]] = proposal[k]
-            energy = registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured)[0]
+            if expansion[0].shape[0] > 0:
+                energy = expanded_sum_squares(expansion, every, t_nr)[0]
+            else:
+                energy = registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured)[0]
             lp_proposal = power * np.log(sigma) - energy / (2.0 * sigma * sigma)
         if lp_proposal != lp_proposal:
             return accepted, i

@@ -297,14 +297,17 @@ def test_many_log_posteriors_are_the_same_a_slice_at_a_time(iiwa, rng, monkeypat
     assert whole[3] == target.log_prob(thetas[3]) and target.log_prob_many(thetas[:0]).shape == (0,)
 
 
-def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng):
+@pytest.mark.parametrize("rows", [40, 600], ids=["summed over the rows", "expanded in the zero-offsets"])
+def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     """The paper's model steps its random walks compiled (`BlockModel.metropolis_block`): the
     same draws give the same chain as the Python loop over its log_prob, bit for bit, for the
-    paper's sampler and the adaptive one; a proposal with sigma <= 0 is rejected, not an error."""
+    paper's sampler and the adaptive one, with the sum of squares over the rows or expanded (a
+    campaign of many rows); a proposal with sigma <= 0 is rejected, not an error."""
     from remaster.inference import samplers
 
-    sensor, _ = simulated_sensor(iiwa, rng, n=40)
+    sensor, _ = simulated_sensor(iiwa, rng, n=rows)
     model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
+    assert (model._expansion()[0].shape[0] > 0) == (rows == 600)
     compiled = fit.PosteriorTarget(model)
     python = samplers.CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
     assert compiled.walk_block is not None and getattr(python, "walk_block", None) is None

@@ -79,6 +79,11 @@ EXTENSIONS = (
     "sensor_distortion",
 )
 PPM = 1e-6
+# the paper's sum of squares is expanded in the zero-offsets (`BlockModel._expansion`) from this many
+# rows per term of the expansion (3^N): there one evaluation over the rows and one of the expansion
+# cost about the same (7 joints: 40 us at 500 rows, measured); above, the expansion's cost stays and
+# the rows' grows (5.5 ms at 100,000 rows against 32 us)
+EXPANDED_ROWS_PER_TERM = 0.25
 MICRORAD_PER_NM = 1e-6
 # An extension column of the Jacobian below this fraction of the longest of its own block is
 # invisible in the data: e.g. the compliance of joint 1 about the vertical (zero torque), the
@@ -514,6 +519,7 @@ class BlockModel:
         # the paper's model (no extension block, isotropic noise: `paper_model`) has its sum of squares
         # and its random walk compiled: the samplers evaluate it hundreds of thousands of times
         self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None and not self.has_orientation
+        self._expanded = None
         if self.compiled_posterior:
             self._start = self._kernel.start(self.marker)
             self._measured_t = np.ascontiguousarray(self.measured.T)
@@ -769,17 +775,44 @@ class BlockModel:
         if not self.compiled_posterior:
             return np.sum(self.weighted_residuals(theta) ** 2, axis=(-2, -1))
         every = self.full(theta)
-        energy = _kernels.registered_sum_squares(
-            self._kernel.rotations,
-            self._kernel.shifts,
-            self._start,
-            self._cos_q,
-            self._sin_q,
-            every.reshape(-1, every.shape[-1]),
-            self.t_nr,
-            self._measured_t,
-        )
+        stack = every.reshape(-1, every.shape[-1])
+        expansion = self._expansion()
+        if expansion[0].shape[0] > 0:
+            energy = _kernels.expanded_sum_squares(expansion, stack, self.t_nr)
+        else:
+            energy = _kernels.registered_sum_squares(
+                self._kernel.rotations,
+                self._kernel.shifts,
+                self._start,
+                self._cos_q,
+                self._sin_q,
+                stack,
+                self.t_nr,
+                self._measured_t,
+            )
         return energy if every.ndim == 2 else energy[0]
+
+    def _expansion(self) -> tuple:
+        """The paper's sum of squares expanded in the zero-offsets (`_kernels.expansion_sums`, about
+        `fixed_values`), made at the first call when the campaign has at least `EXPANDED_ROWS_PER_TERM`
+        rows per term (3^N terms): an evaluation then costs the same at any number of rows. Below,
+        arrays without terms (each evaluation sums over the rows)."""
+        if self._expanded is None:
+            if self.n_rows >= EXPANDED_ROWS_PER_TERM * 3**self.chain.n_joints:
+                sums = _kernels.expansion_sums(
+                    self._kernel.rotations,
+                    self._kernel.shifts,
+                    self._start,
+                    self._cos_q,
+                    self._sin_q,
+                    self.fixed_values,
+                    self.t_nr,
+                    self._measured_t,
+                )
+            else:
+                sums = (np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(5))
+            self._expanded = (*sums, np.ascontiguousarray(self.fixed_values, dtype=float))
+        return self._expanded
 
     def metropolis_block(self, theta, log_prob: float, steps, log_u):
         """Random-walk Metropolis steps on the paper's model's `log_posterior` over (free
@@ -799,6 +832,7 @@ class BlockModel:
             self._sin_q,
             self.t_nr,
             self._measured_t,
+            self._expansion(),
             self.fixed_values,
             self._free_index,
             np.asarray(theta, dtype=float),
