@@ -53,3 +53,22 @@ def test_the_data_are_inside_and_far_configurations_are_not(iiwa, rng):
     held = nearness.Nearness(measured, np.append(near.lever[:6], 0.0), near.radius)
     q = held.draw(100, np.random.default_rng(2))
     assert np.isin(q[:, 6], measured[:, 6]).all()
+
+
+def test_the_nearest_measured_configuration_is_the_brute_force_one(iiwa, rng):
+    """The tree finds what comparing with every measured configuration finds: sum_j r_j |d_j|, d_j
+    wrapped to [-pi, pi] (angles beyond pi included), a joint without a lever arm ignored; the
+    spacing counts configurations that differ only in such a joint apart."""
+    measured = rng.uniform(-4.0, 4.0, (300, 7))
+    measured[:20, 6] = measured[20:40, 6]  # identical but for joint 7 ...
+    measured[:20, :6] = measured[20:40, :6]
+    lever = np.append(rng.uniform(0.1, 0.9, 6), 0.0)  # ... which does not move the marker
+    queries = np.concatenate([rng.uniform(-7.0, 7.0, (200, 7)), measured[:5] + 2 * np.pi])
+    near = nearness.Nearness(measured, lever, 0.0)
+    wrapped = (queries[:, None, :] - measured[None] + np.pi) % (2 * np.pi) - np.pi
+    np.testing.assert_allclose(near.distance(queries), (np.abs(wrapped) @ lever).min(axis=1), rtol=1e-12, atol=1e-12)
+    own = np.abs((measured[:, None, :] - measured[None] + np.pi) % (2 * np.pi) - np.pi) @ lever
+    own[own <= 1e-12] = np.inf
+    np.testing.assert_allclose(near._nearest(measured, exclude_self=True), own.min(axis=1), rtol=1e-12)
+    # a command no configuration reaches (NaN angles) has no distance, and no error
+    assert np.isnan(near.distance(np.full((2, 7), np.nan))).all()

@@ -17,13 +17,14 @@ SI inside (m, rad).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .kinematics import ForwardKinematics, KinematicChain
 
 SPACING_QUANTILE = 0.95  # the data's spacing: this quantile of the nearest-neighbour distances
-CHUNK = 4096  # configurations compared at once with every measured one
 
 
 def lever_arms(chain: KinematicChain, q, marker) -> np.ndarray:
@@ -36,8 +37,19 @@ def lever_arms(chain: KinematicChain, q, marker) -> np.ndarray:
     return np.linalg.norm(across, axis=-1).max(axis=0)
 
 
-def _wrapped(difference: np.ndarray) -> np.ndarray:
-    return (difference + np.pi) % (2.0 * np.pi) - np.pi
+class _Metric:
+    """The metric as a k-d tree's (scipy's cKDTree, L1, periodic): coordinate j is q_j r_j on a
+    circle of length 2 pi r_j, so that the tree's periodic L1 distance is sum_j r_j |d_j|, d_j
+    wrapped to [-pi, pi]; a joint without a lever arm has the coordinate 0. The nearest measured
+    configuration is then found in log(m) per query, not by comparing with every one of m."""
+
+    def __init__(self, lever: np.ndarray):
+        self.lever = np.asarray(lever, dtype=float)
+        self.box = np.where(self.lever > 0.0, 2.0 * np.pi * self.lever, 1.0)
+
+    def coordinates(self, q: np.ndarray) -> np.ndarray:
+        out = np.mod(np.atleast_2d(q) * self.lever, self.box)
+        return np.where(out >= self.box, 0.0, out)  # np.mod may round up to the box itself
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,14 +71,24 @@ class Nearness:
         spacing = cls(q, lever, 0.0)._nearest(q, exclude_self=True)
         return cls(q, lever, float(np.quantile(spacing, SPACING_QUANTILE)))
 
+    @cached_property
+    def _tree(self) -> tuple[_Metric, cKDTree]:
+        """The metric and a tree of the measured configurations' distinct points in it."""
+        metric = _Metric(self.lever)
+        return metric, cKDTree(np.unique(metric.coordinates(self.measured), axis=0), boxsize=metric.box)
+
     def _nearest(self, q: np.ndarray, exclude_self: bool = False) -> np.ndarray:
-        out = np.empty(len(q))
-        for begin in range(0, len(q), CHUNK):
-            part = q[begin : begin + CHUNK]
-            distance = np.abs(_wrapped(part[:, None, :] - self.measured[None])) @ self.lever  # (chunk, m)
-            if exclude_self:
-                distance[distance == 0.0] = np.inf
-            out[begin : begin + CHUNK] = distance.min(axis=1)
+        """(n,) m: each of q's distance to the nearest measured configuration; with exclude_self (q
+        measured ones), to the nearest at a distance above 0 (the tree holds distinct points, so the
+        second neighbour of a measured point is the nearest other)."""
+        metric, tree = self._tree
+        out = np.full(len(q), np.nan)  # a configuration with a non-finite angle (none reached) has none
+        finite = np.isfinite(q).all(axis=1)
+        if exclude_self and tree.n < 2:
+            out[finite] = np.inf
+        elif finite.any():
+            distances, _ = tree.query(metric.coordinates(q[finite]), k=2 if exclude_self else 1, p=1)
+            out[finite] = distances[:, 1] if exclude_self else distances
         return out
 
     def distance(self, q) -> np.ndarray:
