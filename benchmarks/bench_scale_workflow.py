@@ -114,6 +114,7 @@ def run(rows: int, root: Path) -> dict:
     refused = re.search(r"(?m)^.*(?:too large|refus).*$", (root / "snakemake.log").read_text())
     return {
         "rows": rows,
+        "effects": loop_effects(results / name),
         "date": date.today().isoformat(),
         "commit": _commit(),
         "exit": snakemake.returncode,
@@ -125,6 +126,13 @@ def run(rows: int, root: Path) -> dict:
             for rule, spent in seconds.items()
         },
     }
+
+
+def loop_effects(campaign_results: Path) -> list[str] | None:
+    """What the loop closure added on the campaign (its sensor's loop_closure.json), None without one:
+    what the stages after it cost depends on it (a residual GP is drawn jointly over configurations)."""
+    found = sorted(campaign_results.glob("*/loop_closure.json"))
+    return json.loads(found[0].read_text()).get("effects_added") if found else None
 
 
 def _peak_of(rule: str, peaks: dict[str, int]) -> int:
@@ -158,6 +166,7 @@ def markdown(records: list[dict]) -> str:
         "",
         f"| | {head} |",
         "|---|" + "---|" * len(records),
+        "| the loop added | " + " | ".join(", ".join(r.get("effects") or ["?"]) for r in records) + " |",
         "| wall, exit | "
         + " | ".join(
             f"{r['wall_s'] / 60:.1f} min, exit {r['exit']}" + (f": {r['refused']}" if r.get("refused") else "")
@@ -206,10 +215,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("rows", type=int, nargs="*", default=[100_000])
     parser.add_argument("--folder", type=Path, default=None, help="keep the campaigns and results here")
+    parser.add_argument("--render", action="store_true", help="rewrite the table from the stored record, run nothing")
     args = parser.parse_args()
     stored = RESULTS / "scale_workflow.json"
     kept = {r["rows"]: r for r in json.loads(stored.read_text())["runs"]} if stored.exists() else {}
-    for rows in args.rows:
+    for rows in [] if args.render else args.rows:
         if args.folder is not None:
             kept[rows] = run(rows, args.folder)
         else:
