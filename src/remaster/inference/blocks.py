@@ -80,9 +80,9 @@ EXTENSIONS = (
 )
 PPM = 1e-6
 # the paper's sum of squares is expanded in the zero-offsets (`BlockModel._expansion`) from this many
-# rows per term of the expansion (3^N): there one evaluation over the rows and one of the expansion
-# cost about the same (7 joints: 40 us at 500 rows, measured); above, the expansion's cost stays and
-# the rows' grows (5.5 ms at 100,000 rows against 32 us)
+# rows per term of the expansion (3^N): below, summing over the rows is as fast (7 joints: about 40 us
+# each way at 500 rows); above, the expansion's cost stays and the rows' grows (benchmarks/bench_expansion.py:
+# 37 us against 11 us at 1,000 rows, 4.0 ms against 15 us at 100,000)
 EXPANDED_ROWS_PER_TERM = 0.25
 MICRORAD_PER_NM = 1e-6
 # An extension column of the Jacobian below this fraction of the longest of its own block is
