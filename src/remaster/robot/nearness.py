@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .kinematics import ForwardKinematics, KinematicChain
 
@@ -72,8 +71,11 @@ class Nearness:
         return cls(q, lever, float(np.quantile(spacing, SPACING_QUANTILE)))
 
     @cached_property
-    def _tree(self) -> tuple[_Metric, cKDTree]:
-        """The metric and a tree of the measured configurations' distinct points in it."""
+    def _tree(self) -> tuple:
+        """The metric and a tree of the measured configurations' distinct points in it (scipy's,
+        imported here: the jobs that only read results import this module and no solver)."""
+        from scipy.spatial import cKDTree
+
         metric = _Metric(self.lever)
         return metric, cKDTree(np.unique(metric.coordinates(self.measured), axis=0), boxsize=metric.box)
 
