@@ -16,7 +16,10 @@ turning. Per (truth, design, seed):
   joint limits is "not determined" (the priors decide it: with joint 3 held, it should be);
 - the acceptance test's verdict (correct models: should fail at the level), and its check against the
   sensor's noise alone (`at_noise`: what a closed loop would claim);
-- the loop-closed zero-offset corrections, with their combined standard uncertainty.
+- the loop-closed zero-offset corrections, with their combined standard uncertainty;
+- what the calibration's own posterior expects of the seed-level counts, each of its draws taken as
+  the arm's truth (`truth_claims.own_posterior_expectations`): the chance of more than 25 % of the
+  commands outside their bound, of the claim within 0.8-2 x the arm's p95, and of it covering it.
 
 Then, per truth and seed, the corrections of the two designs of the same robot (same truth, other
 poses): how often they differ by more than 3 combined standard uncertainties; and the acceptance
