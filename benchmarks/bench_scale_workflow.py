@@ -120,9 +120,9 @@ def run(rows: int, root: Path) -> dict:
         "exit": snakemake.returncode,
         "wall_s": wall,
         "refused": refused.group(0).strip() if refused and snakemake.returncode else None,
-        # the script's peak stands for its rule's (a job runs one script: workflow/scripts/<rule's script>.py)
+        # the script's peak stands for its rule's (a rule's jobs run workflow/scripts/<rule>.py)
         "rules": {
-            rule: {"seconds": sum(spent), "jobs": len(spent), "peak_mb": _peak_of(rule, peaks) / 1e6}
+            rule: {"seconds": sum(spent), "jobs": len(spent), "peak_mb": peaks.get(rule, 0) / 1e6}
             for rule, spent in seconds.items()
         },
     }
@@ -133,11 +133,6 @@ def loop_effects(campaign_results: Path) -> list[str] | None:
     what the stages after it cost depends on it (a residual GP is drawn jointly over configurations)."""
     found = sorted(campaign_results.glob("*/loop_closure.json"))
     return json.loads(found[0].read_text()).get("effects_added") if found else None
-
-
-def _peak_of(rule: str, peaks: dict[str, int]) -> int:
-    """The peak resident bytes of the scripts a rule's jobs ran: the script named like the rule, or 0."""
-    return peaks.get(rule, 0)
 
 
 def _commit() -> str:
@@ -174,8 +169,9 @@ def markdown(records: list[dict]) -> str:
         )
         + " |",
     ]
-    rules = sorted(
-        {rule for r in records for rule in r["rules"]}, key=lambda x: -records[-1]["rules"].get(x, {}).get("seconds", 0)
+    rules = sorted(  # by the largest size's seconds, ties by name: the same table from the same record
+        {rule for r in records for rule in r["rules"]},
+        key=lambda x: (-records[-1]["rules"].get(x, {}).get("seconds", 0), x),
     )
     for rule in rules:
         cells = []

@@ -165,12 +165,26 @@ def _euler_zyx(yaw, pitch, roll, out):
 
 
 @_compiled()
+def _registration(every, t_nr, rotation, translation):
+    """The registration of parameters every (6 + N,): rotation (3, 3) = C T_NR's and translation
+    (3,) = (x, y, z) + C T_NR's, C = Rz Ry Rx of (alpha, beta, gamma), into the arrays given."""
+    correction = np.empty((3, 3))
+    _euler_zyx(every[3], every[4], every[5], correction)
+    for r in range(3):
+        translation[r] = every[r]
+        for c in range(3):
+            rotation[r, c] = 0.0
+            for h in range(3):
+                rotation[r, c] += correction[r, h] * t_nr[h, c]
+            translation[r] += correction[r, c] * t_nr[c, 3]
+
+
+@_compiled()
 def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured):
     """Sum over configurations of |measured_i - T*(theta1) T_NR p_i(theta2)|^2 for m parameter
     vectors every (m, 6 + N) = (x, y, z, alpha, beta, gamma, offsets...): (m,). measured (3, n)."""
     m, joints, n = every.shape[0], cos_q.shape[0], cos_q.shape[1]
     out = np.zeros(m)
-    correction = np.empty((3, 3))
     rotation = np.empty((3, 3))
     translation = np.empty(3)
     cos_d = np.empty(joints)
@@ -180,14 +194,7 @@ def registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, 
         for j in range(joints):
             cos_d[j] = np.cos(every[k, 6 + j])
             sin_d[j] = np.sin(every[k, 6 + j])
-        _euler_zyx(every[k, 3], every[k, 4], every[k, 5], correction)
-        for r in range(3):
-            translation[r] = every[k, r]
-            for c in range(3):
-                rotation[r, c] = 0.0
-                for h in range(3):
-                    rotation[r, c] += correction[r, h] * t_nr[h, c]
-                translation[r] += correction[r, c] * t_nr[c, 3]
+        _registration(every[k], t_nr, rotation, translation)
         _points(rotations, shifts, start, cos_q, sin_q, cos_d, sin_d, x0, x1, x2)
         total = 0.0
         for i in range(n):
@@ -281,21 +288,6 @@ def expansion_sums(rotations, shifts, start, cos_q, sin_q, reference, t_nr, meas
             square[a] += norms[a] - 2.0 * (t0 * p0 + t1 * p1 + t2 * p2)
     totals[4] = n
     return cross, mixed, linear, square, totals
-
-
-@_compiled(fastmath={"contract"})
-def _registration(every, t_nr, rotation, translation):
-    """The registration of parameters every (6 + N,): rotation (3, 3) = C T_NR's and translation
-    (3,) = (x, y, z) + C T_NR's, C = Rz Ry Rx of (alpha, beta, gamma), into the arrays given."""
-    correction = np.empty((3, 3))
-    _euler_zyx(every[3], every[4], every[5], correction)
-    for r in range(3):
-        translation[r] = every[r]
-        for c in range(3):
-            rotation[r, c] = 0.0
-            for h in range(3):
-                rotation[r, c] += correction[r, h] * t_nr[h, c]
-            translation[r] += correction[r, c] * t_nr[c, 3]
 
 
 @_compiled(fastmath={"contract"})
