@@ -532,3 +532,58 @@ def test_a_missing_time_stamp_or_temperature_says_why_the_drift_is_not_offered(c
         "column, so every row needs a value; fill them in for the loop closure to test a drift"
     ) in report.warnings
     assert "drift" not in report.candidates and "joint_compliance" in report.candidates
+
+
+# --------------------------------------------------------------------------- campaigns larger than the loop fits
+
+
+@pytest.mark.parametrize("limit", [7, 20, 33, 1000])
+def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
+    """Every k-th pose in the order of their first rows, whole, k the smallest that leaves at most
+    `limit` rows; all rows when they are fewer; every per-row field goes with its row."""
+    rng = np.random.default_rng(3)
+    sizes = rng.integers(1, 6, size=24)
+    labels = rng.permutation(np.arange(100, 124))  # pose labels unrelated to their measurement order
+    poses = np.repeat(labels, sizes)
+    n = len(poses)
+    data = blocks.Readings(
+        rows=np.arange(n) * 2,
+        q=rng.normal(size=(n, 7)),
+        measured=rng.normal(size=(n, 3)),
+        drift=np.arange(n, dtype=float),
+        weights=rng.uniform(0.5, 2.0, size=(n, 3)),
+        orientations=rng.normal(size=(n, 3, 3)),
+    )
+    fitted, fitted_poses, record = loop_closure.fitted_rows(data, poses, limit)
+    assert record["of"] == n and record["rows"] == len(fitted.rows) and record["limit"] == limit
+    if n <= limit:
+        assert fitted is data and record["every_kth_pose"] == 1
+        return
+    k = record["every_kth_pose"]
+    assert len(fitted.rows) <= limit < sizes[:: k - 1].sum()  # one pose in k - 1 would be too many
+    assert list(dict.fromkeys(fitted_poses)) == list(labels[::k])  # whole poses, every k-th, in order
+    keep = np.isin(poses, labels[::k])
+    for name in ("rows", "q", "measured", "drift", "weights", "orientations"):
+        np.testing.assert_array_equal(getattr(fitted, name), getattr(data, name)[keep], err_msg=name)
+
+
+def test_a_campaign_larger_than_the_loop_fits_is_thinned_screened_and_measured_whole(iiwa):
+    """The loop fits one pose in k and still names the effect; every optimization row is screened
+    (those it did not fit as predictions), measured before and after, and the report says so."""
+    truth, sensor_changes = EFFECTS["joint_compliance"]
+    sensor = simulated(iiwa, "joint_compliance", truth, sensor_changes)
+    settings = dataclasses.replace(LAPLACE_ONLY, fit_rows=35)
+    result = closed(iiwa, sensor, settings)
+    report = result.report
+    thinning = report.settings["fitted_rows"]
+    optimization_rows = int((sensor.table["set"] == "optimization").sum())
+    assert thinning["of"] == optimization_rows == 60 and thinning["rows"] <= 35
+    assert thinning["every_kth_pose"] == 2
+    assert report.effects_added == ("joint_compliance",)
+    screen = report.gross_errors["screens"]["optimization"]
+    assert screen["rows_tested"] == optimization_rows
+    assert None not in screen["threshold_distance"].values()  # rows fitted and rows predicted, each by its law
+    assert len(result.residuals["after"]["optimization"]) == optimization_rows
+    said = f"fitted {thinning['rows']} of the optimization set's {optimization_rows} rows (one pose in 2"
+    assert any(said in w for w in report.warnings)
+    assert report.after["validation"]["rms_per_axis_mm"] * 1e-3 < 3 * NOISE

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -190,6 +190,24 @@ class Readings:
         if key == "drift":
             return np.broadcast_to(self.drift[:, None], self.q.shape)
         return getattr(self, key)
+
+    def subset(self, keep) -> Readings:
+        """The readings of the rows keep selects ((n,) bool or indices), everything per row with them."""
+
+        def part(values):
+            return None if values is None else values[keep]
+
+        return replace(
+            self,
+            rows=self.rows[keep],
+            q=self.q[keep],
+            measured=self.measured[keep],
+            torques=part(self.torques),
+            payload_torques=part(self.payload_torques),
+            drift=part(self.drift),
+            weights=part(self.weights),
+            orientations=part(self.orientations),
+        )
 
 
 def _drift_column(table: pd.DataFrame, column: str | None) -> str | None:

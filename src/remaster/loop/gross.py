@@ -186,6 +186,16 @@ def _quadratic(e: np.ndarray, covariance: np.ndarray) -> np.ndarray:
     return np.sum(projected**2 / np.maximum(values, floor), axis=1)
 
 
+# rows whose Jacobian is taken at once: its central differences hold (2 P, rows, 3) predictions
+LEVERAGE_ROWS = 20_000
+
+
+def _leverage(model, theta, covariance) -> np.ndarray:
+    """(n, 3, 3) J_i Sigma J_i^T of the model's rows, J_i their (3, P) whitened Jacobian at theta."""
+    jacobian = model.weighted_jacobian(theta, JACOBIAN_STEP).reshape(model.n_points, 3, -1)
+    return np.einsum("nip,pq,njq->nij", jacobian, covariance, jacobian)
+
+
 def screen(selection, fitted: Readings, data: Readings, poses, set_name: str, alpha: float, max_share: float) -> Screen:
     """Judge every row of `data` (a set's measured rows, poses (n,)) by the selection's final model
     (`remaster.loop.selection.Selection`), fitted on `fitted` (module docstring)."""
@@ -234,8 +244,15 @@ def screen(selection, fitted: Readings, data: Readings, poses, set_name: str, al
         )
     raw = model.residuals(final.theta)
     e = model.whitened(raw)
-    jacobian = model.weighted_jacobian(final.theta, JACOBIAN_STEP).reshape(n, 3, -1)
-    leverage = np.einsum("nip,pq,njq->nij", jacobian, covariance, jacobian) / mode.sigma**2
+    leverage = (
+        np.concatenate(
+            [
+                _leverage(final.model.on(data.subset(slice(begin, begin + LEVERAGE_ROWS))), final.theta, covariance)
+                for begin in range(0, n, LEVERAGE_ROWS)
+            ]
+        )
+        / mode.sigma**2
+    )
     own = mode.jacobian.reshape(-1, 3, mode.jacobian.shape[1])
     used = float(np.einsum("nip,pq,niq->", own, covariance, own) / mode.sigma**2)  # tr H over the fitted rows
     dof = mode.n_residuals - used

@@ -22,12 +22,9 @@ SI inside (rad); the report is JSON-ready in degrees where its keys say so.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from ..inference import evidence
-from ..inference.blocks import Readings
 from ..inference.uncertainty import between_design, jackknife_variance
 from ..units import DEG
 from .selection import Fitted, TimeBlocked
@@ -54,29 +51,15 @@ def too_few_warning(between: dict, rows: int, poses: int, kept: bool) -> str | N
     )
 
 
-def subset(data: Readings, keep: np.ndarray) -> Readings:
-    """The readings of the rows where keep (n,) is True."""
-    return replace(
-        data,
-        rows=data.rows[keep],
-        q=data.q[keep],
-        measured=data.measured[keep],
-        torques=None if data.torques is None else data.torques[keep],
-        payload_torques=None if data.payload_torques is None else data.payload_torques[keep],
-        drift=None if data.drift is None else data.drift[keep],
-        weights=None if data.weights is None else data.weights[keep],
-    )
-
-
 def leave_group_out(fitted: Fitted, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """((K, P) the model's mode refitted without each fold of folds (n,) in turn (sorted fold
     labels), from the full fit's mode; (K,) each refit's RMS per axis (m) on the fold it left out)."""
     data = fitted.model.data
     estimates, held_out = [], []
     for fold in np.unique(folds):
-        model = fitted.model.on(subset(data, folds != fold))
+        model = fitted.model.on(data.subset(folds != fold))
         theta = evidence.posterior_mode(model, fitted.theta).theta
-        residuals = fitted.model.on(subset(data, folds == fold)).residuals(theta)
+        residuals = fitted.model.on(data.subset(folds == fold)).residuals(theta)
         estimates.append(theta)
         held_out.append(float(np.sqrt(np.mean(residuals**2))))
     return np.array(estimates), np.array(held_out)

@@ -165,11 +165,16 @@ class _Screened:
     every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
     screens: {set: `gross.Screen`}; provisional: the prepare stage's rows; history: the screen's
     rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
-    noise model cannot be offered in the fit's frame (None when it can)."""
+    noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
+    optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or every
+    k-th pose of a set larger than the loop fits); thinning: `fitted_rows`' record."""
 
     selection: Selection
     data: dict[str, Readings]
     poses: dict[str, np.ndarray]
+    fitted: Readings
+    fitted_poses: np.ndarray
+    thinning: dict
     every: dict[str, Readings]
     every_poses: dict[str, np.ndarray]
     flagged: dict[str, np.ndarray]
@@ -196,17 +201,9 @@ def _select_screened(
         poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
         tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
-        selection = select(
-            chain,
-            data["optimization"],
-            sensor.marker,
-            t_nr,
-            base_held,
-            poses["optimization"],
-            settings,
-            tracker=tracker,
-        )
-        screens["optimization"] = _screen(selection, data, every, every_poses, "optimization", settings)
+        fitted, fitted_poses, thinning = fitted_rows(data["optimization"], poses["optimization"], settings.fit_rows)
+        selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=tracker)
+        screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
         found = screens["optimization"].gross
         history.append({"fitted_without": excluded.tolist(), "found": found.tolist()})
         if np.array_equal(found, excluded):
@@ -216,13 +213,47 @@ def _select_screened(
             break  # the screen turns in a cycle: the last fit stands, and the report says so
         excluded = found
     # the validation set is screened here, with the final model, after every choice has been made
-    screens["validation"] = _screen(selection, data, every, every_poses, "validation", settings)
+    screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
     flagged = {"optimization": excluded, "validation": screens["validation"].gross}
     data["validation"] = blocks.readings(chain, sensor, "validation", settings.model, flagged["validation"])
     poses["validation"] = sensor.table.loc[data["validation"].rows, "pose"].to_numpy()
     return _Screened(
-        selection, data, poses, every, every_poses, flagged, screens, provisional, history, settled, frame_problem
+        selection,
+        data,
+        poses,
+        fitted,
+        fitted_poses,
+        thinning,
+        every,
+        every_poses,
+        flagged,
+        screens,
+        provisional,
+        history,
+        settled,
+        frame_problem,
     )
+
+
+def fitted_rows(data: Readings, poses, limit: int) -> tuple[Readings, np.ndarray, dict]:
+    """The optimization readings (n rows) the loop fits, their poses (n,) and the record of how they
+    were chosen: every row when there are at most `limit`; else whole poses, every k-th in
+    measurement order (of their first row), k the smallest that leaves at most `limit` rows, so
+    that the rows fitted span the campaign's time and configurations as the set does."""
+    poses = np.asarray(poses)
+    record = {"limit": int(limit), "rows": len(data.rows), "of": len(data.rows), "every_kth_pose": 1}
+    if len(data.rows) <= limit:
+        return data, poses, record
+    labels, first, member = np.unique(poses, return_index=True, return_inverse=True)
+    rank = np.empty(len(labels), dtype=int)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(labels))
+    per_pose = np.bincount(member)[np.argsort(first, kind="stable")]  # rows of each pose, in measurement order
+    k = 2
+    while per_pose[::k].sum() > limit:
+        k += 1
+    keep = rank[member] % k == 0
+    record.update(rows=int(keep.sum()), every_kth_pose=k)
+    return data.subset(keep), poses[keep], record
 
 
 def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr, settings: LoopSettings):
@@ -243,9 +274,16 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     what is left (with where it lives), the gross-error screen's, and an MCMC refit short of the
     convergence criteria."""
     warnings = list(closed["warnings"])
-    few_poses = fold_warning(screened.poses["optimization"], settings)
+    few_poses = fold_warning(screened.fitted_poses, settings)
     if few_poses:
         warnings.append(few_poses)
+    thinning = screened.thinning
+    if thinning["rows"] < thinning["of"]:
+        warnings.append(
+            f"the loop closure fitted {thinning['rows']} of the optimization set's {thinning['of']} rows (one pose in "
+            f"{thinning['every_kth_pose']}, in measurement order; loop_closure/fit_rows = {thinning['limit']}): "
+            "its choices, modes and uncertainties are those rows'; every row was screened and measured"
+        )
     if closed["closed"] is False and not screened.selection.gp_added:
         where = gp_section["depends_on"] if gp_section else []
         in_joints = (gp_section or {}).get("joint_error_form") or {}
@@ -298,7 +336,7 @@ def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, setti
     candidates (`jackknife.too_few_warning`), jackknife groups whose refit departed
     (`jackknife.departed_groups_warning`), and a drift candidate left out because its time or
     temperature column has rows without a value (never silently)."""
-    data, poses = screened.data["optimization"], screened.poses["optimization"]
+    data, poses = screened.fitted, screened.fitted_poses
     too_few = too_few_warning(between, len(data.rows), len(np.unique(poses)), not screened.selection.added)
     warnings = [w for w in (too_few, departed_groups_warning(between)) if w]
     if "drift" in settings.candidates and data.drift_gaps:
@@ -399,7 +437,8 @@ def _link_priors(
     loop_closure.json's `link_prior_scale` (the scale and each scale's log evidence)."""
     if "link_geometry" not in settings.candidates:
         return settings, {"scale": 1.0, "log_evidence": {}, "why": "link_geometry not offered"}
-    data = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
+    every = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
+    data = fitted_rows(every, sensor.table.loc[every.rows, "pose"].to_numpy(), settings.fit_rows)[0]
     scale, at = link_prior_scale(chain, data, sensor.marker, t_nr, base_held, settings.priors)
     chosen = replace(settings, priors=scaled_priors(settings.priors, scale))
     why = (
@@ -410,13 +449,15 @@ def _link_priors(
     return chosen, {"scale": scale, "log_evidence": at, "why": why}
 
 
-def _settings_report(settings: LoopSettings, chain: KinematicChain, link_scale: dict) -> dict:
+def _settings_report(settings: LoopSettings, chain: KinematicChain, link_scale: dict, thinning: dict) -> dict:
     """loop_closure.json's settings: the loop's, which payload the compliance's torques assume (the
-    configured one, or a URDF's own tool) and the link geometry's prior scale (`_link_priors`)."""
+    configured one, or a URDF's own tool), the link geometry's prior scale (`_link_priors`) and the
+    optimization rows fitted (`fitted_rows`)."""
     return {
         **settings.report(),
         "payload_assumed": settings.model.payload(chain).report(),
         "link_prior_scale": link_scale,
+        "fitted_rows": thinning,
     }
 
 
@@ -437,7 +478,7 @@ def close_loop(
     finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
     settings, link_scale = _link_priors(chain, sensor, t_nr, base_held, settings, exclude)
     screened = _select_screened(chain, sensor, t_nr, base_held, settings, exclude)
-    selection, data, poses, flagged = screened.selection, screened.data, screened.poses, screened.flagged
+    selection, data, flagged = screened.selection, screened.data, screened.flagged
     base, final = selection.base, selection.final
     samples, mcmc = None, None
     if settings.mcmc is not None:
@@ -449,25 +490,26 @@ def close_loop(
     sigma_after = float(after_table.set_index("parameter").loc[SIGMA, "mean"])
     # the validation set is read here, after every choice has been made
     before, predicted, after, kept = _accuracies(screened)
+    fitted = screened.fitted
     closed = closure_report(
         selection,
-        data["optimization"],
+        fitted,
         sensor.noise,
         settings.closure_ratio,
-        noise_floor.point_std_rms(sensor.point_std(data["optimization"].rows)),
+        noise_floor.point_std_rms(sensor.point_std(fitted.rows)),
     )
-    gp_section = _residual_section(selection, chain, data["optimization"], sensor.marker, t_nr, settings)
+    gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
     # how far the zero-offsets move with the poses measured (the certificate's between-design component)
     between = {
-        name: zero_offset_jackknife(fitted, poses["optimization"], settings.jackknife_groups)
-        for name, fitted in (("paper", base), ("loop", final))
+        name: zero_offset_jackknife(model, screened.fitted_poses, settings.jackknife_groups)
+        for name, model in (("paper", base), ("loop", final))
     }
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,
         evidence=EVIDENCE,
         selection_data="optimization set only",
-        settings=_settings_report(settings, chain, link_scale),
+        settings=_settings_report(settings, chain, link_scale, screened.thinning),
         **_selection_fields(selection),
         validation_rmse_before_mm=before["validation"]["rmse_mm"],
         validation_rmse_after_mm=after["validation"]["rmse_mm"],
@@ -485,9 +527,7 @@ def close_loop(
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
         gross_errors=gross_report(flagged, *screen, kept, settings.gross_errors),
         between_design=between,
-        harmonics=harmonics_report(
-            final.mode, final.reduction, data["optimization"].q, settings.harmonic_level, samples
-        )
+        harmonics=harmonics_report(final.mode, final.reduction, fitted.q, settings.harmonic_level, samples)
         if harmonics.BLOCK in selection.added
         else None,
     )
@@ -501,12 +541,13 @@ def close_loop(
     return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
 
 
-def _screen(selection: Selection, data, every, every_poses, set_name: str, settings: LoopSettings) -> gross.Screen:
-    """Every measured row of one set judged by the selection's final model (`remaster.loop.gross`)."""
+def _screen(selection: Selection, fitted: Readings, every, every_poses, set_name: str, settings) -> gross.Screen:
+    """Every measured row of one set judged by the selection's final model (`remaster.loop.gross`),
+    fitted on the readings `fitted`."""
     level = settings.gross_errors
     return gross.screen(
         selection,
-        data["optimization"],
+        fitted,
         every[set_name],
         every_poses[set_name],
         set_name,

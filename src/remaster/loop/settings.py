@@ -33,7 +33,9 @@ class LoopSettings:
     noise model (`remaster.noise`), None not to offer it; gross_errors: {'alpha', 'max_share'} of the
     screen of every row with the final model (`remaster.loop.gross`, from the config's `outliers`);
     harmonic_level: the family-wise level at which a joint's harmonic order is named once
-    `joint_harmonics` is added (`remaster.loop.harmonics`; its orders are `model.harmonic_orders`)."""
+    `joint_harmonics` is added (`remaster.loop.harmonics`; its orders are `model.harmonic_orders`);
+    fit_rows: the optimization rows the loop fits at most (a larger set is thinned to every k-th
+    pose, `remaster.loop.loop_closure.fitted_rows`)."""
 
     candidates: tuple[str, ...]
     min_log_evidence_gain: float
@@ -50,6 +52,7 @@ class LoopSettings:
     tracker_noise: dict | None
     gross_errors: dict
     harmonic_level: float = 0.01
+    fit_rows: int = 20000
 
     def report(self) -> dict:
         """The settings as loop_closure.json records them (JSON-ready)."""
@@ -71,6 +74,7 @@ class LoopSettings:
             "closure_ratio": self.closure_ratio,
             "tracker_noise": self.tracker_noise,
             "gross_errors": self.gross_errors,
+            "fit_rows": self.fit_rows,
         }
 
 
@@ -105,6 +109,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
         tracker_noise=_tracker_noise_settings(config["tracker_noise"]),
         gross_errors={"alpha": float(outliers["alpha"]), "max_share": float(outliers["max_share"])},
         harmonic_level=float(config["harmonics"]["level"]),
+        fit_rows=int(config["fit_rows"]),
     )
 
 

@@ -42,6 +42,11 @@ DRAW_BLOCK = 2000  # readings drawn jointly at once: a (2000, 2000) factor, 32 M
 JITTER = 1e-8  # relative to s^2, for the inducing covariance's Cholesky factor
 
 
+def _blocks(q: np.ndarray) -> range:
+    """The first reading of each block of CHUNK readings of q (n, N)."""
+    return range(0, len(q), CHUNK)
+
+
 def evenly_spaced(n: int, count: int) -> np.ndarray:
     """At most `count` row indices spread evenly over n rows (all of them when n <= count):
     deterministic, and representative when rows are in measurement order."""
@@ -128,18 +133,27 @@ class ResidualGP:
         self.n_rows = n
 
     def mean(self, q) -> np.ndarray:
-        """Posterior mean of g (n*, 3) m at readings q (n*, N) rad."""
-        return kernel(np.asarray(q, dtype=float), self.inducing, self.hyper) @ self.weights
+        """Posterior mean of g (n*, 3) m at readings q (n*, N) rad (CHUNK readings at a time, so that
+        the (n*, inducing) covariances never exist at once)."""
+        q = np.asarray(q, dtype=float)
+        return np.concatenate(
+            [np.empty((0, 3))]
+            + [kernel(q[begin : begin + CHUNK], self.inducing, self.hyper) @ self.weights for begin in _blocks(q)]
+        )
 
     def variance(self, q) -> np.ndarray:
         """Posterior variance of each component of g (n*,) m^2 at readings q (n*, N), without the
-        noise: s^2 far from the data."""
+        noise: s^2 far from the data (CHUNK readings at a time)."""
         import scipy.linalg
 
-        k_sm = kernel(np.asarray(q, dtype=float), self.inducing, self.hyper)
-        explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
-        left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)
-        return np.maximum(self.hyper.signal_std**2 - explained + left, 0.0)
+        q = np.asarray(q, dtype=float)
+        out = np.empty(len(q))
+        for begin in _blocks(q):
+            k_sm = kernel(q[begin : begin + CHUNK], self.inducing, self.hyper)
+            explained = np.sum(k_sm.T * scipy.linalg.cho_solve(self._k_factor, k_sm.T), axis=0)
+            left = self.hyper.noise_std**2 * np.sum(k_sm.T * scipy.linalg.cho_solve(self._a_factor, k_sm.T), axis=0)
+            out[begin : begin + CHUNK] = np.maximum(self.hyper.signal_std**2 - explained + left, 0.0)
+        return out
 
     def draws(self, q, count: int, rng: np.random.Generator) -> np.ndarray:
         """`count` draws (count, n*, 3) m of g at readings q (n*, N), jointly across the readings, so
