@@ -507,6 +507,25 @@ def test_theoretical_errors_in_blocks_of_draws_are_the_same_numbers(iiwa, rng, m
     assert whole.shape == (30 * 40,) and np.array_equal(whole, blocked)
 
 
+def test_theoretical_errors_beyond_their_pairs_are_a_systematic_sample_of_them(iiwa, rng, monkeypatch):
+    """Above THEORETICAL_PAIRS, draw i at the configurations i mod k, i mod k + k, ...: exactly those
+    pairs' errors, every configuration reached, and a summary close to every pair's."""
+    q = metrics.random_configurations(iiwa, 40, rng)
+    draws = rng.normal(0.0, np.radians(0.05), (30, 7))
+    marker = np.array([0.1, 0, 0.02])
+    whole = metrics.theoretical_errors(iiwa, q, marker, np.zeros(7), draws, None, rng).reshape(30, 40)
+    monkeypatch.setattr(metrics, "THEORETICAL_PAIRS", 300)
+    assert metrics.theoretical_stride(30, 40) == 4
+    sampled = metrics.theoretical_errors(iiwa, q, marker, np.zeros(7), draws, None, rng)
+    draw, configuration = np.meshgrid(np.arange(30), np.arange(40), indexing="ij")
+    chosen = configuration % 4 == draw % 4
+    assert len(sampled) == chosen.sum() == 300
+    np.testing.assert_allclose(np.sort(sampled), np.sort(whole[chosen]), rtol=1e-12)
+    assert set(configuration[chosen]) == set(range(40))
+    full, part = metrics.error_summary(whole), metrics.error_summary(sampled)
+    assert part["mean"] == pytest.approx(full["mean"], rel=0.1)
+
+
 def test_error_summary_leaves_the_callers_values_as_they_were(rng):
     """The quantiles partition a copy in place (memory): the caller's array keeps its order."""
     values = rng.gamma(2.0, 1.0, 1001)

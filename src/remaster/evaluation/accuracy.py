@@ -313,7 +313,9 @@ REPORT_NOTES = {
     "fitted registration T*(Theta1) T_NR",
     "theoretical": "distances in the robot frame between the method's TCP and the TCPs of posterior draws "
     "(whole posterior rows), with each draw's N(0, sigma^2 I3) added except for zero-offsets "
-    "only; optimization configurations include rows whose marker was not seen",
+    "only; optimization configurations include rows whose marker was not seen; above "
+    f"{metrics.THEORETICAL_PAIRS:,} draw x configuration pairs, a systematic sample of them (draw i at the "
+    "configurations i mod k, i mod k + k, ...; the count column says how many)",
     "validation_registration": {
         POST_REGISTRATION: REGISTRATION_AS_FITTED,
         POST_REGISTRATION_REFIT: REGISTRATION_REFIT,

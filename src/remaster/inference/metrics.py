@@ -17,6 +17,7 @@ statistics: mean, rmse, q2.5, q97.5, p95, count), shown in mm through `in_mm` wh
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -130,30 +131,48 @@ def theoretical_errors(
     """Theoretical positioning errors (m), shape (m * n,), draw-major: the distance between the
     TCP given by reference_offsets (N,) (the MLE, or zeros for Vernier) and the TCP of each of m
     posterior draws (m, N), at each configuration q (n, N), all in the robot frame (the
-    registration does not move TCPs relative to each other, so it plays no part).
+    registration does not move TCPs relative to each other, so it plays no part). Above
+    THEORETICAL_PAIRS pairs, a systematic sample of them (`theoretical_stride`): draw i at the
+    configurations i mod k, i mod k + k, ..., shape (about THEORETICAL_PAIRS,).
 
     draws_sigma (m,) m adds each draw's isotropic Gaussian error (table
     theor_accuracy_measure_all); None gives the error of the zero-offsets alone (table
     theor_accuracy_measure). rng draws the Gaussian error.
     """
-    reference = ForwardKinematics(chain, q).points(marker, np.asarray(reference_offsets, dtype=float))
+    q = np.asarray(q, dtype=float)
     draws_offsets = np.atleast_2d(np.asarray(draws_offsets, dtype=float))
     sigma = None if draws_sigma is None else np.asarray(draws_sigma, dtype=float)
     if sigma is not None and sigma.shape != (len(draws_offsets),):
         raise ValueError(f"draws_sigma must have shape ({len(draws_offsets)},), got {sigma.shape}")
-    # a block of draws at a time: the TCPs of all draws at all configurations would take m n 3
-    # doubles (3.4 GB for 2000 draws at 70,000 configurations); the Gaussian errors come from rng
-    # in the same order either way (draw-major), so the numbers are the same
-    block = max(1, TCPS_PER_BLOCK // max(len(reference), 1))
-    out = np.empty((len(draws_offsets), len(reference)))
-    for start in range(0, len(draws_offsets), block):
-        part = slice(start, start + block)
-        tcps = probable_tcps(chain, q, marker, draws_offsets[part], None if sigma is None else sigma[part], rng)
-        out[part] = np.linalg.norm(tcps - reference, axis=-1)
-    return out.ravel()
+    stride = theoretical_stride(len(draws_offsets), len(q))
+    out = []
+    for first in range(min(stride, len(draws_offsets))):
+        at = q[first::stride]
+        reference = ForwardKinematics(chain, at).points(marker, np.asarray(reference_offsets, dtype=float))
+        drawn = np.arange(first, len(draws_offsets), stride)
+        # a block of draws at a time: the TCPs of all draws at all configurations would take m n 3
+        # doubles (3.4 GB for 2000 draws at 70,000 configurations); the Gaussian errors come from rng
+        # in the same order either way (draw-major), so the numbers are the same
+        block = max(1, TCPS_PER_BLOCK // max(len(reference), 1))
+        for start in range(0, len(drawn), block):
+            part = drawn[start : start + block]
+            tcps = probable_tcps(chain, at, marker, draws_offsets[part], None if sigma is None else sigma[part], rng)
+            out.append(np.linalg.norm(tcps - reference, axis=-1).ravel())
+    return np.concatenate(out) if out else np.empty(0)
 
 
 TCPS_PER_BLOCK = 2**20  # TCPs held at once by theoretical_errors (24 MB)
+# draw x configuration pairs theoretical_errors evaluates at most (1.1 GB of errors, and the
+# quantiles are taken in place): 2000 draws at 70,000 configurations; a million-row campaign's
+# 700,000 optimization configurations would be 11 GB
+THEORETICAL_PAIRS = 140_000_000
+
+
+def theoretical_stride(draws: int, configurations: int) -> int:
+    """k of `theoretical_errors`' sample: 1 (every pair) up to THEORETICAL_PAIRS pairs, else the
+    smallest k that brings them to at most that many; every configuration is still reached (by
+    every k-th draw) as long as there are at least k draws."""
+    return max(1, math.ceil(draws * configurations / THEORETICAL_PAIRS))
 
 
 def joint_space_bounds(chain: KinematicChain) -> tuple[np.ndarray, np.ndarray]:
