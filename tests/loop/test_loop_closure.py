@@ -557,14 +557,24 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
     fitted, fitted_poses, record = loop_closure.fitted_rows(data, poses, limit)
     assert record["of"] == n and record["rows"] == len(fitted.rows) and record["limit"] == limit
     if n <= limit:
-        assert fitted is data and record["every_kth_pose"] == 1
+        assert fitted is data and record["one_in"] == 1
         return
-    k = record["every_kth_pose"]
+    k = record["one_in"]
+    assert record["unit"] == "pose"
     assert len(fitted.rows) <= limit < sizes[:: k - 1].sum()  # one pose in k - 1 would be too many
     assert list(dict.fromkeys(fitted_poses)) == list(labels[::k])  # whole poses, every k-th, in order
     keep = np.isin(poses, labels[::k])
     for name in ("rows", "q", "measured", "drift", "weights", "orientations"):
         np.testing.assert_array_equal(getattr(fitted, name), getattr(data, name)[keep], err_msg=name)
+
+
+def test_a_pose_larger_than_the_limit_is_thinned_by_rows():
+    """A continuous log under one pose label cannot be thinned by whole poses: one row in k."""
+    data = blocks.Readings(rows=np.arange(100), q=np.zeros((100, 6)), measured=np.zeros((100, 3)))
+    fitted, poses, record = loop_closure.fitted_rows(data, np.zeros(100, dtype=int), 30)
+    assert record == {"limit": 30, "rows": 25, "of": 100, "one_in": 4, "unit": "row"}
+    np.testing.assert_array_equal(fitted.rows, np.arange(0, 100, 4))
+    assert len(poses) == 25
 
 
 def test_a_campaign_larger_than_the_loop_fits_is_thinned_screened_and_measured_whole(iiwa):
@@ -578,7 +588,7 @@ def test_a_campaign_larger_than_the_loop_fits_is_thinned_screened_and_measured_w
     thinning = report.settings["fitted_rows"]
     optimization_rows = int((sensor.table["set"] == "optimization").sum())
     assert thinning["of"] == optimization_rows == 60 and thinning["rows"] <= 35
-    assert thinning["every_kth_pose"] == 2
+    assert thinning["one_in"] == 2 and thinning["unit"] == "pose"
     assert report.effects_added == ("joint_compliance",)
     screen = report.gross_errors["screens"]["optimization"]
     assert screen["rows_tested"] == optimization_rows

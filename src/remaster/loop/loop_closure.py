@@ -237,22 +237,30 @@ def _select_screened(
 
 def fitted_rows(data: Readings, poses, limit: int) -> tuple[Readings, np.ndarray, dict]:
     """The optimization readings (n rows) the loop fits, their poses (n,) and the record of how they
-    were chosen: every row when there are at most `limit`; else whole poses, every k-th in
+    were chosen: every row when there are at most `limit`; else whole poses, one in k in
     measurement order (of their first row), k the smallest that leaves at most `limit` rows, so
-    that the rows fitted span the campaign's time and configurations as the set does."""
+    that the rows fitted span the campaign's time and configurations as the set does. When no k
+    does (a pose of more rows than that: a continuous log under one label), one row in k."""
     poses = np.asarray(poses)
-    record = {"limit": int(limit), "rows": len(data.rows), "of": len(data.rows), "every_kth_pose": 1}
-    if len(data.rows) <= limit:
+    n = len(data.rows)
+    record = {"limit": int(limit), "rows": n, "of": n, "one_in": 1, "unit": "pose"}
+    if n <= limit:
         return data, poses, record
     labels, first, member = np.unique(poses, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
     rank = np.empty(len(labels), dtype=int)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(labels))
-    per_pose = np.bincount(member)[np.argsort(first, kind="stable")]  # rows of each pose, in measurement order
-    k = 2
-    while per_pose[::k].sum() > limit:
-        k += 1
-    keep = rank[member] % k == 0
-    record.update(rows=int(keep.sum()), every_kth_pose=k)
+    rank[order] = np.arange(len(labels))
+    per_pose = np.bincount(member, minlength=len(labels))[order]  # rows of each pose, in measurement order
+    if per_pose[0] <= limit:  # then some k does: the first pose alone at the latest
+        k = 2
+        while per_pose[::k].sum() > limit:
+            k += 1
+        keep = rank[member] % k == 0
+        record["one_in"] = k
+    else:
+        keep = np.arange(n) % math.ceil(n / limit) == 0
+        record.update(one_in=math.ceil(n / limit), unit="row")
+    record["rows"] = int(keep.sum())
     return data.subset(keep), poses[keep], record
 
 
@@ -280,8 +288,8 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     thinning = screened.thinning
     if thinning["rows"] < thinning["of"]:
         warnings.append(
-            f"the loop closure fitted {thinning['rows']} of the optimization set's {thinning['of']} rows (one pose in "
-            f"{thinning['every_kth_pose']}, in measurement order; loop_closure/fit_rows = {thinning['limit']}): "
+            f"the loop closure fitted {thinning['rows']} of the optimization set's {thinning['of']} rows (one "
+            f"{thinning['unit']} in {thinning['one_in']}, in measurement order; loop_closure/fit_rows = {thinning['limit']}): "
             "its choices, modes and uncertainties are those rows'; every row was screened and measured"
         )
     if closed["closed"] is False and not screened.selection.gp_added:
