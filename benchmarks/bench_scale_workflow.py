@@ -10,7 +10,7 @@ shorter than that can be missed.
 Several sizes may be given (python benchmarks/bench_scale_workflow.py 10000 30000): each is run and
 recorded in benchmarks/results/scale_workflow.json (kept with its date and commit, so that sizes
 measured another day stay beside it), and the table, with how each rule's job-seconds grow between
-sizes measured the same day (the exponent b of seconds ~ rows^b), is written into
+sizes measured at the same commit (the exponent b of seconds ~ rows^b), is written into
 benchmarks/README.md between its bench_scale_workflow markers. A size the workflow refuses (its
 first job's memory estimate) is recorded with Snakemake's exit status and the refusal.
 """
@@ -157,7 +157,7 @@ def markdown(records: list[dict]) -> str:
     lines = [
         "Measured by `bench_scale_workflow.py`: `snakemake -j2` from empty results on one campaign of each size; "
         "per rule the seconds of its jobs summed (job-seconds; 1 s stamps) and the peak resident memory of "
-        "its jobs, then how the seconds grow between sizes measured the same day (b in seconds ~ rows^b).",
+        "its jobs, then how the seconds grow between sizes measured at the same commit (b in seconds ~ rows^b).",
         "",
         f"| | {head} |",
         "|---|" + "---|" * len(records),
@@ -183,7 +183,7 @@ def markdown(records: list[dict]) -> str:
                 else f"{part['seconds']:.0f} s" + (f", {part['peak_mb']:.0f} MB" if part["peak_mb"] else "")
             )
         lines.append(f"| {rule} | " + " | ".join(cells) + " |")
-    pairs = [(a, b) for a, b in zip(records, records[1:]) if a["date"] == b["date"] and a["exit"] == b["exit"] == 0]
+    pairs = [(a, b) for a, b in zip(records, records[1:]) if a["commit"] == b["commit"] and a["exit"] == b["exit"] == 0]
     for small, large in pairs:
         grown = growth(small, large)
         if grown:
