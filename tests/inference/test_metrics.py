@@ -42,6 +42,23 @@ def test_relative_errors_vanish_for_a_rigidly_moved_cloud(rng):
     np.testing.assert_allclose(errors, 0.0, atol=1e-12)
 
 
+def test_relative_errors_are_every_pair_of_each_group_in_label_then_row_order(rng):
+    """Groups interleaved in the rows, labels out of order, NaN rows skipped: each group's pairs i < j
+    of usable rows, groups by label."""
+    n = 300
+    groups = rng.choice(np.array(["b", "a", "d", "c"] * 10 + [f"g{k}" for k in range(20)]), n)
+    p_ref, p_robot = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    p_ref[rng.choice(n, 15, replace=False), 1] = np.nan
+    usable = np.all(np.isfinite(p_ref), axis=1)
+    expected = []
+    for label in sorted(set(groups)):
+        rows = np.flatnonzero(usable & (groups == label))
+        for a, i in enumerate(rows):
+            for j in rows[a + 1 :]:
+                expected.append(abs(np.linalg.norm(p_ref[i] - p_ref[j]) - np.linalg.norm(p_robot[i] - p_robot[j])))
+    np.testing.assert_allclose(metrics.relative_errors(p_ref, p_robot, groups), expected, rtol=0, atol=1e-14)
+
+
 def test_relative_error_of_a_hand_computed_pair(rng):
     p_ref = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])  # 5 apart
     p_robot = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 7.0]])  # 6 apart
