@@ -4,6 +4,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from remaster.evaluation import iso9283
 from remaster.evaluation.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
@@ -79,3 +80,24 @@ def test_the_per_pose_report_gives_each_repeated_configuration_its_axes_and_rp()
     once = SimpleNamespace(table=readings.iloc[:2], joint_columns=("q1", "q2"))
     none = iso9283.iso9283_poses_table({"laser_tracker": once}, {"laser_tracker": _errors(range(2), residuals)})
     assert len(none) == 2 and none["note"].str.startswith("no configuration is measured more than once").all()
+
+
+def test_every_group_at_once_is_each_group_by_itself():
+    """Groups of 1 to 6 cycles interleaved in the rows: AP per axis and overall, and RP = l-bar + 3 S
+    (NaN for one cycle), as each group's own rows give them."""
+    rng = np.random.default_rng(5)
+    groups = rng.permutation(np.repeat(np.arange(40), rng.integers(1, 7, size=40)))
+    residuals = rng.normal(0.0, 1e-4, (len(groups), 3)) + rng.normal(0.0, 1e-3, (40, 3))[groups]
+    table = iso9283.pose_characteristics(residuals, groups).set_index("group")
+    for label in range(40):
+        e = residuals[groups == label]
+        centre = e.mean(axis=0)
+        spread = np.linalg.norm(e - centre, axis=1)
+        row = table.loc[label]
+        assert row["cycles"] == len(e)
+        np.testing.assert_allclose(row[["APx", "APy", "APz"]].to_numpy(float), centre, rtol=1e-10)
+        assert row["AP"] == pytest.approx(np.linalg.norm(centre), rel=1e-10)
+        if len(e) == 1:
+            assert np.isnan(row["RP"])
+        else:
+            assert row["RP"] == pytest.approx(spread.mean() + 3.0 * spread.std(ddof=1), rel=1e-9)

@@ -99,12 +99,12 @@ class Screen:
     def isolated(self) -> np.ndarray:
         """(n,) rows beyond the threshold whose pose has a measured configuration that is not."""
         beyond = self.beyond
-        out = beyond.copy()
-        for pose in np.unique(self.poses[beyond]):
-            mine = self.poses == pose
-            if mine.sum() > 1 and beyond[mine].all():
-                out[mine] = False
-        return out
+        if not beyond.any():
+            return beyond.copy()
+        _, pose_of = np.unique(self.poses, return_inverse=True)
+        rows, rows_beyond = np.bincount(pose_of), np.bincount(pose_of, weights=beyond)
+        shared = (rows > 1) & (rows_beyond == rows)  # every configuration of the pose beyond it
+        return beyond & ~shared[pose_of]
 
     @property
     def gross(self) -> np.ndarray:
