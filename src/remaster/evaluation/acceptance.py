@@ -112,7 +112,8 @@ def refit_residuals(reference, targets) -> tuple[np.ndarray, np.ndarray]:
     """(residuals (m, n, 3) of targets (m, n, 3) after the rigid transform that best maps reference
     (n, 3) onto each, those transforms (m, 4, 4): `robot.registration.rigid_transforms`)."""
     moves = registration.rigid_transforms(reference, targets)
-    mapped = np.einsum("mij,nj->mni", moves[:, :3, :3], reference) + moves[:, None, :3, 3]
+    # a batched matmul, not einsum: 3x faster on (m, n, 3) (the acceptance test's largest cost)
+    mapped = np.asarray(reference) @ np.swapaxes(moves[:, :3, :3], -1, -2) + moves[:, None, :3, 3]
     return np.asarray(targets) - mapped, moves
 
 
