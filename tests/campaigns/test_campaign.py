@@ -418,12 +418,14 @@ def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_pa
     from remaster.campaigns import campaign as campaigns
     from remaster.campaigns import capacity
 
-    assert capacity.peak_estimate(100_000) == pytest.approx(2 * capacity.peak_estimate(50_000) - capacity.BASE_BYTES)
-    assert 3.5e9 < capacity.peak_estimate(100_000) < 4.5e9  # the 100,000-row accuracy job measured 3.6 GB
-    assert capacity.peak_estimate(100_000, draws=200) == pytest.approx(capacity.peak_estimate(10_000))  # per draw
+    # the theoretical accuracy's draw x configuration pairs, then a few kB a row
+    assert capacity.peak_estimate(10_000, draws=200) == pytest.approx(0.5e9 + 16 * 2_000_000 + 1.5e3 * 10_000)
+    assert capacity.peak_estimate(1_000_000) == pytest.approx(0.5e9 + 16 * capacity.THEORETICAL_PAIRS + 1.5e3 * 1e6)
+    assert 2.8e9 < capacity.peak_estimate(100_000) < 3.5e9  # the 100,000-row accuracy job measured 2.8 GB
+    assert 3.5e9 < capacity.peak_estimate(1_000_000) < 4.5e9  # and 3.5 GB at 1,000,000 rows
     data = read_campaign(make_campaign(tmp_path, tables={SENSOR: sensor_table()}), repo_root=REPO)
     summary = campaigns.summarize(data, memory_limit=2e9)
-    assert summary["memory"] == {"largest_sensor_rows": 9, "estimated_peak_gb": pytest.approx(0.500324)}
+    assert summary["memory"] == {"largest_sensor_rows": 9, "estimated_peak_gb": pytest.approx(0.5003015)}
     assert campaigns.summarize(data) == summary  # the limit is not recorded: the same bytes on every machine
     with pytest.raises(
         InputError,
@@ -440,8 +442,8 @@ def test_a_job_asks_for_its_peak_and_its_own_snakemake_and_more_on_a_retry():
     from remaster.campaigns import capacity
 
     first = capacity.job_request_mb(1_000)
-    assert first == int((0.5e9 + 36e6 + 768e6) / 1e6) + 1 == 1305  # the UR5 campaign's request
-    assert capacity.job_request_mb(1_000, attempt=2) == int(1.5 * (0.5e9 + 36e6 + 768e6) / 1e6) + 1
+    assert first == int((0.5e9 + 33.5e6 + 768e6) / 1e6) + 1 == 1302  # the UR5 campaign's request
+    assert capacity.job_request_mb(1_000, attempt=2) == int(1.5 * (0.5e9 + 33.5e6 + 768e6) / 1e6) + 1
     assert capacity.job_request_mb(100_000) > capacity.peak_estimate(100_000) / 1e6 + 520  # above the measured cost
 
 

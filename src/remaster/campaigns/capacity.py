@@ -2,10 +2,14 @@
 too large for the memory a job may use is refused by its first job with a message that says what
 to do, not ended half-way by the kernel's out-of-memory killer.
 
-Every stage's memory grows at most linearly with the rows (`benchmarks/bench_scale.py`); the
-largest per row is the accuracy job's: the theoretical accuracy holds every posterior draw's
-error at every configuration (2000 draws x 8 bytes) and the interval summary one sorted copy of
-them, about 32 kB a row; measured 1,023 MB traced at 30,000 rows and 3.6 GB resident at 100,000.
+The largest job is the accuracy's (`fit_summary`): its theoretical accuracy holds every posterior
+draw's error at every optimization configuration and the interval summary a copy of them, 16 bytes
+a pair, up to THEORETICAL_PAIRS pairs (beyond, a systematic sample of them:
+`remaster.inference.metrics.theoretical_errors`); besides, every job holds a few kB a row (the
+readings, predictions and residuals of every row). The loop closure fits at most
+`loop_closure/fit_rows` rows whatever the campaign's size. Measured by
+`benchmarks/bench_scale_workflow.py` (its table in benchmarks/README.md): the accuracy job 2.8 GB
+at 100,000 rows and 3.5 GB at 1,000,000.
 """
 
 from __future__ import annotations
@@ -13,14 +17,19 @@ from __future__ import annotations
 from ..errors import InputError
 
 BASE_BYTES = 0.5e9  # a job's resident size with a small campaign: Python, NumPy, pandas, Numba, Pinocchio
-BYTES_PER_ROW = 36e3  # the accuracy job's per-row cost (module docstring), rounded up
+PAIR_BYTES = 16  # a draw x configuration pair of the theoretical accuracy: its error and the summary's copy
+# draw x configuration pairs the theoretical accuracy evaluates at most (2.2 GB at PAIR_BYTES):
+# 2000 draws at 70,000 configurations; a million-row campaign's 700,000 would be 22 GB
+THEORETICAL_PAIRS = 140_000_000
+BYTES_PER_ROW = 1.5e3  # the rest of a job's per-row cost: (3.5 - 0.5 - 2.2) GB over 1,000,000 rows, rounded up
 GB = 1e9
 
 
 def peak_estimate(rows: int, draws: int = 2000) -> float:
     """Bytes the largest job of a campaign of `rows` rows (its largest sensor) is expected to
     need at its peak, for `draws` posterior draws in the theoretical accuracy."""
-    return BASE_BYTES + BYTES_PER_ROW * (draws / 2000) * max(int(rows), 0)
+    rows = max(int(rows), 0)
+    return BASE_BYTES + PAIR_BYTES * min(draws * rows, THEORETICAL_PAIRS) + BYTES_PER_ROW * rows
 
 
 def check(campaign: str, rows: int, limit: float | None, draws: int = 2000) -> dict:
@@ -32,7 +41,7 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000) -> d
     if limit is not None and need > limit:
         raise InputError(
             f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
-            f"at every configuration) would need about {need / GB:.1f} GB, more than the "
+            f"at up to {THEORETICAL_PAIRS:,} draw x configuration pairs) would need about {need / GB:.1f} GB, more than the "
             f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
             f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
             f"the campaign into smaller ones (by date or by pose)",

@@ -70,8 +70,8 @@ def _validation_poses(data: SensorData, frame: pd.DataFrame, method: str) -> tup
     rows = part["row"].to_numpy(int)
     residuals = part[["residual_x_mm", "residual_y_mm", "residual_z_mm"]].to_numpy(float) * MM
     poses = pose_characteristics(residuals, group[rows])
-    first = {g: int(rows[np.flatnonzero(group[rows] == g)[0]]) for g in poses["group"]}
-    return poses.assign(first_row=[first[g] for g in poses["group"]]), group
+    _, first = np.unique(group[rows], return_index=True)  # in the order of poses' groups: sorted labels
+    return poses.assign(first_row=rows[first].astype(int)), group
 
 
 def iso9283_poses_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:

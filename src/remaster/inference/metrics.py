@@ -22,6 +22,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..campaigns.capacity import THEORETICAL_PAIRS
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..units import MM
@@ -170,10 +171,6 @@ def theoretical_errors(
 
 
 TCPS_PER_BLOCK = 2**20  # TCPs held at once by theoretical_errors (24 MB)
-# draw x configuration pairs theoretical_errors evaluates at most (1.1 GB of errors, and the
-# quantiles are taken in place): 2000 draws at 70,000 configurations; a million-row campaign's
-# 700,000 optimization configurations would be 11 GB
-THEORETICAL_PAIRS = 140_000_000
 
 
 def theoretical_stride(draws: int, configurations: int) -> int:
