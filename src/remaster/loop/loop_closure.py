@@ -166,8 +166,8 @@ class _Screened:
     screens: {set: `gross.Screen`}; provisional: the prepare stage's rows; history: the screen's
     rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
     noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
-    optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or every
-    k-th pose of a set larger than the loop fits); thinning: `fitted_rows`' record."""
+    optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or one
+    pose in k of a set larger than the loop fits); thinning: `fitted_rows`' record."""
 
     selection: Selection
     data: dict[str, Readings]
