@@ -9,7 +9,9 @@ a pair, up to THEORETICAL_PAIRS pairs (beyond, a systematic sample of them:
 readings, predictions and residuals of every row). The loop closure fits at most
 `loop_closure/fit_rows` rows whatever the campaign's size. Measured by
 `benchmarks/bench_scale_workflow.py` (its table in benchmarks/README.md): the accuracy job 2.8 GB
-at 100,000 rows and 3.5 GB at 1,000,000.
+at 100,000 rows and 3.5 GB at 1,000,000. Not modelled: the loop closure's job, 2.7-3.4 GB when it
+fitted 17,500-20,000 rows, 5.2 GB once when it fitted 21,000 (before it was limited): a campaign of
+20,000 to 30,000 rows may need more than this estimate there.
 """
 
 from __future__ import annotations
