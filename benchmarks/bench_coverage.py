@@ -16,6 +16,8 @@ turning. Per (truth, design, seed):
   joint limits is "not determined" (the priors decide it: with joint 3 held, it should be);
 - the acceptance test's verdict (correct models: should fail at the level), and its check against the
   sensor's noise alone (`at_noise`: what a closed loop would claim);
+- the loop closure's verdict (a test at `loop_closure/closure_level`: where the candidates hold the
+  truth, not closed should be as rare as the level);
 - the loop-closed zero-offset corrections, with their combined standard uncertainty;
 - what the calibration's own posterior expects of the seed-level counts, each of its draws taken as
   the arm's truth (`truth_claims.own_posterior_expectations`): the chance of more than 25 % of the
@@ -63,6 +65,7 @@ TRUTHS = {
     },
 }
 DESIGNS = {"q3 held": {}, "every joint": {"q3": "free"}}
+HELD_TRUTHS = ("zero-offsets", "rigid links", "compliance")  # truths the loop's candidates can express
 MISSING = ("compliance", ("joint_compliance",))  # the truth, and the candidates the loop is not offered
 
 
@@ -87,7 +90,8 @@ def one(task: tuple) -> dict:
         "without": list(without),
         "effects": list(checked.effects),
         "closure": {
-            k: (checked.report.closure or {}).get("rounds", [{}])[-1].get(k) for k in ("closed", "ratio_to_floor")
+            k: (checked.report.closure or {}).get("rounds", [{}])[-1].get(k)
+            for k in ("closed", "ratio_to_floor", "p_value")
         },
         "outside_share_near": 1.0 - checked.domain_held_fraction,
         "claim_over_true_p95_near": claim.p95_bound_mm / claim.true_p95_mm,
@@ -143,6 +147,7 @@ def summary(runs: list[dict]) -> dict:
                     "not_determined_across_limits": int(sum(not r.get("claim_determined_random", True) for r in part)),
                     "not_determined": len(part) - int(ratio.size),
                     "acceptance_failed": int(sum(r["acceptance"] == "fail" for r in part)),
+                    "not_closed": int(sum(r["closure"]["closed"] is False for r in part)),
                     "in_window": int(sum(0.8 <= x <= 2.0 for x in ratio)),
                     "expected_in_window": _expected([r for r in part if r["claim_determined_near"]], "claim_in_window"),
                 }
@@ -160,6 +165,11 @@ def summary(runs: list[dict]) -> dict:
         if missing
         else None,
         "correct_rejected_at_noise": float(np.mean([r["acceptance_at_noise"] is False for r in correct])),
+        # the closure test (level `loop_closure/closure_level`) where the candidates hold the truth
+        "held_truth_runs": len(held := [r for r in correct if r["truth"] in HELD_TRUTHS]),
+        "held_truth_not_closed": int(sum(r["closure"]["closed"] is False for r in held)),
+        "held_truth_not_closed_effects": [list(r["effects"]) for r in held if r["closure"]["closed"] is False],
+        "missing_effect_not_closed": int(sum(r["closure"]["closed"] is False for r in missing)),
         "claims_determined": len(determined),
         "claims_covering": int(sum(r["claim_covers_near"] for r in determined)),
         "claims_in_window": int(sum(0.8 <= r["claim_over_true_p95_near"] <= 2.0 for r in determined)),
@@ -180,6 +190,13 @@ def _rate(share: float, runs: int) -> str:
     return f"{k} of {runs} ({100 * share:.0f} %; one-sided 95 % lower bound {100 * lower:.1f} %)"
 
 
+def _binomial_interval(k: int, runs: int) -> str:
+    """'95 % interval a-b %' of a rate seen k times in runs (Clopper-Pearson)."""
+    low = stats.beta.ppf(0.025, k, runs - k + 1) if k > 0 else 0.0
+    high = stats.beta.ppf(0.975, k + 1, runs - k) if k < runs else 1.0
+    return f"95 % interval {100 * low:.1f}-{100 * high:.1f} %"
+
+
 def _expected(runs: list[dict], key: str) -> float | None:
     """The count the runs' own posteriors expect: the sum of each run's chance (None if not recorded)."""
     chances = [(r.get("own_posterior") or {}).get(key) for r in runs]
@@ -195,8 +212,8 @@ def markdown(record: dict) -> str:
         "| truth | design | seeds | commands outside their bound near the data: mean | max | claim near the data "
         "not determined (the priors decide) | claim / true p95 where determined: min | median | max | claim covers "
         "the true p95 | claim across the limits not determined | acceptance failed | claim within 0.8-2 x the "
-        "true p95: seen / its posteriors expect |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "true p95: seen / its posteriors expect | loop not closed |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in s["rows"]:
         determined = r["seeds"] - r["not_determined"]
@@ -215,6 +232,7 @@ def markdown(record: dict) -> str:
                 if r.get("expected_in_window") is not None
                 else "- |"
             )
+            + f" {r.get('not_closed', '-')} of {r['seeds']} |"
         )
     beyond = s["corrections_beyond_3u"]
     rejected = s["missing_effect_rejected"]
@@ -238,6 +256,16 @@ def markdown(record: dict) -> str:
         f"{100 * s['correct_rejected_at_noise']:.0f} % (those whose loop did not close declare their residual "
         "and fail it, rightly).",
     ]
+    if "held_truth_runs" in s:
+        lines.append(
+            f"The closure test (level 1 %) where the candidates hold the truth ({', '.join(HELD_TRUTHS)}): not closed on "
+            f"{s['held_truth_not_closed']} of {s['held_truth_runs']} campaigns "
+            f"({_binomial_interval(s['held_truth_not_closed'], s['held_truth_runs'])})"
+            + (f", the loop having added {s['held_truth_not_closed_effects']}" if s["held_truth_not_closed"] else "")
+            + f"; the model missing compliance: not closed on {s['missing_effect_not_closed']} of "
+            f"{s['missing_effect_runs']}. The cyclic truth's orders beyond `model.harmonic_orders` are outside the "
+            "candidates: not closed there is the test finding them."
+        )
     if s.get("claims_determined"):
         n = s["claims_determined"]
         own = s.get("expected_in_window") is not None and s.get("expected_outside_above_25") is not None

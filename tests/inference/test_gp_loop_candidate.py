@@ -5,6 +5,7 @@ error)."""
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from remaster import files
 from remaster.campaigns import scenario
@@ -50,15 +51,16 @@ def test_repeatability_is_the_pooled_spread_of_repeated_configurations():
 
 
 def test_the_verdict_and_the_shares():
-    assert noise_floor.verdict(1.1e-5, 1e-5)["closed"] is True
-    open_ = noise_floor.verdict(5e-5, 1e-5)
+    closed = noise_floor.verdict(1.1e-5, 1e-5, 0.01, 75)
+    assert closed["closed"] is True and closed["p_value"] == pytest.approx(stats.chi2.sf(75 * 1.21, 75))
+    open_ = noise_floor.verdict(5e-5, 1e-5, 0.01, 75)
     assert open_["closed"] is False and open_["structured_mm"] == pytest.approx(np.sqrt(24) * 1e-2)
     assert "not closed" in open_["text"]
-    assert noise_floor.verdict(5e-5, None)["closed"] is None
+    assert noise_floor.verdict(5e-5, None, 0.01, 75)["closed"] is None
     assert noise_floor.noise_floor(1e-5, 3e-5) == 3e-5 and noise_floor.noise_floor(None, None) is None
     # from 5 to 4 (x 1e-5) over a floor of 1: (25 - 16) / (25 - 1)
-    assert noise_floor.share(5e-5, 4e-5, 1e-5) == pytest.approx(9 / 24)
-    assert noise_floor.share(1.1e-5, 0.9e-5, 1e-5) is None  # already closed: nothing structured to share
+    assert noise_floor.share(5e-5, 4e-5, open_) == pytest.approx(9 / 24)
+    assert noise_floor.share(1.1e-5, 0.9e-5, closed) is None  # already closed: nothing structured to share
 
 
 # --------------------------------------------------------------------------- an effect outside the candidates

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from remaster.campaigns import arm_kinds
 from remaster.inference import blocks, evidence, fit
@@ -59,23 +60,69 @@ def test_the_held_out_inflation_is_what_a_correct_model_shows_over_noise_draws(c
     assert np.ptp(predicted) < 0.01 * predicted.mean()  # the Jacobian's, not the draw's
 
 
-def test_a_correct_model_is_closed_at_the_tests_level_and_declares_no_model_error(correct_model):
-    """The verdict against the held-out floor finds the exact model closed in at least 95 % of
-    the draws; against the plain floor most draws were called not closed."""
+def test_a_correct_models_closure_p_values_are_uniform_over_noise_draws(correct_model):
+    """The closure test's p-value of the exact model over 60 noise draws is uniform (its level is
+    its rejection rate): the share below 0.1 within the binomial 99 % interval of 60 draws at 0.1, and
+    a Kolmogorov-Smirnov test against the uniform law does not reject at 1 %."""
     fits = list(_noisy_fits(correct_model, SEEDS))
-    rms = [cv.rmse / np.sqrt(3.0) for cv in fits]
-    held_out = [noise_floor.verdict(r, NOISE, inflation=cv.noise_inflation)["closed"] for r, cv in zip(rms, fits)]
-    plain = [noise_floor.verdict(r, NOISE)["closed"] for r in rms]
-    assert np.mean(held_out) >= 0.95
-    assert np.mean(plain) < np.mean(held_out)
+    tested = [
+        noise_floor.verdict(cv.rmse / np.sqrt(3.0), NOISE, 0.1, cv.held_out_numbers, cv.null_cumulants) for cv in fits
+    ]
+    p_values = np.array([t["p_value"] for t in tested])
+    low, high = stats.binom.ppf([0.005, 0.995], SEEDS, 0.1)
+    assert low <= np.sum(p_values < 0.1) <= high
+    assert stats.kstest(p_values, "uniform").pvalue > 0.01
+    assert np.mean([not t["closed"] for t in tested]) == np.mean(p_values < 0.1)
+
+
+def test_the_held_out_cumulants_are_those_of_the_folds_linear_map():
+    """`evidence.held_out_cumulants` against the eigenvalues of the covariance of every held-out
+    residual, built row by row from each fold's least-squares step (priors on two parameters, one
+    weakly seen)."""
+    rng = np.random.default_rng(3)
+    n, p, k = 30, 6, 5
+    jacobian = rng.normal(size=(n, 3, p))
+    jacobian[:, :, 5] *= 0.05
+    folds = np.arange(n) % k
+    precision = np.r_[np.zeros(4), 10.0, 30.0]
+    linear_map = np.zeros((3 * n, 3 * n))
+    inverses, grams = [], []
+    for fold in range(k):
+        train = folds != fold
+        j_train, j_fold = jacobian[train].reshape(-1, p), jacobian[~train].reshape(-1, p)
+        lhs = j_train.T @ j_train + np.diag(precision)
+        inverses.append(np.linalg.inv(lhs))
+        grams.append(j_fold.T @ j_fold)
+        held, fitted = np.flatnonzero(np.repeat(~train, 3)), np.flatnonzero(np.repeat(train, 3))
+        linear_map[np.ix_(held, held)] += np.eye(len(held))
+        linear_map[np.ix_(held, fitted)] -= j_fold @ np.linalg.solve(lhs, j_train.T)
+    weights = np.linalg.eigvalsh(linear_map @ linear_map.T)
+    expected = (weights.sum(), 2 * np.sum(weights**2), 8 * np.sum(weights**3))
+    total = jacobian.reshape(-1, p).T @ jacobian.reshape(-1, p)
+    assert evidence.held_out_cumulants(inverses, grams, total, 3 * n) == pytest.approx(expected, rel=1e-10)
+
+
+def test_pearsons_approximation_against_draws_of_the_weighted_sum():
+    """`held_out_sf` is chi-square's own for unit weights, and within 15 % of the tail probability of
+    400,000 draws of a weighted sum with a few large weights at 10 %, 1 % and 0.1 %."""
+    assert noise_floor.held_out_sf(80.0, noise_floor.plain_cumulants(75)) == pytest.approx(stats.chi2.sf(80.0, 75))
+    weights = np.r_[np.ones(60), 48.0, 20.0, 9.0, 5.0, 3.0, 2.0]
+    cumulants = (weights.sum(), 2 * np.sum(weights**2), 8 * np.sum(weights**3))
+    draws = (np.random.default_rng(1).standard_normal((400_000, len(weights))) ** 2) @ weights
+    for tail in (0.1, 0.01, 0.001):
+        assert noise_floor.held_out_sf(np.quantile(draws, 1.0 - tail), cumulants) == pytest.approx(tail, rel=0.15)
+        assert noise_floor.held_out_sf(noise_floor.held_out_isf(tail, cumulants), cumulants) == pytest.approx(tail)
 
 
 def test_the_held_out_floor_enters_the_verdict_and_the_share():
-    """A residual of 1.5 x the floor is closed where a correct model's held-out mean square is
-    twice the noise's (1.5 <= 1.2 sqrt 2), and its structured part is taken above sqrt 2 x the floor."""
-    closed = noise_floor.verdict(1.5e-5, 1e-5, inflation=2.0)
+    """Where a correct model's held-out error is twice the noise's (every weight 2), a residual of 1.5 x
+    the floor is closed (75 numbers: p = 0.2), and the structured part is taken above sqrt 2 x the floor."""
+    doubled = (150.0, 8.0 * 75, 64.0 * 75)
+    closed = noise_floor.verdict(1.5e-5, 1e-5, 0.01, 75, doubled)
     assert closed["closed"] is True and closed["held_out_floor_mm"] == pytest.approx(np.sqrt(2) * 1e-2)
-    open_ = noise_floor.verdict(5e-5, 1e-5, inflation=2.0)
+    assert closed["p_value"] == pytest.approx(stats.chi2.sf(75 * 2.25 / 2.0, 75))
+    open_ = noise_floor.verdict(5e-5, 1e-5, 0.01, 75, doubled)
     assert open_["structured_mm"] == pytest.approx(np.sqrt(25 - 2) * 1e-2)
-    assert noise_floor.share(5e-5, 4e-5, 1e-5, inflation=2.0) == pytest.approx(9 / 23)
-    assert noise_floor.verdict(1.5e-5, 1e-5, inflation=0.5)["closed"] is False  # never below the floor
+    assert noise_floor.share(5e-5, 4e-5, open_) == pytest.approx(9 / 23)
+    # the same ratio over many more numbers is beyond the level
+    assert noise_floor.verdict(1.05e-5, 1e-5, 0.01, 52_500)["closed"] is False

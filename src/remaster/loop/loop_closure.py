@@ -503,7 +503,7 @@ def close_loop(
         selection,
         fitted,
         sensor.noise,
-        settings.closure_ratio,
+        settings.closure_level,
         noise_floor.point_std_rms(sensor.point_std(fitted.rows)),
     )
     gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
@@ -615,22 +615,34 @@ def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gros
     return out
 
 
-def _closure_steps(selection: Selection) -> list[tuple[str, float, float]]:
-    """(name, held-out RMS per axis (m), a correct model's held-out inflation: `noise_floor.verdict`)
-    of the zero-offset model and of the model after each added or removed step, in their order."""
-    steps = [(BASE_STEP, selection.base.cv.rmse / math.sqrt(3.0), selection.base.cv.noise_inflation)]
+def _closure_steps(selection: Selection) -> list[tuple[str, float, int, tuple | None]]:
+    """(name, held-out RMS per axis (m), held-out numbers, a correct model's held-out cumulants:
+    `noise_floor.verdict`) of the zero-offset model and of the model after each added or removed
+    step, in their order."""
+    base = selection.base.cv
+    steps = [(BASE_STEP, base.rmse / math.sqrt(3.0), base.held_out_numbers, base.null_cumulants)]
     for r in sorted(selection.rounds, key=_step_order):
         if r["added"]:
             scores = r["scores"][r["added"]]
             steps.append(
-                (r["added"], scores["cv_rmse_mm"] * MM / math.sqrt(3.0), scores.get("cv_noise_inflation", 1.0))
+                (
+                    r["added"],
+                    scores["cv_rmse_mm"] * MM / math.sqrt(3.0),
+                    scores["cv_held_out_numbers"],
+                    scores.get("cv_null_cumulants"),
+                )
             )
         elif r.get("removed"):  # the model without it: the removed block's scores were taken against it
             name = "without " + " + ".join([r["removed"], *r.get("removed_with", [])])
             name += f" ({GP} present)" if r.get("with") == GP else ""  # named as the selection's path names it
             scores = r["scores"][r["removed"]]
             steps.append(
-                (name, scores["cv_rmse_before_mm"] * MM / math.sqrt(3.0), scores.get("cv_noise_inflation_before", 1.0))
+                (
+                    name,
+                    scores["cv_rmse_before_mm"] * MM / math.sqrt(3.0),
+                    scores["cv_held_out_numbers_before"],
+                    scores.get("cv_null_cumulants_before"),
+                )
             )
     return steps
 
@@ -639,7 +651,7 @@ def closure_report(
     selection: Selection,
     data: Readings,
     stated_noise: float | None,
-    ratio: float,
+    level: float,
     measured_noise: float | None = None,
 ) -> dict:
     """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
@@ -654,14 +666,15 @@ def closure_report(
     rounds = [
         {
             "after": name,
-            **noise_floor.verdict(rms, floor, ratio, inflation),
+            **noise_floor.verdict(rms, floor, level, numbers, cumulants),
             "time_blocked_rms_per_axis_mm": in_time.get(name),
         }
-        for name, rms, inflation in steps
+        for name, rms, numbers, cumulants in steps
     ]
     shares = {
-        name: noise_floor.share(before, after, floor, ratio, inflation)
-        for (_, before, inflation), (name, after, _) in zip(steps, steps[1:])
+        name: noise_floor.share(before[1], after[1], tested)
+        for before, after, tested in zip(steps, steps[1:], rounds)
+        for name in (after[0],)
     }
     final = rounds[-1]
     warnings = []
@@ -686,7 +699,7 @@ def closure_report(
         noise_model_rms = noise_floor.range_transverse_rms(
             chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
         )
-        if floor is not None and noise_model_rms > ratio * floor:
+        if floor is not None and noise_model_rms > noise_floor.NOISE_MODEL_RATIO * floor:
             warnings.append(
                 f"the chosen range/transverse noise model's std per axis ({noise_model_rms / MM:.3g} mm) is "
                 f"{noise_model_rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
@@ -699,7 +712,7 @@ def closure_report(
         "repeatability_mm": None if repeats is None else repeats / MM,
         "repeated_configurations": repeated,
         "noise_floor_mm": None if floor is None else floor / MM,
-        "ratio": ratio,
+        "level": level,
         "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
         "time_blocked": None
         if selection.time_blocked is None

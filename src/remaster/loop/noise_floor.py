@@ -13,11 +13,22 @@ axis on the optimization set (held-out poses: an in-sample residual would flatte
 model). A correct model does not reach the floor there: a fit without a fold errs at the fold's
 rows by its parameters' spread as well as by the noise, by a factor its Jacobian gives
 (`evidence.CrossValidation.noise_inflation`: 1.55 in mean square on the 25-configuration
-campaign of tests/loop/test_noise_floor.py). The held-out floor is the floor times the root of that factor. The loop is closed
-when the RMS is at most `ratio` times the held-out floor; otherwise sqrt(RMS^2 - held-out floor^2)
-per axis is the structured residual left. Each step's share is the part
-of the structured residual (mean square above the floor) it removed: an effect that removes a
-small share is not what the residual was.
+campaign of tests/loop/test_noise_floor.py); the held-out floor is the floor times the root of that
+factor. The closure is a test at a stated level (`loop_closure/closure_level`): a correct model's
+pooled held-out sum of squares over the floor's variance is a weighted sum of chi-square variables
+whose first three cumulants the folds' Jacobians give (`evidence.held_out_cumulants`), taken as a
+shifted, scaled chi-square with the same three (Pearson's approximation, `held_out_sf`). Few rows per
+parameter make a few large weights and a long tail (at 25 configurations the level lies at 1.3-2.6 x
+the held-out floor); many rows make it narrow (at 17,500 rows, 1.007 x), so that a fixed ratio
+would call correct small campaigns not closed and a large campaign's model error closed. The loop is closed when the probability of a held-out error at
+least as large under a correct model is at least the level; otherwise sqrt(RMS^2 - held-out floor^2)
+per axis is the structured residual left. Where the folds' spread is not known (the residual GP's
+folds) the weights are taken as 1: the plain floor, which never flatters a fit. Each step's share is
+the part of the structured residual (mean square above the floor) it removed: an effect that removes
+a small share is not what the residual was.
+
+The floor is taken as known: a stated noise that understates the instrument's calls a correct model
+not closed, and its structured residual is then what the statement missed.
 
 SI inside (m); the report's numbers are in mm.
 """
@@ -30,7 +41,9 @@ import numpy as np
 
 from ..units import MM
 
-CLOSURE_RATIO = 1.2
+# a fitted noise model (a tracker's range/transverse shape) whose std is this many times the floor took
+# up model error: a noise std is estimated from every row, so a fifth above the floor is not its spread
+NOISE_MODEL_RATIO = 1.2
 MAIN_CAUSE_SHARE = 0.5  # an effect that removes less than this share of the structured residual is not "the cause"
 SAME_READING = 1e-9  # rad: rows whose readings agree to this are one configuration measured again
 
@@ -81,9 +94,41 @@ def range_transverse_rms(sigma_range: float, growth_per_m: float, measured) -> f
     return float(sigma_range * math.sqrt(float(np.mean((1.0 + 2.0 * k2) / 3.0))))
 
 
-def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RATIO, inflation: float = 1.0) -> dict:
-    """Closed or not, the structured residual left per axis (mm) and the sentence the report shows;
-    inflation: a correct model's held-out mean square over its noise variance (module docstring)."""
+def plain_cumulants(numbers: int) -> tuple[float, float, float]:
+    """The cumulants of chi-square with `numbers` degrees of freedom: held-out errors at the noise alone."""
+    return (float(numbers), 2.0 * numbers, 8.0 * numbers)
+
+
+def _pearson(cumulants) -> tuple[float, float, float]:
+    """(shift a, scale b, degrees of freedom d) of a + b chi2_d with the three cumulants given."""
+    k1, k2, k3 = (float(c) for c in cumulants)
+    scale = k3 / (4.0 * k2)
+    dof = 8.0 * k2**3 / k3**2
+    return k1 - scale * dof, scale, dof
+
+
+def held_out_sf(x: float, cumulants) -> float:
+    """P(Q > x) for Q a weighted sum of chi-square variables with these three cumulants (Pearson's
+    three-moment approximation: exact for chi-square itself)."""
+    import scipy.special
+
+    shift, scale, dof = _pearson(cumulants)
+    return float(scipy.special.chdtrc(dof, max((x - shift) / scale, 0.0)))
+
+
+def held_out_isf(level: float, cumulants) -> float:
+    """The x with `held_out_sf`(x) = level."""
+    import scipy.special
+
+    shift, scale, dof = _pearson(cumulants)
+    return float(shift + scale * scipy.special.chdtri(dof, level))
+
+
+def verdict(rms_per_axis: float, floor: float | None, level: float, numbers: int, cumulants=None) -> dict:
+    """Closed or not at `level`, the structured residual left per axis (mm) and the sentence the
+    report shows; rms_per_axis over `numbers` held-out numbers (3 per point), cumulants: a correct
+    model's held-out sum of squares over the noise variance (`evidence.CrossValidation.null_cumulants`;
+    None: the plain floor's, `plain_cumulants`). Module docstring."""
     if floor is None:
         return {
             "closed": None,
@@ -91,33 +136,39 @@ def verdict(rms_per_axis: float, floor: float | None, ratio: float = CLOSURE_RAT
             "rms_per_axis_mm": rms_per_axis / MM,
             "text": "unknown: the campaign states no sensor noise and repeats no configuration",
         }
-    floor = floor * math.sqrt(max(inflation, 1.0))
-    structured = math.sqrt(max(rms_per_axis**2 - floor**2, 0.0))
-    closed = rms_per_axis <= ratio * floor
+    cumulants = plain_cumulants(numbers) if cumulants is None else tuple(float(c) for c in cumulants)
+    held_out_floor = floor * math.sqrt(max(cumulants[0] / numbers, 1.0))
+    p_value = held_out_sf(numbers * (rms_per_axis / floor) ** 2, cumulants)
+    closed = p_value >= level
+    structured = math.sqrt(max(rms_per_axis**2 - held_out_floor**2, 0.0))
+    ratio = rms_per_axis / held_out_floor
     text = (
-        "closed: the residual is at the sensor's noise"
+        f"closed: the residual is at the sensor's noise ({ratio:.2f} x the noise floor held out, p = {p_value:.2g})"
         if closed
         else f"not closed: {structured / MM:.3g} mm of structured residual left per axis "
-        f"({rms_per_axis / floor:.1f} x the noise floor held out)"
+        f"({ratio:.2f} x the noise floor held out, p = {p_value:.2g} at level {level:g})"
     )
     return {
         "closed": bool(closed),
         "structured_mm": structured / MM,
         "rms_per_axis_mm": rms_per_axis / MM,
-        "held_out_floor_mm": floor / MM,
-        "ratio_to_floor": rms_per_axis / floor,
+        "held_out_floor_mm": held_out_floor / MM,
+        "ratio_to_floor": ratio,
+        # the ratio up to which this many held-out numbers would be found closed at the level
+        "closed_up_to_ratio": math.sqrt(held_out_isf(level, cumulants) / numbers) * floor / held_out_floor,
+        "p_value": p_value,
+        "level": level,
+        "held_out_numbers": int(numbers),
         "text": text,
     }
 
 
-def share(
-    before: float, after: float, floor: float | None, ratio: float = CLOSURE_RATIO, inflation: float = 1.0
-) -> float | None:
-    """The share of the structured residual (mean square per axis above the held-out floor: `verdict`)
-    a step removed; before and after are RMS per axis (m). None when the loop was already closed
-    before the step (no structured residual was left to share)."""
-    floor = None if floor is None else floor * math.sqrt(max(inflation, 1.0))
-    if floor is not None and before <= ratio * floor:
+def share(before: float, after: float, before_verdict: dict) -> float | None:
+    """The share of the structured residual (mean square per axis above the held-out floor of the
+    model before the step: `verdict`) a step removed; before and after are RMS per axis (m). None
+    when the loop was already closed before the step (no structured residual was left to share)."""
+    if before_verdict.get("closed"):
         return None
-    excess = before**2 - (floor or 0.0) ** 2
+    floor = (before_verdict.get("held_out_floor_mm") or 0.0) * MM
+    excess = before**2 - floor**2
     return float((before**2 - after**2) / excess)

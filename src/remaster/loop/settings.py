@@ -27,8 +27,9 @@ class LoopSettings:
     refit's first attempt, None for Laplace only; convergence: {'max_rhat', 'min_ess',
     'max_doublings'}: the refit's run length doubles until they hold, at most max_doublings times;
     residual_gp: {'subset', 'inducing', 'exact_rows'} of the Gaussian-process candidate tried last
-    (`remaster.inference.gp.residual`), None not to try it; closure_ratio: the RMS per axis over the
-    noise floor at which the loop counts as closed (`remaster.loop.noise_floor`); tracker_noise:
+    (`remaster.inference.gp.residual`), None not to try it; closure_level: the closure test's level: the loop is
+    closed unless a correct model's held-out error would exceed what is left with at most this
+    probability (`remaster.loop.noise_floor`); tracker_noise:
     {'growth_per_m', 'growth_factor'}, the log-normal prior of a laser tracker's range/transverse
     noise model (`remaster.noise`), None not to offer it; gross_errors: {'alpha', 'max_share'} of the
     screen of every row with the final model (`remaster.loop.gross`, from the config's `outliers`);
@@ -48,7 +49,7 @@ class LoopSettings:
     mcmc: dict | None
     convergence: dict
     residual_gp: dict | None
-    closure_ratio: float
+    closure_level: float
     tracker_noise: dict | None
     gross_errors: dict
     harmonic_level: float = 0.01
@@ -71,7 +72,7 @@ class LoopSettings:
             "mcmc": self.mcmc,
             "convergence": self.convergence,
             "residual_gp": self.residual_gp,
-            "closure_ratio": self.closure_ratio,
+            "closure_level": self.closure_level,
             "tracker_noise": self.tracker_noise,
             "gross_errors": self.gross_errors,
             "fit_rows": self.fit_rows,
@@ -105,7 +106,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
             "max_doublings": int(config["max_doublings"]),
         },
         residual_gp=_gp_settings(config["residual_gp"]),
-        closure_ratio=float(config["closure_ratio"]),
+        closure_level=float(config["closure_level"]),
         tracker_noise=_tracker_noise_settings(config["tracker_noise"]),
         gross_errors={"alpha": float(outliers["alpha"]), "max_share": float(outliers["max_share"])},
         harmonic_level=float(config["harmonics"]["level"]),

@@ -24,7 +24,9 @@ def campaign_table(tables: dict[str, pd.DataFrame], reports: dict[str, LoopRepor
 
 def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     """The closure test of every sensor: after each step, the cross-validated RMS per axis (pose
-    folds, and blocks of poses contiguous in time: None where not computed), the noise floor, their ratio, the share of the structured residual the step removed, the verdict;
+    folds, and blocks of poses contiguous in time: None where not computed), the noise floor, their ratio
+    (to the held-out floor) and the ratio up to which the closure test calls it closed, the share of the
+    structured residual the step removed, the verdict;
     the last row of a sensor says where what is left lives (the residual GP's joints)."""
     rows = []
     for sensor, report in reports.items():
@@ -47,6 +49,8 @@ def closure_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
                     "Time-blocked CV RMS per axis (mm)": step.get("time_blocked_rms_per_axis_mm"),
                     "Noise floor (mm)": test["noise_floor_mm"],
                     "Ratio": step.get("ratio_to_floor"),
+                    # the ratio a correct model reaches at the closure test's level with these folds and rows
+                    "Closed up to ratio": step.get("closed_up_to_ratio"),
                     "Share removed (%)": (
                         100.0 * shares[step["after"]] if shares.get(step["after"]) is not None else None
                     ),
