@@ -423,9 +423,16 @@ def test_a_campaign_too_large_for_a_jobs_memory_is_refused_before_any_fit(tmp_pa
     assert capacity.peak_estimate(1_000_000) == pytest.approx(0.5e9 + 16 * capacity.THEORETICAL_PAIRS + 1.5e3 * 1e6)
     assert 2.8e9 < capacity.peak_estimate(100_000) < 3.5e9  # the 100,000-row accuracy job measured 2.8 GB
     assert 3.5e9 < capacity.peak_estimate(1_000_000) < 4.5e9  # and 3.5 GB at 1,000,000 rows
+    # the loop closure's job: it fits at most fit_rows rows, 130 kB each
+    assert capacity.peak_estimate(30_000, fit_rows=20_000) == pytest.approx(0.5e9 + 1.5e3 * 30_000 + 1.3e5 * 20_000)
+    assert capacity.peak_estimate(30_000, fit_rows=21_000) > 3.24e9  # the loop measured 3.24 GB fitting 21,000 rows
+    assert capacity.peak_estimate(30_000, fit_rows=20_000) > capacity.peak_estimate(30_000)
+    assert 3.5e9 < capacity.peak_estimate(1_000_000, fit_rows=20_000) < 5e9  # measured 3.5 GB (accuracy), 3.4 (loop)
     data = read_campaign(make_campaign(tmp_path, tables={SENSOR: sensor_table()}), repo_root=REPO)
     summary = campaigns.summarize(data, memory_limit=2e9)
     assert summary["memory"] == {"largest_sensor_rows": 9, "estimated_peak_gb": pytest.approx(0.5003015)}
+    fitted = campaigns.summarize(data, memory_limit=2e9, fit_rows=20_000)["memory"]["estimated_peak_gb"]
+    assert fitted == pytest.approx(0.5 + 1.5e-6 * 9 + 1.3e-4 * 9)  # the loop fits all 9 rows
     assert campaigns.summarize(data) == summary  # the limit is not recorded: the same bytes on every machine
     with pytest.raises(
         InputError,

@@ -14,5 +14,6 @@ rule campaign_summary:
     params:
         memory_limit=JOB_MEMORY_LIMIT,
         draws=config["accuracy"]["draws"],
+        fit_rows=config["loop_closure"]["fit_rows"],
     script:
         "../scripts/campaign_summary.py"

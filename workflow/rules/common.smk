@@ -178,7 +178,12 @@ def campaign_mem_mb(wildcards, attempt):
     each retry, so a cluster reserves what the job uses."""
     from remaster.campaigns import capacity
 
-    return capacity.job_request_mb(largest_sensor_rows(wildcards.campaign), config["accuracy"]["draws"], attempt)
+    return capacity.job_request_mb(
+        largest_sensor_rows(wildcards.campaign),
+        config["accuracy"]["draws"],
+        attempt,
+        config["loop_closure"]["fit_rows"],
+    )
 
 
 def runtime_minutes(minutes_per_thousand_rows, at_least=5):

@@ -12,4 +12,4 @@ snakemake: Snakemake = globals()["snakemake"]
 with files.log_to(snakemake.log[0]):
     data = folders.read_campaign(folders.campaign_folder(snakemake.input.campaign))
     p = snakemake.params
-    files.write_json(snakemake.output.summary, campaign.summarize(data, p.memory_limit, p.draws))
+    files.write_json(snakemake.output.summary, campaign.summarize(data, p.memory_limit, p.draws, p.fit_rows))

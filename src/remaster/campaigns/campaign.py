@@ -853,13 +853,16 @@ def _check_orientation_spec(data: SensorData, source: str, metadata_source: str)
         )
 
 
-def summarize(campaign: Campaign, memory_limit: float | None = None, draws: int = 2000) -> dict[str, Any]:
+def summarize(
+    campaign: Campaign, memory_limit: float | None = None, draws: int = 2000, fit_rows: int = 0
+) -> dict[str, Any]:
     """What a campaign holds: robot, and per sensor the rows, poses and configurations per set,
     and the rows whose marker was not seen (kept, listed by 0-based row); and whether its jobs fit
     in `memory_limit` bytes each (None: no limit) with `draws` posterior draws in the theoretical
-    accuracy: InputError before any fit when they do not (`capacity.check`)."""
+    accuracy and a loop closure fitting at most `fit_rows` rows: InputError before any fit when
+    they do not (`capacity.check`)."""
     memory = capacity.check(
-        campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0), memory_limit, draws
+        campaign.name, max((len(s.table) for s in campaign.sensors.values()), default=0), memory_limit, draws, fit_rows
     )
     sensors = {}
     for name, sensor in campaign.sensors.items():
