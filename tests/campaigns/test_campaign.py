@@ -448,9 +448,11 @@ def test_a_job_asks_for_its_peak_and_its_own_snakemake_and_more_on_a_retry():
     alone), half as much again on each retry."""
     from remaster.campaigns import capacity
 
-    first = capacity.job_request_mb(1_000)
-    assert first == int((0.5e9 + 33.5e6 + 768e6) / 1e6) + 1 == 1302  # the UR5 campaign's request
-    assert capacity.job_request_mb(1_000, attempt=2) == int(1.5 * (0.5e9 + 33.5e6 + 768e6) / 1e6) + 1
+    first = capacity.job_request_mb(1_000, fit_rows=20_000)
+    # the UR5 campaign's request: the loop fits its 1,000 rows (130 MB), more than its accuracy's 32 MB
+    assert first == int((0.5e9 + 1.5e6 + 130e6 + 768e6) / 1e6) + 1 == 1400
+    assert capacity.job_request_mb(1_000, attempt=2, fit_rows=20_000) == int(1.5 * (1.3995e9) / 1e6) + 1
+    assert capacity.job_request_mb(1_000) == int((0.5e9 + 33.5e6 + 768e6) / 1e6) + 1  # the accuracy's alone
     assert capacity.job_request_mb(100_000) > capacity.peak_estimate(100_000) / 1e6 + 520  # above the measured cost
 
 
