@@ -20,9 +20,9 @@ whose first three cumulants the folds' Jacobians give (`evidence.held_out_cumula
 shifted, scaled chi-square with the same three (Pearson's approximation, `held_out_sf`). Few rows per
 parameter make a few large weights and a long tail (at 25 configurations the level lies at 1.3-2.6 x
 the held-out floor); many rows make it narrow (at 17,500 rows, 1.007 x), so that a fixed ratio
-would call correct small campaigns not closed and a large campaign's model error closed. The loop is closed when the probability of a held-out error at
-least as large under a correct model is at least the level; otherwise sqrt(RMS^2 - held-out floor^2)
-per axis is the structured residual left. Where the folds' spread is not known (the residual GP's
+would call correct small campaigns not closed and a large campaign's model error closed. The loop is
+closed when the probability of a held-out error at least as large under a correct model is at least
+the level; otherwise sqrt(RMS^2 - held-out floor^2) per axis is the structured residual left. Where the folds' spread is not known (the residual GP's
 folds) the weights are taken as 1: the plain floor, which never flatters a fit. Each step's share is
 the part of the structured residual (mean square above the floor) it removed: an effect that removes
 a small share is not what the residual was.
