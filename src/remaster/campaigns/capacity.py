@@ -50,8 +50,9 @@ def check(campaign: str, rows: int, limit: float | None, draws: int = 2000, fit_
     if limit is not None and need > limit:
         raise InputError(
             f"{rows} rows in its largest sensor: its largest job (the accuracy, {draws} posterior draws "
-            f"at up to {THEORETICAL_PAIRS:,} draw x configuration pairs, or the loop closure fitting up to "
-            f"{min(rows, fit_rows):,} rows) would need about {need / GB:.1f} GB, more than the "
+            f"at up to {THEORETICAL_PAIRS:,} draw x configuration pairs"
+            + (f", or the loop closure fitting up to {min(rows, fit_rows):,} rows" if fit_rows > 0 else "")
+            + f") would need about {need / GB:.1f} GB, more than the "
             f"{limit / GB:.1f} GB a job may use (max_job_memory_gb in config.yaml; by default half "
             f"this machine's memory): raise max_job_memory_gb where the machine allows it, or split "
             f"the campaign into smaller ones (by date or by pose)",
