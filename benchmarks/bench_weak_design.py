@@ -35,12 +35,11 @@ from snakemake.utils import validate
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.doc_sections import publish  # noqa: E402
-from benchmarks.truth_claims import REPO  # noqa: E402
+from benchmarks.truth_claims import REPO, least_squares_validation  # noqa: E402
 from remaster import files  # noqa: E402
 from remaster.campaigns import arm_kinds, folders, scenario, simulation  # noqa: E402
 from remaster.inference import fit  # noqa: E402
-from remaster.inference.blocks import readings  # noqa: E402
-from remaster.loop import loop_closure, selection  # noqa: E402
+from remaster.loop import loop_closure  # noqa: E402
 from remaster.loop.settings import settings_from  # noqa: E402
 from remaster.robot.priors import Priors  # noqa: E402
 
@@ -92,19 +91,10 @@ def calibrated(campaign, seed: int) -> dict:
     settings = replace(settings, mcmc=None)
     rng = np.random.default_rng(seed)
     report = loop_closure.loop_closure_stage(campaign, "laser_tracker", registered, laplace, rng, settings).report
-    sensor = campaign.sensors["laser_tracker"]
-    fitted_on, checked_on = (
-        readings(campaign.chain, sensor, "optimization"),
-        readings(campaign.chain, sensor, "validation"),
-    )
-    poses = sensor.table["pose"].to_numpy()
     wide = Priors(settings.priors.arm_class, {k: 1000.0 * v for k, v in settings.priors.values.items()}, "x1000")
-    least_squares = selection.fit_blocks(
-        campaign.chain, fitted_on, sensor.marker, registered.t_nr, ("link_geometry", "marker_offset"),
-        dict(laplace.held), selection.selection_folds(poses[fitted_on.rows], settings.cv_folds), wide,
-    )  # fmt: skip
-    predicted = least_squares.model.on(checked_on).predict(least_squares.theta)
-    ls = selection.accuracy(checked_on.measured, predicted, poses[checked_on.rows])
+    least_squares = least_squares_validation(
+        campaign, "laser_tracker", registered, laplace, settings, ("link_geometry", "marker_offset"), wide
+    )
     base = report.closure["rounds"][0]
     return {
         "seed": seed,
@@ -112,7 +102,7 @@ def calibrated(campaign, seed: int) -> dict:
         "effects": list(report.effects_added),
         "link_prior_scale": report.settings["link_prior_scale"]["scale"],
         "loop_validation_rmse_mm": report.after["validation"]["rmse_mm"],
-        "least_squares_validation_rmse_mm": ls["rmse_mm"],
+        "least_squares_validation_rmse_mm": least_squares["rmse_mm"],
         "before_validation_rmse_mm": report.before["validation"]["rmse_mm"],
     }
 

@@ -31,8 +31,8 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.evaluation import acceptance, workspace
 from remaster.evaluation.acceptance import Acceptance
-from remaster.inference import fit, metrics
-from remaster.loop import loop_closure
+from remaster.inference import blocks, evidence, fit, metrics
+from remaster.loop import loop_closure, selection
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
 
@@ -327,3 +327,22 @@ def _elsewhere(campaign, sensor: str, results: dict, q, truth: dict, draws: int,
         "paper_error_mm": out["paper"][0],
         "own_outside": posterior_outside(robots["loop"], q, out["loop"][1], draws, rng),
     }
+
+
+def least_squares_validation(campaign, sensor: str, registered, laplace, settings, extensions, priors=None) -> dict:
+    """The baseline a calibration engineer would fit: least squares of the paper's model plus
+    `extensions` (e.g. every link's six parameters, the marker offset, joint compliance) on the
+    optimization rows the paper's fit kept; flat (`priors` None: what the data cannot see held at 0,
+    by the loop's own reduction) or under `priors`; the gravity torques as `settings.model` gives
+    them on this campaign's chain. Returns the validation set's accuracy (`selection.accuracy`:
+    rmse_mm, rms_per_axis_mm, ...) and the parameters fitted; the validation set is read for this only."""
+    data = campaign.sensors[sensor]
+    fitted_on = blocks.readings(campaign.chain, data, "optimization", settings.model, exclude=laplace.outlier_rows)
+    checked_on = blocks.readings(campaign.chain, data, "validation", settings.model)
+    model, _ = blocks.extended_model(
+        campaign.chain, fitted_on, data.marker, registered.t_nr, extensions, dict(laplace.held), priors
+    )
+    theta = evidence.posterior_mode(model, np.zeros(len(model.names))).theta
+    validation = model.on(checked_on)
+    poses = data.table["pose"].to_numpy()[checked_on.rows]
+    return {**selection.accuracy(validation.measured, validation.predict(theta), poses), "parameters": len(theta)}

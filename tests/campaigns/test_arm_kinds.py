@@ -152,6 +152,14 @@ def test_a_dh_arm_with_dh_errors_is_its_perturbed_table():
     assert 5e-5 < np.abs(expected - nominal).max() < 5e-3  # errors of the stated size moved the marker
 
 
+def test_the_iiwa_dh_table_is_its_urdf_chain_without_masses():
+    urdf = arm_kinds.chain_of({"name": "urdf", "robot": arm_kinds.IIWA}, REPO)
+    dh = kinematics.chain_from_dh(arm_kinds.IIWA_DH, "standard")
+    q = np.random.default_rng(3).uniform(urdf.lower, urdf.upper, (200, 7))
+    assert kinematics.max_chain_difference(urdf, dh, q) < 1e-12
+    assert urdf.inertias is not None and dh.inertias is None
+
+
 def _by_hand(chain, motions, q, marker) -> np.ndarray:
     """Marker positions (n, 3) of the chain with F'_j = Trans(t_j) RPY(r_j) F_j, by matrix products."""
     moved = [

@@ -137,10 +137,33 @@ def test_predictions_take_the_torques_the_fit_took(rng):
     np.testing.assert_array_equal(predictor.model.data.payload_torques, loaded.payload_torques)
 
 
-def test_an_arm_without_mass_data_gets_a_stand_in_with_the_shape_of_its_own_weight(iiwa, rng):
-    """The iiwa without its inertials (as a DH table would give it): the stand-in's torques follow
-    the shape of the real arm's own (the URDF's masses, which the stand-in never sees) on every
-    joint gravity loads, far better than the payload alone; the payload's part is the payload's."""
+def test_the_gravity_regressor_is_pinocchios_torque_of_each_bodys_mass_and_first_moments(iiwa, rng):
+    import dataclasses
+
+    from remaster.robot import gravity
+    from remaster.robot.kinematics import LinkInertia
+
+    q = rng.uniform(np.maximum(iiwa.lower, -2.5), np.minimum(iiwa.upper, 2.5), (50, 7))
+    regressor = gravity.gravity_regressor(iiwa, q, chunk=7)  # several chunks
+
+    def one_body(k, com):
+        bodies = tuple(LinkInertia(float(i == k), np.asarray(com, float), np.zeros((3, 3))) for i in range(7))
+        return gravity_torques(dataclasses.replace(iiwa, inertias=bodies), q)
+
+    for k in range(7):
+        at_origin = one_body(k, np.zeros(3))
+        np.testing.assert_allclose(regressor[:, :, k, 0], at_origin, rtol=0, atol=1e-10)
+        for axis in range(3):  # 1 kg 1 m along the axis is the origin's mass plus a first moment of 1 kg m
+            moment = one_body(k, np.eye(3)[axis]) - at_origin
+            np.testing.assert_allclose(regressor[:, :, k, 1 + axis], moment, rtol=0, atol=1e-10)
+    assert np.all(regressor[:, 1, 0] == 0.0)  # the body joint 1 moves does not hang on joint 2
+
+
+def test_an_arm_without_mass_data_gets_a_regressor_that_spans_its_own_weight(iiwa, rng):
+    """The iiwa without its inertials (as a DH table would give it): a compliance per joint, body and
+    column of the regressor follows the real arm's own torque (the URDF's masses, which the regressor
+    never sees) exactly on every joint gravity loads, where the payload alone leaves a fifth or more;
+    the payload's part is the payload's, and the arm's torques are the payload's alone."""
     import dataclasses
 
     from remaster.robot import gravity
@@ -149,17 +172,21 @@ def test_an_arm_without_mass_data_gets_a_stand_in_with_the_shape_of_its_own_weig
     assert gravity.without_mass(bare) and not gravity.without_mass(iiwa)
     q = rng.uniform(np.maximum(iiwa.lower, -2.5), np.minimum(iiwa.upper, 2.5), (400, 7))
     loaded = loaded_torques(bare, q, payload_mass=2.5, payload_com=(0.0, 0.0, 0.03))
-    assert loaded.payload.stand_in and loaded.payload.report()["arm_masses"] == "stand-in"
-    np.testing.assert_allclose(
-        loaded.payload_torques, gravity_torques(bare, q, 2.5, (0.0, 0.0, 0.03)), rtol=0, atol=1e-9
-    )
+    assert loaded.payload.unit_masses and loaded.payload.report()["arm_masses"] == "gravity regressor"
+    payload = gravity_torques(bare, q, 2.5, (0.0, 0.0, 0.03))
+    np.testing.assert_allclose(loaded.payload_torques, payload, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(loaded.torques, payload, rtol=0, atol=1e-9)
     own = gravity_torques(iiwa, q)  # the real arm's weight alone
-    stand_in = loaded.torques - loaded.payload_torques
 
-    def unexplained(regressor, joint):
-        """The share of the real torque's spread a compliance times `regressor` cannot follow."""
-        return np.sqrt(1.0 - np.corrcoef(own[:, joint], regressor[:, joint])[0, 1] ** 2)
+    def unexplained(columns, joint):
+        """The share of the real torque's spread a least-squares combination of columns cannot follow."""
+        target = own[:, joint]
+        fitted = columns @ np.linalg.lstsq(columns, target, rcond=None)[0]
+        return np.linalg.norm(target - fitted) / np.linalg.norm(target - target.mean())
 
-    for joint in (1, 2, 3):  # joints 2, 3, 4: the ones the arm's own weight loads most
-        assert unexplained(stand_in, joint) < min(0.15, unexplained(loaded.payload_torques, joint) / 2)
-    assert not loaded_torques(iiwa, q, payload_mass=2.5).payload.stand_in
+    for joint in (1, 2, 3, 4, 5):  # joints 2 to 6: the ones gravity loads (joint 1 is vertical)
+        regressor = unexplained(loaded.link_torques[:, joint, joint:].reshape(len(q), -1), joint)
+        assert regressor < 1e-9
+    for joint in (1, 2, 3, 4):  # joint 6's own load is the payload's shape (both on the last axis)
+        assert unexplained(loaded.payload_torques[:, joint, None], joint) > 0.2
+    assert loaded_torques(iiwa, q, payload_mass=2.5).link_torques is None

@@ -91,13 +91,20 @@ class Predictor:
     ):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         kept = tuple(b for b in EXTENSIONS if b in blocks and b not in SETUP_BLOCKS)
+        links = None
         if "joint_compliance" in kept:  # the torques the fit's readings had: a URDF's own tool counted once
             loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
-            torques, payload = loaded.torques, loaded.payload_torques
+            torques, payload, links = loaded.torques, loaded.payload_torques, loaded.link_torques
         else:
             torques = payload = np.zeros_like(q)
         data = Readings(
-            np.arange(len(q)), q, np.zeros((len(q), 3)), torques, payload, harmonic_orders=settings.harmonic_orders
+            np.arange(len(q)),
+            q,
+            np.zeros((len(q), 3)),
+            torques,
+            payload,
+            harmonic_orders=settings.harmonic_orders,
+            link_torques=links,
         )
         self.model = BlockModel(chain, data, marker, np.eye(4), kept)
 

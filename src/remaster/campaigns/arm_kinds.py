@@ -31,6 +31,17 @@ UR5_DH = [
     [0.0, 0.0, 0.0823, 0.0],
 ]
 UR5 = {"dh": {"convention": "standard", "rows": [list(map(float, row)) for row in UR5_DH]}}
+# the iiwa 14's standard DH table, the chain of IIWA's URDF (base iiwa_link_0, flange iiwa_link_ee)
+# without its masses: what an arm given by its data sheet looks like
+IIWA_DH = [
+    [0.0, -math.pi / 2, 0.36, 0.0],
+    [0.0, math.pi / 2, 0.0, 0.0],
+    [0.0, math.pi / 2, 0.42, 0.0],
+    [0.0, -math.pi / 2, 0.0, 0.0],
+    [0.0, -math.pi / 2, 0.40, 0.0],
+    [0.0, math.pi / 2, 0.0, 0.0],
+    [0.0, 0.0, 0.126, 0.0],
+]
 IIWA_OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]
 UR5_OFFSETS_DEG = [0.21, -0.33, 0.15, 0.27, -0.12, 0.40]
 TRACKER = {

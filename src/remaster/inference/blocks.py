@@ -10,7 +10,9 @@ optional blocks for the effects the paper's model leaves out (docs/methods.md, "
 | `registration`     | x, y, z (m), alpha, beta, gamma (rad)                  | mm, deg      |
 | `zero_offsets`     | q1..qN (rad)                                           | deg          |
 | `joint_compliance` | q1..qN (rad/(N m)) times tau_j, gravity's torque;      | urad/(N m)   |
-|                    | payload_q1..qN (rad/(N m)) times the payload's part    |              |
+|                    | payload_q1..qN (rad/(N m)) times the payload's part;   |              |
+|                    | an arm without masses: q<j>.body<k>.m, .mx, .my, .mz   |              |
+|                    | times its gravity regressor's columns instead of q<j>  |              |
 | `joint_scale`      | q1..qN (1), times the reading q_j                      | ppm          |
 | `marker_offset`    | x, y, z (m) added to the marker, flange frame          | mm           |
 | `sensor_scale`     | s (1): p_N -> (1 + s) p_N                              | ppm          |
@@ -60,7 +62,7 @@ from .. import _kernels, spatial
 from ..campaigns.campaign import SensorData
 from ..errors import format_rows
 from ..noise import RangeTransverse
-from ..robot.gravity import Payload, assumed_payload, loaded_torques
+from ..robot.gravity import Payload, assumed_payload, loaded_torques, without_mass
 from ..robot.kinematics import LINK_MOTION, KernelForm, KinematicChain, perturbed_transforms
 from ..robot.priors import Priors
 from ..units import DEG, MM, SECONDS_PER_HOUR
@@ -85,6 +87,9 @@ PPM = 1e-6
 # 37 us against 11 us at 1,000 rows, 4.0 ms against 15 us at 100,000)
 EXPANDED_ROWS_PER_TERM = 0.25
 MICRORAD_PER_NM = 1e-6
+# the gravity regressor's columns per body (`gravity.gravity_regressor`): its mass at the joint frame's
+# origin, its first moments along the frame's axes
+GRAVITY_COLUMNS = ("m", "mx", "my", "mz")
 # An extension column of the Jacobian below this fraction of the longest of its own block is
 # invisible in the data: e.g. the compliance of joint 1 about the vertical (zero torque), the
 # scale of a joint that never moves. Within a block, so that the choice of units does not matter.
@@ -179,10 +184,15 @@ class Readings:
     orientations: np.ndarray | None = None
     probe_rotation: np.ndarray | None = None
     orientation_weight: float = 1.0
+    link_torques: np.ndarray | None = None
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
-        'payload_torques', 'drift' (the same for every joint) or 'cos<k>' / 'sin<k>' (of k q)."""
+        'payload_torques', 'drift' (the same for every joint), 'cos<k>' / 'sin<k>' (of k q) or
+        'body<k>.<column>' (a column of an arm without mass data's gravity regressor)."""
+        if key.startswith("body"):
+            body, column = key[4:].split(".")
+            return self.link_torques[:, :, int(body) - 1, GRAVITY_COLUMNS.index(column)]
         if key[:3] in ("cos", "sin") and key[3:].isdigit():
             return (np.cos if key[:3] == "cos" else np.sin)(int(key[3:]) * self.q)
         if key == "ones":
@@ -207,6 +217,7 @@ class Readings:
             drift=part(self.drift),
             weights=part(self.weights),
             orientations=part(self.orientations),
+            link_torques=part(self.link_torques),
         )
 
 
@@ -304,6 +315,7 @@ def readings(
         harmonic_orders=settings.harmonic_orders,
         weights=point_weights(sensor, rows),
         drift_gaps=None if drift is not None else drift_gaps(sensor.table, settings.drift_column),
+        link_torques=loaded.link_torques,
     )
 
 
@@ -432,6 +444,15 @@ def block_parameters(
         raise ValueError(f"unknown block {block!r}; blocks are {BASE + EXTENSIONS}")
     kinds, scale, unit = joint_space[block]
     parts = [(f"{block}.{prefix}{j + 1}", j, regressor) for prefix, regressor in kinds for j in range(chain.n_joints)]
+    if block == "joint_compliance" and without_mass(chain):  # the arm's weight as its gravity regressor
+        n = chain.n_joints
+        bodies = [
+            (f"{block}.q{j + 1}.body{k + 1}.{c}", j, f"body{k + 1}.{c}")
+            for j in range(n)
+            for k in range(j, n)
+            for c in GRAVITY_COLUMNS
+        ]
+        parts = bodies + parts[n:]  # the payload's terms stay
     return Parameters(
         tuple(p[0] for p in parts),
         np.full(len(parts), scale),
@@ -480,7 +501,9 @@ class BlockModel:
             raise ValueError(f"unknown extension blocks {sorted(unknown)}; use some of {EXTENSIONS}")
         if "drift" in blocks and data.drift is None:
             raise ValueError("a drift block needs a time or temperature column")
-        if "joint_compliance" in blocks and (data.torques is None or data.payload_torques is None):
+        if "joint_compliance" in blocks and (
+            data.torques is None or data.payload_torques is None or (without_mass(chain) and data.link_torques is None)
+        ):
             raise ValueError("a joint_compliance block needs the readings' gravity torques (`readings`)")
         self.chain, self.data = chain, data
         self.q, self.measured = data.q, data.measured

@@ -17,14 +17,16 @@ them into the last body, so Pinocchio's torques already include them. The rule:
 - otherwise (the bundled iiwa URDF ends with a massless flange; a DH table has no masses) the
   configured payload is added at the flange, as before.
 
-An arm without mass data (a DH table, a URDF without inertials) would feel the payload alone, and
-its compliance could then only follow the payload's torque, not the sag of its own links. There a
-stand-in carries the arm's weight: a mass of STAND_IN_MASS at the middle of each moving link (halfway
-from its joint to the next joint, or to the flange for the last), so every joint's torque has the
-shape of the arm's own (its lever arms); each joint's fitted compliance absorbs the unknown scale
-(c_j times the mass that really hangs there). The payload's part of the torques stays the payload's.
+An arm without mass data (a DH table, a URDF without inertials) feels the payload alone, and a
+compliance times that torque cannot follow the sag of its own links. Its weight is then a gravity
+regressor instead (`gravity_regressor`): the torques on each joint of 1 kg at each moving joint frame's
+origin and of its first moments along that frame's axes. Gravity's torque is linear in each body's
+mass and first moment (its mass times its centre of mass), so the arm's own torque on joint j is a
+combination of those columns whatever its masses are; the compliance fits one coefficient per joint,
+body beyond it and column (c_j times the mass or moment the data put there), and no guess at the
+masses is needed.
 
-`Payload` says which of the two the torques assume, and whether the arm's masses are a stand-in.
+`Payload` says which payload the torques assume, and whether the arm's own weight is that regressor.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from . import kinematics
 from .kinematics import KinematicChain, LinkInertia, pinocchio_model
 
 STANDARD_GRAVITY = 9.80665  # m/s^2
-STAND_IN_MASS = 1.0  # kg per moving link of an arm without mass data (module docstring): the compliance takes the scale
+UNIT_MASS = 1.0  # kg at each frame origin of the gravity regressor of an arm without mass data (module docstring)
 
 
 def gravity_torques(
@@ -80,7 +82,7 @@ class Payload:
     com: tuple[float, float, float]
     links: tuple[str, ...] = ()
     configured_mass: float = 0.0
-    stand_in: bool = False
+    unit_masses: bool = False
 
     def report(self) -> dict:
         """JSON-ready, with a sentence saying which payload the torques assume and why."""
@@ -97,15 +99,15 @@ class Payload:
                 f"({self.mass:.3g} kg) is added at the flange"
             )
             frame = "flange"
-        if self.stand_in:
+        if self.unit_masses:
             why += (
-                f"; the arm has no mass data: {STAND_IN_MASS:g} kg at the middle of each moving link stands in "
-                "for its weight, so the torques have the shape of its own and each joint's compliance takes "
-                "the scale"
+                f"; the arm has no mass data: its weight is a gravity regressor, the torques of {UNIT_MASS:g} kg at "
+                "each moving joint frame's origin and of its first moments, one compliance coefficient per "
+                "joint, body beyond it and column"
             )
         return {
             "source": self.source,
-            "arm_masses": "stand-in" if self.stand_in else "the robot description's",
+            "arm_masses": "gravity regressor" if self.unit_masses else "the robot description's",
             "mass_kg": self.mass,
             "com_m": list(self.com),
             "com_frame": frame,
@@ -118,11 +120,13 @@ class Payload:
 @dataclass(frozen=True, eq=False)
 class LoadedTorques:
     """torques (n, N) N m: gravity's torque on each joint, payload included; payload_torques (n, N):
-    the payload's part of it; payload: which payload they assume."""
+    the payload's part of it; payload: which payload they assume; link_torques (n, N, N, 4) N m: an
+    arm without mass data's gravity regressor (`gravity_regressor`), None for an arm with masses."""
 
     torques: np.ndarray
     payload_torques: np.ndarray
     payload: Payload
+    link_torques: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,12 +184,28 @@ def without_mass(chain: KinematicChain) -> bool:
     return chain.inertias is None or not any(body.mass > 0.0 for body in chain.inertias)
 
 
-def stand_in(chain: KinematicChain) -> KinematicChain:
-    """The chain with STAND_IN_MASS at the middle of each moving link (module docstring): in joint
-    j's frame, halfway to joint j + 1's origin (to the flange for the last joint)."""
-    ends = [*(t[:3, 3] for t in chain.joint_transforms[1:]), chain.tool_transform[:3, 3]]
-    zero = np.zeros((3, 3))
-    return dataclasses.replace(chain, inertias=tuple(LinkInertia(STAND_IN_MASS, 0.5 * end, zero) for end in ends))
+def gravity_regressor(chain: KinematicChain, q, gravity=(0.0, 0.0, -STANDARD_GRAVITY), chunk: int = 50_000):
+    """(n, N, N, 4) N m: [i, j, k] the torques gravity exerts on joint j at configuration q_i (n, N)
+    of the mass properties of the body joint k moves, one at a time: [..., 0] UNIT_MASS at joint k's
+    frame origin o_k, z_j . ((o_k - o_j) x m g); [..., 1:] a first moment of UNIT_MASS times 1 m along
+    joint k's frame axes x, y, z (its centre of mass off the origin), z_j . (R_k e_a x m g). Zero for
+    k < j: that body does not hang on joint j. Any body's weight loads joint j as a combination of
+    them (Pinocchio's torque is linear in each body's mass and first moment). `chunk` rows at a time
+    bound the joint frames' memory."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    weight = UNIT_MASS * np.asarray(gravity, dtype=float)
+    out = np.zeros((len(q), chain.n_joints, chain.n_joints, 4))
+    above = np.triu(np.ones((chain.n_joints, chain.n_joints)))[..., None]  # k >= j
+    for start in range(0, len(q), chunk):
+        frames = kinematics.ForwardKinematics(chain, q[start : start + chunk]).joint_frames()
+        origins, rotations = frames[..., :3, 3], frames[..., :3, :3]  # (m, N, 3), (m, N, 3, 3)
+        axes = np.einsum("mjab,jb->mja", rotations, chain.joint_axes)
+        levers = origins[:, None, :, :] - origins[:, :, None, :]  # [m, j, k]: o_k - o_j
+        mass = np.einsum("mja,mjka->mjk", axes, np.cross(levers, weight))
+        columns = np.cross(np.swapaxes(rotations, -1, -2), weight)  # [m, k, a]: R_k e_a x m g
+        moments = np.einsum("mjc,mkac->mjka", axes, columns)
+        out[start : start + chunk] = np.concatenate([mass[..., None], moments], axis=-1) * above
+    return out
 
 
 def assumed_payload(chain: KinematicChain, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> Payload:
@@ -205,16 +225,17 @@ def _assumed(chain, tool: UrdfTool | None, payload_mass: float, payload_com) -> 
 def loaded_torques(chain: KinematicChain, q, payload_mass: float = 0.0, payload_com=(0.0, 0.0, 0.0)) -> LoadedTorques:
     """Gravity torques at q (n, N) with the payload the rule of the module docstring gives: the
     URDF's tool when it carries one (payload_mass is then not added), else payload_mass (kg) at
-    payload_com (m, flange frame) added at the flange, on the stand-in masses of an arm without
-    mass data (`stand_in`); and the payload's part of them."""
+    payload_com (m, flange frame) added at the flange; the payload's part of them; and an arm
+    without mass data's gravity regressor (`gravity_regressor`), whose torques are the payload's
+    alone."""
     tool = urdf_tool(chain)
     payload = _assumed(chain, tool, payload_mass, payload_com)
     if tool is not None:
         torques = gravity_torques(chain, q)
         return LoadedTorques(torques, torques - gravity_torques(tool.bare_chain, q), payload)
-    arm = stand_in(chain) if payload.stand_in else chain
-    torques = gravity_torques(arm, q, payload_mass, payload_com)
-    return LoadedTorques(torques, torques - gravity_torques(arm, q), payload)
+    torques = gravity_torques(chain, q, payload_mass, payload_com)
+    links = gravity_regressor(chain, q) if payload.unit_masses else None
+    return LoadedTorques(torques, torques - gravity_torques(chain, q), payload, links)
 
 
 def tool_report(chain: KinematicChain) -> dict | None:
