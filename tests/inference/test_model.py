@@ -156,3 +156,31 @@ def test_marker_on_last_axis_hides_its_offset(rng):
     assert sorted(result.held) == ["zero_offsets.q1", "zero_offsets.q6"]
     q, measured, marker, t_nr, _ = simulated(ur5, rng, marker=(0.05, 0.0, 0.031))
     assert list(identifiability.analyse(paper_model(ur5, q, measured, marker, t_nr)).held) == ["zero_offsets.q1"]
+
+
+def test_a_massless_arms_compliance_is_its_gravity_regressor_and_predicts_as_the_arm_with_masses(iiwa, rng):
+    """The iiwa without its inertials gets a coefficient per joint, body beyond it and regressor
+    column; set to c_j times the URDF's masses and first moments (which the massless chain never
+    sees) and the payload term to c_j, it predicts what the URDF's own compliance c_j predicts."""
+    import dataclasses
+
+    from remaster.calibration.prediction import Predictor
+
+    bare = dataclasses.replace(iiwa, inertias=None)
+    names = blocks.block_parameters("joint_compliance", bare).names
+    assert len(names) == 4 * 28 + 7 and "joint_compliance.q2.body4.mx" in names
+    assert "joint_compliance.q2" not in names and "joint_compliance.payload_q2" in names
+    q = rng.uniform(np.maximum(iiwa.lower, -2.5), np.minimum(iiwa.upper, 2.5), (40, 7))
+    compliance = rng.uniform(1e-5, 5e-5, 7)
+    massed = Predictor(iiwa, q, (0.1, 0.0, 0.02), ("joint_compliance",))
+    values = {f"joint_compliance.q{j + 1}": c for j, c in enumerate(compliance)}
+    expected = massed.points(values)
+    bodies = {f"joint_compliance.payload_q{j + 1}": c for j, c in enumerate(compliance)}
+    for j, c in enumerate(compliance):
+        for k in range(j, 7):
+            body = iiwa.inertias[k]
+            moments = dict(zip(("m", "mx", "my", "mz"), [body.mass, *(body.mass * body.com)]))
+            bodies |= {f"joint_compliance.q{j + 1}.body{k + 1}.{name}": c * v for name, v in moments.items()}
+    massless = Predictor(bare, q, (0.1, 0.0, 0.02), ("joint_compliance",))
+    assert np.abs(expected - massed.points({})).max() > 1e-4  # the compliance moves the marker
+    np.testing.assert_allclose(massless.points(bodies), expected, rtol=0, atol=1e-12)
