@@ -61,3 +61,43 @@ def test_the_joint_form_from_its_fourier_features_is_the_dense_covariance():
     for k in range(len(x)):
         step = 1e-5 * np.eye(len(x))[k]
         assert gradient[k] == pytest.approx((log_z(x + step)[0] - log_z(x - step)[0]) / 2e-5, rel=1e-4, abs=1e-6)
+
+
+def test_above_its_rows_the_free_forms_evidence_is_titsias_bound_and_the_joints_are_still_named(monkeypatch):
+    """The same cyclic error with the free form's search held to a third of the rows: the joint form
+    on every row, the free form's evidence Titsias' bound at what the third found; the same verdict."""
+    args, _, _, settings, data, current, gp = case(extensions=())
+    chain, data, marker, t_nr = args
+    mode = current.mode
+    pseudo = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(-1, 3)
+    directions = joint_form.joint_directions(chain, data, marker, t_nr, current.values())
+    monkeypatch.setattr(joint_error, "MAX_ROWS", len(data.q) // 3)
+    monkeypatch.setattr(joint_error, "FEATURE_CHUNK", 17)  # the joint form's sums in many blocks
+    found = joint_error.joint_error_form(
+        data.q, pseudo, directions, mode.jacobian, mode.model._prior_precision, gp.gp.hyper, 5.0
+    )
+    report = found.report()
+    assert report["rows"] == len(data.q) and report["free_form_evidence"].startswith("titsias")
+    assert report["preferred"] == "joint_error" and report["named_joints"] == ["q2", "q4"]
+
+
+def test_titsias_bound_with_every_row_inducing_is_the_free_forms_exact_evidence():
+    """The free form's exact evidence (its objective) and Titsias' bound with the rows as inducing
+    inputs are one number (the bound is exact there): the two are on the same footing above MAX_ROWS."""
+    import math
+
+    import numpy as np
+
+    from remaster.inference.gp.kernels import Hyperparameters
+    from remaster.inference.gp.with_parameters import titsias_log_evidence
+
+    rng = np.random.default_rng(2)
+    n, joints, p = 40, 3, 4
+    q = rng.uniform(-3.0, 3.0, (n, joints))
+    jacobian, y, precision = rng.normal(size=(n, 3, p)), rng.normal(size=(n, 3)), np.array([0.0, 1.0, 0.0, 3.0])
+    x = np.array([math.log(0.7), math.log(1.2), math.log(0.4), math.log(0.9), math.log(0.5)])
+    turned = np.arange(joints)
+    exact = joint_error._free_objective(q, y.ravel(), jacobian.reshape(-1, p), precision, turned)(x)[0]
+    hyper = Hyperparameters(np.exp(x[:joints]), math.exp(x[-2]), math.exp(x[-1]))
+    assert titsias_log_evidence(q, y, jacobian, precision, hyper, inducing=n) == pytest.approx(exact, rel=1e-6)
+    assert titsias_log_evidence(q, y, jacobian, precision, hyper, inducing=10) < exact

@@ -19,10 +19,14 @@ beyond which less than `TAIL` of the kernel is left, for every lengthscale withi
 joint form is then Bayesian linear regression on fixed features (`likelihood.feature_log_evidence`):
 its evidence comes from sums over the rows taken once, exact at any number of rows. The free GP's
 three axes share one n x n covariance (`likelihood.kron_log_evidence_and_gradient`). Both forms are
-compared on at most `MAX_ROWS` rows evenly spaced over the data (the free form's n x n factor per
-evaluation), each with its hyperparameters at the maximum of its evidence (the model's parameters
-integrated with the GP), their difference less half the difference of their hyperparameter counts
-times log 3n (each form pays for what it fitted). A joint is named when taking its f_j out (s_j ->
+compared on every row, each with its hyperparameters at the maximum of its evidence (the model's
+parameters integrated with the GP), their difference less half the difference of their
+hyperparameter counts times log 3n (each form pays for what it fitted). The free form's n x n
+factor per evaluation bounds its search to `MAX_ROWS` rows evenly spaced over the data; above, its
+evidence on every row is Titsias' lower bound at the hyperparameters found there
+(`with_parameters.titsias_log_evidence`, the residual GP's inducing inputs). Both lower the free
+form's evidence, so above `MAX_ROWS` the comparison leans towards the joint-error form by the
+bound's gap; benchmarks/bench_gp.py measures it where the exact evidence can still be taken. A joint is named when taking its f_j out (s_j ->
 0, the rest held) costs more than `min_log_evidence_gain`.
 
 A diagnostic: where the residual lives, told in the joints' own terms. Prediction keeps the free GP.
@@ -38,11 +42,14 @@ import numpy as np
 
 from .kernels import Hyperparameters, circle_distances, kernel, turned_joints
 from .likelihood import feature_log_evidence, kron_log_evidence_and_gradient
-from .residual import evenly_spaced
+from .residual import INDUCING, evenly_spaced
+from .with_parameters import titsias_log_evidence
 
-# rows of the comparison: the free form's n x n factor and inverse per evaluation (a few tenths of a
-# second at 1000 on two cores); the joint form's cost does not grow with them
+# rows the free form's hyperparameters are maximised on: its n x n factor and inverse per evaluation (a
+# few tenths of a second at 1000 on two cores); above, its evidence on every row is Titsias' bound at
+# them. The joint form's sums are taken once over every row, its evaluations do not grow with them
 MAX_ROWS = 1000
+FEATURE_CHUNK = 2000  # rows per block of the joint form's sums (a (3 chunk, P + F) block: ~80 MB at 7 joints)
 TAIL = 1e-8  # the share of k(0) the joint form's cut Fourier series may leave out (`harmonics`)
 NEGLIGIBLE = 1e-16  # a Fourier weight of the kernel below this is left out of the sums' evaluation
 LENGTH_BOUNDS = (
@@ -71,6 +78,7 @@ class JointErrorForm:
     noise_free: float
     threshold: float
     unseen: tuple[str, ...] = ()
+    free_method: str = "exact"
 
     @property
     def preferred(self) -> str:
@@ -100,9 +108,11 @@ class JointErrorForm:
                 for j, a, l_, c in zip(self.joints, self.amplitudes, self.lengthscales, self.carried)
             },
             "noise_std_mm": {"joint_error_form": self.noise_joint * 1e3, "free_form": self.noise_free * 1e3},
+            "free_form_evidence": self.free_method,
             "rule": "joints in not_seen move the marker by less than 1e-4 of the most moving joint per radian "
-            "(the marker on their axis) and have no f_j; each form's hyperparameters at the maximum of its evidence (parameters integrated with the GP) on "
-            "the same rows; joint-error form preferred when its log evidence exceeds the free form's by more than "
+            "(the marker on their axis) and have no f_j; each form's hyperparameters at the maximum of its evidence (parameters integrated with the GP), "
+            "the joint-error form's on every row, the free form's on at most 1,000 rows (above, its evidence on every row is Titsias' "
+            "lower bound at them); joint-error form preferred when its log evidence exceeds the free form's by more than "
             "half the difference of their hyperparameter counts times log 3n; a joint named when its f_j carries "
             "more than the threshold",
         }
@@ -166,12 +176,26 @@ def _maximise(objective, start: np.ndarray, bounds) -> tuple[np.ndarray, float]:
     return found.x, -float(found.fun)
 
 
+def _feature_sums(q, y, directions, jacobian, turned, orders: int, chunk: int = FEATURE_CHUNK):
+    """(Phi^T Phi, Phi^T y, y^T y) of the joint form's features Phi = [J, features] (3n, P + F) at
+    readings q (n, N), y (3n,), jacobian (3n, P), accumulated `chunk` rows at a time."""
+    p = jacobian.shape[-1]
+    size = p + len(turned) * (2 * orders + 1)
+    gram, projected = np.zeros((size, size)), np.zeros(size)
+    for begin in range(0, len(q), chunk):
+        rows = slice(begin, begin + chunk)
+        stacked = slice(3 * begin, 3 * (begin + chunk))
+        part = np.concatenate([jacobian[stacked], _features(q[rows], directions[rows], turned, orders)], axis=1)
+        gram += part.T @ part
+        projected += part.T @ y[stacked]
+    return gram, projected, float(y @ y)
+
+
 def _joint_objective(q, y, directions, jacobian, precision, turned):
     """The joint form's log evidence at x = (log s_j..., log l_j..., log noise) and its gradient,
     with `without` joints' f_j taken out, from the sums of its features taken once."""
     orders = harmonics(LENGTH_BOUNDS[0])
-    features = np.concatenate([jacobian, _features(q, directions, turned, orders)], axis=1)
-    gram, projected, yy = features.T @ features, features.T @ y, float(y @ y)
+    gram, projected, yy = _feature_sums(q, y, directions, jacobian, turned, orders)
     k, per = len(turned), 2 * orders + 1
 
     def log_z(x: np.ndarray, without=()) -> tuple[float, np.ndarray]:
@@ -210,6 +234,28 @@ def _free_objective(q, y, jacobian, precision, turned):
     return log_z
 
 
+def _free_form(q, y, jacobian, precision, turned, free: Hyperparameters) -> tuple[np.ndarray, float, str]:
+    """(x, log evidence on every row, how it was computed) of the free form: its hyperparameters x at
+    the maximum of its exact evidence on at most MAX_ROWS rows evenly spaced over the data, from
+    `free`; above, its evidence on every row is Titsias' bound at them (`with_parameters`)."""
+    rows = evenly_spaced(len(q), MAX_ROWS)
+    p = jacobian.shape[-1]
+    stacked = jacobian.reshape(len(q), 3, p)
+    free_lengths = np.clip(free.lengthscales[turned], *LENGTH_BOUNDS)
+    start = np.concatenate([np.log(free_lengths), [math.log(free.signal_std), math.log(free.noise_std)]])
+    bounds = [(math.log(LENGTH_BOUNDS[0]), math.log(LENGTH_BOUNDS[1]))] * len(turned)
+    bounds += [(s - LOG_RANGE, s + LOG_RANGE) for s in start[-2:]]
+    objective = _free_objective(q[rows], y[rows].ravel(), stacked[rows].reshape(-1, p), precision, turned)
+    x, log_z = _maximise(objective, start, bounds)
+    if len(rows) == len(q):
+        return x, log_z, "exact"
+    lengths = np.full(q.shape[1], np.inf)
+    lengths[turned] = np.exp(x[: len(turned)])
+    hyper = Hyperparameters(lengths, math.exp(x[-2]), math.exp(x[-1]))
+    bound = titsias_log_evidence(q, y, stacked, precision, hyper)
+    return x, bound, f"titsias: hyperparameters from {len(rows)} rows, inducing inputs {min(INDUCING, len(q))}"
+
+
 def joint_error_form(
     q, residuals, directions, jacobian, precision, free: Hyperparameters, threshold: float
 ) -> JointErrorForm:
@@ -219,11 +265,8 @@ def joint_error_form(
     (y = residuals + J theta, theta the fit's mode, is passed as residuals already); free: the free
     GP's hyperparameters (its start); threshold (nats) for naming a joint."""
     q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
-    rows = evenly_spaced(len(q), MAX_ROWS)
-    q, y, directions = q[rows], y[rows], np.asarray(directions, dtype=float)[rows]
-    jacobian = (
-        np.asarray(jacobian, dtype=float).reshape(-1, 3, jacobian.shape[-1])[rows].reshape(-1, jacobian.shape[-1])
-    )
+    directions = np.asarray(directions, dtype=float)
+    jacobian = np.asarray(jacobian, dtype=float)
     precision = np.asarray(precision, dtype=float)
     flat_y = y.ravel()
     n = len(q)
@@ -252,11 +295,7 @@ def joint_error_form(
     )
     x_joint, log_z_joint = _maximise(joint_log_z, start_joint, bounds_joint)
 
-    free_lengths = np.clip(free.lengthscales[turned], *LENGTH_BOUNDS)
-    start_free = np.concatenate([np.log(free_lengths), [math.log(free.signal_std), math.log(free.noise_std)]])
-    bounds_free = log_bounds * len(turned) + [(s - LOG_RANGE, s + LOG_RANGE) for s in start_free[-2:]]
-    x_free, log_z_free = _maximise(_free_objective(q, flat_y, jacobian, precision, turned), start_free, bounds_free)
-
+    x_free, log_z_free, free_method = _free_form(q, y, jacobian, precision, turned, free)
     carried = []
     for i in range(len(turned)):
         try:  # f_j taken out, the rest held
@@ -278,4 +317,5 @@ def joint_error_form(
         noise_free=math.exp(x_free[-1]),
         threshold=float(threshold),
         unseen=unseen,
+        free_method=free_method,
     )

@@ -217,6 +217,39 @@ def _sparse_solution(sums: _Sums, noise2: float, precision) -> tuple[np.ndarray,
     return np.linalg.solve(a, b), a, quadratic, b_factor
 
 
+def _fold_sums(q, jacobian, y, basis: _Inducing, labels) -> list[_Sums]:
+    """Per fold (labels (n,) 0..F-1) the sums over its rows, accumulated CHUNK rows at a time."""
+    per_fold = [_Sums.zero(len(basis.points), jacobian.shape[-1]) for _ in range(labels.max() + 1)]
+    for begin in range(0, len(q), CHUNK):
+        rows = slice(begin, begin + CHUNK)
+        u = basis.u(q[rows])
+        for f in np.unique(labels[rows]):
+            at = labels[rows] == f
+            per_fold[f].add(u[at], jacobian[rows][at], y[rows][at])
+    return per_fold
+
+
+def _titsias(total: _Sums, hyper: Hyperparameters, precision) -> tuple[float, np.ndarray, np.ndarray]:
+    """(Titsias' bound on log Z with theta integrated, the flat parameters' constant left out and no
+    noise shape; theta (P,); A (P, P)) from the sums over every row."""
+    noise2, n, m = hyper.noise_std**2, total.n, len(total.uu)
+    theta, a, quadratic, b_factor = _sparse_solution(total, noise2, precision)
+    log_det_c0 = (n - m) * np.log(noise2) + 2.0 * float(np.sum(np.log(np.diag(b_factor[0]))))
+    trace = max(n * hyper.signal_std**2 - total.uu_trace, 0.0)  # tr(K - Q)
+    bound = integrated_log_evidence(quadratic, a, a @ theta, 3.0 * log_det_c0, 3 * n, precision)
+    return float(bound - 3.0 * trace / (2.0 * noise2)), theta, a
+
+
+def titsias_log_evidence(q, y, jacobian, precision, hyper: Hyperparameters, inducing: int | None = None) -> float:
+    """Titsias' bound on log Z (module docstring) of y (n, 3) m = J theta + f + e at readings q
+    (n, N) rad, jacobian (n, 3, P), theta integrated under precision (P,) (0: flat), f the GP of
+    `hyper` through `inducing` inducing inputs (None: `INDUCING`) evenly spaced over q."""
+    q = np.asarray(q, dtype=float)
+    basis = _Inducing(q, hyper, INDUCING if inducing is None else inducing)
+    total = _fold_sums(q, np.asarray(jacobian, dtype=float), np.asarray(y, dtype=float), basis, np.zeros(len(q), int))
+    return _titsias(total[0], hyper, np.asarray(precision, dtype=float))[0]
+
+
 def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, inducing: int | None = None) -> WithGP:
     """`with_gp` through `inducing` inducing inputs (module docstring; None: `INDUCING`): Titsias'
     bound as the evidence, the projected process's mean as each fold's prediction; method 'titsias'."""
@@ -229,26 +262,13 @@ def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, i
     precision = np.asarray(mode.model._prior_precision, dtype=float)
     noise2 = hyper.noise_std**2
     basis = _Inducing(q, hyper, INDUCING if inducing is None else inducing)
-    m = len(basis.points)
     labels = np.zeros(n, int) if folds is None else np.unique(np.asarray(folds), return_inverse=True)[1].ravel()
-    per_fold = [_Sums.zero(m, p) for _ in range(labels.max() + 1)]
-    for begin in range(0, n, CHUNK):
-        rows = slice(begin, begin + CHUNK)
-        u = basis.u(q[rows])
-        for f in np.unique(labels[rows]):
-            at = labels[rows] == f
-            per_fold[f].add(u[at], jacobian[rows][at], y[rows][at])
+    per_fold = _fold_sums(q, jacobian, y, basis, labels)
     total = per_fold[0]
     for other in per_fold[1:]:
         total = total.plus(other)
-    theta, a, quadratic, b_factor = _sparse_solution(total, noise2, precision)
-    log_det_c0 = (n - m) * np.log(noise2) + 2.0 * float(np.sum(np.log(np.diag(b_factor[0]))))
-    trace = max(n * hyper.signal_std**2 - total.uu_trace, 0.0)  # tr(K - Q)
-    log_evidence = (
-        integrated_log_evidence(quadratic, a, a @ theta, 3.0 * log_det_c0, 3 * n, precision)
-        + float(mode.model.noise_log_det)
-        - 3.0 * trace / (2.0 * noise2)
-    )
+    bound, theta, a = _titsias(total, hyper, precision)
+    log_evidence = bound + float(mode.model.noise_log_det)
     std = np.sqrt(np.diag(np.linalg.inv(a)))
     if folds is None:
         return WithGP(float(log_evidence), theta, std, None, "titsias")
