@@ -149,7 +149,8 @@ def markdown(record: dict) -> str:
             f"| {r['mean_rms_um']:.2f} µm | {exact} | {r['with_gp_s']:.1f} s ({r['with_gp_method']}) "
             f"| {r['joint_error_s']:.0f} s on {r['joint_error_rows']:,} rows (free form: "
             f"{'exact' if r['joint_error_free_method'] == 'exact' else 'bound'}), {r['joint_error_preferred']} "
-            f"preferred by {r['joint_error_margin_nats']:.0f} nats, named {', '.join(r['joint_error_named']) or 'none'} "
+            f"preferred (joint-error form's margin {r['joint_error_margin_nats']:+.0f} nats), named "
+            f"{', '.join(r['joint_error_named']) or 'none'} "
             f"| {gap(r)} |"
         )
     return "\n".join(lines)
