@@ -15,9 +15,9 @@ MCMC refit left out) four times:
 
 Beside each, the baseline a calibration engineer would fit on the same torques: least squares of the
 complete model with compliance (zero-offsets, every link's six parameters, the marker offset, joint
-compliance, no priors; `truth_claims.least_squares_validation`). Per run: the effects the loop added, whether it
-closed, and the validation set's RMS distance and RMS per axis (mm) of both, never used for a choice. Writes benchmarks/results/elastic.json and elastic.md,
-and the table into docs/validation.md between its bench_elastic markers. From the repository root:
+compliance, no priors; `truth_claims.least_squares_validation`). Per run: the effects the loop
+added, whether it closed, and the validation set's RMS distance and RMS per axis (mm) of both, never
+used for a choice. Writes benchmarks/results/elastic.json and elastic.md, and the table into docs/validation.md between its bench_elastic markers. From the repository root:
     .venv/bin/python benchmarks/bench_elastic.py
 """
 

@@ -187,6 +187,6 @@ def test_an_arm_without_mass_data_gets_a_regressor_that_spans_its_own_weight(iiw
     for joint in (1, 2, 3, 4, 5):  # joints 2 to 6: the ones gravity loads (joint 1 is vertical)
         regressor = unexplained(loaded.link_torques[:, joint, joint:].reshape(len(q), -1), joint)
         assert regressor < 1e-9
-    for joint in (1, 2, 3, 4):  # joint 6's own load is the payload's shape (both on the last axis)
+    for joint in (1, 2, 3, 4):  # joint 6's own load already has the payload's shape here
         assert unexplained(loaded.payload_torques[:, joint, None], joint) > 0.2
     assert loaded_torques(iiwa, q, payload_mass=2.5).link_torques is None

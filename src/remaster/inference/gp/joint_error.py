@@ -26,8 +26,8 @@ factor per evaluation bounds its search to `MAX_ROWS` rows evenly spaced over th
 evidence on every row is Titsias' lower bound at the hyperparameters found there
 (`with_parameters.titsias_log_evidence`, the residual GP's inducing inputs). Both lower the free
 form's evidence, so above `MAX_ROWS` the comparison leans towards the joint-error form by the
-bound's gap; benchmarks/bench_gp.py measures it where the exact evidence can still be taken. A joint is named when taking its f_j out (s_j ->
-0, the rest held) costs more than `min_log_evidence_gain`.
+bound's gap; benchmarks/bench_gp.py measures it where the exact evidence can still be taken. A joint
+is named when taking its f_j out (s_j -> 0, the rest held) costs more than `min_log_evidence_gain`.
 
 A diagnostic: where the residual lives, told in the joints' own terms. Prediction keeps the free GP.
 SI inside (m, rad); the report is in degrees where its names say so.
