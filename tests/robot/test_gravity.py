@@ -172,7 +172,7 @@ def test_an_arm_without_mass_data_gets_a_regressor_that_spans_its_own_weight(iiw
     assert gravity.without_mass(bare) and not gravity.without_mass(iiwa)
     q = rng.uniform(np.maximum(iiwa.lower, -2.5), np.minimum(iiwa.upper, 2.5), (400, 7))
     loaded = loaded_torques(bare, q, payload_mass=2.5, payload_com=(0.0, 0.0, 0.03))
-    assert loaded.payload.unit_masses and loaded.payload.report()["arm_masses"] == "gravity regressor"
+    assert loaded.payload.mass_regressor and loaded.payload.report()["arm_masses"] == "gravity regressor"
     payload = gravity_torques(bare, q, 2.5, (0.0, 0.0, 0.03))
     np.testing.assert_allclose(loaded.payload_torques, payload, rtol=0, atol=1e-9)
     np.testing.assert_allclose(loaded.torques, payload, rtol=0, atol=1e-9)
@@ -185,8 +185,8 @@ def test_an_arm_without_mass_data_gets_a_regressor_that_spans_its_own_weight(iiw
         return np.linalg.norm(target - fitted) / np.linalg.norm(target - target.mean())
 
     for joint in (1, 2, 3, 4, 5):  # joints 2 to 6: the ones gravity loads (joint 1 is vertical)
-        regressor = unexplained(loaded.link_torques[:, joint, joint:].reshape(len(q), -1), joint)
+        regressor = unexplained(loaded.body_torques[:, joint, joint:].reshape(len(q), -1), joint)
         assert regressor < 1e-9
     for joint in (1, 2, 3, 4):  # joint 6's own load already has the payload's shape here
         assert unexplained(loaded.payload_torques[:, joint, None], joint) > 0.2
-    assert loaded_torques(iiwa, q, payload_mass=2.5).link_torques is None
+    assert loaded_torques(iiwa, q, payload_mass=2.5).body_torques is None

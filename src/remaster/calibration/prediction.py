@@ -94,7 +94,7 @@ class Predictor:
         links = None
         if "joint_compliance" in kept:  # the torques the fit's readings had: a URDF's own tool counted once
             loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
-            torques, payload, links = loaded.torques, loaded.payload_torques, loaded.link_torques
+            torques, payload, links = loaded.torques, loaded.payload_torques, loaded.body_torques
         else:
             torques = payload = np.zeros_like(q)
         data = Readings(
@@ -104,7 +104,7 @@ class Predictor:
             torques,
             payload,
             harmonic_orders=settings.harmonic_orders,
-            link_torques=links,
+            body_torques=links,
         )
         self.model = BlockModel(chain, data, marker, np.eye(4), kept)
 

@@ -184,7 +184,7 @@ class Readings:
     orientations: np.ndarray | None = None
     probe_rotation: np.ndarray | None = None
     orientation_weight: float = 1.0
-    link_torques: np.ndarray | None = None
+    body_torques: np.ndarray | None = None
 
     def regressor(self, key: str) -> np.ndarray:
         """(n, N) values a joint-space parameter multiplies: 'ones', 'q', 'torques',
@@ -192,7 +192,7 @@ class Readings:
         'body<k>.<column>' (a column of an arm without mass data's gravity regressor)."""
         if key.startswith("body"):
             body, column = key[4:].split(".")
-            return self.link_torques[:, :, int(body) - 1, GRAVITY_COLUMNS.index(column)]
+            return self.body_torques[:, :, int(body) - 1, GRAVITY_COLUMNS.index(column)]
         if key[:3] in ("cos", "sin") and key[3:].isdigit():
             return (np.cos if key[:3] == "cos" else np.sin)(int(key[3:]) * self.q)
         if key == "ones":
@@ -217,7 +217,7 @@ class Readings:
             drift=part(self.drift),
             weights=part(self.weights),
             orientations=part(self.orientations),
-            link_torques=part(self.link_torques),
+            body_torques=part(self.body_torques),
         )
 
 
@@ -315,7 +315,7 @@ def readings(
         harmonic_orders=settings.harmonic_orders,
         weights=point_weights(sensor, rows),
         drift_gaps=None if drift is not None else drift_gaps(sensor.table, settings.drift_column),
-        link_torques=loaded.link_torques,
+        body_torques=loaded.body_torques,
     )
 
 
@@ -502,7 +502,7 @@ class BlockModel:
         if "drift" in blocks and data.drift is None:
             raise ValueError("a drift block needs a time or temperature column")
         if "joint_compliance" in blocks and (
-            data.torques is None or data.payload_torques is None or (without_mass(chain) and data.link_torques is None)
+            data.torques is None or data.payload_torques is None or (without_mass(chain) and data.body_torques is None)
         ):
             raise ValueError("a joint_compliance block needs the readings' gravity torques (`readings`)")
         self.chain, self.data = chain, data

@@ -264,9 +264,9 @@ def cross_validate(mode: PosteriorMode, folds: np.ndarray) -> CrossValidation:
     step, pooled over the kept folds; its first three cumulants (`held_out_cumulants`) are the closure
     test's. The priors' pull towards their centre is left out: it biases a held-out prediction where
     the truth lies away from the centre, a model error the closure test may then find. A fold whose
-    linear step leaves its held-out RMS per axis above DEPARTED_RATIO times the fit's sigma, or moves a parameter beyond PRIOR_RANGE of its prior, is fitted again, iterated
-    to its own mode (`_fold_mode`); if it is still beyond either, it has departed
-    (`CrossValidation.departed`)."""
+    linear step leaves its held-out RMS per axis above DEPARTED_RATIO times the fit's sigma, or moves
+    a parameter beyond PRIOR_RANGE of its prior, is fitted again, iterated to its own mode
+    (`_fold_mode`); if it is still beyond either, it has departed (`CrossValidation.departed`)."""
     model, theta, sigma = mode.model, mode.theta, mode.sigma
     jacobian = mode.jacobian.reshape(model.n_points, 3, -1)
     r = model.whitened(mode.residuals)

@@ -22,8 +22,9 @@ parameter make a few large weights and a long tail (at 25 configurations the lev
 the held-out floor); many rows make it narrow (at 17,500 rows, 1.007 x), so that a fixed ratio
 would call correct small campaigns not closed and a large campaign's model error closed. The loop is
 closed when the probability of a held-out error at least as large under a correct model is at least
-the level; otherwise sqrt(RMS^2 - held-out floor^2) per axis is the structured residual left. Where the folds' spread is not known (the residual GP's
-folds) the weights are taken as 1: the plain floor, which never flatters a fit. Each step's share is
+the level; otherwise sqrt(RMS^2 - held-out floor^2) per axis is the structured residual left.
+Where the folds' spread is not known (the residual GP's folds) the weights are taken as 1: the
+plain floor, which never flatters a fit. Each step's share is
 the part of the structured residual (mean square above the floor) it removed: an effect that removes
 a small share is not what the residual was.
 

@@ -82,7 +82,7 @@ class Payload:
     com: tuple[float, float, float]
     links: tuple[str, ...] = ()
     configured_mass: float = 0.0
-    unit_masses: bool = False
+    mass_regressor: bool = False
 
     def report(self) -> dict:
         """JSON-ready, with a sentence saying which payload the torques assume and why."""
@@ -99,7 +99,7 @@ class Payload:
                 f"({self.mass:.3g} kg) is added at the flange"
             )
             frame = "flange"
-        if self.unit_masses:
+        if self.mass_regressor:
             why += (
                 f"; the arm has no mass data: its weight is a gravity regressor, the torques of {UNIT_MASS:g} kg at "
                 "each moving joint frame's origin and of its first moments, one compliance coefficient per "
@@ -107,7 +107,7 @@ class Payload:
             )
         return {
             "source": self.source,
-            "arm_masses": "gravity regressor" if self.unit_masses else "the robot description's",
+            "arm_masses": "gravity regressor" if self.mass_regressor else "the robot description's",
             "mass_kg": self.mass,
             "com_m": list(self.com),
             "com_frame": frame,
@@ -120,13 +120,13 @@ class Payload:
 @dataclass(frozen=True, eq=False)
 class LoadedTorques:
     """torques (n, N) N m: gravity's torque on each joint, payload included; payload_torques (n, N):
-    the payload's part of it; payload: which payload they assume; link_torques (n, N, N, 4) N m: an
+    the payload's part of it; payload: which payload they assume; body_torques (n, N, N, 4) N m: an
     arm without mass data's gravity regressor (`gravity_regressor`), None for an arm with masses."""
 
     torques: np.ndarray
     payload_torques: np.ndarray
     payload: Payload
-    link_torques: np.ndarray | None = None
+    body_torques: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,7 +234,7 @@ def loaded_torques(chain: KinematicChain, q, payload_mass: float = 0.0, payload_
         torques = gravity_torques(chain, q)
         return LoadedTorques(torques, torques - gravity_torques(tool.bare_chain, q), payload)
     torques = gravity_torques(chain, q, payload_mass, payload_com)
-    links = gravity_regressor(chain, q) if payload.unit_masses else None
+    links = gravity_regressor(chain, q) if payload.mass_regressor else None
     return LoadedTorques(torques, torques - gravity_torques(chain, q), payload, links)
 
 
