@@ -542,3 +542,25 @@ def test_per_point_stds_stand_for_the_stated_noise_beside_an_orientation(tmp_pat
     sensor = read_campaign(make_campaign(tmp_path, meta, {SENSOR: table}), repo_root=REPO).sensors[SENSOR]
     weight = orientation_fields(sensor, [0, 1])["orientation_weight"]
     assert weight == pytest.approx(math.sqrt(np.mean(np.linspace(1e-5, 3e-5, 9) ** 2)) / 1.7e-4)
+
+
+def test_the_users_tools_are_read_in_metres_of_the_flange_frame(tmp_path):
+    meta = metadata() | {"tools": {"gripper": [0.0, 0.0, 0.15], "probe": [0.1, 0, 0.1]}}
+    campaign = read_campaign(make_campaign(tmp_path, meta), repo_root=REPO)
+    assert list(campaign.tools) == ["gripper", "probe"]
+    np.testing.assert_array_equal(campaign.tools["probe"], [0.1, 0.0, 0.1])
+    assert read_campaign(make_campaign(tmp_path, name="plain"), repo_root=REPO).tools == {}
+
+
+@pytest.mark.parametrize(
+    "tools, key, message",
+    [
+        ({"gripper": [0.0, 0.0, 150.0]}, "tools/gripper", "looks like mm written for m"),
+        ({"gripper": [0.0, 0.15]}, "tools/gripper", "3 finite numbers"),
+        ({"gripper": [0.0, float("nan"), 0.1]}, "tools/gripper", "3 finite numbers"),
+        ([[0.0, 0.0, 0.15]], "tools", "mapping"),
+    ],
+)
+def test_a_tool_in_millimetres_or_not_a_point_is_refused_naming_it(tmp_path, tools, key, message):
+    error = read_error(make_campaign(tmp_path, metadata() | {"tools": tools}))
+    assert error.key == key and message in str(error) and "campaign.yaml" in str(error)

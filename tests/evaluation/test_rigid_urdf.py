@@ -3,12 +3,15 @@ Pinocchio (a URDF parser remaster did not write), and scored on configurations i
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from remaster.calibration import exports, prediction
 from remaster.campaigns.folders import read_campaign
 from remaster.evaluation import rigid_urdf
+from remaster.evaluation.workspace import fit_domain
 from remaster.inference.blocks import ModelSettings, link_labels
 from remaster.units import DEG
 
@@ -67,3 +70,40 @@ def test_a_loop_model_a_urdf_can_hold_is_its_own_rigid_urdf(campaign, rng):
     fit = rigid_urdf.rigid_urdf_fit(campaign, "laser_tracker", loop, loop, seed=3)
     assert fit.distances["loop.urdf"]["max_mm"] < 1e-9
     assert fit.distances["rigid.urdf"]["max_mm"] < 1e-6
+
+
+def test_the_rigid_urdf_holds_the_flanges_pose_so_a_tool_off_the_marker_is_as_right(campaign, rng):
+    """Fitted to the marker alone, a rigid chain may tilt its flange to absorb what the compliance
+    does at the marker; fitted to the flange's whole pose too, it is the nearest URDF to the loop
+    model at a tool anywhere on the flange, not only at the marker."""
+    tools = {"gripper": np.array([0.1, 0.0, 0.1]), "probe": np.array([0.0, 0.05, 0.2])}
+    loop = loop_with(campaign.chain, rng, compliance=True)
+    paper = prediction.Calibration("paper", {k: v for k, v in loop.values.items() if k.startswith("zero_offsets")})
+    fit = rigid_urdf.rigid_urdf_fit(dataclasses.replace(campaign, tools=tools), "laser_tracker", paper, loop, seed=4)
+    assert set(fit.at_tools) == set(tools) and fit.report["tools_m"]["gripper"] == [0.1, 0.0, 0.1]
+    for tool, far in fit.at_tools.items():
+        nearest = min(far, key=lambda name: far[name]["median_mm"])
+        assert nearest == "rigid.urdf", (tool, far)
+        # as right at the tool as at the marker (within the compliance's own spread over the flange)
+        assert far["rigid.urdf"]["median_mm"] < 1.5 * fit.distances["rigid.urdf"]["median_mm"]
+    # the flange's orientation follows the loop model's near the measured configurations
+    domain = fit_domain(campaign.chain, campaign.sensors["laser_tracker"])
+    q = domain.nearness.draw(50, rng, domain.limits_lower, domain.limits_upper)
+    at = prediction.Predictor(campaign.chain, q, MARKER, ("link_geometry",))
+    loop_flange = loop.predictor(campaign.chain, q, MARKER).flange_poses(loop.values)
+    tilt = [
+        np.arccos(np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1))
+        for a, b in zip(at.flange_poses(fit.values), loop_flange)
+    ]
+    # what a rigid chain cannot follow of the compliance's rotation (1.5 mrad); fitted to the marker
+    # alone the same chain tilted 31 mrad (1.8 deg) and put these tools 3.5-6.2 mm from the loop model
+    assert np.median(tilt) < 3e-3
+
+
+def test_a_campaign_without_tools_is_scored_at_the_flange_and_150_mm_out(campaign, rng):
+    loop = loop_with(campaign.chain, rng, compliance=False)
+    fit = rigid_urdf.rigid_urdf_fit(campaign, "laser_tracker", loop, loop, seed=3)
+    assert list(fit.at_tools) == list(rigid_urdf.DEFAULT_TOOLS)
+    # a loop model a URDF can hold: its own URDFs hold its flange's pose exactly
+    out = fit.at_tools["150 mm along the flange axis"]
+    assert out["loop.urdf"]["max_mm"] < 1e-9 and out["rigid.urdf"]["max_mm"] < 1e-6

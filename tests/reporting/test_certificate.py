@@ -395,8 +395,32 @@ def test_the_certificate_says_which_urdf_to_load_and_how_far_each_is_from_the_lo
     cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, workspace=workspace)})
     line = next(w for w in cert.warnings if "rigid.urdf" in w)
     assert line.startswith("Laser Tracker: a tool that loads a URDF alone should load rigid.urdf")
+    assert "at the tool" not in line  # a report from before the tools were scored names none
     assert "rigid.urdf 0.22 mm median, 0.66 mm at most; loop.urdf 0.54 mm median" in line
     assert line.endswith(
         "stays exact on ik.urdf (zero-offsets, base and tool only): ik.urdf 0.31 mm median, 0.93 mm at most"
     )
     assert not any("rigid.urdf" in w for w in certificate.certificate(SUMMARY, {"laser_tracker": inputs}).warnings)
+
+
+def test_the_certificate_gives_each_urdfs_distance_at_the_users_tools():
+    inputs = _inputs()
+    far = {
+        name: {"median_mm": m, "p95_mm": 2 * m, "max_mm": 3 * m}
+        for name, m in (("rigid.urdf", 0.2), ("ik.urdf", 0.3), ("paper.urdf", 0.5), ("loop.urdf", 0.4))
+    }
+    at_tools = {"gripper": {**far, "rigid.urdf": {"median_mm": 0.25, "p95_mm": 0.5, "max_mm": 0.7}}}
+    urdfs = {
+        "configurations": 1000,
+        "distance_from_loop_model_mm": far,
+        "not_followed": "the residual GP",
+        "tools_m": {"gripper": [0.1, 0.0, 0.1]},
+        "distance_at_tools_mm": at_tools,
+    }
+    workspace = {**inputs.workspace, "urdfs": urdfs}
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, workspace=workspace)})
+    line = next(w for w in cert.warnings if "rigid.urdf" in w)
+    assert line.endswith(
+        "at the tool 'gripper' (100, 0, 100 mm in the flange frame): rigid.urdf 0.25 mm median, 0.7 mm at most; "
+        "ik.urdf 0.3 mm median, 0.9 mm at most; paper.urdf 0.5 mm median, 1.5 mm at most"
+    )

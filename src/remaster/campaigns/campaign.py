@@ -30,7 +30,7 @@ SETS = ("optimization", "validation")
 SENSOR_KINDS = ("motion_capture", "laser_tracker", "other")
 
 REQUIRED_KEYS = ("name", "date", "robot", "sensors")
-OPTIONAL_KEYS = ("description",)
+OPTIONAL_KEYS = ("description", "tools")
 ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors")
 DH_KEYS = ("convention", "rows", "flange")
 SENSOR_KEYS = ("kind", "marker", "noise", "mpe", "orientation_noise", "probe_rotation")
@@ -195,7 +195,8 @@ class Campaign:
     """A validated campaign, independent of the folder it was read from.
 
     robot: the robot section as written in campaign.yaml (paths as written);
-    chain: the kinematic chain it describes; sensors: name -> SensorData, in YAML order.
+    chain: the kinematic chain it describes; sensors: name -> SensorData, in YAML order; tools:
+    the user's named tool centre points {name: (3,) m in the flange frame}, empty when none is given.
     """
 
     name: str
@@ -204,6 +205,7 @@ class Campaign:
     robot: dict[str, Any]
     chain: KinematicChain
     sensors: dict[str, SensorData]
+    tools: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_joints(self) -> int:
@@ -495,7 +497,31 @@ def validate_metadata(meta: Any, source: str) -> dict[str, Any]:
         "description": description,
         "robot": validate_robot(meta["robot"], source),
         "sensors": {sensor: validate_sensor_spec(sensor, spec, source) for sensor, spec in sensors.items()},
+        "tools": validate_tools(meta.get("tools"), source),
     }
+
+
+def validate_tools(tools: Any, source: str) -> dict[str, np.ndarray]:
+    """campaign.yaml's optional `tools`: {name: [x, y, z]} the user's tool centre points in the
+    flange frame (m), each finite and within `MAX_MARKER_OFFSET` of the flange (a tool in mm is
+    refused); {} when absent."""
+    if tools is None:
+        return {}
+    tools = _mapping(tools, "tools", source)
+    out = {}
+    for name, point in tools.items():
+        if not isinstance(name, str) or not name.strip():
+            raise InputError(f"a tool's name must be text, got {quoted(name)}", file=source, key="tools")
+        xyz = _number_list(point, 3, f"tools/{name}", source, "3 finite numbers [x, y, z] (m, flange frame)")
+        refuse_millimetres(
+            xyz,
+            MAX_MARKER_OFFSET,
+            "the bound of a plausible tool offset from the flange",
+            file=source,
+            key=f"tools/{name}",
+        )
+        out[name] = np.array(xyz)
+    return out
 
 
 # --------------------------------------------------------------------------- <sensor>.parquet

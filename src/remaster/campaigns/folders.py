@@ -128,6 +128,7 @@ def read_campaign(folder: str | Path, repo_root: str | Path | None = None) -> Ca
         robot=plain(meta["robot"]),
         chain=chain,
         sensors=sensors,
+        tools=meta["tools"],
     )
 
 

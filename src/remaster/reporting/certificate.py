@@ -412,20 +412,28 @@ def valid_for(sensor: str, inputs: CertificateInputs) -> str:
 
 def urdf_line(sensor: str, inputs: CertificateInputs) -> list[str]:
     """Which URDF to load, with each one's distance from the loop-closed model near the measured
-    configurations (workspace.json's `urdfs`, `evaluation.rigid_urdf`); none without them."""
+    configurations at the marker and at the flange's tools (workspace.json's `urdfs`,
+    `evaluation.rigid_urdf`); none without them."""
     urdfs = inputs.workspace.get("urdfs")
     if not urdfs:
         return []
     far = urdfs["distance_from_loop_model_mm"]
 
-    def text(name: str) -> str:
-        d = far[name]
+    def text(name: str, at: dict = far) -> str:
+        d = at[name]
         return f"{name} {d['median_mm']:.2g} mm median, {d['max_mm']:.2g} mm at most"
 
+    tools = urdfs.get("distance_at_tools_mm") or {}
+    at_tools = "".join(
+        f"; at the tool '{tool}' ({', '.join(f'{1000 * v:g}' for v in urdfs['tools_m'][tool])} mm in the flange "
+        f"frame): " + "; ".join(text(name, at) for name in ("rigid.urdf", "ik.urdf", "paper.urdf") if name in at)
+        for tool, at in tools.items()
+    )
     return [
         f"{sensor_label(sensor)}: a tool that loads a URDF alone should load rigid.urdf, the rigid chain nearest the "
-        f"loop-closed model; from that model near the measured configurations ({urdfs['configurations']} drawn apart "
-        f"from those it was fitted to): {text('rigid.urdf')}; {text('loop.urdf')} (exact only with loop_effects.yaml "
+        f"loop-closed model (fitted to its marker and its flange's whole pose); from that model near the measured "
+        f"configurations ({urdfs['configurations']} drawn apart from those it was fitted to), at the marker: "
+        f"{text('rigid.urdf')}; {text('loop.urdf')} (exact only with loop_effects.yaml "
         f"applied beside it); {text('paper.urdf')}; not followed by any URDF: {urdfs['not_followed']}"
         + (
             f". A closed-form IK solver (intersecting wrist axes) stays exact on ik.urdf (zero-offsets, base and "
@@ -433,6 +441,7 @@ def urdf_line(sensor: str, inputs: CertificateInputs) -> list[str]:
             if "ik.urdf" in far
             else ""
         )
+        + at_tools
     ]
 
 
