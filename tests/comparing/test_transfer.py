@@ -3,6 +3,8 @@ small synthetic campaigns with known answers."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
@@ -215,3 +217,28 @@ def test_transfer_heat_map(iiwa, noisy):
     plt.close(fig)
     with pytest.raises(ValueError, match="one model"):
         figures_comparison.transfer_figure(pd.concat([table, table.assign(model="loop")]), "mixed")
+
+
+def test_drift_is_compared_where_both_campaigns_measured_one_turn_apart_included(iiwa, noisy):
+    """Inside both campaigns' domains: the same configurations with joint 1 read one turn away
+    (q1 - 2 pi, as a UR reaches a pose again) are the same domain; a campaign measured with joint 1
+    elsewhere shares none, and its drift is not compared (its calibration there is its priors')."""
+    models = {"paper": paper(OFFSETS)}
+
+    def moved(shift: float, scale: float = 1.0) -> SensorData:
+        table = noisy.table.copy()
+        table["q1"] = scale * table["q1"] + shift
+        return dataclasses.replace(noisy, table=table)
+
+    turned = [entry(iiwa, "a", "2020-01-01", noisy, models), entry(iiwa, "b", "2021-01-01", moved(-2 * np.pi), models)]
+    shared = predictions.shared_configurations(*turned, 200, seed=3)
+    # every draw near a's data is near b's (b's own, one turn out, are clipped to the iiwa's limits)
+    assert len(shared) > 0.8 * 200
+    drift = predictions.prediction_drift(turned, n_configurations=200, seed=3, draw_pairs=10)
+    assert drift["count"].iloc[0] == len(shared) and drift["mean_mm"].iloc[0] == 0.0 and not drift["flagged"].iloc[0]
+    narrow, opposite = moved(0.0, 0.3), moved(np.pi, 0.3)  # joint 1 within +-0.5 rad, and half a turn away
+    apart = [entry(iiwa, "a", "2020-01-01", narrow, models), entry(iiwa, "b", "2021-01-01", opposite, models)]
+    drift = predictions.prediction_drift(apart, n_configurations=200, seed=3, draw_pairs=10)
+    row = drift.iloc[0]
+    assert row["status"].startswith("not compared") and not row["flagged"] and np.isnan(row["mean_mm"])
+    assert row["count"] < predictions.MIN_SHARED_CONFIGURATIONS

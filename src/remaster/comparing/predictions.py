@@ -1,6 +1,11 @@
 """Two calibrations compared by what they predict: drift between consecutive campaigns of one robot
-and the agreement of one campaign's sensors, as the change of predicted marker position over one fixed
-set of random configurations (`remaster.calibration.prediction` makes the predictions).
+and the agreement of one campaign's sensors, as the change of predicted marker position
+(`remaster.calibration.prediction` makes the predictions). The drift is compared where both
+campaigns measured: at configurations inside both campaigns' measured domains (`robot.nearness`),
+drawn near each campaign's data and kept where they are near the other's, since elsewhere two
+calibrations differ by what their priors say, not by what the robot did; a pair whose domains do
+not meet is not compared (`status` says so). The agreement of one campaign's sensors is compared
+over the robot's one fixed set of random configurations.
 
 Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
 d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q. Its null
@@ -27,10 +32,14 @@ from ..errors import InputError
 from ..inference import metrics
 from ..inference.blocks import block_parameters
 from ..robot.kinematics import KinematicChain
+from ..robot.nearness import Nearness
 from ..units import MM
 from . import comparison
 
 NULL_QUANTILE = 0.95
+# configurations inside both campaigns' domains below which a drift is not compared: too few to
+# tell a change of prediction from the posteriors' spread
+MIN_SHARED_CONFIGURATIONS = 20
 
 
 PREDICTION_COLUMNS = ["count", "mean_mm", "p95_mm", "draw_pairs", "null_p95_of_mean_mm", "flagged", "status"]
@@ -152,21 +161,32 @@ def _table(rows: list[dict], columns: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns) if rows else pd.DataFrame(columns=columns)
 
 
+def shared_configurations(a: Calibrated, b: Calibrated, n: int, seed: int) -> np.ndarray:
+    """Configurations (k, N) rad, k <= 2n, inside both entries' measured domains (`Nearness` of the
+    readings each fit used): n drawn near each entry's data (the generator of (seed, 'shared
+    domain', robot slug, both campaigns and sensors)), kept where the other's data are near too."""
+    rng = seeding.generator(
+        seed, "shared domain", identity.robot_slug(a.robot), a.campaign, a.sensor.name, b.campaign, b.sensor.name
+    )
+    near = [Nearness.of(e.chain, e.sensor.fit_readings(e.excluded), e.sensor.marker) for e in (a, b)]
+    q = np.vstack([domain.draw(n, rng, a.chain.lower, a.chain.upper) for domain in near])
+    return q[near[0].inside(q) & near[1].inside(q)]
+
+
 def prediction_drift(
     entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
 ) -> pd.DataFrame:
     """Drift between consecutive campaigns of one robot and sensor kind (pairs as
     `comparison.drift_between` makes them) as the change of predicted marker position, robot
-    frame, at the robot's fixed random configurations (`robot_configurations`), per model (paper,
-    loop). The marker is campaign A's sensor's nominal one (each model's marker offset added).
-    Columns DRIFT_COLUMNS (mm)."""
+    frame, at configurations inside both campaigns' measured domains (`shared_configurations`, up
+    to 2 n_configurations), per model (paper, loop); fewer than `MIN_SHARED_CONFIGURATIONS` there:
+    not compared, not flagged. The marker is campaign A's sensor's nominal one (each model's marker
+    offset added). Columns DRIFT_COLUMNS (mm)."""
     entries = list(entries)
     frame = _entries_frame(entries)
-    rows, configurations = [], {}
+    rows = []
     for robot, kind, a_rows, b_rows in comparison.consecutive_pairs(frame):
         a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
-        if robot not in configurations:
-            configurations[robot] = robot_configurations(a.chain, robot, n_configurations, seed)
         labels = {
             "robot": robot,
             "kind": kind,
@@ -177,7 +197,31 @@ def prediction_drift(
             "date_b": b.date,
             "sensor_b": b.sensor.name,
         }
-        rows += _pair_rows(a, b, configurations[robot], a.sensor.marker, draw_pairs, seed, labels)
+        q = shared_configurations(a, b, n_configurations, seed)
+        if len(q) >= MIN_SHARED_CONFIGURATIONS:
+            rows += _pair_rows(a, b, q, a.sensor.marker, draw_pairs, seed, labels)
+            continue
+        status = (
+            f"not compared: {len(q)} configurations inside both campaigns' measured domains (fewer than "
+            f"{MIN_SHARED_CONFIGURATIONS}): where one campaign did not measure, its calibration is its priors'"
+        )
+        rows += [
+            {
+                **labels,
+                "model": model,
+                "effects_a": a.models[model].effects,
+                "effects_b": b.models[model].effects,
+                "count": len(q),
+                "mean_mm": np.nan,
+                "p95_mm": np.nan,
+                "draw_pairs": 0,
+                "null_p95_of_mean_mm": np.nan,
+                "flagged": False,
+                "status": status,
+            }
+            for model in MODELS
+            if model in a.models and model in b.models and model != "nominal"
+        ]
     return _table(rows, DRIFT_COLUMNS)
 
 
