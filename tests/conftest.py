@@ -3,6 +3,7 @@ configuration with the schema's defaults, and the loop closure's settings and re
 
 import copy
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -113,3 +114,21 @@ def assert_documents_show(benchmark: str, results: str) -> None:
     assert bench.markdown(written) == (REPO / "benchmarks" / "results" / f"{results}.md").read_text()
     for document, block in zip(bench.DOCUMENTS, bench.document_blocks(written)):
         assert f"{bench.BEGIN}\n{block}{bench.END}" in document.read_text(), document
+
+
+# A test over this many seconds (its call, not its fixtures') fails unless marked slow or workflow:
+# the quick suite stays quick. REMASTER_TEST_LIMIT_S overrides it (0: no limit) on a loaded machine.
+TEST_LIMIT_S = float(os.environ.get("REMASTER_TEST_LIMIT_S", "60"))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    marked = any(item.get_closest_marker(m) for m in ("slow", "workflow"))
+    if call.when == "call" and report.passed and TEST_LIMIT_S and not marked and call.duration > TEST_LIMIT_S:
+        report.outcome = "failed"
+        report.longrepr = (
+            f"{item.nodeid} took {call.duration:.0f} s, over the {TEST_LIMIT_S:.0f} s a test not marked slow may take: "
+            "mark it @pytest.mark.slow, or share its expensive set-up through a session fixture (tests/support)"
+        )

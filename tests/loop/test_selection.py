@@ -1,11 +1,14 @@
 """Selection without proxies and prediction in time: Student's t thresholds for the K-fold
 cross-validation, the backward pass after the forward one, and folds of poses contiguous in time."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from remaster.inference import blocks, evidence, fit
 from remaster.loop import selection
+from remaster.robot.priors import Priors
 
 from ..conftest import REPO, loop_settings
 from .test_loop_closure import COMPLIANCE, EFFECTS, HEAVY, LAPLACE_ONLY, closed, simulated
@@ -179,3 +182,30 @@ def test_the_link_priors_widen_only_where_their_evidence_asks(iiwa, tmp_path):
         selection.link_prior_scale(iiwa, data, exact.marker, registration.t_nr, analysis.held, settings.priors)[0]
         == 1.0
     )
+
+
+def test_an_estimate_far_beyond_its_prior_is_a_symptom_not_the_effect(iiwa):
+    """The simulated arm's compliance (25-50 urad/(N m)) under the configured prior (200) is
+    estimated well inside it and passes; under a prior 20 times too narrow for it the same
+    candidate's estimate sits beyond 5 prior std: refused as a symptom, with the parameter named."""
+    sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
+    args, _ = _forced(iiwa, sensor, ())
+
+    def scored(priors):
+        chain, data, marker, t_nr, held, folds = args
+        with_it = selection.fit_blocks(chain, data, marker, t_nr, ("joint_compliance",), held, folds, priors)
+        without = selection.fit_blocks(chain, data, marker, t_nr, (), held, folds, priors)
+        return selection.score(without, with_it, dataclasses.replace(LAPLACE_ONLY, priors=priors))
+
+    configured = scored(LAPLACE_ONLY.priors)
+    assert configured["passed"] and configured["beyond_prior"]["prior_stds"] < 1.0
+    priors = LAPLACE_ONLY.priors
+    narrow = Priors(
+        priors.arm_class,
+        {**priors.values, "joint_compliance_urad_per_Nm": 2.5},
+        "a prior 80 times narrower than the configured one",
+    )
+    refused = scored(narrow)
+    far = refused["beyond_prior"]
+    assert far["prior_stds"] > evidence.PRIOR_RANGE and far["parameter"].startswith("joint_compliance.")
+    assert not refused["passed"] and "a symptom, not this effect: joint_compliance." in refused["why_not"]

@@ -91,6 +91,7 @@ from .selection import (
     link_prior_scale,
     scaled_priors,
     select,
+    symptom_text,
 )
 from .settings import LoopSettings
 
@@ -308,6 +309,7 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     departed = departed_warning(screened.selection)
     if departed:
         warnings.append(departed)
+    warnings += symptom_warnings(screened.selection)
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(
             f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "
@@ -315,6 +317,19 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
             f"{mcmc['max_rhat']:.3f}, ESS {mcmc['min_ess']:.0f}): its stds are less reliable"
         )
     return warnings
+
+
+def symptom_warnings(selection: Selection) -> list[str]:
+    """One warning per candidate effect refused as a symptom in the selection's rounds
+    (`selection.beyond_prior`): its estimate far beyond its physical prior, it imitated something
+    else in the data, which stays unexplained by it."""
+    seen = {}
+    for entry in selection.rounds:
+        for name, scores in (entry.get("scores") or {}).items():
+            far = scores.get("beyond_prior") if isinstance(scores, dict) else None
+            if far and far.get("prior_stds", 0.0) > evidence.PRIOR_RANGE and name not in seen:
+                seen[name] = f"candidate {name} refused in round {entry['round']}: {symptom_text(far)}"
+    return list(seen.values())
 
 
 def departed_warning(selection: Selection) -> str | None:

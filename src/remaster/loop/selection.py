@@ -160,6 +160,21 @@ def time_blocked_gain(current: evidence.CrossValidation, candidate: evidence.Cro
     return {f"time_blocked_{k}": v for k, v in evidence.cv_gain(current, candidate).items()}
 
 
+def beyond_prior(current: Fitted, candidate: Fitted) -> dict:
+    """The candidate's own parameter (of the blocks `current` lacks) farthest from 0 in its prior
+    standard deviations at the candidate's mode: {'parameter', 'prior_stds'} (0 and '' for blocks
+    without priors). Far beyond its prior (`evidence.PRIOR_RANGE`) an estimate is not that effect's:
+    the effect imitates something else the data hold."""
+    model = candidate.model
+    own = np.array([model.block_of[n] not in current.model.blocks for n in model.names], bool)
+    finite = own & np.isfinite(model.prior_std) & (model.prior_std > 0)
+    if not finite.any():
+        return {"parameter": "", "prior_stds": 0.0}
+    ratio = np.where(finite, np.abs(candidate.theta) / np.where(finite, model.prior_std, 1.0), 0.0)
+    worst = int(np.argmax(ratio))
+    return {"parameter": model.names[worst], "prior_stds": float(ratio[worst])}
+
+
 def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: np.ndarray | None = None) -> dict:
     """A candidate's scores against the current fit (JSON-ready), and whether it passes; blocked
     (n,): the time blocks (`TimeBlocked`) a candidate must also not lose on, None without them."""
@@ -177,6 +192,7 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: n
         "dropped": dict(candidate.reduction.dropped),
         "weak": dict(candidate.reduction.weak),
         "condition_number": candidate.reduction.condition_number,
+        "beyond_prior": beyond_prior(current, candidate),
     }
     return judged(out, settings)
 
@@ -252,7 +268,18 @@ def shortfalls(scores: Mapping, settings: LoopSettings) -> list[str]:
     blocked = scores.get("time_blocked_cv_mse_fall_mm2")
     if blocked is not None and not blocked > 0:
         out.append("no fall over the time blocks (it does not predict a stretch of the campaign it did not see)")
+    far = scores.get("beyond_prior") or {}
+    if far.get("prior_stds", 0.0) > evidence.PRIOR_RANGE:
+        out.append(symptom_text(far))
     return out
+
+
+def symptom_text(far: Mapping) -> str:
+    """Why an estimate far beyond its prior is not kept as its effect (`beyond_prior`)."""
+    return (
+        f"a symptom, not this effect: {far['parameter']} at {far['prior_stds']:.3g} prior std (beyond "
+        f"{evidence.PRIOR_RANGE:g}, where its physical range puts 6e-7 of the prior's mass): it absorbs something else"
+    )
 
 
 def passes(scores: Mapping, settings: LoopSettings) -> bool:
@@ -260,7 +287,8 @@ def passes(scores: Mapping, settings: LoopSettings) -> bool:
     exceeds min_log_evidence_gain AND the pose-grouped cross-validated fall exceeds `cv_threshold`
     standard errors AND, where the campaign has time blocks, the fall over blocks contiguous in time
     is positive: the effect also predicts poses it did not interpolate between (folds of whole poses
-    assigned in turn are each a thinned copy of the same design)."""
+    assigned in turn are each a thinned copy of the same design) AND no parameter of its own sits
+    beyond `evidence.PRIOR_RANGE` prior std (`beyond_prior`): there it is a symptom of something else."""
     return not shortfalls(scores, settings)
 
 
