@@ -87,7 +87,10 @@ def compare(*calibrations: Calibration, settings: Mapping[str, Any] | None = Non
     the loop-closure parameters; z-scores flagged beyond settings' comparison/significance) and by
     what they predict (`transfer.prediction_stage`: each calibration on the others' data, and the
     drift and agreement of predicted positions at the robot's random configurations, mm). {table
-    name: table}; `settings` as `calibrate`'s (its comparison section and seed)."""
+    name: table}; `settings` as `calibrate`'s (its comparison section and seed). The zero-offset
+    model's tables compare nothing where its summary has no std: `calibrate` gives its Laplace mode
+    alone (no paper sampler), so its drift and agreement say 'not comparable'; the loop-closed
+    model's carry its MCMC refit's std."""
     config = configuration.settings(settings)
     section = config["comparison"]
     keyed = {(c.campaign.name, c.sensor): c for c in calibrations}
