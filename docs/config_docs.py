@@ -1,4 +1,4 @@
-"""Write docs/configuration.md from the workflow's configuration schema (workflow/schemas/config.schema.yaml).
+"""Write docs/configuration.md from the workflow's configuration schema (src/remaster/data/config.schema.yaml).
 
 Run from anywhere:  python docs/config_docs.py           (the Markdown on stdout)
                     python docs/config_docs.py --write   (replace docs/configuration.md)
@@ -24,7 +24,7 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
+SCHEMA = REPO / "src" / "remaster" / "data" / "config.schema.yaml"
 PAGE = REPO / "docs" / "configuration.md"
 COMMAND = "python docs/config_docs.py --write"
 
@@ -147,7 +147,7 @@ def markdown(schema: dict) -> str:
     lines = [
         "# Configuration",
         "",
-        f"<!-- Generated from workflow/schemas/config.schema.yaml by docs/config_docs.py: do not edit by hand. "
+        f"<!-- Generated from src/remaster/data/config.schema.yaml by docs/config_docs.py: do not edit by hand. "
         f"Regenerate with `{COMMAND}`. -->",
         "",
         _cell(schema.get("description", "")),

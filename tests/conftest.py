@@ -1,7 +1,6 @@
 """Shared fixtures: the bundled iiwa model and a DH robot (UR5 nominal table); the workflow's
 configuration with the schema's defaults, and the loop closure's settings and report from it."""
 
-import copy
 import dataclasses
 import os
 from pathlib import Path
@@ -13,7 +12,7 @@ from remaster.campaigns.arm_kinds import UR5_DH
 from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
-SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
+SCHEMA = REPO / "src" / "remaster" / "data" / "config.schema.yaml"
 IIWA_URDF = REPO / "data" / "robots" / "kuka_iiwa14.urdf"
 UR5_URDF = Path(__file__).resolve().parent / "data" / "ur5_nominal.urdf"
 # UR5_DH (`arm_kinds`): Universal Robots UR5 nominal standard DH table; ur5_nominal.urdf is the same chain.
@@ -36,22 +35,19 @@ def rng():
 
 def validated_config(config=None) -> dict:
     """A copy of `config` (default: none at all) validated against the workflow's schema, with its
-    defaults filled in as the workflow fills them: the schema is the one place they live."""
-    from snakemake.utils import validate
+    defaults filled in as the workflow fills them (`remaster.configuration.settings`): the schema is
+    the one place they live."""
+    from remaster.configuration import settings
 
-    config = copy.deepcopy(dict(config or {}))
-    validate(config, str(SCHEMA))
-    return config
+    return settings(config)
 
 
 def loop_settings(config=None, **changes):
     """The loop closure's settings (`remaster.loop.settings.LoopSettings`) of a configuration
     (`validated_config`: the schema's defaults where it says nothing), with `changes` to its fields."""
-    from remaster.loop.settings import settings_from
+    from remaster.loop.settings import from_config
 
-    config = validated_config(config)
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
-    return dataclasses.replace(settings, **changes)
+    return dataclasses.replace(from_config(validated_config(config)), **changes)
 
 
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):

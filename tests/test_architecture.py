@@ -12,8 +12,9 @@ import remaster
 FILE_MODULES = {"pathlib", "shutil", "tempfile", "glob", "os"}
 # files: plain files (YAML, JSON, CSV, Parquet, figures, logs); campaigns.folders: campaign folders;
 # campaigns.robot_model: the robot description a campaign names; provenance: digests of files and code;
-# results: a stage's results read back (by the command line and the workflow's scripts)
-FILE_ACCESS = {"files", "campaigns.folders", "campaigns.robot_model", "provenance", "results", "cli"}
+# results: a stage's results read back (by the command line and the workflow's scripts); api.truth: a
+# simulated campaign written to a temporary folder and read back as the workflow reads it
+FILE_ACCESS = {"files", "campaigns.folders", "campaigns.robot_model", "provenance", "results", "cli", "api.truth"}
 
 
 def _file_access(source: str) -> list[str]:
@@ -68,7 +69,8 @@ def test_only_the_file_modules_and_cli_touch_files():
 # The pipeline's direction, bottom to top: the foundation (modules beside the packages that any
 # stage may use, among them files, layout and provenance: the files every stage reads and writes),
 # the sub-packages in the workflow's order, and the edge (cli: the command line; results: the results
-# read back, typed by the stages that wrote them, for the command line and the workflow). A module may
+# read back, typed by the stages that wrote them, for the command line and the workflow; api: the Python
+# interface, which runs the stages in-process). A module may
 # import its own layer and those below, never a later stage; a new top-level module must be placed
 # here, or the test says so.
 FOUNDATION = {
@@ -87,9 +89,10 @@ FOUNDATION = {
     "provenance",
     "stage_inputs",
     "identity",
+    "configuration",
 }
 STAGES = ("robot", "campaigns", "inference", "loop", "calibration", "evaluation", "comparing", "reporting", "planning")
-INTERFACE = {"cli", "results"}
+INTERFACE = {"cli", "results", "api"}
 LAYER_NAMES = ["foundation", *STAGES, "interface"]
 
 
@@ -258,6 +261,34 @@ def _imports_from(source: str, package: str) -> list[str]:
         )
         found += [f"line {node.lineno}: {n}" for n in names if n == package or n.startswith(f"{package}.")]
     return found
+
+
+def test_the_tests_calibrate_through_the_library_not_the_benchmarks_harness():
+    """The tests run the pipeline's stages in-process through the library's Python interface
+    (`remaster.api`, `remaster.api.truth`), never through the benchmarks' door onto it."""
+    tests = sorted(Path(__file__).parent.rglob("*.py"))
+    offenders = {
+        str(p.relative_to(Path(__file__).parent)): hits
+        for p in tests
+        if (hits := _imports_from(p.read_text(encoding="utf-8"), "benchmarks.truth_claims"))
+    }
+    assert offenders == {}
+
+
+def test_the_package_offers_its_interface_without_loading_it():
+    """`import remaster` stays light (the command line's `--version`, the workflow's readers); its
+    interface (`remaster.calibrate`, ...) is `remaster.api`'s, imported on first use."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, remaster\n"
+        "light = 'remaster.api' not in sys.modules\n"
+        "assert remaster.calibrate is __import__('remaster.api').api.calibrate\n"
+        "print(light, sorted(set(remaster.API) - set(dir(remaster.api))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "True []"
 
 
 def test_no_benchmark_imports_from_the_tests():

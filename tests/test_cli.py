@@ -178,6 +178,7 @@ def test_a_wheel_installs_the_remaster_command_under_a_free_distribution_name(tm
         assert "Name: remaster-robot" in archive.read(info).decode()
         assert "remaster = remaster.cli:main" in archive.read(entry).decode()
     assert "remaster/data/paper_values.csv" in names and "remaster/cli.py" in names
+    assert "remaster/data/config.schema.yaml" in names  # the schema `remaster.configuration.settings` reads
 
 
 def test_long_commands_tell_a_terminal_what_they_do_and_nothing_else(monkeypatch):

@@ -27,7 +27,7 @@ def _generator():
 
 
 def _schema() -> dict:
-    return yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text(encoding="utf-8"))
+    return yaml.safe_load((REPO / "src" / "remaster" / "data" / "config.schema.yaml").read_text(encoding="utf-8"))
 
 
 def test_configuration_page_is_what_the_schema_generates():

@@ -134,7 +134,7 @@ def test_a_bad_tracker_noise_prior_is_refused_by_the_schema(key, value, says):
     config = files.read_yaml(REPO / "config.yaml")
     config["loop_closure"]["tracker_noise"][key] = value
     with pytest.raises(WorkflowError) as info:
-        validate(config, str(REPO / "workflow" / "schemas" / "config.schema.yaml"))
+        validate(config, str(REPO / "src" / "remaster" / "data" / "config.schema.yaml"))
     assert f"ValidationError: {says}" in str(info.value)
     assert "On instance['loop_closure']['tracker_noise']" in str(info.value)
 

@@ -169,14 +169,19 @@ def write_json(path: str | Path, data: Any) -> Path:
     so the file is strict JSON that any reader accepts.
     """
     path = Path(path)
+    return write_text(path, json_text(data, str(path)) + "\n")
+
+
+def json_text(data: Any, label: str = "JSON") -> str:
+    """The JSON text `write_json` writes of `data` (without its final newline); `label` names
+    where it goes in the error for a value JSON cannot hold."""
 
     def fallback(value: Any) -> Any:
         if isinstance(value, (dt.date, dt.datetime)):
             return value.isoformat()
-        raise TypeError(f"cannot write {type(value).__name__} to JSON ({path})")
+        raise TypeError(f"cannot write {type(value).__name__} to JSON ({label})")
 
-    text = json.dumps(plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
-    return write_text(path, text + "\n")
+    return json.dumps(plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
 
 
 @contextlib.contextmanager

@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from benchmarks.truth_claims import check
+from remaster.api import truth
 from remaster.campaigns import scenario
 from remaster.campaigns.arm_kinds import (
     CYCLIC_TERMS,
@@ -119,8 +119,8 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
     assert section["named"] == {"q2": [1, 2], "q4": [1]}
     for row in section["terms"]:
         if row["named"]:
-            truth = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
-            assert abs(row["amplitude_deg"] - truth) < 3 * row["amplitude_std_deg"]
+            true_amplitude = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
+            assert abs(row["amplitude_deg"] - true_amplitude) < 3 * row["amplitude_std_deg"]
         else:
             assert row["p_value"] > section["p_threshold"]
     rng = np.random.default_rng(9)
@@ -149,12 +149,13 @@ def test_the_cyclic_case_is_traced_to_joints_2_and_4_and_recovered_within_its_ba
 def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_bound_holds():
     """The cyclic-error scenario at its full size with a motion capture (kind motion_capture: no tracker
     noise model offered, sensor_scale and sensor_distortion offered), calibrated by the pipeline's
-    stages (`truth_claims.check`): joint_harmonics alone, q2 (orders 1, 2) and q4 (order 1) named,
+    stages (`remaster.api.truth.check`): joint_harmonics alone, q2 (orders 1, 2) and q4 (order 1) named,
     validation within 1.5x the noise, and `remaster predict`'s per-command 95 % bound holding against
     the truth at >= 75 % of random configurations across the joint limits and inside the measured
     ranges (benchmarks/bench_cyclic_case.py: the same over seeds and sizes, and the laser tracker)."""
     spec = cyclic_case()
-    result = check(spec, chain_of(spec, REPO), "motion_capture", n_random=200, draws=300)
+    probe = truth.Probe(n_random=200, draws=300)
+    result = truth.check(spec, chain_of(spec, REPO), "motion_capture", probe, repo_root=REPO)
     report = result.report
     assert report.effects_added == ("joint_harmonics",)
     assert report.effects_sides == {"joint_harmonics": "robot"}
@@ -162,8 +163,8 @@ def test_at_the_issues_size_a_motion_capture_takes_the_joint_harmonics_and_its_b
     assert report.harmonics["named"] == {"q2": [1, 2], "q4": [1]}
     for row in report.harmonics["terms"]:
         if row["named"]:
-            truth = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
-            assert abs(row["amplitude_deg"] - truth) < 3 * row["amplitude_std_deg"]
+            true_amplitude = next(a for j, k, a, _ in CYCLIC_TERMS if f"q{j}" == row["joint"] and k == row["order"])
+            assert abs(row["amplitude_deg"] - true_amplitude) < 3 * row["amplitude_std_deg"]
     assert result.noise_mm == pytest.approx(MOTION_CAPTURE["noise"] * 1e3)
     assert result.validation_rms_per_axis_mm <= 1.5 * result.noise_mm
     assert result.held_fraction >= 0.75

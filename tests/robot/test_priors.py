@@ -21,7 +21,7 @@ from ..conftest import REPO
 
 CONFIG = files.read_yaml(REPO / "config.yaml")
 SECTION = CONFIG["priors"]
-SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
+SCHEMA = str(REPO / "src" / "remaster" / "data" / "config.schema.yaml")
 TWIN = REPO / "data" / "raw" / "kuka-twin"
 SENSOR = "laser_tracker"
 ALLOWED = (

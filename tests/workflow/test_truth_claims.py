@@ -10,7 +10,7 @@ the noise, across the limits it is wide, where the data did not reach
 import numpy as np
 import pytest
 
-from benchmarks.truth_claims import check
+from remaster.api import truth
 from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors
 
 from ..conftest import REPO
@@ -31,7 +31,8 @@ def spec_with(q3) -> dict:
 @pytest.fixture(scope="module", params=["free", 0.0], ids=["every joint moved", "joint 3 held"])
 def checked(request):
     spec = spec_with(request.param)
-    return request.param, check(spec, chain_of(spec, REPO), "laser_tracker", n_random=200, draws=500)
+    probe = truth.Probe(n_random=200, draws=500)
+    return request.param, truth.check(spec, chain_of(spec, REPO), "laser_tracker", probe, repo_root=REPO)
 
 
 def test_the_loop_finds_the_link_errors_and_validates_at_the_noise(checked):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from snakemake.utils import validate
 
-from remaster import files, layout, results
+from remaster import configuration, files, layout, results
 from remaster.campaigns import folders
 from remaster.campaigns.robot_model import robot_section
 
@@ -18,7 +18,8 @@ for configfile in workflow.configfiles:
     if Path(configfile).suffix.lower() != ".json":
         files.read_yaml(configfile)
 
-validate(config, workflow.source_path("../schemas/config.schema.yaml"))
+# the package's schema: the one place the defaults live (`remaster.configuration.settings` reads it too)
+validate(config, str(configuration.SCHEMA))
 
 # Each job is single-threaded and -j sets how many run at once. A BLAS that starts a thread per
 # core in every job makes two jobs fight for two cores (measured: the loop closure spent 24.6 s of

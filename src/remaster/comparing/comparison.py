@@ -507,5 +507,9 @@ def comparison_tables(
     significance: float = 3.0,
 ) -> dict[str, pd.DataFrame]:
     """Every table of TABLES, from the arguments of `entries_of`."""
-    entries = entries_of(metadata, summaries, loops)
+    return tables_of(entries_of(metadata, summaries, loops), significance)
+
+
+def tables_of(entries: Iterable, significance: float = 3.0) -> dict[str, pd.DataFrame]:
+    """Every table of TABLES, of these entries."""
     return {name: table(name, entries, significance) for name in TABLES}

@@ -1,7 +1,8 @@
 """The loop closure's settings, from the workflow's configuration as its schema has checked it.
 
-Every value comes from the configuration: workflow/schemas/config.schema.yaml is the one place
-their defaults live (the workflow fills them in when it validates config.yaml), so `settings_from`
+Every value comes from the configuration: src/remaster/data/config.schema.yaml is the one place
+their defaults live (the workflow fills them in when it validates config.yaml, `remaster.configuration.settings`
+for a Python caller), so `settings_from`
 requires every key and has no defaults of its own. Only the candidate list is the library's
 (`blocks.EXTENSIONS`), and the prior sets a `priors` section leaves out are `robot.priors.DEFAULTS`.
 """
@@ -112,6 +113,12 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
         harmonic_level=float(config["harmonics"]["level"]),
         fit_rows=int(config["fit_rows"]),
     )
+
+
+def from_config(config: Mapping) -> LoopSettings:
+    """`settings_from` the sections of the whole configuration as the schema has filled it
+    (`remaster.configuration.settings`)."""
+    return settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
 
 
 def _gp_settings(section: Mapping) -> dict | None:
