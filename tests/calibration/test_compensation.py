@@ -532,3 +532,26 @@ def test_reports_whose_results_failed_are_stale(tmp_path):
     ]
     files.write_json(tmp_path / "failed" / "laser_tracker" / layout.LOOP_CLOSURE, {})  # newer than the certificate
     assert len(results_module.stale_reports(tmp_path, sensors)) == 3
+
+
+def test_a_command_beyond_the_data_is_not_determined_naming_the_joint_the_data_held(iiwa):
+    """Measured configurations with joint 3 held at 0: a command near them is determined; one that
+    turns joint 3 is not, and says which joint; one far in the others' joints says how far; a
+    command not reached has no distance and is not determined."""
+    from remaster.robot.nearness import Nearness
+
+    rng = np.random.default_rng(4)
+    measured = rng.uniform(-1.0, 1.0, (60, 7))
+    measured[:, 2] = 0.0
+    near = Nearness.of(iiwa, measured, np.array([0.0, 0.0, 0.05]))
+    assert near.held_joints() == {2: 0.0}
+    commands = np.vstack([measured[:2], measured[:1] + [0, 0, 0.5, 0, 0, 0, 0], [[2.5, 1.8, 0, -1.9, 2.4, 1.9, 2.6]]])
+    commands = np.vstack([commands, np.full((1, 7), np.nan)])
+    table = compensation.with_nearness(pd.DataFrame(index=range(5)), near, commands)
+    assert table["determined"].tolist() == [True, True, False, False, False]
+    why = table["not_determined_why"].tolist()
+    assert why[:2] == ["", ""]
+    assert why[2].startswith("not determined: q3 held at 0 deg in the data, here 28.6") and "the priors'" in why[2]
+    assert re.match(r"not determined: [\d.e+]+ mm from the measured configurations \(their spacing [\d.e+]+ mm\)", why[3])
+    assert why[4] == "not determined: no configuration to compare (not reached)"
+    assert table["near_data"].tolist()[:2] == [True, True] and not table["near_data"].iloc[3]

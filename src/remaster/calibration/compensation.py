@@ -66,6 +66,7 @@ from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
+from ..robot.ik import wrap_angle
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM
@@ -84,6 +85,7 @@ MAX_STEP = 0.5  # rad: a longer Gauss-Newton step is shortened to this (far from
 DIFFERENCE_STEP = 1e-7  # rad
 SINGULAR = 1e-9  # smallest over largest singular value of the Jacobian: singular below
 REACHED, NOT_REACHED = "reached", "not reached"
+HELD_MOVE = np.radians(0.5)  # rad: a command moving a joint the data held by more is beyond the data there
 
 log = logging.getLogger(__name__)
 
@@ -383,14 +385,44 @@ def predict(robot: CalibratedRobot, q, frame: str, count: int, rng: np.random.Ge
 
 def with_nearness(table: pd.DataFrame, near: Nearness | None, q) -> pd.DataFrame:
     """table with `distance_to_data_mm` (how far the marker moves, at most to first order, from the
-    nearest configuration the fit measured) and `near_data` (within the data's own spacing: where
-    the bounds are claimed) per command q (n, N); unchanged without a nearness."""
+    nearest configuration the fit measured), `near_data` (within the data's own spacing: where
+    the bounds are claimed) and `determined` with `not_determined_why`, per command q (n, N):
+    determined where near the data and no joint the data held (never moved) is moved by more
+    than `HELD_MOVE`; elsewhere the bound is the priors', as the certificate says of the claim
+    across the joint limits, and the why names the held joints moved, else the distance.
+    Unchanged without a nearness."""
     if near is None:
         return table
+    q = np.atleast_2d(np.asarray(q, dtype=float))
     distance = near.distance(q)
+    held = near.held_joints()
+    moved = [
+        [
+            f"q{j + 1} held at {np.degrees(v):.3g} deg in the data, here {np.degrees(row[j]):.3g}"
+            for j, v in held.items()
+            if abs(wrap_angle(row[j] - v)) > HELD_MOVE
+        ]
+        for row in q
+    ]
+    inside = distance <= near.radius
     table["distance_to_data_mm"] = distance / MM
-    table["near_data"] = distance <= near.radius
+    table["near_data"] = inside
+    table["determined"] = inside & np.array([not m for m in moved], dtype=bool)
+    table["not_determined_why"] = [
+        "" if ok else _why_not_determined(m, d, near.radius) for ok, m, d in zip(table["determined"], moved, distance)
+    ]
     return table
+
+
+def _why_not_determined(moved: list[str], distance: float, radius: float) -> str:
+    """Why a command's bound is not determined: the held joints it moves, else how far beyond the data."""
+    if not np.isfinite(distance):
+        return "not determined: no configuration to compare (not reached)"
+    where = (
+        "; ".join(moved)
+        or f"{distance / MM:.3g} mm from the measured configurations (their spacing {radius / MM:.3g} mm)"
+    )
+    return f"not determined: {where}: the bound here is the priors', not a measurement"
 
 
 # --------------------------------------------------------------------------- inverse kinematics

@@ -34,12 +34,11 @@ import numpy as np
 from .. import identity, seeding
 from ..inference import metrics
 from ..robot.kinematics import ForwardKinematics, KinematicChain
-from ..robot.nearness import Nearness
+from ..robot.nearness import HELD_WIDTH, Nearness
 from ..units import DEG
 
 FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
 MIN_TOOL_SPREAD_DEG = 30.0  # and the spread of the measured tool axes
-HELD_WIDTH = 0.01 * DEG  # readings spanning less: the joint was held (a controller's jitter, not a motion)
 ACROSS, INSIDE = "across the joint limits", "near the measured configurations"
 
 

@@ -21,9 +21,11 @@ from functools import cached_property
 
 import numpy as np
 
+from .ik import wrap_angle
 from .kinematics import ForwardKinematics, KinematicChain
 
 SPACING_QUANTILE = 0.95  # the data's spacing: this quantile of the nearest-neighbour distances
+HELD_WIDTH = np.radians(0.01)  # rad: readings spanning less: the joint was held (a controller's jitter, not a motion)
 
 
 def lever_arms(chain: KinematicChain, q, marker) -> np.ndarray:
@@ -96,6 +98,12 @@ class Nearness:
     def distance(self, q) -> np.ndarray:
         """(n,) m: each configuration's distance to the nearest measured one."""
         return self._nearest(np.atleast_2d(np.asarray(q, dtype=float)))
+
+    def held_joints(self, width: float = HELD_WIDTH) -> dict[int, float]:
+        """{joint index: its value} of the joints the measured configurations never moved (readings
+        spanning less than `width` rad, wrapped about their first reading)."""
+        spread = np.abs(wrap_angle(self.measured - self.measured[:1]))
+        return {j: float(self.measured[0, j]) for j in range(self.measured.shape[1]) if spread[:, j].max() < width}
 
     def inside(self, q) -> np.ndarray:
         """Boolean (n,): within the data's spacing of a measured configuration."""
