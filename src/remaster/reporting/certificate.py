@@ -408,6 +408,16 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
         undetermined.append("the accuracy across the joint limits (the data did not reach there)")
     if not near_determined:
         undetermined.append("the accuracy near the measured configurations (the priors supply most of its bound)")
+    # the zero-offsets the optimization set cannot tell from the registration and the others (the
+    # paper fit's identifiability test; its prior is flat, so a thin set holds them rather than
+    # leaving them at a prior): a correction of the controller's value, not a measurement
+    held = [n.split(".")[-1] for n in inputs.laplace.held if n.startswith("zero_offsets.")]
+    if held:
+        undetermined.append(
+            f"the zero-offset{'s' if len(held) > 1 else ''} of {', '.join(held)} (held at the controller's value: "
+            "the optimization set cannot tell "
+            f"{'them' if len(held) > 1 else 'it'} from the registration and the other parameters)"
+        )
     dominated = list(workspace.get("prior_dominated") or ())
     if dominated:
         count = len(dominated)
