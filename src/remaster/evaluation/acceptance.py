@@ -776,6 +776,33 @@ def instrument_noise(sensor, rows) -> np.ndarray | None:
     return None if sensor.noise is None else np.full((len(rows), 3), float(sensor.noise))
 
 
+def _judged(
+    data: Readings, claims: Mapping[str, Claim], checks: Mapping, effects, flagged, level: float, plausible_mm: float
+) -> tuple[str, list[str], dict]:
+    """(the verdict's text, the warnings, the Acceptance fields of the verdict but the budget) of
+    the checks made on the validation readings `data`: the loop-closed model's check diagnosed
+    (`diagnose`), or CANNOT_TEST when the set has fewer distinct configurations than the paper
+    model's free parameters need (`configurations_report`): never a pass, the checks kept."""
+    configurations = configurations_report(data, claims["loop"].reference, claims["paper"].theta.shape[1])
+    effects = list(effects)
+    if configurations["tests"]:
+        result, diagnosis = diagnose(checks)
+        text = _diagnosis_text(diagnosis, checks, level, plausible_mm)
+        warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
+    else:
+        result, diagnosis = CANNOT_TEST, None
+        text, flag = _cannot_test(configurations, checks["loop"], level)
+        warnings = [flag, *_warnings(checks, None, effects, flagged, level, plausible_mm)]
+    verdict = {
+        "verdict": result,
+        "diagnosis": diagnosis,
+        "move": checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
+        "checks": checks,
+        "configurations": configurations,
+    }
+    return text, warnings, verdict
+
+
 def acceptance_stage(
     campaign,
     sensor: str,
@@ -823,27 +850,11 @@ def acceptance_stage(
             if instrument is not None and declared is not None:
                 claims[model] = dataclasses.replace(claims[model], instrument=instrument, declared=declared)
         checks = {m: check(data.measured, claims[m], level, registration_share, rng, plausible_mm * MM) for m in MODELS}
-        effects = list(report.effects_added)
-        configurations = configurations_report(data, claims["loop"].reference, claims["paper"].theta.shape[1])
-        if configurations["tests"]:
-            result, diagnosis = diagnose(checks)
-            text = _diagnosis_text(diagnosis, checks, level, plausible_mm)
-            warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
-        else:  # no pass from a set that cannot test: the verdict says why, the checks stay for the record
-            result, diagnosis = CANNOT_TEST, None
-            text, flag = _cannot_test(configurations, checks["loop"], level)
-            warnings = [flag, *_warnings(checks, None, effects, flagged, level, plausible_mm)]
-        verdict = {
-            "verdict": result,
-            "diagnosis": diagnosis,
-            "move": checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
-            "checks": checks,
-            "configurations": configurations,
-        }
+        text, warnings, verdict = _judged(data, claims, checks, report.effects_added, flagged, level, plausible_mm)
         verdict["budget"] = {
             **claim_budget(data.measured, claims["loop"], rng, measured.mpe),
-            "validation_configurations": configurations["distinct"],
-            "validation_tests": configurations["tests"],
+            "validation_configurations": verdict["configurations"]["distinct"],
+            "validation_tests": verdict["configurations"]["tests"],
         }
     copies = measured.validation_copies()
     if len(copies):
