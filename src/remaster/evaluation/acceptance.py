@@ -34,6 +34,20 @@ but the verdict.
   A model whose validation RMS per axis exceeds `plausible_residual_mm` fails whatever its p: no
   calibrated arm is off by that much, a unit slip or a wrong robot description is.
 
+**A validation set that cannot test** gets no pass. Rows whose joint readings agree to within
+SAME_CONFIGURATION (0.1 deg) in every joint are one configuration (`distinct_configurations`):
+between readings dq apart the calibration's error e(q) changes by about L |dq| |delta| (lever arm
+L, residual angular error delta), 0.8 um at L = 1 m, |dq| = 0.1 deg sqrt(7) and delta = 0.01 deg,
+below any sensor's noise, so such rows measure one point of the error again; different IK solutions
+of one target (the marker at one point, the joints far apart) stay distinct. With fewer distinct
+configurations than `configurations_needed` (three numbers each for the paper model's free
+parameters, registration and zero-offsets: 4 for a 6-axis arm, 5 for a 7-axis one; never fewer
+than 3, which a rigid refit needs) some combination of the parameters is invisible whatever the
+number of rows, and one configuration's error is a translation the registration absorbs: the
+verdict is "cannot test", with the count; the checks are still made and reported (a failure at
+those configurations is said, undiagnosed: a move and a calibration error look alike there), and
+the ISO 9283 repeatability RP of the repeated configurations is given (`repeats_report`).
+
 **The recommended model is the loop-closed one**, chosen on the optimization set before the
 validation set is read; the validation set chooses nothing. Its check is the verdict; the paper
 model's check is shown beside it.
@@ -82,8 +96,12 @@ from ..units import DEG, MM
 
 MODELS = ("loop", "paper")
 GP = "residual_gp"
-PASS, FAIL, UNTESTED = "pass", "fail", "not tested"
+PASS, FAIL, UNTESTED, CANNOT_TEST = "pass", "fail", "not tested", "cannot test"
+VERDICTS = (PASS, FAIL, UNTESTED, CANNOT_TEST)
 MIN_VALIDATION_ROWS = 3  # fewer measured validation rows: no test made, the certificate says so
+# rows whose joint readings all agree to this are one configuration of the test (module docstring)
+SAME_CONFIGURATION = 0.1 * DEG
+MIN_CONFIGURATIONS = 3  # a rigid refit (the diagnosis of a move) needs three points off one line
 IMPLAUSIBLE, MOVED, NOT_CONFIRMED = "does_not_describe_the_arm", "sensor_moved", "not_confirmed"
 DIAGNOSES = {
     IMPLAUSIBLE: "the model does not describe the arm (check the units of the marker, the positions and the robot "
@@ -499,7 +517,9 @@ def _diagnosis_text(diagnosis: str | None, checks: Mapping, level: float, plausi
 @dataclass(frozen=True)
 class Acceptance:
     """acceptance.json of one sensor. verdict 'pass' | 'fail' (the loop-closed model's check) |
-    'not tested' (fewer than MIN_VALIDATION_ROWS measured validation rows: checks empty);
+    'not tested' (fewer than MIN_VALIDATION_ROWS measured validation rows: checks empty) |
+    'cannot test' (fewer distinct configurations than `configurations_needed`: the checks are made
+    and kept, never a pass); configurations: `configurations_report` (None when not tested);
     diagnosis: None or one of DIAGNOSES, diagnosis_text its sentence with the numbers; move: the
     registration refit's move (mm, deg) when the diagnosis is a moved sensor, else None; checks:
     {'loop', 'paper': `check`}; level, registration_share, plausible_residual_mm, draws: the
@@ -522,6 +542,7 @@ class Acceptance:
     gross_errors_left_out: tuple[int, ...]
     warnings: tuple[str, ...]
     budget: Mapping | None = None
+    configurations: Mapping | None = None
     statistic: str = STATISTIC
     campaign: str | None = None
     source: str = field(default="acceptance.json", compare=False)
@@ -551,10 +572,12 @@ class Acceptance:
         for f in fields(cls):
             if f.name == "source":
                 continue
-            value = get(f.name)
+            # a file written before the configurations were counted has none: the certificate then
+            # clusters by pose alone
+            value = content.get(f.name) if f.name == "configurations" else get(f.name)
             values[f.name] = tuple(value) if f.name in ("gross_errors_left_out", "warnings") else value
-        if values["verdict"] not in (PASS, FAIL, UNTESTED):
-            raise InputError(f"verdict must be {PASS!r}, {FAIL!r} or {UNTESTED!r}", file=source, key="verdict")
+        if values["verdict"] not in VERDICTS:
+            raise InputError(f"verdict must be one of {', '.join(map(repr, VERDICTS))}", file=source, key="verdict")
         return cls(**values, source=source)
 
     @classmethod
@@ -570,7 +593,148 @@ def _untested(rows: int) -> tuple[str, dict]:
         f"not tested: {rows} measured validation rows (at least {MIN_VALIDATION_ROWS} needed); "
         "measure a validation set to accept this calibration"
     )
-    return text, {"verdict": UNTESTED, "diagnosis": None, "move": None, "checks": {}, "budget": None}
+    return text, {
+        "verdict": UNTESTED,
+        "diagnosis": None,
+        "move": None,
+        "checks": {},
+        "budget": None,
+        "configurations": None,
+    }
+
+
+def distinct_configurations(q, tolerance: float = SAME_CONFIGURATION) -> np.ndarray:
+    """(n,) labels 0..G-1 of the distinct configurations of joint readings q (n, N) rad, numbered
+    in the order of their first row: a row joins the first configuration whose first row's readings
+    it matches to within `tolerance` (rad) in every joint, else it starts one. Leader clustering: a
+    configuration spans at most twice the tolerance, so a slow sweep is never chained into one."""
+    q = np.asarray(q, dtype=float).reshape(len(q), -1)
+    if not len(q):
+        return np.zeros(0, dtype=int)
+    unique, first, inverse = np.unique(q, axis=0, return_index=True, return_inverse=True)
+    leaders = np.empty_like(unique)
+    label = np.empty(len(unique), dtype=int)
+    count = 0
+    for u in np.argsort(first):  # each distinct reading in the order of its first row
+        hit = np.flatnonzero(np.all(np.abs(leaders[:count] - unique[u]) < tolerance, axis=1))
+        if hit.size:
+            label[u] = hit[0]
+        else:
+            leaders[count], label[u] = unique[u], count
+            count += 1
+    return label[inverse.ravel()]
+
+
+def configurations_needed(parameters: int) -> int:
+    """The fewest distinct configurations that test a calibration of `parameters` free parameters
+    (the paper model's: registration and zero-offsets): each gives three numbers, and fewer numbers
+    than parameters leave some combination of them unseen whatever the rows (the validation
+    Jacobian has a null space); never fewer than MIN_CONFIGURATIONS, which the refit needs."""
+    return max(MIN_CONFIGURATIONS, -(-int(parameters) // 3))
+
+
+def repeats_report(residuals, groups, rows) -> dict | None:
+    """ISO 9283 pose repeatability of the configurations measured more than once (`iso9283`):
+    residuals (n, 3) m measured minus predicted, groups (n,) the configuration of each row
+    (`distinct_configurations`), rows (n,) their table rows. JSON-ready, mm; None when nothing
+    repeats. RP = l_bar + 3 S_l holds the sensor's noise and the robot's repeatability together."""
+    from .iso9283 import pose_characteristics
+
+    poses = pose_characteristics(residuals, groups)
+    repeated = poses[poses["cycles"] > 1]
+    if repeated.empty:
+        return None
+    _, first = np.unique(np.asarray(groups), return_index=True)
+    first_row = dict(zip(poses["group"].tolist(), np.asarray(rows)[first].tolist()))
+    return {
+        "configurations": int(len(repeated)),
+        "cycles": int(repeated["cycles"].sum()),
+        "cycles_min": int(repeated["cycles"].min()),
+        "cycles_max": int(repeated["cycles"].max()),
+        "RP_mean_mm": float(repeated["RP"].mean() / MM),
+        "RP_max_mm": float(repeated["RP"].max() / MM),
+        "per_configuration": [
+            {
+                "first_row": int(first_row[r["group"]]),
+                "cycles": int(r["cycles"]),
+                "AP_mm": float(r["AP"] / MM),
+                "RP_mm": float(r["RP"] / MM),
+            }
+            for _, r in repeated.iterrows()
+        ],
+    }
+
+
+def configurations_report(data: Readings, reference, parameters: int) -> dict:
+    """What the validation set can test (module docstring): its distinct configurations
+    (`distinct_configurations`) against those a calibration of `parameters` free parameters needs
+    (`configurations_needed`), each used table row's configuration, and the repeatability of the
+    repeated ones (`repeats_report`, residuals against the prediction `reference` (n, 3) m).
+    JSON-ready."""
+    groups = distinct_configurations(data.q)
+    distinct, needed = int(groups.max()) + 1 if len(groups) else 0, configurations_needed(parameters)
+    return {
+        "distinct": distinct,
+        "rows": int(len(groups)),
+        "needed": needed,
+        "parameters": int(parameters),
+        "tolerance_deg": SAME_CONFIGURATION / DEG,
+        "tests": bool(distinct >= needed),
+        "table_rows": [int(r) for r in data.rows],
+        "configuration_of_row": groups.tolist(),
+        "repeats": repeats_report(np.asarray(data.measured) - np.asarray(reference), groups, data.rows),
+    }
+
+
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
+
+def repeats_text(repeats: Mapping | None) -> str:
+    """The ISO 9283 repeatability of the repeated configurations in words ('' when none repeats)."""
+    if not repeats:
+        return ""
+    cycles = (
+        f"{repeats['cycles_min']} cycles"
+        if repeats["cycles_min"] == repeats["cycles_max"]
+        else f"{repeats['cycles_min']} to {repeats['cycles_max']} cycles"
+    )
+    rp = (
+        f"RP {repeats['RP_max_mm']:.2g} mm"
+        if repeats["configurations"] == 1
+        else f"RP {repeats['RP_mean_mm']:.2g} mm mean, {repeats['RP_max_mm']:.2g} mm at most"
+    )
+    return (
+        f"ISO 9283 pose repeatability of {_plural(repeats['configurations'], 'repeated configuration')} "
+        f"({cycles} each): {rp} (the sensor's noise and the robot's repeatability together)"
+    )
+
+
+def _cannot_test(configurations: Mapping, loop: Mapping, level: float) -> tuple[str, str]:
+    """(the verdict's text, the warning) of a validation set with fewer distinct configurations than
+    a test needs: no pass; what the check at them says and the repeats' repeatability."""
+    distinct, rows, needed = configurations["distinct"], configurations["rows"], configurations["needed"]
+    text = (
+        f"cannot test: {_plural(distinct, 'distinct configuration')} of {rows} validation rows "
+        f"(at least {needed} needed)"
+    )
+    result = (
+        f"the check at {'it' if distinct == 1 else 'them'} passes (p = {loop['p_value']:.3g}), a check of the "
+        "noise there, not of the calibration"
+        if loop["passed"]
+        else f"the check at {'it' if distinct == 1 else 'them'} fails (validation RMS per axis "
+        f"{loop['observed_rms_per_axis_mm']:.3g} mm, p = {loop['p_value']:.3g} < {level:g}): the calibration or "
+        "the set-up is off there, and so few configurations cannot tell which"
+    )
+    repeats = repeats_text(configurations.get("repeats"))
+    warning = (
+        f"acceptance test {text}: the validation set cannot test the calibration, so it gives no acceptance pass "
+        f"(rows whose joint readings agree to {configurations['tolerance_deg']:g} deg in every joint are one "
+        f"configuration; {configurations['parameters']} free parameters, three numbers per configuration); "
+        f"{result}" + (f"; {repeats}" if repeats else "") + f"; measure at least {needed} configurations spread "
+        "over the joint ranges to accept this calibration"
+    )
+    return text, warning
 
 
 def _warnings(checks: Mapping, diagnosis: str | None, effects, flagged, level: float, plausible_mm: float) -> list[str]:
@@ -610,6 +774,33 @@ def instrument_noise(sensor, rows) -> np.ndarray | None:
     if point_std is not None:
         return point_std
     return None if sensor.noise is None else np.full((len(rows), 3), float(sensor.noise))
+
+
+def _judged(
+    data: Readings, claims: Mapping[str, Claim], checks: Mapping, effects, flagged, level: float, plausible_mm: float
+) -> tuple[str, list[str], dict]:
+    """(the verdict's text, the warnings, the Acceptance fields of the verdict but the budget) of
+    the checks made on the validation readings `data`: the loop-closed model's check diagnosed
+    (`diagnose`), or CANNOT_TEST when the set has fewer distinct configurations than the paper
+    model's free parameters need (`configurations_report`): never a pass, the checks kept."""
+    configurations = configurations_report(data, claims["loop"].reference, claims["paper"].theta.shape[1])
+    effects = list(effects)
+    if configurations["tests"]:
+        result, diagnosis = diagnose(checks)
+        text = _diagnosis_text(diagnosis, checks, level, plausible_mm)
+        warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
+    else:
+        result, diagnosis = CANNOT_TEST, None
+        text, flag = _cannot_test(configurations, checks["loop"], level)
+        warnings = [flag, *_warnings(checks, None, effects, flagged, level, plausible_mm)]
+    verdict = {
+        "verdict": result,
+        "diagnosis": diagnosis,
+        "move": checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
+        "checks": checks,
+        "configurations": configurations,
+    }
+    return text, warnings, verdict
 
 
 def acceptance_stage(
@@ -659,17 +850,12 @@ def acceptance_stage(
             if instrument is not None and declared is not None:
                 claims[model] = dataclasses.replace(claims[model], instrument=instrument, declared=declared)
         checks = {m: check(data.measured, claims[m], level, registration_share, rng, plausible_mm * MM) for m in MODELS}
-        effects = list(report.effects_added)
-        result, diagnosis = diagnose(checks)
-        text = _diagnosis_text(diagnosis, checks, level, plausible_mm)
-        verdict = {
-            "verdict": result,
-            "diagnosis": diagnosis,
-            "move": checks["loop"]["refit"]["move"] if diagnosis == MOVED else None,
-            "checks": checks,
+        text, warnings, verdict = _judged(data, claims, checks, report.effects_added, flagged, level, plausible_mm)
+        verdict["budget"] = {
+            **claim_budget(data.measured, claims["loop"], rng, measured.mpe),
+            "validation_configurations": verdict["configurations"]["distinct"],
+            "validation_tests": verdict["configurations"]["tests"],
         }
-        warnings = _warnings(checks, diagnosis, effects, flagged, level, plausible_mm)
-        verdict["budget"] = claim_budget(data.measured, claims["loop"], rng, measured.mpe)
     copies = measured.validation_copies()
     if len(copies):
         warnings.append(

@@ -38,7 +38,20 @@ def _row(sensor: str, component: str, u=np.nan, share=np.nan, value=np.nan, note
 
 
 def budget_rows(sensor: str, budget: Mapping) -> list[dict]:
-    """The rows (`COLUMNS`) of one sensor's budget (acceptance.json `budget`, see the module docstring)."""
+    """The rows (`COLUMNS`) of one sensor's budget (acceptance.json `budget`, see the module docstring).
+    A validation set that cannot test (`acceptance.configurations_report`) says so beside its share
+    within U: over one or a few configurations that share checks the noise there, not the budget."""
+    configurations = budget.get("validation_configurations")
+    where = (
+        f"{budget['validation_rows']} validation rows"
+        if configurations is None
+        else f"{budget['validation_rows']} validation rows ({configurations} distinct configurations)"
+    )
+    within = (
+        "rows the fit never saw: about 95 % when the budget holds"
+        if budget.get("validation_tests", True)
+        else f"not a check of the budget: {where} cannot test it; the share checks the noise at them"
+    )
     rows = [_row(sensor, part["source"], part["u_per_axis_mm"], part["share_percent"]) for part in budget["sources"]]
     rows += [
         _row(sensor, "combined u_c", budget["combined_u_per_axis_mm"], 100.0, note="the sources' variances add"),
@@ -46,8 +59,7 @@ def budget_rows(sensor: str, budget: Mapping) -> list[dict]:
             sensor,
             "U (95 %) of a measurement against the prediction",
             value=budget["U95_distance_mm"],
-            note="95th percentile of the 3-D distance over "
-            f"{budget['draws']} posterior draws and the {budget['validation_rows']} validation configurations",
+            note=f"95th percentile of the 3-D distance over {budget['draws']} posterior draws and the {where}",
         ),
         _row(
             sensor,
@@ -59,7 +71,7 @@ def budget_rows(sensor: str, budget: Mapping) -> list[dict]:
             sensor,
             "validation rows within U (%)",
             value=100 * budget["validation_within_U95"],
-            note="rows the fit never saw: about 95 % when the budget holds",
+            note=within,
         ),
     ]
     if budget.get("mpe_mm") is not None:

@@ -9,7 +9,14 @@ number comes from the run's result files (`CertificateInputs`); nothing is typed
 
 The uncertainty of a mean error is pose-clustered: configurations of one pose (the IK solutions
 of one target) share most of their error, so the standard uncertainty is the cluster-robust CR2
-one (Bell-McCaffrey, `uncertainty.cr2_mean`) and U = k u with k = t_0.975(poses - 1).
+one (Bell-McCaffrey, `uncertainty.cr2_mean`) and U = k u with k = t_0.975(clusters - 1). Rows of
+one configuration (acceptance.json's `configurations`: joint readings within 0.1 deg) share a
+cluster too, whatever their pose labels: a configuration measured again under new pose labels is
+one error measured again, not new clusters (`error_clusters`).
+
+A validation set that cannot test (acceptance verdict "cannot test": too few distinct
+configurations) is a red flag line first among its sensor's warnings, and its verdict column says
+why: never a pass.
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..evaluation.acceptance import DIAGNOSES, UNTESTED, Acceptance
+from ..evaluation.acceptance import CANNOT_TEST, DIAGNOSES, UNTESTED, Acceptance
 from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
 from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
 from ..evaluation.workspace import claim_rows, priors_decide
@@ -93,6 +100,32 @@ def mean_with_uncertainty(errors, poses) -> tuple[float, float, int, int]:
     return mean, u, int(seen.sum()), clusters - 1
 
 
+def error_clusters(rows, poses, acceptance: Acceptance | None) -> np.ndarray:
+    """(n,) cluster labels of validation table rows (n,) with pose labels poses (n,): rows of one
+    pose, and rows of one configuration (`acceptance.configurations`' groups, where the acceptance
+    test counted them), are in one cluster (the connected components of both relations). Without
+    the configurations, the poses."""
+    rows, poses = np.asarray(rows), np.asarray(poses)
+    configurations = (acceptance.configurations or {}) if acceptance is not None else {}
+    if not configurations.get("table_rows") or not len(rows):
+        return poses
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    group_of_row = dict(zip(configurations["table_rows"], configurations["configuration_of_row"]))
+    seen = pd.notna(poses)
+    pose_labels, pose_index = np.unique(poses[seen].astype(str), return_inverse=True)
+    # a row the test did not count (left out as a gross error) is a configuration of its own
+    groups = np.array([group_of_row.get(int(r), -1 - k) for k, r in enumerate(rows[seen])])
+    group_labels, group_index = np.unique(groups, return_inverse=True)
+    nodes = len(pose_labels) + len(group_labels)
+    edges = coo_matrix((np.ones(len(pose_index)), (pose_index, len(pose_labels) + group_index)), shape=(nodes, nodes))
+    _, component = connected_components(edges, directed=False)
+    out = np.full(len(rows), None, dtype=object)
+    out[seen] = component[pose_index]
+    return out
+
+
 def _row(sensor: str, where: str, model: str, errors_mm, poses) -> dict:
     errors_mm = np.asarray(errors_mm, dtype=float)
     seen = np.isfinite(errors_mm)
@@ -130,13 +163,15 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     flagged = inputs.loop.gross_errors["validation"]
     validation = validation[~validation["row"].isin(flagged)]
     where = "validation set (measured)"
+    # the clusters of the mean's U: poses, joined where one configuration carries several pose labels
+    clusters = pd.Series(error_clusters(validation["row"], validation["pose"], inputs.acceptance), validation.index)
     rows = [
         _row(
             sensor,
             where,
             label,
             validation.loc[validation["method"] == method, "error_mm"],
-            validation.loc[validation["method"] == method, "pose"],
+            clusters[validation["method"] == method],
         )
         for method, label in ((BEFORE, "controller's zero-offsets"), (AFTER, "remastered zero-offsets"))
     ]
@@ -144,7 +179,7 @@ def accuracy_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     after = residuals[(residuals["set"] == "validation") & (residuals["when"] == "after")]
     if len(after):
         norms = np.linalg.norm(after[["x_m", "y_m", "z_m"]].to_numpy(float), axis=1) / MM
-        pose_of_row = dict(zip(validation["row"], validation["pose"]))
+        pose_of_row = dict(zip(validation["row"], clusters))
         poses = after["row"].map(pose_of_row).to_numpy()
         rows.append(
             _row(
@@ -260,12 +295,12 @@ NEAR_NOT_DETERMINED = (
 
 
 def acceptance_text(acceptance: Acceptance | None) -> str:
-    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`evaluation.acceptance`), or
-    NOT_TESTED."""
+    """The verdict's acceptance column: 'pass', 'fail: <diagnosis>' (`evaluation.acceptance`),
+    'cannot test: n distinct configurations of m validation rows ...', or NOT_TESTED."""
     if acceptance is None:
         return NOT_TESTED
-    if acceptance.verdict == UNTESTED:
-        return acceptance.diagnosis_text  # 'not tested: n measured validation rows ...'
+    if acceptance.verdict in (UNTESTED, CANNOT_TEST):
+        return acceptance.diagnosis_text  # 'not tested: n measured validation rows ...', 'cannot test: ...'
     if acceptance.passed:
         return "pass"
     return f"fail: {DIAGNOSES.get(acceptance.diagnosis, acceptance.diagnosis or 'no diagnosis')}"
@@ -359,8 +394,9 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
     the validation set, where the calibration holds, what is not determined and why, and what the
     next campaign must add (the parameters the data barely moved counted, listed below)."""
     mean, u, p95 = (verdict[k] for k in ("After: mean (mm)", "U(After: mean) (mm)", "After: p95 (mm)"))
+    spread = f"U {u:.2g} mm, 95 %" if np.isfinite(u) else "U not determined: the rows are of one configuration or pose"
     after = (
-        f"error after {mean:.3g} mm mean (U {u:.2g} mm, 95 %), p95 {p95:.3g} mm on the validation set"
+        f"error after {mean:.3g} mm mean ({spread}), p95 {p95:.3g} mm on the validation set"
         if np.isfinite(mean)
         else "no validation error measured"
     )
@@ -372,6 +408,16 @@ def brief_line(sensor: str, inputs: CertificateInputs, verdict: Mapping) -> str:
         undetermined.append("the accuracy across the joint limits (the data did not reach there)")
     if not near_determined:
         undetermined.append("the accuracy near the measured configurations (the priors supply most of its bound)")
+    # the zero-offsets the optimization set cannot tell from the registration and the others (the
+    # paper fit's identifiability test; its prior is flat, so a thin set holds them rather than
+    # leaving them at a prior): a correction of the controller's value, not a measurement
+    held = [n.split(".")[-1] for n in inputs.laplace.held if n.startswith("zero_offsets.")]
+    if held:
+        undetermined.append(
+            f"the zero-offset{'s' if len(held) > 1 else ''} of {', '.join(held)} (held at the controller's value: "
+            "the optimization set cannot tell "
+            f"{'them' if len(held) > 1 else 'it'} from the registration and the other parameters)"
+        )
     dominated = list(workspace.get("prior_dominated") or ())
     if dominated:
         count = len(dominated)
@@ -540,6 +586,16 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
     return out
 
 
+def red_flags(sensor: str, inputs: CertificateInputs) -> list[str]:
+    """The line a reader must not miss: a validation set that cannot test the calibration
+    (acceptance verdict CANNOT_TEST), with the acceptance test's own words (its first warning)."""
+    accepted = inputs.acceptance
+    if accepted is None or accepted.verdict != CANNOT_TEST:
+        return []
+    said = accepted.warnings[0] if accepted.warnings else accepted.diagnosis_text
+    return [f"{sensor_label(sensor)}: RED FLAG, no acceptance: {said}"]
+
+
 def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
     """What the user must know before relying on the calibration: flagged points, the loop
     closure's warnings (not closed against the sensor's noise, nothing explains what is left, a
@@ -566,7 +622,10 @@ def warnings_of(sensor: str, inputs: CertificateInputs) -> list[str]:
             "(fit/laplace.json, identifiability)"
         )
     out += [f"{label}: loop closure: {w}" for w in inputs.loop.warnings or ()]
-    out += [f"{label}: {w}" for w in (inputs.acceptance.warnings if inputs.acceptance is not None else ())]
+    # the first warning of a set that cannot test is the red flag line already (`red_flags`)
+    accepted = inputs.acceptance
+    said = () if accepted is None else accepted.warnings[1:] if red_flags(sensor, inputs) else accepted.warnings
+    out += [f"{label}: {w}" for w in said]
     out += [f"{label}: {w}" for w in inputs.workspace["warnings"]]
     if inputs.workspace["held_note"]:
         out.append(f"{label}: {inputs.workspace['held_note']}")
@@ -606,11 +665,17 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         details.append({c: verdict[c] for c in DETAIL_COLUMNS})
         brief.append(brief_line(sensor, inputs, verdict))
         brief += orientation_line(sensor, inputs, summary["sensors"][sensor].get("orientation_noise_rad"))
-        warnings += [valid_for(sensor, inputs), *urdf_line(sensor, inputs), *warnings_of(sensor, inputs)]
+        warnings += [
+            *red_flags(sensor, inputs),
+            valid_for(sensor, inputs),
+            *urdf_line(sensor, inputs),
+            *warnings_of(sensor, inputs),
+        ]
     heading.append(
         "Errors are post-registration distances (mm). The validation set was read only for this "
-        "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose (CR2, k from "
-        "t with poses - 1 degrees of freedom); the claims are the loop-closed posterior propagated with the sensor's noise, and a "
+        "before/after; U is the expanded uncertainty (95 %) of a mean, clustered by pose and by "
+        "configuration (CR2, k from t with clusters - 1 degrees of freedom; rows whose joint readings agree to "
+        "0.1 deg are one configuration, whatever their pose labels); the claims are the loop-closed posterior propagated with the sensor's noise, and a "
         "claim's p95 is the bound this arm's 95th percentile stays below with 95 % posterior "
         "probability; its points are the configurations it is taken over. Corrections: add to the controller's zero (true angle = reading + correction). "
         "Type in the loop-closed model's corrections where the controller takes its other effects too "
