@@ -552,6 +552,8 @@ def test_a_command_beyond_the_data_is_not_determined_naming_the_joint_the_data_h
     why = table["not_determined_why"].tolist()
     assert why[:2] == ["", ""]
     assert why[2].startswith("not determined: q3 held at 0 deg in the data, here 28.6") and "the priors'" in why[2]
-    assert re.match(r"not determined: [\d.e+]+ mm from the measured configurations \(their spacing [\d.e+]+ mm\)", why[3])
+    assert re.match(
+        r"not determined: [\d.e+]+ mm from the measured configurations \(their spacing [\d.e+]+ mm\)", why[3]
+    )
     assert why[4] == "not determined: no configuration to compare (not reached)"
     assert table["near_data"].tolist()[:2] == [True, True] and not table["near_data"].iloc[3]
