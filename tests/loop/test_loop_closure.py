@@ -19,6 +19,7 @@ from remaster.robot import kinematics
 from remaster.robot.gravity import gravity_torques
 
 from ..conftest import REPO, loop_report, loop_settings
+from ..support import loops
 
 # these run the loop closure on simulated campaigns (`-m 'not slow'` leaves them out)
 pytestmark = pytest.mark.slow
@@ -65,12 +66,9 @@ def simulated(chain, name: str, truth=None, sensor=None):
 
 
 def closed(chain, sensor, settings=LAPLACE_ONLY, seed=0):
-    """The loop after the zero-offset fit's registration and identifiability analysis."""
-    registration = fit.register(chain, sensor)
-    _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
-    return loop_closure.close_loop(
-        chain, sensor, registration.t_nr, analysis.held, np.random.default_rng(seed), settings
-    )
+    """The loop after the zero-offset fit's registration and identifiability analysis, once per
+    session for the same inputs (`tests.support.loops`)."""
+    return loops.closed(chain, sensor, settings, seed)
 
 
 # --------------------------------------------------------------------------- the blocks
