@@ -322,6 +322,48 @@ def test_plausible_sensor_lengths_are_kept(tmp_path):
     assert (sensor.noise, sensor.mpe) == (5e-3, 9e-3)
 
 
+@pytest.mark.parametrize(
+    ("value", "shown"),
+    [
+        ("[0, 0, 90]", "looks like degrees: 90 deg = 1.571 rad (write radians)"),  # was taken modulo 2 pi
+        ("[1.0e+300, 0, 0]", "not a rotation vector in rad, nor in degrees (1e+300 deg is beyond a turn)"),
+        ("[0, 0, .inf]", "must be 3 finite numbers: a rotation vector (rad), got [0, 0, inf]"),
+        ("[0, .nan, 0]", "must be 3 finite numbers: a rotation vector (rad), got [0, nan, 0]"),
+    ],
+    ids=["degrees", "huge", "inf", "nan"],
+)
+def test_a_probe_rotation_beyond_pi_or_not_finite_is_refused(tmp_path, value, shown):
+    from .campaigns.test_campaign import full_pose, full_pose_metadata
+
+    folder = make_campaign(tmp_path, full_pose_metadata(probe_rotation=[0.0, 0.0, 0.25]), {SENSOR: full_pose()})
+    text = (folder / "campaign.yaml").read_text()
+    (folder / "campaign.yaml").write_text(text.replace("probe_rotation: [0.0, 0.0, 0.25]", f"probe_rotation: {value}"))
+    problem = read_error(folder)
+    assert str(problem).startswith(f"{folder / 'campaign.yaml'}: sensors/{SENSOR}/probe_rotation: ")
+    assert problem.key == f"sensors/{SENSOR}/probe_rotation" and shown in str(problem)
+
+
+def test_a_probe_rotation_of_half_a_turn_is_kept(tmp_path):
+    """pi written 3.1416 (7e-6 rad beyond it) is half a turn, not degrees: read as such."""
+    from .campaigns.test_campaign import full_pose, full_pose_metadata
+
+    meta = full_pose_metadata(probe_rotation=[0.0, 0.0, 3.1416])
+    sensor = folders.read_campaign(make_campaign(tmp_path, meta, {SENSOR: full_pose()}), repo_root=REPO).sensors[SENSOR]
+    np.testing.assert_allclose(sensor.probe_rotation, np.diag([-1.0, -1.0, 1.0]), atol=1e-5)
+
+
+def test_a_dh_flange_that_mirrors_is_refused(tmp_path):
+    """An orthonormal flange rotation of determinant -1 (an axis flipped) is a reflection, no rigid
+    motion: it used to pass the check of orthonormality alone."""
+    mirrored = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.1], [0.0, 0.0, 0.0, 1.0]]
+    meta = metadata(robot={"dh": {**SMALL_DH, "flange": mirrored}})
+    problem = read_error(make_campaign(tmp_path, meta, {SENSOR: sensor_table(3)}), KinematicsError)
+    assert str(problem).startswith(f"{tmp_path / 'demo' / 'campaign.yaml'}: robot/dh/flange: ")
+    assert "determinant is -1 (a reflection, not a rotation" in str(problem)
+    turned = [[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.1], [0.0, 0.0, 0.0, 1.0]]
+    assert kinematics.chain_from_dh(SMALL_DH["rows"], flange=turned).n_joints == 3  # a rotation is kept
+
+
 def test_robot_lengths_in_millimetres_are_refused(tmp_path):
     from .campaigns.test_campaign import SMALL_URDF
 

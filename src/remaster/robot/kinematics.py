@@ -406,6 +406,13 @@ def chain_from_dh(
         or not np.allclose(tool[:3, :3] @ tool[:3, :3].T, np.eye(3), atol=1e-9)
     ):
         raise KinematicsError("flange must be a 4x4 rigid homogeneous transform", file=source, key="dh/flange")
+    if np.linalg.det(tool[:3, :3]) < 0:  # orthonormal, but a mirror: no robot's flange is one
+        raise KinematicsError(
+            "flange must be a 4x4 rigid homogeneous transform: its rotation is orthonormal but its determinant "
+            "is -1 (a reflection, not a rotation: a flipped axis?)",
+            file=source,
+            key="dh/flange",
+        )
 
     def screw_z(theta, d):
         return spatial.homogeneous(spatial.rot_z(theta), np.array([0.0, 0.0, d]))
