@@ -136,6 +136,7 @@ def refuse_degrees(
     key: str,
     rows: Iterable[int] | None = None,
     row_name: str = "row",
+    advice: str = "write radians",
     error: type[InputError] = InputError,
 ) -> None:
     """The one check that rotation vectors given in rad are plausible: an InputError (or `error`)
@@ -143,7 +144,7 @@ def refuse_degrees(
     than ROTATION_TOLERANCE, "looks like degrees" (with the value in rad) where degrees are the
     likely slip, "not a rotation vector" beyond a turn even as degrees. `vectors` (3,) or (n, 3),
     finite; a table of them names its offending rows (`rows`: their labels, default 0..n-1, called
-    `row_name` in the message, e.g. "line")."""
+    `row_name` in the message, e.g. "line"); `advice` ends the message where degrees are likely."""
     vectors = np.asarray(vectors, dtype=float)
     table = np.atleast_2d(vectors)
     scale = np.max(np.abs(table), axis=1, initial=0.0)  # the norm of [1e300, 1e300, 0] without overflow
@@ -155,7 +156,7 @@ def refuse_degrees(
     worst = float(norms[beyond].max())
     as_radians = np.deg2rad(worst)
     unit = (
-        f"looks like degrees: {worst:.6g} deg = {as_radians:.4g} rad (write radians)"
+        f"looks like degrees: {worst:.6g} deg = {as_radians:.4g} rad ({advice})"
         if as_radians <= 2 * np.pi + ROTATION_TOLERANCE
         else f"not a rotation vector in rad, nor in degrees ({worst:.6g} deg is beyond a turn)"
     )
