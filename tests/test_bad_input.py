@@ -238,6 +238,30 @@ def test_non_finite_urdf_origins_and_axes_name_the_urdf_and_the_joint(tmp_path, 
     assert problem.key == key
 
 
+@pytest.mark.parametrize(
+    ("limit", "key", "text"),
+    [
+        ('<limit lower="-2.0" upper="inf"/>', "joint j2/limit/upper", "'inf'"),
+        ('<limit lower="-INF" upper="2.0"/>', "joint j2/limit/lower", "'-INF'"),
+        ('<limit lower="-2.0" upper="nan"/>', "joint j2/limit/upper", "'nan'"),
+    ],
+    ids=["upper inf", "lower -inf", "upper nan"],
+)
+def test_a_non_finite_urdf_joint_limit_names_the_urdf_the_joint_and_the_key(tmp_path, limit, key, text):
+    """An infinite limit used to pass without a word, and with it every reading of that joint
+    passed the check of degrees stored as radians against the limits."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    old = '<joint name="j2" type="revolute">'
+    assert old in SMALL_URDF
+    problem = read_error(small_urdf_campaign(tmp_path, SMALL_URDF.replace(old, old + limit)), KinematicsError)
+    assert str(problem) == (
+        f"{tmp_path / 'demo' / 'robot.urdf'}: {key}: non-finite number {text}: needs a finite number (rad); "
+        'a joint that turns without end is type="continuous", which has no limits'
+    )
+    assert problem.key == key
+
+
 def _not_utf8(path: Path) -> None:
     path.write_bytes(b"<?xml version='1.0'?>\n<robot name='\xe9'/>\n")  # Latin-1, not UTF-8
 
