@@ -4,6 +4,7 @@ tests/campaigns/test_campaign.py, tests/robot/test_kinematics.py and tests/robot
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import re
@@ -16,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files
+from remaster import cli, files
 from remaster import results as results_module
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
@@ -676,6 +677,75 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     assert "removed" in output and "a result it was made from failed in this run" in output
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs
+
+
+@pytest.fixture
+def read_only(monkeypatch):
+    """make(folder): the folder, made read-only. Root ignores permission bits: when the tests run
+    as root, the refusals the kernel gives any other user (EACCES on creating a file or a folder in
+    it) are given here instead."""
+    made = []
+
+    def make(folder: Path) -> Path:
+        folder.mkdir(parents=True, exist_ok=True)
+        folder.chmod(0o555)
+        made.append(folder)
+        if os.geteuid() != 0:
+            return folder
+        inside = [folder.resolve()]
+
+        def within(path) -> bool:
+            path = Path(path).resolve()
+            return path in inside or any(f in path.parents for f in inside)
+
+        def denied(path) -> PermissionError:
+            return PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+
+        real_open, real_mkdir = os.open, Path.mkdir
+
+        def refusing_open(path, flags, *args, **kwargs):
+            if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT) and within(path):
+                raise denied(path)
+            return real_open(path, flags, *args, **kwargs)
+
+        def refusing_mkdir(self, *args, **kwargs):
+            if within(self) and not self.exists():
+                raise denied(self)
+            return real_mkdir(self, *args, **kwargs)
+
+        monkeypatch.setattr(os, "open", refusing_open)
+        monkeypatch.setattr(Path, "mkdir", refusing_mkdir)
+        return folder
+
+    yield make
+    for folder in made:
+        folder.chmod(0o755)
+
+
+def test_a_read_only_results_folder_is_named_not_a_traceback(tmp_path, read_only, capsys):
+    """A results folder this user cannot write in used to end a run in a raw PermissionError
+    traceback (taking the lock, or a job's log): the folder or file is named, before any job, and
+    nothing is written. `remaster import` into a read-only --raw-dir: exit 2, the folder named."""
+    from .campaigns.test_importer import write_import
+
+    config = write_import(tmp_path)  # before the folder is made read-only
+    shelf = read_only(tmp_path / "shelf")
+    for results in (shelf, shelf / "results"):  # the folder itself, or a folder to create in it
+        with pytest.raises(InputError) as info:
+            results_module.take_lock(results)
+        assert str(info.value) == (
+            f"{results}: cannot write in the results folder: Permission denied: give a results_dir this user "
+            "can write (results_dir in config.yaml, or --config results_dir=...)"
+        )
+    log = shelf / "logs" / "fit.log"
+    with pytest.raises(InputError, match=re.escape(f"{log}: cannot write the log: Permission denied")):
+        with files.log_to(log):
+            pass
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(shelf)]) == 2
+    assert capsys.readouterr().err == (
+        f"remaster import: error: {shelf / 'cell3'}: cannot write the campaign folder: Permission denied\n"
+    )
+    assert list(shelf.iterdir()) == []
 
 
 @pytest.mark.workflow
