@@ -4,6 +4,7 @@ tests/campaigns/test_campaign.py, tests/robot/test_kinematics.py and tests/robot
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import re
@@ -16,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files
+from remaster import cli, files
 from remaster import results as results_module
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
@@ -238,6 +239,30 @@ def test_non_finite_urdf_origins_and_axes_name_the_urdf_and_the_joint(tmp_path, 
     assert problem.key == key
 
 
+@pytest.mark.parametrize(
+    ("limit", "key", "text"),
+    [
+        ('<limit lower="-2.0" upper="inf"/>', "joint j2/limit/upper", "'inf'"),
+        ('<limit lower="-INF" upper="2.0"/>', "joint j2/limit/lower", "'-INF'"),
+        ('<limit lower="-2.0" upper="nan"/>', "joint j2/limit/upper", "'nan'"),
+    ],
+    ids=["upper inf", "lower -inf", "upper nan"],
+)
+def test_a_non_finite_urdf_joint_limit_names_the_urdf_the_joint_and_the_key(tmp_path, limit, key, text):
+    """An infinite limit used to pass without a word, and with it every reading of that joint
+    passed the check of degrees stored as radians against the limits."""
+    from .campaigns.test_campaign import SMALL_URDF
+
+    old = '<joint name="j2" type="revolute">'
+    assert old in SMALL_URDF
+    problem = read_error(small_urdf_campaign(tmp_path, SMALL_URDF.replace(old, old + limit)), KinematicsError)
+    assert str(problem) == (
+        f"{tmp_path / 'demo' / 'robot.urdf'}: {key}: non-finite number {text}: needs a finite number (rad); "
+        'a joint that turns without end is type="continuous", which has no limits'
+    )
+    assert problem.key == key
+
+
 def _not_utf8(path: Path) -> None:
     path.write_bytes(b"<?xml version='1.0'?>\n<robot name='\xe9'/>\n")  # Latin-1, not UTF-8
 
@@ -320,6 +345,48 @@ def test_plausible_sensor_lengths_are_kept(tmp_path):
     meta["sensors"][SENSOR].update(marker=[0.5, -0.3, 0.2], noise=5e-3, mpe=9e-3)
     sensor = folders.read_campaign(make_campaign(tmp_path, meta), repo_root=REPO).sensors[SENSOR]
     assert (sensor.noise, sensor.mpe) == (5e-3, 9e-3)
+
+
+@pytest.mark.parametrize(
+    ("value", "shown"),
+    [
+        ("[0, 0, 90]", "looks like degrees: 90 deg = 1.571 rad (write radians)"),  # was taken modulo 2 pi
+        ("[1.0e+300, 0, 0]", "not a rotation vector in rad, nor in degrees (1e+300 deg is beyond a turn)"),
+        ("[0, 0, .inf]", "must be 3 finite numbers: a rotation vector (rad), got [0, 0, inf]"),
+        ("[0, .nan, 0]", "must be 3 finite numbers: a rotation vector (rad), got [0, nan, 0]"),
+    ],
+    ids=["degrees", "huge", "inf", "nan"],
+)
+def test_a_probe_rotation_beyond_pi_or_not_finite_is_refused(tmp_path, value, shown):
+    from .campaigns.test_campaign import full_pose, full_pose_metadata
+
+    folder = make_campaign(tmp_path, full_pose_metadata(probe_rotation=[0.0, 0.0, 0.25]), {SENSOR: full_pose()})
+    text = (folder / "campaign.yaml").read_text()
+    (folder / "campaign.yaml").write_text(text.replace("probe_rotation: [0.0, 0.0, 0.25]", f"probe_rotation: {value}"))
+    problem = read_error(folder)
+    assert str(problem).startswith(f"{folder / 'campaign.yaml'}: sensors/{SENSOR}/probe_rotation: ")
+    assert problem.key == f"sensors/{SENSOR}/probe_rotation" and shown in str(problem)
+
+
+def test_a_probe_rotation_of_half_a_turn_is_kept(tmp_path):
+    """pi written 3.1416 (7e-6 rad beyond it) is half a turn, not degrees: read as such."""
+    from .campaigns.test_campaign import full_pose, full_pose_metadata
+
+    meta = full_pose_metadata(probe_rotation=[0.0, 0.0, 3.1416])
+    sensor = folders.read_campaign(make_campaign(tmp_path, meta, {SENSOR: full_pose()}), repo_root=REPO).sensors[SENSOR]
+    np.testing.assert_allclose(sensor.probe_rotation, np.diag([-1.0, -1.0, 1.0]), atol=1e-5)
+
+
+def test_a_dh_flange_that_mirrors_is_refused(tmp_path):
+    """An orthonormal flange rotation of determinant -1 (an axis flipped) is a reflection, no rigid
+    motion: it used to pass the check of orthonormality alone."""
+    mirrored = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.1], [0.0, 0.0, 0.0, 1.0]]
+    meta = metadata(robot={"dh": {**SMALL_DH, "flange": mirrored}})
+    problem = read_error(make_campaign(tmp_path, meta, {SENSOR: sensor_table(3)}), KinematicsError)
+    assert str(problem).startswith(f"{tmp_path / 'demo' / 'campaign.yaml'}: robot/dh/flange: ")
+    assert "determinant is -1 (a reflection, not a rotation" in str(problem)
+    turned = [[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.1], [0.0, 0.0, 0.0, 1.0]]
+    assert kinematics.chain_from_dh(SMALL_DH["rows"], flange=turned).n_joints == 3  # a rotation is kept
 
 
 def test_robot_lengths_in_millimetres_are_refused(tmp_path):
@@ -610,6 +677,75 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     assert "removed" in output and "a result it was made from failed in this run" in output
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs
+
+
+@pytest.fixture
+def read_only(monkeypatch):
+    """make(folder): the folder, made read-only. Root ignores permission bits: when the tests run
+    as root, the refusals the kernel gives any other user (EACCES on creating a file or a folder in
+    it) are given here instead."""
+    made = []
+
+    def make(folder: Path) -> Path:
+        folder.mkdir(parents=True, exist_ok=True)
+        folder.chmod(0o555)
+        made.append(folder)
+        if os.geteuid() != 0:
+            return folder
+        inside = [folder.resolve()]
+
+        def within(path) -> bool:
+            path = Path(path).resolve()
+            return path in inside or any(f in path.parents for f in inside)
+
+        def denied(path) -> PermissionError:
+            return PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+
+        real_open, real_mkdir = os.open, Path.mkdir
+
+        def refusing_open(path, flags, *args, **kwargs):
+            if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT) and within(path):
+                raise denied(path)
+            return real_open(path, flags, *args, **kwargs)
+
+        def refusing_mkdir(self, *args, **kwargs):
+            if within(self) and not self.exists():
+                raise denied(self)
+            return real_mkdir(self, *args, **kwargs)
+
+        monkeypatch.setattr(os, "open", refusing_open)
+        monkeypatch.setattr(Path, "mkdir", refusing_mkdir)
+        return folder
+
+    yield make
+    for folder in made:
+        folder.chmod(0o755)
+
+
+def test_a_read_only_results_folder_is_named_not_a_traceback(tmp_path, read_only, capsys):
+    """A results folder this user cannot write in used to end a run in a raw PermissionError
+    traceback (taking the lock, or a job's log): the folder or file is named, before any job, and
+    nothing is written. `remaster import` into a read-only --raw-dir: exit 2, the folder named."""
+    from .campaigns.test_importer import write_import
+
+    config = write_import(tmp_path)  # before the folder is made read-only
+    shelf = read_only(tmp_path / "shelf")
+    for results in (shelf, shelf / "results"):  # the folder itself, or a folder to create in it
+        with pytest.raises(InputError) as info:
+            results_module.take_lock(results)
+        assert str(info.value) == (
+            f"{results}: cannot write in the results folder: Permission denied: give a results_dir this user "
+            "can write (results_dir in config.yaml, or --config results_dir=...)"
+        )
+    log = shelf / "logs" / "fit.log"
+    with pytest.raises(InputError, match=re.escape(f"{log}: cannot write the log: Permission denied")):
+        with files.log_to(log):
+            pass
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(shelf)]) == 2
+    assert capsys.readouterr().err == (
+        f"remaster import: error: {shelf / 'cell3'}: cannot write the campaign folder: Permission denied\n"
+    )
+    assert list(shelf.iterdir()) == []
 
 
 @pytest.mark.workflow

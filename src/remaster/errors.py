@@ -124,3 +124,46 @@ def refuse_millimetres(
         key=key,
         rows=rows,
     )
+
+
+ROTATION_TOLERANCE = 1e-4  # rad: a rotation vector's norm may pass pi by this much (pi written 3.1416)
+
+
+def refuse_degrees(
+    vectors,
+    *,
+    file: str | None,
+    key: str,
+    rows: Iterable[int] | None = None,
+    row_name: str = "row",
+    advice: str = "write radians",
+    error: type[InputError] = InputError,
+) -> None:
+    """The one check that rotation vectors given in rad are plausible: an InputError (or `error`)
+    naming the file and the key when a norm passes pi rad (180 deg, the longest rotation) by more
+    than ROTATION_TOLERANCE, "looks like degrees" (with the value in rad) where degrees are the
+    likely slip, "not a rotation vector" beyond a turn even as degrees. `vectors` (3,) or (n, 3),
+    finite; a table of them names its offending rows (`rows`: their labels, default 0..n-1, called
+    `row_name` in the message, e.g. "line"); `advice` ends the message where degrees are likely."""
+    vectors = np.asarray(vectors, dtype=float)
+    table = np.atleast_2d(vectors)
+    scale = np.max(np.abs(table), axis=1, initial=0.0)  # the norm of [1e300, 1e300, 0] without overflow
+    with np.errstate(invalid="ignore", divide="ignore"):
+        norms = scale * np.linalg.norm(table / np.where(scale > 0, scale, 1.0)[:, None], axis=1)
+    beyond = np.flatnonzero(~(norms <= np.pi + ROTATION_TOLERANCE))
+    if beyond.size == 0:
+        return
+    worst = float(norms[beyond].max())
+    as_radians = np.deg2rad(worst)
+    unit = (
+        f"looks like degrees: {worst:.6g} deg = {as_radians:.4g} rad ({advice})"
+        if as_radians <= 2 * np.pi + ROTATION_TOLERANCE
+        else f"not a rotation vector in rad, nor in degrees ({worst:.6g} deg is beyond a turn)"
+    )
+    message = f"a rotation vector of norm {worst:.6g} rad is beyond pi rad (180 deg, the longest rotation): {unit}"
+    if vectors.ndim != 2:
+        raise error(message, file=file, key=key)
+    labels = (np.arange(len(norms)) if rows is None else np.asarray(list(rows)))[beyond]
+    if row_name == "row":
+        raise error(message, file=file, key=key, rows=labels)
+    raise error(f"{message} ({format_rows(labels, row_name)})", file=file, key=key)

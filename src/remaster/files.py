@@ -279,10 +279,14 @@ def write_figure(stem: str | Path, figure) -> list[Path]:
 @contextlib.contextmanager
 def log_to(path: str | Path, level: int = logging.INFO):
     """Send remaster's log records to `path` for the duration; an exception is logged with its
-    traceback before it propagates, so a failed workflow job's log says why."""
+    traceback before it propagates, so a failed workflow job's log says why. A log that cannot be
+    written (a read-only folder) is an InputError naming it."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    except OSError as exc:  # a read-only results folder: named, not a traceback
+        raise InputError(f"cannot write the log: {exc.strerror or exc}", file=str(path)) from None
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     logger = logging.getLogger("remaster")
     logger.addHandler(handler)

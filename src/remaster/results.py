@@ -200,14 +200,27 @@ def _lock_holder(lock: Path) -> dict:
         return {}
 
 
+def _not_writable(folder: Path, exc: OSError) -> InputError:
+    """The error for a results folder this run cannot write in (read-only, no permission, a full disk)."""
+    return InputError(
+        f"cannot write in the results folder: {exc.strerror or exc}: give a results_dir this user can write "
+        "(results_dir in config.yaml, or --config results_dir=...)",
+        file=str(folder),
+    )
+
+
 def take_lock(results: str | Path, pid: int | None = None) -> Path:
     """Take the lock of the results folder (created if missing) for process `pid` (default: this
     one). Raises ResultsLocked naming the folder, the host, the process and where it runs from
-    when a live process holds it; takes over a lock whose process is gone on this host."""
+    when a live process holds it; takes over a lock whose process is gone on this host. A folder
+    it cannot write in (read-only, no permission) is an InputError naming it, before any job."""
     folder = Path(results)
-    folder.mkdir(parents=True, exist_ok=True)
     lock = folder / LOCK_FILE
     me = {"host": socket.gethostname(), "pid": os.getpid() if pid is None else int(pid), "from": os.getcwd()}
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _not_writable(folder, exc) from None
     for _ in range(2):
         try:
             descriptor = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
@@ -228,6 +241,8 @@ def take_lock(results: str | Path, pid: int | None = None) -> Path:
                 f"another results_dir; if no run is writing it, delete {LOCK_FILE}",
                 file=str(lock),
             ) from None
+        except OSError as exc:  # a read-only folder or file system, a full disk: before any job, not a traceback
+            raise _not_writable(folder, exc) from None
         with os.fdopen(descriptor, "w", encoding="utf-8") as out:
             json.dump(me, out)
         return lock

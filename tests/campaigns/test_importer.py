@@ -368,3 +368,88 @@ def test_a_full_pose_probes_bad_orientation_is_named(tmp_path, tracker, section,
     with pytest.raises(InputError) as info:
         folders.import_campaign(config, tmp_path / "raw", repo_root=tmp_path)
     assert info.value.key == key and words in str(info.value)
+
+
+ROTATION_EXPORT = (  # TRACKER with orientations, P3's (line 3) to fill in
+    "id,X,Y,Z,RX,RY,RZ\nP1,1500,0,20,0,0,1\nP3,1000,-250.5,300,{}\nP4,1200.25,10,5,0,0,1\n"
+    "P6,900,400,-100,0,0,1\nP5,1100,-300,150,0,0,1\n"
+)
+
+
+def test_a_rotation_vector_beyond_half_a_turn_is_degrees_in_rad_and_kept_in_degrees(tmp_path):
+    """A vector of 212 in rad is refused as degrees, naming the export, its columns and its line;
+    the same 212 deg with orientation_unit deg is a rotation (it used to be refused as radians, by
+    the campaign reader): imported as the same rotation the short way, 148 deg about the opposite
+    axis. Beyond a turn even in degrees, or a quaternion off unit norm, is refused by line."""
+    from remaster import spatial
+
+    probe = {"orientation_noise": 1e-4, "probe_rotation": [0.0, 0.0, 0.0], "orientation": ["RX", "RY", "RZ"]}
+    for name in ("rad", "deg", "turns", "quaternion"):
+        (tmp_path / name).mkdir()
+    vector = np.array([0.0, 0.6, 0.8]) * 212.0
+    tracker = ROTATION_EXPORT.format(",".join(repr(float(v)) for v in vector))
+    config = write_import(tmp_path / "rad", tracker=tracker, sensor={**probe, "orientation_unit": "rad"})
+    with pytest.raises(InputError) as info:
+        folders.import_campaign(config, tmp_path / "rad" / "raw", repo_root=tmp_path)
+    assert info.value.file == str(tmp_path / "rad" / "tracker.csv") and info.value.key == "RX, RY, RZ"
+    assert "looks like degrees: 212 deg = 3.7 rad (if the export is in degrees, set orientation_unit: deg)" in str(
+        info.value
+    ) and str(info.value).endswith("(line 3)")
+    assert not (tmp_path / "rad" / "raw").exists()
+
+    config = write_import(tmp_path / "deg", tracker=tracker, sensor={**probe, "orientation_unit": "deg"})
+    folder, _ = folders.import_campaign(config, tmp_path / "deg" / "raw", repo_root=tmp_path)
+    sensor = folders.read_campaign(folder, repo_root=tmp_path).sensors["laser_tracker"]
+    np.testing.assert_allclose(sensor.orientations([2])[0], spatial.rotation_vector_to_matrix(np.radians(vector)))
+    stored = sensor.table.loc[2, ["rx", "ry", "rz"]].to_numpy(float)
+    np.testing.assert_allclose(stored, -np.radians(148.0) * np.array([0.0, 0.6, 0.8]), atol=1e-12)
+
+    for name, row, section, words in (
+        ("turns", "0,0,400", {"orientation_unit": "deg"}, "longer than a turn (360 deg) with orientation_unit deg"),
+        ("quaternion", "0.5,0.5,0.5,0.6", {"orientation": ["QW", "QX", "QY", "QZ"]}, "not a unit quaternion"),
+    ):
+        export = ROTATION_EXPORT.replace(",0,0,1\n", ",1,0,0,0\n" if name == "quaternion" else ",0,0,1\n")
+        export = export.replace("RX,RY,RZ", "QW,QX,QY,QZ" if name == "quaternion" else "RX,RY,RZ").format(row)
+        config = write_import(tmp_path / name, tracker=export, sensor={**probe, **section})
+        with pytest.raises(InputError) as info:
+            folders.import_campaign(config, tmp_path / name / "raw", repo_root=tmp_path)
+        assert info.value.file == str(tmp_path / name / "tracker.csv") and words in str(info.value)
+        assert "on line 3" in str(info.value)
+
+
+def test_a_reader_error_on_orientation_columns_names_the_sensors_export():
+    """A problem the campaign reader finds in rx, ry, rz is named in the sensor's export (its
+    columns and lines), not in the controller log (it used to name controller.csv)."""
+    probe = {"orientation_noise": 1e-4, "probe_rotation": [0.0, 0.0, 0.0], "orientation": ["RX", "RY", "RZ"]}
+    for columns, expected in ((["RX", "RY", "RZ"], "RX, RY, RZ"), (["QW", "QX", "QY", "QZ"], "QW, QX, QY, QZ")):
+        config = {
+            "name": "cell3",
+            "date": "2024-05-02",
+            "robot": ROBOT,
+            "controller": {"file": "controller.csv", "joints": ["A1", "A2", "A3"], "unit": "deg", "key": "point"},
+            "sensors": {
+                "laser_tracker": {
+                    "kind": "laser_tracker",
+                    "marker": [-0.1, 0.0, 0.02],
+                    "noise": 1e-5,
+                    "file": "tracker.csv",
+                    "xyz": ["X", "Y", "Z"],
+                    "unit": "mm",
+                    "match": "key",
+                    "key": "id",
+                    **probe,
+                    "orientation": columns,
+                    **({"orientation_unit": "rad"} if len(columns) == 3 else {}),
+                }
+            },
+        }
+        spec = importer.parse_config(config, "import.yaml")
+        controller = importer.parse_csv("point,A1,A2,A3\nP1,0,0,0\nP2,1,1,1\n", "controller.csv")
+        values = "1,0,0,0" if len(columns) == 4 else "0,0,0"
+        tracker = importer.parse_csv(f"id,X,Y,Z,{','.join(columns)}\nP2,1,1,1,{values}\n", "tracker.csv")
+        result = importer.build_campaign(spec, controller, {"laser_tracker": tracker})
+        problem = InputError("a rotation vector longer than pi rad", file="x.parquet", key="rx, ry, rz", rows=[1])
+        named = importer.in_exports(problem, "laser_tracker", spec, result, controller, {"laser_tracker": tracker})
+        assert str(named) == (
+            f"tracker.csv: {expected}: a rotation vector longer than pi rad (campaign table laser_tracker) on line 2"
+        )

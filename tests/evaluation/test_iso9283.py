@@ -9,6 +9,8 @@ import pytest
 from remaster.evaluation import iso9283
 from remaster.evaluation.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 
+from ..conftest import REPO
+
 
 def test_rp_of_isotropic_noise_is_l_bar_plus_three_s_and_ap_is_the_offset():
     """30 cycles to each of 200 commands, attained = command + b + N(0, s^2 I3): AP = |b| up to
@@ -101,3 +103,44 @@ def test_every_group_at_once_is_each_group_by_itself():
             assert np.isnan(row["RP"])
         else:
             assert row["RP"] == pytest.approx(spread.mean() + 3.0 * spread.std(ddof=1), rel=1e-9)
+
+
+def test_the_per_pose_report_names_the_cube_points_p1_to_p5_and_lists_them_in_that_order(tmp_path, iiwa):
+    """A campaign of `remaster plan --objective iso9283`, measured in another order (each cycle
+    P5, P2, P1, P4, P3): its five repeated configurations are named by where the nominal robot puts
+    the flange, P1 the cube's centre, P2..P5 its corners as `planning.iso9283_points` places them,
+    and listed P1..P5 (they used to be listed by an internal label, e.g. plan poses 4, 1, 0, 3, 2,
+    unnamed). Without the chain, or for a design that is no ISO cube, no pose is named and the rows
+    follow the order of first measurement."""
+    from remaster import cli
+
+    plan = tmp_path / "iso.csv"
+    status = cli.main(
+        ["plan", "--urdf", str(REPO / "data" / "robots" / "kuka_iiwa14.urdf"), "--base", "iiwa_link_0", "--flange",
+         "iiwa_link_ee", "--sensor-origin", "1.6", "0.5", "1.0", "--marker", "-0.1", "0", "0.02", "--objective",
+         "iso9283", "--cube-centre", "0.6", "0.2", "0.5", "--cube-edge", "0.2", "--set", "validation", "--cycles",
+         "3", "--out", str(plan)]
+    )  # fmt: skip
+    assert status == 0
+    order = [4, 1, 0, 3, 2]  # P5, P2, P1, P4, P3 in each cycle
+    table = pd.read_csv(plan)
+    table = table.iloc[[5 * cycle + k for cycle in range(3) for k in order]].reset_index(drop=True)
+    joints = tuple(f"q{j}" for j in range(1, 8))
+    sensor = SimpleNamespace(table=table, joint_columns=joints)
+    rng = np.random.default_rng(3)
+    errors = {"laser_tracker": _errors(range(len(table)), rng.normal(0.0, 0.01, (len(table), 3)))}
+
+    named = iso9283.iso9283_poses_table({"laser_tracker": sensor}, errors, iiwa)
+    for model in ("controller's zero-offsets", "remastered zero-offsets"):
+        rows = named[named["Model"] == model]
+        assert rows["ISO pose"].tolist() == ["P1", "P2", "P3", "P4", "P5"]
+        # the plan's own record of each row's point agrees with the name given from the geometry
+        assert table["iso_pose"].iloc[rows["first row"]].tolist() == ["P1", "P2", "P3", "P4", "P5"]
+        assert (rows["cycles"] == 3).all()
+
+    unnamed = iso9283.iso9283_poses_table({"laser_tracker": sensor}, errors)
+    rows = unnamed[unnamed["Model"] == "remastered zero-offsets"]
+    assert rows["ISO pose"].tolist() == [""] * 5 and rows["first row"].tolist() == [0, 1, 2, 3, 4]
+    four = SimpleNamespace(table=table[table["iso_pose"] != "P3"].reset_index(drop=True), joint_columns=joints)
+    fewer = {"laser_tracker": _errors(range(12), rng.normal(0.0, 0.01, (12, 3)))}
+    assert (iso9283.iso9283_poses_table({"laser_tracker": four}, fewer, iiwa)["ISO pose"] == "").all()

@@ -20,7 +20,15 @@ import numpy as np
 import pandas as pd
 
 from .. import spatial
-from ..errors import InputError, KinematicsError, listed, quoted, refuse_millimetres, require_columns
+from ..errors import (
+    InputError,
+    KinematicsError,
+    listed,
+    quoted,
+    refuse_degrees,
+    refuse_millimetres,
+    require_columns,
+)
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
 from ..robot.priors import check_override
@@ -434,6 +442,8 @@ def _orientation_spec(spec: Mapping, where: str, source: str) -> dict[str, Any]:
         vector = _number_list(
             rotation, 3, f"{where}/probe_rotation", source, "3 finite numbers: a rotation vector (rad)"
         )
+        # [0, 0, 90] would otherwise be taken as 90 rad, that is modulo 2 pi: a turn of 5.4 rad
+        refuse_degrees(vector, file=source, key=f"{where}/probe_rotation")
         rotation = spatial.rotation_vector_to_matrix(np.array(vector, dtype=float))
     return {"orientation_noise": None if noise is None else float(noise), "probe_rotation": rotation}
 

@@ -146,7 +146,10 @@ def write_campaign(folder: str | Path, metadata: Mapping[str, Any], tables: Mapp
             raise InputError(
                 "a sensor name must be a file stem (letters, digits, _ . -)", file=str(folder), key=f"sensors/{sensor}"
             )
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a read-only --raw-dir: named, not a traceback
+        raise InputError(f"cannot write the campaign folder: {exc.strerror or exc}", file=str(folder)) from None
     order = [k for k in REQUIRED_KEYS[:2] + OPTIONAL_KEYS + REQUIRED_KEYS[2:] if k in metadata]
     write_yaml(
         folder / CAMPAIGN_FILE,
@@ -253,9 +256,12 @@ def import_campaign(
             sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
             raise importer.in_exports(exc, sensor, spec, result, controller, sensors) from None
         write_json(staged / importer.REPORT_FILE, result.report)
-        folder.mkdir(parents=True, exist_ok=True)
-        for old in [folder / CAMPAIGN_FILE, folder / importer.REPORT_FILE, *folder.glob("*.parquet")]:
-            old.unlink(missing_ok=True)
-        for path in sorted(staged.iterdir()):
-            shutil.copyfile(path, folder / path.name)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            for old in [folder / CAMPAIGN_FILE, folder / importer.REPORT_FILE, *folder.glob("*.parquet")]:
+                old.unlink(missing_ok=True)
+            for path in sorted(staged.iterdir()):
+                shutil.copyfile(path, folder / path.name)
+        except OSError as exc:  # a read-only --raw-dir: named, not a traceback
+            raise InputError(f"cannot write the campaign folder: {exc.strerror or exc}", file=str(folder)) from None
     return folder, result.report

@@ -90,7 +90,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import MAX_ROWS_SHOWN, InputError, format_rows, quoted, require_columns
+from ..errors import (
+    MAX_ROWS_SHOWN,
+    ROTATION_TOLERANCE,
+    InputError,
+    format_rows,
+    quoted,
+    refuse_degrees,
+    require_columns,
+)
 from ..units import DEG
 from .campaign import (
     _JOINT_COLUMN,
@@ -519,7 +527,7 @@ def _orientations(spec: SensorSpec, export: Export, xyz: np.ndarray) -> np.ndarr
     seen = ~empty.any(axis=1)
     out = np.full((len(values), 3), np.nan)
     if len(spec.orientation) == 3:
-        out[seen] = values[seen] * ANGLE_UNITS[spec.orientation_unit]
+        out[seen] = _rotation_vectors(values[seen], spec, export, export.lines[seen])
         return out
     norm = np.linalg.norm(values, axis=1)
     off = np.flatnonzero(seen & (np.abs(norm - 1.0) > QUATERNION_NORM))
@@ -536,6 +544,39 @@ def _orientations(spec: SensorSpec, export: Export, xyz: np.ndarray) -> np.ndarr
     ratio = np.where(sine > 1e-12, angle / np.where(sine > 1e-12, sine, 1.0), 2.0)
     out[seen] = ratio[:, None] * quaternion[:, 1:]
     return out
+
+
+def _rotation_vectors(values: np.ndarray, spec: SensorSpec, export: Export, lines: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) rad of an export's values (n, 3) in spec.orientation_unit, on its
+    `lines`, each of norm at most pi: in rad, a norm beyond pi (and ROTATION_TOLERANCE) is refused
+    as degrees written for radians; in degrees, a norm beyond a turn is refused, and one between
+    180 and 360 deg (a rotation a probe may well report) becomes the same rotation the short way,
+    the vector of norm 2 pi - |v| about the opposite axis."""
+    key = ", ".join(spec.orientation)
+    if spec.orientation_unit == "rad":
+        refuse_degrees(
+            values,
+            file=export.source,
+            key=key,
+            rows=lines,
+            row_name=export.row_name,
+            advice="if the export is in degrees, set orientation_unit: deg",
+        )
+    else:
+        turn = np.flatnonzero(np.linalg.norm(values, axis=1) > 360.0 + np.degrees(ROTATION_TOLERANCE))
+        if turn.size:
+            raise InputError(
+                f"a rotation vector longer than a turn (360 deg) with orientation_unit deg, up to "
+                f"{np.linalg.norm(values[turn], axis=1).max():.6g} deg: not a rotation vector in degrees "
+                f"(is the unit right?) on {format_rows(lines[turn], export.row_name)}",
+                file=export.source,
+                key=key,
+            )
+    vectors = values * ANGLE_UNITS[spec.orientation_unit]
+    norm = np.linalg.norm(vectors, axis=1)
+    long = norm > math.pi
+    vectors[long] *= (1.0 - 2.0 * math.pi / norm[long])[:, None]
+    return vectors
 
 
 def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
@@ -980,8 +1021,15 @@ def in_exports(
     keys = [k.strip() for k in (exc.key or "").split(",") if k.strip()]
     rows = np.asarray(exc.rows or [], dtype=np.int64)
     c = spec.controller
-    if keys and all(k in POSITION_COLUMNS for k in keys):  # positions: lines of the sensor's export
+    if keys and all(k in POSITION_COLUMNS + ORIENTATION_COLUMNS for k in keys):
+        # positions and orientations: columns and lines of the sensor's export, not the controller log's
+        given = spec.sensors[sensor].orientation or ORIENTATION_COLUMNS
         export, names = sensors[sensor], dict(zip(POSITION_COLUMNS, spec.sensors[sensor].xyz))
+        names |= (
+            dict(zip(ORIENTATION_COLUMNS, given))
+            if len(given) == 3
+            else dict.fromkeys(ORIENTATION_COLUMNS, ", ".join(given))  # a quaternion's 4 columns give all three
+        )
         source_rows = result.sensor_rows[sensor][rows]
         lines = export.lines[source_rows[source_rows >= 0]]
     else:  # everything else comes from the controller log, row for row
@@ -994,5 +1042,5 @@ def in_exports(
     return InputError(
         f"{exc.reason} (campaign table {sensor}){where}",
         file=export.source,
-        key=", ".join(names.get(k, k) for k in keys) or None,
+        key=", ".join(dict.fromkeys(names.get(k, k) for k in keys)) or None,
     )

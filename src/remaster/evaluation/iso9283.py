@@ -23,6 +23,8 @@ from ..campaigns.campaign import SensorData
 from ..evaluation.accuracy import REGISTRATION_AS_FITTED, VERNIER_LEAST_SQUARES
 from ..labels import sensor_label
 from ..loop.noise_floor import configuration_groups
+from ..robot.kinematics import KinematicChain, flange_poses
+from ..robot.planning import ISO9283_PLANE_CORNERS
 from ..units import MM
 
 CANNOT_GIVE = (
@@ -74,16 +76,67 @@ def _validation_poses(data: SensorData, frame: pd.DataFrame, method: str) -> tup
     return poses.assign(first_row=rows[first].astype(int)), group
 
 
-def iso9283_poses_table(sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame]) -> pd.DataFrame:
+ISO_POSES = ("P1", "P2", "P3", "P4", "P5")
+CUBE_TOLERANCE = 0.05  # of the cube's half-diagonal offset: how far the five points may be off the pattern
+
+
+def iso_pose_names(chain: KinematicChain, q) -> list[str] | None:
+    """ISO 9283's names P1..P5 of five configurations q (5, N) rad when their flange positions
+    (nominal forward kinematics, base frame) are the standard's five points of a cube with edges
+    along the base axes, as `remaster plan --objective iso9283` places them
+    (`planning.iso9283_points`): P1 the cube's centre (the mean of the five); P2..P5 on the
+    diagonals of the diagonal plane through the cube's lower -x edge and upper +x edge, named as
+    `planning.iso9283_points` numbers them (the mapping used here, the planner's: P2 towards
+    (-x, -y, -z), P3 towards (-x, +y, -z), P4 towards (+x, +y, +z), P5 towards (+x, -y, +z) from
+    the centre; base-frame axes, so a cube turned about the base is not recognised).
+    None when they are not such points (another design, or not five): the table then names no
+    ISO pose rather than guess."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or len(q) != len(ISO_POSES):
+        return None
+    points = flange_poses(chain, q)[:, :3, 3]
+    offsets = points - points.mean(axis=0)
+    distance = np.linalg.norm(offsets, axis=1)
+    centre = int(np.argmin(distance))
+    reach = np.delete(offsets, centre, axis=0)
+    half = np.abs(reach).mean()  # the corners' offset along each axis
+    if half <= 0 or distance[centre] > CUBE_TOLERANCE * half:
+        return None
+    names = [""] * len(ISO_POSES)
+    names[centre] = ISO_POSES[0]
+    for index, offset in zip(np.delete(np.arange(len(ISO_POSES)), centre), reach):
+        corner = np.flatnonzero(np.all(np.abs(offset / half - ISO9283_PLANE_CORNERS) < CUBE_TOLERANCE * 4, axis=1))
+        if corner.size != 1 or ISO_POSES[1 + corner[0]] in names:
+            return None
+        names[index] = ISO_POSES[1 + corner[0]]
+    return names
+
+
+def iso9283_poses_table(
+    sensors: dict[str, SensorData], errors: dict[str, pd.DataFrame], chain: KinematicChain | None = None
+) -> pd.DataFrame:
     """ISO 9283's per-pose report: per sensor, model and configuration of the validation set measured
-    more than once (ISO's poses P1-P5, each over its cycles), cycles, APx, APy, APz, AP and RP (mm),
-    with the configuration's first table row and plan pose; one row saying so per sensor and model
-    when no configuration repeats. Arguments as `iso9283_table`'s."""
+    more than once, cycles, APx, APy, APz, AP and RP (mm), with the configuration's first table row
+    and plan pose; one row saying so per sensor and model when no configuration repeats. Arguments
+    as `iso9283_table`'s, and the campaign's `chain`.
+
+    When the repeated configurations are the five points of an ISO 9283 cube (`iso_pose_names`,
+    with `chain`), each row names its pose P1..P5 (column "ISO pose") and the rows are in that
+    order; otherwise the column is empty and the rows are in the order the validation set first
+    measured each configuration (the plan's order)."""
     out = []
     for sensor, data in sensors.items():
         for method, label in MODELS:
             poses, _ = _validation_poses(data, errors[sensor], method)
-            repeated = poses[poses["cycles"] > 1]
+            repeated = poses[poses["cycles"] > 1].sort_values("first_row", kind="stable")
+            names = None
+            if chain is not None and len(repeated):
+                q = data.table[list(data.joint_columns)].to_numpy(float)[repeated["first_row"].to_numpy(int)]
+                names = iso_pose_names(chain, q)
+            if names is not None:
+                repeated = repeated.assign(iso_pose=names).sort_values("iso_pose", kind="stable")
+            else:
+                repeated = repeated.assign(iso_pose="")
             if repeated.empty:
                 out.append(
                     {
@@ -98,6 +151,7 @@ def iso9283_poses_table(sensors: dict[str, SensorData], errors: dict[str, pd.Dat
                     {
                         "Sensor": sensor_label(sensor),
                         "Model": label,
+                        "ISO pose": pose["iso_pose"],
                         "first row": row,
                         "plan pose": int(data.table["pose"].iloc[row]) if "pose" in data.table else np.nan,
                         "cycles": int(pose["cycles"]),
@@ -106,7 +160,7 @@ def iso9283_poses_table(sensors: dict[str, SensorData], errors: dict[str, pd.Dat
                         "note": "",
                     }
                 )
-    columns = ["Sensor", "Model", "first row", "plan pose", "cycles"]
+    columns = ["Sensor", "Model", "ISO pose", "first row", "plan pose", "cycles"]
     columns += [f"AP{a} (mm)" for a in ("x", "y", "z", "")] + ["RP (mm)", "note"]
     return pd.DataFrame(out, columns=columns)
 

@@ -94,7 +94,9 @@ def campaign_tables(campaign: Campaign, label: str, summary: dict, files: Files,
         {
             "sensor_comparison": accuracy.sensor_comparison(summaries, metrics),
             "iso9283": iso9283.iso9283_table({s: campaign.sensors[s] for s in sensors}, errors),
-            "iso9283_poses": iso9283.iso9283_poses_table({s: campaign.sensors[s] for s in sensors}, errors),
+            "iso9283_poses": iso9283.iso9283_poses_table(
+                {s: campaign.sensors[s] for s in sensors}, errors, campaign.chain
+            ),
             "loop_closure": tables_loop.campaign_table(_each(files, "loop_table", result_files.read_csv), loops),
             "loop_closure_test": tables_loop.closure_table(loops),
             "loop_candidates": tables_loop.candidates_table(loops),

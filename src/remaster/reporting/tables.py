@@ -34,7 +34,10 @@ CAPTIONS = {
     f"is measured more than once, mean and worst over the configurations. Not available from a campaign "
     f"of static single-point measurements: {iso9283.CANNOT_GIVE}.",
     "iso9283_poses": "ISO 9283 per pose, as the standard reports it: each configuration of the validation set "
-    "measured more than once (the standard's poses P1-P5, each over 30 cycles), its cycles, the offset of their "
+    "measured more than once (the standard's poses, each over 30 cycles; named P1..P5 and listed in that order when "
+    "the nominal robot puts the flange at the five points of an ISO 9283 cube: P1 its centre, P2..P5 towards the "
+    "corners (-x, -y, -z), (-x, +y, -z), (+x, +y, +z), (+x, -y, +z) of the base frame; otherwise unnamed, in the "
+    "order first measured), its cycles, the offset of their "
     "barycentre from the command per axis (APx, APy, APz) and in all (AP), and its repeatability RP = l-bar + "
     "3 S_l; registration from the optimization set. The pooled numbers over every configuration are the "
     "ISO 9283 table's.",

@@ -92,16 +92,17 @@ def _floats(text: str | None, count: int, default: float, where: str) -> np.ndar
     return values
 
 
-def _number(text: str | None, default: float, where: str) -> float:
-    """One number of a URDF attribute (default when absent); KinematicsError naming `where` if unreadable."""
+def _number(text: str | None, default: float, where: str, hint: str = "") -> float:
+    """One number of a URDF attribute (default when absent); KinematicsError naming `where` if
+    unreadable or not finite (float() reads 'nan' and 'inf'), `hint` added to the message."""
     if text is None:
         return default
     try:
         value = float(text)
     except ValueError:
         raise KinematicsError(f"cannot read a number from {quoted(text)}", key=where) from None
-    if np.isnan(value):
-        raise KinematicsError("is NaN", key=where)
+    if not np.isfinite(value):
+        raise KinematicsError(f"non-finite number {quoted(text)}: needs a finite number{hint}", key=where)
     return value
 
 
@@ -273,8 +274,11 @@ def _joint_limits(joint: ET.Element, kind: str, where: str, source: str) -> tupl
     limit = joint.find("limit")
     if kind != "revolute" or limit is None:
         return -np.inf, np.inf
-    lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower")
-    hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper")
+    # an infinite limit passed without a word: the reader's check of joint readings against the
+    # limits (degrees stored as radians) then never fires for that joint
+    hint = ' (rad); a joint that turns without end is type="continuous", which has no limits'
+    lo = _number(limit.get("lower"), -np.inf, f"{where}/limit/lower", hint)
+    hi = _number(limit.get("upper"), np.inf, f"{where}/limit/upper", hint)
     if lo > hi:
         raise KinematicsError(
             f"lower limit {lo:g} is above upper limit {hi:g} (rad)", file=source, key=f"{where}/limit"
@@ -406,6 +410,13 @@ def chain_from_dh(
         or not np.allclose(tool[:3, :3] @ tool[:3, :3].T, np.eye(3), atol=1e-9)
     ):
         raise KinematicsError("flange must be a 4x4 rigid homogeneous transform", file=source, key="dh/flange")
+    if np.linalg.det(tool[:3, :3]) < 0:  # orthonormal, but a mirror: no robot's flange is one
+        raise KinematicsError(
+            "flange must be a 4x4 rigid homogeneous transform: its rotation is orthonormal but its determinant "
+            "is -1 (a reflection, not a rotation: a flipped axis?)",
+            file=source,
+            key="dh/flange",
+        )
 
     def screw_z(theta, d):
         return spatial.homogeneous(spatial.rot_z(theta), np.array([0.0, 0.0, d]))
