@@ -6,7 +6,7 @@ a lower bound on the exact likelihood."""
 import numpy as np
 import pytest
 
-from remaster.inference.gp import likelihood, residual
+from remaster.inference.gp import kernels, likelihood, residual
 from remaster.inference.gp.kernels import Hyperparameters, kernel
 
 NOISE = 2e-5
@@ -39,6 +39,22 @@ def test_the_hyperparameters_find_the_noise_and_the_joints(learnt):
     relevance = residual.relevance(hyper, q)
     assert set(np.argsort(-relevance)[:2]) == {1, 3}
     assert np.all(relevance[[0, 4, 5, 6]] < residual.RELEVANT_RANGE)
+
+
+def test_hyperparameters_left_on_a_bound_are_named(learnt):
+    """A search's parameters within 1e-3 (in log) of a bound are named with the bound; the fit of a
+    residual of joints 2 and 4 leaves neither of their lengthscales nor its signal or noise on a
+    bound (a joint it does not depend on may run to the upper one), and the names survive the
+    report's round trip."""
+    bounds = [(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
+    named = kernels.at_bounds([0.0005, 0.5, 0.9995], bounds, ["a", "b", "c"])
+    assert named == ("a at its lower bound", "c at its upper bound")
+    _, _, hyper, _ = learnt
+    assert not any(n.startswith(("signal_std", "noise_std", "q2 ", "q4 ")) for n in hyper.at_bounds)
+    assert all(n.endswith("lengthscale at its upper bound") for n in hyper.at_bounds)
+    bounded = Hyperparameters(hyper.lengthscales, hyper.signal_std, hyper.noise_std, ("signal_std at its lower bound",))
+    assert Hyperparameters.from_report(bounded.report()).at_bounds == bounded.at_bounds
+    assert "at_bounds" not in Hyperparameters(hyper.lengthscales, 1.0, 1.0).report()  # none: reports as before
 
 
 def test_the_mean_predicts_new_configurations_to_within_the_noise(learnt):

@@ -310,6 +310,14 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
     if departed:
         warnings.append(departed)
     warnings += symptom_warnings(screened.selection)
+    bounded = ((gp_section or {}).get("hyperparameters") or {}).get("at_bounds")
+    if bounded:
+        warnings.append(
+            f"the residual GP's hyperparameters ended on the bounds of their search ({', '.join(bounded)}): "
+            "there the data did not determine them, and the GP "
+            + ("added is" if gp_section["added"] else "tried was")
+            + " what those bounds make it (a signal at its lower bound is no structure found, not a GP of zero signal)"
+        )
     if mcmc is not None and not mcmc["converged"]:
         warnings.append(
             f"the MCMC refit did not meet R-hat <= {mcmc['criteria']['max_rhat']} and ESS >= "

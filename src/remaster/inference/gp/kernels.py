@@ -26,11 +26,13 @@ LENGTH_BOUNDS = (0.02, 50.0)  # rad
 @dataclass(frozen=True)
 class Hyperparameters:
     """lengthscales (N,) rad, inf for a joint the data never turn; signal_std s and noise_std (m,
-    per axis)."""
+    per axis); at_bounds: the hyperparameters a fit left on a bound of its search ('signal_std at
+    its lower bound', 'q3 lengthscale at its upper bound'): there the data did not determine them."""
 
     lengthscales: np.ndarray
     signal_std: float
     noise_std: float
+    at_bounds: tuple[str, ...] = ()
 
     @property
     def turned(self) -> np.ndarray:
@@ -41,6 +43,7 @@ class Hyperparameters:
             "lengthscales_rad": [None if not np.isfinite(v) else float(v) for v in self.lengthscales],
             "signal_std_m": self.signal_std,
             "noise_std_m": self.noise_std,
+            **({"at_bounds": list(self.at_bounds)} if self.at_bounds else {}),
         }
 
     @classmethod
@@ -49,7 +52,20 @@ class Hyperparameters:
             np.array([np.inf if v is None else float(v) for v in report["lengthscales_rad"]]),
             float(report["signal_std_m"]),
             float(report["noise_std_m"]),
+            tuple(report.get("at_bounds", ())),
         )
+
+
+def at_bounds(x, bounds, names, tolerance: float = 1e-3) -> tuple[str, ...]:
+    """Which of a search's parameters x (k,) (logs) end within `tolerance` of their bounds (k pairs),
+    named '<name> at its lower bound' or '... upper bound'."""
+    out = []
+    for value, (low, high), name in zip(np.asarray(x, dtype=float), bounds, names):
+        if value - low < tolerance:
+            out.append(f"{name} at its lower bound")
+        elif high - value < tolerance:
+            out.append(f"{name} at its upper bound")
+    return tuple(out)
 
 
 def turned_joints(q) -> np.ndarray:

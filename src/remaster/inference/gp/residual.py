@@ -29,7 +29,7 @@ import math
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
-from .kernels import LENGTH_BOUNDS, Hyperparameters, circle_distances, kernel, turned_joints
+from .kernels import LENGTH_BOUNDS, Hyperparameters, at_bounds, circle_distances, kernel, turned_joints
 from .likelihood import LOG_2PI, negative_log_marginal_likelihood
 
 SUBSET = 600  # rows for the hyperparameters (exact marginal likelihood)
@@ -95,7 +95,10 @@ def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparamete
             best = result
     lengths = np.full(q.shape[1], np.inf)
     lengths[turned] = np.exp(best.x[: int(turned.sum())])
-    return Hyperparameters(lengths, unit * math.exp(best.x[-2]), unit * math.exp(best.x[-1]))
+    names = [f"q{j + 1} lengthscale" for j in np.flatnonzero(turned)] + ["signal_std", "noise_std"]
+    return Hyperparameters(
+        lengths, unit * math.exp(best.x[-2]), unit * math.exp(best.x[-1]), at_bounds(best.x, bounds, names)
+    )
 
 
 class ResidualGP:
