@@ -6,10 +6,10 @@ prior gives an improper posterior along it. remaster never reports such a direct
 spurious small std: for each one it holds one parameter at its controller value (a zero
 correction) and says so.
 
-The test is the one `samplers.least_squares_laplace` applies to the fit that follows
-(`samplers.undetermined_directions`): singular values of the Jacobian in step units (J * scale:
-mm and deg, so that the test does not depend on metres against radians) below `samplers.RCOND`
-times the largest. Holding by a different test would leave combinations between the two tests
+The test is the one `samplers.least_squares_laplace` applies to the fit that follows, and it
+lives here (`undetermined_directions`, imported by `samplers`): singular values of the Jacobian
+in step units (J * scale: mm and deg, so that the test does not depend on metres against
+radians) below RCOND times the largest. Holding by a different test would leave combinations between the two tests
 neither held nor allowed, and the Laplace fit would stop on them (NotIdentifiable); so the
 analysis also checks that the parameters it leaves free pass that test, and holds more until
 they do. It holds below MARGIN x RCOND: the fit tests at its optimum, a fraction of a degree
@@ -25,6 +25,13 @@ offset is a rotation about the base Z axis that the registration absorbs exactly
 never moves ahead of every other joint (joint 1 always at the same reading) makes the next
 joint's offset a rigid rotation too; a marker on the last joint's axis makes that joint's offset
 invisible; the analysis finds each the same way.
+
+A zero-offset the data see only at the noise level is held the same way (`loose_zero_offsets`):
+given the fit's sigma, its Laplace std sigma sqrt((J^T J)^-1) over STD_BOUND (0.5 deg, the
+controller marks' tolerance) says nothing the marks do not. `fit.identified` runs both tests at
+the least-squares optimum the Laplace fit then starts from and tests at (docs/methods.md,
+"Identifiability: joint 1"); with no sigma (`analyse` alone, e.g. a design before any data) only
+the singular values decide.
 """
 
 from __future__ import annotations
