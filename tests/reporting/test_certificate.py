@@ -424,3 +424,17 @@ def test_the_certificate_gives_each_urdfs_distance_at_the_users_tools():
         "at the tool 'gripper' (100, 0, 100 mm in the flange frame): rigid.urdf 0.25 mm median, 0.7 mm at most; "
         "ik.urdf 0.3 mm median, 0.9 mm at most; paper.urdf 0.5 mm median, 1.5 mm at most"
     )
+
+
+def test_a_joint_held_as_not_determined_says_so_in_its_corrections():
+    """A zero-offset the zero-offset fit held because the data determine it no better than the
+    controller's marks: its held correction rows give that reason, not 'not identifiable'."""
+    inputs = _inputs()
+    reason = "not determined: std 2.67 deg > 0.5 deg"
+    laplace = dataclasses.replace(inputs.laplace, held_reasons={"zero_offsets.q1": reason})
+    cert = certificate.certificate(SUMMARY, {"laser_tracker": dataclasses.replace(inputs, laplace=laplace)})
+    held = cert.corrections[cert.corrections["Joint"] == cert.corrections["Joint"].iloc[1]]
+    assert held["Status"].tolist() == [f"held: {reason}"] * len(held) and len(held) >= 1
+    assert np.isnan(held["Correction (deg)"]).all()
+    plain = certificate.certificate(SUMMARY, {"laser_tracker": inputs}).corrections.iloc[1]
+    assert plain["Status"] != f"held: {reason}"

@@ -119,12 +119,33 @@ def build_model(
     orientation = orientation_fields(sensor, rows) if orientation else {}
     if orientation and orientation_weight is not None:
         orientation["orientation_weight"] = float(orientation_weight)
-    analysis = identifiability.analyse(paper_model(chain, q, measured, sensor.marker, t_nr, orientation=orientation))
+    analysis = identified(paper_model(chain, q, measured, sensor.marker, t_nr, orientation=orientation))
     model = paper_model(
         chain, q, measured, sensor.marker, t_nr, fixed=analysis.held, table_rows=rows, orientation=orientation
     )
     excluded = np.flatnonzero(sensor.set_mask(set_name) & ~sensor.measured_mask)
     return model, analysis, excluded
+
+
+def identified(full: BlockModel) -> identifiability.Identifiability:
+    """The identifiability analysis of a model with every parameter free, by the Laplace fit's own
+    tests at the fit's own optimum: the singular-value test at zero corrections holds what the data
+    cannot see at all; the least-squares mode of the rest (the Laplace fit's, `least_squares_mode`)
+    gives the optimum and sigma = sqrt(SS / (k - P)) (the Laplace covariance's); there both tests
+    run again (`identifiability.analyse`): the singular values, and the std of each zero-offset
+    against the controller marks' tolerance (STD_BOUND). The fit that follows on what is left free
+    tests at that same optimum, so it cannot stop on what the analysis passed."""
+    structural = identifiability.analyse(full)
+    reduced = BlockModel(full.chain, full.data, full.marker, full.t_nr, (), structural.held)
+    target = PosteriorTarget(reduced)
+    scale = reduced.scale
+    mode = samplers.least_squares_mode(target.residuals, np.zeros(len(reduced.names)), scale)
+    residuals = target.residuals(mode.x)
+    dof = residuals.size - len(reduced.names)
+    if dof <= 0:  # too few data for a sigma: the singular-value test alone (the fit says why)
+        return structural
+    sigma = math.sqrt(float(residuals @ residuals) / dof)
+    return identifiability.analyse(full, theta=reduced.full(mode.x), sigma=sigma)
 
 
 BALANCE_ROUNDS = 20  # at most this many refits while balancing a probe's orientations against its points
@@ -384,7 +405,8 @@ class LaplaceReport:
     outlier_rows and marker_not_seen_rows: table rows left out of the fit;
     points_fitted (None when the report was made without the model); held_statements: one sentence
     per held parameter, saying what the data cannot tell apart; orientation: what a full-pose
-    probe's orientations added (`orientation_added`), None for points alone."""
+    probe's orientations added (`orientation_added`), None for points alone; held_reasons: {held
+    name: 'not identifiable' or 'not determined: std ...'} (`Identifiability.reasons`)."""
 
     names: tuple[str, ...]
     theta_map: np.ndarray
@@ -401,6 +423,7 @@ class LaplaceReport:
     points_fitted: int | None
     held_statements: tuple[str, ...] = ()
     orientation: dict | None = None
+    held_reasons: Mapping[str, str] | None = None
 
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> LaplaceReport:
@@ -422,6 +445,7 @@ class LaplaceReport:
             points_fitted=None if get("points_fitted") is None else int(get("points_fitted")),
             held_statements=tuple(str(x) for x in get("identifiability", "statements")),
             orientation=content.get("orientation"),
+            held_reasons=dict(get("identifiability").get("held_reasons") or {}),
         )
 
     @classmethod
@@ -762,8 +786,9 @@ def posterior_summary(frame: pd.DataFrame, laplace: LaplaceReport) -> pd.DataFra
     in display units (mm, deg), and its status; held parameters appear with status 'held'."""
     summary = moments(frame[list(laplace.names) + [SIGMA]])
     summary["status"] = "estimated"
+    reasons = laplace.held_reasons or {}
     for name, value in laplace.held.items():
-        summary.loc[name] = [value, np.nan, np.nan, np.nan, "held: not identifiable"]
+        summary.loc[name] = [value, np.nan, np.nan, np.nan, f"held: {reasons.get(name, 'not identifiable')}"]
     summary = summary.loc[list(laplace.parameters) + [SIGMA]]
     scale = np.array([display_scale(n) for n in summary.index])
     for column in ("mean", "std", "q2.5", "q97.5"):

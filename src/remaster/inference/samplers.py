@@ -35,17 +35,13 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
 from ..errors import RemasterError
+from .identifiability import RCOND, undetermined_directions  # the one test: the analysis's and the fit's
 
 PAPER_HALF_WIDTH = 0.0125  # display units (mm or deg): the paper's U(-0.0125, 0.0125) proposal
 OPTIMAL_RW_SCALE = 2.38**2  # Roberts, Gelman & Gilks (1997): proposal = 2.38^2 / P * posterior covariance
 BLOCK = 4096  # random draws are made this many steps at a time: vectorised, bounded memory
 PROGRESS_REPORTS = 10  # progress is reported about every 10 % of the steps
 MAX_LOG_LAMBDA = math.log(1e12)  # the adaptive global scale stays within 1e-12 .. 1e12
-# A singular value of the Jacobian in step units (J * scale: mm and deg) below RCOND x the largest
-# is an undetermined combination: its variance would be 1e12 times the best-determined one's.
-# `least_squares_laplace` refuses it and `identifiability.analyse` holds it, by the same test
-# (`undetermined_directions`), so that no combination is left between the two.
-RCOND = 1e-6
 
 
 class SamplingError(RemasterError, ValueError):
@@ -950,17 +946,6 @@ def run_chains(
 
 # --------------------------------------------------------------------------------------------
 # Least squares and the Laplace approximation
-
-
-def undetermined_directions(jacobian, scale, rcond: float = RCOND) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unit-free identifiability test: (singular values (P,) of J * scale, largest first;
-    V^T (P, P) in step units; small (P,) bool, the singular values below rcond x the largest).
-    jacobian (k, P) SI; scale (P,) SI size of one step unit. A Jacobian without any non-zero
-    entry has every direction undetermined."""
-    j = np.asarray(jacobian, dtype=float) * np.asarray(scale, dtype=float)
-    _, singular, vt = np.linalg.svd(j, full_matrices=False)
-    small = singular < rcond * singular[0] if singular.size and singular[0] > 0 else np.ones(singular.size, bool)
-    return singular, vt, small
 
 
 def _undetermined(vt: np.ndarray, small: np.ndarray, names: Sequence[str]) -> list[dict[str, float]]:

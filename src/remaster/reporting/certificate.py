@@ -237,6 +237,9 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
         for index, (_, r) in enumerate(offsets[offsets["model"] == model].iterrows()):
             estimated = r["status"] == "estimated"
             status = r["status"]
+            reason = (inputs.laplace.held_reasons or {}).get(f"zero_offsets.q{index + 1}")
+            if not estimated and reason:  # both models hold it for the zero-offset fit's reason
+                status = f"held: {reason}"
             if model == "loop" and f"q{index + 1}" in oriented:
                 status = (
                     f"held at the zero-offset fit's {_number(r['correction_deg']):.4g} deg, which the orientations "
