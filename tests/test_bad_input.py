@@ -567,15 +567,18 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     elif damage == "latin-1 yaml":
         text = (raw / "broken" / "campaign.yaml").read_text(encoding="utf-8")
         (raw / "broken" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
-    elif damage == "dangling symlink":
+    elif damage == "yaml list":
+        (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+    elif "symlink" in damage:  # the campaign otherwise sound (named as its folder), but for its link
+        metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
+        files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
+    if damage == "dangling symlink":
         (raw / "broken" / "motion_capture.parquet").unlink()
         (raw / "broken" / "motion_capture.parquet").symlink_to(tmp_path / "moved" / "motion_capture.parquet")
-    elif damage == "symlink loop":
+    if damage == "symlink loop":
         (raw / "broken" / "motion_capture.parquet").unlink()
-        (raw / "broken" / "motion_capture.parquet").symlink_to(raw / "broken" / "loop.parquet")
-        (raw / "broken" / "loop.parquet").symlink_to(raw / "broken" / "motion_capture.parquet")
-    else:
-        (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+        (raw / "broken" / "motion_capture.parquet").symlink_to(raw / "broken" / "loop.lnk")
+        (raw / "broken" / "loop.lnk").symlink_to(raw / "broken" / "motion_capture.parquet")
     result = dry_run(tmp_path, {"raw_dir": str(raw), "results_dir": str(tmp_path / "results"), **TINY_FIT})
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
@@ -586,8 +589,8 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     results = tmp_path / "results"
     result = subprocess.run(
         SNAKEMAKE
-        + ["-j1", "--configfile", str(tmp_path / "bad-config.yaml")]
-        + [str(results / c / "campaign" / "summary.json") for c in ("broken", "tiny")],
+        + [str(results / c / "campaign" / "summary.json") for c in ("broken", "tiny")]
+        + ["-j1", "--configfile", str(tmp_path / "bad-config.yaml")],
         cwd=REPO,
         capture_output=True,
         text=True,
@@ -600,7 +603,7 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     reason = (
         f"a symbolic link to '{tmp_path / 'moved' / 'motion_capture.parquet'}', which does not exist"
         if damage == "dangling symlink"
-        else f"a symbolic link (to '{raw / 'broken' / 'loop.parquet'}') that loops back on itself"
+        else f"a symbolic link (to '{raw / 'broken' / 'loop.lnk'}') that loops back on itself"
     )
     assert f"{link}: {reason}" in (results / "logs" / "broken" / "campaign_summary.log").read_text()
 
