@@ -495,6 +495,16 @@ def test_config_campaign_that_is_not_there(tmp_path):
 
 
 @pytest.mark.workflow
+def test_config_failed_campaigns_are_not_also_run(tmp_path):
+    """failed_campaigns is what the workflow sets when it runs again on the campaigns that did not
+    fail (entry 115): a campaign both failed and run is refused."""
+    assert_refused(
+        dry_run(tmp_path, {"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}}),
+        "failed_campaigns: kuka-twin also in the run's campaigns",
+    )
+
+
+@pytest.mark.workflow
 def test_config_raw_dir_without_any_campaign(tmp_path):
     (tmp_path / "empty").mkdir()
     assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
