@@ -243,6 +243,35 @@ def _campaign_section(name: str, content: dict, caption) -> Section:
     )
 
 
+def _overview_section(glance: pd.DataFrame, failed: dict[str, str]) -> list[Section]:
+    """The overview (none when there is nothing to show): the failed campaigns' red rows, then every
+    campaign's verdict."""
+    if not len(glance) and not failed:
+        return []
+    notes = [
+        "Every campaign's verdict (its certificate, below): the error before and "
+        "after on the validation set, what the calibration claims inside the measured "
+        "joint ranges and across the joint limits, whether the loop is closed and where "
+        "the calibration holds."
+    ]
+    return [Section("Overview", notes, [("The run at a glance", glance)] if len(glance) else [], failed=failed)]
+
+
+def _intro(failed: dict[str, str], reported: int) -> list[str]:
+    intro = [
+        "Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
+        "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
+        "marked 'held' (kept at the controller's value)."
+    ]
+    if failed:
+        intro.append(
+            f"This run failed for {len(failed)} of its {len(failed) + reported} campaigns "
+            f"({', '.join(failed)}): they are the red rows of the overview, with what failed; this report, its "
+            "comparisons across campaigns and its audit trail are of the other campaigns alone."
+        )
+    return intro
+
+
 def build(
     campaigns: dict[str, dict],
     captions: dict[str, str],
@@ -271,37 +300,10 @@ def build(
         return name.replace("_", " ")
 
     campaigns = dict(sorted(campaigns.items(), key=lambda item: (str(item[1]["summary"]["date"]), item[0])))
-    glance = overview(campaigns)
     failed = dict(sorted((failed or {}).items()))
-    sections = (
-        [
-            Section(
-                "Overview",
-                [
-                    "Every campaign's verdict (its certificate, below): the error before and "
-                    "after on the validation set, what the calibration claims inside the measured "
-                    "joint ranges and across the joint limits, whether the loop is closed and where "
-                    "the calibration holds."
-                ],
-                [("The run at a glance", glance)] if len(glance) else [],
-                failed=failed,
-            )
-        ]
-        if len(glance) or failed
-        else []
-    )
+    sections = _overview_section(overview(campaigns), failed)
     sections += [_campaign_section(name, content, caption) for name, content in campaigns.items()]
-    intro = [
-        "Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
-        "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
-        "marked 'held' (kept at the controller's value)."
-    ]
-    if failed:
-        intro.append(
-            f"This run failed for {len(failed)} of its {len(failed) + len(campaigns)} campaigns "
-            f"({', '.join(failed)}): they are the red rows of the overview, with what failed; this report, its "
-            "comparisons across campaigns and its audit trail are of the other campaigns alone."
-        )
+    intro = _intro(failed, len(campaigns))
     if comparison is not None:
         sections.append(
             Section(
