@@ -249,7 +249,7 @@ def release_lock(results: str | Path, pid: int | None = None) -> None:
 # this record, followed by the traceback, whose last lines are the exception.
 FAILED_RECORD = re.compile(r"^\S+ \S+ ERROR remaster: failed$")
 LOG_RECORD = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d+ [A-Z]+ ")
-NOT_RUN = "did not run to its results in this run (it stopped first): run `snakemake -j2` again"
+NOT_RUN = "did not reach its results in this run, no job log of it naming a failure (a job killed, or not run after another failed): see its logs under logs/ and Snakemake's log"
 
 
 def job_failure(log: str | Path) -> str | None:
