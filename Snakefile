@@ -18,6 +18,7 @@ include: "workflow/rules/report.smk"
 # checkouts may share (`remaster.results.take_lock`; a killed run's lock is taken over)
 onstart:
     results.take_lock(RESULTS)
+    RUN["started"] = time.time()
 
 
 onsuccess:
@@ -31,6 +32,11 @@ onerror:
         stale.unlink()
         print(f"removed {stale}: a result it was made from failed in this run")
     results.release_lock(RESULTS)
+    # the campaigns that did not fail still get the report and the comparison across campaigns
+    # (common.smk: report_the_others); the failed ones are the report's red rows
+    report_the_others(
+        results.failed_campaigns(RESULTS, {c: audited_results(c) for c in CAMPAIGNS}, RUN.get("started", 0.0))
+    )
 
 
 rule all:

@@ -562,6 +562,16 @@ def test_config_campaign_that_is_not_there(tmp_path):
 
 
 @pytest.mark.workflow
+def test_config_failed_campaigns_are_not_also_run(tmp_path):
+    """failed_campaigns is what the workflow sets when it runs again on the campaigns that did not
+    fail (entry 115): a campaign both failed and run is refused."""
+    assert_refused(
+        dry_run(tmp_path, {"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}}),
+        "failed_campaigns: kuka-twin also in the run's campaigns",
+    )
+
+
+@pytest.mark.workflow
 def test_config_raw_dir_without_any_campaign(tmp_path):
     (tmp_path / "empty").mkdir()
     assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
@@ -619,11 +629,13 @@ def test_the_one_column_check_names_the_file_the_missing_columns_and_what_it_has
 
 
 @pytest.mark.workflow
-@pytest.mark.parametrize("damage", ["empty parquet", "latin-1 yaml", "yaml list"])
+@pytest.mark.parametrize("damage", ["empty parquet", "latin-1 yaml", "yaml list", "dangling symlink", "symlink loop"])
 def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny, damage):
     """Graph building reads no campaign's data: a damaged campaign beside a good one still gives a
     plan with both campaigns' jobs (its own first job reports the file with the reader's message;
-    `--keep-going` runs the others to the end)."""
+    `--keep-going` runs the others to the end). A Parquet file that is a symbolic link leading to no
+    file (dangling, or a loop) is not declared as an input, which would stop graph building
+    (MissingInputException): the campaign's first job names it, and the other's runs."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
     shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
@@ -632,12 +644,45 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     elif damage == "latin-1 yaml":
         text = (raw / "broken" / "campaign.yaml").read_text(encoding="utf-8")
         (raw / "broken" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
-    else:
+    elif damage == "yaml list":
         (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+    elif "symlink" in damage:  # the campaign otherwise sound (named as its folder), but for its link
+        metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
+        files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
+    if damage == "dangling symlink":
+        (raw / "broken" / "motion_capture.parquet").unlink()
+        (raw / "broken" / "motion_capture.parquet").symlink_to(tmp_path / "moved" / "motion_capture.parquet")
+    if damage == "symlink loop":
+        (raw / "broken" / "motion_capture.parquet").unlink()
+        (raw / "broken" / "motion_capture.parquet").symlink_to(raw / "broken" / "loop.lnk")
+        (raw / "broken" / "loop.lnk").symlink_to(raw / "broken" / "motion_capture.parquet")
     result = dry_run(tmp_path, {"raw_dir": str(raw), "results_dir": str(tmp_path / "results"), **TINY_FIT})
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
     assert "campaign=tiny" in planned and "campaign=broken" in planned
+    if "symlink" not in damage:
+        return
+    # each campaign's first job, for real: the broken one's names its link, the other's runs
+    results = tmp_path / "results"
+    result = subprocess.run(
+        SNAKEMAKE
+        + [str(results / c / "campaign" / "summary.json") for c in ("broken", "tiny")]
+        + ["-j1", "--configfile", str(tmp_path / "bad-config.yaml")],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode != 0 and "Error in rule campaign_summary" in result.stdout + result.stderr
+    assert (results / "tiny" / "campaign" / "summary.json").is_file()
+    assert not (results / "broken" / "campaign" / "summary.json").exists()
+    link = raw / "broken" / "motion_capture.parquet"
+    reason = (
+        f"a symbolic link to '{tmp_path / 'moved' / 'motion_capture.parquet'}', which does not exist"
+        if damage == "dangling symlink"
+        else f"a symbolic link (to '{raw / 'broken' / 'loop.lnk'}') that loops back on itself"
+    )
+    assert f"{link}: {reason}" in (results / "logs" / "broken" / "campaign_summary.log").read_text()
 
 
 @pytest.mark.workflow
@@ -646,8 +691,11 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     """A real run of two campaigns, one with a 0-byte Parquet file: `snakemake -j1` (the default
     profile keeps going) exits non-zero, the damaged campaign's job log names its file, and the good
     campaign gets its certificate; what an earlier run left of the damaged one (its certificate, the
-    run's report) is removed. The good one's validation set repeats two optimization rows bit
-    for bit: its certificate says so, naming the rows."""
+    run's report) is removed. The report and the comparison across campaigns are written for the
+    good campaign alone (the workflow runs again on it), the damaged one a red row of the report
+    naming its job's log and the reader's message; the audit covers the good one only. The good
+    one's validation set repeats two optimization rows bit for bit: its certificate says so, naming
+    the rows."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
     table = pd.read_parquet(raw / "tiny" / "laser_tracker.parquet")
@@ -673,10 +721,67 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     assert "2 of its rows repeat optimization rows bit for bit" in certificate
     assert f"rows {validation[0]}, {validation[1]}, 0-based" in certificate
     assert not (results / "broken" / "certificate.md").exists()  # the earlier one removed: its results failed
-    assert not (results / "report.html").exists()
-    assert "removed" in output and "a result it was made from failed in this run" in output
+    assert not (results / "broken" / "certificate.json").exists()
+    assert f"removed {results / 'report.html'}: a result it was made from failed in this run" in output
     logs = "".join(p.read_text() for p in (results / "logs" / "broken").rglob("*.log"))
     assert "motion_capture.parquet" in logs
+    # the report of the good campaign, written by the run again on it: the broken one a red row
+    assert "broken failed: writing the report and the comparison across campaigns of tiny" in output
+    page = (results / "report.html").read_text()
+    rows = re.findall(r"<tr class='failed'><td>(.*?)</td><td>(.*?)</td></tr>", page, flags=re.S)
+    assert [name for name, _ in rows] == ["broken"], page[:3000]
+    message = rows[0][1]
+    assert message.startswith("logs/broken/campaign_summary.log: InputError: ")
+    assert f"{raw / 'broken' / 'motion_capture.parquet'}: cannot read Parquet" in message
+    assert "This run failed for 1 of its 2 campaigns (broken)" in page
+    assert "<h2 id='tiny'>tiny</h2>" in page and "<h2 id='broken'>" not in page
+    assert "2 of its rows repeat optimization rows bit for bit" in page  # tiny's certificate, in the report
+    comparison = results / "comparison"
+    assert (comparison / "zero_offsets_over_time.csv").is_file() and (comparison / "transfer.csv").is_file()
+    assert set(pd.read_csv(comparison / "transfer.csv")["calibrated_on"]) == {"tiny"}
+    audit_record = files.read_json(results / "audit.json")
+    assert set(audit_record["campaigns"]) == {"tiny"}
+    assert set(audit_record["config"]["failed_campaigns"]) == {"broken"}
+
+
+def test_a_failed_campaign_is_named_with_the_exception_its_job_log_ends_with(tmp_path):
+    """After a failed run: the campaigns whose results are not all there, each with the exception
+    its failed job's log ends with (the type without its module); a log of an earlier run, or of
+    a job that did not fail, says nothing; a campaign without such a log did not run to its end."""
+    import time
+
+    done = tmp_path / "good" / "certificate.json"
+    done.parent.mkdir()
+    done.write_text("{}")
+    earlier = tmp_path / "logs" / "bad" / "tables.log"
+    with pytest.raises(InputError), files.log_to(earlier):
+        raise InputError("an earlier run's failure", file="old.parquet")
+    os.utime(earlier, (946684800, 946684800))
+    since = time.time() - 1
+    with files.log_to(tmp_path / "logs" / "bad" / "campaign_summary.log") as log:
+        log.info("reading the campaign")
+    with (
+        pytest.raises(np.linalg.LinAlgError),
+        files.log_to(tmp_path / "logs" / "bad" / "laser_tracker" / "prepare.log"),
+    ):
+        try:
+            raise KeyError("cause")
+        except KeyError:
+            raise np.linalg.LinAlgError("Matrix is not positive definite\nat the Laplace mode") from None
+    assert results_module.job_failure(tmp_path / "logs" / "bad" / "laser_tracker" / "prepare.log") == (
+        "LinAlgError: Matrix is not positive definite\nat the Laplace mode"
+    )
+    assert results_module.job_failure(tmp_path / "logs" / "bad" / "campaign_summary.log") is None
+    assert results_module.job_failure(earlier) == "InputError: old.parquet: an earlier run's failure"
+    failed = results_module.failed_campaigns(
+        tmp_path,
+        {"good": [done], "bad": [tmp_path / "bad" / "certificate.json"], "later": [tmp_path / "later" / "x"]},
+        since,
+    )
+    assert failed == {
+        "bad": "logs/bad/laser_tracker/prepare.log: LinAlgError: Matrix is not positive definite\nat the Laplace mode",
+        "later": results_module.NOT_RUN,
+    }
 
 
 @pytest.fixture

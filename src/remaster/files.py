@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import errno
 import json
 import logging
 import math
@@ -236,13 +237,30 @@ def write_csv(path: str | Path, table: pd.DataFrame) -> Path:
     return path
 
 
+def missing_reason(path: str | Path) -> str:
+    """Why a file that should be there is not: "file not found", or the symbolic link that stands
+    in its place and leads nowhere (its target missing, or a loop of links)."""
+    path = Path(path)
+    if not path.is_symlink():
+        return "file not found"
+    target = os.readlink(path)
+    try:
+        path.stat()
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return f"a symbolic link (to {target!r}) that loops back on itself: no file at its end"
+    return (
+        f"a symbolic link to {target!r}, which does not exist (a dangling link: copy the file, or link to where it is)"
+    )
+
+
 def read_parquet(path: str | Path) -> pd.DataFrame:
     """A Parquet table; InputError naming the file if it is missing or cannot be read."""
     path = Path(path)
     if path.is_dir():  # pd.read_parquet would read a folder as a partitioned data set
         raise InputError("is a directory, not a file", file=str(path))
     if not path.is_file():
-        raise InputError("file not found", file=str(path))
+        raise InputError(missing_reason(path), file=str(path))
     try:
         return pd.read_parquet(path)
     except (OSError, pa.ArrowException, ValueError) as exc:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import socket
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -255,3 +256,56 @@ def release_lock(results: str | Path, pid: int | None = None) -> None:
     holder = _lock_holder(lock)
     if holder.get("host") == socket.gethostname() and holder.get("pid") == (os.getpid() if pid is None else pid):
         lock.unlink(missing_ok=True)
+
+
+# After a failed run, the campaigns whose results are complete still get their report and their
+# comparison (`Snakefile`: onerror runs the workflow again on them); a campaign that failed is a row of
+# the report naming what failed, never a number. A job's log (`files.log_to`) marks its failure with
+# this record, followed by the traceback, whose last lines are the exception.
+FAILED_RECORD = re.compile(r"^\S+ \S+ ERROR remaster: failed$")
+LOG_RECORD = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d+ [A-Z]+ ")
+NOT_RUN = "did not reach its results in this run, no job log of it naming a failure (a job killed, or not run after another failed): see its logs under logs/ and Snakemake's log"
+
+
+def job_failure(log: str | Path) -> str | None:
+    """The exception a failed job's log ends with (`files.log_to`), as "<type>: <message>" without
+    the type's module; None when the log records no failure (or is not there)."""
+    try:
+        lines = Path(log).read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return None
+    starts = [i for i, line in enumerate(lines) if FAILED_RECORD.match(line)]
+    if not starts:
+        return None
+    exception: list[str] = []
+    for line in lines[starts[-1] + 1 :]:
+        if LOG_RECORD.match(line):
+            break
+        if line.startswith(("Traceback ", " ")) or not line.strip():
+            exception = []  # a frame, or a chained exception's traceback: the exception comes after
+            continue
+        exception.append(line)
+    if not exception:
+        return None
+    kind, colon, message = exception[0].partition(": ")
+    first = f"{kind.rsplit('.', 1)[-1]}{colon}{message}"
+    return "\n".join([first, *exception[1:]])
+
+
+def failed_campaigns(
+    results_dir: str | Path, results: Mapping[str, Iterable[str | Path]], since: float
+) -> dict[str, str]:
+    """{campaign: what failed} of the campaigns of a run whose results (`results`: {campaign: its
+    result files}) are not all there: each job log under results_dir/logs/<campaign>/ written since
+    `since` (a time.time()) that records a failure gives "<log>: <exception>" (`job_failure`), the
+    log named from results_dir; a campaign without one did not run to its results (`NOT_RUN`)."""
+    results_dir = Path(results_dir)
+    failed = {}
+    for campaign, paths in results.items():
+        if all(Path(p).is_file() for p in paths):
+            continue
+        logs = sorted((results_dir / "logs" / campaign).rglob("*.log"))
+        found = [(log, job_failure(log)) for log in logs if log.is_file() and log.stat().st_mtime >= since]
+        found = [f"{log.relative_to(results_dir)}: {message}" for log, message in found if message]
+        failed[campaign] = "\n".join(found) or NOT_RUN
+    return failed

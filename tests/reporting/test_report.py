@@ -176,3 +176,25 @@ def test_tiny_numbers_in_tables_print_in_scientific_form():
     ]
     assert "| drift | -6.59e-07 | 6.59e-07 | 2.3e-08 | 12.3 |" in tables.to_markdown(table)
     assert tables.formatted(pd.DataFrame({"x": ["-6.5912e-07"]})) == [["-6.59e-07"]]  # a number read back as text
+
+
+def test_a_failed_campaign_is_a_red_row_with_its_message_and_none_of_its_numbers():
+    """A run in which one campaign failed: the report is of the others; the failed one is a red row
+    of the overview with what failed, the message escaped, and no section of its own."""
+    table = pd.DataFrame({"Campaign": ["good"], "Verdict": ["accepted"]})
+    message = "logs/bad/laser_tracker/prepare.log: LinAlgError: <script>alert(1)</script> & not positive definite"
+    page = report.build(
+        {"good": {"summary": _summary("good"), "tables": {"certificate_verdict": table}, "figures": {}}},
+        {},
+        failed={"bad": message},
+    )
+    rows = re.findall(r"<tr class='failed'>(.*?)</tr>", page, flags=re.S)
+    assert rows == [f"<td>bad</td><td>{html.escape(message)}</td>"]
+    assert "<script>" not in page and "&lt;script&gt;alert(1)&lt;/script&gt; &amp; not positive definite" in page
+    assert "tr.failed td { background: #fde8e8; color: #a00000;" in page
+    assert "This run failed for 1 of its 2 campaigns (bad)" in page
+    assert "<h2 id='good'>good</h2>" in page and "<h2 id='bad'>" not in page
+    assert page.index(report.FAILED_CAPTION) < page.index("The run at a glance")
+    # no campaign failed: no such table
+    page = report.build({"good": {"summary": _summary("good"), "tables": {}, "figures": {}}}, {})
+    assert report.FAILED_CAPTION not in page and "class='failed'" not in page

@@ -3,6 +3,9 @@
 # config file(s) and the key (docs/bad-input.md).
 import os
 import re
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -105,6 +108,13 @@ def list_campaigns():
 
 
 CAMPAIGNS = list_campaigns()
+# the campaigns that failed in the run this one completes (Snakefile: onerror): not also run here
+if set(config["failed_campaigns"]) & set(CAMPAIGNS):
+    raise config_error(
+        "failed_campaigns",
+        f"{', '.join(sorted(set(config['failed_campaigns']) & set(CAMPAIGNS)))} also in the run's campaigns: "
+        "failed_campaigns is set by the workflow for the campaigns it leaves out",
+    )
 # a sensor's results folder, `remaster.layout`'s (the command line reads from it): {campaign} and
 # {sensor} are the wildcards
 SENSOR = f"{RESULTS}/{layout.SENSOR_FOLDER}"
@@ -112,8 +122,10 @@ SENSOR = f"{RESULTS}/{layout.SENSOR_FOLDER}"
 
 def campaign_files(wildcards):
     """The files a campaign is read from (`folders.campaign_files`: the audit hashes the same), so
-    that changing one reruns that campaign's jobs only."""
-    return [str(p) for p in folders.campaign_files(Path(RAW, wildcards.campaign))]
+    that changing one reruns that campaign's jobs only. A symbolic link that leads to no file (its
+    target missing, or a loop) is left out: declared, it would stop graph building for every
+    campaign; the campaign's own first job reads the folder and names it."""
+    return [str(p) for p in folders.campaign_files(Path(RAW, wildcards.campaign)) if p.exists()]
 
 
 def sensors_of(campaign):
@@ -329,3 +341,37 @@ def report_files(wildcards=None):
             *part["figures"].values(),
         ]
     return files
+
+
+RUN = {}  # when this run's jobs started (Snakefile: onstart): a job log older than that is an earlier run's
+
+
+def report_the_others(failed):
+    """After a run in which the campaigns of `failed` ({campaign: what failed}) did not reach their
+    results: run the workflow again on the other campaigns, whose results are complete, with
+    failed_campaigns set, so that it writes their comparison across campaigns, audit and report,
+    the failed campaigns being the report's red rows (its own jobs, logs and provenance: the next
+    full run redoes them). Not when every campaign failed, when this run is already that second
+    one, or when this run was not asked for the report."""
+    others = [c for c in CAMPAIGNS if c not in failed]
+    if (
+        not failed
+        or not others
+        or config["failed_campaigns"]
+        or "report" not in {j.rule.name for j in workflow.dag.jobs}
+    ):
+        return
+    print(
+        f"{', '.join(failed)} failed: writing the report and the comparison across campaigns of "
+        f"{', '.join(others)} (the failed campaigns are the report's red rows)"
+    )
+    settings = files.write_yaml(
+        f"{RESULTS}/logs/without_failed/config.yaml",
+        {**config, "campaigns": others, "failed_campaigns": dict(failed)},
+    )
+    # this run still holds Snakemake's lock on the working folder (results_dir has its own lock)
+    subprocess.run(
+        [sys.executable, "-m", "snakemake", "--snakefile", workflow.main_snakefile, "--nolock"]
+        + ["--cores", str(workflow.resource_settings.cores or 1), "--configfile", str(settings)],
+        check=False,
+    )

@@ -57,5 +57,6 @@ rule report:
         layout=report_layout(),
         comparison=comparison_layout(),
         prediction=prediction_layout(),
+        failed=config["failed_campaigns"],
     script:
         "../scripts/report.py"

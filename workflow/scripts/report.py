@@ -30,5 +30,6 @@ with files.log_to(snakemake.log[0]):
         audit=files.read_json(snakemake.input.audit),
         comparison=read_part(p.comparison),
         prediction=read_part(p.prediction),
+        failed=dict(p.failed),
     )
     files.write_text(snakemake.output.html, page)

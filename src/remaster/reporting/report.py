@@ -23,6 +23,7 @@ th { background: #eee; } td:first-child, th:first-child { text-align: left; }
 figure { margin: 1em 0 2em; } figure img { max-width: 100%; } figcaption, caption { font-weight: bold; text-align: left; }
 .note { color: #555; } nav a { margin-right: 1em; } .warning { color: #8a3b00; }
 details { margin: 0.3em 0; } summary { cursor: pointer; color: #234; }
+tr.failed td { background: #fde8e8; color: #a00000; white-space: pre-wrap; text-align: left; }
 """
 
 
@@ -51,6 +52,7 @@ class Section:
     lead_tables: list[tuple[str, pd.DataFrame]] = field(default_factory=list)  # shown first, open
     lead_figures: list[tuple[str, bytes]] = field(default_factory=list)
     fold: bool = False  # the (long) tables and figures after the lead fold away, each under its caption
+    failed: dict[str, str] = field(default_factory=dict)  # campaign -> what failed: red rows, shown first
 
     @property
     def anchor(self) -> str:
@@ -84,6 +86,22 @@ def table_html(caption: str, table: pd.DataFrame) -> str:
     )
 
 
+FAILED_CAPTION = "Campaigns that failed in this run (none of their numbers is in this report)"
+
+
+def failed_html(failed: dict[str, str]) -> str:
+    """The failed campaigns as a table of red rows: the campaign and what failed (its job's log and
+    the exception it ends with)."""
+    rows = "".join(
+        f"<tr class='failed'><td>{html.escape(name)}</td><td>{html.escape(message)}</td></tr>"
+        for name, message in failed.items()
+    )
+    return (
+        f"<table><caption>{html.escape(FAILED_CAPTION)}</caption><thead><tr><th>Campaign</th><th>What failed</th>"
+        f"</tr></thead><tbody>{rows}</tbody></table>"
+    )
+
+
 def figure_html(caption: str, png: bytes) -> str:
     data = base64.b64encode(png).decode("ascii")
     return (
@@ -107,6 +125,8 @@ def render(title: str, intro: list[str], sections: list[Section]) -> str:
             parts.append(
                 "<ul>" + "".join(f"<li class='warning'>{html.escape(w)}</li>" for w in section.warnings) + "</ul>"
             )
+        if section.failed:
+            parts.append(failed_html(section.failed))
         parts += [table_html(c, t) for c, t in section.lead_tables]
         parts += [figure_html(c, f) for c, f in section.lead_figures]
         rest = [(c, table_html(c, t)) for c, t in section.tables] + [(c, figure_html(c, f)) for c, f in section.figures]
@@ -223,6 +243,35 @@ def _campaign_section(name: str, content: dict, caption) -> Section:
     )
 
 
+def _overview_section(glance: pd.DataFrame, failed: dict[str, str]) -> list[Section]:
+    """The overview (none when there is nothing to show): the failed campaigns' red rows, then every
+    campaign's verdict."""
+    if not len(glance) and not failed:
+        return []
+    notes = [
+        "Every campaign's verdict (its certificate, below): the error before and "
+        "after on the validation set, what the calibration claims inside the measured "
+        "joint ranges and across the joint limits, whether the loop is closed and where "
+        "the calibration holds."
+    ]
+    return [Section("Overview", notes, [("The run at a glance", glance)] if len(glance) else [], failed=failed)]
+
+
+def _intro(failed: dict[str, str], reported: int) -> list[str]:
+    intro = [
+        "Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
+        "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
+        "marked 'held' (kept at the controller's value)."
+    ]
+    if failed:
+        intro.append(
+            f"This run failed for {len(failed)} of its {len(failed) + reported} campaigns "
+            f"({', '.join(failed)}): they are the red rows of the overview, with what failed; this report, its "
+            "comparisons across campaigns and its audit trail are of the other campaigns alone."
+        )
+    return intro
+
+
 def build(
     campaigns: dict[str, dict],
     captions: dict[str, str],
@@ -230,6 +279,7 @@ def build(
     audit: dict | None = None,
     comparison: dict | None = None,
     prediction: dict | None = None,
+    failed: dict[str, str] | None = None,
 ) -> str:
     """The report of a run. campaigns: name -> {"summary": campaign summary dict, "certificate"
     (optional): its certificate.json, "tables": {table name: DataFrame}, "figures": {figure name:
@@ -238,7 +288,9 @@ def build(
     captions: table or figure name (figure names may end in _<sensor>) -> caption; comparison:
     {"tables": ..., "figures": ...} across campaigns; prediction: the same for the transfer table,
     its heat-maps and the comparisons by prediction (`PREDICTION_NOTES`); audit: the run's
-    `audit.audit_record`, shown last."""
+    `audit.audit_record`, shown last; failed: {campaign: what failed} of the run's campaigns that did
+    not reach their results (`results.failed_campaigns`), each a red row of the overview and nothing
+    else: the report and the comparisons are of `campaigns` alone."""
 
     def caption(name: str) -> str:
         for key in sorted(captions, key=len, reverse=True):
@@ -248,29 +300,10 @@ def build(
         return name.replace("_", " ")
 
     campaigns = dict(sorted(campaigns.items(), key=lambda item: (str(item[1]["summary"]["date"]), item[0])))
-    glance = overview(campaigns)
-    sections = (
-        [
-            Section(
-                "Overview",
-                [
-                    "Every campaign's verdict (its certificate, below): the error before and "
-                    "after on the validation set, what the calibration claims inside the measured "
-                    "joint ranges and across the joint limits, whether the loop is closed and where "
-                    "the calibration holds."
-                ],
-                [("The run at a glance", glance)],
-            )
-        ]
-        if len(glance)
-        else []
-    )
+    failed = dict(sorted((failed or {}).items()))
+    sections = _overview_section(overview(campaigns), failed)
     sections += [_campaign_section(name, content, caption) for name, content in campaigns.items()]
-    intro = [
-        "Bayesian remastering of robot joint zero-offsets from external 3D measurements, after Van Wyk, "
-        "Falco and Cheok (NIST). Lengths in mm, angles in deg. Parameters the data cannot determine are "
-        "marked 'held' (kept at the controller's value)."
-    ]
+    intro = _intro(failed, len(campaigns))
     if comparison is not None:
         sections.append(
             Section(
