@@ -371,6 +371,7 @@ def test_loop_effects_over_time_figure():
     plt.close(fig)
 
 
+@pytest.mark.slow  # repeat campaigns fitted over seeds
 def test_drift_calibration_of_repeat_campaigns_with_honest_and_too_small_stds():
     """Repeat campaigns of one truth: honest stds give z of unit spread and the expected number of
     flags; stds half the truth give z of spread 2 and many more flags."""

@@ -176,6 +176,7 @@ def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.Works
     return result, campaign, laplace
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_factory):
     """The draws' points are draws x rows x 3: past as many rows as there are random
     configurations, that many evenly spaced rows carry the claims at the measured configurations
@@ -202,6 +203,7 @@ def claim(claims: pd.DataFrame, model: str, where: str = "random", frame: str = 
     return workspace.claim_rows(claims, model, where, frame).iloc[0]
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 @pytest.mark.parametrize("sensor", ["laser_tracker", "motion_capture"])
 def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     """The twin's loop-closed model trades the marker against joint 7: in the folded coordinates
@@ -215,6 +217,7 @@ def test_the_twins_loop_refit_converges(tmp_path_factory, sensor):
     assert not any("MCMC" in w for w in fitted("kuka-twin", sensor, tmp_path_factory)[2].warnings)
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 @pytest.mark.parametrize("where", ["random", "domain"], ids=["across the limits", "inside the measured ranges"])
 @pytest.mark.parametrize(
     "sensor, model",
@@ -259,6 +262,7 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     assert claim(result.claims, model, where)["p95_bound_mm"] >= true_p95  # the certificate's claim
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 def test_the_twins_loop_rows_and_notes(tmp_path_factory):
     result, campaign, _ = claims_of("kuka-twin", "laser_tracker", tmp_path_factory)
     _, _, report, samples = fitted("kuka-twin", "laser_tracker", tmp_path_factory)
@@ -317,6 +321,7 @@ def on_twin(calibration) -> np.ndarray:
     return transfer.transfer_errors(calibration, target)
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 def test_the_cubes_calibration_transfers_no_worse_with_priors(tmp_path_factory):
     """One tool orientation (kuka-cubes) sees nothing of the marker's place on the plate (its error is
     a constant the registration takes) nor of link errors its poses do not excite: the effects fitted
@@ -331,6 +336,7 @@ def test_the_cubes_calibration_transfers_no_worse_with_priors(tmp_path_factory):
     assert with_priors < 0.9 * nominal, (with_priors, nominal)
 
 
+@pytest.mark.slow  # a loop closure of a bundled campaign with MCMC (once per session, `fitted`)
 def test_the_cubes_calibration_warned_before_the_transfer_proved_it(tmp_path_factory):
     """kuka-cubes' own workspace-wide claim (registration fitted, random configurations) reaches
     the 95 % quantile its loop-closed calibration then shows on the twin's validation rows, and its

@@ -3,6 +3,7 @@ copies of one robot whose model lacks an effect."""
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from remaster import files
 from remaster.campaigns import scenario
@@ -40,6 +41,7 @@ def test_a_residual_shared_by_a_pose_widens_it():
     assert stds[1][0] > 3 * stds[0][0]
 
 
+@pytest.mark.slow  # a fleet of simulated campaigns
 def test_fleet_copies_of_a_robot_the_model_lacks_an_effect_of_drift_by_about_one_std(iiwa):
     """Copies of kuka-compliance (compliance and a heavy payload the paper's model lacks), laser
     tracker: the drift z between consecutive copies of every identifiable zero-offset has a spread
