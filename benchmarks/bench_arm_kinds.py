@@ -44,7 +44,10 @@ LINK_ERRORS = {"translation_std": 1.0e-4, "rotation_std": 2.0e-4, "seed": 9}
 def least_squares_validation(campaign, sensor: str, results: Path) -> dict:
     """Validation RMS per axis (mm) of least squares with the complete parameter set, no priors: the
     registration and held zero-offsets as the paper's fit found them, what the data cannot see held
-    at 0."""
+    at 0. Not `truth_claims.least_squares_validation`, the other benchmarks' baseline: that one takes
+    `evidence.posterior_mode` (Levenberg-Marquardt to 1e-12, sigma iterated, optional priors, the
+    config's gravity settings) and reports `selection.accuracy`; this one is scipy's trust-region
+    least squares at its default tolerances, which the recorded arm_kinds results were made with."""
     registration = fit.Registration.read(results / layout.REGISTRATION)
     laplace = fit.LaplaceReport.read(results / layout.LAPLACE)
     chain, data = campaign.chain, campaign.sensors[sensor]

@@ -102,18 +102,6 @@ def test_the_held_out_cumulants_are_those_of_the_folds_linear_map():
     assert evidence.held_out_cumulants(inverses, grams, total, 3 * n) == pytest.approx(expected, rel=1e-10)
 
 
-def test_pearsons_approximation_against_draws_of_the_weighted_sum():
-    """`held_out_sf` is chi-square's own for unit weights, and within 15 % of the tail probability of
-    400,000 draws of a weighted sum with a few large weights at 10 %, 1 % and 0.1 %."""
-    assert noise_floor.held_out_sf(80.0, noise_floor.plain_cumulants(75)) == pytest.approx(stats.chi2.sf(80.0, 75))
-    weights = np.r_[np.ones(60), 48.0, 20.0, 9.0, 5.0, 3.0, 2.0]
-    cumulants = (weights.sum(), 2 * np.sum(weights**2), 8 * np.sum(weights**3))
-    draws = (np.random.default_rng(1).standard_normal((400_000, len(weights))) ** 2) @ weights
-    for tail in (0.1, 0.01, 0.001):
-        assert noise_floor.held_out_sf(np.quantile(draws, 1.0 - tail), cumulants) == pytest.approx(tail, rel=0.15)
-        assert noise_floor.held_out_sf(noise_floor.held_out_isf(tail, cumulants), cumulants) == pytest.approx(tail)
-
-
 def test_the_held_out_floor_enters_the_verdict_and_the_share():
     """Where a correct model's held-out error is twice the noise's (every weight 2), a residual of 1.5 x
     the floor is closed (75 numbers: p = 0.2), and the structured part is taken above sqrt 2 x the floor."""

@@ -371,8 +371,8 @@ def paper_claim(
     rng: np.random.Generator,
     label: str = "",
 ) -> Claim:
-    """The paper's model (registration + zero-offsets, held ones at their value: `paper_model`) at
-    the validation readings: draws from its posterior samples (the default sampler's), or from its
+    """The paper's model (registration + zero-offsets, held ones at their value: `blocks.paper_model`)
+    at the validation readings: draws from its posterior samples (the default sampler's), or from its
     Laplace approximation when none are given."""
     if samples is not None and not samples.empty:
         table = _checked_samples(samples, model.names, label)
@@ -387,11 +387,6 @@ def paper_claim(
         mean = laplace.theta_map
         source = "the paper model's Laplace approximation (no samples given)"
     return Claim(model.predict(mean), model, theta, sigma, (), source)
-
-
-def paper_model(chain: KinematicChain, data: Readings, marker, t_nr, laplace: LaplaceReport) -> BlockModel:
-    """The paper's model on some readings: registration and zero-offsets, the held ones at their value."""
-    return BlockModel(chain, data, marker, t_nr, (), laplace.held)
 
 
 def loop_model(chain: KinematicChain, data: Readings, marker, t_nr, report: LoopReport) -> BlockModel:
@@ -838,11 +833,11 @@ def acceptance_stage(
         warnings = [f"acceptance test {text}"]
     else:
         label = f"{campaign.name}/{sensor}"
+        # the paper's model on the validation readings, their per-point weights with them
+        paper = blocks.paper_model(chain, data.q, data.measured, measured.marker, t_nr, laplace.held, data.rows)
         claims = {
             "loop": loop_claim(loop_model(chain, data, measured.marker, t_nr, report), loop, draws, rng, label),
-            "paper": paper_claim(
-                paper_model(chain, data, measured.marker, t_nr, laplace), laplace, paper_samples, draws, rng, label
-            ),
+            "paper": paper_claim(paper.on(data), laplace, paper_samples, draws, rng, label),
         }
         instrument = instrument_noise(measured, data.rows)
         for model in MODELS:

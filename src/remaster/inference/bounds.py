@@ -48,7 +48,9 @@ def bound_from_moments(trace, frobenius2) -> np.ndarray:
     |x|^2 is a sum of l_i chi2_1 (l_i the eigenvalues of C); it is taken as c chi2_nu with
     c = sum l_i^2 / sum l_i, nu = (sum l_i)^2 / sum l_i^2 (the Welch-Satterthwaite match of the
     first two moments): exact for an isotropic C (nu = 3) and for a rank-one one (nu = 1), within a
-    few percent between, and it needs only the trace and the Frobenius norm of C."""
+    few percent between, and it needs only the trace and the Frobenius norm of C. It is not the
+    closure test's three-moment match (`chi_square.pearson_sf`), which would need tr C^3 as well for
+    every candidate x evaluation point of the planner and gives other numbers between those cases."""
     from scipy.special import chdtri
 
     trace = np.maximum(np.asarray(trace, dtype=float), 0.0)

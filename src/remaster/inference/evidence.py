@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
-from . import samplers
+from . import chi_square, samplers
 from .blocks import BlockModel
 from .gp.likelihood import LOG_2PI
 from .identifiability import JACOBIAN_STEP
@@ -137,7 +137,15 @@ def forward_differences(function, x) -> np.ndarray:
 
 
 def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
-    """The Laplace approximation and evidence at (theta, sigma), taken as the mode."""
+    """The Laplace approximation and evidence at (theta (P,) SI, sigma m), taken as the mode.
+
+    Not `samplers.least_squares_laplace`, which approximates another posterior for another use:
+    this one is a block model's joint posterior in (theta, log sigma), its priors' precision and
+    noise shape (whitened residuals) in the (P + 1)-square Hessian, sigma correlated with theta, at
+    the joint mode (sigma^2 = SS / (k + 1), `posterior_mode`); and it gives the log evidence the
+    loop compares models by. That one is the paper's flat-prior fit with sigma integrated out
+    (s^2 = SS / (k - P), sigma's exact marginal mean and std, an SVD test of what the data
+    determine), the start of the paper's samplers, and no evidence."""
     theta = np.asarray(theta, dtype=float)
     residuals = model.residuals(theta)
     r = model.whitened(residuals).ravel()
@@ -328,7 +336,7 @@ def held_out_cumulants(inverses, grams, total_gram, numbers: int) -> tuple[float
     without power."""
     k = len(inverses)
     if k == 0:
-        return (float(numbers), 2.0 * numbers, 8.0 * numbers)
+        return chi_square.cumulants(numbers)
     p = len(total_gram)
     w = np.empty((k * p, k * p))
     for f in range(k):

@@ -1003,6 +1003,15 @@ def least_squares_laplace(
     Raises NotIdentifiable naming the parameter combinations whose singular value of J * scale is
     below rcond * the largest: their variance would be (near) infinite, and a pseudo-inverse would
     silently report a finite one. See `LaplaceResult` for the sigma formulas.
+
+    Not `evidence.laplace_at`, which approximates another posterior for another use: this one is the
+    paper's (flat prior on theta, sigma^-(k+2), any residual function), with sigma integrated out:
+    covariance s^2 (J^T J)^-1 at s^2 = SS / (k - (P-1)), sigma's exact marginal mean and std, the
+    SVD test above, no evidence: the start and scale of the paper's samplers. `laplace_at` takes a
+    block model's joint mode in (theta, log sigma) under its priors and noise shape, inverts the
+    (P + 1)-square Hessian there (sigma^2 at SS / (k + 1), sigma correlated with theta) and gives
+    the log evidence the loop compares models by. On the paper's model at the same mode, this
+    theta covariance is that one's times (k + 1) / (k - P + 1).
     """
     from scipy.special import gammaln
 

@@ -17,7 +17,7 @@ campaign of tests/loop/test_noise_floor.py); the held-out floor is the floor tim
 factor. The closure is a test at a stated level (`loop_closure/closure_level`): a correct model's
 pooled held-out sum of squares over the floor's variance is a weighted sum of chi-square variables
 whose first three cumulants the folds' Jacobians give (`evidence.held_out_cumulants`), taken as a
-shifted, scaled chi-square with the same three (Pearson's approximation, `held_out_sf`). Few rows per
+shifted, scaled chi-square with the same three (Pearson's approximation, `chi_square.pearson_sf`). Few rows per
 parameter make a few large weights and a long tail (at 25 configurations the level lies at 1.3-2.6 x
 the held-out floor); many rows make it narrow (at 17,500 rows, 1.007 x), so that a fixed ratio
 would call correct small campaigns not closed and a large campaign's model error closed. The loop is
@@ -40,6 +40,7 @@ import math
 
 import numpy as np
 
+from ..inference import chi_square
 from ..units import MM
 
 # a fitted noise model (a tracker's range/transverse shape) whose std is this many times the floor took
@@ -95,41 +96,11 @@ def range_transverse_rms(sigma_range: float, growth_per_m: float, measured) -> f
     return float(sigma_range * math.sqrt(float(np.mean((1.0 + 2.0 * k2) / 3.0))))
 
 
-def plain_cumulants(numbers: int) -> tuple[float, float, float]:
-    """The cumulants of chi-square with `numbers` degrees of freedom: held-out errors at the noise alone."""
-    return (float(numbers), 2.0 * numbers, 8.0 * numbers)
-
-
-def _pearson(cumulants) -> tuple[float, float, float]:
-    """(shift a, scale b, degrees of freedom d) of a + b chi2_d with the three cumulants given."""
-    k1, k2, k3 = (float(c) for c in cumulants)
-    scale = k3 / (4.0 * k2)
-    dof = 8.0 * k2**3 / k3**2
-    return k1 - scale * dof, scale, dof
-
-
-def held_out_sf(x: float, cumulants) -> float:
-    """P(Q > x) for Q a weighted sum of chi-square variables with these three cumulants (Pearson's
-    three-moment approximation: exact for chi-square itself)."""
-    import scipy.special
-
-    shift, scale, dof = _pearson(cumulants)
-    return float(scipy.special.chdtrc(dof, max((x - shift) / scale, 0.0)))
-
-
-def held_out_isf(level: float, cumulants) -> float:
-    """The x with `held_out_sf`(x) = level."""
-    import scipy.special
-
-    shift, scale, dof = _pearson(cumulants)
-    return float(shift + scale * scipy.special.chdtri(dof, level))
-
-
 def verdict(rms_per_axis: float, floor: float | None, level: float, numbers: int, cumulants=None) -> dict:
     """Closed or not at `level`, the structured residual left per axis (mm) and the sentence the
     report shows; rms_per_axis over `numbers` held-out numbers (3 per point), cumulants: a correct
     model's held-out sum of squares over the noise variance (`evidence.CrossValidation.null_cumulants`;
-    None: the plain floor's, `plain_cumulants`). Module docstring."""
+    None: the plain floor's, chi-square with `numbers` degrees of freedom). Module docstring."""
     if floor is None:
         return {
             "closed": None,
@@ -137,9 +108,9 @@ def verdict(rms_per_axis: float, floor: float | None, level: float, numbers: int
             "rms_per_axis_mm": rms_per_axis / MM,
             "text": "unknown: the campaign states no sensor noise and repeats no configuration",
         }
-    cumulants = plain_cumulants(numbers) if cumulants is None else tuple(float(c) for c in cumulants)
+    cumulants = chi_square.cumulants(numbers) if cumulants is None else tuple(float(c) for c in cumulants)
     held_out_floor = floor * math.sqrt(max(cumulants[0] / numbers, 1.0))
-    p_value = held_out_sf(numbers * (rms_per_axis / floor) ** 2, cumulants)
+    p_value = chi_square.pearson_sf(numbers * (rms_per_axis / floor) ** 2, cumulants)
     closed = p_value >= level
     structured = math.sqrt(max(rms_per_axis**2 - held_out_floor**2, 0.0))
     ratio = rms_per_axis / held_out_floor
@@ -156,7 +127,7 @@ def verdict(rms_per_axis: float, floor: float | None, level: float, numbers: int
         "held_out_floor_mm": held_out_floor / MM,
         "ratio_to_floor": ratio,
         # the ratio up to which this many held-out numbers would be found closed at the level
-        "closed_up_to_ratio": math.sqrt(held_out_isf(level, cumulants) / numbers) * floor / held_out_floor,
+        "closed_up_to_ratio": math.sqrt(chi_square.pearson_isf(level, cumulants) / numbers) * floor / held_out_floor,
         "p_value": p_value,
         "level": level,
         "held_out_numbers": int(numbers),

@@ -9,8 +9,8 @@ its largest joint motion takes, and the marker sweeps furthest when one joint tu
 The cost of a move from configuration a to b is therefore its largest joint motion, the
 Chebyshev distance max_j |b_j - a_j| (rad), and the cost of an order is the sum over its moves.
 The order is an open path that starts at a given configuration (the first one given, by
-default). It is built as `planning.nearest_neighbour_tour` builds the planner's, greedily, but
-with this cost, then improved by 2-opt (reverse a stretch of the path wherever that shortens it)
+default). It is built by the planner's greedy tour (`robot.planning.nearest_neighbour_tour`) with
+this cost, then improved by 2-opt (reverse a stretch of the path wherever that shortens it)
 until no reversal gains more than `TOLERANCE` or `max_sweeps` sweeps have run. Neither step
 loses or repeats a configuration: the result is a permutation.
 """
@@ -20,6 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..robot.planning import nearest_neighbour_tour
 
 TOLERANCE = 1e-12  # rad: a reversal must shorten the path by more than this (no cycling on rounding)
 MAX_SWEEPS = 50  # 2-opt sweeps over every stretch; each costs O(n^2 N): 1,000 rows take about 1 s in all
@@ -65,21 +67,14 @@ def _chebyshev(q, point) -> np.ndarray:
 
 
 def greedy_order(q, first: int = 0) -> np.ndarray:
-    """Nearest-neighbour order (n,) of configurations q (n, N) from row `first`, by the largest
-    joint motion; a tie goes to the lower row."""
+    """Nearest-neighbour order (n,) of configurations q (n, N) rad from row `first`, by the largest
+    joint motion (`robot.planning.nearest_neighbour_tour` over the other rows); a tie goes to the
+    lower row."""
     q = np.asarray(q, dtype=float)
-    n = len(q)
-    if n == 0:
+    if len(q) == 0:
         return np.zeros(0, dtype=int)
-    left = np.ones(n, dtype=bool)
-    left[first] = False
-    order = [first]
-    for _ in range(n - 1):
-        candidates = np.flatnonzero(left)
-        nearest = candidates[int(np.argmin(_chebyshev(q[candidates], q[order[-1]])))]
-        left[nearest] = False
-        order.append(int(nearest))
-    return np.array(order, dtype=int)
+    rest = np.delete(np.arange(len(q)), first)
+    return np.r_[first, rest[nearest_neighbour_tour(q[rest], q[first], _chebyshev)]].astype(int)
 
 
 def two_opt(q, order, max_sweeps: int = MAX_SWEEPS) -> np.ndarray:

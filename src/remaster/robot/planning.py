@@ -187,9 +187,16 @@ def marker_visible(chain: KinematicChain, q, sight: SightLine, model: CollisionM
     return facing & np.all(clearance >= radii[None, :-1], axis=1)
 
 
-def nearest_neighbour_tour(q, start=None) -> np.ndarray:
-    """Order (n,) visiting configurations q (n, N) greedily by Euclidean joint distance, from
-    `start` (N,) (default: the first configuration)."""
+def euclidean_distance(q, point) -> np.ndarray:
+    """Euclidean joint distances (m,) rad of configurations q (m, N) rad to one, point (N,) rad."""
+    return np.linalg.norm(q - point, axis=1)
+
+
+def nearest_neighbour_tour(q, start=None, distance=euclidean_distance) -> np.ndarray:
+    """Order (n,) visiting configurations q (n, N) rad greedily, each time the nearest one left,
+    from `start` (N,) rad (default: the first configuration); a tie goes to the lower row.
+    distance(q (m, N), point (N,)) -> (m,) rad: Euclidean by default (the planner's tours);
+    `planning.joint_tour` passes the largest joint motion."""
     q = np.asarray(q, dtype=float)
     if len(q) == 0:
         return np.zeros(0, dtype=int)
@@ -197,7 +204,7 @@ def nearest_neighbour_tour(q, start=None) -> np.ndarray:
     current = q[0] if start is None else np.asarray(start, dtype=float)
     order = []
     while remaining:
-        distances = np.linalg.norm(q[remaining] - current, axis=1)
+        distances = distance(q[remaining], current)
         nearest = remaining.pop(int(np.argmin(distances)))
         order.append(nearest)
         current = q[nearest]
