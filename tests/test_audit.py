@@ -3,6 +3,8 @@
 import remaster
 from remaster import audit, provenance
 
+from .conftest import REPO
+
 
 def test_folder_digest_sees_every_file_and_name():
     files = {"campaign.yaml": audit.sha256(b"name: a"), "lt.parquet": audit.sha256(b"123")}
@@ -36,3 +38,31 @@ def test_the_code_is_identified_by_the_content_of_the_package_that_ran(tmp_path)
     )
     assert record["remaster_version"] == remaster.__version__
     assert provenance.git_commit(tmp_path) is None
+
+
+def test_inputs_from_outside_the_campaign_folder_are_listed_in_the_audit_and_the_certificate(tmp_path):
+    """A shared URDF named by a path outside the folder and a Parquet file that is a symbolic link
+    to a file elsewhere are read, and named: in the campaign's summary (whose heading line the
+    certificate prints) and the audit record; a campaign whose files all live in it names none."""
+    import shutil
+
+    from remaster import audit
+    from remaster.campaigns import folders
+
+    source = REPO / "data" / "raw" / "jacobi-ur5-gts3800"
+    inside = tmp_path / "jacobi-ur5-gts3800"
+    shutil.copytree(source, inside)
+    assert folders.outside_inputs(inside, REPO) == []
+    elsewhere = tmp_path / "store"
+    elsewhere.mkdir()
+    (inside / "laser_tracker.parquet").rename(elsewhere / "tracker.parquet")
+    (inside / "laser_tracker.parquet").symlink_to(elsewhere / "tracker.parquet")
+    outside = folders.outside_inputs(inside, REPO)
+    assert outside == [f"laser_tracker.parquet -> {(elsewhere / 'tracker.parquet').resolve()}"]
+    summary = folders.summarize_folder(inside)
+    assert summary["inputs_outside_the_folder"] == outside
+    record = audit.audit_record({"c": {}}, {}, {}, outside={"c": outside})
+    assert record["campaigns"]["c"]["inputs_outside_the_folder"] == outside
+    # the bundled twin reads the shared iiwa URDF from data/robots/
+    twin = folders.outside_inputs(REPO / "data" / "raw" / "kuka-twin", REPO)
+    assert twin == [f"kuka_iiwa14.urdf -> {(REPO / 'data' / 'robots' / 'kuka_iiwa14.urdf').resolve()}"]

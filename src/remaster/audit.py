@@ -38,11 +38,13 @@ def audit_record(
     config: dict,
     code: dict[str, str] | None = None,
     git: dict | None = None,
+    outside: dict[str, list[str]] | None = None,
 ) -> dict:
     """campaigns: campaign -> {file name: SHA-256} (its folder's files and the robot description
     it refers to); results: campaign -> {result path: SHA-256}; config: the workflow configuration
     as used; code: {package file: SHA-256} of the remaster package that ran; git: {'commit',
-    'dirty'} of the checkout, if any. JSON-ready."""
+    'dirty'} of the checkout, if any; outside: campaign -> its input files that resolve outside its
+    folder (`folders.outside_inputs`). JSON-ready."""
     return {
         "remaster_version": __version__,
         "code": {"package_sha256": folder_digest(code or {}), "package_files": len(code or {}), "git": git},
@@ -55,6 +57,7 @@ def audit_record(
                 "content_sha256": folder_digest(files),
                 "files": dict(sorted(files.items())),
                 "results": dict(sorted(results.get(name, {}).items())),
+                "inputs_outside_the_folder": list((outside or {}).get(name, [])),
             }
             for name, files in sorted(campaigns.items())
         },

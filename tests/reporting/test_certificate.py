@@ -438,3 +438,12 @@ def test_a_joint_held_as_not_determined_says_so_in_its_corrections():
     assert np.isnan(held["Correction (deg)"]).all()
     plain = certificate.certificate(SUMMARY, {"laser_tracker": inputs}).corrections.iloc[1]
     assert plain["Status"] != f"held: {reason}"
+
+
+def test_the_certificate_names_the_inputs_read_from_outside_the_campaign_folder():
+    outside = ["kuka_iiwa14.urdf -> /data/robots/kuka_iiwa14.urdf"]
+    cert = certificate.certificate({**SUMMARY, "inputs_outside_the_folder": outside}, {"laser_tracker": _inputs()})
+    line = next(h for h in cert.heading if h.startswith("Read from outside the campaign folder"))
+    assert line.endswith("this certificate): kuka_iiwa14.urdf -> /data/robots/kuka_iiwa14.urdf.")
+    plain = certificate.certificate(SUMMARY, {"laser_tracker": _inputs()})
+    assert not any("outside the campaign folder" in h for h in plain.heading)

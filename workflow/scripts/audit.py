@@ -12,15 +12,14 @@ snakemake: Snakemake = globals()["snakemake"]
 
 with files.log_to(snakemake.log[0]):
     p = snakemake.params
+    campaigns = folders.campaign_folders(snakemake.input.campaigns)
     record = audit.audit_record(
         # the digests `remaster predict` and `compensate` compute again to check a campaign is unchanged
-        {
-            c: folders.campaign_digests(folder)
-            for c, folder in folders.campaign_folders(snakemake.input.campaigns).items()
-        },
+        {c: folders.campaign_digests(folder) for c, folder in campaigns.items()},
         {c: provenance.file_digests(paths) for c, paths in p.results.items()},
         dict(p.config),
         provenance.package_digests(),
         provenance.git_commit(),
+        {c: folders.outside_inputs(folder) for c, folder in campaigns.items()},
     )
     files.write_json(snakemake.output.audit, record)

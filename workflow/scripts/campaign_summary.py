@@ -3,13 +3,15 @@
 from snakemake.iocontainers import Snakemake
 
 from remaster import files
-from remaster.campaigns import campaign, folders
+from remaster.campaigns import folders
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
 snakemake: Snakemake = globals()["snakemake"]
 
 with files.log_to(snakemake.log[0]):
-    data = folders.read_campaign(folders.campaign_folder(snakemake.input.campaign))
     p = snakemake.params
-    files.write_json(snakemake.output.summary, campaign.summarize(data, p.memory_limit, p.draws, p.fit_rows))
+    summary = folders.summarize_folder(
+        folders.campaign_folder(snakemake.input.campaign), p.memory_limit, p.draws, p.fit_rows
+    )
+    files.write_json(snakemake.output.summary, summary)

@@ -27,6 +27,7 @@ from .campaign import (
     SENSOR_NAME_PATTERN,
     Campaign,
     sensor_data,
+    summarize,
     validate_metadata,
 )
 from .robot_model import load_chain, robot_files
@@ -59,6 +60,29 @@ def campaign_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path
     folder = Path(folder)
     inside = [folder / CAMPAIGN_FILE, *sorted(folder.glob("*.parquet")), *sorted(folder.glob("*.urdf"))]
     return inside + robot_files(folder, repo_root)
+
+
+def outside_inputs(folder: str | Path, repo_root: str | Path = ".") -> list[str]:
+    """The campaign's input files (`campaign_files`) that resolve outside its folder: a shared robot
+    description named by a relative or absolute path, a symbolic link to a file elsewhere; each as
+    `<name in the campaign> -> <resolved path>`. The audit hashes them like the others; a reader of
+    the certificate learns that the campaign alone does not reproduce its results."""
+    home = Path(folder).resolve()
+    out = []
+    for path in campaign_files(folder, repo_root):
+        target = Path(path).resolve()
+        if home not in target.parents:
+            out.append(f"{Path(path).name} -> {target}")
+    return out
+
+
+def summarize_folder(
+    folder: str | Path, memory_limit: float | None = None, draws: int = 2000, fit_rows: int = 0
+) -> dict:
+    """`campaign.summarize` of the campaign read from `folder`, with the inputs it reads from outside
+    the folder (`outside_inputs`, under `inputs_outside_the_folder`)."""
+    summary = summarize(read_campaign(folder), memory_limit, draws, fit_rows)
+    return {**summary, "inputs_outside_the_folder": outside_inputs(folder)}
 
 
 def campaign_digests(folder: str | Path, repo_root: str | Path = ".") -> dict[str, str]:

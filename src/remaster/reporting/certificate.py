@@ -647,6 +647,12 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         + ", ".join(f"{sensor_label(s)} ({info['kind']})" for s, info in summary["sensors"].items())
         + "."
     ]
+    outside = summary.get("inputs_outside_the_folder") or []
+    if outside:
+        heading.append(
+            "Read from outside the campaign folder (hashed in audit.json; the folder alone does not reproduce "
+            f"this certificate): {'; '.join(outside)}."
+        )
     accuracy, corrections, verdicts, warnings, brief, details = [], [], [], [], [], []
     for sensor, inputs in per_sensor.items():
         laplace = inputs.laplace
