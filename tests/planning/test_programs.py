@@ -16,7 +16,7 @@ import pytest
 from remaster import cli, files
 from remaster.campaigns import folders
 from remaster.errors import InputError
-from remaster.planning import joint_tour, programs
+from remaster.planning import joint_tour, krl_grammar, programs
 from remaster.robot import kinematics
 
 from ..conftest import IIWA_URDF, UR5_URDF
@@ -57,6 +57,8 @@ def test_each_format_reads_back_to_the_joint_values_and_order(fmt, robot, ur5, i
     given = programs.configurations(table_of(q), chain, "plan.csv", "robot.urdf")
     ordered = given.take(rng.permutation(len(q)))
     text = programs.program_text(ordered, fmt, SETTINGS[fmt])
+    if fmt == "krl":  # a grammar that is not the reader below accepts it
+        assert krl_grammar.check_krl(text, SETTINGS[fmt].name, "prog") == 40
     parsed = programs.parse_program(text, fmt, "prog")
     assert parsed.points.tolist() == list(range(1, 41))
     assert np.array_equal(parsed.plan_rows, ordered.rows)
@@ -86,6 +88,7 @@ def test_a_known_configuration_is_printed_as_known_strings(ur5, iiwa):
     krl7 = programs.program_text(seven, "krl", SETTINGS["krl"]).splitlines()
     assert "  PTP {A1 10.0000, A2 20.0000, A3 40.0000, A4 50.0000, A5 60.0000, A6 -70.0000, E1 30.0000}" in krl7
     assert "  $VEL_EXTAX[1] = 20" in krl7
+    assert krl_grammar.check_krl("\n".join(krl), "cell3") == krl_grammar.check_krl("\n".join(krl7)) == 1
     rapid = programs.program_text(seven, "rapid", SETTINGS["rapid"]).splitlines()
     assert (
         "    MoveAbsJ [[10.0000, 20.0000, 40.0000, 50.0000, 60.0000, -70.0000], [30.0000, 9E9, 9E9, 9E9, 9E9, 9E9]]"
@@ -118,6 +121,65 @@ def test_rapid_programs_pass_a_rapid_checker_the_project_did_not_write(robot, re
     }
     for what, text in broken.items():
         assert check_file(text), what
+
+
+GOOD_KRL = (
+    "&ACCESS RVP\nDEF cell3()\n; a comment\n  $VEL_AXIS[1] = 20\n  $ACC_EXTAX[1] = 20\n  ; point 1: plan row 0\n"
+    "  PTP {A1 0.0000, A2 90.0000, A3 -45.0000, A4 180.0000, A5 57.2958, A6 -28.6479}\n  WAIT SEC 1.5\nEND\n"
+)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda t: t.replace("\nEND\n", "\nENDX\n"), r"cell3.src: line 9: not a statement remaster's KRL has: 'ENDX'"),
+        (
+            lambda t: t.replace("\nEND\n", "\n"),
+            r"cell3.src: line 8: the program ends without the END of DEF cell3\(\) \(line 2\)",
+        ),
+        (lambda t: t.replace("-28.6479}", "-28.6479"), r"cell3.src: line 7: unbalanced braces: 'PTP \{A1 0.0000, "),
+        (lambda t: t.replace("A6 -28", "A7 -28"), r"cell3.src: line 7: unknown axis 'A7': one of A1, A2, .*, E1"),
+        (lambda t: t.replace("A5 57.2958", "A5 57,2958"), r"cell3.src: line 7: not an axis and its value: '2958'"),
+        (lambda t: t.replace("A5 57.2958", "A5 5x7"), r"cell3.src: line 7: the value of A5 is not a number: '5x7'"),
+        (lambda t: t.replace("SEC 1.5", "SEC"), r"cell3.src: line 8: not a statement remaster's KRL has: 'WAIT SEC'"),
+        (lambda t: t.replace("= 20\n", "= fast\n", 1), r"cell3.src: line 4: \$VEL_AXIS\[1\] is not a number: 'fast'"),
+        (lambda t: t.replace("A2 90.0000, ", ""), r"cell3.src: line 7: .* every robot axis: A2 missing"),
+        (lambda t: t.replace("DEF cell3", "DEF cell4"), r"cell3.src: line 2: DEF cell4\(\) in a program named 'cell3'"),
+        (lambda t: t + "HALT\n", r"cell3.src: line 10: after the END of DEF cell3\(\): 'HALT'"),
+        (lambda t: t.replace("&ACCESS RVP\n", "PTP {A1 0}\n"), r"cell3.src: line 1: expected DEF <name>\(\)"),
+        (lambda t: "; nothing\n", r"cell3.src: no DEF <name>\(\) line: not a KRL program"),
+    ],
+    ids=[
+        "ENDX",
+        "no-END",
+        "brace",
+        "axis",
+        "comma",
+        "number",
+        "wait",
+        "variable",
+        "A2",
+        "name",
+        "after",
+        "before",
+        "empty",
+    ],  # fmt: skip
+)
+def test_a_krl_program_outside_the_grammar_is_refused_naming_its_line(change, message):
+    """krl_grammar accepts what `remaster program` writes and refuses, naming the line, each of
+    these broken copies, which remaster's own reader (parse_program) would read or skip."""
+    assert krl_grammar.check_krl(GOOD_KRL, "cell3", "cell3.src") == 1
+    assert krl_grammar.check_krl(GOOD_KRL.lower(), "CELL3") == 1  # KRL's keywords and names are in any case
+    with pytest.raises(InputError, match=message):
+        krl_grammar.check_krl(change(GOOD_KRL), "cell3", "cell3.src")
+
+
+def test_a_writer_regression_is_caught_by_the_grammar_before_the_program_is_returned(ur5, monkeypatch):
+    six = programs.configurations(table_of(np.zeros(6)), ur5, "p.csv", "u")
+    writer = programs.WRITERS["krl"]
+    monkeypatch.setitem(programs.WRITERS, "krl", lambda c, s, h: writer(c, s, h)[:-1] + ["ENDX"])
+    with pytest.raises(RuntimeError, match=r"outside its own grammar \(a bug\): cell3.src: line \d+: .*'ENDX'"):
+        programs.program_text(six, "krl", programs.Settings(20, 20, 2, "cell3"))
 
 
 def test_formats_and_settings_the_robot_cannot_take_are_refused(ur5, iiwa):
@@ -245,6 +307,7 @@ def test_a_plan_becomes_a_program_and_its_table_a_campaign(tmp_path, iiwa, capsy
     planned = pd.read_csv(plan)
     names = [f"q{j}" for j in range(1, 8)]
     parsed = programs.parse_program(out.read_text(), "krl", str(out))
+    assert krl_grammar.check_krl(out.read_text(), out.stem, str(out)) == len(planned)
     assert sorted(parsed.plan_rows.tolist()) == list(range(len(planned)))  # every row once
     np.testing.assert_allclose(parsed.q, planned[names].to_numpy()[parsed.plan_rows], rtol=0, atol=HALF_UNIT["krl"])
     assert "DEF cell3()" in out.read_text() and "WAIT SEC 3" in out.read_text()
@@ -403,7 +466,7 @@ def test_the_iso9283_pose_test_is_planned_and_programmed_in_its_cycles(tmp_path,
     out = tmp_path / "iso_test.src"
     assert cli.main(program_args("iiwa", plan, "krl", out, "--order", "as-given")) == 0
     parsed = programs.parse_program(out.read_text(), "krl", str(out))
-    assert parsed.plan_rows.tolist() == list(range(150))
+    assert parsed.plan_rows.tolist() == list(range(150)) and krl_grammar.check_krl(out.read_text(), "iso_test") == 150
     assert cli.main(["plan", "--urdf", str(urdf), "--base", base, "--flange", flange, "--sensor-origin", "1.6",
                      "0.5", "1.0", "--objective", "iso9283", "--cube-centre", "2.6", "0", "0.5", "--cube-edge",
                      "0.2", "--out", str(tmp_path / "far.csv")]) == 2  # fmt: skip

@@ -17,7 +17,8 @@ The formats, and how their joints are written:
   maximum ($VEL_AXIS, $ACC_AXIS), `PTP {A1 .., ..., A6 ..}` then `WAIT SEC <s>`; joints in deg,
   `DEG_DECIMALS` decimals. A 7-axis arm's redundant joint (the third from the base, as on KUKA's
   LBR 4+, the LWR IV+, under a KR C controller) is the external axis E1: q1, q2 -> A1, A2; q3 -> E1; q4..q7 ->
-  A3..A6. No .dat is needed: the module declares nothing.
+  A3..A6. No .dat is needed: the module declares nothing. Every KRL program written is checked
+  against `krl_grammar`, a strict grammar of this subset, before it is returned.
 - rapid: `MODULE <name>` ... `PROC main()` ... `ENDPROC` ... `ENDMODULE`, `VelSet`/`AccSet` in %,
   `MoveAbsJ [[j1..j6],[eax_a..eax_f]]\\NoEOffs, v1000, fine, tool0;` then `WaitTime \\InPos, <s>;`;
   joints in deg, `DEG_DECIMALS` decimals, 9E9 for an axis not used. A 7-axis arm's third joint
@@ -44,6 +45,7 @@ import pandas as pd
 from ..errors import InputError, quoted, require_columns
 from ..robot.kinematics import KinematicChain
 from .joint_tour import joint_tour
+from .krl_grammar import check_krl
 
 FORMATS = ("urscript", "krl", "rapid")
 SETS = ("optimization", "validation")
@@ -288,7 +290,13 @@ def program_text(c: Configurations, fmt: str, settings: Settings, header=()) -> 
         "check this program on the robot's simulator before running it: no collision check beyond the "
         "planner's capsule model",
     ]
-    return "\n".join(WRITERS[fmt](c, settings, header)) + "\n"
+    text = "\n".join(WRITERS[fmt](c, settings, header)) + "\n"
+    if fmt == "krl":  # a self-check against a grammar that is not the reader below
+        try:
+            check_krl(text, settings.name, f"{settings.name}.src")
+        except InputError as error:
+            raise RuntimeError(f"remaster wrote KRL outside its own grammar (a bug): {error}") from error
+    return text
 
 
 def controller_table(c: Configurations, fmt: str) -> pd.DataFrame:
