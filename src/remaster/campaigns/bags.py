@@ -27,6 +27,12 @@ from ..errors import InputError, listed
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 ROS2_ENCODING = ("cdr", "ros2msg")  # rosbag2's message and schema encodings
+try:  # zstd chunks (rosbag2's default compression): its errors are no OSError or ValueError
+    from zstandard import ZstdError
+
+    _DECOMPRESSORS: tuple[type[Exception], ...] = (ZstdError,)
+except ImportError:  # the reader refuses a zstd chunk then (UnsupportedCompressionError, an McapError)
+    _DECOMPRESSORS = ()
 # what a damaged or foreign file raises inside the readers (their decompressors included; OSError: a
 # seek before the start of a file too short for an MCAP footer)
 _UNREADABLE = (
@@ -40,6 +46,7 @@ _UNREADABLE = (
     RuntimeError,
     MemoryError,
     ArithmeticError,
+    *_DECOMPRESSORS,
 )
 
 
