@@ -10,6 +10,7 @@ message type on it, a message that cannot be decoded, no message at all.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import struct
 import zlib
@@ -166,6 +167,36 @@ def _check_summary_crc(stream: IO[bytes], footer: Footer) -> None:
         raise CRCValidationError(expected=footer.summary_crc, actual=crc, record=footer)
 
 
+def _decode(
+    channels: Mapping[int, tuple[Channel, Schema | None]], messages: list, topic: str, source: str
+) -> list[JointState]:
+    """The JointStates of `messages` [(channel id, Message)] in log-time order. The schema and the
+    messages are a damaged bag's when their CRCs were 0 (not written): the ROS 2 decoder (a vendored
+    rosidl parser, then CDR) raises any exception then, each an InputError naming the bag, the
+    topic and the message."""
+    factory = DecoderFactory()
+    decoders = {}
+    for i, (channel, schema) in channels.items():
+        if channel.topic == topic:
+            try:
+                decoders[i] = factory.decoder_for(channel.message_encoding, schema)
+            except Exception as exc:  # noqa: BLE001 - any failure of a third-party parser on bad bytes
+                raise InputError(
+                    f"its {JOINT_STATE} schema does not parse: {type(exc).__name__}: {exc}", file=source, key=topic
+                ) from None
+    states: list[JointState] = []
+    for channel_id, message in sorted(messages, key=lambda m: m[1].log_time):
+        try:
+            states.append(_joint_state(len(states) + 1, message.log_time, decoders[channel_id](message.data)))
+        except Exception as exc:  # noqa: BLE001 - as above
+            raise InputError(
+                f"message {len(states) + 1} does not decode as {JOINT_STATE}: {type(exc).__name__}: {exc}",
+                file=source,
+                key=topic,
+            ) from None
+    return states
+
+
 def read_joint_states(stream: IO[bytes], topic: str, source: str) -> list[JointState]:
     """The JointState messages on `topic` of the MCAP bag in `stream` (binary, seekable or not), in
     log-time order (file order among equal times). The whole bag is read once with its CRCs
@@ -174,16 +205,11 @@ def read_joint_states(stream: IO[bytes], topic: str, source: str) -> list[JointS
     CRC that does not match, a record that does not parse, a message that does not decode: with
     its index on the topic), the topic absent (the message lists the bag's topics and their types),
     another type on it, no message on it."""
-    states: list[JointState] = []
-    decoding = False
     try:
         channels, messages, _ = _read_through(stream, topic)
         _check_topic(channels, topic, source)
-        decoding = True
-        factory = DecoderFactory()
-        decoders = {i: factory.decoder_for(c.message_encoding, s) for i, (c, s) in channels.items() if c.topic == topic}
-        for channel_id, message in sorted(messages, key=lambda m: m[1].log_time):
-            states.append(_joint_state(len(states) + 1, message.log_time, decoders[channel_id](message.data)))
+        with contextlib.redirect_stderr(io.StringIO()):  # the schema parser prints what it cannot parse
+            states = _decode(channels, messages, topic, source)
     except InputError:
         raise
     except CRCValidationError as exc:
@@ -194,10 +220,9 @@ def read_joint_states(stream: IO[bytes], topic: str, source: str) -> list[JointS
             file=source,
         ) from None
     except _UNREADABLE as exc:
-        where = f" (decoding message {len(states) + 1} on {topic})" if decoding else ""
         detail = str(exc) or f"{type(exc).__name__} (empty, or cut off)"
         raise InputError(
-            f"not a readable MCAP file{where}: {type(exc).__name__}: {detail} "
+            f"not a readable MCAP file: {type(exc).__name__}: {detail} "
             "(a bag cut off while recording: `mcap recover` repairs it)",
             file=source,
         ) from None
