@@ -1,7 +1,7 @@
 """Randomly damaged copies of a valid ROS 2 bag, read as `remaster import` reads one.
 
 The bag: 10 sensor_msgs/msg/JointState messages on /joint_states and a std_msgs/msg/String on
-/rosout after each (tests/campaigns/test_import_bag.py's `bag_bytes`), its chunks uncompressed or
+/rosout after each (`bag_bytes`, as tests/campaigns/test_import_bag.py writes them), its chunks uncompressed or
 zstd (rosbag2's default), written with CRCs (chunks and summary; mcap's writers leave the data
 section's 0) or without. Each copy is damaged by `damaged`: 1 to 3 bytes flipped, cut off at a
 random point, or a random range of 1 to 64 bytes zeroed. Per kind of bag, the counts of copies
@@ -28,10 +28,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from mcap.writer import CompressionType  # noqa: E402
+from mcap_ros2.writer import Writer  # noqa: E402
 
 from remaster.campaigns import bags  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
-from tests.campaigns.test_import_bag import bag_bytes, damaged  # noqa: E402
 
 KINDS = {
     "uncompressed, CRCs": (CompressionType.NONE, True),
@@ -40,7 +40,53 @@ KINDS = {
     "zstd, no CRC": (CompressionType.ZSTD, False),
 }
 SEED = 7
+JOINT_STATE = "sensor_msgs/msg/JointState"
+JOINT_STATE_MSGDEF = (
+    "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n"
+    + "=" * 80
+    + "\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    + "=" * 80
+    + "\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+)
 OUT = REPO / "benchmarks" / "results" / "damaged_bags.json"
+
+
+def bag_bytes(q: np.ndarray, compression: CompressionType, crcs: bool) -> bytes:
+    """A bag of a joint state (7 joints, 1 s apart) per row of q (n, 7) rad."""
+    stream = io.BytesIO()
+    writer = Writer(stream, compression=compression, enable_crcs=crcs)
+    schema = writer.register_msgdef(JOINT_STATE, JOINT_STATE_MSGDEF)
+    text = writer.register_msgdef("std_msgs/msg/String", "string data\n")
+    for i, row in enumerate(q):
+        stamp = 1_714_644_000_000_000_000 + i * 1_000_000_000
+        message = {
+            "header": {"stamp": {"sec": stamp // 10**9, "nanosec": 0}, "frame_id": ""},
+            "name": [f"joint_a{j + 1}" for j in range(len(row))],
+            "position": [float(p) for p in row],
+            "velocity": [],
+            "effort": [],
+        }
+        writer.write_message("/joint_states", schema, message, log_time=stamp)
+        writer.write_message("/rosout", text, {"data": "moving"}, log_time=stamp + 1)
+    writer.finish()
+    return stream.getvalue()
+
+
+def damaged(data: bytes, rng) -> bytes:
+    """A randomly damaged copy of `data`: 1 to 3 bytes flipped, cut off at a random point, or a
+    random range of 1 to 64 bytes zeroed (in turn, by rng)."""
+    out = bytearray(data)
+    kind = rng.integers(3)
+    if kind == 0:
+        for at in rng.integers(0, len(out), rng.integers(1, 4)):
+            out[at] ^= int(rng.integers(1, 256))
+        return bytes(out)
+    if kind == 1:
+        return bytes(out[: rng.integers(0, len(out))])
+    start = int(rng.integers(0, len(out)))
+    stop = min(len(out), start + int(rng.integers(1, 65)))
+    out[start:stop] = bytes(stop - start)
+    return bytes(out)
 
 
 def run(copies: int) -> dict:

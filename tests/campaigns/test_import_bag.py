@@ -15,6 +15,7 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_ros2.writer import Writer
 
+from benchmarks.bench_damaged_bags import damaged
 from remaster import cli, files
 from remaster.campaigns import bags, folders, importer
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
@@ -366,23 +367,6 @@ def bag_bytes(q, compression=CompressionType.NONE, crcs=True) -> bytes:
         writer.write_message("/rosout", text, {"data": "moving"}, log_time=log_time + 1)
     writer.finish()
     return stream.getvalue()
-
-
-def damaged(data: bytes, rng) -> bytes:
-    """A randomly damaged copy of `data`: 1 to 3 bytes flipped, cut off at a random point, or a
-    random range of 1 to 64 bytes zeroed (in turn, by rng)."""
-    out = bytearray(data)
-    kind = rng.integers(3)
-    if kind == 0:
-        for at in rng.integers(0, len(out), rng.integers(1, 4)):
-            out[at] ^= int(rng.integers(1, 256))
-        return bytes(out)
-    if kind == 1:
-        return bytes(out[: rng.integers(0, len(out))])
-    start = int(rng.integers(0, len(out)))
-    stop = min(len(out), start + int(rng.integers(1, 65)))
-    out[start:stop] = bytes(stop - start)
-    return bytes(out)
 
 
 def test_one_float_changed_in_an_uncompressed_chunk_is_refused_by_its_crc(inputs, iiwa, rng, capsys, monkeypatch):
