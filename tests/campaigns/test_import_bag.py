@@ -4,12 +4,18 @@ export by time; every problem with the bag is an error naming it and what is wro
 
 from __future__ import annotations
 
+import collections
+import io
+import struct
+
 import numpy as np
 import pandas as pd
 import pytest
+from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_ros2.writer import Writer
 
+from benchmarks.bench_damaged_bags import damaged
 from remaster import cli, files
 from remaster.campaigns import bags, folders, importer
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
@@ -344,3 +350,73 @@ def test_importer_names_a_bags_rows_messages():
     export = importer.joint_state_export(states, spec, "j.mcap")
     assert export.cells["a"].tolist() == ["0.1", "0.2", "0.1"] and export.row_name == "message"
     assert str(export.fail("a", "bad", [0, 2])) == "j.mcap: a: bad on messages 1, 3: '0.1', '0.1'"
+
+
+# --------------------------------------------------------------------------- a damaged bag
+
+
+def bag_bytes(q, compression=CompressionType.NONE, crcs=True) -> bytes:
+    """The bytes of a bag of the joint states of q (`states`), its chunks compressed or not, with
+    or without the CRCs of its chunks and summary."""
+    stream = io.BytesIO()
+    writer = Writer(stream, compression=compression, enable_crcs=crcs)
+    schema = writer.register_msgdef(JOINT_STATE, JOINT_STATE_MSGDEF)
+    text = writer.register_msgdef("std_msgs/msg/String", "string data\n")
+    for log_time, message in states(q):
+        writer.write_message("/joint_states", schema, message, log_time=log_time)
+        writer.write_message("/rosout", text, {"data": "moving"}, log_time=log_time + 1)
+    writer.finish()
+    return stream.getvalue()
+
+
+def test_one_float_changed_in_an_uncompressed_chunk_is_refused_by_its_crc(inputs, iiwa, rng, capsys, monkeypatch):
+    q = rng.uniform(0.6 * iiwa.lower, 0.6 * iiwa.upper, (10, 7))
+    data = bag_bytes(q)
+    value = struct.pack("<d", q[4, 2])
+    assert data.count(value) == 1  # q3 of row 4, as CDR stores it (little-endian float64)
+    bag = inputs / "joints.mcap"
+    bag.write_bytes(data.replace(value, struct.pack("<d", q[4, 2] + 0.5)))
+    message = import_error(inputs)
+    assert message.startswith(f"{bag}: damaged: the CRC of its chunk at log times ")
+    assert "does not match its bytes" in message
+    monkeypatch.chdir(REPO)
+    config = write_config(inputs)
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(inputs / "raw")]) == 2
+    assert capsys.readouterr().err.startswith(f"remaster import: error: {bag}: damaged: the CRC of its chunk")
+    assert not (inputs / "raw" / "bag-cell").exists()
+
+
+def test_a_changed_summary_is_refused_by_its_crc(tmp_path):
+    data = bag_bytes(np.zeros((3, 7)))
+    at = data.index(b"/rosout", data.index(b"/rosout") + 1)  # the summary's copy of the channel
+    with pytest.raises(
+        InputError, match=r"^b\.mcap: damaged: the CRC of its summary section \(footer\) does not match"
+    ):
+        bags.read_joint_states(io.BytesIO(data[:at] + b"/rosin" + data[at + 6 :]), "/joint_states", "b.mcap")
+
+
+def test_a_bag_without_crcs_is_read_with_nothing_to_check(tmp_path):
+    q = np.random.default_rng(0).uniform(-1, 1, (4, 7))
+    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q, crcs=False)), "/joint_states")
+    assert checked == []
+    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q)), "/joint_states")
+    assert checked == ["chunks", "summary"]  # mcap's writers leave the data section's CRC 0 unless asked
+
+
+@pytest.mark.parametrize("compression", [CompressionType.NONE, CompressionType.ZSTD], ids=["none", "zstd"])
+def test_a_randomly_damaged_bag_is_read_right_or_refused_naming_it(compression):
+    q = np.random.default_rng(0).uniform(-1, 1, (10, 7))
+    data = bag_bytes(q, compression)
+    good = bags.read_joint_states(io.BytesIO(data), "/joint_states", "good.mcap")
+    rng = np.random.default_rng(2024)
+    outcomes = collections.Counter()
+    for _ in range(200):
+        try:
+            read = bags.read_joint_states(io.BytesIO(damaged(data, rng)), "/joint_states", "damaged.mcap")
+        except InputError as error:  # anything else fails the test
+            assert str(error).startswith("damaged.mcap: ")
+            outcomes["refused"] += 1
+        else:
+            assert read == good  # a byte nothing reads (padding, an index, a statistic)
+            outcomes["same"] += 1
+    assert outcomes["refused"] > 150
