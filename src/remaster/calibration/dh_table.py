@@ -110,8 +110,10 @@ def _nearest_table(rows, convention: str, flange, expected, configurations) -> n
     free[3] = False
     scale = np.tile([MM, DEG, MM, DEG], len(rows))[free]
     # Levenberg-Marquardt (MINPACK): the trust region's SVD of the whole Jacobian at every step made
-    # this the main job's slowest fit (a UR5 on its 1,000 configurations: 4.6 times the time, the
-    # same table to 2.3e-8)
+    # this the main job's slowest fit (the bundled UR5's loop model on its 1,000 configurations: 4.6
+    # times the time, the same table to 2.3e-8; benchmarks/bench_dh_table.py: 1.6-2.5 times). Where
+    # the rows have a direction the flange poses do not see, the two may end at different points of
+    # it that reproduce the calibrated model equally
     fit = scipy.optimize.least_squares(residual, rows.ravel()[free], x_scale=scale, method="lm")
     out = rows.copy()
     out.ravel()[free] = fit.x
