@@ -5,9 +5,11 @@ loop.urdf holds the loop-closed model's zero-offsets and link geometry and assum
 A tool that loads a URDF alone gets none of them, and the loop's zero-offsets were fitted with them
 in place: loop.urdf alone can be as far from the loop model as paper.urdf. rigid.urdf is the chain a
 URDF can hold (every joint origin in full, the zero-offsets) fitted by least squares to the
-loop-closed model's marker positions at configurations near the measured ones
-(`domain.MeasuredDomain`'s nearness), the marker at the loop's marker offset for every model (the
-marker is the user's tool, not the URDF's). The residual GP is not followed (its mean is not a
+loop-closed model at configurations near the measured ones (`domain.MeasuredDomain`'s nearness):
+at its marker, at the loop's marker offset for every model (the marker is the user's tool, not the
+URDF's), and at its flange's whole pose, through points spread around the flange
+(`flange_points`): fitted to the marker alone, the flange was free to tilt wherever a tilt absorbed
+what the chain cannot hold, and a tool off the marker paid for it. The residual GP is not followed (its mean is not a
 parametric effect), nor anything beyond the measured configurations. ik.urdf is the same fit with
 only the zero-offsets, the base and the tool free: the links between the joints keep their nominal
 geometry, so a closed-form inverse kinematics (IKFast, ur-analytic-ik: intersecting wrist axes)
@@ -15,7 +17,8 @@ stays exact on it, at the accuracy it states.
 
 How far each URDF is from the loop model (median, 95th percentile and largest distance, mm) is
 measured on a second, independent set of configurations near the measured ones, so the rigid fit is
-scored on configurations it was not fitted to. SI inside (m, rad).
+scored on configurations it was not fitted to: at the marker and at the campaign's tools
+(campaign.yaml's `tools`, else `DEFAULT_TOOLS`). SI inside (m, rad).
 """
 
 from __future__ import annotations
