@@ -278,7 +278,8 @@ def symptom_text(far: Mapping) -> str:
     """Why an estimate far beyond its prior is not kept as its effect (`beyond_prior`)."""
     return (
         f"a symptom, not this effect: {far['parameter']} at {far['prior_stds']:.3g} prior std (beyond "
-        f"{evidence.PRIOR_RANGE:g}, where its physical range puts 6e-7 of the prior's mass): it absorbs something else"
+        f"{evidence.PRIOR_RANGE:g}, where its prior, the effect's physical range, puts 6e-7 of its mass): "
+        "it absorbs something else the data hold"
     )
 
 
