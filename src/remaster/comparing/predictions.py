@@ -287,8 +287,9 @@ CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "transfer_loop": "Transfer heat-map, the loop closure's model: validation RMSE (mm), calibrated on (rows) "
     "against evaluated on (columns)",
     "prediction_drift": "Drift between consecutive campaigns of one robot and sensor kind as the change of "
-    "predicted marker position (robot frame, mm) over one fixed set of random configurations; "
-    "flagged where the mean change exceeds the 95th percentile of its posterior null.",
+    "predicted marker position (robot frame, mm) at configurations inside both campaigns' measured domains "
+    "(count); flagged where the mean change exceeds the 95th percentile of its posterior null; not compared "
+    "where the domains do not meet.",
     "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
     "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
 }
