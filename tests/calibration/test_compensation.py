@@ -282,6 +282,7 @@ def twin(model: str, tmp_path_factory):
     )
 
 
+@pytest.mark.slow  # the first of this file's tests to fit the twin's laser tracker (54 s in CI)
 def test_a_declared_model_error_is_in_every_bound(tmp_path_factory):
     """A loop that is not closed declares its residual per axis, d (`LoopReport.declared_model_error`),
     and predict's bound at a command then holds a draw of N(0, d^2 I3) besides the posterior's
