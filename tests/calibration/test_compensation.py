@@ -258,6 +258,13 @@ def test_the_command_line_refuses_bad_input_and_writes_nothing(tmp_path, capsys)
 # --------------------------------------------------------------------------- closed loop on the simulator
 
 
+@pytest.fixture(scope="module")
+def twin_fitted(tmp_path_factory):
+    """The twin's laser-tracker loop closure, fitted once (`test_workspace.fitted`) in the set-up of
+    the first test that needs it, not in its call (a test's call is held to the 60 s limit)."""
+    return fitted("kuka-twin", "laser_tracker", tmp_path_factory)
+
+
 def twin(model: str, tmp_path_factory):
     """The twin's laser-tracker calibration (fitted in-process, shared with test_workspace) and
     its true robot and sensor. The twin drifts: a calibration's zero-offsets are those of its drift
@@ -282,7 +289,7 @@ def twin(model: str, tmp_path_factory):
     )
 
 
-@pytest.mark.slow  # the first of this file's tests to fit the twin's laser tracker (54 s in CI)
+@pytest.mark.usefixtures("twin_fitted")
 def test_a_declared_model_error_is_in_every_bound(tmp_path_factory):
     """A loop that is not closed declares its residual per axis, d (`LoopReport.declared_model_error`),
     and predict's bound at a command then holds a draw of N(0, d^2 I3) besides the posterior's
@@ -327,6 +334,7 @@ def closed_loop(frame: str, tmp_path_factory):
     )
 
 
+@pytest.mark.usefixtures("twin_fitted")
 def test_compensated_commands_reach_the_twins_targets_on_its_true_robot(tmp_path_factory):
     """Targets where the nominal cell (nominal kinematics, the campaign's initial registration)
     puts them in the laser tracker's frame: the nominal commands miss by millimetres, the
@@ -338,6 +346,7 @@ def test_compensated_commands_reach_the_twins_targets_on_its_true_robot(tmp_path
     np.testing.assert_allclose(out["nominal_error_mm"] * MM, nominal_miss, rtol=0.05, atol=2 * noise)
 
 
+@pytest.mark.usefixtures("twin_fitted")
 def test_in_the_robot_frame_the_unseen_joint_1_zero_is_in_the_bound(tmp_path_factory):
     """In the robot frame the compensated commands miss by joint 1's true zero-offset (0.48 deg,
     which no sensor sees: the registration absorbs it) times the radius, and the 95 % bounds,
@@ -347,6 +356,7 @@ def test_in_the_robot_frame_the_unseen_joint_1_zero_is_in_the_bound(tmp_path_fac
     assert np.all(miss <= out["bound95_mm"].to_numpy() * MM)
 
 
+@pytest.mark.usefixtures("twin_fitted")
 def test_the_posterior_holds_the_true_errors_of_the_compensated_commands(tmp_path_factory):
     """One calibration is one realization: the true errors at all commands come from one parameter
     error, so the share of rows inside their own 95 % bound is not 95 % by promise (88 % here). What
