@@ -100,10 +100,11 @@ class Nearness:
         return self._nearest(np.atleast_2d(np.asarray(q, dtype=float)))
 
     def held_joints(self, width: float = HELD_WIDTH) -> dict[int, float]:
-        """{joint index: its value} of the joints the measured configurations never moved (readings
-        spanning less than `width` rad, wrapped about their first reading)."""
-        spread = np.abs(wrap_angle(self.measured - self.measured[:1]))
-        return {j: float(self.measured[0, j]) for j in range(self.measured.shape[1]) if spread[:, j].max() < width}
+        """{joint index: its value} of the joints the measured configurations never moved: readings
+        spanning less than `width` rad (as `evaluation.domain` holds a joint), taken about the first
+        reading so that a span across +-pi is not a turn."""
+        spread = np.ptp(wrap_angle(self.measured - self.measured[:1]), axis=0)
+        return {j: float(self.measured[0, j]) for j in range(self.measured.shape[1]) if spread[j] < width}
 
     def inside(self, q) -> np.ndarray:
         """Boolean (n,): within the data's spacing of a measured configuration."""
