@@ -124,6 +124,30 @@ def test_controller_offsets_carry_the_between_design_component():
     assert np.isnan(alone["u_between_deg"]) and alone["U_deg"] == pytest.approx(1.959964 * 0.03, rel=1e-6)
 
 
+def test_a_correction_whose_posterior_is_its_priors_is_not_determined_and_names_what_is():
+    """A loop-model zero-offset the data left at its prior (posterior std 0.9 of the prior's) is no
+    estimate: no std, no U, and its status says so with the combination the data determine."""
+    table = pd.DataFrame(
+        {
+            "parameter": ["zero_offsets.q1", "zero_offsets.q2"],
+            "mean": [0.3 * DEG, 0.1 * DEG],
+            "std": [0.01 * DEG, 0.45 * DEG],
+            "q2.5": [0.28 * DEG, -0.8 * DEG],
+            "q97.5": [0.32 * DEG, 1.0 * DEG],
+            "status": ["estimated", "estimated"],
+            "prior_dominated": [False, True],
+            "posterior_to_prior_std": [0.02, 0.9],
+            "determined_combination": ["", "+1*zero_offsets.q2 -1*link_geometry.L2.ry (std 0.01)"],
+        }
+    )
+    offsets = exports.controller_offsets(["a1", "a2"], table, "loop", NOT_COMPUTED).set_index("joint")
+    assert offsets.loc["a1", "status"] == "estimated" and offsets.loc["a1", "U_deg"] > 0
+    status = offsets.loc["a2", "status"]
+    assert status.startswith("not determined") and "0.90" in status and "link_geometry.L2.ry" in status
+    assert np.isnan(offsets.loc["a2", "std_deg"]) and np.isnan(offsets.loc["a2", "U_deg"])
+    assert offsets.loc["a2", "correction_deg"] == pytest.approx(0.1)
+
+
 def test_a_dh_robot_gets_a_urdf_of_its_own_that_pinocchio_reads_as_calibrated(ur5_dh, rng):
     values = random_values(ur5_dh, rng)
     xml, left = exports.calibrated_urdf(ur5_dh, values)

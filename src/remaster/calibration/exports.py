@@ -158,7 +158,7 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
                     "value": float(r["mean_display"]),
                     "unit": str(r["unit"]),
                     "std": None if pd.isna(r["std_display"]) else float(r["std_display"]),
-                    "status": str(r["status"]),
+                    "status": not_determined(r),
                 }
                 for _, r in part.iterrows()
             }
@@ -178,7 +178,8 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Ma
     for j, joint in enumerate(joint_names):
         name = f"zero_offsets.q{j + 1}"
         r = table.loc[name]
-        estimated = str(r["status"]) == "estimated"
+        status = not_determined(r)
+        estimated = status == "estimated"
         value = float(r["mean"])
         std = float(r["std"]) / DEG if estimated else np.nan
         if estimated and name in spread:
@@ -201,10 +202,23 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Ma
                 "U_deg": k * u_c,
                 "dof": dof,
                 "k": k,
-                "status": str(r["status"]),
+                "status": status,
             }
         )
     return pd.DataFrame(rows, columns=OFFSET_COLUMNS)
+
+
+def not_determined(row) -> str:
+    """A parameter row's status, "not determined" where it is estimated but its posterior is its
+    prior's (the loop refit's `prior_dominated`): a U the prior sets is no measurement, so the
+    correction carries no U and the status names what the data do determine."""
+    status = str(row["status"])
+    if status != "estimated" or not bool(row.get("prior_dominated", False)):
+        return status
+    ratio = float(row.get("posterior_to_prior_std", np.nan))
+    combination = str(row.get("determined_combination") or "")
+    determined = f"; the data determine {combination}" if combination else ""
+    return f"not determined: its posterior std is {ratio:.2f} of its prior's{determined}"
 
 
 @dataclass(frozen=True, eq=False)

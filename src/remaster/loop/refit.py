@@ -25,6 +25,9 @@ PROPOSAL_DOF_PER_PARAMETER = 4
 PROPOSAL_INFLATION = 1.1
 # posterior std / prior std above this: the data barely moved the parameter from its prior
 PRIOR_DOMINATED = 0.5
+# a parameter's weight in a determined combination below this share of the largest is left out
+COMBINATION_PART = 0.1
+COMBINATION_TERMS = 4  # at most this many parameters named beside the prior-dominated one
 
 
 MIN_WALKERS = 32  # the ensemble's walkers: at least this, and 2 P + 2 for P parameters
@@ -163,6 +166,10 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
         low, high = mean - metrics.Z95 * std, mean + metrics.Z95 * std
         source = "posterior mode + Laplace"
     free = {n: (m, s, lo, hi) for n, m, s, lo, hi in zip(names, mean, std, low, high)}
+    covariance = (
+        np.cov(samples[list(model.names)].to_numpy(), rowvar=False) if samples is not None else fitted.mode.covariance
+    )
+    covariance = np.atleast_2d(covariance)[: len(model.names), : len(model.names)]
     prior = dict(zip(model.names, model.prior_std))
     reasons = {
         **{n: "held: not identifiable" for n in model.fixed},
@@ -189,12 +196,47 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
                 "prior_std_display": tau / scale if np.isfinite(tau) else np.nan,
                 "posterior_to_prior_std": ratio,
                 "prior_dominated": bool(ratio > PRIOR_DOMINATED),
+                "determined_combination": (
+                    determined_combination(name, model.names, covariance, dict(zip(model.all_names, model.all_scale)))
+                    if ratio > PRIOR_DOMINATED
+                    else ""
+                ),
                 "status": "estimated" if name in free else reasons.get(name, "held"),
                 "unseen_by_data": fitted.reduction.dropped.get(name, ""),
                 "source": source,
             }
         )
     return pd.DataFrame(rows)
+
+
+def determined_combination(name: str, names, covariance, scale: dict) -> str:
+    """What the data determine of parameter `name` when its own posterior is its prior's: the
+    parameter less its best linear prediction from the others (the posterior's regression, from the
+    precision matrix: its std is the conditional one, 1 / sqrt(precision[i, i])), in `name`'s display
+    unit ("+1*name -0.93*other ... (std s)"); "" when `name` is correlated with nothing. names (P,),
+    covariance (P, P) SI of the free parameters, scale {name: display unit in SI}."""
+    names = list(names)
+    if name not in names or len(names) < 2:
+        return ""
+    i = names.index(name)
+    precision = np.linalg.pinv(np.asarray(covariance, dtype=float))
+    if not precision[i, i] > 0:
+        return ""
+    # name - sum_j b_j theta_j with b_j = -precision[i, j] / precision[i, i] (the row of the
+    # precision matrix, scaled); in display units the weight of theta_j / scale_j is -b_j scale_j / scale_i
+    weights = {
+        n: float(precision[i, j] / precision[i, i] * scale[n] / scale[name]) for j, n in enumerate(names) if j != i
+    }
+    largest = max(abs(w) for w in weights.values())
+    kept = sorted(
+        ((n, w) for n, w in weights.items() if abs(w) >= COMBINATION_PART * max(largest, 1.0)),
+        key=lambda item: -abs(item[1]),
+    )[:COMBINATION_TERMS]
+    if not kept:
+        return ""
+    std = 1.0 / np.sqrt(precision[i, i]) / scale[name]
+    terms = " ".join(f"{w:+.3g}*{n}" for n, w in kept)
+    return f"+1*{name} {terms} (std {std:.3g})"
 
 
 def zero_offset_shifts(before: pd.DataFrame, after: pd.DataFrame) -> list[dict]:
