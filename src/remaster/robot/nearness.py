@@ -35,6 +35,7 @@ from .kinematics import ForwardKinematics, KinematicChain
 
 SPACING_QUANTILE = 0.95  # the data's spacing: this quantile of the nearest-neighbour distances
 HELD_WIDTH = np.radians(0.01)  # rad: readings spanning less: the joint was held (a controller's jitter, not a motion)
+NO_LEVER = 1e-9  # m: a joint whose lever arm is below moves no marker (the marker on its axis, up to round-off)
 
 
 def lever_arms(chain: KinematicChain, q, marker) -> np.ndarray:
@@ -51,12 +52,13 @@ class _Metric:
     """The metric as a k-d tree's (scipy's cKDTree, L1, periodic): coordinate j is q_j r_j on a
     circle of length 2 pi r_j, so that the tree's periodic L1 distance is sum_j r_j |d_j|, d_j
     wrapped to [-pi, pi]; a `linear` joint's coordinate is q_j r_j on the line (a box of 0: not
-    periodic), a joint without a lever arm's is 0. The nearest measured configuration is then
-    found in log(m) per query, not by comparing with every one of m."""
+    periodic) unless its lever arm is below `NO_LEVER`; a joint without a lever arm's is 0. The
+    nearest measured configuration is then found in log(m) per query, not by comparing with every
+    one of m."""
 
     def __init__(self, lever: np.ndarray, linear: tuple[int, ...] = ()):
         self.lever = np.asarray(lever, dtype=float)
-        self.on_line = np.isin(np.arange(len(self.lever)), linear) & (self.lever > 0.0)
+        self.on_line = np.isin(np.arange(len(self.lever)), linear) & (self.lever > NO_LEVER)
         self.box = np.where(self.on_line, 0.0, np.where(self.lever > 0.0, 2.0 * np.pi * self.lever, 1.0))
 
     def coordinates(self, q: np.ndarray) -> np.ndarray:
