@@ -550,8 +550,6 @@ def test_a_command_beyond_the_data_is_not_determined_naming_the_joint_the_data_h
     """Measured configurations with joint 3 held at 0: a command near them is determined; one that
     turns joint 3 is not, and says which joint; one far in the others' joints says how far; a
     command not reached has no distance and is not determined."""
-    from remaster.robot.nearness import Nearness
-
     rng = np.random.default_rng(4)
     measured = rng.uniform(-1.0, 1.0, (60, 7))
     measured[:, 2] = 0.0
