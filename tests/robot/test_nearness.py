@@ -110,3 +110,16 @@ def test_a_joint_without_a_lever_arm_read_on_the_line_counts_no_turn(ur5_dh, rng
     turned = measured[:5] + [0, 0, 0, 0, 0, 2 * np.pi]
     np.testing.assert_allclose(near.distance(turned), 0.0, atol=1e-12)
     assert not near.turns(turned).any()
+
+
+def test_a_joints_range_on_the_circle_is_the_circle_less_its_widest_gap(rng):
+    """Readings straddling +-pi span the short arc across it, readings a turn apart are one, one
+    reading spans nothing, and readings spread over the circle span it less their widest gap."""
+    straddling = np.radians([[170.0], [-175.0], [179.0], [-170.0]])
+    start, arc = nearness.circle_arcs(straddling)
+    assert np.degrees(start[0]) == pytest.approx(170.0) and np.degrees(arc[0]) == pytest.approx(20.0)
+    np.testing.assert_allclose(nearness.circle_arcs(straddling + 2 * np.pi * np.array([[1], [-1], [0], [2]]))[1], arc)
+    assert nearness.circle_arcs([[5.0]])[1][0] == 0.0
+    spread = np.radians([[-100.0], [-40.0], [20.0], [150.0]])  # gaps 60, 60, 130 and 110 across +-180
+    start, arc = nearness.circle_arcs(spread)
+    assert np.degrees(start[0]) == pytest.approx(150.0) and np.degrees(arc[0]) == pytest.approx(230.0)

@@ -38,6 +38,21 @@ HELD_WIDTH = np.radians(0.01)  # rad: readings spanning less: the joint was held
 NO_LEVER = 1e-9  # m: a joint whose lever arm is below moves no marker (the marker on its axis, up to round-off)
 
 
+def circle_arcs(q) -> tuple[np.ndarray, np.ndarray]:
+    """(start (N,), arc (N,)) rad: per joint, the shortest arc of the circle that holds every
+    reading of q (m, N), m >= 1: from `start` (wrapped to (-pi, pi]) over `arc` in the positive
+    sense, 0 for one value, below 2 pi. It is the circle less the widest gap between neighbouring
+    readings: a joint's measured range taken on the circle, where readings one turn apart are one."""
+    wrapped = np.sort(wrap_angle(np.atleast_2d(np.asarray(q, dtype=float))), axis=0)
+    gaps = np.diff(
+        np.vstack([wrapped, wrapped[:1] + 2.0 * np.pi]), axis=0
+    )  # after each reading, the last's to the first
+    widest = gaps.argmax(axis=0)
+    joints = np.arange(wrapped.shape[1])
+    start = wrapped[(widest + 1) % len(wrapped), joints]
+    return start, 2.0 * np.pi - gaps[widest, joints]
+
+
 def lever_arms(chain: KinematicChain, q, marker) -> np.ndarray:
     """(N,) m: the largest distance from each joint's axis to the marker over configurations q (n, N)."""
     fk = ForwardKinematics(chain, np.atleast_2d(np.asarray(q, dtype=float)))
