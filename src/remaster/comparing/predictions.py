@@ -5,9 +5,10 @@ campaigns measured: at configurations inside both campaigns' measured domains (`
 drawn near each campaign's data and kept where they are near the other's, since elsewhere two
 calibrations differ by what their priors say, not by what the robot did; a pair whose domains do
 not meet is not compared (`status` says so). Nearness takes each joint on the circle (a campaign
-that read q1 one turn from the other's measured the same configurations), but the joints a model
-corrects in proportion to the reading (a joint scale), per model: there a turn is not measured. The agreement of one campaign's sensors is compared
-over the robot's one fixed set of random configurations.
+that read q1 one turn from the other's measured the same configurations) but, per model, the
+joints the model corrects in proportion to the reading (a joint scale): there a turn is not
+measured. The agreement of one campaign's sensors is compared over the robot's one fixed set of
+random configurations.
 
 Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
 d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q. Its null

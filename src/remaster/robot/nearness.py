@@ -2,10 +2,9 @@
 matters: how far the marker moves.
 
 The distance between two configurations q and q' is sum_j r_j |d_j|, d_j the difference of joint j
-and r_j its lever arm, the largest distance from joint j's axis to the
-marker over the measured configurations: to first order at most how far the marker moves when the
-joints move from q' to q (each joint moves it by at most r_j |d_j|, and the motions add at most
-in length). A configuration's distance to the data is its distance to the
+(below) and r_j its lever arm, the largest distance from joint j's axis to the marker over the
+measured configurations: to first order at most how far the marker moves when the joints move from
+q' to q (each joint moves it by at most r_j |d_j|, and the motions add at most in length). A configuration's distance to the data is its distance to the
 nearest measured configuration. It is *inside* when that distance is at most the data's own
 spacing, `radius`: the 95th percentile of each measured configuration's distance to its nearest
 other one (configurations of one pose, its IK solutions, count apart), so that a configuration
@@ -44,9 +43,8 @@ def circle_arcs(q) -> tuple[np.ndarray, np.ndarray]:
     sense, 0 for one value, below 2 pi. It is the circle less the widest gap between neighbouring
     readings: a joint's measured range taken on the circle, where readings one turn apart are one."""
     wrapped = np.sort(wrap_angle(np.atleast_2d(np.asarray(q, dtype=float))), axis=0)
-    gaps = np.diff(
-        np.vstack([wrapped, wrapped[:1] + 2.0 * np.pi]), axis=0
-    )  # after each reading, the last's to the first
+    # the gap after each reading, the last one's running on to the first reading a turn later
+    gaps = np.diff(np.vstack([wrapped, wrapped[:1] + 2.0 * np.pi]), axis=0)
     widest = gaps.argmax(axis=0)
     joints = np.arange(wrapped.shape[1])
     start = wrapped[(widest + 1) % len(wrapped), joints]
@@ -78,8 +76,9 @@ class _Metric:
 
     def coordinates(self, q: np.ndarray) -> np.ndarray:
         scaled = np.atleast_2d(q) * self.lever
-        circle = np.mod(scaled, np.where(self.on_line, 1.0, self.box))
-        circle = np.where(circle >= self.box, 0.0, circle)  # np.mod may round up to the box itself
+        periodic = np.where(self.on_line, 1.0, self.box)  # a linear joint's box of 0 would divide by 0
+        circle = np.mod(scaled, periodic)
+        circle = np.where(circle >= periodic, 0.0, circle)  # np.mod may round up to the box itself
         return np.where(self.on_line, scaled, circle)
 
 
