@@ -4,9 +4,9 @@ matters: how far the marker moves.
 The distance between two configurations q and q' is sum_j r_j |d_j|, d_j the difference of joint j
 (below) and r_j its lever arm, the largest distance from joint j's axis to the marker over the
 measured configurations: to first order at most how far the marker moves when the joints move from
-q' to q (each joint moves it by at most r_j |d_j|, and the motions add at most in length). A configuration's distance to the data is its distance to the
-nearest measured configuration. It is *inside* when that distance is at most the data's own
-spacing, `radius`: the 95th percentile of each measured configuration's distance to its nearest
+q' to q (each joint moves it by at most r_j |d_j|, and the motions add at most in length). A
+configuration's distance to the data is its distance to the nearest measured configuration. It is
+*inside* when that distance is at most the data's own spacing, `radius`: the 95th percentile of each measured configuration's distance to its nearest
 other one (configurations of one pose, its IK solutions, count apart), so that a configuration
 inside is as near to the data as the data are to each other.
 
