@@ -6,9 +6,10 @@ The distance between two configurations q and q' is sum_j r_j |d_j|, d_j the dif
 measured configurations: to first order at most how far the marker moves when the joints move from
 q' to q (each joint moves it by at most r_j |d_j|, and the motions add at most in length). A
 configuration's distance to the data is its distance to the nearest measured configuration. It is
-*inside* when that distance is at most the data's own spacing, `radius`: the 95th percentile of each measured configuration's distance to its nearest
-other one (configurations of one pose, its IK solutions, count apart), so that a configuration
-inside is as near to the data as the data are to each other.
+*inside* when that distance is at most the data's own spacing, `radius`: the 95th percentile of
+each measured configuration's distance to its nearest other one (configurations of one pose, its
+IK solutions, count apart), so that a configuration inside is as near to the data as the data are
+to each other.
 
 A revolute joint's difference is taken on the circle (wrapped to [-pi, pi]): the geometry, gravity's
 torque, a joint's cyclic error and the residual GP's kernel are periodic in each joint, so a reading
