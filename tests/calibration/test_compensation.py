@@ -25,6 +25,7 @@ from remaster.inference import blocks, fit
 from remaster.inference.model import SIGMA
 from remaster.results import check_made_from
 from remaster.robot import kinematics
+from remaster.robot.nearness import Nearness
 from remaster.units import DEG, MM
 
 from ..conftest import REPO
@@ -549,8 +550,6 @@ def test_a_command_beyond_the_data_is_not_determined_naming_the_joint_the_data_h
     """Measured configurations with joint 3 held at 0: a command near them is determined; one that
     turns joint 3 is not, and says which joint; one far in the others' joints says how far; a
     command not reached has no distance and is not determined."""
-    from remaster.robot.nearness import Nearness
-
     rng = np.random.default_rng(4)
     measured = rng.uniform(-1.0, 1.0, (60, 7))
     measured[:, 2] = 0.0
@@ -568,3 +567,47 @@ def test_a_command_beyond_the_data_is_not_determined_naming_the_joint_the_data_h
     )
     assert why[4] == "not determined: no configuration to compare (not reached)"
     assert table["near_data"].tolist()[:2] == [True, True] and not table["near_data"].iloc[3]
+
+
+def test_one_turn_away_a_joint_scale_model_is_not_determined_and_says_why(ur5_dh):
+    """Commands at the measured configurations with joint 1 read one turn away (as a UR reaches a
+    pose again): the zero-offset model puts the marker where it did and they are as determined
+    as before; a model with a joint scale on joint 1 corrects 2 pi s_1 more there, which nothing
+    measured: `predict` says they are not determined, naming joint 1, the turn and the joint scale."""
+    rng = np.random.default_rng(6)
+    measured = rng.uniform(-1.5, 1.5, (80, 6))
+    offsets = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.3 * DEG) for j in range(6)}
+    scale = 3e-4
+    models = {
+        "paper": prediction.Calibration("paper", offsets),
+        "loop": prediction.Calibration("loop", {**offsets, "joint_scale.q1": scale}, ("joint_scale",)),
+    }
+    q = measured[:4]
+    turned = q + [2 * np.pi, 0, 0, 0, 0, 0]
+    tables = {}
+    for name, calibration in models.items():
+        robot = compensation.CalibratedRobot(
+            ur5_dh,
+            calibration,
+            MARKER,
+            True,
+            {},
+            np.eye(4),
+            pd.DataFrame(),
+            {},
+            0.5 * DEG,
+            near=Nearness.of(ur5_dh, measured, MARKER, calibration.linear_joints),
+        )
+        tables[name] = [compensation.predict(robot, x, "robot", 10, np.random.default_rng(0)) for x in (q, turned)]
+    at, away = tables["paper"]
+    xyz = ["x", "y", "z"]
+    np.testing.assert_allclose(away[xyz].to_numpy(), at[xyz].to_numpy(), atol=1e-12)
+    assert at["determined"].all() and away["determined"].all()
+    at, away = tables["loop"]
+    moved = np.linalg.norm(away[xyz].to_numpy() - at[xyz].to_numpy(), axis=1)
+    reach = np.linalg.norm(at[["x", "y"]].to_numpy(), axis=1)  # from joint 1's axis, the base's z
+    np.testing.assert_allclose(moved, 2 * reach * np.sin(np.pi * scale), rtol=1e-9)  # joint 1 turned 2 pi s further
+    assert at["determined"].all() and not away["determined"].any() and not away["near_data"].any()
+    for why, angle in zip(away["not_determined_why"], np.degrees(turned[:, 0])):
+        assert why.startswith(f"not determined: q1 reads {angle:.4g} deg here, one turn from about")
+        assert "near on the circle only" in why and "joint scale" in why

@@ -242,3 +242,27 @@ def test_drift_is_compared_where_both_campaigns_measured_one_turn_apart_included
     row = drift.iloc[0]
     assert row["status"].startswith("not compared") and not row["flagged"] and np.isnan(row["mean_mm"])
     assert row["count"] < predictions.MIN_SHARED_CONFIGURATIONS
+
+
+def test_a_joint_scale_is_not_periodic_its_model_is_not_compared_one_turn_apart(iiwa, noisy):
+    """Campaign b read joint 1 one turn from a's readings. The zero-offset model is periodic in it:
+    its drift is compared there, as before. A loop model with a joint scale on joint 1 corrects in
+    proportion to the reading, so what b measured at q1 - 2 pi says nothing of it at q1: nearness
+    takes joint 1 on the line for that model, few configurations are shared, its drift is not compared."""
+    scaled = prediction.Calibration("loop", {**paper(OFFSETS).values, "joint_scale.q1": 3e-4}, ("joint_scale",))
+    models = {"paper": paper(OFFSETS), "loop": scaled}
+    table = noisy.table.copy()
+    table["q1"] -= 2 * np.pi
+    turned = [
+        entry(iiwa, "a", "2020-01-01", noisy, models),
+        entry(iiwa, "b", "2021-01-01", dataclasses.replace(noisy, table=table), models),
+    ]
+    on_circle = predictions.shared_configurations(*turned, 200, seed=3, model="paper")
+    on_line = predictions.shared_configurations(*turned, 200, seed=3, model="loop")
+    assert len(on_circle) > 0.8 * 200 and len(on_line) < predictions.MIN_SHARED_CONFIGURATIONS
+    np.testing.assert_array_equal(on_circle, predictions.shared_configurations(*turned, 200, seed=3))
+    drift = predictions.prediction_drift(turned, n_configurations=200, seed=3, draw_pairs=10).set_index("model")
+    assert drift.at["paper", "status"] == "no null: no posterior samples of A and B"
+    assert drift.at["paper", "count"] == len(on_circle) and drift.at["paper", "mean_mm"] == 0.0
+    assert drift.at["loop", "status"].startswith("not compared") and drift.at["loop", "count"] == len(on_line)
+    assert not drift["flagged"].any()

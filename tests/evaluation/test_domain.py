@@ -1,6 +1,8 @@
 """The measured domain: each joint's interval of readings, the held joints, where the claims hold,
 and the random configurations inside it."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,27 @@ def test_domain_configurations_lie_near_the_data_and_repeat(iiwa, rng):
     assert measured.nearness.inside(q).all()
     np.testing.assert_array_equal(q, measured.configurations("KUKA iiwa #1", 500, seed=7))
     assert not np.array_equal(q, measured.configurations("KUKA iiwa #2", 500, seed=7))
+
+
+def test_a_joint_whose_limits_span_turns_is_covered_on_the_circle(ur5_dh, rng):
+    """A UR's joints turn +-2 pi: readings one turn apart are one configuration, so each joint's
+    share of its range is of the circle. Joint 1 read over -308..-187 deg covers a third of the
+    circle whether read there or a turn up; joint 2 read at +-(170..180) deg covers 20 deg across
+    +-180 (not the 350 deg between its extremes); joints within limits of less than a turn keep
+    the interval's share of the limits."""
+    ur = dataclasses.replace(ur5_dh, lower=np.full(6, -2 * np.pi), upper=np.full(6, 2 * np.pi))
+    q = rng.uniform(-np.pi, np.pi, (300, 6))
+    q[:, 0] = rng.uniform(-308, -187, 300) * DEG
+    q[:2, 0] = [-308 * DEG, -187 * DEG]
+    q[:, 1] = rng.choice([-1, 1], 300) * rng.uniform(170, 180, 300) * DEG
+    q[:4, 1] = [-180 * DEG, -170 * DEG, 170 * DEG, 180 * DEG]
+    turned = q + [2 * np.pi, 0, 0, 0, 0, 0]
+    fractions = [domain.MeasuredDomain.of(ur, x, MARKER).range_fraction for x in (q, turned)]
+    np.testing.assert_allclose(fractions[0], fractions[1], rtol=1e-12)
+    np.testing.assert_allclose(fractions[0][:2], [121 / 360, 20 / 360], rtol=1e-9)
+    assert np.all((fractions[0][2:] > 0.95) & (fractions[0][2:] < 1.0))  # 300 readings over the circle: small gaps
+    limited = dataclasses.replace(ur, lower=np.full(6, -np.radians(170)), upper=np.full(6, np.radians(170)))
+    inside = np.clip(q, -np.radians(170), np.radians(170))
+    np.testing.assert_allclose(
+        domain.MeasuredDomain.of(limited, inside, MARKER).range_fraction, np.ptp(inside, axis=0) / np.radians(340)
+    )

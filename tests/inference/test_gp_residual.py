@@ -133,3 +133,27 @@ def test_joint_draws_have_the_marginals_and_move_together_where_readings_are_nea
     np.testing.assert_allclose(centred.T @ centred / 4000, exact, atol=0.1 * exact.diagonal().max())
     correlation = np.corrcoef(centred.T)
     assert correlation[0, 3] > 0.9 and abs(correlation[0, 1]) < 0.3
+
+
+def test_a_reading_one_turn_away_is_the_same_configuration_and_the_kernel_stays_positive_definite():
+    """The kernel is periodic in each joint: the mean, variance and draws at q + 2 pi k (any
+    joints, any turns) are those at q, while a quarter turn is a different configuration. Readings
+    straddling +-pi and readings a turn apart (as a UR's campaigns read them) keep the covariance
+    positive semi-definite: a periodic kernel, not a squared exponential of wrapped differences."""
+    rng = np.random.default_rng(11)
+    q = readings(rng, 200, -np.pi, np.pi)
+    y = smooth_residual(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    hyper = Hyperparameters(np.array([0.8, 0.5, np.inf, 0.7, 1.0, 1.0, 1.0]), 2e-4, NOISE)
+    gp = residual.ResidualGP(q, y, hyper)
+    at = readings(rng, 40, -np.pi, np.pi)
+    turns = rng.integers(-2, 3, at.shape) * 2 * np.pi
+    scale = np.sqrt(gp.variance(at).max())
+    np.testing.assert_allclose(gp.mean(at + turns), gp.mean(at), rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(gp.variance(at + turns), gp.variance(at), rtol=1e-9)
+    draws = [gp.draws(x, 5, np.random.default_rng(3)) for x in (at, at + turns)]
+    np.testing.assert_allclose(draws[1], draws[0], rtol=0, atol=1e-8 * scale)
+    quarter = at + [0, np.pi / 2, 0, 0, 0, 0, 0]  # a quarter turn of joint 2 flips sin(2 q2)
+    assert np.abs(gp.mean(quarter) - gp.mean(at)).max() > 10 * NOISE
+    straddling = np.concatenate([at, at + turns, np.full((5, 7), np.pi - 1e-3), np.full((5, 7), -np.pi + 1e-3)])
+    values = np.linalg.eigvalsh(kernel(straddling, straddling, hyper))
+    assert values.min() > -1e-12 * values.max()

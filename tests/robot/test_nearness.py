@@ -1,8 +1,9 @@
 """Nearness to the measured configurations, in how far the marker moves (`remaster.robot.nearness`):
 lever arms against a closed form, the distance against the marker's real motion, the spacing and
-the draws near the data."""
+the draws near the data, the circle of a revolute joint and the line of a joint read as such."""
 
 import numpy as np
+import pytest
 
 from remaster.robot import nearness
 from remaster.robot.kinematics import ForwardKinematics, chain_from_dh
@@ -72,3 +73,53 @@ def test_the_nearest_measured_configuration_is_the_brute_force_one(iiwa, rng):
     np.testing.assert_allclose(near._nearest(measured, exclude_self=True), own.min(axis=1), rtol=1e-12)
     # a command no configuration reaches (NaN angles) has no distance, and no error
     assert np.isnan(near.distance(np.full((2, 7), np.nan))).all()
+
+
+def test_one_turn_away_is_as_near_on_the_circle_and_far_for_a_joint_read_on_the_line(ur5_dh, rng):
+    """A reading one turn from a measured one (q1 + 2 pi, as a UR reaches a pose again) is the
+    measured configuration on the circle: the same distance, inside, no turn counted. A joint a
+    model corrects in proportion to its reading (`linear`) takes the readings' own difference: there
+    the same reading is 2 pi r_1 away and counted one turn, and the brute-force distance agrees."""
+    measured = rng.uniform(-1.5, 1.5, (200, 6))
+    queries = np.concatenate([measured[:10], rng.uniform(-1.5, 1.5, (20, 6))])
+    turned = queries + [2 * np.pi, 0, 0, 0, 0, 0]
+    circle = nearness.Nearness.of(ur5_dh, measured, MARKER)
+    np.testing.assert_allclose(circle.distance(turned), circle.distance(queries), rtol=1e-9, atol=1e-12)
+    assert circle.inside(turned[:10]).all() and not circle.turns(turned).any()
+
+    line = nearness.Nearness.of(ur5_dh, measured, MARKER, linear=(0,))
+    np.testing.assert_allclose(line.distance(queries[:10]), 0.0, atol=1e-12)
+    assert not line.inside(turned).any()
+    differences = turned[:, None, :] - measured[None]
+    differences[..., 1:] = (differences[..., 1:] + np.pi) % (2 * np.pi) - np.pi
+    np.testing.assert_allclose(line.distance(turned), (np.abs(differences) @ line.lever).min(axis=1), rtol=1e-9)
+    turns = line.turns(turned)
+    assert (turns[:10, 0] == 1).all() and not turns[:, 1:].any() and not line.turns(queries).any()
+    assert (line.turns(queries - [4 * np.pi, 0, 0, 0, 0, 0])[:10, 0] == -2).all()
+    # a joint read on the line is held or moved by its raw reading, a turn on the circle is no move
+    assert line.differences(turned[0], queries[0])[0] == pytest.approx(2 * np.pi)
+    assert circle.differences(turned[0], queries[0])[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_joint_without_a_lever_arm_read_on_the_line_counts_no_turn(ur5_dh, rng):
+    """The marker on joint 6's axis: joint 6 does not move it, so its reading, on the line or not,
+    neither makes a configuration far nor counts a turn."""
+    measured = rng.uniform(-1.5, 1.5, (100, 6))
+    near = nearness.Nearness.of(ur5_dh, measured, np.zeros(3), linear=(5,))
+    assert near.lever[5] == pytest.approx(0.0, abs=1e-12)
+    turned = measured[:5] + [0, 0, 0, 0, 0, 2 * np.pi]
+    np.testing.assert_allclose(near.distance(turned), 0.0, atol=1e-12)
+    assert not near.turns(turned).any()
+
+
+def test_a_joints_range_on_the_circle_is_the_circle_less_its_widest_gap(rng):
+    """Readings straddling +-pi span the short arc across it, readings a turn apart are one, one
+    reading spans nothing, and readings spread over the circle span it less their widest gap."""
+    straddling = np.radians([[170.0], [-175.0], [179.0], [-170.0]])
+    start, arc = nearness.circle_arcs(straddling)
+    assert np.degrees(start[0]) == pytest.approx(170.0) and np.degrees(arc[0]) == pytest.approx(20.0)
+    np.testing.assert_allclose(nearness.circle_arcs(straddling + 2 * np.pi * np.array([[1], [-1], [0], [2]]))[1], arc)
+    assert nearness.circle_arcs([[5.0]])[1][0] == 0.0
+    spread = np.radians([[-100.0], [-40.0], [20.0], [150.0]])  # gaps 60, 60, 130 and 110 across +-180
+    start, arc = nearness.circle_arcs(spread)
+    assert np.degrees(start[0]) == pytest.approx(150.0) and np.degrees(arc[0]) == pytest.approx(230.0)

@@ -66,7 +66,6 @@ from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
-from ..robot.ik import wrap_angle
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM
@@ -296,7 +295,12 @@ def calibrated_robot(
         tolerance,
         gp,
         absorbed,
-        Nearness.of(campaign.chain, campaign.sensors[sensor].fit_readings(laplace.outlier_rows), marker),
+        Nearness.of(
+            campaign.chain,
+            campaign.sensors[sensor].fit_readings(laplace.outlier_rows),
+            marker,
+            calibration.linear_joints,
+        ),
         loop.declared_model_error(model) or 0.0,
     )
 
@@ -389,37 +393,64 @@ def with_nearness(table: pd.DataFrame, near: Nearness | None, q) -> pd.DataFrame
     the bounds are claimed) and `determined` with `not_determined_why`, per command q (n, N):
     determined where near the data and no joint the data held (never moved) is moved by more
     than `HELD_MOVE`; elsewhere the bound is the priors', as the certificate says of the claim
-    across the joint limits, and the why names the held joints moved, else the distance.
-    Unchanged without a nearness."""
+    across the joint limits, and the why names the held joints moved, else the joints read a turn
+    from the data in a model that corrects in proportion to the reading (near on the circle only:
+    `Nearness.turns`), else the distance. Unchanged without a nearness."""
     if near is None:
         return table
     q = np.atleast_2d(np.asarray(q, dtype=float))
     distance = near.distance(q)
     held = near.held_joints()
+    moves = near.differences(q, near.measured[0])  # a held joint's value is its first reading
     moved = [
         [
             f"q{j + 1} held at {np.degrees(v):.3g} deg in the data, here {np.degrees(row[j]):.3g}"
             for j, v in held.items()
-            if abs(wrap_angle(row[j] - v)) > HELD_MOVE
+            if abs(move[j]) > HELD_MOVE
         ]
-        for row in q
+        for row, move in zip(q, moves)
     ]
     inside = distance <= near.radius
+    turned = _turned(near, q, inside)
     table["distance_to_data_mm"] = distance / MM
     table["near_data"] = inside
     table["determined"] = inside & np.array([not m for m in moved], dtype=bool)
     table["not_determined_why"] = [
-        "" if ok else _why_not_determined(m, d, near.radius) for ok, m, d in zip(table["determined"], moved, distance)
+        "" if ok else _why_not_determined(m or t, d, near.radius)
+        for ok, m, t, d in zip(table["determined"], moved, turned, distance)
     ]
     return table
 
 
-def _why_not_determined(moved: list[str], distance: float, radius: float) -> str:
-    """Why a command's bound is not determined: the held joints it moves, else how far beyond the data."""
+def _turned(near: Nearness, q: np.ndarray, inside: np.ndarray) -> list[list[str]]:
+    """Per command, the joints it reads a turn from the nearest measured configuration on the
+    circle, where the model corrects in proportion to the reading and only the circle finds the
+    command near the data: 'q1 reads 340 deg here, one turn from -20 deg in the data (near on the
+    circle only): a joint scale corrects in proportion to the reading'."""
+    out: list[list[str]] = [[] for _ in q]
+    if not near.linear:
+        return out
+    circle = near.on_circle()
+    beyond = np.flatnonzero(~inside & (circle.distance(q) <= near.radius))
+    turns = near.turns(q[beyond])
+    for i, row_turns in zip(beyond, turns):
+        for j in np.flatnonzero(row_turns):
+            measured = q[i, j] - 2.0 * np.pi * row_turns[j]
+            count = "one turn" if abs(row_turns[j]) == 1 else f"{abs(row_turns[j])} turns"
+            out[i].append(
+                f"q{j + 1} reads {np.degrees(q[i, j]):.4g} deg here, {count} from about {np.degrees(measured):.4g} deg "
+                "in the data (near on the circle only): a joint scale corrects in proportion to the reading"
+            )
+    return out
+
+
+def _why_not_determined(named: list[str], distance: float, radius: float) -> str:
+    """Why a command's bound is not determined: the joints `named` (held joints moved, or joints
+    read a turn away), else how far beyond the data."""
     if not np.isfinite(distance):
         return "not determined: no configuration to compare (not reached)"
     where = (
-        "; ".join(moved)
+        "; ".join(named)
         or f"{distance / MM:.3g} mm from the measured configurations (their spacing {radius / MM:.3g} mm)"
     )
     return f"not determined: {where}: the bound here is the priors', not a measurement"

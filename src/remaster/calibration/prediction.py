@@ -67,6 +67,19 @@ class Calibration:
         """The blocks as text, 'none' for the paper's model: 'link_geometry + joint_compliance'."""
         return " + ".join(self.blocks) or "none"
 
+    @property
+    def linear_joints(self) -> tuple[int, ...]:
+        """The joints (indices) this model corrects in proportion to their reading (`joint_scale`,
+        s_j q_j, estimated or held away from 0): not periodic in them, so a reading one turn from
+        the measured ones is not the configuration measured (`robot.nearness`)."""
+        if "joint_scale" not in self.blocks:
+            return ()
+        free = set() if self.draws is None else set(self.draws.columns)
+        names = [n for n in self.values if n.startswith("joint_scale.q")]
+        return tuple(
+            sorted(int(n.removeprefix("joint_scale.q")) - 1 for n in names if n in free or self.values[n] != 0.0)
+        )
+
     def predictor(self, chain: KinematicChain, q, marker) -> Predictor:
         return Predictor(chain, q, marker, self.blocks, self.settings)
 

@@ -4,8 +4,11 @@ and the agreement of one campaign's sensors, as the change of predicted marker p
 campaigns measured: at configurations inside both campaigns' measured domains (`robot.nearness`),
 drawn near each campaign's data and kept where they are near the other's, since elsewhere two
 calibrations differ by what their priors say, not by what the robot did; a pair whose domains do
-not meet is not compared (`status` says so). The agreement of one campaign's sensors is compared
-over the robot's one fixed set of random configurations.
+not meet is not compared (`status` says so). Nearness takes each joint on the circle (a campaign
+that read q1 one turn from the other's measured the same configurations) but, per model, the
+joints the model corrects in proportion to the reading (a joint scale): there a turn is not
+measured. The agreement of one campaign's sensors is compared over the robot's one fixed set of
+random configurations.
 
 Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
 d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q. Its null
@@ -129,11 +132,19 @@ def _entries_frame(entries: Sequence[Calibrated]) -> pd.DataFrame:
     )
 
 
-def _pair_rows(a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: int, labels: dict) -> list[dict]:
-    """One row per model both entries have: labels, effects and `compare_predictions`; the draws of
-    each pair and model come from their own generator, so a row does not depend on the others."""
+def _compared_models(a: Calibrated, b: Calibrated) -> list[str]:
+    """The models both entries have, the nominal one left out, in `MODELS`' order."""
+    return [m for m in MODELS if m in a.models and m in b.models and m != "nominal"]
+
+
+def _pair_rows(
+    a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: int, labels: dict, models=None
+) -> list[dict]:
+    """One row per model both entries have (of `models` when given): labels, effects and
+    `compare_predictions`; the draws of each pair and model come from their own generator, so a
+    row does not depend on the others."""
     rows = []
-    for model in [m for m in MODELS if m in a.models and m in b.models and m != "nominal"]:
+    for model in [m for m in _compared_models(a, b) if models is None or m in models]:
         ca, cb = a.models[model], b.models[model]
         rng = seeding.generator(
             seed,
@@ -161,14 +172,24 @@ def _table(rows: list[dict], columns: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns) if rows else pd.DataFrame(columns=columns)
 
 
-def shared_configurations(a: Calibrated, b: Calibrated, n: int, seed: int) -> np.ndarray:
+def shared_configurations(a: Calibrated, b: Calibrated, n: int, seed: int, model: str | None = None) -> np.ndarray:
     """Configurations (k, N) rad, k <= 2n, inside both entries' measured domains (`Nearness` of the
-    readings each fit used): n drawn near each entry's data (the generator of (seed, 'shared
-    domain', robot slug, both campaigns and sensors)), kept where the other's data are near too."""
+    readings each fit used, on the circle of each joint but those the entry's `model`, when given,
+    corrects in proportion to the reading: `Calibration.linear_joints`): n drawn near each entry's
+    data (the generator of (seed, 'shared domain', robot slug, both campaigns and sensors), the same
+    draws for every model), kept where the other's data are near too."""
     rng = seeding.generator(
         seed, "shared domain", identity.robot_slug(a.robot), a.campaign, a.sensor.name, b.campaign, b.sensor.name
     )
-    near = [Nearness.of(e.chain, e.sensor.fit_readings(e.excluded), e.sensor.marker) for e in (a, b)]
+    near = [
+        Nearness.of(
+            e.chain,
+            e.sensor.fit_readings(e.excluded),
+            e.sensor.marker,
+            e.models[model].linear_joints if model in e.models else (),
+        )
+        for e in (a, b)
+    ]
     q = np.vstack([domain.draw(n, rng, a.chain.lower, a.chain.upper) for domain in near])
     return q[near[0].inside(q) & near[1].inside(q)]
 
@@ -197,31 +218,34 @@ def prediction_drift(
             "date_b": b.date,
             "sensor_b": b.sensor.name,
         }
-        q = shared_configurations(a, b, n_configurations, seed)
-        if len(q) >= MIN_SHARED_CONFIGURATIONS:
-            rows += _pair_rows(a, b, q, a.sensor.marker, draw_pairs, seed, labels)
-            continue
-        status = (
-            f"not compared: {len(q)} configurations inside both campaigns' measured domains (fewer than "
-            f"{MIN_SHARED_CONFIGURATIONS}): where one campaign did not measure, its calibration is its priors'"
-        )
-        rows += [
-            {
-                **labels,
-                "model": model,
-                "effects_a": a.models[model].effects,
-                "effects_b": b.models[model].effects,
-                "count": len(q),
-                "mean_mm": np.nan,
-                "p95_mm": np.nan,
-                "draw_pairs": 0,
-                "null_p95_of_mean_mm": np.nan,
-                "flagged": False,
-                "status": status,
-            }
-            for model in MODELS
-            if model in a.models and model in b.models and model != "nominal"
-        ]
+        shared: dict[tuple, np.ndarray] = {}  # by the models' linear joints: most models share their configurations
+        for model in _compared_models(a, b):
+            key = (a.models[model].linear_joints, b.models[model].linear_joints)
+            if key not in shared:
+                shared[key] = shared_configurations(a, b, n_configurations, seed, model)
+            q = shared[key]
+            if len(q) >= MIN_SHARED_CONFIGURATIONS:
+                rows += _pair_rows(a, b, q, a.sensor.marker, draw_pairs, seed, labels, (model,))
+                continue
+            status = (
+                f"not compared: {len(q)} configurations inside both campaigns' measured domains (fewer than "
+                f"{MIN_SHARED_CONFIGURATIONS}): where one campaign did not measure, its calibration is its priors'"
+            )
+            rows.append(
+                {
+                    **labels,
+                    "model": model,
+                    "effects_a": a.models[model].effects,
+                    "effects_b": b.models[model].effects,
+                    "count": len(q),
+                    "mean_mm": np.nan,
+                    "p95_mm": np.nan,
+                    "draw_pairs": 0,
+                    "null_p95_of_mean_mm": np.nan,
+                    "flagged": False,
+                    "status": status,
+                }
+            )
     return _table(rows, DRIFT_COLUMNS)
 
 

@@ -3,7 +3,9 @@ orientation, and so where its claims hold (docs/methods.md, "Where a calibration
 
 - **Joint intervals**: per joint, [min, max] of the readings the fit used (the optimization set's
   rows whose marker was seen and that were not flagged as gross errors), rad. A joint whose readings
-  span less than `HELD_WIDTH` is *held*: an interval of zero width, at its value.
+  span less than `HELD_WIDTH` is *held*: an interval of zero width, at its value. The share of its
+  range they cover is of the limits' interval, or of the circle where the limits span a turn or
+  more (a UR's +-2 pi: readings one turn apart are one configuration).
 - **Tool orientations**: the largest angle between a measured flange z axis and their mean direction
   (nominal kinematics), deg.
 - **Nearness** (`robot.nearness.Nearness`): how far the marker moves from the nearest measured
@@ -34,12 +36,13 @@ import numpy as np
 from .. import identity, seeding
 from ..inference import metrics
 from ..robot.kinematics import ForwardKinematics, KinematicChain
-from ..robot.nearness import HELD_WIDTH, Nearness
+from ..robot.nearness import HELD_WIDTH, Nearness, circle_arcs
 from ..units import DEG
 
 FULL_RANGE_FRACTION = 0.9  # share of each joint's range the data must span for claims across the limits
 MIN_TOOL_SPREAD_DEG = 30.0  # and the spread of the measured tool axes
 ACROSS, INSIDE = "across the joint limits", "near the measured configurations"
+TURN = 2.0 * np.pi * (1.0 - 1e-12)  # rad: limits spanning this (a turn, up to round-off) cover the whole circle
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,8 +81,14 @@ class MeasuredDomain:
 
     @property
     def range_fraction(self) -> np.ndarray:
-        """(N,) the share of each joint's range its interval covers."""
-        return (self.upper - self.lower) / (self.limits_upper - self.limits_lower)
+        """(N,) the share of each joint's range its readings cover: of its limits' interval, or, for
+        a joint whose limits span a turn or more, of the circle (`nearness.circle_arcs`: readings
+        a turn apart are one configuration of the geometry, so limits of two turns are covered by
+        readings over one); 0 for a held joint."""
+        span = self.limits_upper - self.limits_lower
+        _, arcs = circle_arcs(self.nearness.measured)
+        fraction = np.where(span >= TURN, arcs / (2.0 * np.pi), (self.upper - self.lower) / span)
+        return np.where(self.held, 0.0, fraction)
 
     @property
     def covers_the_limits(self) -> bool:
