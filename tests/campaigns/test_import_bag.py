@@ -213,11 +213,11 @@ def inputs(tmp_path, iiwa, rng):
 
 def test_a_missing_bag_or_a_folder_is_named(inputs):
     (inputs / "joints.mcap").unlink()
-    assert import_error(inputs) == f"{inputs / 'joints.mcap'}: file not found (the MCAP bag named by controller/bag)"
+    assert import_error(inputs) == f"{inputs / 'joints.mcap'}: file not found (the bag named by controller/bag)"
     (inputs / "rosbag").mkdir()
     write_bag(inputs / "rosbag" / "rosbag_0.mcap", one_state())
     message = import_error(inputs, controller={"bag": "rosbag"})
-    assert message.startswith(f"{inputs / 'rosbag'}: is a folder, not an MCAP file") and "rosbag_0.mcap" in message
+    assert message.startswith(f"{inputs / 'rosbag'}: is a folder, not a bag file") and "rosbag_0.mcap" in message
 
 
 def test_a_file_that_is_not_mcap_is_named(inputs):
