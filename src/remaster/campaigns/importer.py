@@ -421,7 +421,7 @@ def _controller_spec(config: Mapping, source: str) -> ControllerSpec:
     if "controller" not in config:
         raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
     section = _mapping(config["controller"], "controller", source)
-    _check_keys(section, CONTROLLER_KEYS + ("bag", "topic", "stamp"), "controller", source)
+    _check_keys(section, CONTROLLER_KEYS + ("bag", "topic", "stamp", "validation"), "controller", source)
     if section.get("bag") is not None:
         return _bag_controller_spec(section, source)
     if section.get("file") is None:
@@ -1195,6 +1195,13 @@ def _paired_table(
         controller["time"].asi8, q, export.times.asi8, spec.tolerance, spec.bag.still
     )
     kept = np.flatnonzero(rows >= 0)
+    if not kept.size:  # nothing to calibrate from: a wrong tolerance, or stamps on two clocks
+        raise InputError(
+            f"no sample has a joint state (controller/topic {controller_spec.bag.topic}) within "
+            f"sensors/{spec.name}/tolerance {spec.tolerance:g} s; the first: {reasons[0]} (are both stamped on one clock?)",
+            file=export.source,
+            key=spec.bag.topic,
+        )
     times = export.times[kept]
     sets = _window_sets(times, controller_spec.bag.validation)
     table = pd.DataFrame(
