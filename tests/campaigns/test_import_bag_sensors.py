@@ -276,3 +276,14 @@ def test_settings_of_a_csv_export_are_refused_on_a_sensor_topic(tmp_path, iiwa, 
         tmp_path, bag, controller={"validation": {"from": "yesterday", "to": "2024-05-02T10:00:20Z"}}
     )
     assert "controller/validation/from: must be an ISO 8601 time" in message
+
+
+def test_a_damaged_sqlite3_bag_is_named(tmp_path, iiwa, rng):
+    _, topics, _, _ = recording(iiwa, rng, n=3)
+    bag = write_bag(tmp_path / "bag", "sqlite3", topics)
+    data = bag.read_bytes()
+    bag.write_bytes(data[: len(data) // 2])  # cut off: a bad copy
+    message = import_error(tmp_path, bag)
+    assert message.startswith(f"{bag}: not a readable sqlite3 bag: ")
+    bag.write_bytes(data[:100] + bytes(len(data) - 100))  # all but its header zeroed
+    assert import_error(tmp_path, bag).startswith(f"{bag}: not a readable sqlite3 bag: ")
