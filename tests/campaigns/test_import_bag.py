@@ -318,7 +318,7 @@ def test_an_unset_header_stamp_points_to_the_log_time(inputs):
         ("pose", "pose_id", "every joint state is its own pose"),
         ("solution", "ik_solution", "every joint state is solution 0"),
         ("key", "point", "a bag has no key column: match the sensors by time"),
-        ("file", "controller.csv", "give file (a CSV log) or bag (an MCAP bag), not both"),
+        ("file", "controller.csv", "give file (a CSV log) or bag (a ROS 2 bag), not both"),
         ("time_format", "unix_s", "a setting of a CSV log"),
     ],
 )

@@ -260,7 +260,7 @@ def import_campaign(
     config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None, overwrite: bool = False
 ) -> tuple[Path, dict[str, Any]]:
     """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
-    files (or the controller's MCAP bag), write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
+    files (or the ROS 2 bags it names), write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
     it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
     with `read_campaign`. Returns (folder, report).
 

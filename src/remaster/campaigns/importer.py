@@ -43,12 +43,12 @@ sensors:
     time_format: iso                # and timezone, delimiter, decimal, carry: as for the controller
 ```
 
-The controller log may instead be a ROS 2 bag (rosbag2, MCAP storage) of sensor_msgs/msg/JointState
+The controller log may instead be a ROS 2 bag (rosbag2, MCAP or sqlite3 storage) of sensor_msgs/msg/JointState
 messages; the sensors are then matched by time (`match: time`, each sensor naming its `time` column):
 
 ```yaml
 controller:
-  bag: joints.mcap                  # relative to this configuration file; a rosbag2 MCAP file
+  bag: joints.mcap                  # relative to this configuration file; a rosbag2 .mcap or .db3 file
   topic: /joint_states              # its sensor_msgs/msg/JointState messages; other topics are ignored
   joints: [joint_a1, joint_a2, joint_a3, joint_a4, joint_a5, joint_a6, joint_a7]  # JointState names, in joint order
   stamp: header                     # header (default: header.stamp) | log (the bag's log time)
@@ -60,10 +60,28 @@ its names in (velocity and effort are not read and may be empty), and its time (
 As with a CSV log without these columns, every row is in the optimization set, its own pose
 (numbered in order) and solution 0: `set`, `pose`, `solution` and `key`, and the CSV settings
 (`file`, `time`, `time_format`, `timezone`, `delimiter`, `decimal`, `carry`), are refused with a
-bag. Errors name the bag: not an MCAP file, the topic absent (with the topics it has) or carrying
+bag. Errors name the bag: not a readable bag, the topic absent (with the topics it has) or carrying
 another type, a message without one of the joints (its index, 1-based on the topic, its log time
 and the names it has), positions not one per name, a position not finite, an unset (zero) header
 stamp, no message. In the report and in errors a bag's rows are its messages ("message 3").
+
+The bag may be MCAP or sqlite3 (`bags.read_topics`), and may hold the sensor's measurements too: a
+sensor section naming a `topic` (geometry_msgs PointStamped, PoseStamped, TransformStamped or a
+tf2_msgs/TFMessage, `child_frame` choosing its transforms) instead of a CSV `file`:
+
+```yaml
+controller: {bag: joints.db3, topic: /joint_states, joints: [...],
+             validation: {from: "2024-05-02T10:14:00Z", to: "2024-05-02T10:20:00Z"}}  # optional
+sensors:
+  laser_tracker: {kind: laser_tracker, marker: [...], noise: 1.0e-5,
+                  topic: /tracker/point, tolerance: 0.01, still: 1.0e-6}  # bag: defaults to the controller's
+```
+
+The sensor's samples then drive the rows (`_paired_table`): each gets the joint state nearest its
+header stamp within `tolerance` s, or, with `still` (rad), the two around it interpolated when no
+joint moved more than that between them; the others are excluded and listed in the report. Rows
+inside the controller's `validation` window form the validation set (for a CSV sensor matched to
+the bag's joint states too).
 
 Every controller row becomes one row of every sensor table (SI: rad, m), in the log's order; a
 row no sensor row matched keeps x, y, z NaN (marker not seen, as the contract says). Sensor rows
@@ -73,7 +91,7 @@ controller's time when the log has one, else the sensor's. Anything that cannot 
 InputError naming the file, the column and the 1-based line (the header is line 1).
 
 This module works on text and tables only; `folders.import_campaign` reads the files (a bag's
-messages decoded by `bags.read_joint_states`) and writes the campaign folder.
+messages decoded by `bags.read_topics`) and writes the campaign folder.
 """
 
 from __future__ import annotations
@@ -140,7 +158,7 @@ _NOT_FOR_BAG_SENSOR = {  # a CSV export's sensor keys -> why they do not apply t
 }
 BAG_STAMPS = {"header": "header.stamp", "log": "log time"}  # stamp -> the name of a bag's time in messages
 _NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a bag
-    "file": "give file (a CSV log) or bag (an MCAP bag), not both",
+    "file": "give file (a CSV log) or bag (a ROS 2 bag), not both",
     "set": "every joint state is in the optimization set",
     "pose": "every joint state is its own pose, numbered in log-time order",
     "solution": "every joint state is solution 0",
@@ -426,7 +444,7 @@ def _controller_spec(config: Mapping, source: str) -> ControllerSpec:
         return _bag_controller_spec(section, source)
     if section.get("file") is None:
         raise InputError(
-            "missing: file (a CSV log) or bag (a ROS 2 MCAP bag), relative to the configuration",
+            "missing: file (a CSV log) or bag (a ROS 2 bag, .mcap or .db3), relative to the configuration",
             file=source,
             key="controller/file",
         )
