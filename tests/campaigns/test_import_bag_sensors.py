@@ -317,3 +317,21 @@ def test_a_sqlite3_bag_imported_calibrates_end_to_end(tmp_path, iiwa, rng):
     # the validation window's 10 rows: the error after calibration at the sensor's noise (10 um per axis)
     assert calibration.loop.report.validation_rmse_after_mm < 0.03
     assert calibration.verdict in ("pass", "fail")  # tested on the validation window's rows
+
+
+def test_a_full_pose_probe_takes_the_poses_orientation(tmp_path, iiwa, rng):
+    _, topics, _, _ = recording(iiwa, rng, n=6, msgtype="geometry_msgs/msg/PoseStamped", moving_sample=False)
+    half_turn = np.sqrt(0.5)  # 90 deg about z: w, z = cos 45 deg, sin 45 deg
+    for _, m in topics["/tracker"][1]:
+        m.pose.orientation.w, m.pose.orientation.z = half_turn, half_turn
+    bag = write_bag(tmp_path / "bag", "mcap", topics)
+    probe = {"orientation_noise": 1e-4, "probe_rotation": [0.0, 0.0, 0.0], "still": 1e-9}
+    table, _ = run_import(write_config(tmp_path, bag, sensor=probe), tmp_path)
+    np.testing.assert_allclose(table[["rx", "ry", "rz"]].to_numpy(), [[0.0, 0.0, np.pi / 2]] * len(table), atol=1e-12)
+    _, topics, _, _ = recording(iiwa, rng, n=3, moving_sample=False)  # points: no orientation
+    (tmp_path / "points").mkdir()
+    bag = write_bag(tmp_path / "points" / "bag", "mcap", topics)
+    message = import_error(tmp_path / "points", bag, sensor=probe)
+    assert message.startswith(
+        f"{bag}: /tracker: points without an orientation on messages 1, 2, 3, 4: a full-pose probe"
+    )
