@@ -12,7 +12,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as BagWriter
 from rosbags.typesys import Stores, get_typestore
 
-from remaster import api, files
+from remaster import api, cli, files
 from remaster.campaigns import folders
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.errors import InputError
@@ -335,3 +335,15 @@ def test_a_full_pose_probe_takes_the_poses_orientation(tmp_path, iiwa, rng):
     assert message.startswith(
         f"{bag}: /tracker: points without an orientation on messages 1, 2, 3, 4: a full-pose probe"
     )
+
+
+def test_the_cli_imports_a_bag_with_its_sensor_topic(tmp_path, iiwa, rng, capsys, monkeypatch):
+    monkeypatch.chdir(REPO)
+    _, topics, samples, _ = recording(iiwa, rng, n=5)
+    bag = write_bag(tmp_path / "bag", "sqlite3", topics)
+    config = write_config(tmp_path, bag)
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(tmp_path / "raw")]) == 0
+    assert f"5 of {len(samples)} samples paired with a joint state" in capsys.readouterr().out
+    config = write_config(tmp_path, bag, sensor={"topic": "/vicon/marker"})
+    assert cli.main(["import", "--config", str(config), "--raw-dir", str(tmp_path / "raw"), "--force"]) == 2
+    assert f"{bag}: /vicon/marker: no such topic in the bag" in capsys.readouterr().err
