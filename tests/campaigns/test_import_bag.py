@@ -425,7 +425,11 @@ def test_a_randomly_damaged_bag_is_read_right_or_refused_naming_it(compression):
 def test_a_validation_window_splits_the_joint_states(tmp_path, iiwa, rng):
     q, _, _ = campaign_inputs(tmp_path, iiwa, rng)
     window = {"from": "2024-05-02T10:00:14Z", "to": "2024-05-02T12:00:20+02:00"}  # states 7, 8, 9 (10:00:14.12...)
-    folder, _ = run_import(write_config(tmp_path, controller={"validation": window}), tmp_path)
+    folder, report = run_import(write_config(tmp_path, controller={"validation": window}), tmp_path)
     table = folders.read_campaign(folder, repo_root=REPO).sensors["laser_tracker"].table
+    assert report["controller"]["validation"] == {
+        "from": "2024-05-02T10:00:14+00:00",
+        "to": "2024-05-02T10:00:20+00:00",
+    }
     assert table["set"].tolist() == ["optimization"] * 7 + ["validation"] * 3
     assert table["pose"].tolist() == [*range(7), 0, 1, 2]

@@ -1276,6 +1276,11 @@ def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, E
             "rows": int(len(controller.cells)),
             "joint_unit": spec.controller.unit,
             **({"topic": spec.controller.bag.topic, "stamp": spec.controller.bag.stamp} if spec.controller.bag else {}),
+            **(
+                {"validation": dict(zip(WINDOW_KEYS, map(_utc, spec.controller.bag.validation)))}
+                if spec.controller.bag and spec.controller.bag.validation
+                else {}
+            ),
         },
         "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
         "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values()),
