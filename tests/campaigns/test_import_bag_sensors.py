@@ -347,3 +347,34 @@ def test_the_cli_imports_a_bag_with_its_sensor_topic(tmp_path, iiwa, rng, capsys
     config = write_config(tmp_path, bag, sensor={"topic": "/vicon/marker"})
     assert cli.main(["import", "--config", str(config), "--raw-dir", str(tmp_path / "raw"), "--force"]) == 2
     assert f"{bag}: /vicon/marker: no such topic in the bag" in capsys.readouterr().err
+
+
+def test_a_second_bag_is_the_validation_set(tmp_path, iiwa, rng):
+    poses, topics, samples, xyz = recording(iiwa, rng, n=8, moving_sample=False)
+    bag = write_bag(tmp_path / "bag", "sqlite3", topics)
+    second_poses, second_topics, second_samples, second_xyz = recording(iiwa, rng, n=4, moving_sample=False)
+    second = write_bag(tmp_path / "validation", "mcap", second_topics)  # another storage, another day's poses
+    config = write_config(tmp_path, bag, controller={"validation": {"bag": str(second.relative_to(tmp_path))}})
+    table, report = run_import(config, tmp_path)
+    optimization, validation = table["set"] == "optimization", table["set"] == "validation"
+    q = [f"q{j}" for j in range(1, 8)]
+    np.testing.assert_array_equal(table.loc[optimization, q].to_numpy(), poses)  # the gap sample: no still
+    np.testing.assert_array_equal(table.loc[validation, q].to_numpy(), second_poses)
+    np.testing.assert_allclose(table.loc[validation, ["x", "y", "z"]].to_numpy(), second_xyz[:4], atol=1e-15)
+    assert table.loc[validation, "pose"].tolist() == [0, 1, 2, 3]
+    assert report["validation_bag"]["controller"]["file"] == str(second)
+    assert report["validation_bag"]["sensors"]["laser_tracker"]["validation"] == 4
+    assert report["unmatched_rows"] == 2  # each bag's sample while the joint states were lost
+
+
+def test_a_validation_bag_missing_or_with_a_csv_sensor_is_refused(tmp_path, iiwa, rng):
+    _, topics, _, _ = recording(iiwa, rng, n=3)
+    bag = write_bag(tmp_path / "bag", "mcap", topics)
+    message = import_error(tmp_path, bag, controller={"validation": {"bag": "nowhere.mcap"}})
+    assert message == f"{tmp_path / 'nowhere.mcap'}: file not found (the bag named by controller/validation/bag)"
+    csv = {"topic": None, "file": "tracker.csv", "unit": "m", "match": "time", "time": "t"}
+    message = import_error(tmp_path, bag, controller={"validation": {"bag": "bag/bag.mcap"}}, sensor=csv)
+    assert message.endswith(
+        "sensors/laser_tracker/file: a CSV export with a validation bag (controller/validation/bag): "
+        "the validation bag holds the sensors' topics, so name this sensor's topic"
+    )

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from .. import provenance
@@ -192,7 +193,9 @@ def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
     return importer.parse_csv(read_text(path, "utf-8-sig"), str(path), delimiter)
 
 
-def read_bags(config_dir: Path, spec: importer.ImportSpec) -> tuple[importer.Export | None, dict[str, importer.Export]]:
+def read_bags(
+    config_dir: Path, spec: importer.ImportSpec, controller_key: str = "controller/bag"
+) -> tuple[importer.Export | None, dict[str, importer.Export]]:
     """The bags an import names (MCAP or sqlite3, `bags.read_topics`), each read once for all its
     topics: the controller's joint states (`importer.joint_state_export`; None for a CSV log) and
     each sensor topic's samples (`importer.measurement_export`). InputError naming the file when it
@@ -203,7 +206,7 @@ def read_bags(config_dir: Path, spec: importer.ImportSpec) -> tuple[importer.Exp
     named_by: dict[str, str] = {}  # bag as written -> the first key naming it, for a missing file
     if spec.controller.bag is not None:
         wanted.setdefault(spec.controller.file.file, {})[spec.controller.bag.topic] = (bags.JOINT_STATE,)
-        named_by[spec.controller.file.file] = "controller/bag"
+        named_by[spec.controller.file.file] = controller_key
     for sensor in spec.sensors.values():
         if sensor.bag is not None:
             named_by.setdefault(sensor.file.file, f"sensors/{sensor.name}/bag")
@@ -243,6 +246,21 @@ def read_bags(config_dir: Path, spec: importer.ImportSpec) -> tuple[importer.Exp
         if s.bag is not None
     }
     return controller, sensors
+
+
+def _in_exports(exc: InputError, sensor: str | None, parts: list) -> InputError:
+    """`importer.in_exports` of the part of the campaign the rows of a reader's error are in: the
+    import's (spec, result, controller, sensors), or its validation bag's, whose rows follow."""
+    spec, result, controller, sensors = parts[0]
+    rows = np.asarray(exc.rows or [], dtype=np.int64)
+    if len(parts) > 1 and sensor in spec.sensors and rows.size:
+        first = len(result.sensor_rows[sensor])
+        if (rows >= first).all():
+            exc = InputError(exc.reason, file=exc.file, key=exc.key, rows=rows - first)
+            spec, result, controller, sensors = parts[1]
+        else:
+            exc = InputError(exc.reason, file=exc.file, key=exc.key, rows=rows[rows < first])
+    return importer.in_exports(exc, sensor, spec, result, controller, sensors)
 
 
 def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
@@ -289,6 +307,13 @@ def import_campaign(
     controller = controller or export(spec.controller.file)
     sensors |= {n: export(s.file) for n, s in spec.sensors.items() if s.bag is None}
     result = importer.build_campaign(spec, controller, sensors)
+    parts = [(spec, result, controller, sensors)]  # the import's, then its validation bag's
+    if spec.controller.bag is not None and spec.controller.bag.validation_bag is not None:
+        second = importer.validation_spec(spec)
+        second_controller, second_sensors = read_bags(config_dir, second, "controller/validation/bag")
+        second_result = importer.build_campaign(second, second_controller, second_sensors)
+        parts.append((second, second_result, second_controller, second_sensors))
+        result = importer.joined(result, second_result)
     metadata = result.metadata
     urdf = _local_urdf(metadata["robot"], config_dir, repo_root)
     if urdf is not None:
@@ -309,7 +334,7 @@ def import_campaign(
         except InputError as exc:
             path = Path(exc.file) if exc.file else None
             sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
-            raise importer.in_exports(exc, sensor, spec, result, controller, sensors) from None
+            raise _in_exports(exc, sensor, parts) from None
         write_json(staged / importer.REPORT_FILE, result.report)
         try:
             folder.mkdir(parents=True, exist_ok=True)

@@ -102,7 +102,7 @@ import io as _stringio
 import math
 import zoneinfo
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -166,6 +166,7 @@ _NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a b
     "time": "a joint state's time is its header stamp or the bag's log time: choose with stamp",
 }
 WINDOW_KEYS = ("from", "to")  # controller/validation of a bag: the validation set's time window
+EVERYTHING = (np.iinfo(np.int64).min, np.iinfo(np.int64).max)  # a window holding every time (ns)
 _RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + ORIENTATION_COLUMNS + (TIME_COLUMN,))
 
 
@@ -281,6 +282,7 @@ class BagSpec:
     topic: str
     stamp: str = "header"
     validation: tuple[int, int] | None = None
+    validation_bag: str | None = None  # controller/validation/bag: a second recording, all of it the validation set
     child_frame: str | None = None
     still: float | None = None
 
@@ -486,8 +488,17 @@ def _bag_controller_spec(section: Mapping, source: str) -> ControllerSpec:
         joints=_columns(section, "joints", "controller", source, what="joint"),
         unit="rad",
         time=BAG_STAMPS[stamp],
-        bag=BagSpec(topic, stamp, validation=_window(section.get("validation"), "controller/validation", source)),
+        bag=BagSpec(topic, stamp, *_validation(section.get("validation"), "controller/validation", source)),
     )
+
+
+def _validation(section: Any, where: str, source: str) -> tuple[tuple[int, int] | None, str | None]:
+    """controller/validation: a time window {from, to} (`_window`) or a second bag {bag: <file>},
+    whose every sample is the validation set; (window, bag), None for what is not given."""
+    if isinstance(section, Mapping) and "bag" in section:
+        _check_keys(section, ("bag",), where, source)
+        return None, _text(section, "bag", where, source)
+    return _window(section, where, source), None
 
 
 def _window(section: Any, where: str, source: str) -> tuple[int, int] | None:
@@ -496,7 +507,7 @@ def _window(section: Any, where: str, source: str) -> tuple[int, int] | None:
     if section is None:
         return None
     section = _mapping(section, where, source)
-    _check_keys(section, WINDOW_KEYS, where, source)
+    _check_keys(section, WINDOW_KEYS + ("bag",), where, source)
     ends = []
     for key in WINDOW_KEYS:
         value = section.get(key)
@@ -692,6 +703,13 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
     where = f"sensors/{name}"
     if section.get("topic") is not None:
         return _bag_sensor_spec(name, section, controller, source)
+    if controller.bag is not None and controller.bag.validation_bag is not None:
+        raise InputError(
+            "a CSV export with a validation bag (controller/validation/bag): the validation bag holds the "
+            "sensors' topics, so name this sensor's topic",
+            file=source,
+            key=f"{where}/file",
+        )
     stray = [k for k in ("bag", "child_frame", "still") if k in section]
     if stray:
         raise InputError(
@@ -731,6 +749,31 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
             f"column(s) {', '.join(clash)} carried from the controller log too", file=source, key=f"{where}/carry"
         )
     return spec
+
+
+def validation_spec(spec: ImportSpec) -> ImportSpec:
+    """The import of a validation bag (controller/validation/bag): the controller's and every
+    sensor's topic read from it, every sample in the validation set."""
+    bag = spec.controller.bag.validation_bag
+    controller = replace(
+        spec.controller,
+        file=FileSpec(bag),
+        bag=replace(spec.controller.bag, validation=EVERYTHING, validation_bag=None),
+    )
+    sensors = {name: replace(s, file=FileSpec(bag)) for name, s in spec.sensors.items()}
+    return replace(spec, controller=controller, sensors=sensors)
+
+
+def joined(result: ImportResult, validation: ImportResult) -> ImportResult:
+    """A campaign's import with its validation bag's (`validation_spec`): each sensor's table, the
+    validation bag's rows after the first's; the report's `validation_bag` the second's sections."""
+    tables = {n: pd.concat([t, validation.tables[n]], ignore_index=True) for n, t in result.tables.items()}
+    report = {
+        **result.report,
+        "validation_bag": {k: validation.report[k] for k in ("controller", "sensors")},
+        "unmatched_rows": result.report["unmatched_rows"] + validation.report["unmatched_rows"],
+    }
+    return replace(result, tables=tables, report=report, validation=validation)
 
 
 def parse_config(config: Any, source: str) -> ImportSpec:
@@ -1032,6 +1075,7 @@ class ImportResult:
     sensor_rows: dict[str, np.ndarray]  # sensor -> (n_controller_rows,) row of its export per table row, -1 if none
     # sensor -> the controller log's row of each table row: the row itself, or a paired sample's joint state
     controller_rows: dict[str, np.ndarray]
+    validation: ImportResult | None = None  # a validation bag's import (`joined`): the tables' rows after this one's
 
 
 def _carried(export: Export, spec: FileSpec, where: str) -> dict[str, np.ndarray]:
