@@ -81,7 +81,8 @@ The sensor's samples then drive the rows (`_paired_table`): each gets the joint 
 header stamp within `tolerance` s, or, with `still` (rad), the two around it interpolated when no
 joint moved more than that between them; the others are excluded and listed in the report. Rows
 inside the controller's `validation` window form the validation set (for a CSV sensor matched to
-the bag's joint states too).
+the bag's joint states too); `validation: {bag: <file>}` instead imports a second bag of the same
+topics as the validation set (`validation_spec`, `joined`).
 
 Every controller row becomes one row of every sensor table (SI: rad, m), in the log's order; a
 row no sensor row matched keeps x, y, z NaN (marker not seen, as the contract says). Sensor rows
