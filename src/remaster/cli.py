@@ -177,7 +177,12 @@ def _plan_workspace(args: argparse.Namespace, options: plan.PlanOptions) -> None
 def _import(args: argparse.Namespace) -> None:
     folder, report = import_campaign(args.config, args.raw_dir, Path.cwd(), overwrite=args.force)
     total = report["controller"]["rows"]
-    rows = {name: f"{s['matched']} of {total} rows matched" for name, s in report["sensors"].items()}
+    rows = {  # a sensor topic's samples drive its rows: how many found a joint state
+        name: f"{s['matched']} of {s['rows']} samples paired with a joint state"
+        if "topic" in s
+        else f"{s['matched']} of {total} rows matched"
+        for name, s in report["sensors"].items()
+    }
     print(
         f"{args.config}: wrote {folder} ({rows}); {report['unmatched_rows']} unmatched sensor rows listed in "
         f"{folder / importer.REPORT_FILE}"

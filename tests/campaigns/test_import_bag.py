@@ -213,11 +213,11 @@ def inputs(tmp_path, iiwa, rng):
 
 def test_a_missing_bag_or_a_folder_is_named(inputs):
     (inputs / "joints.mcap").unlink()
-    assert import_error(inputs) == f"{inputs / 'joints.mcap'}: file not found (the MCAP bag named by controller/bag)"
+    assert import_error(inputs) == f"{inputs / 'joints.mcap'}: file not found (the bag named by controller/bag)"
     (inputs / "rosbag").mkdir()
     write_bag(inputs / "rosbag" / "rosbag_0.mcap", one_state())
     message = import_error(inputs, controller={"bag": "rosbag"})
-    assert message.startswith(f"{inputs / 'rosbag'}: is a folder, not an MCAP file") and "rosbag_0.mcap" in message
+    assert message.startswith(f"{inputs / 'rosbag'}: is a folder, not a bag file") and "rosbag_0.mcap" in message
 
 
 def test_a_file_that_is_not_mcap_is_named(inputs):
@@ -318,7 +318,7 @@ def test_an_unset_header_stamp_points_to_the_log_time(inputs):
         ("pose", "pose_id", "every joint state is its own pose"),
         ("solution", "ik_solution", "every joint state is solution 0"),
         ("key", "point", "a bag has no key column: match the sensors by time"),
-        ("file", "controller.csv", "give file (a CSV log) or bag (an MCAP bag), not both"),
+        ("file", "controller.csv", "give file (a CSV log) or bag (a ROS 2 bag), not both"),
         ("time_format", "unix_s", "a setting of a CSV log"),
     ],
 )
@@ -397,9 +397,9 @@ def test_a_changed_summary_is_refused_by_its_crc(tmp_path):
 
 def test_a_bag_without_crcs_is_read_with_nothing_to_check(tmp_path):
     q = np.random.default_rng(0).uniform(-1, 1, (4, 7))
-    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q, crcs=False)), "/joint_states")
+    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q, crcs=False)), {"/joint_states"})
     assert checked == []
-    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q)), "/joint_states")
+    _, _, checked = bags._read_through(io.BytesIO(bag_bytes(q)), {"/joint_states"})
     assert checked == ["chunks", "summary"]  # mcap's writers leave the data section's CRC 0 unless asked
 
 
@@ -420,3 +420,16 @@ def test_a_randomly_damaged_bag_is_read_right_or_refused_naming_it(compression):
             assert read == good  # a byte nothing reads (padding, an index, a statistic)
             outcomes["same"] += 1
     assert outcomes["refused"] > 150
+
+
+def test_a_validation_window_splits_the_joint_states(tmp_path, iiwa, rng):
+    q, _, _ = campaign_inputs(tmp_path, iiwa, rng)
+    window = {"from": "2024-05-02T10:00:14Z", "to": "2024-05-02T12:00:20+02:00"}  # states 7, 8, 9 (10:00:14.12...)
+    folder, report = run_import(write_config(tmp_path, controller={"validation": window}), tmp_path)
+    table = folders.read_campaign(folder, repo_root=REPO).sensors["laser_tracker"].table
+    assert report["controller"]["validation"] == {
+        "from": "2024-05-02T10:00:14+00:00",
+        "to": "2024-05-02T10:00:20+00:00",
+    }
+    assert table["set"].tolist() == ["optimization"] * 7 + ["validation"] * 3
+    assert table["pose"].tolist() == [*range(7), 0, 1, 2]

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from .. import provenance
@@ -192,24 +193,74 @@ def read_export(path: str | Path, delimiter: str = ",") -> importer.Export:
     return importer.parse_csv(read_text(path, "utf-8-sig"), str(path), delimiter)
 
 
-def read_bag(path: str | Path, spec: importer.ControllerSpec) -> importer.Export:
-    """The joint states of a ROS 2 MCAP bag as the controller log (`bags.read_joint_states` of the
-    topic spec.bag.topic, then `importer.joint_state_export`); InputError naming the file when it
-    is missing, a folder (a rosbag2 folder: name the .mcap file in it) or unreadable."""
-    from . import bags  # the MCAP readers, loaded only by an import from a bag
+def read_bags(
+    config_dir: Path, spec: importer.ImportSpec, controller_key: str = "controller/bag"
+) -> tuple[importer.Export | None, dict[str, importer.Export]]:
+    """The bags an import names (MCAP or sqlite3, `bags.read_topics`), each read once for all its
+    topics: the controller's joint states (`importer.joint_state_export`; None for a CSV log) and
+    each sensor topic's samples (`importer.measurement_export`). InputError naming the file when it
+    is missing, a folder (a rosbag2 folder: name the .mcap or .db3 file in it) or unreadable."""
+    from . import bags  # the bag readers, loaded only by an import from a bag
 
-    path = Path(path)
-    if path.is_dir():
-        inside = ", ".join(sorted(p.name for p in path.glob("*.mcap"))) or "none in it"
-        raise InputError(f"is a folder, not an MCAP file: name the .mcap file (found: {inside})", file=str(path))
-    try:
-        with path.open("rb") as stream:
-            states = bags.read_joint_states(stream, spec.bag.topic, str(path))
-    except FileNotFoundError:
-        raise InputError("file not found (the MCAP bag named by controller/bag)", file=str(path)) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
-    return importer.joint_state_export(states, spec, str(path))
+    wanted: dict[str, dict[str, tuple[str, ...]]] = {}  # bag as written -> topic -> the types accepted
+    named_by: dict[str, str] = {}  # bag as written -> the first key naming it, for a missing file
+    if spec.controller.bag is not None:
+        wanted.setdefault(spec.controller.file.file, {})[spec.controller.bag.topic] = (bags.JOINT_STATE,)
+        named_by[spec.controller.file.file] = controller_key
+    for sensor in spec.sensors.values():
+        if sensor.bag is not None:
+            named_by.setdefault(sensor.file.file, f"sensors/{sensor.name}/bag")
+            on_bag = wanted.setdefault(sensor.file.file, {})
+            if on_bag.get(sensor.bag.topic, bags.MEASUREMENTS) != bags.MEASUREMENTS:
+                raise InputError(
+                    "is the controller's joint-state topic too", file=spec.source, key=f"sensors/{sensor.name}/topic"
+                )
+            on_bag[sensor.bag.topic] = bags.MEASUREMENTS
+    read = {}
+    for file, topics in wanted.items():
+        path = config_dir / file
+        if path.is_dir():
+            inside = ", ".join(sorted(p.name for p in [*path.glob("*.mcap"), *path.glob("*.db3")])) or "none in it"
+            raise InputError(
+                f"is a folder, not a bag file: name the .mcap or .db3 file (found: {inside})", file=str(path)
+            )
+        try:
+            read[file] = bags.read_topics(path, topics, str(path))
+        except FileNotFoundError:
+            raise InputError(f"file not found (the bag named by {named_by[file]})", file=str(path)) from None
+        except OSError as exc:
+            raise InputError(f"cannot read: {exc.strerror or exc}", file=str(path)) from None
+    c = spec.controller
+    controller = (
+        None
+        if c.bag is None
+        else importer.joint_state_export(
+            bags.joint_states(read[c.file.file][c.bag.topic]), c, str(config_dir / c.file.file)
+        )
+    )
+    sensors = {
+        name: importer.measurement_export(
+            bags.measurements(read[s.file.file][s.bag.topic], s.bag.child_frame), s, str(config_dir / s.file.file)
+        )
+        for name, s in spec.sensors.items()
+        if s.bag is not None
+    }
+    return controller, sensors
+
+
+def _in_exports(exc: InputError, sensor: str | None, parts: list) -> InputError:
+    """`importer.in_exports` of the part of the campaign the rows of a reader's error are in: the
+    import's (spec, result, controller, sensors), or its validation bag's, whose rows follow."""
+    spec, result, controller, sensors = parts[0]
+    rows = np.asarray(exc.rows or [], dtype=np.int64)
+    if len(parts) > 1 and sensor in spec.sensors and rows.size:
+        first = len(result.sensor_rows[sensor])
+        if (rows >= first).all():
+            exc = InputError(exc.reason, file=exc.file, key=exc.key, rows=rows - first)
+            spec, result, controller, sensors = parts[1]
+        else:
+            exc = InputError(exc.reason, file=exc.file, key=exc.key, rows=rows[rows < first])
+    return importer.in_exports(exc, sensor, spec, result, controller, sensors)
 
 
 def _local_urdf(robot: Mapping[str, Any], config_dir: Path, repo_root: Path) -> Path | None:
@@ -227,7 +278,7 @@ def import_campaign(
     config_path: str | Path, raw_dir: str | Path, repo_root: str | Path | None = None, overwrite: bool = False
 ) -> tuple[Path, dict[str, Any]]:
     """`remaster import`: read an import configuration (format: `remaster.campaigns.importer`) and its CSV
-    files (or the controller's MCAP bag), write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
+    files (or the ROS 2 bags it names), write <raw_dir>/<name>/ (campaign.yaml, one <sensor>.parquet per sensor, the URDF when
     it lies only next to the configuration, and importer.REPORT_FILE), validated by reading it back
     with `read_campaign`. Returns (folder, report).
 
@@ -252,12 +303,17 @@ def import_campaign(
     def export(file: importer.FileSpec) -> importer.Export:
         return read_export(config_dir / file.file, file.delimiter)
 
-    if spec.controller.bag is not None:
-        controller = read_bag(config_dir / spec.controller.file.file, spec.controller)
-    else:
-        controller = export(spec.controller.file)
-    sensors = {n: export(s.file) for n, s in spec.sensors.items()}
+    controller, sensors = read_bags(config_dir, spec)
+    controller = controller or export(spec.controller.file)
+    sensors |= {n: export(s.file) for n, s in spec.sensors.items() if s.bag is None}
     result = importer.build_campaign(spec, controller, sensors)
+    parts = [(spec, result, controller, sensors)]  # the import's, then its validation bag's
+    if spec.controller.bag is not None and spec.controller.bag.validation_bag is not None:
+        second = importer.validation_spec(spec)
+        second_controller, second_sensors = read_bags(config_dir, second, "controller/validation/bag")
+        second_result = importer.build_campaign(second, second_controller, second_sensors)
+        parts.append((second, second_result, second_controller, second_sensors))
+        result = importer.joined(result, second_result)
     metadata = result.metadata
     urdf = _local_urdf(metadata["robot"], config_dir, repo_root)
     if urdf is not None:
@@ -278,7 +334,7 @@ def import_campaign(
         except InputError as exc:
             path = Path(exc.file) if exc.file else None
             sensor = path.stem if path is not None and path.parent == staged and path.suffix == ".parquet" else None
-            raise importer.in_exports(exc, sensor, spec, result, controller, sensors) from None
+            raise _in_exports(exc, sensor, parts) from None
         write_json(staged / importer.REPORT_FILE, result.report)
         try:
             folder.mkdir(parents=True, exist_ok=True)

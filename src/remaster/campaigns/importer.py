@@ -43,12 +43,12 @@ sensors:
     time_format: iso                # and timezone, delimiter, decimal, carry: as for the controller
 ```
 
-The controller log may instead be a ROS 2 bag (rosbag2, MCAP storage) of sensor_msgs/msg/JointState
+The controller log may instead be a ROS 2 bag (rosbag2, MCAP or sqlite3 storage) of sensor_msgs/msg/JointState
 messages; the sensors are then matched by time (`match: time`, each sensor naming its `time` column):
 
 ```yaml
 controller:
-  bag: joints.mcap                  # relative to this configuration file; a rosbag2 MCAP file
+  bag: joints.mcap                  # relative to this configuration file; a rosbag2 .mcap or .db3 file
   topic: /joint_states              # its sensor_msgs/msg/JointState messages; other topics are ignored
   joints: [joint_a1, joint_a2, joint_a3, joint_a4, joint_a5, joint_a6, joint_a7]  # JointState names, in joint order
   stamp: header                     # header (default: header.stamp) | log (the bag's log time)
@@ -60,10 +60,29 @@ its names in (velocity and effort are not read and may be empty), and its time (
 As with a CSV log without these columns, every row is in the optimization set, its own pose
 (numbered in order) and solution 0: `set`, `pose`, `solution` and `key`, and the CSV settings
 (`file`, `time`, `time_format`, `timezone`, `delimiter`, `decimal`, `carry`), are refused with a
-bag. Errors name the bag: not an MCAP file, the topic absent (with the topics it has) or carrying
+bag. Errors name the bag: not a readable bag, the topic absent (with the topics it has) or carrying
 another type, a message without one of the joints (its index, 1-based on the topic, its log time
 and the names it has), positions not one per name, a position not finite, an unset (zero) header
 stamp, no message. In the report and in errors a bag's rows are its messages ("message 3").
+
+The bag may be MCAP or sqlite3 (`bags.read_topics`), and may hold the sensor's measurements too: a
+sensor section naming a `topic` (geometry_msgs PointStamped, PoseStamped, TransformStamped or a
+tf2_msgs/TFMessage, `child_frame` choosing its transforms) instead of a CSV `file`:
+
+```yaml
+controller: {bag: joints.db3, topic: /joint_states, joints: [...],
+             validation: {from: "2024-05-02T10:14:00Z", to: "2024-05-02T10:20:00Z"}}  # optional
+sensors:
+  laser_tracker: {kind: laser_tracker, marker: [...], noise: 1.0e-5,
+                  topic: /tracker/point, tolerance: 0.01, still: 1.0e-6}  # bag: defaults to the controller's
+```
+
+The sensor's samples then drive the rows (`_paired_table`): each gets the joint state nearest its
+header stamp within `tolerance` s, or, with `still` (rad), the two around it interpolated when no
+joint moved more than that between them; the others are excluded and listed in the report. Rows
+inside the controller's `validation` window form the validation set (for a CSV sensor matched to
+the bag's joint states too); `validation: {bag: <file>}` instead imports a second bag of the same
+topics as the validation set (`validation_spec`, `joined`).
 
 Every controller row becomes one row of every sensor table (SI: rad, m), in the log's order; a
 row no sensor row matched keeps x, y, z NaN (marker not seen, as the contract says). Sensor rows
@@ -73,7 +92,7 @@ controller's time when the log has one, else the sensor's. Anything that cannot 
 InputError naming the file, the column and the 1-based line (the header is line 1).
 
 This module works on text and tables only; `folders.import_campaign` reads the files (a bag's
-messages decoded by `bags.read_joint_states`) and writes the campaign folder.
+messages decoded by `bags.read_topics`) and writes the campaign folder.
 """
 
 from __future__ import annotations
@@ -84,7 +103,7 @@ import io as _stringio
 import math
 import zoneinfo
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -126,17 +145,29 @@ FILE_KEYS = ("file", "time_format", "timezone", "delimiter", "decimal", "carry")
 CONTROLLER_KEYS = FILE_KEYS + ("joints", "unit", "set", "pose", "solution", "key", "time")
 SENSOR_IMPORT_KEYS = FILE_KEYS + ("xyz", "unit", "match", "key", "time", "tolerance", "orientation", "orientation_unit")
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")  # a sensor topic's export: a pose's orientation
 QUATERNION_NORM = 1e-3  # a unit quaternion's norm off 1 by more than this is not one (or not w, x, y, z)
-BAG_KEYS = ("bag", "topic", "joints", "stamp", "unit")
+BAG_KEYS = ("bag", "topic", "joints", "stamp", "unit", "validation")
+BAG_SENSOR_KEYS = ("bag", "topic", "child_frame", "match", "tolerance", "still")  # a sensor topic's import keys
+_NOT_FOR_BAG_SENSOR = {  # a CSV export's sensor keys -> why they do not apply to a sensor topic
+    "file": "give file (a CSV export) or topic (of a bag), not both",
+    "xyz": "a message's position is its x, y, z",
+    "unit": "a message's position is in m (ROS's unit)",
+    "key": "a sensor topic is matched by time",
+    "time": "a sample's time is its header stamp",
+    "orientation": "a pose's or transform's orientation is its quaternion, read when the sensor has orientation_noise",
+}
 BAG_STAMPS = {"header": "header.stamp", "log": "log time"}  # stamp -> the name of a bag's time in messages
 _NOT_FOR_BAG = {  # controller keys of a CSV log -> why they do not apply to a bag
-    "file": "give file (a CSV log) or bag (an MCAP bag), not both",
+    "file": "give file (a CSV log) or bag (a ROS 2 bag), not both",
     "set": "every joint state is in the optimization set",
     "pose": "every joint state is its own pose, numbered in log-time order",
     "solution": "every joint state is solution 0",
     "key": "a bag has no key column: match the sensors by time",
     "time": "a joint state's time is its header stamp or the bag's log time: choose with stamp",
 }
+WINDOW_KEYS = ("from", "to")  # controller/validation of a bag: the validation set's time window
+EVERYTHING = (np.iinfo(np.int64).min, np.iinfo(np.int64).max)  # a window holding every time (ns)
 _RESERVED = set(KEY_COLUMNS + POSITION_COLUMNS + ORIENTATION_COLUMNS + (TIME_COLUMN,))
 
 
@@ -162,6 +193,7 @@ class Export:
     lines: np.ndarray
     row_name: str = "line"  # what `lines` count, as messages say it
     times: pd.DatetimeIndex | None = None
+    frame_id: str | None = None  # a sensor topic's: the frame its positions are in
 
     def column(self, name: str, config_key: str) -> pd.Series:
         """Cells of column `name`; InputError naming the file and the column if it is missing."""
@@ -240,11 +272,20 @@ class FileSpec:
 
 @dataclass(frozen=True)
 class BagSpec:
-    """A controller bag's topic of sensor_msgs/msg/JointState messages and the time of each:
-    stamp "header" (its header.stamp) or "log" (the bag's log time)."""
+    """A bag's topic. The controller's: sensor_msgs/msg/JointState messages, the time of each stamp
+    "header" (its header.stamp) or "log" (the bag's log time), and `validation` the time window
+    (from, to: ns since the Unix epoch, UTC, both included) of the validation set. A sensor's:
+    measurements (bags.MEASUREMENTS) stamped by their header, `child_frame` the transforms taken
+    (TransformStamped, TFMessage; all when None) and `still` (rad): a sample with no joint state
+    within its tolerance gets the two around it interpolated when none of their joints differs by
+    more than this (the robot was still between them)."""
 
     topic: str
     stamp: str = "header"
+    validation: tuple[int, int] | None = None
+    validation_bag: str | None = None  # controller/validation/bag: a second recording, all of it the validation set
+    child_frame: str | None = None
+    still: float | None = None
 
 
 @dataclass(frozen=True)
@@ -281,6 +322,9 @@ class SensorSpec:
     # or a unit quaternion w, x, y, z (4)
     orientation: tuple[str, ...] | None = None
     orientation_unit: str | None = None
+    # a sensor topic of a bag (file.file the bag): its samples drive the table's rows, each paired
+    # with the controller bag's joint state nearest in time (`_paired_table`)
+    bag: BagSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -398,12 +442,12 @@ def _controller_spec(config: Mapping, source: str) -> ControllerSpec:
     if "controller" not in config:
         raise InputError("missing (the controller log: file, joints, unit, ...)", file=source, key="controller")
     section = _mapping(config["controller"], "controller", source)
-    _check_keys(section, CONTROLLER_KEYS + ("bag", "topic", "stamp"), "controller", source)
+    _check_keys(section, CONTROLLER_KEYS + ("bag", "topic", "stamp", "validation"), "controller", source)
     if section.get("bag") is not None:
         return _bag_controller_spec(section, source)
     if section.get("file") is None:
         raise InputError(
-            "missing: file (a CSV log) or bag (a ROS 2 MCAP bag), relative to the configuration",
+            "missing: file (a CSV log) or bag (a ROS 2 bag, .mcap or .db3), relative to the configuration",
             file=source,
             key="controller/file",
         )
@@ -445,8 +489,43 @@ def _bag_controller_spec(section: Mapping, source: str) -> ControllerSpec:
         joints=_columns(section, "joints", "controller", source, what="joint"),
         unit="rad",
         time=BAG_STAMPS[stamp],
-        bag=BagSpec(topic, stamp),
+        bag=BagSpec(topic, stamp, *_validation(section.get("validation"), "controller/validation", source)),
     )
+
+
+def _validation(section: Any, where: str, source: str) -> tuple[tuple[int, int] | None, str | None]:
+    """controller/validation: a time window {from, to} (`_window`) or a second bag {bag: <file>},
+    whose every sample is the validation set; (window, bag), None for what is not given."""
+    if isinstance(section, Mapping) and "bag" in section:
+        _check_keys(section, ("bag",), where, source)
+        return None, _text(section, "bag", where, source)
+    return _window(section, where, source), None
+
+
+def _window(section: Any, where: str, source: str) -> tuple[int, int] | None:
+    """controller/validation {from: <time>, to: <time>} as (from, to) ns UTC: ISO 8601 times (or
+    YAML's own timestamps), UTC when written without a zone; None when absent."""
+    if section is None:
+        return None
+    section = _mapping(section, where, source)
+    _check_keys(section, WINDOW_KEYS + ("bag",), where, source)
+    ends = []
+    for key in WINDOW_KEYS:
+        value = section.get(key)
+        try:
+            stamp = pd.Timestamp(value) if isinstance(value, str | dt.datetime) else None
+        except ValueError:
+            stamp = None
+        if stamp is None or pd.isna(stamp):
+            raise InputError(
+                f"must be an ISO 8601 time such as 2024-05-02T10:00:30Z, got {quoted(value)}",
+                file=source,
+                key=f"{where}/{key}",
+            )
+        ends.append((stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")).value)
+    if ends[0] > ends[1]:
+        raise InputError("from is after to", file=source, key=where)
+    return ends[0], ends[1]
 
 
 def _sensor_match(spec: SensorSpec, controller: ControllerSpec, source: str) -> None:
@@ -579,10 +658,64 @@ def _rotation_vectors(values: np.ndarray, spec: SensorSpec, export: Export, line
     return vectors
 
 
+def _positive(section: Mapping, key: str, where: str, source: str, what: str) -> float:
+    value = section.get(key)
+    if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and value > 0):
+        raise InputError(f"must be a positive number of {what}, got {quoted(value)}", file=source, key=f"{where}/{key}")
+    return float(value)
+
+
+def _bag_sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
+    """A `sensors/<name>` section naming a bag's topic (sensors/<name>/topic), checked: the keys of
+    a CSV export are refused, saying why; the bag defaults to the controller's, which must be one."""
+    where = f"sensors/{name}"
+    for key in section:
+        if key not in BAG_SENSOR_KEYS + SENSOR_KEYS:
+            why = _NOT_FOR_BAG_SENSOR.get(key, "a setting of a CSV export")
+            raise InputError(f"does not apply to a sensor topic: {why}", file=source, key=f"{where}/{key}")
+    if controller.bag is None:
+        raise InputError(
+            "a sensor topic is paired with a bag's joint states: give the controller's bag (controller/bag)",
+            file=source,
+            key=f"{where}/topic",
+        )
+    _choice(section, "match", ("time",), where, source, "time")
+    still = section.get("still")
+    return SensorSpec(
+        name=name,
+        file=FileSpec(_text(section, "bag", where, source, controller.file.file)),
+        xyz=POSITION_COLUMNS,
+        unit="m",
+        match="time",
+        time=TIME_COLUMN,
+        tolerance=_positive(section, "tolerance", where, source, "seconds"),
+        orientation=QUATERNION_COLUMNS if section.get("orientation_noise") is not None else None,
+        bag=BagSpec(
+            _text(section, "topic", where, source),
+            child_frame=_text(section, "child_frame", where, source),
+            still=None if still is None else _positive(section, "still", where, source, "rad"),
+        ),
+    )
+
+
 def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source: str) -> SensorSpec:
     """One `sensors/<name>` section's export, checked against the controller log it is matched to:
     the column it is matched by, a time match's tolerance, no column carried from both."""
     where = f"sensors/{name}"
+    if section.get("topic") is not None:
+        return _bag_sensor_spec(name, section, controller, source)
+    if controller.bag is not None and controller.bag.validation_bag is not None:
+        raise InputError(
+            "a CSV export with a validation bag (controller/validation/bag): the validation bag holds the "
+            "sensors' topics, so name this sensor's topic",
+            file=source,
+            key=f"{where}/file",
+        )
+    stray = [k for k in ("bag", "child_frame", "still") if k in section]
+    if stray:
+        raise InputError(
+            "only applies to a sensor topic (sensors/<name>/topic)", file=source, key=f"{where}/{stray[0]}"
+        )
     match = _choice(section, "match", MATCHES, where, source)
     spec = SensorSpec(
         name=name,
@@ -619,6 +752,31 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
     return spec
 
 
+def validation_spec(spec: ImportSpec) -> ImportSpec:
+    """The import of a validation bag (controller/validation/bag): the controller's and every
+    sensor's topic read from it, every sample in the validation set."""
+    bag = spec.controller.bag.validation_bag
+    controller = replace(
+        spec.controller,
+        file=FileSpec(bag),
+        bag=replace(spec.controller.bag, validation=EVERYTHING, validation_bag=None),
+    )
+    sensors = {name: replace(s, file=FileSpec(bag)) for name, s in spec.sensors.items()}
+    return replace(spec, controller=controller, sensors=sensors)
+
+
+def joined(result: ImportResult, validation: ImportResult) -> ImportResult:
+    """A campaign's import with its validation bag's (`validation_spec`): each sensor's table, the
+    validation bag's rows after the first's; the report's `validation_bag` the second's sections."""
+    tables = {n: pd.concat([t, validation.tables[n]], ignore_index=True) for n, t in result.tables.items()}
+    report = {
+        **result.report,
+        "validation_bag": {k: validation.report[k] for k in ("controller", "sensors")},
+        "unmatched_rows": result.report["unmatched_rows"] + validation.report["unmatched_rows"],
+    }
+    return replace(result, tables=tables, report=report, validation=validation)
+
+
 def parse_config(config: Any, source: str) -> ImportSpec:
     """Check an import configuration (as loaded from YAML/JSON); errors name `source` and the key."""
     config = _mapping(config, "", source)
@@ -626,7 +784,10 @@ def parse_config(config: Any, source: str) -> ImportSpec:
     sensors = _mapping(config.get("sensors", {}), "sensors", source)
     for name, section in sensors.items():
         _check_keys(
-            _mapping(section, f"sensors/{name}", source), SENSOR_KEYS + SENSOR_IMPORT_KEYS, f"sensors/{name}", source
+            _mapping(section, f"sensors/{name}", source),
+            SENSOR_KEYS + SENSOR_IMPORT_KEYS + ("bag", "topic", "child_frame", "still"),
+            f"sensors/{name}",
+            source,
         )
     metadata = _campaign_metadata(config, sensors, source)
     controller = _controller_spec(config, source)
@@ -766,7 +927,97 @@ def joint_state_export(states: Sequence, spec: ControllerSpec, source: str) -> E
     return Export(source, pd.DataFrame(cells, dtype=object), lines, row_name="message", times=times)
 
 
+def measurement_export(samples: Sequence, spec: SensorSpec, source: str) -> Export:
+    """A sensor topic's samples (`bags.Measurement`, in log-time order) as the sensor's export: a row
+    per sample, the cells x, y, z (m) and, for a full-pose probe (spec.orientation), its quaternion,
+    and the text of its header stamp (UTC, to the ns); `lines` the messages' indices, `times` their
+    stamps, `frame_id` theirs. InputError naming the bag (`source`) and the topic: no sample (no
+    transform to spec.bag.child_frame), a header stamp 0, positions in more than one frame, a
+    point where the probe needs an orientation."""
+    topic = spec.bag.topic
+    if not samples:
+        raise InputError(
+            f"no transform to child frame {spec.bag.child_frame!r} in its messages (sensors/{spec.name}/child_frame)",
+            file=source,
+            key=topic,
+        )
+    lines = np.array([m.index for m in samples], dtype=np.int64)
+    ns = np.array([m.stamp for m in samples], dtype=np.int64)
+    unset = np.flatnonzero(ns == 0)
+    if unset.size:
+        raise InputError(
+            f"header stamp 0 (never set by the publisher) on {format_rows(lines[unset], 'message')}: "
+            "a sample's time is its header stamp",
+            file=source,
+            key=topic,
+        )
+    frames: dict[str, list[int]] = {}
+    for m in samples:
+        frames.setdefault(m.frame_id, []).append(m.index)
+    if len(frames) > 1:  # one table's positions are in one frame: the registration fits one transform
+        each = "; ".join(f"{f!r} on {format_rows(ix, 'message')}" for f, ix in frames.items())
+        raise InputError(f"positions in more than one frame: {each}", file=source, key=topic)
+    cells = {c: [repr(m.xyz[i]) for m in samples] for i, c in enumerate(POSITION_COLUMNS)}
+    if spec.orientation is not None:
+        points = [m.index for m in samples if m.quaternion is None]
+        if points:
+            raise InputError(
+                f"points without an orientation on {format_rows(points, 'message')}: a full-pose probe "
+                f"(sensors/{spec.name}/orientation_noise) needs PoseStamped, TransformStamped or TFMessage",
+                file=source,
+                key=topic,
+            )
+        cells |= {c: [repr(m.quaternion[i]) for m in samples] for i, c in enumerate(QUATERNION_COLUMNS)}
+    cells[TIME_COLUMN] = [_utc(t) for t in ns]
+    times = pd.DatetimeIndex(pd.to_datetime(ns, unit="ns", utc=True)).as_unit("ns")
+    return Export(
+        source, pd.DataFrame(cells, dtype=object), lines, row_name="message", times=times, frame_id=next(iter(frames))
+    )
+
+
+def _window_sets(times: pd.DatetimeIndex, window: tuple[int, int] | None) -> np.ndarray:
+    """The set of each time: validation inside `window` (ns UTC, ends included), else optimization."""
+    inside = np.zeros(len(times), bool) if window is None else (times.asi8 >= window[0]) & (times.asi8 <= window[1])
+    return np.where(inside, SETS[1], SETS[0]).astype(object)
+
+
 # --------------------------------------------------------------------------- matching
+
+
+def _pair(
+    joint_ns: np.ndarray, q: np.ndarray, sample_ns: np.ndarray, tolerance: float, still: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
+    """Each sensor sample's joint state: the nearest in time (earlier one on a tie) within
+    `tolerance` s, else, with `still` (rad), the two around it interpolated linearly to its time
+    when no joint differs between them by more than `still` (the robot stood still: what it held
+    then is known however far apart the states are). Returns the joint-state row of each sample
+    (the nearest; -1: unpaired), q at each sample (n, N) rad, whether it was interpolated, and why
+    each unpaired one is."""
+    order = np.argsort(joint_ns, kind="stable")
+    t, qs = joint_ns[order], q[order]
+    right = np.clip(np.searchsorted(t, sample_ns), 0, len(t) - 1)
+    left = np.clip(right - 1, 0, len(t) - 1)
+    nearest = np.where(np.abs(sample_ns - t[left]) <= np.abs(t[right] - sample_ns), left, right)
+    gap = np.abs(sample_ns - t[nearest]) / 1e9  # s
+    close = gap <= tolerance
+    between = (left < right) & (t[left] <= sample_ns) & (sample_ns <= t[right])
+    moved = np.abs(qs[right] - qs[left]).max(axis=1)  # rad
+    interpolated = ~close & between & (still is not None) & (moved <= (still or 0.0))
+    weight = (sample_ns - t[left]) / np.maximum(t[right] - t[left], 1)
+    q_at = np.where(interpolated[:, None], qs[left] + weight[:, None] * (qs[right] - qs[left]), qs[nearest])
+    rows = np.where(close | interpolated, order[nearest], -1)
+    reasons: list[str | None] = [
+        None
+        if rows[i] >= 0
+        else f"no joint state within {tolerance:g} s (nearest {gap[i]:.6g} s away)"
+        + (
+            f"; the robot moved {moved[i]:.3g} rad between the two around it"
+            if still is not None and between[i]
+            else ""
+        )
+        for i in range(len(sample_ns))
+    ]
+    return rows, q_at, interpolated, reasons
 
 
 def _match_keys(controller_keys: np.ndarray, sensor_keys: np.ndarray) -> tuple[np.ndarray, list[str | None]]:
@@ -823,6 +1074,9 @@ class ImportResult:
     tables: dict[str, pd.DataFrame]
     report: dict[str, Any]
     sensor_rows: dict[str, np.ndarray]  # sensor -> (n_controller_rows,) row of its export per table row, -1 if none
+    # sensor -> the controller log's row of each table row: the row itself, or a paired sample's joint state
+    controller_rows: dict[str, np.ndarray]
+    validation: ImportResult | None = None  # a validation bag's import (`joined`): the tables' rows after this one's
 
 
 def _carried(export: Export, spec: FileSpec, where: str) -> dict[str, np.ndarray]:
@@ -838,6 +1092,8 @@ def _controller_columns(spec: ImportSpec, export: Export) -> dict[str, Any]:
         unknown = np.flatnonzero([s not in SETS for s in sets])
         if unknown.size:
             raise export.fail(c.set, f"unknown set (use {' or '.join(SETS)})", unknown)
+    elif c.bag is not None and export.times is not None:  # a bag's joint states: its validation window
+        sets = _window_sets(export.times, c.bag.validation)
     else:
         sets = np.full(n, SETS[0], dtype=object)
     if c.pose is not None:
@@ -905,8 +1161,11 @@ def _sensor_table(
     controller: dict[str, Any],
     controller_export: Export,
     controller_spec: ControllerSpec,
-) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
-    """One sensor's contract table, its section of the report, and the export row of each table row."""
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray, np.ndarray]:
+    """One sensor's contract table, its section of the report, the export row and the controller
+    log's row of each table row: a row per controller row, or per paired sample of a sensor topic."""
+    if spec.bag is not None:
+        return _paired_table(spec, export, controller, controller_export, controller_spec)
     where = f"sensors/{spec.name}"
     xyz = _positions(spec, export)
     orientations = _orientations(spec, export, xyz)
@@ -978,16 +1237,80 @@ def _sensor_table(
             for i in np.flatnonzero(unseen)
         ],
     }
-    return table, report, source_row
+    return table, report, source_row, np.arange(n)
+
+
+def _paired_table(
+    spec: SensorSpec,
+    export: Export,
+    controller: dict[str, Any],
+    controller_export: Export,
+    controller_spec: ControllerSpec,
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray, np.ndarray]:
+    """A sensor topic's table: a row per sample paired with a joint state (`_pair`), in log-time
+    order, its time the sample's; samples left unpaired are excluded and listed in the report. The
+    validation set: the samples inside the controller's validation window."""
+    xyz = _positions(spec, export)
+    orientations = _orientations(spec, export, xyz)
+    names = joint_columns(len(controller_spec.joints))
+    q = np.column_stack([controller["columns"][c] for c in names])
+    rows, q_at, interpolated, reasons = _pair(
+        controller["time"].asi8, q, export.times.asi8, spec.tolerance, spec.bag.still
+    )
+    kept = np.flatnonzero(rows >= 0)
+    if not kept.size:  # nothing to calibrate from: a wrong tolerance, or stamps on two clocks
+        raise InputError(
+            f"no sample has a joint state (controller/topic {controller_spec.bag.topic}) within "
+            f"sensors/{spec.name}/tolerance {spec.tolerance:g} s; the first: {reasons[0]} (are both stamped on one clock?)",
+            file=export.source,
+            key=spec.bag.topic,
+        )
+    times = export.times[kept]
+    sets = _window_sets(times, controller_spec.bag.validation)
+    table = pd.DataFrame(
+        {
+            "set": sets,
+            "pose": pd.Series(sets).groupby(sets).cumcount().to_numpy(dtype=np.int64),
+            "solution": np.zeros(len(kept), np.int64),
+            **dict(zip(names, q_at[kept].T)),
+            **dict(zip(POSITION_COLUMNS, xyz[kept].T)),
+            **({} if orientations is None else dict(zip(ORIENTATION_COLUMNS, orientations[kept].T))),
+        }
+    )
+    table[TIME_COLUMN] = times
+    shown = export.cells[TIME_COLUMN].to_numpy(dtype=object)
+    unpaired = np.flatnonzero(rows < 0)
+    report = {
+        "file": export.source,
+        "topic": spec.bag.topic,
+        "frame_id": export.frame_id,
+        "match": "time",
+        "rows": int(len(export.cells)),
+        "matched": int(kept.size),
+        "interpolated": int(interpolated[kept].sum()),
+        "excluded": int(unpaired.size),
+        "validation": int((sets == SETS[1]).sum()),
+        "tolerance_s": spec.tolerance,
+        **({"still_rad": spec.bag.still} if spec.bag.still is not None else {}),
+        "unmatched": [
+            {"file": export.source, "message": int(export.lines[i]), "time": str(shown[i]), "reason": reasons[i]}
+            for i in unpaired
+        ],
+        "marker_not_seen": [
+            {"file": export.source, "message": int(export.lines[i]), "time": str(shown[i])}
+            for i in kept[np.isnan(xyz[kept, 0])]
+        ],
+    }
+    return table, report, kept, rows[kept]
 
 
 def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, Export]) -> ImportResult:
     """The campaign (metadata and SI tables) and the import report from a checked configuration and
     the exports it names (sensor name -> Export). Raises InputError naming file, column and line."""
     columns = _controller_columns(spec, controller)
-    tables, sections, rows = {}, {}, {}
+    tables, sections, rows, controller_rows = {}, {}, {}, {}
     for name, sensor in spec.sensors.items():
-        tables[name], sections[name], rows[name] = _sensor_table(
+        tables[name], sections[name], rows[name], controller_rows[name] = _sensor_table(
             sensor, sensors[name], columns, controller, spec.controller
         )
     report = {
@@ -998,11 +1321,18 @@ def build_campaign(spec: ImportSpec, controller: Export, sensors: Mapping[str, E
             "rows": int(len(controller.cells)),
             "joint_unit": spec.controller.unit,
             **({"topic": spec.controller.bag.topic, "stamp": spec.controller.bag.stamp} if spec.controller.bag else {}),
+            **(
+                {"validation": dict(zip(WINDOW_KEYS, map(_utc, spec.controller.bag.validation)))}
+                if spec.controller.bag and spec.controller.bag.validation
+                else {}
+            ),
         },
         "sensors": {name: {**section, "unit": spec.sensors[name].unit} for name, section in sections.items()},
         "unmatched_rows": sum(len(s["unmatched"]) for s in sections.values()),
     }
-    return ImportResult(metadata=spec.metadata, tables=tables, report=report, sensor_rows=rows)
+    return ImportResult(
+        metadata=spec.metadata, tables=tables, report=report, sensor_rows=rows, controller_rows=controller_rows
+    )
 
 
 def in_exports(
@@ -1033,7 +1363,7 @@ def in_exports(
         source_rows = result.sensor_rows[sensor][rows]
         lines = export.lines[source_rows[source_rows >= 0]]
     else:  # everything else comes from the controller log, row for row
-        export, lines = controller, controller.lines[rows]
+        export, lines = controller, controller.lines[result.controller_rows[sensor][rows]]
         names = {
             **dict(zip(joint_columns(len(c.joints)), c.joints)),
             **{k: getattr(c, k) or f"{k} (not a column: default)" for k in KEY_COLUMNS},
