@@ -740,6 +740,7 @@ def closure_report(
         "time_blocked": None
         if selection.time_blocked is None
         else {k: v for k, v in selection.time_blocked.items() if k != "rms_per_axis_mm"},
+        "region_folds": None if selection.regions is None else selection.regions.report(),
         "rounds": rounds,
         "share_of_structured_residual": shares,
         "main_causes": [n for n, v in shares.items() if v is not None and v >= noise_floor.MAIN_CAUSE_SHARE],
