@@ -817,8 +817,9 @@ def loop_closure_stage(
     settings: LoopSettings,
 ) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
-    Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
-    if campaign.robot.get("priors"):
+    Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors, and its
+    `robot.joint_encoders` chooses the joint scale's."""
+    if campaign.robot.get("priors") or campaign.robot.get("joint_encoders"):
         settings = replace(
             settings, priors=priors_from(settings.priors_config, campaign.robot, f"{campaign.name}/campaign.yaml")
         )

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
@@ -249,7 +249,7 @@ def scaled_priors(priors: Priors, scale: float) -> Priors:
     if scale == 1.0:
         return priors
     values = {k: (v * scale if k in LINK_PRIOR_KEYS else v) for k, v in priors.values.items()}
-    return Priors(priors.arm_class, values, f"{priors.source}; link geometry x{scale:g} (its evidence)")
+    return replace(priors, values=values, source=f"{priors.source}; link geometry x{scale:g} (its evidence)")
 
 
 def link_prior_scale(chain, data: Readings, marker, t_nr, base_held, priors: Priors) -> tuple[float, dict]:
