@@ -130,8 +130,8 @@ def test_compliance_and_link_geometry_are_offered_together_when_neither_passes_a
 
     real = selection.score
 
-    def both_or_nothing(current, fitted, settings, blocked=None):
-        out = real(current, fitted, settings, blocked)
+    def both_or_nothing(current, fitted, settings, blocked=None, regions=None):
+        out = real(current, fitted, settings, blocked, regions)
         both = {"joint_compliance", "link_geometry"} <= set(fitted.model.blocks)
         return {**out, "passed": both, "why_not": "" if both else "forced: alone it never passes"}
 
