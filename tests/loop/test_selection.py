@@ -301,6 +301,11 @@ def test_an_effect_is_scored_where_it_did_not_see(iiwa):
     # the region beyond the others (fold 4: folds are numbered by their first pose) gains least, and
     # is still predicted better than by the zero-offsets (measured: 89 % against 99 % elsewhere)
     assert int(np.argmin(joint["fold_falls"])) == 4 and joint["fold_falls"][4] > 0
+    from remaster.reporting import tables_loop
+
+    table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
+    shown = table.loc[("link_geometry", scores["round"]), "Held-out regions (%)"]
+    assert shown.startswith("joint_space: ") and "; tool_axis: " in shown
 
 
 def test_one_wild_region_shows_and_does_not_veto():
