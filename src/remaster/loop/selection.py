@@ -1,6 +1,7 @@
 """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2): every candidate effect fitted at
 its posterior mode on the optimization set, scored by its evidence gain, its pose-grouped
-cross-validation and its signature, and added greedily while one passes; a backward pass; the
+cross-validation, its cross-validation over blocks contiguous in time and over held-out regions of
+the domain (`TimeBlocked`, `Regions`) and its signature, and added greedily while one passes; a backward pass; the
 residual Gaussian process over the joints, and with it added the parametric blocks scored again
 with the GP present; last a laser tracker's range/transverse noise, for what the residual model leaves.
 
@@ -337,9 +338,9 @@ def passes(scores: Mapping, settings: LoopSettings) -> bool:
     is positive: the effect also predicts poses it did not interpolate between (folds of whole poses
     assigned in turn are each a thinned copy of the same design) AND, where the campaign has held-out
     regions (`Regions`), the median of their log falls is positive: most regions of the joint space
-    and of the tool's orientation are predicted better when left out, so that one region the effect
-    extrapolates badly to is shown (`region_worst`) without vetoing it, as a mean over a spread
-    that one wild fold dominates would, AND no parameter of its own sits
+    and of the tool's orientation are predicted better when left out: one region the effect
+    extrapolates badly to is shown (`region_worst`) and is one vote, where a mean over its standard
+    error would let that one fold's spread veto the effect, AND no parameter of its own sits
     beyond `evidence.PRIOR_RANGE` prior std (`beyond_prior`): there it is a symptom of something else."""
     return not shortfalls(scores, settings)
 
@@ -752,7 +753,7 @@ class Regions:
         return cls(folds, centres, skipped) if folds else None
 
     def report(self) -> dict:
-        """JSON-ready: per fold set its regions and poses held out in each, or why it has none."""
+        """JSON-ready: per fold set its regions and the rows held out in each, or why it has none."""
         return {
             "measure": "held-out regions of whole poses (k-means of the configurations' cos/sin of each joint, "
             "and of the flange's z axis); a candidate passes where the median log fall over every region is "
