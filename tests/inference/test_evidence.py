@@ -124,3 +124,42 @@ def test_a_jackknife_group_whose_refit_departs_is_left_out_of_u_between_and_name
     assert all(len(p["estimates_deg"]) == 4 for p in result["parameters"].values())
     warning = jackknife.departed_groups_warning({"paper": result})
     assert warning.startswith("jackknife groups whose refit departed") and "paper: group 0;" in warning
+
+
+# --------------------------------------------------------------------------- held-out regions
+
+
+def _blobs(rng, centres, per=6, spread=0.3):
+    """Points (m, d) in blobs about centres (k, d), per points each, labelled by blob (m,)."""
+    centres = np.asarray(centres, dtype=float)
+    points = np.concatenate([c + rng.normal(0.0, spread, (per, centres.shape[1])) for c in centres])
+    return points, np.repeat(np.arange(len(centres)), per)
+
+
+def test_region_folds_are_deterministic_cover_every_row_and_keep_poses_whole(rng):
+    """Three rows per pose, features a pose's rows share up to noise: every row in a fold, K folds,
+    no pose split, the same folds on a second call (the seeded starts), others for another seed only
+    by their numbering at most (the regions are the blobs)."""
+    points, blob = _blobs(rng, [[0, 0], [6, 0], [0, 6], [6, 6], [20, 20]])
+    poses = np.repeat(np.arange(len(points)), 3)
+    features = np.repeat(points, 3, axis=0) + rng.normal(0.0, 0.01, (3 * len(points), 2))
+    folds, centres = evidence.region_folds(features, poses, 5)
+    assert folds.shape == poses.shape and set(folds) == set(range(5)) and centres.shape == (5, 2)
+    assert all(len(set(folds[poses == p])) == 1 for p in np.unique(poses))
+    assert np.array_equal(folds, evidence.region_folds(features, poses, 5)[0])
+    by_pose = folds[::3]
+    assert all(len(set(by_pose[blob == b])) == 1 for b in range(5))  # a blob is one region
+    assert len({tuple(sorted(set(by_pose[blob == b]))) for b in range(5)}) == 5
+    with pytest.raises(ValueError, match="4 poses cannot make 5 regions"):
+        evidence.region_folds(features[:12], poses[:12], 5)
+
+
+def test_regions_are_contiguous_voronoi_cells(rng):
+    """Points spread evenly (no blobs to find): each point is nearer the centre of its own region
+    than any other's, so no region has a hole another region's point sits in; numbered by first pose."""
+    points = rng.uniform(-1.0, 1.0, (60, 3))
+    folds, centres = evidence.region_folds(points, np.arange(60), 5, seed=3)
+    nearest = np.argmin(np.sum((points[:, None, :] - centres[None]) ** 2, axis=-1), axis=1)
+    assert np.array_equal(nearest, folds)
+    firsts = [np.flatnonzero(folds == k)[0] for k in range(5)]
+    assert firsts == sorted(firsts)

@@ -15,7 +15,7 @@ from snakemake.utils import validate
 from remaster import files
 from remaster.campaigns import folders
 from remaster.errors import InputError
-from remaster.robot.priors import CLASSES, DEFAULTS, KEYS, priors_from, with_defaults
+from remaster.robot.priors import CLASSES, DEFAULTS, JOINT_ENCODERS, KEYS, priors_from, with_defaults
 
 from ..conftest import REPO
 
@@ -26,7 +26,7 @@ TWIN = REPO / "data" / "raw" / "kuka-twin"
 SENSOR = "laser_tracker"
 ALLOWED = (
     "allowed: arm_class, link_translation_mm, link_rotation_deg, marker_offset_mm, joint_compliance_urad_per_Nm, "
-    "joint_scale_ppm, sensor_scale_ppm, sensor_distortion_ppm, drift_deg_per_hour, drift_deg_per_kelvin, joint_harmonic_deg, "
+    "joint_scale_ppm, joint_scale_output_ppm, sensor_scale_ppm, sensor_distortion_ppm, drift_deg_per_hour, drift_deg_per_kelvin, joint_harmonic_deg, "
     "held_zero_offset_deg"
 )
 POSITIVE = "must be a positive number (a standard deviation in the unit its name gives), got "
@@ -40,6 +40,7 @@ KNOWN = {
         "marker_offset_mm": 2.0,
         "joint_compliance_urad_per_Nm": 50,
         "joint_scale_ppm": 1000,
+        "joint_scale_output_ppm": 30,
         "sensor_scale_ppm": 500,
         "sensor_distortion_ppm": 1000,
         "drift_deg_per_hour": 0.36,
@@ -53,6 +54,7 @@ KNOWN = {
         "marker_offset_mm": 2.0,
         "joint_compliance_urad_per_Nm": 200,
         "joint_scale_ppm": 1000,
+        "joint_scale_output_ppm": 30,
         "sensor_scale_ppm": 500,
         "sensor_distortion_ppm": 1000,
         "drift_deg_per_hour": 0.36,
@@ -433,3 +435,58 @@ def test_schema_and_code_know_the_same_keys_and_classes():
     assert list(prior_set["properties"]) == list(KEYS) == prior_set["required"]
     priors = schema["properties"]["priors"]["properties"]
     assert tuple(priors["arm_class"]["enum"]) == CLASSES and priors["arm_class"]["default"] == DEFAULTS["arm_class"]
+
+
+# --------------------------------------------------------------------------- how the arm reads its joints
+
+
+def test_encoders_at_the_output_give_the_joint_scale_its_prior_of_tens_of_ppm():
+    """robot/joint_encoders: output takes joint_scale_output_ppm (30 ppm in config.yaml) for every
+    joint's scale, motor (and no key: unknown) joint_scale_ppm; nothing else changes."""
+    assert JOINT_ENCODERS == ("motor", "output")
+    output = priors_from(section("collaborative"), {"joint_encoders": "output"}, "ur5/campaign.yaml")
+    motor = priors_from(section("collaborative"), {"joint_encoders": "motor"}, "ur5/campaign.yaml")
+    unknown = priors_from(section("collaborative"), {}, "ur5/campaign.yaml")
+    assert output.std_of("joint_scale.q2") == pytest.approx(SECTION["collaborative"]["joint_scale_output_ppm"] * 1e-6)
+    assert output.std_of("joint_scale.q2") == pytest.approx(30e-6)
+    assert motor.std_of("joint_scale.q2") == unknown.std_of("joint_scale.q2") == pytest.approx(1e-3)
+    assert output.std_of("link_geometry.F2.x") == motor.std_of("link_geometry.F2.x")
+    assert output.report()["joint_encoders"] == "output" and unknown.joint_encoders == "motor"
+
+
+BAD_ENCODERS = {
+    # case: (robot/joint_encoders as written in campaign.yaml, what the message quotes)
+    "unknown": ("gearbox", "'gearbox'"),
+    "capitals": ("Output", "'Output'"),
+    "a list": ("[motor, output]", "['motor', 'output']"),
+    "empty": ("''", "''"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_ENCODERS)
+def test_bad_joint_encoders_name_file_and_key(tmp_path, case):
+    """campaign.yaml's robot/joint_encoders not motor or output: refused when the folder is read,
+    naming the file, the key and the choices."""
+    written, quoted = BAD_ENCODERS[case]
+    folder, yaml_path = twin_campaign(tmp_path)
+    meta = files.read_yaml(yaml_path)
+    meta["robot"]["joint_encoders"] = "RAW"
+    files.write_yaml(yaml_path, meta)
+    yaml_path.write_text(yaml_path.read_text().replace("RAW", written, 1))
+    with pytest.raises(InputError) as info:
+        folders.read_campaign(folder, repo_root=REPO)
+    assert info.value.file == str(yaml_path) and info.value.key == "robot/joint_encoders"
+    assert str(info.value) == (
+        f"{yaml_path}: robot/joint_encoders: must be one of motor, output (where the encoders read the joint: "
+        f"on the motor, before the gear, or at the joint's output), got {quoted}"
+    )
+
+
+def test_a_campaign_folder_with_output_encoders_is_read(tmp_path):
+    folder, yaml_path = twin_campaign(tmp_path)
+    meta = files.read_yaml(yaml_path)
+    meta["robot"]["joint_encoders"] = "output"
+    files.write_yaml(yaml_path, meta)
+    campaign = folders.read_campaign(folder, repo_root=REPO)
+    assert campaign.robot["joint_encoders"] == "output"
+    assert priors_from(SECTION, campaign.robot, str(yaml_path)).std_of("joint_scale.q1") == pytest.approx(30e-6)

@@ -31,7 +31,7 @@ from ..errors import (
 )
 from ..robot import registration
 from ..robot.kinematics import DH_CONVENTIONS, MAX_LINK_LENGTH, KinematicChain
-from ..robot.priors import check_override
+from ..robot.priors import check_encoders, check_override
 from . import capacity
 
 SETS = ("optimization", "validation")
@@ -39,7 +39,7 @@ SENSOR_KINDS = ("motion_capture", "laser_tracker", "other")
 
 REQUIRED_KEYS = ("name", "date", "robot", "sensors")
 OPTIONAL_KEYS = ("description", "tools")
-ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors")
+ROBOT_KEYS = ("urdf", "base", "flange", "dh", "serial", "priors", "joint_encoders")
 DH_KEYS = ("convention", "rows", "flange")
 SENSOR_KEYS = ("kind", "marker", "noise", "mpe", "orientation_noise", "probe_rotation")
 
@@ -299,6 +299,8 @@ def validate_robot(robot: Any, source: str) -> dict[str, Any]:
     if "priors" in robot:  # optional: this robot's tolerances for the loop closure's extension blocks
         check_override(robot["priors"], source)
         checked["priors"] = dict(robot["priors"])
+    if "joint_encoders" in robot:  # optional: where the encoders read the joints (the joint scale's prior)
+        checked["joint_encoders"] = check_encoders(robot["joint_encoders"], source)
     if "urdf" in robot:
         for key in ("urdf", "base", "flange"):
             value = robot.get(key)

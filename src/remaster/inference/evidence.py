@@ -383,6 +383,71 @@ def time_folds(order, poses, n_folds: int) -> np.ndarray:
     return fold_of[inverse.ravel()]
 
 
+# k-means restarts of `region_folds`: Lloyd's iterations find a local optimum, the best of a few
+# k-means++ starts is stable against an unlucky one
+REGION_STARTS = 8
+REGION_ITERATIONS = 100
+
+
+def region_folds(features, poses, n_folds: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) fold of each point and (K, d) the regions' centres: whole poses clustered by k-means on
+    their mean features (n, d) into K regions, each region a fold. A region is a Voronoi cell of
+    the features (every pose is nearer its own centre than any other), so a held-out fold is a
+    contiguous part of the measured domain and its fit predicts it from around it: extrapolation,
+    where folds of poses in turn interpolate. Deterministic: k-means++ starts drawn from a numpy
+    Generator seeded by `seed`, the start of least within-region sum of squares kept; folds
+    numbered by their first pose label."""
+    features, poses = np.asarray(features, dtype=float), np.asarray(poses)
+    labels, inverse = np.unique(poses, return_inverse=True)
+    inverse = inverse.ravel()
+    if len(labels) < n_folds:
+        raise ValueError(f"{len(labels)} poses cannot make {n_folds} regions of whole poses")
+    counts = np.bincount(inverse, minlength=len(labels))
+    points = np.zeros((len(labels), features.shape[1]))
+    np.add.at(points, inverse, features)
+    points /= counts[:, None]
+    rng = np.random.default_rng(seed)
+    best, best_cost = None, np.inf
+    for _ in range(REGION_STARTS):
+        centres = _kmeans_plus_plus(points, n_folds, rng)
+        for _ in range(REGION_ITERATIONS):
+            assigned = np.argmin(_squared_distances(points, centres), axis=1)
+            moved = np.array(
+                [points[assigned == k].mean(axis=0) if np.any(assigned == k) else centres[k] for k in range(n_folds)]
+            )
+            if np.allclose(moved, centres, rtol=0.0, atol=1e-12):
+                break
+            centres = moved
+        assigned = np.argmin(_squared_distances(points, centres), axis=1)
+        cost = float(np.sum((points - centres[assigned]) ** 2))
+        if len(np.unique(assigned)) == n_folds and cost < best_cost - 1e-12:
+            best, best_cost = (assigned, centres), cost
+    if best is None:  # as many distinct poses as regions at most: one region each
+        raise ValueError(f"the poses' features do not make {n_folds} distinct regions")
+    assigned, centres = best
+    order = np.argsort([np.flatnonzero(assigned == k)[0] for k in range(n_folds)])
+    renumber = np.empty(n_folds, dtype=int)
+    renumber[order] = np.arange(n_folds)
+    return renumber[assigned][inverse], centres[order]
+
+
+def _squared_distances(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(m, K) squared distances of points (m, d) to centres (K, d)."""
+    return np.sum((points[:, None, :] - centres[None, :, :]) ** 2, axis=-1)
+
+
+def _kmeans_plus_plus(points: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """k starting centres (k, d) by k-means++: each next one drawn with probability proportional
+    to the squared distance to the nearest already drawn."""
+    centres = [points[rng.integers(len(points))]]
+    for _ in range(1, k):
+        nearest = np.min(_squared_distances(points, np.array(centres)), axis=1)
+        total = nearest.sum()
+        index = rng.choice(len(points), p=nearest / total) if total > 0 else rng.integers(len(points))
+        centres.append(points[index])
+    return np.array(centres)
+
+
 def t_threshold(normal_standard_errors: float, n_folds: int) -> float:
     """The fall (in standard errors over n_folds folds) a candidate needs: the one-sided level of
     `normal_standard_errors` under a normal law, 1 - Phi(z), held at Student's t with K - 1 degrees

@@ -740,6 +740,7 @@ def closure_report(
         "time_blocked": None
         if selection.time_blocked is None
         else {k: v for k, v in selection.time_blocked.items() if k != "rms_per_axis_mm"},
+        "region_folds": None if selection.regions is None else selection.regions.report(),
         "rounds": rounds,
         "share_of_structured_residual": shares,
         "main_causes": [n for n, v in shares.items() if v is not None and v >= noise_floor.MAIN_CAUSE_SHARE],
@@ -816,8 +817,9 @@ def loop_closure_stage(
     settings: LoopSettings,
 ) -> LoopClosure:
     """Loop closure of one sensor of a campaign after its zero-offset fit (the registration and
-    Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors."""
-    if campaign.robot.get("priors"):
+    Laplace reports of `fit`). The campaign's `robot.priors` override the settings' priors, and its
+    `robot.joint_encoders` chooses the joint scale's."""
+    if campaign.robot.get("priors") or campaign.robot.get("joint_encoders"):
         settings = replace(
             settings, priors=priors_from(settings.priors_config, campaign.robot, f"{campaign.name}/campaign.yaml")
         )

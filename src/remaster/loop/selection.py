@@ -1,6 +1,7 @@
 """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2): every candidate effect fitted at
 its posterior mode on the optimization set, scored by its evidence gain, its pose-grouped
-cross-validation and its signature, and added greedily while one passes; a backward pass; the
+cross-validation, its cross-validation over blocks contiguous in time and over held-out regions of
+the domain (`TimeBlocked`, `Regions`) and its signature, and added greedily while one passes; a backward pass; the
 residual Gaussian process over the joints, and with it added the parametric blocks scored again
 with the GP present; last a laser tracker's range/transverse noise, for what the residual model leaves.
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
@@ -23,7 +24,7 @@ from ..inference.gp import loop_candidate, with_parameters
 from ..inference.gp.evidence_gain import EXACT_ROWS
 from ..inference.gp.kernels import Hyperparameters
 from ..inference.gp.residual import fit_hyperparameters
-from ..robot.kinematics import KinematicChain
+from ..robot.kinematics import KinematicChain, flange_rotations
 from ..robot.priors import Priors
 from ..units import MM
 from .settings import LoopSettings
@@ -175,9 +176,48 @@ def beyond_prior(current: Fitted, candidate: Fitted) -> dict:
     return {"parameter": model.names[worst], "prior_stds": float(ratio[worst])}
 
 
-def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: np.ndarray | None = None) -> dict:
+def region_gain(current: Fitted, candidate: Fitted, regions: Regions) -> dict:
+    """The candidate's paired change over the held-out regions (`Regions`), keys prefixed region_:
+    per fold set ('joint_space', 'tool_axis') each region's relative fall 1 - after / before of its
+    held-out mean square and whether either fit departed there; over every region of every set the
+    median of log(before / after) (`region_median_log_fall`, the decision's statistic: > 0 when most
+    regions are predicted better), how many regions improved, and the worst region with its fall.
+    A departed region's fit is its own mode (`evidence.cross_validate`): there its error is what
+    the effect does where it did not see, so it counts like the others, one vote of the median."""
+    tiny = np.finfo(float).tiny
+    per_set, log_falls, where = {}, [], []
+    for name, folds in regions.folds.items():
+        before, after = current.cross_validated(folds), candidate.cross_validated(folds)
+        falls = 1.0 - after.mse / np.maximum(before.mse, tiny)
+        per_set[name] = {
+            "fold_falls": falls.tolist(),
+            "held_out_points": after.points.tolist(),
+            "departed": np.flatnonzero(~(before.kept & after.kept)).tolist(),
+            "cv_rmse_before_mm": before.rmse / MM,
+            "cv_rmse_mm": after.rmse / MM,
+        }
+        log_falls += (np.log(np.maximum(before.mse, tiny)) - np.log(np.maximum(after.mse, tiny))).tolist()
+        where += [(name, k, float(f)) for k, f in enumerate(falls)]
+    worst = min(where, key=lambda w: w[2])
+    return {
+        "region_folds": per_set,
+        "region_median_log_fall": float(np.median(log_falls)),
+        "region_folds_improved": int(np.sum(np.array(log_falls) > 0)),
+        "region_folds_total": len(log_falls),
+        "region_worst": {"set": worst[0], "fold": worst[1], "fall": worst[2]},
+    }
+
+
+def score(
+    current: Fitted,
+    candidate: Fitted,
+    settings: LoopSettings,
+    blocked: np.ndarray | None = None,
+    regions: Regions | None = None,
+) -> dict:
     """A candidate's scores against the current fit (JSON-ready), and whether it passes; blocked
-    (n,): the time blocks (`TimeBlocked`) a candidate must also not lose on, None without them."""
+    (n,): the time blocks (`TimeBlocked`) a candidate must also not lose on, None without them;
+    regions: the held-out regions (`Regions`) whose majority it must predict better, None without."""
     out = {
         "log_evidence_gain": candidate.mode.log_evidence - current.mode.log_evidence,
         "bic_gain": current.mode.bic() - candidate.mode.bic(),
@@ -192,6 +232,7 @@ def score(current: Fitted, candidate: Fitted, settings: LoopSettings, blocked: n
         "dropped": dict(candidate.reduction.dropped),
         "weak": dict(candidate.reduction.weak),
         "condition_number": candidate.reduction.condition_number,
+        **({} if regions is None else region_gain(current, candidate, regions)),
         "beyond_prior": beyond_prior(current, candidate),
     }
     return judged(out, settings)
@@ -209,7 +250,7 @@ def scaled_priors(priors: Priors, scale: float) -> Priors:
     if scale == 1.0:
         return priors
     values = {k: (v * scale if k in LINK_PRIOR_KEYS else v) for k, v in priors.values.items()}
-    return Priors(priors.arm_class, values, f"{priors.source}; link geometry x{scale:g} (its evidence)")
+    return replace(priors, values=values, source=f"{priors.source}; link geometry x{scale:g} (its evidence)")
 
 
 def link_prior_scale(chain, data: Readings, marker, t_nr, base_held, priors: Priors) -> tuple[float, dict]:
@@ -268,6 +309,13 @@ def shortfalls(scores: Mapping, settings: LoopSettings) -> list[str]:
     blocked = scores.get("time_blocked_cv_mse_fall_mm2")
     if blocked is not None and not blocked > 0:
         out.append("no fall over the time blocks (it does not predict a stretch of the campaign it did not see)")
+    median = scores.get("region_median_log_fall")
+    if median is not None and not median > 0:
+        out.append(
+            f"most held-out regions not predicted better ({scores['region_folds_improved']} of "
+            f"{scores['region_folds_total']}, median fall {100 * -math.expm1(-median):.2g} %): it does not "
+            "carry over to a part of the domain it did not see"
+        )
     far = scores.get("beyond_prior") or {}
     if far.get("prior_stds", 0.0) > evidence.PRIOR_RANGE:
         out.append(symptom_text(far))
@@ -288,7 +336,11 @@ def passes(scores: Mapping, settings: LoopSettings) -> bool:
     exceeds min_log_evidence_gain AND the pose-grouped cross-validated fall exceeds `cv_threshold`
     standard errors AND, where the campaign has time blocks, the fall over blocks contiguous in time
     is positive: the effect also predicts poses it did not interpolate between (folds of whole poses
-    assigned in turn are each a thinned copy of the same design) AND no parameter of its own sits
+    assigned in turn are each a thinned copy of the same design) AND, where the campaign has held-out
+    regions (`Regions`), the median of their log falls is positive: most regions of the joint space
+    and of the tool's orientation are predicted better when left out: one region the effect
+    extrapolates badly to is shown (`region_worst`) and is one vote, where a mean over its standard
+    error would let that one fold's spread veto the effect, AND no parameter of its own sits
     beyond `evidence.PRIOR_RANGE` prior std (`beyond_prior`): there it is a symptom of something else."""
     return not shortfalls(scores, settings)
 
@@ -317,6 +369,7 @@ class Selection:
     rotation: np.ndarray | None = None
     noise: dict | None = None
     time_blocked: dict | None = None
+    regions: Regions | None = None
 
     @property
     def gp_added(self) -> bool:
@@ -344,6 +397,7 @@ class _Round:
     blocked: np.ndarray | None
     current: Fitted
     added: tuple[str, ...]
+    regions: Regions | None = None
 
     @cached_property
     def residual(self) -> np.ndarray:
@@ -376,7 +430,7 @@ class _Round:
         fits[name] = fitted
         signature = signatures[name] = Signature(self.residual, fitted.model.predict(fitted.theta) - self.prediction)
         scores[name] = {
-            **score(current, fitted, self.settings, self.blocked),
+            **score(current, fitted, self.settings, self.blocked, self.regions),
             "explained_fraction": signature.explained,
         }
 
@@ -397,6 +451,7 @@ def select(
     folds = selection_folds(poses, settings.cv_folds)
     in_time = TimeBlocked.of(data, poses, settings.cv_folds)
     blocked = in_time.folds if in_time else None
+    regions = Regions.of(chain, data, poses, settings.cv_folds)
     base = current = fit_blocks(chain, data, marker, t_nr, (), base_held, folds, settings.priors)
     remaining = [c for c in settings.candidates if blocks.available(c, data)]
     added: list[str] = []
@@ -407,7 +462,7 @@ def select(
         number = len(rounds) + 1
         scores, fits, signatures[number] = {}, {}, {}
         offered = {c: with_companions(c, added, remaining) for c in remaining}
-        this = _Round(chain, data, marker, t_nr, base_held, folds, settings, blocked, current, tuple(added))
+        this = _Round(chain, data, marker, t_nr, base_held, folds, settings, blocked, current, tuple(added), regions)
         for candidate in remaining:
             this.record(candidate, offered[candidate], scores, fits, signatures[number])
         if not any(scores[c]["passed"] for c in fits):  # each alone lost: the pairs that trade against each other
@@ -443,7 +498,9 @@ def select(
             path[-1] = (path[-1][0], current)
             rotation = current.model.sensor_rotation(current.theta)
         time_blocked = in_time.report(path) if in_time else None
-        return Selection(base, current, tuple(added), rounds, signatures, None, rotation, noise_choice, time_blocked)
+        return Selection(
+            base, current, tuple(added), rounds, signatures, None, rotation, noise_choice, time_blocked, regions
+        )
     gp, scores = _score_gp(current, data, rotation, folds, settings, in_time)
     if not removed and forward_end is not None and forward_end["added"] is None:
         last = forward_end  # tried in the round where no parametric effect passed, on that round's model
@@ -472,7 +529,7 @@ def select(
         path[-1] = (path[-1][0], current)
     rotation = current.model.sensor_rotation(current.theta)
     time_blocked = in_time.report(path, current, data, rotation, settings) if in_time else None
-    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice, time_blocked)
+    return Selection(base, current, tuple(added), rounds, signatures, gp, rotation, noise_choice, time_blocked, regions)
 
 
 def removal_groups(added: Sequence[str], brought: Mapping[str, Sequence[str]] | None) -> dict[str, list[str]]:
@@ -643,6 +700,70 @@ class TimeBlocked:
             int(settings.residual_gp["inducing"]),
         )
         return evidence.cv_gain(before, evidence.CrossValidation(gp.mse, gp.points))
+
+
+# Below this spread of the tool axis about its mean direction (deg) the campaign holds one tool
+# orientation (a cube design's tool along one axis): regions of it would be cut from the noise of the
+# inverse kinematics, not from orientations an effect could extrapolate to
+TOOL_AXIS_SPREAD_DEG = 10.0
+REGION_SEED = 0  # the k-means starts' seed: the same campaign is cut into the same regions
+
+
+def region_features(chain: KinematicChain, q) -> dict[str, np.ndarray]:
+    """The features regions are cut in, per fold set, at readings q (n, N) rad: 'joint_space' (n, 2N)
+    cos and sin of each joint (a revolute joint is periodic: q and q + 2 pi are one configuration, and
+    each joint's circle weighs alike), 'tool_axis' (n, 3) the flange's z axis in the robot frame (the
+    tool's direction, which the joint space reaches by many configurations)."""
+    q = np.asarray(q, dtype=float)
+    return {
+        "joint_space": np.column_stack([np.cos(q), np.sin(q)]),
+        "tool_axis": flange_rotations(chain, q)[:, :, 2],
+    }
+
+
+@dataclass(frozen=True, eq=False)
+class Regions:
+    """Cross-validation by regions beside the pose folds and the time blocks: each fold a region of
+    whole poses (`evidence.region_folds`, k-means of their features, `region_features`), held out in
+    turn, so that a fold's fit predicts a part of the domain it did not see: what a calibration is
+    bought for beyond its poses. folds: {set name: (n,) folds}; centres: {set name: (K, d)}; skipped:
+    {set name: why it has no folds}."""
+
+    folds: dict[str, np.ndarray]
+    centres: dict[str, np.ndarray]
+    skipped: dict[str, str]
+
+    @classmethod
+    def of(cls, chain: KinematicChain, data: Readings, poses, n_folds: int) -> Regions | None:
+        """The regions of the readings' joint space and tool axis, K = n_folds of each; None with
+        fewer poses than regions (then neither set can be cut)."""
+        folds, centres, skipped = {}, {}, {}
+        for name, features in region_features(chain, data.q).items():
+            if name == "tool_axis":
+                mean = features.mean(axis=0)
+                mean /= max(np.linalg.norm(mean), np.finfo(float).tiny)
+                spread = math.degrees(float(np.max(np.arccos(np.clip(features @ mean, -1.0, 1.0)))))
+                if spread < TOOL_AXIS_SPREAD_DEG:
+                    skipped[name] = f"one tool orientation (within {spread:.2g} deg of its mean)"
+                    continue
+            try:
+                folds[name], centres[name] = evidence.region_folds(features, poses, n_folds, REGION_SEED)
+            except ValueError as exc:
+                skipped[name] = str(exc)
+        return cls(folds, centres, skipped) if folds else None
+
+    def report(self) -> dict:
+        """JSON-ready: per fold set its regions and the rows held out in each, or why it has none."""
+        return {
+            "measure": "held-out regions of whole poses (k-means of the configurations' cos/sin of each joint, "
+            "and of the flange's z axis); a candidate passes where the median log fall over every region is "
+            "positive (`region_median_log_fall`)",
+            "sets": {
+                name: {"folds": len(c), "rows_per_fold": np.bincount(self.folds[name]).tolist()}
+                for name, c in self.centres.items()
+            },
+            "skipped": dict(self.skipped),
+        }
 
 
 def choose_noise(

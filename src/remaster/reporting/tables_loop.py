@@ -67,6 +67,7 @@ SCORE_COLUMNS = (
     "CV fall (%)",
     "CV fall / SE",
     "CV fall per fold (%)",
+    "Held-out regions (%)",
     "BIC gain",
     "Explained (%)",
 )
@@ -88,6 +89,23 @@ def _why_not(entry: dict, step: dict) -> str:
         return f"no: {entry['why_not']}"
     added = step.get("added")
     return f"no: it passed, {added} gained more evidence this round" if entry.get("passed") and added else ""
+
+
+def _region_falls(entry: dict) -> str | float:
+    """Each held-out region's fall of the held-out error (%), per fold set ('joint_space: 99 / 89 (departed)
+    / ...; tool_axis: ...'), departed folds marked (they count: `selection.region_gain`); NaN without
+    regions."""
+    sets = entry.get("region_folds")
+    if not sets:
+        return float("nan")
+    return "; ".join(
+        f"{name}: "
+        + " / ".join(
+            f"{100.0 * f:.0f}" + (" (departed)" if i in set(scores["departed"]) else "")
+            for i, f in enumerate(scores["fold_falls"])
+        )
+        for name, scores in sets.items()
+    )
 
 
 def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
@@ -115,6 +133,8 @@ def _candidate_row(sensor: str, name: str, entry: dict, step: dict) -> dict:
         "CV fall / SE": entry.get("cv_mse_fall_in_se", nan),
         # why an effect was or was not taken: each fold's fall, which the statistic weighs alike
         "CV fall per fold (%)": _fold_falls(entry),
+        # where it carries over: each region's fall when held out, the one it extrapolates worst to shown
+        "Held-out regions (%)": _region_falls(entry),
         "BIC gain": entry.get("bic_gain", nan),
         "Explained (%)": 100.0 * entry.get("explained_fraction", nan),
         "Added": verdict,

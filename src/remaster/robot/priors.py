@@ -39,6 +39,11 @@ KEYS = {
     "marker_offset_mm": (MM, "marker position error per axis, flange frame (marker_offset.*)"),
     "joint_compliance_urad_per_Nm": (MICRO, "compliance of each joint and its payload term (joint_compliance.*)"),
     "joint_scale_ppm": (MICRO, "scale (gear-ratio) error of each joint reading (joint_scale.*)"),
+    "joint_scale_output_ppm": (
+        MICRO,
+        "scale error of each joint reading where the encoders read the joint's output, after the gear "
+        "(joint_scale.*, robot/joint_encoders: output)",
+    ),
     "sensor_scale_ppm": (MICRO, "scale error of the sensor's lengths (sensor_scale.s)"),
     "sensor_distortion_ppm": (
         MICRO,
@@ -54,6 +59,12 @@ KEYS = {
 }
 CLASS_KEY = "arm_class"
 CLASSES = ("industrial", "collaborative")
+# How the arm reads its joints (campaign.yaml robot/joint_encoders): on the motor, before the gear,
+# a reading's scale is the gear ratio's error (joint_scale_ppm, today's default and the unknown
+# case); at the output, after the gear (Universal Robots, KUKA LBR iiwa), the encoder reads the
+# joint's angle itself and its scale is the encoder's graduation (joint_scale_output_ppm)
+ENCODERS_KEY = "joint_encoders"
+JOINT_ENCODERS = ("motor", "output")
 
 
 @dataclass(frozen=True)
@@ -64,6 +75,7 @@ class Priors:
     arm_class: str
     values: dict[str, float]
     source: str = "config"
+    joint_encoders: str = "motor"
 
     def std(self, key: str) -> float:
         """SI std of one key."""
@@ -81,7 +93,7 @@ class Priors:
         key = {
             "marker_offset": "marker_offset_mm",
             "joint_compliance": "joint_compliance_urad_per_Nm",
-            "joint_scale": "joint_scale_ppm",
+            "joint_scale": "joint_scale_output_ppm" if self.joint_encoders == "output" else "joint_scale_ppm",
             "sensor_scale": "sensor_scale_ppm",
             "joint_harmonics": "joint_harmonic_deg",
             "sensor_distortion": "sensor_distortion_ppm",
@@ -94,6 +106,7 @@ class Priors:
         return {
             "arm_class": self.arm_class,
             "source": self.source,
+            "joint_encoders": self.joint_encoders,
             "std_display_units": dict(self.values),
             "meaning": {k: text for k, (_, text) in KEYS.items()},
         }
@@ -132,9 +145,23 @@ def check_override(override, source: str) -> None:
     _checked_values(override, "robot/priors", source)
 
 
+def check_encoders(value, source: str) -> str:
+    """A campaign's `robot.joint_encoders`: one of JOINT_ENCODERS, else an InputError naming the key."""
+    if not isinstance(value, str) or value not in JOINT_ENCODERS:
+        raise InputError(
+            f"must be one of {', '.join(JOINT_ENCODERS)} (where the encoders read the joint: on the motor, before "
+            f"the gear, or at the joint's output), got {quoted(value)}",
+            file=source,
+            key=f"robot/{ENCODERS_KEY}",
+        )
+    return value
+
+
 def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: str = "campaign.yaml") -> Priors:
     """The priors of one campaign: the config's class (or the campaign's `robot.priors.arm_class`),
-    then the campaign's own values over it. config: the workflow's `priors` section."""
+    then the campaign's own values over it, and the joint scale's by its `robot.joint_encoders`
+    (motor when it does not say). config: the workflow's `priors` section."""
+    encoders = check_encoders((campaign_robot or {}).get(ENCODERS_KEY, "motor"), source)
     override = (campaign_robot or {}).get("priors")
     if override is not None:
         check_override(override, source)
@@ -155,7 +182,7 @@ def priors_from(config: Mapping, campaign_robot: Mapping | None = None, source: 
     if missing:
         raise InputError(f"missing priors {', '.join(missing)}", file="config", key=f"priors/{arm_class}")
     own = _checked_values(override, "robot/priors", source)
-    return Priors(arm_class, {**values, **own}, "config" if not own else f"config, overridden by {source}")
+    return Priors(arm_class, {**values, **own}, "config" if not own else f"config, overridden by {source}", encoders)
 
 
 # Defaults (config.yaml repeats them with their reasons; these serve library calls without a config).
@@ -167,6 +194,7 @@ DEFAULTS = {
         "marker_offset_mm": 1.0,
         "joint_compliance_urad_per_Nm": 50.0,
         "joint_scale_ppm": 1000.0,
+        "joint_scale_output_ppm": 30.0,
         "sensor_scale_ppm": 500.0,
         "sensor_distortion_ppm": 1000.0,
         "drift_deg_per_hour": 0.05,
@@ -180,6 +208,7 @@ DEFAULTS = {
         "marker_offset_mm": 1.0,
         "joint_compliance_urad_per_Nm": 200.0,
         "joint_scale_ppm": 1000.0,
+        "joint_scale_output_ppm": 30.0,
         "sensor_scale_ppm": 500.0,
         "sensor_distortion_ppm": 1000.0,
         "drift_deg_per_hour": 0.05,
