@@ -27,9 +27,8 @@ from remaster.reporting import figures
 from remaster.robot import kinematics, registration
 
 from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
-from .conftest import REPO
+from .conftest import REPO, SNAKEMAKE
 
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 TINY_FIT = {
     "fit": {
         "paper": {"chains": 2, "samples": 300, "burn_in": 200},

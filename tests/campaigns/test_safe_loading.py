@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -17,10 +16,8 @@ from remaster.campaigns.campaign import validate_metadata
 from remaster.errors import InputError, KinematicsError
 from remaster.robot import kinematics
 
-from ..conftest import REPO
+from ..conftest import REPO, SNAKEMAKE
 from .test_campaign import make_campaign, metadata
-
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 
 
 def payloads(marker: Path) -> dict[str, str]:
