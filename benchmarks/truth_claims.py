@@ -16,6 +16,7 @@ import numpy as np
 from remaster import files
 from remaster.api import truth
 from remaster.api.truth import Claim, TruthCheck, own_posterior_expectations, posterior_outside
+from remaster.calibration import prediction
 from remaster.inference import blocks, evidence
 from remaster.loop import selection
 
@@ -45,7 +46,10 @@ def least_squares_validation(campaign, sensor: str, registered, laplace, setting
     optimization rows the paper's fit kept; flat (`priors` None: what the data cannot see held at 0,
     by the loop's own reduction) or under `priors`; the gravity torques as `settings.model` gives
     them on this campaign's chain. Returns the validation set's accuracy (`selection.accuracy`:
-    rmse_mm, rms_per_axis_mm, ...) and the parameters fitted; the validation set is read for this only."""
+    rmse_mm, rms_per_axis_mm, ...; the validation set is read for this only), the parameters fitted
+    and, as `calibration`, the fit as a `prediction.Calibration` (model 'least_squares': the robot's
+    parameters, the registration left out, as a loop-closed model's) that `comparing.transfer`
+    applies to another campaign."""
     data = campaign.sensors[sensor]
     fitted_on = blocks.readings(campaign.chain, data, "optimization", settings.model, exclude=laplace.outlier_rows)
     checked_on = blocks.readings(campaign.chain, data, "validation", settings.model)
@@ -55,4 +59,14 @@ def least_squares_validation(campaign, sensor: str, registered, laplace, setting
     theta = evidence.posterior_mode(model, np.zeros(len(model.names))).theta
     validation = model.on(checked_on)
     poses = data.table["pose"].to_numpy()[checked_on.rows]
-    return {**selection.accuracy(validation.measured, validation.predict(theta), poses), "parameters": len(theta)}
+    values = {
+        name: float(value)
+        for name, value in zip(model.all_names, model.full(theta))
+        if model.block_of[name] not in prediction.SETUP_BLOCKS
+    }
+    kept = tuple(b for b in model.blocks if b in blocks.EXTENSIONS and b not in prediction.SETUP_BLOCKS)
+    return {
+        **selection.accuracy(validation.measured, validation.predict(theta), poses),
+        "parameters": len(theta),
+        "calibration": prediction.Calibration("least_squares", values, kept, settings.model),
+    }
