@@ -62,28 +62,32 @@ def evenly_spaced(n: int, count: int) -> np.ndarray:
     return np.arange(n) if n <= count else np.unique(np.linspace(0, n - 1, count).round().astype(int))
 
 
-def inducing_count(q, hyper: Hyperparameters, at_least: int = INDUCING, at_most: int = MAX_INDUCING) -> int:
-    """How many evenly spaced inducing inputs the GP of `hyper` needs at readings q (n, N) rad: from
-    `at_least`, doubled until the mean of 1 - q_ii / k_ii (the share of the prior variance the
-    inducing inputs leave unexplained) over up to PROBE_ROWS evenly spaced rows that are not inducing
-    inputs is at most UNEXPLAINED, or `at_most` (or every row) is reached."""
+def unexplained_share(q, hyper: Hyperparameters, inducing: int) -> float:
+    """The mean of 1 - q_ii / k_ii, the share of the prior variance that `inducing` evenly spaced
+    inducing inputs leave unexplained, over up to PROBE_ROWS evenly spaced rows of q (n, N) rad that
+    are not inducing inputs (0 when every row is one)."""
     import scipy.linalg
 
     q = np.asarray(q, dtype=float)
+    rows = evenly_spaced(len(q), inducing)
+    probe = q[np.setdiff1d(evenly_spaced(len(q), PROBE_ROWS), rows)]
+    if not len(probe):
+        return 0.0
+    k_mm = kernel(q[rows], q[rows], hyper)
+    k_mm[np.diag_indices(len(rows))] += JITTER * hyper.signal_std**2
+    whitened = scipy.linalg.solve_triangular(
+        np.linalg.cholesky(k_mm), kernel(q[rows], probe, hyper), lower=True, check_finite=False
+    )
+    return 1.0 - float(np.mean(np.sum(whitened**2, axis=0))) / hyper.signal_std**2
+
+
+def inducing_count(q, hyper: Hyperparameters, at_least: int = INDUCING, at_most: int = MAX_INDUCING) -> int:
+    """How many evenly spaced inducing inputs the GP of `hyper` needs at readings q (n, N) rad: from
+    `at_least`, doubled until `unexplained_share` is at most UNEXPLAINED, or `at_most` (or every
+    row) is reached."""
     n = len(q)
     m = min(at_least, n)
-    while m < min(n, at_most):
-        rows = evenly_spaced(n, m)
-        probe = q[np.setdiff1d(evenly_spaced(n, PROBE_ROWS), rows)]
-        if not len(probe):
-            break
-        k_mm = kernel(q[rows], q[rows], hyper)
-        k_mm[np.diag_indices(len(rows))] += JITTER * hyper.signal_std**2
-        whitened = scipy.linalg.solve_triangular(
-            np.linalg.cholesky(k_mm), kernel(q[rows], probe, hyper), lower=True, check_finite=False
-        )
-        if 1.0 - float(np.mean(np.sum(whitened**2, axis=0))) / hyper.signal_std**2 <= UNEXPLAINED:
-            break
+    while m < min(n, at_most) and unexplained_share(q, hyper, m) > UNEXPLAINED:
         m = min(2 * m, n, at_most)
     return m
 
