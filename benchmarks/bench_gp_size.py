@@ -28,12 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from remaster import files
+from remaster import configuration
 from remaster.campaigns.arm_kinds import UR5, chain_of
-from remaster.inference import blocks, evidence
+from remaster.inference import blocks, evidence, fit
 from remaster.inference.gp import kernels, loop_candidate, residual
 from remaster.loop.selection import judged
-from remaster.loop.settings import settings_from
+from remaster.loop.settings import from_config
 from remaster.robot.kinematics import marker_positions
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -102,12 +102,12 @@ def rms_um(values) -> float:
 def measure() -> dict:
     rng = np.random.default_rng(0)
     chain = chain_of({"robot": UR5, "name": "bench_gp_size"}, REPO)
-    config = files.read_yaml(REPO / "config.yaml")
-    settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
+    settings = from_config(configuration.settings())
     field = Field(np.random.default_rng(5))
     q, poses = grid(rng)
-    measured = marker_positions(chain, q, MARKER) + field(q) + rng.normal(0.0, NOISE, q.shape)
-    model = blocks.paper_model(chain, q, measured, MARKER, np.eye(4), fixed={"zero_offsets.q1": 0.0})
+    measured = marker_positions(chain, q, MARKER) + field(q) + rng.normal(0.0, NOISE, (len(q), 3))
+    held = fit.identified(blocks.paper_model(chain, q, measured, MARKER, np.eye(4))).held  # what the data cannot fix
+    model = blocks.paper_model(chain, q, measured, MARKER, np.eye(4), fixed=held)
     mode = evidence.posterior_mode(model)
     rotation = model.sensor_rotation(mode.theta)
     folds = evidence.pose_folds(poses, settings.cv_folds)
@@ -128,8 +128,8 @@ def measure() -> dict:
     hyper = candidate.gp.hyper
 
     q_new = validation_rows(rng)
-    measured_new = marker_positions(chain, q_new, MARKER) + field(q_new) + rng.normal(0.0, NOISE, q_new.shape)
-    new_model = blocks.paper_model(chain, q_new, measured_new, MARKER, np.eye(4), fixed={"zero_offsets.q1": 0.0})
+    measured_new = marker_positions(chain, q_new, MARKER) + field(q_new) + rng.normal(0.0, NOISE, (len(q_new), 3))
+    new_model = blocks.paper_model(chain, q_new, measured_new, MARKER, np.eye(4), fixed=held)
     r_new = new_model.residuals(mode.theta) @ rotation
 
     # the former fixed count, same hyperparameters (the evidence's mode and Occam factor as the candidate's)
