@@ -246,7 +246,7 @@ def titsias_log_evidence(q, y, jacobian, precision, hyper: Hyperparameters, indu
     `hyper` through `inducing` inducing inputs (None: as many as it needs, `residual.inducing_count`)
     evenly spaced over q."""
     q = np.asarray(q, dtype=float)
-    basis = _Inducing(q, hyper, inducing_count(q, hyper) if inducing is None else inducing)
+    basis = _Inducing(q, hyper, inducing_count(q, hyper, INDUCING) if inducing is None else inducing)
     total = _fold_sums(q, np.asarray(jacobian, dtype=float), np.asarray(y, dtype=float), basis, np.zeros(len(q), int))
     return _titsias(total[0], hyper, np.asarray(precision, dtype=float))[0]
 
@@ -263,7 +263,7 @@ def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, i
     y = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(n, 3)
     precision = np.asarray(mode.model._prior_precision, dtype=float)
     noise2 = hyper.noise_std**2
-    basis = _Inducing(q, hyper, inducing_count(q, hyper) if inducing is None else inducing)
+    basis = _Inducing(q, hyper, inducing_count(q, hyper, INDUCING) if inducing is None else inducing)
     labels = np.zeros(n, int) if folds is None else np.unique(np.asarray(folds), return_inverse=True)[1].ravel()
     per_fold = _fold_sums(q, jacobian, y, basis, labels)
     total = per_fold[0]
