@@ -157,3 +157,48 @@ def test_a_reading_one_turn_away_is_the_same_configuration_and_the_kernel_stays_
     straddling = np.concatenate([at, at + turns, np.full((5, 7), np.pi - 1e-3), np.full((5, 7), -np.pi + 1e-3)])
     values = np.linalg.eigvalsh(kernel(straddling, straddling, hyper))
     assert values.min() > -1e-12 * values.max()
+
+
+def dense_grid(rng):
+    """40 positions of joints 1-2, 0.3 rad apart, each with 12 settings of joint 3, measured position
+    by position: the shape of a real dense grid, small."""
+    where = np.array(np.meshgrid(np.linspace(0.0, 2.1, 8), np.linspace(0.0, 1.2, 5), indexing="ij")).reshape(2, -1).T
+    q = np.array([[*p, w] for p in where for w in np.linspace(-0.5, 0.5, 12)])
+    return q + rng.normal(0.0, 1e-3, q.shape)
+
+
+def test_on_a_dense_grid_of_short_lengthscales_enough_inducing_inputs_are_taken():
+    """The residual GP at size failed because a fixed count of inducing inputs, evenly spaced over a
+    grid measured position by position, misses positions whose residual varies on a shorter scale
+    than their spacing: there Titsias' bound pays for the unexplained variance on every row and falls
+    below independent noise, though the GP explains most of the residual. `inducing_count` adds
+    inducing inputs until at most UNEXPLAINED of the prior variance is left: the bound then rises
+    above independent noise and near the exact likelihood, and the mean near the exact GP's."""
+    rng = np.random.default_rng(7)
+    q = dense_grid(rng)
+    hyper = Hyperparameters(np.array([0.1, 0.1, 2.0]), 1e-4, 2e-5)
+    y = np.linalg.cholesky(kernels.covariance_with_noise(q, hyper)) @ rng.standard_normal((len(q), 3))
+    exact = likelihood.exact_log_likelihood(q, y, hyper)
+    iid = likelihood.iid_log_likelihood(y)
+    few = 20  # half the positions
+    assert residual.unexplained_share(q, hyper, few) > 0.3
+    assert residual.titsias_bound(q, y, hyper, few) < iid < exact  # the GP would not be added
+    m = residual.inducing_count(q, hyper, at_least=few)
+    assert few < m < len(q)
+    assert residual.unexplained_share(q, hyper, m) <= residual.UNEXPLAINED
+    bound = residual.titsias_bound(q, y, hyper, m)
+    assert iid < bound <= exact
+    assert exact - bound < 0.1 * (exact - iid)
+    exact_mean = kernel(q, q, hyper) @ np.linalg.solve(kernels.covariance_with_noise(q, hyper), y)
+    for count, within in ((few, False), (m, True)):
+        error = np.sqrt(np.mean((residual.ResidualGP(q, y, hyper, count).mean(q) - exact_mean) ** 2))
+        assert bool(error < 0.2 * hyper.signal_std) is within
+
+
+def test_a_smooth_residual_keeps_the_fewest_inducing_inputs_and_the_count_stops_at_its_cap():
+    rng = np.random.default_rng(8)
+    q = dense_grid(rng)
+    assert residual.inducing_count(q, Hyperparameters(np.array([2.0, 2.0, 2.0]), 1e-4, 2e-5), at_least=20) == 20
+    short = Hyperparameters(np.array([0.01, 0.01, 0.01]), 1e-4, 2e-5)
+    assert residual.inducing_count(q, short, at_least=20, at_most=100) == 100
+    assert residual.inducing_count(q, short, at_least=20) == len(q)  # every row: the exact GP

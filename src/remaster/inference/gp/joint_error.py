@@ -42,7 +42,7 @@ import numpy as np
 
 from .kernels import Hyperparameters, circle_distances, kernel, turned_joints
 from .likelihood import feature_log_evidence, kron_log_evidence_and_gradient
-from .residual import INDUCING, evenly_spaced
+from .residual import evenly_spaced, inducing_count
 from .with_parameters import titsias_log_evidence
 
 # rows the free form's hyperparameters are maximised on: its n x n factor and inverse per evaluation (a
@@ -252,8 +252,9 @@ def _free_form(q, y, jacobian, precision, turned, free: Hyperparameters) -> tupl
     lengths = np.full(q.shape[1], np.inf)
     lengths[turned] = np.exp(x[: len(turned)])
     hyper = Hyperparameters(lengths, math.exp(x[-2]), math.exp(x[-1]))
-    bound = titsias_log_evidence(q, y, stacked, precision, hyper)
-    return x, bound, f"titsias: hyperparameters from {len(rows)} rows, inducing inputs {min(INDUCING, len(q))}"
+    inducing = inducing_count(q, hyper)
+    bound = titsias_log_evidence(q, y, stacked, precision, hyper, inducing)
+    return x, bound, f"titsias: hyperparameters from {len(rows)} rows, inducing inputs {inducing}"
 
 
 def joint_error_form(

@@ -17,7 +17,7 @@ import pandas as pd
 from .evidence_gain import EXACT_ROWS, GPEvidence, log_evidence_gain
 from .kernels import Hyperparameters
 from .likelihood import iid_log_likelihood
-from .residual import INDUCING, SUBSET, ResidualGP, fit_hyperparameters, relevance
+from .residual import INDUCING, SUBSET, ResidualGP, fit_hyperparameters, inducing_count, relevance
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +44,8 @@ def fit_and_score(
 ) -> Candidate:
     """Fit and score the GP on readings q (n, N) rad and residuals (n, 3) m of the current model;
     held_out (n, 3) m: each row's residual under the current model fitted without its fold, folds
-    (n,) the pose-grouped folds.
+    (n,) the pose-grouped folds; inducing: the fewest inducing inputs, more where the fitted
+    hyperparameters need them (`residual.inducing_count`).
 
     Evidence (`evidence_gain`): the GP's marginal likelihood, exact up to exact_rows rows and
     Titsias' bound above, with its hyperparameters integrated by a Laplace step in their logs,
@@ -56,6 +57,7 @@ def fit_and_score(
     (a few per cent of spurious gain on pure noise)."""
     q, residuals, held_out = (np.asarray(a, dtype=float) for a in (q, residuals, held_out))
     hyper = fit_hyperparameters(q, residuals, subset)
+    inducing = inducing_count(q, hyper, inducing)  # the folds' GPs and the evidence's bound through as many
     gp = ResidualGP(q, residuals, hyper, inducing)
     price = 0.5 * (int(hyper.turned.sum()) + 1) * math.log(residuals.size)
     dtc_gain = gp.log_likelihood - iid_log_likelihood(residuals) - price  # the former measure, for comparison

@@ -10,7 +10,9 @@ ROBOT frame (rotated back by the fit's registration), so the correction travels 
 Hyperparameters (l_j, s, noise) maximise the exact marginal likelihood of at most `subset` rows
 evenly spaced over the data (analytic gradient, L-BFGS-B in logs, two starts): O(subset^3)
 whatever n. Prediction uses all n rows through m inducing inputs (the same kind of
-subset), the DTC / projected-process approximation (Seeger, Williams & Lawrence 2003;
+subset; as many as leave at most `UNEXPLAINED` of the prior variance unexplained at the other rows,
+`inducing_count`: a fixed count fails on a dense grid of short lengthscales), the DTC /
+projected-process approximation (Seeger, Williams & Lawrence 2003;
 Quinonero-Candela & Rasmussen 2005): O(n m^2) time and O(chunk m) memory. Far from every inducing
 input the mean returns to zero and the variance to s^2: the correction does not extrapolate, it
 says it does not know. The evidence the loop decides with is not the DTC
@@ -33,7 +35,14 @@ from .kernels import LENGTH_BOUNDS, Hyperparameters, at_bounds, circle_distances
 from .likelihood import LOG_2PI, negative_log_marginal_likelihood
 
 SUBSET = 600  # rows for the hyperparameters (exact marginal likelihood)
-INDUCING = 400  # inducing inputs for prediction (and the evidence's bound above `evidence_gain.EXACT_ROWS`)
+INDUCING = 400  # the fewest inducing inputs for prediction (and the evidence's bound above `evidence_gain.EXACT_ROWS`)
+# inducing inputs are added (doubling from INDUCING) until at most this share of the prior variance s^2 is
+# left unexplained, on average, at rows that are not inducing inputs: on a dense grid of short lengthscales
+# 400 evenly spaced ones leave most of it, and Titsias' bound then pays n * share * s^2 / (2 noise^2) per
+# axis, which sank a GP that halves the held-out error (benchmarks/bench_gp_size.py)
+UNEXPLAINED = 0.02
+MAX_INDUCING = 2400  # the most: (CHUNK, 2400) covariance blocks (~160 MB each) and 2400^3 factors
+PROBE_ROWS = 2000  # rows, evenly spaced, on which the unexplained share is measured
 CHUNK = 8192  # rows per block when accumulating over all n
 RELEVANT_RANGE = 0.5  # lengthscales crossed over the measured range: the residual depends on that joint
 SIGNAL_BOUNDS = (1e-4, 10.0)  # s over rms(r)
@@ -51,6 +60,36 @@ def evenly_spaced(n: int, count: int) -> np.ndarray:
     """At most `count` row indices spread evenly over n rows (all of them when n <= count):
     deterministic, and representative when rows are in measurement order."""
     return np.arange(n) if n <= count else np.unique(np.linspace(0, n - 1, count).round().astype(int))
+
+
+def unexplained_share(q, hyper: Hyperparameters, inducing: int) -> float:
+    """The mean of 1 - q_ii / k_ii, the share of the prior variance that `inducing` evenly spaced
+    inducing inputs leave unexplained, over up to PROBE_ROWS evenly spaced rows of q (n, N) rad that
+    are not inducing inputs (0 when every row is one)."""
+    import scipy.linalg
+
+    q = np.asarray(q, dtype=float)
+    rows = evenly_spaced(len(q), inducing)
+    probe = q[np.setdiff1d(evenly_spaced(len(q), PROBE_ROWS), rows)]
+    if not len(probe):
+        return 0.0
+    k_mm = kernel(q[rows], q[rows], hyper)
+    k_mm[np.diag_indices(len(rows))] += JITTER * hyper.signal_std**2
+    whitened = scipy.linalg.solve_triangular(
+        np.linalg.cholesky(k_mm), kernel(q[rows], probe, hyper), lower=True, check_finite=False
+    )
+    return 1.0 - float(np.mean(np.sum(whitened**2, axis=0))) / hyper.signal_std**2
+
+
+def inducing_count(q, hyper: Hyperparameters, at_least: int = INDUCING, at_most: int = MAX_INDUCING) -> int:
+    """How many evenly spaced inducing inputs the GP of `hyper` needs at readings q (n, N) rad: from
+    `at_least`, doubled until `unexplained_share` is at most UNEXPLAINED, or `at_most` (or every
+    row) is reached."""
+    n = len(q)
+    m = min(at_least, n)
+    while m < min(n, at_most) and unexplained_share(q, hyper, m) > UNEXPLAINED:
+        m = min(2 * m, n, at_most)
+    return m
 
 
 def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparameters | None = None) -> Hyperparameters:

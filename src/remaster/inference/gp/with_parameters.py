@@ -29,7 +29,7 @@ J_H theta_T + K_HT C0_TT^-1 (y_T - J_T theta_T) (the best linear unbiased predic
 a GP: kriging with the parametric trend); the error is the held-out mean squared residual per point.
 
 One n x n Cholesky factor per model and per fold: exact up to `MAX_ROWS` rows. Above, the same
-model through m inducing inputs (`residual.INDUCING`, evenly spaced as the residual GP's own): K is
+model through m inducing inputs (`residual.inducing_count`, evenly spaced as the residual GP's own): K is
 replaced by Q = U U^T, U = K_nm L^-T (K_mm = L L^T), so that C0 = U U^T + s^2 I is inverted by
 Woodbury's identity with B = s^2 I_m + U^T U, and the evidence is Titsias' (2009) collapsed bound,
 the DTC marginal less 3 tr(K - Q) / (2 s^2): the trace term does not depend on theta, so the bound
@@ -52,7 +52,7 @@ import numpy as np
 from ..evidence import CrossValidation, PosteriorMode
 from .kernels import Hyperparameters, covariance_with_noise, kernel
 from .likelihood import dense_log_evidence, integrated_log_evidence
-from .residual import CHUNK, INDUCING, JITTER, evenly_spaced
+from .residual import CHUNK, INDUCING, JITTER, evenly_spaced, inducing_count
 
 MAX_ROWS = 3000  # rows up to which the n x n factor is taken (about 2 s per factor at 3000 on two cores)
 MAX_NOISE_ROWS = 600  # rows up to which a noise shape is compared with the GP present (3n x 3n factors)
@@ -243,16 +243,18 @@ def _titsias(total: _Sums, hyper: Hyperparameters, precision) -> tuple[float, np
 def titsias_log_evidence(q, y, jacobian, precision, hyper: Hyperparameters, inducing: int | None = None) -> float:
     """Titsias' bound on log Z (module docstring) of y (n, 3) m = J theta + f + e at readings q
     (n, N) rad, jacobian (n, 3, P), theta integrated under precision (P,) (0: flat), f the GP of
-    `hyper` through `inducing` inducing inputs (None: `INDUCING`) evenly spaced over q."""
+    `hyper` through `inducing` inducing inputs (None: as many as it needs, `residual.inducing_count`)
+    evenly spaced over q."""
     q = np.asarray(q, dtype=float)
-    basis = _Inducing(q, hyper, INDUCING if inducing is None else inducing)
+    basis = _Inducing(q, hyper, inducing_count(q, hyper, INDUCING) if inducing is None else inducing)
     total = _fold_sums(q, np.asarray(jacobian, dtype=float), np.asarray(y, dtype=float), basis, np.zeros(len(q), int))
     return _titsias(total[0], hyper, np.asarray(precision, dtype=float))[0]
 
 
 def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, inducing: int | None = None) -> WithGP:
-    """`with_gp` through `inducing` inducing inputs (module docstring; None: `INDUCING`): Titsias'
-    bound as the evidence, the projected process's mean as each fold's prediction; method 'titsias'."""
+    """`with_gp` through `inducing` inducing inputs (module docstring; None: as many as the GP needs,
+    `residual.inducing_count`): Titsias' bound as the evidence, the projected process's mean as each
+    fold's prediction; method 'titsias'."""
     import scipy.linalg
 
     q = np.asarray(q, dtype=float)
@@ -261,7 +263,7 @@ def sparse_with_gp(mode: PosteriorMode, q, hyper: Hyperparameters, folds=None, i
     y = mode.model.whitened(mode.residuals) + (mode.jacobian @ mode.theta).reshape(n, 3)
     precision = np.asarray(mode.model._prior_precision, dtype=float)
     noise2 = hyper.noise_std**2
-    basis = _Inducing(q, hyper, INDUCING if inducing is None else inducing)
+    basis = _Inducing(q, hyper, inducing_count(q, hyper, INDUCING) if inducing is None else inducing)
     labels = np.zeros(n, int) if folds is None else np.unique(np.asarray(folds), return_inverse=True)[1].ravel()
     per_fold = _fold_sums(q, jacobian, y, basis, labels)
     total = per_fold[0]
