@@ -7,6 +7,12 @@ import sys
 import time
 from pathlib import Path
 
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # one BLAS thread per worker, set before NumPy loads it: the workers already fill the cores, and
+    # each worker's BLAS threading on top of them would have the cores switching between threads
+    for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(variable, "1")
+
 import numpy as np
 import pytest
 

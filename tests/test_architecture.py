@@ -13,8 +13,18 @@ FILE_MODULES = {"pathlib", "shutil", "tempfile", "glob", "os"}
 # files: plain files (YAML, JSON, CSV, Parquet, figures, logs); campaigns.folders: campaign folders;
 # campaigns.robot_model: the robot description a campaign names; provenance: digests of files and code;
 # results: a stage's results read back (by the command line and the workflow's scripts); api.truth: a
-# simulated campaign written to a temporary folder and read back as the workflow reads it
-FILE_ACCESS = {"files", "campaigns.folders", "campaigns.robot_model", "provenance", "results", "cli", "api.truth"}
+# simulated campaign written to a temporary folder and read back as the workflow reads it; campaigns.bags:
+# a ROS 2 bag, whose sqlite3 storage its reader (rosbags) opens by path
+FILE_ACCESS = {
+    "files",
+    "campaigns.folders",
+    "campaigns.robot_model",
+    "campaigns.bags",
+    "provenance",
+    "results",
+    "cli",
+    "api.truth",
+}
 
 
 def _file_access(source: str) -> list[str]:

@@ -13,7 +13,7 @@ import pytest
 
 from remaster import cli, files
 from remaster.campaigns import folders, importer
-from remaster.errors import InputError
+from remaster.errors import InputError, quoted
 
 from ..conftest import IIWA_URDF
 
@@ -248,7 +248,8 @@ def test_a_name_that_is_not_one_folder_is_refused_and_nothing_is_written(tmp_pat
     before = sorted(tmp_path.rglob("*"))
     assert cli.main(["import", "--config", str(config), "--raw-dir", str(work / "raw")]) == 2
     err = capsys.readouterr().err
-    assert "import.yaml: name: must be a folder name (one path component" in err and repr(name) in err
+    # the name as messages show a value (`errors.quoted`: a long absolute path shortened)
+    assert "import.yaml: name: must be a folder name (one path component" in err and quoted(name) in err
     assert sorted(tmp_path.rglob("*")) == before
 
 

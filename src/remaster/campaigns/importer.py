@@ -1212,9 +1212,22 @@ def _sensor_table(
         table[name] = column
 
     controller_label = controller_spec.key if spec.match == "key" else controller_spec.time
-    controller_shown = controller_export.cells[controller_label].to_numpy(dtype=object)
     unseen = measured & np.isnan(table["x"].to_numpy())
-    report = {
+    matched = (rows, source_row, measured, unseen)
+    report = _match_report(spec, export, controller_export, controller_label, matched, (label, shown, reasons))
+    return table, report, source_row, np.arange(n)
+
+
+def _match_report(
+    spec: SensorSpec, export: Export, controller_export: Export, controller_label: str, matched: tuple, shown_as: tuple
+) -> dict[str, Any]:
+    """A CSV sensor's section of the import report: its rows matched to the controller's, and which
+    were not (`matched`: rows, source_row, measured, unseen as `_sensor_table` computes them;
+    `shown_as`: the match's label, each sensor row's shown value, each unmatched row's reason)."""
+    rows, source_row, measured, unseen = matched
+    label, shown, reasons = shown_as
+    controller_shown = controller_export.cells[controller_label].to_numpy(dtype=object)
+    return {
         "file": export.source,
         "match": spec.match,
         "rows": int(len(export.cells)),
@@ -1237,7 +1250,6 @@ def _sensor_table(
             for i in np.flatnonzero(unseen)
         ],
     }
-    return table, report, source_row, np.arange(n)
 
 
 def _paired_table(
