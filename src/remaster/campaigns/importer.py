@@ -902,6 +902,18 @@ def _joint_positions(state, joints: tuple[str, ...], topic: str, source: str) ->
     return positions
 
 
+def _stamps_set(ns: np.ndarray, lines: np.ndarray, source: str, topic: str, remedy: str) -> None:
+    """InputError naming the bag (`source`), the topic and the messages (`lines`) whose time ns is 0:
+    a header stamp the publisher never set; `remedy` says what to do."""
+    unset = np.flatnonzero(ns == 0)
+    if unset.size:
+        raise InputError(
+            f"header stamp 0 (never set by the publisher) on {format_rows(lines[unset], 'message')}: {remedy}",
+            file=source,
+            key=topic,
+        )
+
+
 def joint_state_export(states: Sequence, spec: ControllerSpec, source: str) -> Export:
     """A bag's joint states (`bags.JointState`, in log-time order) as the controller log: a row per
     message, the cells the positions of spec.joints (rad, as text that reads back to the same float)
@@ -913,14 +925,7 @@ def joint_state_export(states: Sequence, spec: ControllerSpec, source: str) -> E
     q = [_joint_positions(state, spec.joints, bag.topic, source) for state in states]
     lines = np.array([state.index for state in states], dtype=np.int64)
     ns = np.array([state.stamp if bag.stamp == "header" else state.log_time for state in states], dtype=np.int64)
-    unset = np.flatnonzero(ns == 0)
-    if unset.size:
-        raise InputError(
-            f"header stamp 0 (never set by the publisher) on {format_rows(lines[unset], 'message')}: "
-            "use stamp: log to take the bag's log time",
-            file=source,
-            key=bag.topic,
-        )
+    _stamps_set(ns, lines, source, bag.topic, "use stamp: log to take the bag's log time")
     times = pd.DatetimeIndex(pd.to_datetime(ns, unit="ns", utc=True)).as_unit("ns")
     cells = {joint: [repr(float(row[j])) for row in q] for j, joint in enumerate(spec.joints)}
     cells[spec.time] = [_utc(t) for t in ns]
@@ -943,14 +948,7 @@ def measurement_export(samples: Sequence, spec: SensorSpec, source: str) -> Expo
         )
     lines = np.array([m.index for m in samples], dtype=np.int64)
     ns = np.array([m.stamp for m in samples], dtype=np.int64)
-    unset = np.flatnonzero(ns == 0)
-    if unset.size:
-        raise InputError(
-            f"header stamp 0 (never set by the publisher) on {format_rows(lines[unset], 'message')}: "
-            "a sample's time is its header stamp",
-            file=source,
-            key=topic,
-        )
+    _stamps_set(ns, lines, source, topic, "a sample's time is its header stamp")
     frames: dict[str, list[int]] = {}
     for m in samples:
         frames.setdefault(m.frame_id, []).append(m.index)
