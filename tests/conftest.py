@@ -155,8 +155,9 @@ def pytest_runtest_makereport(item, call):
 
 def pytest_collection_modifyitems(items):
     """Files with a workflow test first, then files with a slow one, then the rest: the suite's
-    workers (pytest-xdist, a file to a worker) start the longest files first, so no long file is
-    left to run alone at the end."""
+    workers (pytest-xdist, a file to a worker, in this order: `--no-loadscope-reorder` in addopts,
+    where xdist would put the files with the most tests first) start the longest files first, so no
+    long file is left to run alone at the end."""
     weight = {"workflow": 0, "slow": 1}
     files: dict = {}
     for item in items:

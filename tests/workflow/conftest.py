@@ -48,3 +48,10 @@ def run(root, *extra, config="config.yaml"):
         text=True,
         timeout=600,
     )
+
+
+def with_results(root, name, **settings):
+    """A config like the one in `root` (with `settings` changed), writing to another results folder."""
+    config = files.read_yaml(root / "config.yaml")
+    files.write_yaml(root / f"{name}.yaml", {**config, **settings, "results_dir": str(root / name)})
+    return f"{name}.yaml"

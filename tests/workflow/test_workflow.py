@@ -1,12 +1,9 @@
 """The Snakemake workflow end to end on a tiny simulated campaign: a dry run, a real run, and a
 second run that has nothing to do."""
 
-import os
 import re
 import shutil
-import signal
 import subprocess
-import time
 
 import pytest
 
@@ -19,25 +16,6 @@ from .conftest import SNAKEMAKE, run
 pytestmark = pytest.mark.workflow  # runs Snakemake: deselect with -m "not workflow"
 
 CROSS_CAMPAIGN_RULES = {"comparison", "comparison_prediction", "comparison_figures", "audit", "report", "all"}
-
-
-def with_results(root, name, **settings):
-    """A config like the tiny one (with `settings` changed), writing to another results folder."""
-    config = files.read_yaml(root / "config.yaml")
-    files.write_yaml(root / f"{name}.yaml", {**config, **settings, "results_dir": str(root / name)})
-    return f"{name}.yaml"
-
-
-def result_bytes(folder, campaign):
-    """Every table, remastering file, sample and metric of one campaign in a run, as bytes."""
-    patterns = [
-        f"{campaign}/tables/*",
-        f"{campaign}/*/remastering.json",
-        f"{campaign}/*/fit/summary.csv",
-        f"{campaign}/*/fit/samples_*.parquet",
-        f"{campaign}/*/metrics/*.csv",
-    ]
-    return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
 
 
 def planned_rules(root, *targets, config="config.yaml"):
@@ -133,37 +111,6 @@ def test_the_next_configurations_of_a_calibrated_campaign(tiny, tmp_path):
     assert np.all(np.isfinite(robust["expected_rms_mm"]))
     next_rows = files.read_csv(tmp_path / "next.csv")
     assert abs(next_rows["q3"].iloc[0]) > 0.05 and len(files.read_csv(tmp_path / "robust.csv")) == 3
-
-
-def test_a_run_killed_half_way_completes_with_identical_results(tiny):
-    """A second run of one of the two campaigns into another folder, killed while sampling and
-    started again: it finishes, and every table and result of that campaign equals the first,
-    undisturbed run's to the byte (so the same inputs and seed give the same results, whether or not
-    a run was interrupted, and whichever other campaigns are processed beside it)."""
-    first = tiny / "results"
-    if not (first / "report.html").exists():
-        assert run(tiny).returncode == 0
-    killed = with_results(tiny, "results_killed", campaigns=["tiny"])
-    process = subprocess.Popen(
-        SNAKEMAKE + ["-j2", "--configfile", str(tiny / killed)],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    deadline = time.monotonic() + 120
-    while not list((tiny / "results_killed").glob("tiny/*/fit/samples_*.parquet")) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    os.killpg(process.pid, signal.SIGKILL)  # the whole job tree, as a power cut or a scheduler would
-    process.wait()
-    assert not (tiny / "results_killed" / "report.html").exists()
-    # what a person does after a kill (README): release the lock the killed run held, run again
-    assert run(tiny, "--unlock", config=killed).returncode == 0
-    again = run(tiny, config=killed)
-    assert again.returncode == 0, again.stderr[-3000:]
-    a, b = result_bytes(first, "tiny"), result_bytes(tiny / "results_killed", "tiny")
-    assert a.keys() == b.keys() and len(a) > 30
-    assert [name for name in a if a[name] != b[name]] == []
 
 
 def test_changing_one_campaign_reruns_only_its_jobs(tiny):

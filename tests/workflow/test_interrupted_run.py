@@ -1,0 +1,58 @@
+"""A run killed half way and started again gives the results an undisturbed run gives, to the byte.
+In its own file, so the suite's workers run it beside test_workflow's runs."""
+
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+
+from ..conftest import REPO
+from .conftest import SNAKEMAKE, run, with_results
+
+pytestmark = pytest.mark.workflow  # runs Snakemake: deselect with -m "not workflow"
+
+
+def result_bytes(folder, campaign):
+    """Every table, remastering file, sample and metric of one campaign in a run, as bytes."""
+    patterns = [
+        f"{campaign}/tables/*",
+        f"{campaign}/*/remastering.json",
+        f"{campaign}/*/fit/summary.csv",
+        f"{campaign}/*/fit/samples_*.parquet",
+        f"{campaign}/*/metrics/*.csv",
+    ]
+    return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
+
+
+def test_a_run_killed_half_way_completes_with_identical_results(tiny):
+    """A second run of one of the two campaigns into another folder, killed while sampling and
+    started again: it finishes, and every table and result of that campaign equals the first,
+    undisturbed run's to the byte (so the same inputs and seed give the same results, whether or not
+    a run was interrupted, and whichever other campaigns are processed beside it). The second run
+    asks for those results only: its figures and report would add time, not checks."""
+    first = tiny / "results"
+    assert run(tiny).returncode == 0  # both campaigns, undisturbed
+    killed = with_results(tiny, "results_killed", campaigns=["tiny"])
+    targets = [str(tiny / "results_killed" / name) for name in result_bytes(first, "tiny")]
+    process = subprocess.Popen(
+        SNAKEMAKE + ["-j2", "--configfile", str(tiny / killed), "--", *targets],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 120
+    while not list((tiny / "results_killed").glob("tiny/*/fit/samples_*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGKILL)  # the whole job tree, as a power cut or a scheduler would
+    process.wait()
+    assert not all(os.path.exists(target) for target in targets)  # killed before its end
+    # what a person does after a kill (README): release the lock the killed run held, run again
+    assert run(tiny, "--unlock", config=killed).returncode == 0
+    again = run(tiny, "--", *targets, config=killed)
+    assert again.returncode == 0, again.stderr[-3000:]
+    a, b = result_bytes(first, "tiny"), result_bytes(tiny / "results_killed", "tiny")
+    assert a.keys() == b.keys() and len(a) > 30
+    assert [name for name in a if a[name] != b[name]] == []
