@@ -28,6 +28,17 @@ poses): how often they differ by more than 3 combined standard uncertainties; an
 test's rejection rate on a model missing an effect present in both sets (compliance in the truth,
 the loop without its compliance candidate).
 
+--sbc: simulation-based calibration (Talts et al. 2018; Modrak et al. 2023) of the cells SBC_CELLS (truth,
+design, sensor; campaigns measured by a laser tracker and a motion capture): per seed, the truth's normalized
+rank among the calibration's posterior draws, each draw taken as the arm (`TruthCheck.ranks`: the mean PIT of
+the commands' errors inside the measured ranges, across the limits, at the validation set; the registered
+p95 inside the measured ranges; each estimated zero-offset); per cell and statistic, a Kolmogorov-Smirnov
+test of the ranks against the uniform, their shares in the 2.5 % tails and their histogram. Writes
+benchmarks/results/sbc.json (each campaign as it ends; a rerun adds only the campaigns it lacks) and sbc.md,
+and the tables into docs/validation.md between its bench_sbc markers:
+    .venv/bin/python benchmarks/bench_coverage.py --sbc [--seeds N] [--first SEED] [--cells I ...] [--draws K]
+    [--n-random M] [--jobs J] [--render]
+
 Writes benchmarks/results/coverage.json and coverage.md, and the table into docs/validation.md
 between its bench_coverage markers. Run from the repository root:
     .venv/bin/python benchmarks/bench_coverage.py [--seeds N] [--first SEED] [--jobs J] [--missing-seeds M]
@@ -52,7 +63,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
-from remaster.campaigns.arm_kinds import chain_of, cyclic_truth, iiwa_scenario  # noqa: E402
+from remaster.campaigns.arm_kinds import (  # noqa: E402
+    MOTION_CAPTURE,
+    TRACKER,
+    chain_of,
+    cyclic_truth,
+    iiwa_scenario,
+)
 
 RESULTS = REPO / "benchmarks" / "results"
 VALIDATION_DOC = REPO / "docs" / "validation.md"
@@ -74,6 +91,16 @@ TRUTH_EFFECTS = {
     "compliance": ("joint_compliance",),
 }
 MISSING = ("compliance", ("joint_compliance",))  # the truth, and the candidates the loop is not offered
+# simulation-based calibration (--sbc): (truth, design, sensor) in the order they run, on campaigns measured
+# by the twin's two sensors (a 10 um laser tracker, a 30 um motion capture) so that a truth's two sensors see
+# the same arm and poses
+SBC_CELLS = (
+    ("rigid links", "q3 held", "motion_capture"),
+    ("rigid links", "q3 held", "laser_tracker"),
+    ("cyclic", "q3 held", "laser_tracker"),
+)
+SBC_SENSORS = {"laser_tracker": dict(TRACKER), "motion_capture": dict(MOTION_CAPTURE)}
+SBC_LEVEL, SBC_TAIL, SBC_BINS = 0.01, 0.025, 10
 
 
 def one(task: tuple) -> dict:
@@ -112,6 +139,69 @@ def one(task: tuple) -> dict:
         "corrections": corrections,
         "own_posterior": checked.own_posterior,
     }
+
+
+def sbc_one(task: tuple) -> dict:
+    """The truth's ranks among its calibration's posterior draws (`TruthCheck.ranks`) of one (truth,
+    design, sensor, seed), with the seed-level counts beside them."""
+    truth, design, sensor, seed, n_random, draws = task
+    started = time.perf_counter()
+    spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design], sensors=SBC_SENSORS)
+    checked = check(spec, chain_of(spec, REPO), sensor, n_random=n_random, draws=draws, seed=seed)
+    return {
+        "truth": truth,
+        "design": design,
+        "sensor": sensor,
+        "seed": seed,
+        "effects": list(checked.effects),
+        "ranks": checked.ranks,
+        "outside_share_near": 1.0 - checked.domain_held_fraction,
+        "outside_share_validation": 1.0 - checked.planned_held_fraction,
+        "claim_covers_near": checked.claims["domain"].covers,
+        "validation_over_noise": checked.validation_rms_per_axis_mm / checked.noise_mm,
+        "own_posterior": checked.own_posterior,
+        "seconds": time.perf_counter() - started,
+    }
+
+
+def sbc_summary(runs: list[dict]) -> list[dict]:
+    """Per (truth, design, sensor) and statistic: the ranks' Kolmogorov-Smirnov test against the
+    uniform (p-value, rejected at SBC_LEVEL), their shares in either SBC_TAIL and their histogram."""
+    cells = []
+    for truth, design, sensor in dict.fromkeys((r["truth"], r["design"], r["sensor"]) for r in runs):
+        part = [r for r in runs if (r["truth"], r["design"], r["sensor"]) == (truth, design, sensor)]
+        rows = []
+        for name in dict.fromkeys(k for r in part for k in r["ranks"]):
+            ranks = np.array([r["ranks"][name]["rank"] for r in part if name in r["ranks"]])
+            p_value = float(stats.kstest(ranks, "uniform").pvalue)
+            rows.append(
+                {
+                    "statistic": name,
+                    "seeds": int(ranks.size),
+                    "ks_p": p_value,
+                    "rejected": p_value < SBC_LEVEL,
+                    "below": float(np.mean(ranks < SBC_TAIL)),
+                    "above": float(np.mean(ranks > 1.0 - SBC_TAIL)),
+                    "histogram": np.histogram(ranks, SBC_BINS, (0.0, 1.0))[0].tolist(),
+                    "median_rank": float(np.median(ranks)),
+                }
+            )
+        outside = np.array([r["outside_share_near"] for r in part])
+        cells.append(
+            {
+                "truth": truth,
+                "design": design,
+                "sensor": sensor,
+                "seeds": len(part),
+                "rows": rows,
+                "outside_mean": float(outside.mean()),
+                "seeds_outside_above_25": int(np.sum(outside > 0.25)),
+                "expected_outside_above_25": _expected(part, "outside_above_25"),
+                "claim_covers": int(sum(r["claim_covers_near"] for r in part)),
+                "seconds_per_campaign": float(np.median([r["seconds"] for r in part])),
+            }
+        )
+    return cells
 
 
 def pairs(runs: list[dict]) -> list[float]:
@@ -330,6 +420,73 @@ def markdown(record: dict) -> str:
     return "\n".join(lines)
 
 
+SBC_LABELS = {
+    "pit_near": "mean PIT over the commands inside the measured ranges (near the data)",
+    "pit_across": "mean PIT over the commands across the joint limits",
+    "pit_validation": "mean PIT over the validation set's commands",
+    "p95_near": "the arm's registered p95 inside the measured ranges (what the workspace claim bounds)",
+}
+
+
+def sbc_markdown(record: dict) -> str:
+    """The rank tests of every cell: a table each, the histograms as counts per tenth of [0, 1]."""
+    lines = [
+        f"Measured {record['date']} by `benchmarks/bench_coverage.py --sbc` (seeds from {record['first']}; small "
+        f"iiwa campaigns measured by a 10 um laser tracker and a 30 um motion capture; {record['draws']} posterior "
+        f"draws, {record['n_random']} commands per domain). The truth's rank among the calibration's posterior "
+        "draws, each draw taken as the arm's truth (`TruthCheck.ranks`): uniform over seeds if the posterior is "
+        f"calibrated; Kolmogorov-Smirnov against the uniform at {100 * SBC_LEVEL:.0f} %, and the shares of ranks "
+        f"below {SBC_TAIL} and above {1 - SBC_TAIL} ({100 * SBC_TAIL:.1f} % each expected). A rank near 0: the "
+        "truth lies nearer the prediction than the draws do (the posterior too wide); near 1: farther (too narrow, "
+        "or off). The truths are fixed per truth kind and the seeds vary the poses and the noise, so where the "
+        "priors decide (across the limits with joint 3 held) the ranks say how the priors' spread compares with "
+        "this one truth, not whether the posterior is calibrated.",
+    ]
+    for cell in record["cells"]:
+        expected = cell["expected_outside_above_25"]
+        lines += [
+            "",
+            f"**{cell['truth']}, {cell['design']}, {cell['sensor'].replace('_', ' ')}** ({cell['seeds']} seeds; "
+            f"commands outside their bound near the data: {100 * cell['outside_mean']:.1f} % on average, above 25 % "
+            f"on {cell['seeds_outside_above_25']} seeds"
+            + (f", its own posteriors expect {expected:.1f}" if expected is not None else "")
+            + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
+            "",
+            "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
+            "histogram (tenths of [0, 1]) |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for r in cell["rows"]:
+            label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
+            lines.append(
+                f"| {label} | {r['seeds']} | {r['ks_p']:.2g} | {'rejected' if r['rejected'] else 'not rejected'} | "
+                f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
+                f"{' '.join(str(c) for c in r['histogram'])} |"
+            )
+    return "\n".join(lines)
+
+
+def sbc(args) -> None:
+    """Run (or, with --render, rewrite from sbc.json) the simulation-based calibration's cells, each
+    campaign added to sbc.json as it ends, those it holds already not run again."""
+    path = RESULTS / "sbc.json"
+    record = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {"runs": []}
+    if not args.render:
+        record.update(date=date.today().isoformat(), first=args.first, draws=args.draws, n_random=args.n_random)
+        done = {(r["truth"], r["design"], r["sensor"], r["seed"]) for r in record["runs"]}
+        cells = [SBC_CELLS[i] for i in args.cells] if args.cells else SBC_CELLS
+        seeds = range(args.first, args.first + args.seeds)
+        tasks = [(*c, s, args.n_random, args.draws) for c in cells for s in seeds if (*c, s) not in done]
+        with ProcessPoolExecutor(args.jobs) as pool:
+            for run in pool.map(sbc_one, tasks):
+                record["runs"].append(run)
+                path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+                ranks = ", ".join(f"{k} {v['rank']:.2f}" for k, v in run["ranks"].items())
+                print(f"{run['truth']}, {run['design']}, {run['sensor']}, seed {run['seed']}: {ranks}", flush=True)
+    record["cells"] = sbc_summary(record["runs"])
+    publish(RESULTS, "sbc", record, sbc_markdown(record), VALIDATION_DOC)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
@@ -345,7 +502,14 @@ def main() -> None:
         action="store_true",
         help="run only the missing-effect campaigns coverage.json lacks (up to --missing-seeds) and add them to it",
     )
+    parser.add_argument("--sbc", action="store_true", help="simulation-based calibration of SBC_CELLS (sbc.json)")
+    parser.add_argument("--cells", type=int, nargs="+", default=None, help="--sbc: which of SBC_CELLS (indices)")
+    parser.add_argument("--draws", type=int, default=400, help="--sbc: posterior draws per statistic")
+    parser.add_argument("--n-random", type=int, default=200, help="--sbc: commands per domain")
     args = parser.parse_args()
+    if args.sbc:
+        sbc(args)
+        return
     earlier = (
         json.loads((RESULTS / "coverage.json").read_text(encoding="utf-8")) if args.render or args.add_missing else None
     )
