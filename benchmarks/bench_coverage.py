@@ -38,6 +38,9 @@ benchmarks/results/sbc.json (each campaign as it ends; a rerun adds only the cam
 and the tables into docs/validation.md between its bench_sbc markers:
     .venv/bin/python benchmarks/bench_coverage.py --sbc [--seeds N] [--first SEED] [--cells I ...] [--draws K]
     [--n-random M] [--jobs J] [--render]
+and, for one seed of the first of --cells, what lies behind its ranks (`sbc_why`: the zero-offsets' posterior
+std and the parameter each follows, the noise estimated, the truth's raw and registered error against the
+bounds), added to sbc.json and its text: ... --sbc --cells I --why SEED
 
 Writes benchmarks/results/coverage.json and coverage.md, and the table into docs/validation.md
 between its bench_coverage markers. Run from the repository root:
@@ -164,6 +167,48 @@ def sbc_one(task: tuple) -> dict:
     }
 
 
+def sbc_why(task: tuple) -> dict:
+    """What lies behind one campaign's ranks, measured (--why): each estimated zero-offset's
+    posterior std and the parameter its draws follow most closely (the correlation, and whether the
+    loop reports that one as decided by its prior); the noise the loop estimated against the
+    sensor's; near the data, the truth's error (p95, raw in the sensor frame and registered: what a
+    rigid motion does not explain) against the per-command bounds and the draws' registered p95."""
+    truth, design, sensor, seed, n_random, draws = task
+    spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design], sensors=SBC_SENSORS)
+    checked = check(spec, chain_of(spec, REPO), sensor, n_random=n_random, draws=draws, seed=seed)
+    report = checked.report
+    samples = checked.samples.drop(columns=["log_prob", "chain", "walker", "step"], errors="ignore")
+    correlation = samples.corr()
+    zero = {}
+    for name in (n for n in checked.ranks if n.startswith("zero_offsets.")):
+        partner = correlation[name].drop(name).abs().idxmax()
+        zero[name] = {
+            "rank": checked.ranks[name]["rank"],
+            "std_deg": math.degrees(float(samples[name].std())),
+            "partner": str(partner),
+            "correlation": float(correlation.loc[name, partner]),
+            "partner_prior_dominated": partner in report.prior_dominated,
+        }
+    p95 = checked.ranks["p95_near"]
+    return {
+        "truth": truth,
+        "design": design,
+        "sensor": sensor,
+        "seed": seed,
+        "zero_offsets": zero,
+        "prior_dominated": list(report.prior_dominated),
+        "sigma_after_mm": float(report.sigma_after_mm),
+        "noise_mm": checked.noise_mm,
+        "outside_share_near": 1.0 - checked.domain_held_fraction,
+        "near_error_p95_mm": float(np.quantile(checked.domain_error_mm, 0.95)),
+        "near_bound_median_mm": float(np.median(checked.domain_bound_mm)),
+        "near_registered_p95_mm": p95["truth"],
+        "near_registered_p95_draws_median_mm": p95["draws_median"],
+        "ranks": {k: v["rank"] for k, v in checked.ranks.items()},
+        "gross_rows": list((report.gross_errors or {}).get("optimization", [])),
+    }
+
+
 def sbc_summary(runs: list[dict]) -> list[dict]:
     """Per (truth, design, sensor) and statistic: the ranks' Kolmogorov-Smirnov test against the
     uniform (p-value, rejected at SBC_LEVEL), their shares in either SBC_TAIL and their histogram."""
@@ -174,6 +219,8 @@ def sbc_summary(runs: list[dict]) -> list[dict]:
         for name in dict.fromkeys(k for r in part for k in r["ranks"]):
             ranks = np.array([r["ranks"][name]["rank"] for r in part if name in r["ranks"]])
             p_value = float(stats.kstest(ranks, "uniform").pvalue)
+            # a parameter's (truth - posterior mean) / posterior std over seeds: sd 1 where the data decide it
+            z = np.array([r["ranks"][name]["z"] for r in part if "z" in r["ranks"].get(name, {})])
             rows.append(
                 {
                     "statistic": name,
@@ -184,6 +231,8 @@ def sbc_summary(runs: list[dict]) -> list[dict]:
                     "above": float(np.mean(ranks > 1.0 - SBC_TAIL)),
                     "histogram": np.histogram(ranks, SBC_BINS, (0.0, 1.0))[0].tolist(),
                     "median_rank": float(np.median(ranks)),
+                    "z_mean": float(z.mean()) if z.size > 1 else None,
+                    "z_sd": float(z.std(ddof=1)) if z.size > 1 else None,
                 }
             )
         outside = np.array([r["outside_share_near"] for r in part])
@@ -453,17 +502,40 @@ def sbc_markdown(record: dict) -> str:
             + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
             "",
             "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
-            "histogram (tenths of [0, 1]) |",
-            "|---|---|---|---|---|---|---|---|",
+            "histogram (tenths of [0, 1]) | z over seeds: mean, sd |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in cell["rows"]:
             label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
             lines.append(
                 f"| {label} | {r['seeds']} | {r['ks_p']:.2g} | {'rejected' if r['rejected'] else 'not rejected'} | "
                 f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
-                f"{' '.join(str(c) for c in r['histogram'])} |"
+                f"{' '.join(str(c) for c in r['histogram'])} | "
+                + (f"{r['z_mean']:.2f}, {r['z_sd']:.2f} |" if r.get("z_sd") is not None else "- |")
             )
+    for why in record.get("why", []):
+        lines += ["", _why_text(why)]
     return "\n".join(lines)
+
+
+def _why_text(why: dict) -> str:
+    """One --why campaign's measurements as a sentence."""
+    zero = "; ".join(
+        f"{name.split('.')[-1]}: rank {z['rank']:.2f}, std {z['std_deg']:.3g} deg, follows {z['partner']} "
+        f"(r = {z['correlation']:.2f}{', prior-dominated' if z['partner_prior_dominated'] else ''})"
+        for name, z in why["zero_offsets"].items()
+    )
+    return (
+        f"Measured (`--why {why['seed']}`), {why['truth']}, {why['design']}, {why['sensor'].replace('_', ' ')}, "
+        f"seed {why['seed']}: noise estimated {why['sigma_after_mm'] * 1e3:.1f} um per axis against the sensor's "
+        f"{why['noise_mm'] * 1e3:.0f} um; near the data {100 * why['outside_share_near']:.0f} % of the commands "
+        f"outside their bound, the truth's error p95 {why['near_error_p95_mm'] * 1e3:.0f} um in the sensor frame "
+        f"and {why['near_registered_p95_mm'] * 1e3:.0f} um registered, against a median bound of "
+        f"{why['near_bound_median_mm'] * 1e3:.0f} um and a registered p95 of "
+        f"{why['near_registered_p95_draws_median_mm'] * 1e3:.0f} um for the median draw (ranks: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in why["ranks"].items() if not k.startswith("zero_offsets."))
+        + f"); zero-offsets: {zero}; the loop reports as prior-dominated: {', '.join(why['prior_dominated']) or 'none'}."
+    )
 
 
 def sbc(args) -> None:
@@ -471,7 +543,15 @@ def sbc(args) -> None:
     campaign added to sbc.json as it ends, those it holds already not run again."""
     path = RESULTS / "sbc.json"
     record = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {"runs": []}
-    if not args.render:
+    if args.why is not None:
+        cell = SBC_CELLS[(args.cells or [0])[0]]
+        why = sbc_why((*cell, args.why, args.n_random, args.draws))
+        record["why"] = [
+            w for w in record.get("why", []) if (w["truth"], w["design"], w["sensor"], w["seed"]) != (*cell, args.why)
+        ]
+        record["why"].append(why)
+        path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    elif not args.render:
         record.update(date=date.today().isoformat(), first=args.first, draws=args.draws, n_random=args.n_random)
         done = {(r["truth"], r["design"], r["sensor"], r["seed"]) for r in record["runs"]}
         cells = [SBC_CELLS[i] for i in args.cells] if args.cells else SBC_CELLS
@@ -506,6 +586,9 @@ def main() -> None:
     parser.add_argument("--cells", type=int, nargs="+", default=None, help="--sbc: which of SBC_CELLS (indices)")
     parser.add_argument("--draws", type=int, default=400, help="--sbc: posterior draws per statistic")
     parser.add_argument("--n-random", type=int, default=200, help="--sbc: commands per domain")
+    parser.add_argument(
+        "--why", type=int, default=None, help="--sbc: measure what lies behind the ranks of this seed (first --cells)"
+    )
     args = parser.parse_args()
     if args.sbc:
         sbc(args)
