@@ -181,13 +181,11 @@ def sbc_why(task: tuple) -> dict:
     correlation = samples.corr()
     zero = {}
     for name in (n for n in checked.ranks if n.startswith("zero_offsets.")):
-        partner = correlation[name].drop(name).abs().idxmax()
+        partners = correlation[name].drop(name).abs().nlargest(2).index
         zero[name] = {
             "rank": checked.ranks[name]["rank"],
             "std_deg": math.degrees(float(samples[name].std())),
-            "partner": str(partner),
-            "correlation": float(correlation.loc[name, partner]),
-            "partner_prior_dominated": partner in report.prior_dominated,
+            "partners": [[str(n), float(correlation.loc[name, n]), n in report.prior_dominated] for n in partners],
         }
     p95 = checked.ranks["p95_near"]
     return {
@@ -198,6 +196,7 @@ def sbc_why(task: tuple) -> dict:
         "zero_offsets": zero,
         "prior_dominated": list(report.prior_dominated),
         "sigma_after_mm": float(report.sigma_after_mm),
+        "sigma_posterior_mm": (np.quantile(samples["noise.sigma"], [0.05, 0.5, 0.95]) / 1e-3).tolist(),
         "noise_mm": checked.noise_mm,
         "outside_share_near": 1.0 - checked.domain_held_fraction,
         "near_error_p95_mm": float(np.quantile(checked.domain_error_mm, 0.95)),
@@ -521,13 +520,15 @@ def sbc_markdown(record: dict) -> str:
 def _why_text(why: dict) -> str:
     """One --why campaign's measurements as a sentence."""
     zero = "; ".join(
-        f"{name.split('.')[-1]}: rank {z['rank']:.2f}, std {z['std_deg']:.3g} deg, follows {z['partner']} "
-        f"(r = {z['correlation']:.2f}{', prior-dominated' if z['partner_prior_dominated'] else ''})"
+        f"{name.split('.')[-1]}: rank {z['rank']:.2f}, std {z['std_deg']:.3g} deg, follows "
+        + " and ".join(f"{n} (r = {r:.2f}{', prior-dominated' if prior else ''})" for n, r, prior in z["partners"])
         for name, z in why["zero_offsets"].items()
     )
+    sigma = why["sigma_posterior_mm"]
     return (
         f"Measured (`--why {why['seed']}`), {why['truth']}, {why['design']}, {why['sensor'].replace('_', ' ')}, "
-        f"seed {why['seed']}: noise estimated {why['sigma_after_mm'] * 1e3:.1f} um per axis against the sensor's "
+        f"seed {why['seed']}: noise per axis {why['sigma_after_mm'] * 1e3:.1f} um at the loop's fit, its posterior "
+        f"{sigma[1] * 1e3:.1f} um (90 % {sigma[0] * 1e3:.1f}-{sigma[2] * 1e3:.1f}), against the sensor's "
         f"{why['noise_mm'] * 1e3:.0f} um; near the data {100 * why['outside_share_near']:.0f} % of the commands "
         f"outside their bound, the truth's error p95 {why['near_error_p95_mm'] * 1e3:.0f} um in the sensor frame "
         f"and {why['near_registered_p95_mm'] * 1e3:.0f} um registered, against a median bound of "
