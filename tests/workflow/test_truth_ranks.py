@@ -1,12 +1,17 @@
 """The truth's rank among a posterior's draws (`remaster.api.truth`'s simulation-based calibration),
 held to known answers: a truth drawn as the draws are ranks uniformly over repetitions; a truth far
 in the draws' tail ranks near 0 or 1; and the arm-level rank of the mean PIT does the same where
-one arm's errors are correlated across its commands."""
+one arm's errors are correlated across its commands; and the zero-offsets a fit can recover of a
+truth whose links are turned."""
 
 import numpy as np
 from scipy import stats
 
-from remaster.api.truth import mean_pit_rank, normalized_rank
+from remaster.api.truth import mean_pit_rank, normalized_rank, recoverable_zero_offsets
+from remaster.campaigns.arm_kinds import chain_of, iiwa_scenario
+from remaster.campaigns.simulation import TrueRobot
+
+from ..conftest import REPO
 
 
 def test_a_rank_counts_the_draws_below_and_ties_half():
@@ -47,3 +52,16 @@ def test_an_arm_farther_than_the_draws_ranks_near_one_and_nearer_near_zero():
     assert truth == 1.0 and rank == 1.0
     truth, rank = mean_pit_rank(np.zeros(30), draws)
     assert truth == 0.0 and rank == 0.0
+
+
+def test_the_recoverable_zero_offset_takes_a_links_turn_about_its_joints_axis():
+    """A truth's zero-offsets as a fit can recover them: its own, and joint 1 turned by a yaw of the
+    fixed transform before it (the iiwa's joint 1 turns about z), nothing added where nothing turns."""
+    spec = iiwa_scenario("turns")
+    chain = chain_of(spec, REPO)
+    offsets = np.radians(spec["truth"]["zero_offsets_deg"])
+    assert np.array_equal(recoverable_zero_offsets(chain, TrueRobot(offsets)), offsets)
+    motions = np.zeros((chain.n_joints + 1, 6))
+    motions[0, 5] = 1.0e-4
+    turned = recoverable_zero_offsets(chain, TrueRobot(offsets, link_motions=motions))
+    assert np.allclose(turned - offsets, np.eye(chain.n_joints)[0] * 1.0e-4, atol=1e-9)
