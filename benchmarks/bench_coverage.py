@@ -210,30 +210,13 @@ def sbc_why(task: tuple) -> dict:
 
 def sbc_summary(runs: list[dict]) -> list[dict]:
     """Per (truth, design, sensor) and statistic: the ranks' Kolmogorov-Smirnov test against the
-    uniform (p-value, rejected at SBC_LEVEL), their shares in either SBC_TAIL and their histogram."""
+    uniform (p-value, rejected at SBC_LEVEL), their shares in either SBC_TAIL and their histogram;
+    the same over the seeds whose loop added the effects that express the truth (`TRUTH_EFFECTS`:
+    the model holds the truth's form, which the ranks' uniformity presumes)."""
     cells = []
     for truth, design, sensor in dict.fromkeys((r["truth"], r["design"], r["sensor"]) for r in runs):
         part = [r for r in runs if (r["truth"], r["design"], r["sensor"]) == (truth, design, sensor)]
-        rows = []
-        for name in dict.fromkeys(k for r in part for k in r["ranks"]):
-            ranks = np.array([r["ranks"][name]["rank"] for r in part if name in r["ranks"]])
-            p_value = float(stats.kstest(ranks, "uniform").pvalue)
-            # a parameter's (truth - posterior mean) / posterior std over seeds: sd 1 where the data decide it
-            z = np.array([r["ranks"][name]["z"] for r in part if "z" in r["ranks"].get(name, {})])
-            rows.append(
-                {
-                    "statistic": name,
-                    "seeds": int(ranks.size),
-                    "ks_p": p_value,
-                    "rejected": p_value < SBC_LEVEL,
-                    "below": float(np.mean(ranks < SBC_TAIL)),
-                    "above": float(np.mean(ranks > 1.0 - SBC_TAIL)),
-                    "histogram": np.histogram(ranks, SBC_BINS, (0.0, 1.0))[0].tolist(),
-                    "median_rank": float(np.median(ranks)),
-                    "z_mean": float(z.mean()) if z.size > 1 else None,
-                    "z_sd": float(z.std(ddof=1)) if z.size > 1 else None,
-                }
-            )
+        held = [r for r in part if set(TRUTH_EFFECTS[truth]) <= set(r["effects"])]
         outside = np.array([r["outside_share_near"] for r in part])
         cells.append(
             {
@@ -241,7 +224,9 @@ def sbc_summary(runs: list[dict]) -> list[dict]:
                 "design": design,
                 "sensor": sensor,
                 "seeds": len(part),
-                "rows": rows,
+                "rows": _rank_rows(part),
+                "held_seeds": len(held),
+                "held_rows": _rank_rows(held) if 1 < len(held) < len(part) else [],
                 "outside_mean": float(outside.mean()),
                 "seeds_outside_above_25": int(np.sum(outside > 0.25)),
                 "expected_outside_above_25": _expected(part, "outside_above_25"),
@@ -250,6 +235,31 @@ def sbc_summary(runs: list[dict]) -> list[dict]:
             }
         )
     return cells
+
+
+def _rank_rows(part: list[dict]) -> list[dict]:
+    """`sbc_summary`'s rows of one set of runs: one per statistic."""
+    rows = []
+    for name in dict.fromkeys(k for r in part for k in r["ranks"]):
+        ranks = np.array([r["ranks"][name]["rank"] for r in part if name in r["ranks"]])
+        p_value = float(stats.kstest(ranks, "uniform").pvalue)
+        # a parameter's (truth - posterior mean) / posterior std over seeds: sd 1 where the data decide it
+        z = np.array([r["ranks"][name]["z"] for r in part if "z" in r["ranks"].get(name, {})])
+        rows.append(
+            {
+                "statistic": name,
+                "seeds": int(ranks.size),
+                "ks_p": p_value,
+                "rejected": p_value < SBC_LEVEL,
+                "below": float(np.mean(ranks < SBC_TAIL)),
+                "above": float(np.mean(ranks > 1.0 - SBC_TAIL)),
+                "histogram": np.histogram(ranks, SBC_BINS, (0.0, 1.0))[0].tolist(),
+                "median_rank": float(np.median(ranks)),
+                "z_mean": float(z.mean()) if z.size > 1 else None,
+                "z_sd": float(z.std(ddof=1)) if z.size > 1 else None,
+            }
+        )
+    return rows
 
 
 def pairs(runs: list[dict]) -> list[float]:
@@ -500,21 +510,38 @@ def sbc_markdown(record: dict) -> str:
             + (f", its own posteriors expect {expected:.1f}" if expected is not None else "")
             + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
             "",
-            "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
-            "histogram (tenths of [0, 1]) | z over seeds: mean, sd |",
-            "|---|---|---|---|---|---|---|---|---|",
+            *_rank_table(cell["rows"]),
         ]
-        for r in cell["rows"]:
-            label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
-            lines.append(
-                f"| {label} | {r['seeds']} | {r['ks_p']:.2g} | {'rejected' if r['rejected'] else 'not rejected'} | "
-                f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
-                f"{' '.join(str(c) for c in r['histogram'])} | "
-                + (f"{r['z_mean']:.2f}, {r['z_sd']:.2f} |" if r.get("z_sd") is not None else "- |")
-            )
+        if cell.get("held_rows"):
+            lines += [
+                "",
+                f"The {cell['held_seeds']} of these seeds whose loop added the effects that express the truth "
+                f"({', '.join(TRUTH_EFFECTS[cell['truth']])}; on the others the model lacks the truth's form, and a loop "
+                "that did not close declares a model error, drawn per axis and command, in every draw):",
+                "",
+                *_rank_table(cell["held_rows"]),
+            ]
     for why in record.get("why", []):
         lines += ["", _why_text(why)]
     return "\n".join(lines)
+
+
+def _rank_table(rows: list[dict]) -> list[str]:
+    """The markdown table of `_rank_rows`."""
+    lines = [
+        "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
+        "histogram (tenths of [0, 1]) | z over seeds: mean, sd |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
+        lines.append(
+            f"| {label} | {r['seeds']} | {r['ks_p']:.2g} | {'rejected' if r['rejected'] else 'not rejected'} | "
+            f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
+            f"{' '.join(str(c) for c in r['histogram'])} | "
+            + (f"{r['z_mean']:.2f}, {r['z_sd']:.2f} |" if r.get("z_sd") is not None else "- |")
+        )
+    return lines
 
 
 def _why_text(why: dict) -> str:
