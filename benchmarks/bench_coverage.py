@@ -506,7 +506,7 @@ def sbc_markdown(record: dict) -> str:
             "",
             f"**{cell['truth']}, {cell['design']}, {cell['sensor'].replace('_', ' ')}** ({cell['seeds']} seeds; "
             f"commands outside their bound near the data: {100 * cell['outside_mean']:.1f} % on average, above 25 % "
-            f"on {cell['seeds_outside_above_25']} seeds"
+            f"on {cell['seeds_outside_above_25']} seed{'' if cell['seeds_outside_above_25'] == 1 else 's'}"
             + (f", its own posteriors expect {expected:.1f}" if expected is not None else "")
             + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
             "",
