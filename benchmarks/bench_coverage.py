@@ -28,6 +28,20 @@ poses): how often they differ by more than 3 combined standard uncertainties; an
 test's rejection rate on a model missing an effect present in both sets (compliance in the truth,
 the loop without its compliance candidate).
 
+--sbc: simulation-based calibration (Talts et al. 2018; Modrak et al. 2023) of the cells SBC_CELLS (truth,
+design, sensor; campaigns measured by a laser tracker and a motion capture): per seed, the truth's normalized
+rank among the calibration's posterior draws, each draw taken as the arm (`TruthCheck.ranks`: the mean PIT of
+the commands' errors inside the measured ranges, across the limits, at the validation set; the registered
+p95 inside the measured ranges; each estimated zero-offset); per cell and statistic, a Kolmogorov-Smirnov
+test of the ranks against the uniform, their shares in the 2.5 % tails and their histogram. Writes
+benchmarks/results/sbc.json (each campaign as it ends; a rerun adds only the campaigns it lacks) and sbc.md,
+and the tables into docs/validation.md between its bench_sbc markers:
+    .venv/bin/python benchmarks/bench_coverage.py --sbc [--seeds N] [--first SEED] [--cells I ...] [--draws K]
+    [--n-random M] [--jobs J] [--render]
+and, for one seed of the first of --cells, what lies behind its ranks (`sbc_why`: the zero-offsets' posterior
+std and the parameter each follows, the noise estimated, the truth's raw and registered error against the
+bounds), added to sbc.json and its text: ... --sbc --cells I --why SEED
+
 Writes benchmarks/results/coverage.json and coverage.md, and the table into docs/validation.md
 between its bench_coverage markers. Run from the repository root:
     .venv/bin/python benchmarks/bench_coverage.py [--seeds N] [--first SEED] [--jobs J] [--missing-seeds M]
@@ -52,7 +66,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
-from remaster.campaigns.arm_kinds import chain_of, cyclic_truth, iiwa_scenario  # noqa: E402
+from remaster.campaigns.arm_kinds import (  # noqa: E402
+    MOTION_CAPTURE,
+    TRACKER,
+    chain_of,
+    cyclic_truth,
+    iiwa_scenario,
+)
 
 RESULTS = REPO / "benchmarks" / "results"
 VALIDATION_DOC = REPO / "docs" / "validation.md"
@@ -74,6 +94,16 @@ TRUTH_EFFECTS = {
     "compliance": ("joint_compliance",),
 }
 MISSING = ("compliance", ("joint_compliance",))  # the truth, and the candidates the loop is not offered
+# simulation-based calibration (--sbc): (truth, design, sensor) in the order they run, on campaigns measured
+# by the twin's two sensors (a 10 um laser tracker, a 30 um motion capture) so that a truth's two sensors see
+# the same arm and poses
+SBC_CELLS = (
+    ("rigid links", "q3 held", "motion_capture"),
+    ("rigid links", "q3 held", "laser_tracker"),
+    ("cyclic", "q3 held", "laser_tracker"),
+)
+SBC_SENSORS = {"laser_tracker": dict(TRACKER), "motion_capture": dict(MOTION_CAPTURE)}
+SBC_LEVEL, SBC_TAIL, SBC_BINS = 0.01, 0.025, 10
 
 
 def one(task: tuple) -> dict:
@@ -112,6 +142,124 @@ def one(task: tuple) -> dict:
         "corrections": corrections,
         "own_posterior": checked.own_posterior,
     }
+
+
+def sbc_one(task: tuple) -> dict:
+    """The truth's ranks among its calibration's posterior draws (`TruthCheck.ranks`) of one (truth,
+    design, sensor, seed), with the seed-level counts beside them."""
+    truth, design, sensor, seed, n_random, draws = task
+    started = time.perf_counter()
+    spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design], sensors=SBC_SENSORS)
+    checked = check(spec, chain_of(spec, REPO), sensor, n_random=n_random, draws=draws, seed=seed)
+    return {
+        "truth": truth,
+        "design": design,
+        "sensor": sensor,
+        "seed": seed,
+        "effects": list(checked.effects),
+        "ranks": checked.ranks,
+        "outside_share_near": 1.0 - checked.domain_held_fraction,
+        "outside_share_validation": 1.0 - checked.planned_held_fraction,
+        "claim_covers_near": checked.claims["domain"].covers,
+        "validation_over_noise": checked.validation_rms_per_axis_mm / checked.noise_mm,
+        "own_posterior": checked.own_posterior,
+        "seconds": time.perf_counter() - started,
+    }
+
+
+def sbc_why(task: tuple) -> dict:
+    """What lies behind one campaign's ranks, measured (--why): each estimated zero-offset's
+    posterior std and the parameter its draws follow most closely (the correlation, and whether the
+    loop reports that one as decided by its prior); the noise the loop estimated against the
+    sensor's; near the data, the truth's error (p95, raw in the sensor frame and registered: what a
+    rigid motion does not explain) against the per-command bounds and the draws' registered p95."""
+    truth, design, sensor, seed, n_random, draws = task
+    spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design], sensors=SBC_SENSORS)
+    checked = check(spec, chain_of(spec, REPO), sensor, n_random=n_random, draws=draws, seed=seed)
+    report = checked.report
+    samples = checked.samples.drop(columns=["log_prob", "chain", "walker", "step"], errors="ignore")
+    correlation = samples.corr()
+    zero = {}
+    for name in (n for n in checked.ranks if n.startswith("zero_offsets.")):
+        partners = correlation[name].drop(name).abs().nlargest(2).index
+        zero[name] = {
+            "rank": checked.ranks[name]["rank"],
+            "std_deg": math.degrees(float(samples[name].std())),
+            "partners": [[str(n), float(correlation.loc[name, n]), n in report.prior_dominated] for n in partners],
+        }
+    p95 = checked.ranks["p95_near"]
+    return {
+        "truth": truth,
+        "design": design,
+        "sensor": sensor,
+        "seed": seed,
+        "zero_offsets": zero,
+        "prior_dominated": list(report.prior_dominated),
+        "sigma_after_mm": float(report.sigma_after_mm),
+        "sigma_posterior_mm": (np.quantile(samples["noise.sigma"], [0.05, 0.5, 0.95]) / 1e-3).tolist(),
+        "noise_mm": checked.noise_mm,
+        "outside_share_near": 1.0 - checked.domain_held_fraction,
+        "near_error_p95_mm": float(np.quantile(checked.domain_error_mm, 0.95)),
+        "near_bound_median_mm": float(np.median(checked.domain_bound_mm)),
+        "near_registered_p95_mm": p95["truth"],
+        "near_registered_p95_draws_median_mm": p95["draws_median"],
+        "ranks": {k: v["rank"] for k, v in checked.ranks.items()},
+        "gross_rows": list((report.gross_errors or {}).get("optimization", [])),
+    }
+
+
+def sbc_summary(runs: list[dict]) -> list[dict]:
+    """Per (truth, design, sensor) and statistic: the ranks' Kolmogorov-Smirnov test against the
+    uniform (p-value, rejected at SBC_LEVEL), their shares in either SBC_TAIL and their histogram;
+    the same over the seeds whose loop added the effects that express the truth (`TRUTH_EFFECTS`:
+    the model holds the truth's form, which the ranks' uniformity presumes)."""
+    cells = []
+    for truth, design, sensor in dict.fromkeys((r["truth"], r["design"], r["sensor"]) for r in runs):
+        part = [r for r in runs if (r["truth"], r["design"], r["sensor"]) == (truth, design, sensor)]
+        held = [r for r in part if set(TRUTH_EFFECTS[truth]) <= set(r["effects"])]
+        outside = np.array([r["outside_share_near"] for r in part])
+        cells.append(
+            {
+                "truth": truth,
+                "design": design,
+                "sensor": sensor,
+                "seeds": len(part),
+                "rows": _rank_rows(part),
+                "held_seeds": len(held),
+                "held_rows": _rank_rows(held) if 1 < len(held) < len(part) else [],
+                "outside_mean": float(outside.mean()),
+                "seeds_outside_above_25": int(np.sum(outside > 0.25)),
+                "expected_outside_above_25": _expected(part, "outside_above_25"),
+                "claim_covers": int(sum(r["claim_covers_near"] for r in part)),
+                "seconds_per_campaign": float(np.median([r["seconds"] for r in part])),
+            }
+        )
+    return cells
+
+
+def _rank_rows(part: list[dict]) -> list[dict]:
+    """`sbc_summary`'s rows of one set of runs: one per statistic."""
+    rows = []
+    for name in dict.fromkeys(k for r in part for k in r["ranks"]):
+        ranks = np.array([r["ranks"][name]["rank"] for r in part if name in r["ranks"]])
+        p_value = float(stats.kstest(ranks, "uniform").pvalue)
+        # a parameter's (truth - posterior mean) / posterior std over seeds: sd 1 where the data decide it
+        z = np.array([r["ranks"][name]["z"] for r in part if "z" in r["ranks"].get(name, {})])
+        rows.append(
+            {
+                "statistic": name,
+                "seeds": int(ranks.size),
+                "ks_p": p_value,
+                "rejected": p_value < SBC_LEVEL,
+                "below": float(np.mean(ranks < SBC_TAIL)),
+                "above": float(np.mean(ranks > 1.0 - SBC_TAIL)),
+                "histogram": np.histogram(ranks, SBC_BINS, (0.0, 1.0))[0].tolist(),
+                "median_rank": float(np.median(ranks)),
+                "z_mean": float(z.mean()) if z.size > 1 else None,
+                "z_sd": float(z.std(ddof=1)) if z.size > 1 else None,
+            }
+        )
+    return rows
 
 
 def pairs(runs: list[dict]) -> list[float]:
@@ -330,6 +478,123 @@ def markdown(record: dict) -> str:
     return "\n".join(lines)
 
 
+SBC_LABELS = {
+    "pit_near": "mean PIT over the commands inside the measured ranges (near the data)",
+    "pit_across": "mean PIT over the commands across the joint limits",
+    "pit_validation": "mean PIT over the validation set's commands",
+    "p95_near": "the arm's registered p95 inside the measured ranges (what the workspace claim bounds)",
+}
+
+
+def sbc_markdown(record: dict) -> str:
+    """The rank tests of every cell: a table each, the histograms as counts per tenth of [0, 1]."""
+    lines = [
+        f"Measured {record['date']} by `benchmarks/bench_coverage.py --sbc` (seeds from {record['first']}; small "
+        f"iiwa campaigns measured by a 10 um laser tracker and a 30 um motion capture; {record['draws']} posterior "
+        f"draws, {record['n_random']} commands per domain). The truth's rank among the calibration's posterior "
+        "draws, each draw taken as the arm's truth (`TruthCheck.ranks`): uniform over seeds if the posterior is "
+        f"calibrated; Kolmogorov-Smirnov against the uniform at {100 * SBC_LEVEL:.0f} %, and the shares of ranks "
+        f"below {SBC_TAIL} and above {1 - SBC_TAIL} ({100 * SBC_TAIL:.1f} % each expected). A rank near 0: the "
+        "truth lies nearer the prediction than the draws do (the posterior too wide); near 1: farther (too narrow, "
+        "or off). The truths are fixed per truth kind and the seeds vary the poses and the noise, so where the "
+        "priors decide (across the limits with joint 3 held) the ranks say how the priors' spread compares with "
+        "this one truth, not whether the posterior is calibrated.",
+    ]
+    for cell in record["cells"]:
+        expected = cell["expected_outside_above_25"]
+        lines += [
+            "",
+            f"**{cell['truth']}, {cell['design']}, {cell['sensor'].replace('_', ' ')}** ({cell['seeds']} seeds; "
+            f"commands outside their bound near the data: {100 * cell['outside_mean']:.1f} % on average, above 25 % "
+            f"on {cell['seeds_outside_above_25']} seed{'' if cell['seeds_outside_above_25'] == 1 else 's'}"
+            + (f", its own posteriors expect {expected:.1f}" if expected is not None else "")
+            + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
+            "",
+            *_rank_table(cell["rows"]),
+        ]
+        if cell.get("held_rows"):
+            lines += [
+                "",
+                f"The {cell['held_seeds']} of these seeds whose loop added the effects that express the truth "
+                f"({', '.join(TRUTH_EFFECTS[cell['truth']])}; on the others the model lacks the truth's form, and a loop "
+                "that did not close declares a model error, drawn per axis and command, in every draw):",
+                "",
+                *_rank_table(cell["held_rows"]),
+            ]
+    for why in record.get("why", []):
+        lines += ["", _why_text(why)]
+    return "\n".join(lines)
+
+
+def _rank_table(rows: list[dict]) -> list[str]:
+    """The markdown table of `_rank_rows`."""
+    lines = [
+        "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
+        "histogram (tenths of [0, 1]) | z over seeds: mean, sd |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
+        lines.append(
+            f"| {label} | {r['seeds']} | {r['ks_p']:.2g} | {'rejected' if r['rejected'] else 'not rejected'} | "
+            f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
+            f"{' '.join(str(c) for c in r['histogram'])} | "
+            + (f"{r['z_mean']:.2f}, {r['z_sd']:.2f} |" if r.get("z_sd") is not None else "- |")
+        )
+    return lines
+
+
+def _why_text(why: dict) -> str:
+    """One --why campaign's measurements as a sentence."""
+    zero = "; ".join(
+        f"{name.split('.')[-1]}: rank {z['rank']:.2f}, std {z['std_deg']:.3g} deg, follows "
+        + " and ".join(f"{n} (r = {r:.2f}{', prior-dominated' if prior else ''})" for n, r, prior in z["partners"])
+        for name, z in why["zero_offsets"].items()
+    )
+    sigma = why["sigma_posterior_mm"]
+    return (
+        f"Measured (`--why {why['seed']}`), {why['truth']}, {why['design']}, {why['sensor'].replace('_', ' ')}, "
+        f"seed {why['seed']}: noise per axis {why['sigma_after_mm'] * 1e3:.1f} um at the loop's fit, its posterior "
+        f"{sigma[1] * 1e3:.1f} um (90 % {sigma[0] * 1e3:.1f}-{sigma[2] * 1e3:.1f}), against the sensor's "
+        f"{why['noise_mm'] * 1e3:.0f} um; near the data {100 * why['outside_share_near']:.0f} % of the commands "
+        f"outside their bound, the truth's error p95 {why['near_error_p95_mm'] * 1e3:.0f} um in the sensor frame "
+        f"and {why['near_registered_p95_mm'] * 1e3:.0f} um registered, against a median bound of "
+        f"{why['near_bound_median_mm'] * 1e3:.0f} um and a registered p95 of "
+        f"{why['near_registered_p95_draws_median_mm'] * 1e3:.0f} um for the median draw (ranks: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in why["ranks"].items() if not k.startswith("zero_offsets."))
+        + f"); zero-offsets: {zero}; the loop reports as prior-dominated: {', '.join(why['prior_dominated']) or 'none'}."
+    )
+
+
+def sbc(args) -> None:
+    """Run (or, with --render, rewrite from sbc.json) the simulation-based calibration's cells, each
+    campaign added to sbc.json as it ends, those it holds already not run again."""
+    path = RESULTS / "sbc.json"
+    record = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {"runs": []}
+    if args.why is not None:
+        cell = SBC_CELLS[(args.cells or [0])[0]]
+        why = sbc_why((*cell, args.why, args.n_random, args.draws))
+        record["why"] = [
+            w for w in record.get("why", []) if (w["truth"], w["design"], w["sensor"], w["seed"]) != (*cell, args.why)
+        ]
+        record["why"].append(why)
+        path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    elif not args.render:
+        record.update(date=date.today().isoformat(), first=args.first, draws=args.draws, n_random=args.n_random)
+        done = {(r["truth"], r["design"], r["sensor"], r["seed"]) for r in record["runs"]}
+        cells = [SBC_CELLS[i] for i in args.cells] if args.cells else SBC_CELLS
+        seeds = range(args.first, args.first + args.seeds)
+        tasks = [(*c, s, args.n_random, args.draws) for c in cells for s in seeds if (*c, s) not in done]
+        with ProcessPoolExecutor(args.jobs) as pool:
+            for run in pool.map(sbc_one, tasks):
+                record["runs"].append(run)
+                path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+                ranks = ", ".join(f"{k} {v['rank']:.2f}" for k, v in run["ranks"].items())
+                print(f"{run['truth']}, {run['design']}, {run['sensor']}, seed {run['seed']}: {ranks}", flush=True)
+    record["cells"] = sbc_summary(record["runs"])
+    publish(RESULTS, "sbc", record, sbc_markdown(record), VALIDATION_DOC)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
@@ -345,7 +610,17 @@ def main() -> None:
         action="store_true",
         help="run only the missing-effect campaigns coverage.json lacks (up to --missing-seeds) and add them to it",
     )
+    parser.add_argument("--sbc", action="store_true", help="simulation-based calibration of SBC_CELLS (sbc.json)")
+    parser.add_argument("--cells", type=int, nargs="+", default=None, help="--sbc: which of SBC_CELLS (indices)")
+    parser.add_argument("--draws", type=int, default=400, help="--sbc: posterior draws per statistic")
+    parser.add_argument("--n-random", type=int, default=200, help="--sbc: commands per domain")
+    parser.add_argument(
+        "--why", type=int, default=None, help="--sbc: measure what lies behind the ranks of this seed (first --cells)"
+    )
     args = parser.parse_args()
+    if args.sbc:
+        sbc(args)
+        return
     earlier = (
         json.loads((RESULTS / "coverage.json").read_text(encoding="utf-8")) if args.render or args.add_missing else None
     )

@@ -8,13 +8,13 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from remaster import files, spatial
+from remaster import files
+from remaster.api.truth import link_turns
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.errors import InputError
 from remaster.inference import fit
-from remaster.robot import kinematics
 
 from ..conftest import REPO
 
@@ -127,19 +127,6 @@ def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):
     assert sigma.mean() == pytest.approx(3e-5, rel=0.15)
     assert laplace.sigma_mean == pytest.approx(sigma.mean(), rel=0.03)
     assert laplace.sigma_std == pytest.approx(sigma.std(), rel=0.25)
-
-
-def link_turns(chain, motions) -> np.ndarray:
-    """(N,) rad: the part of the simulator's rigid link motions that turns about each joint's own
-    axis, which no measurement tells from that joint's zero-offset: the motion of F_j (moved on the
-    side it starts from, M_j F_j = F_j D_j) about axis j, and the motion of the next fixed transform,
-    which starts in joint j's turned frame, about it too (the tool's after the last joint). The iiwa's
-    consecutive axes are perpendicular, so no turn is counted for two joints."""
-    transforms = np.concatenate([chain.joint_transforms, chain.tool_transform[None]])
-    moves = spatial.homogeneous(spatial.rpy_to_matrix(*motions[:, 3:].T), motions[:, :3])
-    own = kinematics.small_motion_of(np.linalg.inv(transforms) @ moves @ transforms)[:-1, 3:]
-    following = spatial.matrix_to_rotation_vector(moves[1:, :3, :3])
-    return np.sum((own + following) * chain.joint_axes, axis=1)
 
 
 def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .. import configuration, files, identity
+from .. import configuration, files, identity, spatial
 from ..calibration import prediction
 from ..campaigns import folders, scenario
 from ..campaigns.simulation import true_marker_positions, true_sensor_positions
@@ -33,6 +33,7 @@ from ..evaluation import workspace
 from ..evaluation.acceptance import Acceptance
 from ..inference import metrics
 from ..loop.result import LoopReport
+from ..robot import kinematics
 from .calibration import Calibration, calibrate
 from .use import predict
 
@@ -97,7 +98,12 @@ class TruthCheck:
     arrays: `error_mm`, `bound_mm`, `paper_error_mm`; `own_outside`: `posterior_outside` there), None
     without them; own_posterior: what the
     calibration's own posterior expects of the seed-level statistics near the data
-    (`own_posterior_expectations`)."""
+    (`own_posterior_expectations`); ranks: simulation-based calibration, the truth's normalized rank
+    among the posterior's draws, each taken as the arm (`_Truth.ranks`): {'pit_near', 'pit_across',
+    'pit_validation': the mean PIT over the commands inside the measured ranges, across the limits,
+    at the validation set (`mean_pit_rank`); 'p95_near': the registered p95 inside the measured
+    ranges (`posterior_p95`); 'zero_offsets.q<j>': each estimated zero-offset's recoverable truth
+    (`recoverable_zero_offsets`)}, each {'rank': in [0, 1], 'truth': its value, ...}."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -119,6 +125,7 @@ class TruthCheck:
     acceptance: Acceptance | None = None
     elsewhere: dict | None = None
     own_posterior: dict | None = None
+    ranks: dict | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -190,6 +197,8 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
         probe.draws,
         np.random.default_rng([probe.seed, 1]),
     )
+    where = {"near": (q_domain, domain_error), "across": (q, error), "validation": (q_planned, planned_error)}
+    ranks = held.ranks(where, q_domain, np.random.default_rng([probe.seed, 2]))
     report = calibration.loop.report
     return TruthCheck(
         calibration.effects,
@@ -212,6 +221,7 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
         calibration.acceptance,
         elsewhere,
         own,
+        ranks,
     )
 
 
@@ -273,6 +283,38 @@ class _Truth:
             )
         return held
 
+    def ranks(self, errors: Mapping[str, tuple], q_domain, rng) -> dict:
+        """`TruthCheck.ranks` of errors {where: (q (n, N) rad, the truth's error there (n,) mm)}, the
+        workspace p95 at q_domain and the estimated zero-offsets, each with the truth's own value."""
+        out = {}
+        for where, (q, error) in errors.items():
+            pit, rank = mean_pit_rank(error, posterior_errors(self.robot, q, self.draws, rng))
+            out[f"pit_{where}"] = {"rank": rank, "truth": pit}
+        chain = self.calibration.campaign.chain
+        true_points = true_marker_positions(chain, self.true_robot, self.device, q_domain, np.zeros(len(q_domain)))
+        registered = metrics.registered_distances(self.robot.robot_points(q_domain), true_points[None])[0]
+        p95, draws = float(np.quantile(registered, 0.95) / 1e-3), posterior_p95(self.robot, q_domain, self.draws, rng)
+        out["p95_near"] = {
+            "rank": float(normalized_rank(p95, draws)),
+            "truth": p95,
+            "draws_median": float(np.median(draws)),
+        }
+        return {**out, **self.zero_offset_ranks()}
+
+    def zero_offset_ranks(self) -> dict:
+        """{name: rank, the recoverable truth (rad), its z-score} of each zero-offset the loop
+        estimated, among the loop's posterior samples of it (`recoverable_zero_offsets`)."""
+        loop, chain = self.calibration.loop, self.calibration.campaign.chain
+        table = loop.report.parameters
+        estimated = (table["status"] == "estimated") & table["parameter"].astype(str).str.startswith("zero_offsets.")
+        truth = recoverable_zero_offsets(chain, self.true_robot)
+        out = {}
+        for name in table.loc[estimated, "parameter"].astype(str):
+            draws, value = loop.samples[name].to_numpy(float), float(truth[int(name.split(".q")[-1]) - 1])
+            z = (value - draws.mean()) / draws.std()
+            out[name] = {"rank": float(normalized_rank(value, draws)), "truth": value, "z": float(z)}
+        return out
+
     def elsewhere(self, q, rng) -> dict:
         """`TruthCheck.elsewhere` at configurations q (m, N) rad (drawn after everything else of
         `check`, so that it changes none of it)."""
@@ -287,13 +329,27 @@ class _Truth:
         }
 
 
-def posterior_outside(robot, q, bound_mm, count: int, rng) -> np.ndarray:
-    """(count, n) bool: each of `count` fresh posterior draws of `robot` (a calibrated robot) taken as
-    the arm's truth, whether its marker at command q_i (n, N) lies outside the per-command bound
-    bound_mm (n,) about the prediction (sensor frame, as `remaster predict` states it)."""
+def posterior_errors(robot, q, count: int, rng) -> np.ndarray:
+    """(count, n) mm: each of `count` fresh posterior draws of `robot` (a calibrated robot) taken as
+    the arm's truth, the distance of its marker at command q_i (n, N) from the prediction (sensor
+    frame, as `remaster predict` states it): what the arm's true error would be."""
     in_sensor, _ = robot.draw_points(q, "sensor", count, rng)
     mean = robot.in_frame(robot.robot_points(q), "sensor")
-    return np.linalg.norm(in_sensor - mean, axis=-1) / 1e-3 > np.asarray(bound_mm)[None]
+    return np.linalg.norm(in_sensor - mean, axis=-1) / 1e-3
+
+
+def posterior_outside(robot, q, bound_mm, count: int, rng) -> np.ndarray:
+    """(count, n) bool: each of `count` fresh posterior draws taken as the arm's truth
+    (`posterior_errors`), whether its marker lies outside the per-command bound bound_mm (n,)."""
+    return posterior_errors(robot, q, count, rng) > np.asarray(bound_mm)[None]
+
+
+def posterior_p95(robot, q, count: int, rng) -> np.ndarray:
+    """(count,) mm: each of `count` fresh posterior draws taken as the arm's truth, the 95th
+    percentile over configurations q (n, N) of its registered distance from the posterior mean
+    (robot frame): the arm's p95 the workspace claim bounds."""
+    in_robot, _ = robot.draw_points(q, "robot", count, rng)
+    return np.quantile(metrics.registered_distances(robot.robot_points(q), in_robot), 0.95, axis=1) / 1e-3
 
 
 def own_posterior_expectations(robot, q, bound_mm, claim_mm: float, count: int, rng) -> dict:
@@ -304,11 +360,51 @@ def own_posterior_expectations(robot, q, bound_mm, claim_mm: float, count: int, 
     covers it (about 0.95 when the claim and the draws agree). What the truth does is then compared
     with these chances: a rate the posterior itself expects is not a miscalibration."""
     outside = np.mean(posterior_outside(robot, q, bound_mm, count, rng), axis=1)
-    in_robot, _ = robot.draw_points(q, "robot", count, rng)
-    p95 = np.quantile(metrics.registered_distances(robot.robot_points(q), in_robot), 0.95, axis=1) / 1e-3
-    ratio = claim_mm / p95
+    ratio = claim_mm / posterior_p95(robot, q, count, rng)
     return {
         "outside_above_25": float(np.mean(outside > 0.25)),
         "claim_in_window": float(np.mean((ratio >= 0.8) & (ratio <= 2.0))),
         "claim_covers": float(np.mean(ratio >= 1.0)),
     }
+
+
+def normalized_rank(value, draws) -> np.ndarray:
+    """The rank of value (...) among draws (K, ...) along their first axis, over K: the share of the
+    draws below it, ties counted half, in [0, 1]. Uniform over truths when each truth is one more
+    draw of the distribution the draws come from (simulation-based calibration, Talts et al. 2018);
+    a truth in the draws' lower tail gives about 0, in their upper tail about 1."""
+    draws, value = np.asarray(draws, dtype=float), np.asarray(value, dtype=float)
+    return (np.sum(draws < value, axis=0) + 0.5 * np.sum(draws == value, axis=0)) / len(draws)
+
+
+def mean_pit_rank(error_mm, draw_errors_mm) -> tuple[float, float]:
+    """(the truth's mean PIT over n commands, its rank among the draws' own mean PITs): error_mm (n,)
+    the truth's error at each command, draw_errors_mm (K, n) each posterior draw's taken as the arm
+    (`posterior_errors`). An arm's PIT at a command is the rank of its error among the draws' there
+    (`normalized_rank`; a draw's among the K - 1 others); the truth's mean over the commands is
+    ranked among the K draws' means, which carry the same correlation across commands: a test
+    quantity of the arm, uniform over seeds when the posterior is calibrated (Modrak et al. 2023)."""
+    draws = np.asarray(draw_errors_mm, dtype=float)
+    truth = float(np.mean(normalized_rank(error_mm, draws)))
+    own = np.argsort(np.argsort(draws, axis=0), axis=0) / (len(draws) - 1)
+    return truth, float(normalized_rank(truth, own.mean(axis=1)))
+
+
+def link_turns(chain, motions) -> np.ndarray:
+    """(N,) rad: the part of the simulator's rigid link motions (N + 1, 6) that turns about each
+    joint's own axis, which no measurement tells from that joint's zero-offset: the motion of F_j
+    (moved on the side it starts from, M_j F_j = F_j D_j) about axis j, and the motion of the next
+    fixed transform, which starts in joint j's turned frame, about it too (the tool's after the last
+    joint). The iiwa's consecutive axes are perpendicular, so no turn is counted for two joints."""
+    transforms = np.concatenate([chain.joint_transforms, chain.tool_transform[None]])
+    moves = spatial.homogeneous(spatial.rpy_to_matrix(*motions[:, 3:].T), motions[:, :3])
+    own = kinematics.small_motion_of(np.linalg.inv(transforms) @ moves @ transforms)[:-1, 3:]
+    following = spatial.matrix_to_rotation_vector(moves[1:, :3, :3])
+    return np.sum((own + following) * chain.joint_axes, axis=1)
+
+
+def recoverable_zero_offsets(chain, true_robot) -> np.ndarray:
+    """(N,) rad: the zero-offsets a fit can recover of a true robot (`simulation.TrueRobot`): its own,
+    each turned by its link motions' turn about the joint's axis (`link_turns`)."""
+    offsets = np.asarray(true_robot.zero_offsets, dtype=float)
+    return offsets if true_robot.link_motions is None else offsets + link_turns(chain, true_robot.link_motions)
