@@ -4,13 +4,15 @@ The bag: 10 sensor_msgs/msg/JointState messages on /joint_states and a std_msgs/
 /rosout after each (`bag_bytes`, as tests/campaigns/test_import_bag.py writes them), its chunks uncompressed or
 zstd (rosbag2's default), written with CRCs (chunks and summary; mcap's writers leave the data
 section's 0) or without. Each copy is damaged by `damaged`: 1 to 3 bytes flipped, cut off at a
-random point, or a random range of 1 to 64 bytes zeroed. Per kind of bag, the counts of copies
-`bags.read_joint_states` read the same as the valid bag ("same"), refused with an InputError naming
-the file ("refused"), read to other joint states ("different": a change no CRC covers) or ended in
-another exception ("other", by type: a traceback, which must stay 0).
+random point, or a random range of 1 to 64 bytes zeroed. The same joint states also as a sqlite3 bag
+(ROS 2 Humble's default storage, written by rosbags; its .db3 file damaged the same way and read by
+`bags.read_topics`, as `remaster import` reads one). Per kind of bag, the counts of copies read the
+same as the valid bag ("same"), refused with an InputError naming the file ("refused"), read to other
+joint states ("different": a change no CRC covers; sqlite3 has no CRCs) or ended in another exception
+("other", by type: a traceback, which must stay 0).
 
 Run from the repository root: nice python benchmarks/bench_damaged_bags.py [copies per kind] (default 250,
-1,000 in all). Writes benchmarks/results/damaged_bags.json.
+1,250 in all). Writes benchmarks/results/damaged_bags.json.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import collections
 import io
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -29,6 +32,9 @@ sys.path.insert(0, str(REPO))
 
 from mcap.writer import CompressionType  # noqa: E402
 from mcap_ros2.writer import Writer  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin  # noqa: E402
+from rosbags.rosbag2 import Writer as BagWriter  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from remaster.campaigns import bags  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
@@ -89,6 +95,47 @@ def damaged(data: bytes, rng) -> bytes:
     return bytes(out)
 
 
+def sqlite_bag(q: np.ndarray, folder: Path) -> bytes:
+    """The joint states of `bag_bytes` as a sqlite3 bag written by rosbags in `folder`: its .db3 bytes."""
+    types = get_typestore(Stores.ROS2_HUMBLE)
+    message_type = types.types[JOINT_STATE]
+    with BagWriter(folder, version=8, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        states = writer.add_connection("/joint_states", JOINT_STATE, typestore=types)
+        for i, row in enumerate(q):
+            stamp = 1_714_644_000_000_000_000 + i * 1_000_000_000
+            header = types.types["std_msgs/msg/Header"](
+                stamp=types.types["builtin_interfaces/msg/Time"](sec=stamp // 10**9, nanosec=0), frame_id=""
+            )
+            names = [f"joint_a{j + 1}" for j in range(len(row))]
+            message = message_type(
+                header=header, name=names, position=np.asarray(row), velocity=np.array([]), effort=np.array([])
+            )
+            writer.write(states, stamp, types.serialize_cdr(message, JOINT_STATE))
+    return next(folder.glob("*.db3")).read_bytes()
+
+
+def read_sqlite(data: bytes, path: Path) -> list:
+    """The joint states `remaster import` reads from a sqlite3 bag of these bytes, written to `path`."""
+    path.write_bytes(data)
+    return bags.joint_states(bags.read_topics(path, {"/joint_states": (JOINT_STATE,)}, "damaged.db3")["/joint_states"])
+
+
+def counted(good, read_copy, copies: int, rng) -> dict:
+    """How `read_copy` (bytes -> joint states) fares on `copies` damaged copies of `good`'s bytes."""
+    data, expected = good
+    counts: collections.Counter = collections.Counter()
+    for _ in range(copies):
+        try:
+            read = read_copy(damaged(data, rng))
+        except InputError as error:
+            counts["refused" if str(error).startswith("damaged.") else "refused without the file"] += 1
+        except Exception as error:  # noqa: BLE001 - counted: a traceback for the user
+            counts[f"other: {type(error).__name__}"] += 1
+        else:
+            counts["same" if read == expected else "different"] += 1
+    return {"bag_bytes": len(data), "copies": copies, **dict(sorted(counts.items()))}
+
+
 def run(copies: int) -> dict:
     rng = np.random.default_rng(SEED)
     q = rng.uniform(-1.0, 1.0, (10, 7))
@@ -96,17 +143,17 @@ def run(copies: int) -> dict:
     for kind, (compression, crcs) in KINDS.items():
         data = bag_bytes(q, compression, crcs)
         good = bags.read_joint_states(io.BytesIO(data), "/joint_states", "good.mcap")
-        counts: collections.Counter = collections.Counter()
-        for _ in range(copies):
-            try:
-                read = bags.read_joint_states(io.BytesIO(damaged(data, rng)), "/joint_states", "damaged.mcap")
-            except InputError as error:
-                counts["refused" if str(error).startswith("damaged.mcap: ") else "refused without the file"] += 1
-            except Exception as error:  # noqa: BLE001 - counted: a traceback for the user
-                counts[f"other: {type(error).__name__}"] += 1
-            else:
-                counts["same" if read == good else "different"] += 1
-        results[kind] = {"bag_bytes": len(data), "copies": copies, **dict(sorted(counts.items()))}
+        results[kind] = counted(
+            (data, good),
+            lambda copy: bags.read_joint_states(io.BytesIO(copy), "/joint_states", "damaged.mcap"),
+            copies,
+            rng,
+        )
+    with tempfile.TemporaryDirectory() as folder:
+        data = sqlite_bag(q, Path(folder) / "bag")
+        copy = Path(folder) / "damaged.db3"
+        good = read_sqlite(data, copy)
+        results["sqlite3"] = counted((data, good), lambda damaged_bytes: read_sqlite(damaged_bytes, copy), copies, rng)
     return results
 
 
