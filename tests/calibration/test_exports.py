@@ -274,3 +274,26 @@ def test_a_model_dh_can_hold_whose_transforms_are_not_each_of_dh_form_gets_an_ex
     table = dh_table.calibrated_dh(dh_chain, {"convention": "standard", "rows": UR5_DH}, moved, q)
     assert table["exact"] and table["not_dh_form"] == [] and "least squares" in table["method"]
     assert table["max_position_difference_m"] < 1e-9
+
+
+def test_a_correction_the_priors_it_trades_against_set_is_not_determined():
+    """A zero-offset whose own prior is wide (posterior std 0.02 of it) but which the data cannot
+    tell from a link parameter of tight prior: the priors set 99 % of its variance, and its status
+    says so, not "estimated"."""
+    table = pd.DataFrame(
+        {
+            "parameter": ["zero_offsets.q1"],
+            "mean": [0.1 * DEG],
+            "std": [0.02 * DEG],
+            "q2.5": [0.06 * DEG],
+            "q97.5": [0.14 * DEG],
+            "status": ["estimated"],
+            "prior_dominated": [True],
+            "posterior_to_prior_std": [0.02],
+            "prior_share": [0.99],
+            "determined_combination": ["+1*zero_offsets.q1 -1*link_geometry.F3.x (std 0.001)"],
+        }
+    )
+    status = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED).iloc[0]["status"]
+    assert status.startswith("not determined: the priors set 99% of its posterior variance")
+    assert "link_geometry.F3.x" in status

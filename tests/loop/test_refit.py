@@ -28,3 +28,18 @@ def test_a_parameter_correlated_with_nothing_has_no_combination():
     covariance = np.diag([DEG**2, MM**2])
     assert refit.determined_combination("zero_offsets.q2", names, covariance, scale) == ""
     assert refit.determined_combination("zero_offsets.q2", names[:1], covariance[:1, :1], scale) == ""
+
+
+def test_the_priors_share_of_a_posterior_variance_against_known_answers():
+    """One parameter, var = 1 / (h + q): the priors' share is q / (h + q). Two parameters the data
+    see only as a sum, one of wide prior and one of tight: the wide one's variance is the tight
+    one's prior (share 1) although its std is 1 % of its own prior; seen apart, neither is set by
+    the priors."""
+    assert refit.prior_shares([[1.0 / (3.0 + 1.0)]], [1.0]) == pytest.approx([0.25])
+    prior_std = np.array([0.1, 1e-3])
+    traded = np.linalg.inv(np.full((2, 2), 1e10) + np.diag(1.0 / prior_std**2))
+    assert refit.prior_shares(traded, prior_std) == pytest.approx([1.0, 1.0], abs=1e-3)
+    assert np.sqrt(traded[0, 0]) / prior_std[0] == pytest.approx(0.01, rel=1e-3)
+    apart = np.linalg.inv(np.diag([1e10, 1e10]) + np.diag(1.0 / prior_std**2))
+    assert refit.prior_shares(apart, prior_std) == pytest.approx([1e-8, 1e-4], rel=1e-3)
+    assert refit.prior_shares(apart, [np.inf, np.inf]) == pytest.approx([0.0, 0.0])

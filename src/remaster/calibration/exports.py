@@ -45,6 +45,7 @@ from ..errors import InputError
 from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
 from ..inference.uncertainty import coverage_factor, with_between
+from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport
 from ..robot.kinematics import KinematicChain, origin_transform
 from ..units import DEG
@@ -216,9 +217,13 @@ def not_determined(row) -> str:
     if status != "estimated" or not bool(row.get("prior_dominated", False)):
         return status
     ratio = float(row.get("posterior_to_prior_std", np.nan))
+    share = float(row.get("prior_share", np.nan))
     combination = str(row.get("determined_combination") or "")
     determined = f"; the data determine {combination}" if combination else ""
-    return f"not determined: its posterior std is {ratio:.2f} of its prior's{determined}"
+    why = f"its posterior std is {ratio:.2f} of its prior's"
+    if not ratio > PRIOR_DOMINATED and share > 0:  # its own prior is wide: the priors it trades against set it
+        why = f"the priors set {share:.0%} of its posterior variance (its std {ratio:.2f} of its own prior's)"
+    return f"not determined: {why}{determined}"
 
 
 @dataclass(frozen=True, eq=False)
