@@ -97,7 +97,8 @@ class TruthCheck:
     arrays: `error_mm`, `bound_mm`, `paper_error_mm`; `own_outside`: `posterior_outside` there), None
     without them; own_posterior: what the
     calibration's own posterior expects of the seed-level statistics near the data
-    (`own_posterior_expectations`)."""
+    (`own_posterior_expectations`); calibration: the `Calibration` itself (its campaign, fits and
+    loop closure), for what else a caller holds it to."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -119,6 +120,7 @@ class TruthCheck:
     acceptance: Acceptance | None = None
     elsewhere: dict | None = None
     own_posterior: dict | None = None
+    calibration: Calibration | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -212,6 +214,7 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
         calibration.acceptance,
         elsewhere,
         own,
+        calibration,
     )
 
 
