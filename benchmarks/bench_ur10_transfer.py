@@ -5,8 +5,9 @@ A grid, B chosen joint configurations, C random poses, D ISO cubes with one tool
 series given as a source is calibrated through the Python API (`api.calibrate`: registration, the
 zero-offset fit, the loop closure); then every series it is paired with is predicted with the
 source's kinematics frozen and the target's registration refitted on the target's optimization rows
-(`comparing.transfer.transfer_errors`), the RMS taken over the target's validation rows. Four models
-on every pair, the same rows for each:
+(`comparing.transfer.transfer_errors`), the RMS taken over the target's validation rows
+(`transfer_pairs`: the comparison bench_transfer.py makes on simulated campaigns). The models on
+every pair, the same rows for each:
 
 - nominal: the robot description unchanged;
 - zero-offset (the paper's model): the Laplace fit's zero-offsets;
