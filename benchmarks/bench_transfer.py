@@ -217,7 +217,8 @@ def added(calibration) -> list[dict]:
     """The loop closure's parameters beyond the zero-offsets and the set-up (display units)."""
     table = calibration.loop.report.parameters
     keep = ~table["block"].isin(("zero_offsets", "registration", "noise"))
-    columns = [c for c in ("parameter", "block", "mean_display", "std_display", "unit", "status") if c in table]
+    names = ("parameter", "block", "mean_display", "std_display", "prior_std_display", "unit", "status")
+    columns = [c for c in names if c in table]
     return table.loc[keep, columns].to_dict("records")
 
 
@@ -338,6 +339,43 @@ def _drift_lines(drifts: list[dict]) -> list[str]:
     return lines
 
 
+def _failure_lines(pairs: list[dict], campaigns: list[dict], shown: int = 3) -> list[str]:
+    """Per source campaign (and seed) of a missed transfer: the pairs missed, and the loop's added
+    parameters farthest from zero in prior stds (mean +- std, prior std, display units)."""
+    missed = [r for r in pairs if not _met(r)]
+    if not missed:
+        return []
+    lines = [
+        "Where a target was missed, the source's added parameters farthest from zero in prior stds:",
+        "",
+        "| arm | truth | calibrated on | seed | missed on (loop / LSQ; loop, zero-offset RMS mm) | largest added "
+        "parameters: mean +- std (prior std) |",
+        "|---|---|---|---|---|---|",
+    ]
+    keys = list(dict.fromkeys((r["arm"], r["truth"], r["calibrated_on"], r["seed"]) for r in missed))
+    for arm, truth, design, seed in keys:
+        rows = [
+            r for r in missed if (r["arm"], r["truth"], r["calibrated_on"], r["seed"]) == (arm, truth, design, seed)
+        ]
+        source = next(
+            c for c in campaigns if (c["arm"], c["truth"], c["design"], c["seed"]) == (arm, truth, design, seed)
+        )
+        ranked = sorted(
+            (p for p in source["added"] if np.isfinite(p.get("prior_std_display", np.nan))),
+            key=lambda p: -abs(p["mean_display"]) / p["prior_std_display"],
+        )[:shown]
+        where = "; ".join(
+            f"{r['predicting']} ({r['loop_over_baseline']:.2f}; {r['loop_rms_mm']:.3f}, {r['paper_rms_mm']:.3f})"
+            for r in rows
+        )
+        largest = "; ".join(
+            f"{p['parameter']} {p['mean_display']:.3g} +- {p['std_display']:.2g} ({p['prior_std_display']:.3g} {p['unit']})"
+            for p in ranked
+        )
+        lines.append(f"| {arm} | {truth} | {design} | {seed} | {where} | {largest or 'none added'} |")
+    return lines
+
+
 def markdown(record: dict) -> str:
     pairs, drifts, campaigns = record["pairs"], record["drifts"], record["campaigns"]
     lines = [
@@ -365,6 +403,7 @@ def markdown(record: dict) -> str:
         lines.append(
             f"| {arm} | {truth} | {design} | {effects} | {np.median([c['check_seconds'] for c in part]):.0f} |"
         )
+    lines += ["", *_failure_lines(pairs, campaigns)]
     met = sum(_met(r) for r in pairs)
     ratio = sum(r["within_baseline"] for r in pairs)
     nominal = sum(r["below_nominal"] for r in pairs)
