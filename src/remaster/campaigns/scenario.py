@@ -457,6 +457,7 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
     the reference sensor's estimated origin (3,) m, None for random joint-space configurations; the
     cube design's flange rotation (3, 3), None for the others) of the scenario's `plan`."""
     sets = _sets(plan_spec, design)
+    ranges = joint_ranges(plan_spec, chain, design)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
     target = rotation = None
@@ -491,7 +492,7 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
                 held=held.held,
                 candidates=int(plan_spec.get("candidates", RANDOM_CANDIDATES)),
                 model=collision,
-                ranges=joint_ranges(plan_spec, chain, design),
+                ranges=ranges,
             )
         else:
             plan = planning.plan_set(
