@@ -319,8 +319,8 @@ def _met(row: dict) -> bool:
 
 
 def _flagged(part: list[dict], key: str) -> str:
-    """Flagged / compared per seed, and the parameters flagged in any."""
-    counts = [f"{len(d[f'{key}_flagged'])}/{d[f'{key}_compared']}" for d in part]
+    """Flagged of compared per seed, and the parameters flagged in any."""
+    counts = [f"{len(d[f'{key}_flagged'])} of {d[f'{key}_compared']}" for d in part]
     names = sorted({n for d in part for n in d[f"{key}_flagged"]})
     return ", ".join(counts) + (f" ({', '.join(names)})" if names else "")
 
@@ -422,7 +422,7 @@ def markdown(record: dict) -> str:
         "",
         *_pair_lines(pairs),
         "",
-        "Drift between the campaigns of a group (`comparing.comparison`: |z| > 3, flagged / compared per seed):",
+        "Drift between the campaigns of a group (`comparing.comparison`: |z| > 3, flagged of compared per seed):",
         "",
         *_drift_lines(drifts),
         "",

@@ -489,10 +489,9 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
                 sights,
                 rng,
                 n_configurations=count,
-                held=held.held,
+                held={**held.held, **ranges},
                 candidates=int(plan_spec.get("candidates", RANDOM_CANDIDATES)),
                 model=collision,
-                ranges=ranges,
             )
         else:
             plan = planning.plan_set(
