@@ -5,8 +5,9 @@ A grid, B chosen joint configurations, C random poses, D ISO cubes with one tool
 series given as a source is calibrated through the Python API (`api.calibrate`: registration, the
 zero-offset fit, the loop closure); then every series it is paired with is predicted with the
 source's kinematics frozen and the target's registration refitted on the target's optimization rows
-(`comparing.transfer.transfer_errors`), the RMS taken over the target's validation rows. Four models
-on every pair, the same rows for each:
+(`comparing.transfer.transfer_errors`), the RMS taken over the target's validation rows
+(`transfer_pairs`: the comparison bench_transfer.py makes on simulated campaigns). The models on
+every pair, the same rows for each:
 
 - nominal: the robot description unchanged;
 - zero-offset (the paper's model): the Laplace fit's zero-offsets;
@@ -47,13 +48,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks import transfer_pairs  # noqa: E402
 from benchmarks.doc_sections import publish  # noqa: E402
-from benchmarks.truth_claims import REPO, least_squares_validation  # noqa: E402
-from remaster import api, identity  # noqa: E402
+from benchmarks.transfer_pairs import WITHIN, models_of, pair_rms, verdict  # noqa: E402
+from benchmarks.truth_claims import REPO  # noqa: E402
+from remaster import api  # noqa: E402
 from remaster.calibration import prediction  # noqa: E402
-from remaster.comparing.transfer import transfer_errors  # noqa: E402
 from remaster.inference import fit  # noqa: E402
-from remaster.loop import settings as loop_settings  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
 SERIES = {
@@ -64,10 +65,6 @@ SERIES = {
 }
 SENSOR = "laser_tracker"
 ONE_ORIENTATION = ("d",)  # least squares ill-posed from these: held to the better of it and the nominal model
-COMPLETE = ("link_geometry", "marker_offset", "joint_compliance")
-RIGID = ("link_geometry", "marker_offset")  # the same least squares without the compliance: shown, not a target
-WITHIN = 1.1  # the loop-closed model's transfer RMS over the baseline's it should stay under
-MODELS = ("nominal", "paper", "loop", "least_squares", "least_squares_rigid")
 REDUCED = {
     "loop_closure": {"residual_gp": {"enabled": False}},
     "accuracy": {"draws": 200, "random_configurations": 200},
@@ -94,62 +91,20 @@ def target_of(campaign) -> prediction.Calibrated:
     """A series as a transfer's target: its readings and the rows its own zero-offset fit flagged as gross errors."""
     registered = fit.registration_stage(campaign, SENSOR)
     laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, api.settings()["outliers"]["alpha"]))
-    return prediction.Calibrated(
-        campaign.name,
-        campaign.date.isoformat(),
-        identity.robot_identity(campaign),
-        campaign.sensors[SENSOR],
-        campaign.chain,
-        {},
-        laplace.outlier_rows,
-    )
+    return transfer_pairs.target_of(campaign, SENSOR, laplace.outlier_rows)
 
 
 def source_of(campaign, seed: int) -> dict:
-    """A series calibrated (`api.calibrate`, REDUCED settings) with least squares beside: its four models."""
+    """A series calibrated (`api.calibrate`, REDUCED settings) with least squares beside: its models
+    (`transfer_pairs.models_of`)."""
     started = time.perf_counter()
     calibration = api.calibrate(campaign, SENSOR, api.settings(REDUCED), seed=seed)
     seconds = time.perf_counter() - started
-    settings = loop_settings.from_config(calibration.settings)
-    started = time.perf_counter()
-    least_squares = least_squares_validation(
-        calibration.campaign, SENSOR, calibration.registration, calibration.laplace, settings, COMPLETE
-    )
-    rigid = least_squares_validation(
-        calibration.campaign, SENSOR, calibration.registration, calibration.laplace, settings, RIGID
-    )
-    models = {
-        "nominal": prediction.Calibration("nominal"),
-        "paper": prediction.paper_calibration(calibration.summary, label=campaign.name),
-        "loop": prediction.loop_calibration(calibration.loop.report, label=campaign.name),
-        "least_squares": least_squares["calibration"],
-        "least_squares_rigid": rigid["calibration"],
-    }
     return {
-        "models": models,
+        **models_of(calibration, campaign.name),
         "effects": list(calibration.effects),
         "optimization_rows": int(np.sum(campaign.sensors[SENSOR].table["set"] == "optimization")),
-        "least_squares_parameters": least_squares["parameters"],
         "calibration_seconds": seconds,
-        "least_squares_seconds": time.perf_counter() - started,
-    }
-
-
-def rms_mm(errors: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(errors**2)) * 1e3) if len(errors) else float("nan")
-
-
-def verdict(source: str, row: dict) -> dict:
-    """The targets on one pair (module docstring): the baseline, the ratio and whether each is met."""
-    baseline = row["least_squares_rms_mm"]
-    if source in ONE_ORIENTATION:
-        baseline = min(baseline, row["nominal_rms_mm"])
-    ratio = row["loop_rms_mm"] / baseline
-    return {
-        "baseline_rms_mm": baseline,
-        "loop_over_baseline": ratio,
-        "within_baseline": bool(ratio <= WITHIN),
-        "below_nominal": bool(row["loop_rms_mm"] < row["nominal_rms_mm"]),
     }
 
 
@@ -244,11 +199,8 @@ def main() -> None:
     for source, target in pairs:
         if target not in targets:
             targets[target] = target_of(campaigns[target])
-        row = {"source": source, "target": target}
-        for model in MODELS:
-            errors = transfer_errors(sources[source]["models"][model], targets[target])
-            row[f"{model}_rms_mm"], row["count"] = rms_mm(errors), len(errors)
-        rows.append({**row, **verdict(source, row)})
+        row = {"source": source, "target": target, **pair_rms(sources[source]["models"], targets[target])}
+        rows.append({**row, **verdict(row, source in ONE_ORIENTATION)})
     record = {
         "date": date.today().isoformat(),
         "data": str(args.data),

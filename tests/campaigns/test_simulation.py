@@ -291,3 +291,45 @@ def test_a_six_axis_arm_needs_the_random_joints_design(ur5_dh):
     spec["truth"] = {"zero_offsets_deg": [0.1] * 6}
     with pytest.raises(InputError, match="plan/design: the latin_hypercube design needs a 7-axis"):
         scenario.simulate(spec, ur5_dh)
+
+
+def test_backlash_adds_half_the_play_by_the_direction_of_approach(iiwa):
+    play = np.radians([0.0, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0])
+    robot = TrueRobot(zero_offsets=np.zeros(7), backlash=play)
+    q = np.zeros((5, 7))
+    q[:, 1] = [0.0, 0.3, 0.1, 0.1, 0.4]  # first reading +, up, down, still (keeps down), up
+    true = true_joint_angles(iiwa, robot, q)
+    np.testing.assert_allclose(true[:, 1] - q[:, 1], play[1] * np.array([1, 1, -1, -1, 1]))
+    np.testing.assert_allclose(true[:, 0], 0.0)
+
+
+def test_thermal_growth_lengthens_every_link_and_is_recorded(iiwa):
+    out = scenario.simulate(small_scenario(link_scale=3e-4, backlash_deg=[0.0, 0.01] + [0.0] * 5), iiwa)
+    assert {"link_scale", "backlash"} <= set(out.truth["effects"])
+    robot = scenario.robot_from_truth(out.truth)
+    assert robot.link_scale == 3e-4
+    np.testing.assert_allclose(np.degrees(robot.backlash), [0.0, 0.01] + [0.0] * 5)
+    grown = simulation.true_chain(iiwa, TrueRobot(zero_offsets=np.zeros(7), link_scale=3e-4))
+    np.testing.assert_allclose(grown.joint_transforms[:, :3, 3], iiwa.joint_transforms[:, :3, 3] * (1 + 3e-4))
+    np.testing.assert_allclose(grown.joint_transforms[:, :3, :3], iiwa.joint_transforms[:, :3, :3])
+
+
+def test_random_joints_drawn_within_given_ranges_a_turn_away(ur5_dh):
+    spec = small_scenario()
+    spec["truth"] = {"zero_offsets_deg": [0.1] * 6}
+    spec["plan"] = {
+        "design": "random_joints",
+        "joint_ranges": {"q1": [4.3, 5.9]},
+        "seconds_per_configuration": 30,
+        "sets": {"optimization": {"configurations": 10}, "validation": {"configurations": 5}},
+    }
+    spec["sensors"] = {name: s for name, s in spec["sensors"].items() if name == "laser_tracker"}
+    q1 = scenario.simulate(spec, ur5_dh).tables["laser_tracker"]["q1"]
+    assert q1.between(4.3, 5.9).all()
+
+
+def test_joint_ranges_of_another_design_are_refused(iiwa):
+    spec = small_scenario()
+    spec["plan"]["joint_ranges"] = {"q1": [-0.5, 0.5]}
+    with pytest.raises(InputError, match="plan/joint_ranges"):
+        scenario.simulate(spec, iiwa)

@@ -103,7 +103,8 @@ class TruthCheck:
     'pit_validation': the mean PIT over the commands inside the measured ranges, across the limits,
     at the validation set (`mean_pit_rank`); 'p95_near': the registered p95 inside the measured
     ranges (`posterior_p95`); 'zero_offsets.q<j>': each estimated zero-offset's recoverable truth
-    (`recoverable_zero_offsets`)}, each {'rank': in [0, 1], 'truth': its value, ...}."""
+    (`recoverable_zero_offsets`)}, each {'rank': in [0, 1], 'truth': its value, ...}; calibration:
+    the `Calibration` itself (its campaign, fits and loop closure), for what else a caller holds it to."""
 
     effects: tuple[str, ...]
     validation_rms_per_axis_mm: float
@@ -126,6 +127,7 @@ class TruthCheck:
     elsewhere: dict | None = None
     own_posterior: dict | None = None
     ranks: dict | None = None
+    calibration: Calibration | None = None
 
     @property
     def held_fraction(self) -> float:
@@ -222,6 +224,7 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
         elsewhere,
         own,
         ranks,
+        calibration,
     )
 
 

@@ -90,6 +90,8 @@ TRUTH_KEYS = (
     "joint_scale",
     "drift_deg_per_hour",
     "cyclic_error",
+    "backlash_deg",
+    "link_scale",
 )
 
 
@@ -160,7 +162,17 @@ def true_robot(spec: dict, n_joints: int, rng: np.random.Generator) -> TrueRobot
         cyclic_error=cyclic,
         link_motions=link_motions,
         dh_errors=dh_errors,
+        backlash=_vector(truth, "backlash_deg", n_joints, np.pi / 180.0),
+        link_scale=_link_scale(truth),
     )
+
+
+def _link_scale(truth: dict) -> float:
+    """`truth/link_scale`: every link's length grown by this factor (thermal growth), 1."""
+    value = truth.get("link_scale", 0.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) < 0.1:
+        raise InputError(f"must be a small factor (|s| < 0.1), got {quoted(value)}", key="truth/link_scale")
+    return float(value)
 
 
 def sensors_of(spec: dict) -> dict[str, Sensor]:
@@ -258,6 +270,7 @@ PLAN_KEYS = (
     "candidates",
     "q3",
     "held_joints",
+    "joint_ranges",
     "tool_angle",
     "collision",
     "seconds_per_configuration",
@@ -332,6 +345,31 @@ def holding(plan_spec: dict, chain: KinematicChain, design: str) -> Holding:
             key=f"plan/held_joints/q{others[0] + 1}",
         )
     return Holding(held.get(2, planning.FREE if q3 == planning.FREE else 0.0), {})
+
+
+def joint_ranges(plan_spec: dict, chain: KinematicChain, design: str) -> dict[int, tuple[float, float]]:
+    """The region of joint space a random_joints plan draws from: `joint_ranges` {q<j>: [low, high]}
+    (rad, within the joint's limits; a joint without limits, e.g. a DH table's, may be drawn a turn
+    away); the other joints within their `planning.joint_range`."""
+    spec = plan_spec.get("joint_ranges") or {}
+    if spec and design != RANDOM_JOINTS:
+        raise InputError(f"joint ranges are drawn by design: {RANDOM_JOINTS}", key="plan/joint_ranges")
+    if not isinstance(spec, dict):
+        raise InputError("must be a mapping {q<j>: [low, high] (rad)}", key="plan/joint_ranges")
+    out = {}
+    for name, value in spec.items():
+        key = f"plan/joint_ranges/{name}"
+        match = re.fullmatch(r"q([1-9][0-9]*)", str(name))
+        if match is None or int(match.group(1)) > chain.n_joints:
+            raise InputError(f"names no joint of the robot (q1 .. q{chain.n_joints})", key=key)
+        joint = int(match.group(1)) - 1
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise InputError(f"must be [low, high] (rad), got {quoted(value)}", key=key)
+        low, high = (_angle(v, chain, joint, key) for v in value)
+        if not low < high:
+            raise InputError(f"needs low < high, got {quoted(value)}", key=key)
+        out[joint] = (low, high)
+    return out
 
 
 def _sets(plan_spec: dict, design: str) -> dict:
@@ -419,6 +457,7 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
     the reference sensor's estimated origin (3,) m, None for random joint-space configurations; the
     cube design's flange rotation (3, 3), None for the others) of the scenario's `plan`."""
     sets = _sets(plan_spec, design)
+    ranges = joint_ranges(plan_spec, chain, design)
     collision = planning.CollisionModel(**plan_spec.get("collision", {}))
     sights = [planning.SightLine(s.pose_in_robot[:3, 3], s.marker) for s in sensors.values()]
     target = rotation = None
@@ -450,7 +489,7 @@ def _plan(plan_spec: dict, design: str, chain: KinematicChain, robot: TrueRobot,
                 sights,
                 rng,
                 n_configurations=count,
-                held=held.held,
+                held={**held.held, **ranges},
                 candidates=int(plan_spec.get("candidates", RANDOM_CANDIDATES)),
                 model=collision,
             )
@@ -605,6 +644,8 @@ def robot_from_truth(truth: dict) -> TrueRobot:
         )
         if dh
         else None,
+        backlash=np.radians(effects["backlash"]["half_play_deg"]) if "backlash" in effects else None,
+        link_scale=float(effects.get("link_scale", {}).get("factor", 0.0)),
     )
 
 
@@ -655,6 +696,13 @@ def _effects_record(robot: TrueRobot) -> dict:
         }
     if robot.joint_scale is not None:
         effects["joint_scale"] = {"scale": robot.joint_scale.tolist()}
+    if robot.backlash is not None:
+        effects["backlash"] = {
+            "half_play_deg": np.degrees(robot.backlash).tolist(),
+            "convention": "+ half the play approached from below, - from above, in the readings' order",
+        }
+    if robot.link_scale:
+        effects["link_scale"] = {"factor": robot.link_scale, "applies_to": "every fixed transform's translation"}
     if robot.drift_rate is not None:
         effects["drift"] = {"zero_offset_rate_deg_per_hour": np.degrees(robot.drift_rate * SECONDS_PER_HOUR).tolist()}
     if robot.cyclic_error is not None:

@@ -65,6 +65,10 @@ class TrueRobot:
     cyclic_error: np.ndarray | None = None
     link_motions: np.ndarray | None = None
     dh_errors: DHErrors | None = None
+    # (N,) rad: half the play of each joint's gear, by the direction of approach (`approach`)
+    backlash: np.ndarray | None = None
+    # every fixed transform's translation grown by this factor (thermal growth of the links), 1
+    link_scale: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -147,18 +151,31 @@ def same_frames_as_dh(chain: KinematicChain, dh: DHErrors, tolerance: float = 1e
 def true_chain(chain: KinematicChain, robot: TrueRobot) -> KinematicChain:
     """The robot's true geometry: the nominal chain, or the DH table with its errors, then the
     rigid link motions; the nominal chain itself when it has none."""
-    if robot.dh_errors is None and robot.link_motions is None:
+    if robot.dh_errors is None and robot.link_motions is None and not robot.link_scale:
         return chain
     base = dh_chain(robot.dh_errors, chain) if robot.dh_errors is not None else chain
-    if robot.link_motions is None:
-        return base
     transforms = np.concatenate([base.joint_transforms, base.tool_transform[None]])
-    if np.shape(robot.link_motions)[0] != len(transforms):
-        raise ValueError(
-            f"link motions need one row per fixed transform ({len(transforms)}), got {np.shape(robot.link_motions)}"
-        )
-    transforms = moved_transforms(transforms, robot.link_motions)
+    if robot.link_motions is not None:
+        if np.shape(robot.link_motions)[0] != len(transforms):
+            raise ValueError(
+                f"link motions need one row per fixed transform ({len(transforms)}), got {np.shape(robot.link_motions)}"
+            )
+        transforms = moved_transforms(transforms, robot.link_motions)
+    if robot.link_scale:
+        transforms = transforms.copy()
+        transforms[:, :3, 3] *= 1.0 + robot.link_scale
     return replace(base, joint_transforms=transforms[:-1], tool_transform=transforms[-1])
+
+
+def approach(q_readings) -> np.ndarray:
+    """(n, N) +1 or -1: the direction each joint reached each reading from, in the readings' order
+    (+1: from below; the first reading, and a joint that did not move, keep the last direction, +1 at first)."""
+    q = np.asarray(q_readings, dtype=float)
+    step = np.sign(np.diff(q, axis=0, prepend=q[:1]))
+    out = np.ones_like(q)
+    for i in range(1, len(q)):
+        out[i] = np.where(step[i] == 0.0, out[i - 1], step[i])
+    return out
 
 
 def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elapsed_s=None) -> np.ndarray:
@@ -166,6 +183,8 @@ def true_joint_angles(chain: KinematicChain, robot: TrueRobot, q_readings, elaps
     q = np.asarray(q_readings, dtype=float)
     true = q * (1.0 + robot.joint_scale) if robot.joint_scale is not None else q.copy()
     true = true + robot.zero_offsets
+    if robot.backlash is not None:
+        true = true + robot.backlash * approach(q)
     if robot.cyclic_error is not None:
         # a transmission's kinematic error, periodic in the joint's own reading (what joint_harmonics models)
         for term in np.reshape(robot.cyclic_error, (-1,) + np.shape(robot.cyclic_error)[-2:]):  # summed terms

@@ -421,14 +421,18 @@ def plan_random(
     model: CollisionModel = CollisionModel(),
 ) -> Plan:
     """Plan one set of random joint-space configurations: every joint drawn uniformly within its
-    range (`joint_range`), except the `held` ones {joint (0-based): angle (rad)}, in batches of
+    range (`joint_range`), except the `held` ones {joint (0-based): angle (rad), or (low, high) rad:
+    drawn within that range instead, one region of joint space, e.g. a joint a turn away}, in batches of
     `candidates` (at most MAX_RANDOM_BATCHES), until `n_configurations` pass the checks of `plan_set`
     (floor, self-collision, every sight line); the first that pass are kept, each its own pose. A real campaign that
     holds joints the inverse kinematics cannot hold (joints 1 and 7 of a 7-axis arm), or of an
     arm without an analytic inverse, is planned this way.
     """
-    held = dict(held or {})
     ranges = np.array([joint_range(chain, j) for j in range(chain.n_joints)])
+    for joint, value in (held or {}).items():
+        if np.ndim(value) == 1:
+            ranges[joint] = value
+    held = {joint: angle for joint, angle in (held or {}).items() if np.ndim(angle) == 0}
     kept, discarded, drawn = [], {"floor": 0, "self_collision": 0, "occluded": 0}, 0
     for _ in range(MAX_RANDOM_BATCHES):
         q = rng.uniform(ranges[:, 0], ranges[:, 1], (candidates, chain.n_joints))
