@@ -295,5 +295,8 @@ def test_a_correction_the_priors_it_trades_against_set_is_not_determined():
         }
     )
     status = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED).iloc[0]["status"]
-    assert status.startswith("not determined: the priors set 99% of its posterior variance")
+    assert status.startswith("not determined: the priors set 99% of its posterior variance (its std 0.02 of")
     assert "link_geometry.F3.x" in status
+    flat = table.assign(posterior_to_prior_std=[np.nan])  # a zero-offset has no prior of its own
+    status = exports.controller_offsets(["a1"], flat, "loop", NOT_COMPUTED).iloc[0]["status"]
+    assert status.startswith("not determined: the priors set 99% of its posterior variance (it has no prior")

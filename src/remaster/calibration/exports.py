@@ -222,7 +222,8 @@ def not_determined(row) -> str:
     determined = f"; the data determine {combination}" if combination else ""
     why = f"its posterior std is {ratio:.2f} of its prior's"
     if not ratio > PRIOR_DOMINATED and share > 0:  # its own prior is wide: the priors it trades against set it
-        why = f"the priors set {share:.0%} of its posterior variance (its std {ratio:.2f} of its own prior's)"
+        own = f" (its std {ratio:.2f} of its own prior's)" if np.isfinite(ratio) else " (it has no prior of its own)"
+        why = f"the priors set {share:.0%} of its posterior variance{own}"
     return f"not determined: {why}{determined}"
 
 
