@@ -57,7 +57,8 @@ from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors  # noq
 from remaster.campaigns.campaign import sensor_data  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
-from remaster.inference import blocks, evidence, fit, samplers  # noqa: E402
+from remaster.inference import blocks, evidence, fit  # noqa: E402
+from remaster.inference.least_squares import least_squares_mode  # noqa: E402
 from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
@@ -101,7 +102,7 @@ def calibrate(chain, sensor, priors, set_name: str = "optimization"):
         weighted = model.weighted_residuals(theta) / sigma
         return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), model.prior_residuals(theta)], axis=-1)
 
-    solution = samplers.least_squares_mode(
+    solution = least_squares_mode(
         stacked, np.zeros(len(model.names)), model.scale, lambda t: evidence.forward_differences(stacked, t)
     )
     return model, solution.x

@@ -2,7 +2,7 @@
 cross-checks between methods.
 
 Sample layouts accepted everywhere: (n, P) one chain in time order; (n, W, P) an ensemble of W
-walkers (emcee); or any object with `per_walker()` returning (n, W, P), such as `samplers.Chain`.
+walkers (emcee); or any object with `per_walker()` returning (n, W, P), such as `inference.sampling.target.Chain`.
 
 The estimators are arviz-stats' (Vehtari, Gelman, Simpson, Carpenter and Buerkner 2021, "Rank-
 normalization, folding, and localization: an improved R-hat"): the rank-normalised split R-hat

@@ -303,17 +303,19 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     same draws give the same chain as the Python loop over its log_prob, bit for bit, for the
     paper's sampler and the adaptive one, with the sum of squares over the rows or expanded (a
     campaign of many rows); a proposal with sigma <= 0 is rejected, not an error."""
-    from remaster.inference import samplers
+    from remaster.inference.sampling.metropolis import metropolis_adaptive, metropolis_paper
+    from remaster.inference.sampling.random_walk import _Progress, _start, _walk
+    from remaster.inference.sampling.target import CallableTarget, SamplingError
 
     sensor, _ = simulated_sensor(iiwa, rng, n=rows)
     model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
     assert (model._expansion()[0].shape[0] > 0) == (rows == 600)
     compiled = fit.PosteriorTarget(model)
-    python = samplers.CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
+    python = CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
     assert compiled.walk_block is not None and getattr(python, "walk_block", None) is None
     start = np.append(np.zeros(len(model.names)), 2e-5)  # sigma near 0: some proposals fall below it
     runs = [
-        samplers.metropolis_paper(
+        metropolis_paper(
             t, np.random.default_rng(3), start, n_samples=9000, burn_in=5000, half_width=0.05, trace_every=7
         )
         for t in (compiled, python)
@@ -322,7 +324,7 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     assert np.array_equal(runs[0].settings["burn_in_trace"], runs[1].settings["burn_in_trace"])
     assert runs[0].acceptance_rate == runs[1].acceptance_rate and 0 < runs[0].acceptance_rate < 1
     adaptive = [
-        samplers.metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
+        metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
         for t in (compiled, python)
     ]
     assert np.array_equal(adaptive[0].samples, adaptive[1].samples)
@@ -331,15 +333,15 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     steps[3, 0] = np.nan
     states, _, _, nan_at = model.metropolis_block(start, compiled.log_prob(start), steps, np.zeros(6))
     assert nan_at == 3 and np.isfinite(states[:3]).all()
-    with pytest.raises(samplers.SamplingError, match="log_prob returned NaN"):
-        samplers._walk(
+    with pytest.raises(SamplingError, match="log_prob returned NaN"):
+        _walk(
             compiled,
             np.random.default_rng(0),
-            samplers._start(compiled, start),
+            _start(compiled, start),
             10,
             lambda rng, m: np.where(np.arange(m)[:, None] == 3, np.nan, 0.0) * np.ones((m, len(start))),
             False,
-            samplers._Progress(None, 10),
+            _Progress(None, 10),
         )
 
 

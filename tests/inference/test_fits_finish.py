@@ -12,9 +12,13 @@ import pytest
 from remaster import diagnostics, files
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
-from remaster.inference import fit, identifiability, samplers
+from remaster.inference import fit, identifiability
 from remaster.inference.blocks import paper_model
+from remaster.inference.least_squares import NotIdentifiable, least_squares_laplace
 from remaster.inference.model import display_scale
+from remaster.inference.sampling.chains import extend
+from remaster.inference.sampling.metropolis import metropolis_adaptive
+from remaster.inference.sampling.target import CallableTarget, Chain
 from remaster.robot import ik, kinematics
 
 CRITERIA = {"max_rhat": 1.05, "min_ess": 200}
@@ -189,7 +193,7 @@ def test_a_registration_only_direction_holds_the_registration_parameter_with_the
     assert combinations["zero_offsets.q3"] == pytest.approx({"zero_offsets.q3": 1.0, "registration.alpha": -100.0})
     free = [i for i, n in enumerate(names) if n not in combinations]
     y = rng.normal(size=30)
-    result = samplers.least_squares_laplace(
+    result = least_squares_laplace(
         lambda b: y - jacobian[:, free] @ b, np.zeros(len(free)), scale[free], names=[names[i] for i in free]
     )
     assert np.all(np.isfinite(result.std))
@@ -214,20 +218,20 @@ def test_the_analysis_and_the_fit_apply_one_test():
     steps[:, 2] *= 100.0  # the joint's column dominates in step units, the translations' in SI
     jacobian = steps / scale
     si = np.linalg.svd(jacobian, compute_uv=False)
-    singular, _, _ = samplers.undetermined_directions(jacobian, scale)
-    assert si[-1] > 1e-7 * si[0] and singular[-1] < samplers.RCOND * singular[0]
+    singular, _, _ = identifiability.undetermined_directions(jacobian, scale)
+    assert si[-1] > 1e-7 * si[0] and singular[-1] < identifiability.RCOND * singular[0]
     y = rng.normal(size=20)
-    with pytest.raises(samplers.NotIdentifiable, match="registration.x"):
-        samplers.least_squares_laplace(lambda b: y - jacobian @ b, np.zeros(3), scale, names=names)
+    with pytest.raises(NotIdentifiable, match="registration.x"):
+        least_squares_laplace(lambda b: y - jacobian @ b, np.zeros(3), scale, names=names)
     combinations, directions = identifiability.hold_undetermined(jacobian, names, scale)
     assert list(combinations) == ["registration.y"] and len(directions) == 1
     assert combinations["registration.y"] == pytest.approx(
         {"registration.y": 1.0, "registration.x": -1 / 1.02}, rel=1e-3
     )
     free = [0, 2]
-    result = samplers.least_squares_laplace(lambda b: y - jacobian[:, free] @ b, np.zeros(2), scale[free])
+    result = least_squares_laplace(lambda b: y - jacobian[:, free] @ b, np.zeros(2), scale[free])
     assert np.all(np.isfinite(result.std))
-    assert identifiability.RELATIVE_THRESHOLD == 2 * samplers.RCOND
+    assert identifiability.RELATIVE_THRESHOLD == 2 * identifiability.RCOND
 
 
 # ----------------------------------------------------------------------------- the default sampler
@@ -272,7 +276,7 @@ def test_the_default_sampler_starts_from_the_laplace_approximation():
 
 
 def test_an_extended_chain_samples_the_same_posterior():
-    """`samplers.extend` continues a chain with its frozen proposal: on a Gaussian with known
+    """`extend` continues a chain with its frozen proposal: on a Gaussian with known
     moments the doubled chain's mean and std are right, and its acceptance counts both parts."""
     names = ("a", "noise.sigma")
     mean, std = np.array([1e-3, 2e-4]), np.array([1e-4, 1e-5])
@@ -280,18 +284,18 @@ def test_an_extended_chain_samples_the_same_posterior():
     def many(thetas):
         return -0.5 * np.sum(((thetas - mean) / std) ** 2, axis=1)
 
-    target = samplers.CallableTarget(names, np.array([1e-3, 1e-3]), many)
-    chain = samplers.metropolis_adaptive(target, np.random.default_rng(1), mean, n_samples=6000, burn_in=2000)
-    longer = samplers.extend(target, np.random.default_rng(2), chain, chain.n_steps)
+    target = CallableTarget(names, np.array([1e-3, 1e-3]), many)
+    chain = metropolis_adaptive(target, np.random.default_rng(1), mean, n_samples=6000, burn_in=2000)
+    longer = extend(target, np.random.default_rng(2), chain, chain.n_steps)
     assert longer.n_steps == 2 * chain.n_steps and longer.settings["doublings"] == 1
     assert np.array_equal(longer.samples[: chain.n_steps], chain.samples)
     report = diagnostics.chain_report([longer])
     np.testing.assert_allclose(report["mean"], mean, atol=4 * report["mcse"].max() + 1e-9)
     np.testing.assert_allclose(report["std"], std, rtol=0.1)
     assert 0.1 < longer.acceptance_rate < 0.6
-    ensemble = samplers.Chain(np.zeros((4, 2)), np.zeros(4), 0.5, names, "emcee", {}, n_walkers=2)
+    ensemble = Chain(np.zeros((4, 2)), np.zeros(4), 0.5, names, "emcee", {}, n_walkers=2)
     with pytest.raises(ValueError, match="emcee chain cannot be extended"):
-        samplers.extend(target, np.random.default_rng(0), ensemble, 10)
+        extend(target, np.random.default_rng(0), ensemble, 10)
 
 
 # ----------------------------------------------------------------------------- NaN and missing values
@@ -327,7 +331,7 @@ def test_a_chain_that_never_moves_has_no_rhat_and_is_not_converged(tmp_path):
     for _ in range(2):
         samples = rng.normal(size=(4000, 3))
         samples[:, 1] = 0.25
-        chains.append(samplers.Chain(samples, np.zeros(4000), 0.3, names, "metropolis_adaptive", {}))
+        chains.append(Chain(samples, np.zeros(4000), 0.3, names, "metropolis_adaptive", {}))
     report = fit.sampler_diagnostics(chains, 2.0)
     assert math.isnan(report["max_rhat"]) and report["rhat_undefined"] == ["stuck"]
     assert report["min_ess"] == pytest.approx(2.0)  # the stuck parameter: one effective sample per chain

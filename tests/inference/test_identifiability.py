@@ -12,8 +12,9 @@ import pytest
 import remaster
 from remaster import files
 from remaster.campaigns import arm_kinds, folders, scenario
-from remaster.inference import fit, identifiability, samplers
+from remaster.inference import fit, identifiability
 from remaster.inference.blocks import paper_model
+from remaster.inference.least_squares import RCOND, undetermined_directions
 from remaster.inference.model import display_scale
 
 from ..conftest import REPO
@@ -119,8 +120,8 @@ def test_a_normal_campaigns_held_set_is_unchanged(iiwa):
 
 def test_the_analysis_and_the_fit_share_one_singular_value_test():
     """The fit's test is the analysis's: one function, one threshold (the analysis at twice it)."""
-    assert samplers.undetermined_directions is identifiability.undetermined_directions
-    assert samplers.RCOND is identifiability.RCOND and identifiability.RELATIVE_THRESHOLD == 2 * samplers.RCOND
+    assert undetermined_directions is identifiability.undetermined_directions
+    assert RCOND is identifiability.RCOND and identifiability.RELATIVE_THRESHOLD == 2 * RCOND
 
 
 def test_a_campaign_with_its_marker_3_mm_off_axis_is_calibrated_with_joint_7_held(tmp_path):

@@ -31,9 +31,13 @@ from ..files import read_json
 from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
-from . import identifiability, metrics, samplers
+from . import identifiability, metrics
 from .blocks import BlockModel, orientation_fields, paper_model
+from .least_squares import LaplaceResult, least_squares_laplace, least_squares_mode
 from .model import SIGMA, display_scale, display_unit
+from .sampling.chains import run_chains, run_emcee
+from .sampling.metropolis import metropolis_adaptive, metropolis_paper
+from .sampling.target import Chain
 
 log = logging.getLogger(__name__)
 
@@ -139,7 +143,7 @@ def identified(full: BlockModel) -> identifiability.Identifiability:
     reduced = BlockModel(full.chain, full.data, full.marker, full.t_nr, (), structural.held)
     target = PosteriorTarget(reduced)
     scale = reduced.scale
-    mode = samplers.least_squares_mode(target.residuals, np.zeros(len(reduced.names)), scale)
+    mode = least_squares_mode(target.residuals, np.zeros(len(reduced.names)), scale)
     residuals = target.residuals(mode.x)
     dof = residuals.size - len(reduced.names)
     if dof <= 0:  # too few data for a sigma: the singular-value test alone (the fit says why)
@@ -303,7 +307,7 @@ class SigmaMarginalTarget:
             parts.append(value + self.model.log_prior(part))
         return np.concatenate(parts) if parts else np.empty(0)
 
-    def with_sigma(self, chain: samplers.Chain, rng: np.random.Generator) -> samplers.Chain:
+    def with_sigma(self, chain: Chain, rng: np.random.Generator) -> Chain:
         """`chain` over theta (the model's own parameters) with sigma drawn from p(sigma | theta) for
         each sample, appended as the last parameter, and the joint log-posterior as log_prob."""
         theta = chain.samples
@@ -328,14 +332,14 @@ METHOD_LABELS = {
 }
 
 
-def laplace_fit(model: BlockModel) -> samplers.LaplaceResult:
+def laplace_fit(model: BlockModel) -> LaplaceResult:
     """Least-squares MAP of the model parameters from zero corrections, with its Laplace covariance."""
     target = PosteriorTarget(model)
-    return samplers.least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale, names=model.names)
+    return least_squares_laplace(target.residuals, np.zeros(len(model.names)), model.scale, names=model.names)
 
 
 def laplace_report(
-    result: samplers.LaplaceResult,
+    result: LaplaceResult,
     analysis: identifiability.Identifiability,
     excluded_rows,
     outlier_rows=(),
@@ -365,9 +369,9 @@ def laplace_report(
 
 
 def orientation_added(
-    result: samplers.LaplaceResult,
+    result: LaplaceResult,
     analysis: identifiability.Identifiability,
-    points: samplers.LaplaceResult,
+    points: LaplaceResult,
     points_analysis: identifiability.Identifiability,
     model: BlockModel,
 ) -> dict:
@@ -487,7 +491,7 @@ class LaplaceReport:
 
 def sample(
     model: BlockModel, laplace: LaplaceReport, method: str, settings: dict, rng: np.random.Generator, progress=None
-) -> list[samplers.Chain]:
+) -> list[Chain]:
     """Chains of one method on the model's posterior.
 
     paper: the paper's Metropolis from Theta = 0, sigma = 1 mm; default: adaptive Metropolis from
@@ -501,8 +505,8 @@ def sample(
     start, covariance = laplace.start()
     if method == "paper":
         paper_start = np.append(np.zeros(len(model.names)), 1e-3)
-        return samplers.run_chains(
-            samplers.metropolis_paper,
+        return run_chains(
+            metropolis_paper,
             target,
             rng,
             settings["chains"],
@@ -513,8 +517,8 @@ def sample(
             progress=progress,
         )
     if method == "default":
-        return samplers.run_chains(
-            samplers.metropolis_adaptive,
+        return run_chains(
+            metropolis_adaptive,
             target,
             rng,
             settings["chains"],
@@ -528,7 +532,7 @@ def sample(
         )
     if method == "emcee":
         return [
-            samplers.run_emcee(
+            run_emcee(
                 target,
                 rng,
                 start,
@@ -603,7 +607,7 @@ def converged_ensemble(names, criteria: Mapping | None):
     return enough
 
 
-def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
+def samples_frame(chains: list[Chain]) -> pd.DataFrame:
     """Posterior samples (SI), one row per kept state: parameters, log_prob, chain, walker, step."""
     frames = []
     for number, chain in enumerate(chains):
@@ -618,7 +622,7 @@ def samples_frame(chains: list[samplers.Chain]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def trace_frame(chains: list[samplers.Chain], every: int = 100) -> pd.DataFrame:
+def trace_frame(chains: list[Chain], every: int = 100) -> pd.DataFrame:
     """The whole run of each chain, every `every`-th step, burn-in included where the sampler
     kept it (the paper's); step counts from the first step. For an ensemble, walker 0."""
     frames = []
@@ -650,7 +654,7 @@ def chains_of(frame: pd.DataFrame, names) -> list[np.ndarray]:
     return out
 
 
-def sampler_diagnostics(chains: list[samplers.Chain], seconds: float) -> dict:
+def sampler_diagnostics(chains: list[Chain], seconds: float) -> dict:
     """JSON-ready: per-parameter report (tau, ESS, R-hat, MCSE), acceptance, ESS per second, and
     how often the run doubled to meet its criteria. min_ess and max_rhat are NaN (null in the
     file) when a parameter's is: `converged` then says no, as it must for a chain that never

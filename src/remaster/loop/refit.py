@@ -11,8 +11,11 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..inference import evidence, fit, gauge, metrics, samplers
+from ..inference import evidence, fit, gauge, metrics
 from ..inference.model import SIGMA
+from ..inference.sampling.chains import run_chains, run_emcee
+from ..inference.sampling.independence import RidgeProposal, metropolis_independence
+from ..inference.sampling.target import Chain
 from ..units import DEG, MM
 from .selection import Fitted
 from .settings import LoopSettings
@@ -68,7 +71,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     # as long as the first run's samples (with the first run's 500 steps it was still drifting
     # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
     steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
-    ensemble = samplers.run_emcee(
+    ensemble = run_emcee(
         joint,
         rng,
         centre,
@@ -86,15 +89,13 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     return chains, report, done, attempt
 
 
-def refit(
-    mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
-) -> tuple[list[samplers.Chain], dict]:
-    """Chains of the model's posterior by independence Metropolis (`samplers.metropolis_independence`)
+def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator) -> tuple[list[Chain], dict]:
+    """Chains of the model's posterior by independence Metropolis (`metropolis_independence`)
     over the model's parameters with sigma integrated out (`fit.SigmaMarginalTarget`; sigma is
     then drawn exactly for each sample), in the coordinates where the Laplace approximation fits
     best (`gauge.sampling_coordinates`: the model's exact symmetries folded out), from a proposal
     that follows the valleys along which the posterior leaves that approximation
-    (`samplers.RidgeProposal`; a Student-t when there is none), its kept steps doubled until the
+    (`RidgeProposal`; a Student-t when there is none), its kept steps doubled until the
     criteria hold (every R-hat <= max_rhat and every ESS >= min_ess), at most max_doublings times.
     When they still miss, emcee's ensemble (2 P + 2 walkers, at least
     MIN_WALKERS) runs on the joint posterior from the same mode, a burn-in as long as the first
@@ -110,14 +111,14 @@ def refit(
     attempts = []
     started = time.perf_counter()
     dof = PROPOSAL_DOF_PER_PARAMETER * len(mean)
-    proposal = samplers.RidgeProposal.fit(target, mean, covariance, dof, PROPOSAL_INFLATION)
+    proposal = RidgeProposal.fit(target, mean, covariance, dof, PROPOSAL_INFLATION)
     coordinates["bent"] = [] if proposal is None else proposal.report(target.names)
     # proposals are independent of the state, so a longer run is a fresh one: doubled until the
     # criteria hold, as the ensemble's is, at most max_doublings times
     for doubling in range(int(criteria["max_doublings"]) + 1):
         length = {**run, "samples": int(run["burn_in"]) + (int(run["samples"]) - int(run["burn_in"])) * 2**doubling}
-        chains = samplers.run_chains(
-            samplers.metropolis_independence,
+        chains = run_chains(
+            metropolis_independence,
             target,
             rng,
             int(run["chains"]),
