@@ -29,7 +29,8 @@ from remaster.calibration import prediction
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.evaluation import workspace
-from remaster.inference import blocks, fit, metrics
+from remaster.inference import fit, metrics
+from remaster.inference.parameter_blocks import block_parameters
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
@@ -45,10 +46,10 @@ def true_parameters(truth: dict, chain) -> dict[str, float]:
     compliance and drift (the link geometry's truth is not in the fit's parametrization)."""
     effects = truth["effects"]
     n = chain.n_joints
-    compliance = blocks.block_parameters("joint_compliance", chain).names[:n]  # the torque terms, not the payload's
+    compliance = block_parameters("joint_compliance", chain).names[:n]  # the torque terms, not the payload's
     out = dict(zip(compliance, effects["joint_compliance"]["compliance_rad_per_Nm"]))
     rates = np.radians(effects["drift"]["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR
-    out |= dict(zip(blocks.block_parameters("drift", chain).names, rates))
+    out |= dict(zip(block_parameters("drift", chain).names, rates))
     # the link errors are rigid motions in the simulator's own form, not the fit's parameters: they
     # are held to the truth through the positions they give (the quantiles below), not one by one
     return out

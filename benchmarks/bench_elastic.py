@@ -42,7 +42,7 @@ from benchmarks.truth_claims import REPO, least_squares_validation  # noqa: E402
 from remaster import files  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.arm_kinds import IIWA_DH  # noqa: E402
-from remaster.inference import blocks, fit  # noqa: E402
+from remaster.inference import blocks, fit, parameter_blocks  # noqa: E402
 from remaster.loop import loop_closure  # noqa: E402
 from remaster.loop.settings import settings_from  # noqa: E402
 from remaster.robot import gravity  # noqa: E402
@@ -82,7 +82,7 @@ def run(root: Path, mode: str) -> dict:
     campaign = campaign_copy(root, mode)
     without_mass = gravity.without_mass
     if mode == "payload":  # no regressor: the payload's torques alone, one compliance per joint
-        gravity.without_mass = blocks.without_mass = lambda chain: False
+        gravity.without_mass = blocks.without_mass = parameter_blocks.without_mass = lambda chain: False
     try:
         start = time.perf_counter()
         registered = fit.registration_stage(campaign, SENSOR)
@@ -96,7 +96,7 @@ def run(root: Path, mode: str) -> dict:
         seconds = time.perf_counter() - start
         least_squares = least_squares_validation(campaign, SENSOR, registered, laplace, settings, COMPLETE)
     finally:
-        gravity.without_mass = blocks.without_mass = without_mass
+        gravity.without_mass = blocks.without_mass = parameter_blocks.without_mass = without_mass
     report = result.report.to_json()
     after = report["after"]["validation"]
     return {

@@ -14,8 +14,10 @@ from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.comparing import transfer
 from remaster.evaluation import accuracy, domain, workspace
-from remaster.inference import blocks, evidence, fit, metrics
+from remaster.inference import evidence, fit, metrics
+from remaster.inference.extensions import extended_model
 from remaster.inference.model import SIGMA
+from remaster.inference.readings import readings
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
@@ -291,11 +293,9 @@ def cubes_calibration(priors) -> prediction.Calibration:
     campaign, laplace, report, _ = fitted("kuka-cubes", "laser_tracker", None)
     effects = report.effects_added
     sensor, settings = campaign.sensors["laser_tracker"], loop_settings(CONFIG)
-    data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
+    data = readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registered = fit.registration_stage(campaign, "laser_tracker")
-    model, _ = blocks.extended_model(
-        campaign.chain, data, sensor.marker, registered.t_nr, effects, laplace.held, priors
-    )
+    model, _ = extended_model(campaign.chain, data, sensor.marker, registered.t_nr, effects, laplace.held, priors)
     theta = evidence.posterior_mode(model).theta if priors is not None else flat_fit(model)
     return prediction.Calibration("loop", {**model.fixed, **model.values(theta)}, effects, settings.model)
 

@@ -10,8 +10,10 @@ import pytest
 from scipy import stats
 
 from remaster.campaigns import folders
-from remaster.inference import blocks, fit
+from remaster.inference import fit
+from remaster.inference.extensions import extended_model
 from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis, sampling_coordinates
+from remaster.inference.readings import readings
 from remaster.inference.sampling.chains import run_chains
 from remaster.inference.sampling.independence import metropolis_independence
 from remaster.inference.sampling.target import CallableTarget
@@ -49,8 +51,8 @@ def twin_model(iiwa):
     link-geometry parameters absorbed at every configuration held (as the loop holds them)."""
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     sensor = campaign.sensors["laser_tracker"]
-    data = blocks.readings(campaign.chain, sensor, "optimization")
-    model, _ = blocks.extended_model(
+    data = readings(campaign.chain, sensor, "optimization")
+    model, _ = extended_model(
         campaign.chain,
         data,
         sensor.marker,

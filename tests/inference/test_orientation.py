@@ -12,8 +12,9 @@ import pytest
 from remaster import spatial
 from remaster.campaigns import arm_kinds
 from remaster.inference import fit
-from remaster.inference.blocks import Readings, paper_model
+from remaster.inference.blocks import paper_model
 from remaster.inference.model import correction_transforms
+from remaster.inference.readings import Readings
 from remaster.robot.kinematics import ForwardKinematics, flange_rotations
 
 from ..conftest import REPO

@@ -32,9 +32,10 @@ from .. import identity, seeding
 from ..calibration.exports import calibrated_urdf
 from ..calibration.prediction import Calibration, Predictor
 from ..campaigns.campaign import Campaign
-from ..inference.blocks import BlockModel, Readings
+from ..inference.blocks import BlockModel
 from ..inference.evidence import forward_differences
 from ..inference.least_squares import least_squares_mode
+from ..inference.readings import Readings
 from ..robot.kinematics import KinematicChain
 from ..units import MM
 from .workspace import fit_domain

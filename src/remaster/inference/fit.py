@@ -32,9 +32,10 @@ from ..robot import gravity, registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
 from . import identifiability, metrics
-from .blocks import BlockModel, orientation_fields, paper_model
+from .blocks import BlockModel, paper_model
 from .least_squares import LaplaceResult, least_squares_laplace, least_squares_mode
 from .model import SIGMA, display_scale, display_unit
+from .readings import orientation_fields
 from .sampling.chains import run_chains, run_emcee
 from .sampling.metropolis import metropolis_adaptive, metropolis_paper
 from .sampling.target import Chain

@@ -7,7 +7,7 @@ as the data: a Laplace approximation cannot follow it, and an independence propo
 is nearly always refused off it. In cylindrical coordinates about the last joint's axis the ridge is
 straight and the posterior is close to Gaussian. (The link-geometry errors that the registration or
 the marker absorb at every configuration, those of the base link and of the tool, are not
-parameters of the model at all: `blocks.structural_redundancy` holds them.) `Gauge` maps parameter
+parameters of the model at all: `extensions.structural_redundancy` holds them.) `Gauge` maps parameter
 vectors both ways with the log-Jacobian that keeps the posterior the same; `FoldedTarget` is a
 sampler target in the folded coordinates, and `Gauge.back` returns its chains in the model's own
 parameters.
@@ -22,7 +22,7 @@ import numpy as np
 from ..robot.kinematics import KinematicChain
 from .sampling.target import Chain, Target
 
-MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
+MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `parameter_blocks.block_parameters`' order
 TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
 MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates

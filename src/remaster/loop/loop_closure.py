@@ -2,7 +2,7 @@
 
 Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only:
 
-1. Diagnose: for each candidate block (`blocks.EXTENSIONS`; drift only when the table has a
+1. Diagnose: for each candidate block (`parameter_blocks.EXTENSIONS`; drift only when the table has a
    time or temperature column), fit current + candidate at its posterior mode under the
    extension priors (`remaster.robot.priors`, `remaster.inference.evidence`) and score it by
    - its Laplace evidence gain, log Z(with it) - log Z(current): the priors make the extended
@@ -66,33 +66,26 @@ import pandas as pd
 from .. import noise
 from ..campaigns.campaign import SETS, Campaign, SensorData
 from ..files import write_csv, write_parquet
-from ..inference import blocks, evidence, fit
-from ..inference.blocks import Readings
+from ..inference import evidence, fit
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import RELEVANT_RANGE
 from ..inference.model import SIGMA
+from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
 from . import gross, harmonics, joint_form, noise_floor
+from .candidates import GP
+from .fitted import accuracy
 from .harmonics import harmonics_report
+from .held_out import cv_threshold, fold_warning
 from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
+from .link_priors import link_prior_scale, scaled_priors
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
-from .selection import (
-    BASE_STEP,
-    GP,
-    Selection,
-    Signature,
-    accuracy,
-    cv_threshold,
-    fold_warning,
-    link_prior_scale,
-    scaled_priors,
-    select,
-    symptom_text,
-)
+from .scoring import Signature, symptom_text
+from .selection import BASE_STEP, Selection, select
 from .settings import LoopSettings
 
 MEASURES = (
@@ -193,12 +186,12 @@ def _select_screened(
     screen), screen every optimization row with the final model (`remaster.loop.gross`) and select
     again without the rows it finds, until they are the ones it was fitted without (bounded, a
     cycle stops it); then screen the validation set with the final model."""
-    every = {s: blocks.readings(chain, sensor, s, settings.model) for s in SETS}
+    every = {s: readings(chain, sensor, s, settings.model) for s in SETS}
     every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
     provisional = np.sort(np.asarray(exclude, dtype=int))
     excluded, screens, history, settled = provisional, {}, [], False
     for _ in range(gross.MAX_ROUNDS):
-        data = {s: blocks.readings(chain, sensor, s, settings.model, excluded) for s in SETS}
+        data = {s: readings(chain, sensor, s, settings.model, excluded) for s in SETS}
         poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
         tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
@@ -216,7 +209,7 @@ def _select_screened(
     # the validation set is screened here, with the final model, after every choice has been made
     screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
     flagged = {"optimization": excluded, "validation": screens["validation"].gross}
-    data["validation"] = blocks.readings(chain, sensor, "validation", settings.model, flagged["validation"])
+    data["validation"] = readings(chain, sensor, "validation", settings.model, flagged["validation"])
     poses["validation"] = sensor.table.loc[data["validation"].rows, "pose"].to_numpy()
     return _Screened(
         selection,
@@ -329,7 +322,7 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
 
 def symptom_warnings(selection: Selection) -> list[str]:
     """One warning per candidate effect refused as a symptom in the selection's rounds
-    (`selection.beyond_prior`): its estimate far beyond its physical prior, it imitated something
+    (`scoring.beyond_prior`): its estimate far beyond its physical prior, it imitated something
     else in the data, which stays unexplained by it."""
     seen = {}
     for entry in selection.rounds:
@@ -464,11 +457,11 @@ def _link_priors(
     chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
 ) -> tuple[LoopSettings, dict]:
     """The settings with the link geometry's prior at the scale its evidence chooses on the
-    optimization set (`selection.link_prior_scale`; the provisional gross errors left out), and
+    optimization set (`link_priors.link_prior_scale`; the provisional gross errors left out), and
     loop_closure.json's `link_prior_scale` (the scale and each scale's log evidence)."""
     if "link_geometry" not in settings.candidates:
         return settings, {"scale": 1.0, "log_evidence": {}, "why": "link_geometry not offered"}
-    every = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
+    every = readings(chain, sensor, "optimization", settings.model, exclude)
     data = fitted_rows(every, sensor.table.loc[every.rows, "pose"].to_numpy(), settings.fit_rows)[0]
     scale, at = link_prior_scale(chain, data, sensor.marker, t_nr, base_held, settings.priors)
     chosen = replace(settings, priors=scaled_priors(settings.priors, scale))
@@ -754,9 +747,9 @@ def gp_report(selection: Selection, standard_errors: float) -> dict | None:
     """Where the residual the parametric effects left lives: the GP's hyperparameters, each joint's
     relevance (measured range / lengthscale), the joints it depends on, and the share of that
     residual which is structured (cross-validated fall of its mean square) vs noise, over the pose
-    folds and over blocks contiguous in time (`selection.TimeBlocked`). The joints are named only
+    folds and over blocks contiguous in time (`held_out.TimeBlocked`). The joints are named only
     when there is structure to trace: the GP's pose-grouped cross-validated fall exceeds
-    `standard_errors` standard errors (`selection.cv_threshold`). None when the GP was not tried."""
+    `standard_errors` standard errors (`held_out.cv_threshold`). None when the GP was not tried."""
     if selection.gp is None:
         return None
     candidate = selection.gp

@@ -17,7 +17,7 @@ from ..inference.sampling.chains import run_chains, run_emcee
 from ..inference.sampling.independence import RidgeProposal, metropolis_independence
 from ..inference.sampling.target import Chain
 from ..units import DEG, MM
-from .selection import Fitted
+from .fitted import Fitted
 from .settings import LoopSettings
 
 # The refit's Student-t proposal: a t in P dimensions is a Gaussian whose scale varies by a factor
