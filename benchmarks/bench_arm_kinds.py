@@ -34,6 +34,7 @@ from remaster.campaigns import folders, scenario  # noqa: E402
 from remaster.campaigns.arm_kinds import KINDS, chain_of  # noqa: E402
 from remaster.inference import fit  # noqa: E402
 from remaster.inference.extensions import extended_model  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
 from remaster.inference.readings import readings  # noqa: E402
 from remaster.labels import sensor_label  # noqa: E402
 from remaster.loop.result import LoopReport  # noqa: E402
@@ -51,7 +52,7 @@ def least_squares_validation(campaign, sensor: str, results: Path) -> dict:
     config's gravity settings) and reports `fitted.accuracy`; this one is scipy's trust-region
     least squares at its default tolerances, which the recorded arm_kinds results were made with."""
     registration = fit.Registration.read(results / layout.REGISTRATION)
-    laplace = fit.LaplaceReport.read(results / layout.LAPLACE)
+    laplace = LaplaceReport.read(results / layout.LAPLACE)
     chain, data = campaign.chain, campaign.sensors[sensor]
     optimization = readings(chain, data, "optimization", exclude=laplace.outlier_rows)
     model, reduction = extended_model(chain, optimization, data.marker, registration.t_nr, COMPLETE, laplace.held)

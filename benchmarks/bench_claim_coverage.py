@@ -30,7 +30,9 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.evaluation import workspace
 from remaster.inference import fit, metrics
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.inference.parameter_blocks import block_parameters
+from remaster.inference.posterior_summary import mode_summary
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
@@ -63,7 +65,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     truth = files.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
     campaign = folders.read_campaign(folder, repo_root=REPO)
     registered = fit.registration_stage(campaign, sensor)
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     result = loop_closure.loop_closure_stage(
         campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings
@@ -75,7 +77,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
         campaign.chain,
         campaign.sensors[sensor],
         robot,
-        fit.mode_summary(laplace),
+        mode_summary(laplace),
         laplace,
         LoopResults(report, samples),
         np.random.default_rng(SEED),

@@ -43,6 +43,7 @@ from remaster import files  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.arm_kinds import IIWA_DH  # noqa: E402
 from remaster.inference import blocks, fit, parameter_blocks  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
 from remaster.loop import loop_closure  # noqa: E402
 from remaster.loop.settings import settings_from  # noqa: E402
 from remaster.robot import gravity  # noqa: E402
@@ -86,7 +87,7 @@ def run(root: Path, mode: str) -> dict:
     try:
         start = time.perf_counter()
         registered = fit.registration_stage(campaign, SENSOR)
-        laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]["alpha"]))
+        laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]["alpha"]))
         settings = settings_from(
             config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]
         )

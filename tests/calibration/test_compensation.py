@@ -24,6 +24,7 @@ from remaster.errors import InputError
 from remaster.inference import fit
 from remaster.inference.model import SIGMA
 from remaster.inference.parameter_blocks import link_labels
+from remaster.inference.posterior_summary import mode_summary
 from remaster.inference.readings import ModelSettings
 from remaster.results import check_made_from
 from remaster.robot import kinematics
@@ -274,7 +275,7 @@ def twin(model: str, tmp_path_factory):
     results = {
         "registration": fit.registration_stage(campaign, "laser_tracker"),
         "laplace": laplace,
-        "summary": fit.mode_summary(laplace),
+        "summary": mode_summary(laplace),
         "paper_samples": None,
         "loop": report,
         "loop_samples": samples,
@@ -397,7 +398,7 @@ def twin_results(tmp_path_factory):
     folder = root / "kuka-twin" / "laser_tracker"
     files.write_json(folder / layout.REGISTRATION, fit.registration_stage(campaign, "laser_tracker").report())
     files.write_json(folder / layout.LAPLACE, laplace_content("kuka-twin", "laser_tracker"))
-    files.write_csv(folder / layout.SUMMARY, fit.mode_summary(laplace).reset_index())
+    files.write_csv(folder / layout.SUMMARY, mode_summary(laplace).reset_index())
     files.write_parquet(folder / layout.DEFAULT_SAMPLES, pd.DataFrame())
     report.write(folder / layout.LOOP_CLOSURE)
     files.write_parquet(folder / layout.LOOP_SAMPLES, samples)

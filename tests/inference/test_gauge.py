@@ -10,9 +10,9 @@ import pytest
 from scipy import stats
 
 from remaster.campaigns import folders
-from remaster.inference import fit
 from remaster.inference.extensions import extended_model
 from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis, sampling_coordinates
+from remaster.inference.posterior_sampling import sampler_diagnostics
 from remaster.inference.readings import readings
 from remaster.inference.sampling.chains import run_chains
 from remaster.inference.sampling.independence import metropolis_independence
@@ -146,7 +146,7 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
         burn_in=1000,
     )
     back = [gauge.back(c) for c in chains]
-    report = fit.sampler_diagnostics(back, 1.0)
+    report = sampler_diagnostics(back, 1.0)
     assert report["max_rhat"] <= 1.05 and report["min_ess"] >= 200
     draws = gauge.fold(np.concatenate([c.samples for c in back]))
     assert np.all(np.abs(draws.mean(axis=0) - mean) < 4 * std / np.sqrt(report["min_ess"]))
@@ -170,7 +170,7 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
         n_samples=6000,
         burn_in=1000,
     )
-    assert fit.sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
+    assert sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
 
 
 def test_the_coordinates_are_those_the_laplace_approximation_fits_best(iiwa):

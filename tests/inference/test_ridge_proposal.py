@@ -1,6 +1,6 @@
 """The refit's independence sampling against known answers: a proposal that follows a curved valley
 (`RidgeProposal`) on a twisted Gaussian whose moments are known in closed form, and sigma
-integrated out (`fit.SigmaMarginalTarget`) against quadrature of the joint posterior."""
+integrated out (`posterior_targets.SigmaMarginalTarget`) against quadrature of the joint posterior."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from scipy import integrate, stats
 
 from remaster import diagnostics
-from remaster.inference import fit
 from remaster.inference.blocks import paper_model
+from remaster.inference.posterior_targets import PosteriorTarget, SigmaMarginalTarget
 from remaster.inference.sampling.chains import run_chains
 from remaster.inference.sampling.independence import RidgeProposal, metropolis_independence
 from remaster.inference.sampling.target import CallableTarget, Chain
@@ -113,7 +113,7 @@ def model(iiwa):
 def test_sigma_integrates_out_as_quadrature_of_the_joint_posterior(model):
     """log p(theta) from the closed form against log of the joint posterior integrated over sigma
     numerically, at a few parameter vectors: equal up to one constant."""
-    joint, marginal = fit.PosteriorTarget(model), fit.SigmaMarginalTarget(model)
+    joint, marginal = PosteriorTarget(model), SigmaMarginalTarget(model)
     thetas = np.random.default_rng(5).normal(0.0, 1e-4, (4, len(model.names)))
     closed = marginal.log_prob_many(thetas)
     numeric = []
@@ -132,10 +132,10 @@ def test_sigma_is_drawn_from_its_conditional_posterior(model):
     its CDF by quadrature; the joint log-posterior is stored with them."""
     theta = np.zeros(len(model.names))
     chain = Chain(np.repeat(theta[None], 4000, axis=0), np.zeros(4000), 0.5, model.names, "test")
-    completed = fit.SigmaMarginalTarget(model).with_sigma(chain, np.random.default_rng(6))
+    completed = SigmaMarginalTarget(model).with_sigma(chain, np.random.default_rng(6))
     assert completed.names[-1] == "noise.sigma"
     sigma = completed.samples[:, -1]
-    joint = fit.PosteriorTarget(model)
+    joint = PosteriorTarget(model)
     scale = np.sqrt(model.sum_squares(theta) / (3 * model.n_points))
     peak = joint.log_prob(np.append(theta, scale))
 

@@ -14,6 +14,7 @@ from remaster.campaigns.campaign import SETS, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_chain
 from remaster.inference import blocks, fit
 from remaster.inference.extensions import extended_model
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.inference.parameter_blocks import EXTENSIONS, link_labels
 from remaster.inference.readings import Readings, readings
 from remaster.loop import loop_closure
@@ -482,7 +483,7 @@ def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_say
     campaign = folders.read_campaign(folders.write_campaign(tmp_path / "six-rows", out.metadata, out.tables), REPO)
     assert (campaign.sensors["laser_tracker"].table["set"] == "optimization").sum() == 6
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
     assert len(laplace.outlier_rows) == 0 and "too few data to screen, every point kept" in caplog.text
     report = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(0), LAPLACE_ONLY

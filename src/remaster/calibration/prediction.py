@@ -32,7 +32,7 @@ from ..campaigns.campaign import Campaign, SensorData
 from ..errors import InputError, require_columns
 from ..inference import metrics
 from ..inference.blocks import BlockModel
-from ..inference.fit import LaplaceReport
+from ..inference.laplace_report import LaplaceReport
 from ..inference.parameter_blocks import EXTENSIONS, link_errors
 from ..inference.readings import ModelSettings, Readings
 from ..loop.result import LoopReport
@@ -171,7 +171,7 @@ def _free_draws(samples: pd.DataFrame | None, names: Sequence[str], label: str) 
 
 
 def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None, label: str = "") -> Calibration:
-    """The paper's model from its posterior summary (`fit.posterior_summary`: parameter, mean SI,
+    """The paper's model from its posterior summary (`posterior_summary.posterior_summary`: parameter, mean SI,
     status) and, when given, its posterior samples (free parameters' columns)."""
     if "parameter" in summary.columns:
         summary = summary.set_index("parameter")

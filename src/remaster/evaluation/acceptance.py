@@ -85,8 +85,8 @@ from ..files import read_json, write_json
 from ..inference import blocks
 from ..inference.blocks import BlockModel
 from ..inference.bounds import QUANTILE
-from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
+from ..inference.laplace_report import LaplaceReport
 from ..inference.metrics import rms_per_axis
 from ..inference.model import SIGMA
 from ..inference.readings import ModelSettings, Readings, readings

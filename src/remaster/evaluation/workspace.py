@@ -74,9 +74,9 @@ from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SP
 from ..inference import metrics
 from ..inference.bounds import bound_on_percentile_over_configurations
 from ..inference.extensions import identifiable_extension
-from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP, evenly_spaced
+from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport, LoopResults

@@ -85,7 +85,7 @@ class PosteriorMode:
         return float(math.sqrt(self.covariance[-1, -1]))
 
     def sampler_start(self) -> dict:
-        """What `fit.sample` reads: MAP, covariance of theta and sigma's std."""
+        """What `posterior_sampling.sample` reads: MAP, covariance of theta and sigma's std."""
         return {
             "theta_map": self.theta.tolist(),
             "sigma_map": self.sigma,

@@ -216,7 +216,7 @@ def laplace_mismatch(
 def sampling_coordinates(
     target: Target, model, mean, covariance, rng: np.random.Generator
 ) -> tuple[Target, np.ndarray, np.ndarray, Gauge | None, dict]:
-    """The coordinates in which `target` (a `fit.PosteriorTarget` of a block model) is closest to
+    """The coordinates in which `target` (a `posterior_targets.PosteriorTarget` of a block model) is closest to
     its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own, or
     the marker turned about the last joint's axis where that applies (it straightens the marker's
     trade with the last joint but bends its trade with the registration, the one a campaign whose

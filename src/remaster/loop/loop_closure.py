@@ -69,7 +69,9 @@ from ..files import write_csv, write_parquet
 from ..inference import evidence, fit
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import RELEVANT_RANGE
+from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
+from ..inference.posterior_sampling import samples_frame
 from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
@@ -507,7 +509,7 @@ def close_loop(
     samples, mcmc = None, None
     if settings.mcmc is not None:
         chains, mcmc = refit(final.mode, settings, rng)
-        samples = fit.samples_frame(chains)
+        samples = samples_frame(chains)
     before_table = parameter_table(base)
     after_table = parameter_table(final, samples)
     sigma_before = base.mode.sigma
@@ -805,7 +807,7 @@ def loop_closure_stage(
     campaign: Campaign,
     sensor: str,
     registration: fit.Registration,
-    laplace: fit.LaplaceReport,
+    laplace: LaplaceReport,
     rng: np.random.Generator,
     settings: LoopSettings,
 ) -> LoopClosure:

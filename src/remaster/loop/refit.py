@@ -11,8 +11,11 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..inference import evidence, fit, gauge, metrics
+from ..inference import evidence, gauge, metrics
 from ..inference.model import SIGMA
+from ..inference.posterior_sampling import converged, converged_ensemble, sampler_diagnostics
+from ..inference.posterior_summary import moments
+from ..inference.posterior_targets import PosteriorTarget, SigmaMarginalTarget
 from ..inference.sampling.chains import run_chains, run_emcee
 from ..inference.sampling.independence import RidgeProposal, metropolis_independence
 from ..inference.sampling.target import Chain
@@ -38,8 +41,8 @@ MIN_WALKERS = 32  # the ensemble's walkers: at least this, and 2 P + 2 for P par
 
 def _diagnosed(chains, started: float, criteria) -> tuple[dict, bool]:
     """(sampler diagnostics of chains in the model's own parameters, whether they meet the criteria)."""
-    report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
-    return report, fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
+    report = sampler_diagnostics(chains, time.perf_counter() - started)
+    return report, converged(report, criteria["max_rhat"], criteria["min_ess"])
 
 
 def _attempt(sampler: str, run: dict, report: dict, done: bool) -> dict:
@@ -59,7 +62,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     mode's Laplace ball (`refit`'s fallback): (chains in the model's parameters, diagnostics,
     converged, the attempt's record)."""
     started = time.perf_counter()
-    joint = fit.PosteriorTarget(mode.model)
+    joint = PosteriorTarget(mode.model)
     centre, spread = np.append(mode.theta, mode.sigma), np.sqrt(np.diag(mode.covariance))
     back = None
     if folds is not None:
@@ -79,7 +82,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
         n_walkers=walkers,
         n_steps=steps,
         burn_in=burn_in,
-        enough=fit.converged_ensemble(joint.names, criteria),
+        enough=converged_ensemble(joint.names, criteria),
         max_doublings=int(criteria["max_doublings"]),
     )
     chains = [ensemble if back is None else back.back(ensemble)]
@@ -91,7 +94,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
 
 def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator) -> tuple[list[Chain], dict]:
     """Chains of the model's posterior by independence Metropolis (`metropolis_independence`)
-    over the model's parameters with sigma integrated out (`fit.SigmaMarginalTarget`; sigma is
+    over the model's parameters with sigma integrated out (`posterior_targets.SigmaMarginalTarget`; sigma is
     then drawn exactly for each sample), in the coordinates where the Laplace approximation fits
     best (`gauge.sampling_coordinates`: the model's exact symmetries folded out), from a proposal
     that follows the valleys along which the posterior leaves that approximation
@@ -103,7 +106,7 @@ def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.G
     Returns the chains, in the model's own parameters, and a JSON-ready report: the last run's
     diagnostics, every attempt (with its sampler), the coordinates, the bent directions, and
     `converged`."""
-    marginal = fit.SigmaMarginalTarget(mode.model)
+    marginal = SigmaMarginalTarget(mode.model)
     target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(
         marginal, mode.model, mode.theta, mode.covariance[:-1, :-1], rng
     )
@@ -158,7 +161,7 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
     model = fitted.model
     names = list(model.names) + [SIGMA]
     if samples is not None:
-        summary = fit.moments(samples[names])
+        summary = moments(samples[names])
         mean, std, low, high = (summary[c].to_numpy() for c in ("mean", "std", "q2.5", "q97.5"))
         source = "MCMC (the refit's samples)"
     else:

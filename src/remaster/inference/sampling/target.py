@@ -28,7 +28,7 @@ class SamplingError(RemasterError, ValueError):
 
 @runtime_checkable
 class Target(Protocol):
-    """What the samplers need of a posterior (e.g. `fit.PosteriorTarget`); nothing about robots.
+    """What the samplers need of a posterior (e.g. `posterior_targets.PosteriorTarget`); nothing about robots.
 
     names: P parameter names, the last "noise.sigma"; scale: (P,) SI size of one step unit;
     log_prob(theta (P,)) -> float; log_prob_many(thetas (m, P)) -> (m,); -inf outside the support.
