@@ -19,6 +19,7 @@ from remaster.inference.parameter_blocks import EXTENSIONS, link_labels
 from remaster.inference.readings import Readings, readings
 from remaster.loop import loop_closure
 from remaster.loop.candidates import pair_name
+from remaster.loop.screened_selection import fitted_rows
 from remaster.reporting import figures_loop, tables_loop
 from remaster.robot import kinematics
 from remaster.robot.gravity import gravity_torques
@@ -557,7 +558,7 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
         weights=rng.uniform(0.5, 2.0, size=(n, 3)),
         orientations=rng.normal(size=(n, 3, 3)),
     )
-    fitted, fitted_poses, record = loop_closure.fitted_rows(data, poses, limit)
+    fitted, fitted_poses, record = fitted_rows(data, poses, limit)
     assert record["of"] == n and record["rows"] == len(fitted.rows) and record["limit"] == limit
     if n <= limit:
         assert fitted is data and record["one_in"] == 1
@@ -574,7 +575,7 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
 def test_a_pose_larger_than_the_limit_is_thinned_by_rows():
     """A continuous log under one pose label cannot be thinned by whole poses: one row in k."""
     data = Readings(rows=np.arange(100), q=np.zeros((100, 6)), measured=np.zeros((100, 3)))
-    fitted, poses, record = loop_closure.fitted_rows(data, np.zeros(100, dtype=int), 30)
+    fitted, poses, record = fitted_rows(data, np.zeros(100, dtype=int), 30)
     assert record == {"limit": 30, "rows": 25, "of": 100, "one_in": 4, "unit": "row"}
     np.testing.assert_array_equal(fitted.rows, np.arange(0, 100, 4))
     assert len(poses) == 25

@@ -37,7 +37,7 @@ class LoopSettings:
     harmonic_level: the family-wise level at which a joint's harmonic order is named once
     `joint_harmonics` is added (`remaster.loop.harmonics`; its orders are `model.harmonic_orders`);
     fit_rows: the optimization rows the loop fits at most (a larger set is thinned to every k-th
-    pose, `remaster.loop.loop_closure.fitted_rows`)."""
+    pose, `remaster.loop.screened_selection.fitted_rows`)."""
 
     candidates: tuple[str, ...]
     min_log_evidence_gain: float
