@@ -32,7 +32,10 @@ sys.path.insert(0, str(REPO))
 from remaster import files, layout  # noqa: E402
 from remaster.campaigns import folders, scenario  # noqa: E402
 from remaster.campaigns.arm_kinds import KINDS, chain_of  # noqa: E402
-from remaster.inference import blocks, fit  # noqa: E402
+from remaster.inference import fit  # noqa: E402
+from remaster.inference.extensions import extended_model  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
+from remaster.inference.readings import readings  # noqa: E402
 from remaster.labels import sensor_label  # noqa: E402
 from remaster.loop.result import LoopReport  # noqa: E402
 
@@ -46,19 +49,17 @@ def least_squares_validation(campaign, sensor: str, results: Path) -> dict:
     registration and held zero-offsets as the paper's fit found them, what the data cannot see held
     at 0. Not `truth_claims.least_squares_validation`, the other benchmarks' baseline: that one takes
     `evidence.posterior_mode` (Levenberg-Marquardt to 1e-12, sigma iterated, optional priors, the
-    config's gravity settings) and reports `selection.accuracy`; this one is scipy's trust-region
+    config's gravity settings) and reports `fitted.accuracy`; this one is scipy's trust-region
     least squares at its default tolerances, which the recorded arm_kinds results were made with."""
     registration = fit.Registration.read(results / layout.REGISTRATION)
-    laplace = fit.LaplaceReport.read(results / layout.LAPLACE)
+    laplace = LaplaceReport.read(results / layout.LAPLACE)
     chain, data = campaign.chain, campaign.sensors[sensor]
-    optimization = blocks.readings(chain, data, "optimization", exclude=laplace.outlier_rows)
-    model, reduction = blocks.extended_model(
-        chain, optimization, data.marker, registration.t_nr, COMPLETE, laplace.held
-    )
+    optimization = readings(chain, data, "optimization", exclude=laplace.outlier_rows)
+    model, reduction = extended_model(chain, optimization, data.marker, registration.t_nr, COMPLETE, laplace.held)
     solution = scipy.optimize.least_squares(
         lambda theta: model.residuals(theta).ravel(), np.zeros(len(model.names)), x_scale=model.scale
     )
-    validation = model.on(blocks.readings(chain, data, "validation"))
+    validation = model.on(readings(chain, data, "validation"))
     residuals = validation.residuals(solution.x)
     return {
         "least_squares_validation_rms_per_axis_mm": float(np.sqrt(np.mean(residuals**2)) / 1e-3),

@@ -29,7 +29,10 @@ from remaster.calibration import prediction
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.evaluation import workspace
-from remaster.inference import blocks, fit, metrics
+from remaster.inference import fit, metrics
+from remaster.inference.laplace_report import LaplaceReport
+from remaster.inference.parameter_blocks import block_parameters
+from remaster.inference.posterior_summary import mode_summary
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
@@ -45,10 +48,10 @@ def true_parameters(truth: dict, chain) -> dict[str, float]:
     compliance and drift (the link geometry's truth is not in the fit's parametrization)."""
     effects = truth["effects"]
     n = chain.n_joints
-    compliance = blocks.block_parameters("joint_compliance", chain).names[:n]  # the torque terms, not the payload's
+    compliance = block_parameters("joint_compliance", chain).names[:n]  # the torque terms, not the payload's
     out = dict(zip(compliance, effects["joint_compliance"]["compliance_rad_per_Nm"]))
     rates = np.radians(effects["drift"]["zero_offset_rate_deg_per_hour"]) / SECONDS_PER_HOUR
-    out |= dict(zip(blocks.block_parameters("drift", chain).names, rates))
+    out |= dict(zip(block_parameters("drift", chain).names, rates))
     # the link errors are rigid motions in the simulator's own form, not the fit's parameters: they
     # are held to the truth through the positions they give (the quantiles below), not one by one
     return out
@@ -62,7 +65,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     truth = files.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
     campaign = folders.read_campaign(folder, repo_root=REPO)
     registered = fit.registration_stage(campaign, sensor)
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     result = loop_closure.loop_closure_stage(
         campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings
@@ -74,7 +77,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
         campaign.chain,
         campaign.sensors[sensor],
         robot,
-        fit.mode_summary(laplace),
+        mode_summary(laplace),
         laplace,
         LoopResults(report, samples),
         np.random.default_rng(SEED),

@@ -19,7 +19,7 @@ import scipy.optimize
 
 from remaster.calibration import dh_table
 from remaster.campaigns.folders import read_campaign
-from remaster.inference.blocks import link_labels
+from remaster.inference.parameter_blocks import link_labels
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "data" / "raw" / "jacobi-ur5-gts3800"

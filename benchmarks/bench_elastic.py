@@ -42,7 +42,8 @@ from benchmarks.truth_claims import REPO, least_squares_validation  # noqa: E402
 from remaster import files  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.arm_kinds import IIWA_DH  # noqa: E402
-from remaster.inference import blocks, fit  # noqa: E402
+from remaster.inference import blocks, fit, parameter_blocks  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
 from remaster.loop import loop_closure  # noqa: E402
 from remaster.loop.settings import settings_from  # noqa: E402
 from remaster.robot import gravity  # noqa: E402
@@ -82,11 +83,11 @@ def run(root: Path, mode: str) -> dict:
     campaign = campaign_copy(root, mode)
     without_mass = gravity.without_mass
     if mode == "payload":  # no regressor: the payload's torques alone, one compliance per joint
-        gravity.without_mass = blocks.without_mass = lambda chain: False
+        gravity.without_mass = blocks.without_mass = parameter_blocks.without_mass = lambda chain: False
     try:
         start = time.perf_counter()
         registered = fit.registration_stage(campaign, SENSOR)
-        laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]["alpha"]))
+        laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]["alpha"]))
         settings = settings_from(
             config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]
         )
@@ -96,7 +97,7 @@ def run(root: Path, mode: str) -> dict:
         seconds = time.perf_counter() - start
         least_squares = least_squares_validation(campaign, SENSOR, registered, laplace, settings, COMPLETE)
     finally:
-        gravity.without_mass = blocks.without_mass = without_mass
+        gravity.without_mass = blocks.without_mass = parameter_blocks.without_mass = without_mass
     report = result.report.to_json()
     after = report["after"]["validation"]
     return {

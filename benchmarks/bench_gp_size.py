@@ -7,7 +7,7 @@ position; a smooth free-form residual of every joint (random Fourier features, 0
 along joints 1-3 against the grid's spacing, long along the wrist) plus 0.03 mm noise per axis. The
 zero-offset model is fitted (`evidence.posterior_mode`) and the loop's candidate
 (`loop_candidate.fit_and_score`, pose-grouped folds of whole positions) is scored on its residuals by
-the loop's rule (`selection.judged`, config.yaml's thresholds). Validation: 3 new tool orientations at
+the loop's rule (`scoring.judged`, config.yaml's thresholds). Validation: 3 new tool orientations at
 each position, the RMS per axis of what is left after each GP's mean, against the exact GP (n x n
 factor) conditioned on 3,000 evenly spaced rows with hyperparameters fitted on them the same way.
 
@@ -32,7 +32,7 @@ from remaster import configuration
 from remaster.campaigns.arm_kinds import UR5, chain_of
 from remaster.inference import blocks, evidence, fit
 from remaster.inference.gp import kernels, loop_candidate, residual
-from remaster.loop.selection import judged
+from remaster.loop.scoring import judged
 from remaster.loop.settings import from_config
 from remaster.robot.kinematics import marker_positions
 

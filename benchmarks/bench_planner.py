@@ -57,7 +57,10 @@ from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors  # noq
 from remaster.campaigns.campaign import sensor_data  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
 from remaster.errors import InputError  # noqa: E402
-from remaster.inference import blocks, evidence, fit, samplers  # noqa: E402
+from remaster.inference import evidence, fit  # noqa: E402
+from remaster.inference.extensions import extended_model  # noqa: E402
+from remaster.inference.least_squares import least_squares_mode  # noqa: E402
+from remaster.inference.readings import readings  # noqa: E402
 from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.robot import planning  # noqa: E402
@@ -91,17 +94,15 @@ def calibrate(chain, sensor, priors, set_name: str = "optimization"):
     too few residuals for sigma to be estimated beside 25-32 parameters (UR5, iiwa)."""
     registered = fit.register(chain, sensor, set_name)
     _, analysis, _ = fit.build_model(chain, sensor, registered.t_nr, set_name)
-    data = blocks.readings(chain, sensor, set_name)
-    model, _ = blocks.extended_model(
-        chain, data, sensor.marker, registered.t_nr, dp.COMPLETE_BLOCKS, analysis.held, priors
-    )
+    data = readings(chain, sensor, set_name)
+    model, _ = extended_model(chain, data, sensor.marker, registered.t_nr, dp.COMPLETE_BLOCKS, analysis.held, priors)
     sigma = float(sensor.noise)
 
     def stacked(theta):
         weighted = model.weighted_residuals(theta) / sigma
         return np.concatenate([weighted.reshape(weighted.shape[:-2] + (-1,)), model.prior_residuals(theta)], axis=-1)
 
-    solution = samplers.least_squares_mode(
+    solution = least_squares_mode(
         stacked, np.zeros(len(model.names)), model.scale, lambda t: evidence.forward_differences(stacked, t)
     )
     return model, solution.x
@@ -270,7 +271,7 @@ def subset_sensor(sensor, rows):
 
 def validation_rms(chain, sensor, priors) -> float:
     model, theta = calibrate(chain, sensor, priors)
-    residuals = model.on(blocks.readings(chain, sensor, "validation")).residuals(theta)
+    residuals = model.on(readings(chain, sensor, "validation")).residuals(theta)
     return float(np.sqrt(np.mean(residuals**2))) / 1e-3
 
 

@@ -19,7 +19,10 @@ import pinocchio as pin
 from remaster import diagnostics, spatial
 from remaster.campaigns import folders
 from remaster.inference import fit
+from remaster.inference.laplace_report import LaplaceReport, laplace_fit, laplace_report
 from remaster.inference.model import correction_transforms
+from remaster.inference.posterior_sampling import sample
+from remaster.inference.posterior_targets import PosteriorTarget
 from remaster.robot import kinematics
 
 REPO = Path(__file__).resolve().parents[1]
@@ -75,7 +78,7 @@ def main() -> None:
     sensor = campaign.sensors["motion_capture"]
     registration = fit.register(campaign.chain, sensor)
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
-    target = fit.PosteriorTarget(model)
+    target = PosteriorTarget(model)
     theta = np.append(np.zeros(len(model.names)), 1e-3)
     reference = pinocchio_log_posterior(model, campaign.chain)
     assert abs(reference(theta[:-1], theta[-1]) - target.log_prob(theta)) < 1e-6 * abs(target.log_prob(theta))
@@ -89,7 +92,7 @@ def main() -> None:
     print(f"  compiled, 32 walkers per call    {1 / batched:10.0f} evaluations/s")
     print(f"  Pinocchio loop                   {1 / slow:10.0f} evaluations/s  (compiled is {slow / fast:.0f}x faster)")
 
-    laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
+    laplace = LaplaceReport.of(laplace_report(laplace_fit(model), analysis, excluded))
     settings = {
         "paper": {"chains": 2, "samples": 200_000, "burn_in": 175_000, "half_width": 0.0125},
         "default": {"chains": 2, "samples": 40_000, "burn_in": 10_000},
@@ -98,9 +101,7 @@ def main() -> None:
     results = {}
     for method in ("paper", "default", "emcee"):
         rng = np.random.default_rng(7)
-        results[method] = min_ess_per_second(
-            method, lambda m=method, r=rng: fit.sample(model, laplace, m, settings[m], r)
-        )
+        results[method] = min_ess_per_second(method, lambda m=method, r=rng: sample(model, laplace, m, settings[m], r))
     paper_seconds = results["paper"][0] / settings["paper"]["chains"]
     print(f"paper-mode chain of 2e5 steps: {paper_seconds:.2f} s per chain")
     print("method     seconds   min ESS   min ESS/s   vs paper")

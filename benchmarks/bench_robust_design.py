@@ -59,8 +59,9 @@ from bench_planner import (  # noqa: E402
 from remaster.campaigns import folders  # noqa: E402
 from remaster.campaigns.arm_kinds import cyclic_truth, iiwa_rigid_link_errors  # noqa: E402
 from remaster.campaigns.simulation import measure, true_sensor_positions  # noqa: E402
-from remaster.inference import blocks, fit  # noqa: E402
+from remaster.inference import fit  # noqa: E402
 from remaster.inference.gp import residual  # noqa: E402
+from remaster.inference.readings import readings  # noqa: E402
 from remaster.planning import design, plan_inputs  # noqa: E402
 from remaster.planning import design_posterior as dp  # noqa: E402
 from remaster.planning import robust_design as dd  # noqa: E402
@@ -178,7 +179,7 @@ def campaign_discrepancy(chain, sensor, priors) -> dd.Discrepancy:
     """The residual GP of the complete error model calibrated on all optimization rows (robot frame
     residuals; the kernel is the same on the three axes, so the frame does not matter)."""
     model, theta = calibrate(chain, sensor, priors)
-    q = blocks.readings(chain, sensor, "optimization").q
+    q = readings(chain, sensor, "optimization").q
     hyper = residual.fit_hyperparameters(q, model.residuals(theta).reshape(-1, 3))
     return dd.Discrepancy(hyper.lengthscales, hyper.signal_std)
 

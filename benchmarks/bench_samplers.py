@@ -26,7 +26,10 @@ import time
 import numpy as np
 
 from remaster import diagnostics
-from remaster.inference import samplers
+from remaster.inference.least_squares import least_squares_laplace
+from remaster.inference.sampling.chains import run_emcee
+from remaster.inference.sampling.metropolis import metropolis_adaptive, metropolis_paper
+from remaster.inference.sampling.target import Chain
 
 MM, DEG = 1e-3, math.pi / 180
 N_POINTS = 173
@@ -90,7 +93,7 @@ def per_call_seconds(function, argument) -> float:
     return (time.perf_counter() - start) / calls
 
 
-def report(label: str, seconds: float, chain: samplers.Chain, model: LinearPaperModel, baseline: float | None):
+def report(label: str, seconds: float, chain: Chain, model: LinearPaperModel, baseline: float | None):
     table = diagnostics.chain_report([chain])
     ess = float(table[["ess_bulk", "ess_tail"]].min().min())
     error = float(np.max(np.abs(table["mean"].to_numpy() - model.exact_mean) / model.exact_std))
@@ -115,13 +118,13 @@ def main() -> None:
         f"{'err':>5s}  tau reliable"
     )
     runs = {
-        "A paper: 2e5 steps, keep the last 2.5e4": lambda rng: samplers.metropolis_paper(
+        "A paper: 2e5 steps, keep the last 2.5e4": lambda rng: metropolis_paper(
             model, rng, start, n_samples=BUDGET, burn_in=175_000
         ),
-        "A adaptive: 2e5 steps, burn-in 5e4": lambda rng: samplers.metropolis_adaptive(
+        "A adaptive: 2e5 steps, burn-in 5e4": lambda rng: metropolis_adaptive(
             model, rng, start, n_samples=BUDGET, burn_in=50_000
         ),
-        "A emcee: 32 walkers x 6250 steps, burn-in 2500": lambda rng: samplers.run_emcee(
+        "A emcee: 32 walkers x 6250 steps, burn-in 2500": lambda rng: run_emcee(
             model, rng, start, 0.01 * SCALE, n_walkers=32, n_steps=BUDGET // 32, burn_in=2_500
         ),
     }
@@ -134,15 +137,15 @@ def main() -> None:
 
     def laplace_then(sampler):
         begin = time.perf_counter()
-        fit = samplers.least_squares_laplace(model.residuals, np.zeros(13), SCALE[:13], names=NAMES[:13])
+        fit = least_squares_laplace(model.residuals, np.zeros(13), SCALE[:13], names=NAMES[:13])
         chain = sampler(fit)
         return time.perf_counter() - begin, chain
 
     pipeline = {
-        "B Laplace + adaptive: 3e4 steps, burn-in 5e3": lambda fit: samplers.metropolis_adaptive(
+        "B Laplace + adaptive: 3e4 steps, burn-in 5e3": lambda fit: metropolis_adaptive(
             model, np.random.default_rng(7), fit.theta_start, fit.full_covariance(), n_samples=30_000, burn_in=5_000
         ),
-        "B Laplace + emcee: 32 walkers x 1500 steps, burn-in 300": lambda fit: samplers.run_emcee(
+        "B Laplace + emcee: 32 walkers x 1500 steps, burn-in 300": lambda fit: run_emcee(
             model,
             np.random.default_rng(7),
             fit.theta_start,

@@ -28,6 +28,7 @@ from remaster.campaigns import folders
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.evaluation import accuracy
 from remaster.inference import fit
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.loop import loop_closure
 from remaster.loop.settings import settings_from
 
@@ -92,7 +93,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
 
     campaign = record("read", measured(folders.read_campaign, folder))
     registration = record("registration", measured(fit.registration_stage, campaign, sensor))
-    laplace = fit.LaplaceReport.of(
+    laplace = LaplaceReport.of(
         record("laplace", measured(fit.laplace_stage, campaign, sensor, registration, config["outliers"]["alpha"]))
     )
     paper = {**config["fit"]["paper"], "samples": PAPER_STEPS, "burn_in": PAPER_STEPS // 2}

@@ -55,6 +55,7 @@ from benchmarks.truth_claims import REPO  # noqa: E402
 from remaster import api  # noqa: E402
 from remaster.calibration import prediction  # noqa: E402
 from remaster.inference import fit  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
 SERIES = {
@@ -90,7 +91,7 @@ def subsampled(campaign, keep: int, rng: np.random.Generator):
 def target_of(campaign) -> prediction.Calibrated:
     """A series as a transfer's target: its readings and the rows its own zero-offset fit flagged as gross errors."""
     registered = fit.registration_stage(campaign, SENSOR)
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, api.settings()["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, api.settings()["outliers"]["alpha"]))
     return transfer_pairs.target_of(campaign, SENSOR, laplace.outlier_rows)
 
 

@@ -39,6 +39,7 @@ from benchmarks.truth_claims import REPO, least_squares_validation  # noqa: E402
 from remaster import files  # noqa: E402
 from remaster.campaigns import arm_kinds, folders, scenario, simulation  # noqa: E402
 from remaster.inference import fit  # noqa: E402
+from remaster.inference.laplace_report import LaplaceReport  # noqa: E402
 from remaster.loop import loop_closure  # noqa: E402
 from remaster.loop.settings import settings_from  # noqa: E402
 from remaster.robot.priors import Priors  # noqa: E402
@@ -84,9 +85,7 @@ def calibrated(campaign, seed: int) -> dict:
     config = files.read_yaml(REPO / "config.yaml")
     validate(config, str(REPO / "workflow" / "schemas" / "config.schema.yaml"))  # the schema's defaults
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = fit.LaplaceReport.of(
-        fit.laplace_stage(campaign, "laser_tracker", registered, config["outliers"]["alpha"])
-    )
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, config["outliers"]["alpha"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     settings = replace(settings, mcmc=None)
     rng = np.random.default_rng(seed)

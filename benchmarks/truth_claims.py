@@ -17,8 +17,11 @@ from remaster import files
 from remaster.api import truth
 from remaster.api.truth import Claim, TruthCheck, own_posterior_expectations, posterior_outside
 from remaster.calibration import prediction
-from remaster.inference import blocks, evidence
-from remaster.loop import selection
+from remaster.inference import evidence
+from remaster.inference.extensions import extended_model
+from remaster.inference.parameter_blocks import EXTENSIONS
+from remaster.inference.readings import readings
+from remaster.loop.fitted import accuracy
 
 REPO = Path(__file__).resolve().parents[1]
 __all__ = ["REPO", "Claim", "TruthCheck", "check", "least_squares_validation", "own_posterior_expectations"]
@@ -45,15 +48,15 @@ def least_squares_validation(campaign, sensor: str, registered, laplace, setting
     `extensions` (e.g. every link's six parameters, the marker offset, joint compliance) on the
     optimization rows the paper's fit kept; flat (`priors` None: what the data cannot see held at 0,
     by the loop's own reduction) or under `priors`; the gravity torques as `settings.model` gives
-    them on this campaign's chain. Returns the validation set's accuracy (`selection.accuracy`:
+    them on this campaign's chain. Returns the validation set's accuracy (`fitted.accuracy`:
     rmse_mm, rms_per_axis_mm, ...; the validation set is read for this only), the parameters fitted
     and, as `calibration`, the fit as a `prediction.Calibration` (model 'least_squares': the robot's
     parameters, the registration left out, as a loop-closed model's) that `comparing.transfer`
     applies to another campaign."""
     data = campaign.sensors[sensor]
-    fitted_on = blocks.readings(campaign.chain, data, "optimization", settings.model, exclude=laplace.outlier_rows)
-    checked_on = blocks.readings(campaign.chain, data, "validation", settings.model)
-    model, _ = blocks.extended_model(
+    fitted_on = readings(campaign.chain, data, "optimization", settings.model, exclude=laplace.outlier_rows)
+    checked_on = readings(campaign.chain, data, "validation", settings.model)
+    model, _ = extended_model(
         campaign.chain, fitted_on, data.marker, registered.t_nr, extensions, dict(laplace.held), priors
     )
     theta = evidence.posterior_mode(model, np.zeros(len(model.names))).theta
@@ -64,9 +67,9 @@ def least_squares_validation(campaign, sensor: str, registered, laplace, setting
         for name, value in zip(model.all_names, model.full(theta))
         if model.block_of[name] not in prediction.SETUP_BLOCKS
     }
-    kept = tuple(b for b in model.blocks if b in blocks.EXTENSIONS and b not in prediction.SETUP_BLOCKS)
+    kept = tuple(b for b in model.blocks if b in EXTENSIONS and b not in prediction.SETUP_BLOCKS)
     return {
-        **selection.accuracy(validation.measured, validation.predict(theta), poses),
+        **accuracy(validation.measured, validation.predict(theta), poses),
         "parameters": len(theta),
         "calibration": prediction.Calibration("least_squares", values, kept, settings.model),
     }

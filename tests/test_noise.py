@@ -9,7 +9,8 @@ from snakemake.utils import validate
 
 from remaster import files, noise
 from remaster.campaigns import folders, scenario, simulation
-from remaster.inference import blocks, evidence, fit
+from remaster.inference import evidence, fit
+from remaster.inference.readings import readings
 from remaster.loop import selection as loop_selection
 
 from .conftest import REPO, loop_settings
@@ -69,7 +70,7 @@ def test_the_simulator_draws_range_and_transverse_noise_of_the_stated_size(tmp_p
 def noise_choice(campaign):
     sensor = campaign.sensors["laser_tracker"]
     registration = fit.registration_stage(campaign, "laser_tracker")
-    data = blocks.readings(campaign.chain, sensor, "optimization")
+    data = readings(campaign.chain, sensor, "optimization")
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
     return loop_selection.select(
         campaign.chain,

@@ -377,7 +377,7 @@ def metropolis_walk(
     log_probs,
 ):
     """Random-walk Metropolis on the paper's log-posterior (eq. posterior), the loop of
-    `samplers._walk` compiled: from (theta (P,) = free parameters and sigma, its log_prob), step i
+    `sampling.random_walk._walk` compiled: from (theta (P,) = free parameters and sigma, its log_prob), step i
     proposes theta + steps[i] and accepts when log_u[i] < the log-posterior ratio. Every state
     goes to states (m, P) and log_probs (m,). Returns (accepted, i) with i the first step whose
     log-posterior is NaN (-1 when none): the caller raises. The sum of squares by

@@ -2,7 +2,7 @@
 cross-checks between methods.
 
 Sample layouts accepted everywhere: (n, P) one chain in time order; (n, W, P) an ensemble of W
-walkers (emcee); or any object with `per_walker()` returning (n, W, P), such as `samplers.Chain`.
+walkers (emcee); or any object with `per_walker()` returning (n, W, P), such as `inference.sampling.target.Chain`.
 
 The estimators are arviz-stats' (Vehtari, Gelman, Simpson, Carpenter and Buerkner 2021, "Rank-
 normalization, folding, and localization: an improved R-hat"): the rank-normalised split R-hat
@@ -104,7 +104,7 @@ def chain_report(chains: Sequence, names: Sequence[str] | None = None) -> pd.Dat
     Never raises on what a failed run leaves: a parameter that never moves has rhat NaN (no
     spread to compare), ess one per walker and mcse 0; NaN samples give NaN statistics; chains
     too short for a split R-hat (under 4 states) have rhat NaN, empty ones NaN everywhere and
-    ess 0. A NaN rhat or ess is not convergence (`inference.fit.converged`)."""
+    ess 0. A NaN rhat or ess is not convergence (`inference.posterior_sampling.converged`)."""
     if names is None:
         names = getattr(chains[0], "names", None)
     walkers = walker_chains(chains)  # (C, n, P)

@@ -3,7 +3,7 @@
 
 A result is named by its key, the name the workflow's rules give the input (and `layout.SENSOR_RESULTS`
 the file under a sensor's results folder): the registration, the Laplace fit and the loop closure's
-report come back typed (`fit.Registration`, `fit.LaplaceReport`, `LoopReport`), every other file as
+report come back typed (`fit.Registration`, `laplace_report.LaplaceReport`, `LoopReport`), every other file as
 its suffix says (JSON or YAML content, a CSV or Parquet table). A file not there is an InputError
 naming it and what to run.
 
@@ -28,7 +28,8 @@ from . import audit, layout
 from .campaigns.folders import campaign_digests
 from .errors import InputError, listed
 from .files import read_csv, read_json, read_parquet, read_yaml
-from .inference.fit import LaplaceReport, Registration
+from .inference.fit import Registration
+from .inference.laplace_report import LaplaceReport
 from .loop.result import LoopReport
 
 TYPED = {"registration": Registration.read, "laplace": LaplaceReport.read, "loop": LoopReport.read}

@@ -21,8 +21,11 @@ from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
 from remaster.cli import main as cli
 from remaster.errors import InputError
-from remaster.inference import blocks, fit
+from remaster.inference import fit
 from remaster.inference.model import SIGMA
+from remaster.inference.parameter_blocks import link_labels
+from remaster.inference.posterior_summary import mode_summary
+from remaster.inference.readings import ModelSettings
 from remaster.results import check_made_from
 from remaster.robot import kinematics
 from remaster.robot.nearness import Nearness
@@ -39,7 +42,7 @@ def loop_values(chain, rng) -> dict:
     values = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.3 * DEG) for j in range(chain.n_joints)}
     values.update({f"joint_compliance.q{j + 1}": rng.normal(0.0, 3e-5) for j in range(chain.n_joints)})
     values.update({f"marker_offset.{a}": rng.normal(0.0, 5e-4) for a in "xyz"})
-    for _, column, name in blocks.link_labels(chain):
+    for _, column, name in link_labels(chain):
         values[name] = rng.normal(0.0, 5e-4 if column == 0 else 0.05 * DEG)
     return values
 
@@ -61,9 +64,7 @@ def synthetic_robot(chain, rng, spread=1e-5, draws=400, held=None, tcp=None, **g
     every = {**values, **setup}
     samples = pd.DataFrame({n: every[n] + spread * rng.standard_normal(draws) for n in names + list(setup)})
     samples[SIGMA] = 2e-5
-    calibration = prediction.Calibration(
-        "loop", {**values, **(held or {})}, EFFECTS, blocks.ModelSettings(), samples[names]
-    )
+    calibration = prediction.Calibration("loop", {**values, **(held or {})}, EFFECTS, ModelSettings(), samples[names])
     return compensation.CalibratedRobot(
         chain,
         calibration,
@@ -274,7 +275,7 @@ def twin(model: str, tmp_path_factory):
     results = {
         "registration": fit.registration_stage(campaign, "laser_tracker"),
         "laplace": laplace,
-        "summary": fit.mode_summary(laplace),
+        "summary": mode_summary(laplace),
         "paper_samples": None,
         "loop": report,
         "loop_samples": samples,
@@ -397,7 +398,7 @@ def twin_results(tmp_path_factory):
     folder = root / "kuka-twin" / "laser_tracker"
     files.write_json(folder / layout.REGISTRATION, fit.registration_stage(campaign, "laser_tracker").report())
     files.write_json(folder / layout.LAPLACE, laplace_content("kuka-twin", "laser_tracker"))
-    files.write_csv(folder / layout.SUMMARY, fit.mode_summary(laplace).reset_index())
+    files.write_csv(folder / layout.SUMMARY, mode_summary(laplace).reset_index())
     files.write_parquet(folder / layout.DEFAULT_SAMPLES, pd.DataFrame())
     report.write(folder / layout.LOOP_CLOSURE)
     files.write_parquet(folder / layout.LOOP_SAMPLES, samples)

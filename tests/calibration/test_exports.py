@@ -10,7 +10,7 @@ from remaster import spatial
 from remaster.calibration import dh_table, exports, prediction
 from remaster.campaigns import folders
 from remaster.errors import InputError
-from remaster.inference import blocks
+from remaster.inference.parameter_blocks import link_errors, link_labels
 from remaster.robot import kinematics
 from remaster.units import DEG
 
@@ -43,7 +43,7 @@ def pinocchio_points(xml, chain, q):
 
 def random_values(chain, rng):
     values = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.5 * DEG) for j in range(chain.n_joints)}
-    for _, column, name in blocks.link_labels(chain):
+    for _, column, name in link_labels(chain):
         values[name] = rng.normal(0.0, 1e-3 if column < 3 else 0.1 * DEG)
     return values
 
@@ -184,7 +184,7 @@ def dh_form_values(chain, dh_chain, rows, convention, flange, rng):
         np.linalg.inv(np.concatenate([chain.joint_transforms, chain.tool_transform[None]]))
         @ np.concatenate([joints, tool[None]])
     )
-    return {name: float(motions[row, column]) for row, column, name in blocks.link_labels(chain)}
+    return {name: float(motions[row, column]) for row, column, name in link_labels(chain)}
 
 
 @pytest.mark.parametrize("source", ["standard", "modified", "standard with a flange", "urdf with a dh table"])
@@ -232,7 +232,7 @@ def test_a_twist_dh_cannot_hold_gets_the_nearest_row_and_says_how_far_it_is(rng)
     assert [m.split(":")[0] for m in table["not_dh_form"]] == ["F1", "F3"]
     assert "base" in table["not_dh_form"][0] and "17.19 deg" in table["not_dh_form"][1]
     expected = kinematics.flange_poses(
-        kinematics.perturbed_chain(chain, blocks.link_errors(chain, values)), q, zero_offsets=[0.0, 0.01, 0, 0, 0, 0]
+        kinematics.perturbed_chain(chain, link_errors(chain, values)), q, zero_offsets=[0.0, 0.01, 0, 0, 0, 0]
     )
     written = kinematics.flange_poses(kinematics.chain_from_dh(table["rows"], "standard", table["flange"]), q)
     miss = np.max(np.linalg.norm(written[:, :3, 3] - expected[:, :3, 3], axis=1))
@@ -257,7 +257,7 @@ def test_a_model_dh_can_hold_whose_transforms_are_not_each_of_dh_form_gets_an_ex
     # F3 Rot(z, q3) F4 = (F3 Tz(s)) Rot(z, q3) (Tz(-s) F4): 0.5 mm along joint 3's own axis moved
     # from one side of the joint to the other, the same robot, with F3 and F4 off the DH form
     shift = spatial.translation(z=0.5e-3)
-    errors = blocks.link_errors(dh_chain, values)
+    errors = link_errors(dh_chain, values)
     nominal = dh_chain.joint_transforms
     d3 = kinematics.small_motion(errors[2]) @ shift
     d4 = np.linalg.inv(nominal[3]) @ np.linalg.inv(shift) @ nominal[3] @ kinematics.small_motion(errors[3])

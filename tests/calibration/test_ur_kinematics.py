@@ -9,7 +9,7 @@ import pytest
 
 from remaster.calibration import prediction, ur_kinematics
 from remaster.campaigns.arm_kinds import UR5_DH
-from remaster.inference import blocks
+from remaster.inference.parameter_blocks import link_labels
 from remaster.robot import kinematics
 from remaster.units import DEG
 
@@ -70,7 +70,7 @@ def loaded_points(config: dict, q) -> np.ndarray:
 
 def _values(chain, rng, tool: bool) -> dict:
     values = {f"zero_offsets.q{j + 1}": rng.normal(0.0, 0.5 * DEG) for j in range(chain.n_joints)}
-    for frame, column, name in blocks.link_labels(chain):
+    for frame, column, name in link_labels(chain):
         if frame < chain.n_joints or tool:
             values[name] = rng.normal(0.0, 1e-3 if column < 3 else 0.1 * DEG)
     return values

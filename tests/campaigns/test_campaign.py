@@ -534,7 +534,7 @@ def test_full_pose_keys_name_campaign_yaml_and_the_key(tmp_path, meta, table, ke
 def test_per_point_stds_stand_for_the_stated_noise_beside_an_orientation(tmp_path):
     """With per-point std columns the sensor needs no stated noise: the orientations are weighed
     against the RMS of the stds, the position noise the fit's sigma then stands for."""
-    from remaster.inference.blocks import orientation_fields
+    from remaster.inference.readings import orientation_fields
 
     meta = full_pose_metadata()
     del meta["sensors"][SENSOR]["noise"]

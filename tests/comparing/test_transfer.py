@@ -14,8 +14,9 @@ from remaster import spatial
 from remaster.calibration import prediction
 from remaster.campaigns.campaign import SensorData
 from remaster.comparing import predictions, transfer
-from remaster.inference.blocks import ModelSettings, link_labels
 from remaster.inference.metrics import random_configurations
+from remaster.inference.parameter_blocks import link_labels
+from remaster.inference.readings import ModelSettings
 from remaster.reporting import figures_comparison
 from remaster.robot import registration
 from remaster.robot.kinematics import ForwardKinematics

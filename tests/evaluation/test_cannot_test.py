@@ -22,6 +22,7 @@ from remaster.errors import InputError
 from remaster.evaluation import acceptance, budget
 from remaster.evaluation.acceptance import CANNOT_TEST, PASS, Acceptance
 from remaster.inference import fit
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.loop.result import LoopResults
 from remaster.reporting import certificate
 from remaster.units import DEG, MM
@@ -58,7 +59,7 @@ def test_rows_within_a_tenth_of_a_degree_in_every_joint_are_one_configuration():
 # --------------------------------------------------------------------------- a simulated campaign
 
 
-def _paper_as_loop(laplace: fit.LaplaceReport):
+def _paper_as_loop(laplace: LaplaceReport):
     """A loop closure report whose final model is the paper's (registration and zero-offsets, its
     Laplace mode and std), closed at the noise: the acceptance test's claim is then the paper fit's."""
     rows = []
@@ -107,10 +108,10 @@ def _campaign(tmp: Path, spec: dict, simulated_campaign, table: pd.DataFrame):
     return folders.read_campaign(folder, repo_root=REPO)
 
 
-def _accepted(campaign) -> tuple[Acceptance, fit.LaplaceReport]:
+def _accepted(campaign) -> tuple[Acceptance, LaplaceReport]:
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
     result = acceptance.acceptance_stage(
         campaign,
         "laser_tracker",

@@ -12,7 +12,8 @@ from remaster.calibration import exports, prediction
 from remaster.campaigns.folders import read_campaign
 from remaster.evaluation import rigid_urdf
 from remaster.evaluation.workspace import fit_domain
-from remaster.inference.blocks import ModelSettings, link_labels
+from remaster.inference.parameter_blocks import link_labels
+from remaster.inference.readings import ModelSettings
 from remaster.units import DEG
 
 from ..calibration.test_exports import MARKER, pinocchio_points

@@ -14,8 +14,12 @@ from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions
 from remaster.comparing import transfer
 from remaster.evaluation import accuracy, domain, workspace
-from remaster.inference import blocks, evidence, fit, metrics
+from remaster.inference import evidence, fit, metrics
+from remaster.inference.extensions import extended_model
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.inference.model import SIGMA
+from remaster.inference.posterior_summary import mode_summary
+from remaster.inference.readings import readings
 from remaster.loop import loop_closure
 from remaster.loop.result import LoopReport, LoopResults
 from remaster.loop.settings import settings_from
@@ -143,7 +147,7 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         config = CONFIG
         registered = fit.registration_stage(campaign, sensor)
         _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
-        laplace = fit.LaplaceReport.of(_laplace_content[key])
+        laplace = LaplaceReport.of(_laplace_content[key])
         settings = settings_from(
             config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]
         )
@@ -167,7 +171,7 @@ def claims_of(name: str, sensor: str, tmp_path_factory) -> tuple[workspace.Works
         campaign.chain,
         campaign.sensors[sensor],
         identity.robot_identity(campaign),
-        fit.mode_summary(laplace),
+        mode_summary(laplace),
         laplace,
         LoopResults(report, samples),
         np.random.default_rng(SEED),
@@ -188,7 +192,7 @@ def test_a_large_optimization_set_is_propagated_at_evenly_spaced_rows(tmp_path_f
             campaign.chain,
             campaign.sensors["laser_tracker"],
             identity.robot_identity(campaign),
-            fit.mode_summary(laplace),
+            mode_summary(laplace),
             laplace,
             LoopResults(report, samples),
             np.random.default_rng(SEED),
@@ -247,7 +251,7 @@ def test_the_twins_workspace_claims_cover_the_truth(tmp_path_factory, sensor, mo
     truth = true_points(campaign, sensor, q)
     _, _, report, samples = fitted("kuka-twin", sensor, tmp_path_factory)
     calibration = (
-        prediction.paper_calibration(fit.mode_summary(laplace))
+        prediction.paper_calibration(mode_summary(laplace))
         if model == "paper"
         else prediction.loop_calibration(report, samples)
     )
@@ -291,11 +295,9 @@ def cubes_calibration(priors) -> prediction.Calibration:
     campaign, laplace, report, _ = fitted("kuka-cubes", "laser_tracker", None)
     effects = report.effects_added
     sensor, settings = campaign.sensors["laser_tracker"], loop_settings(CONFIG)
-    data = blocks.readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
+    data = readings(campaign.chain, sensor, "optimization", settings.model, laplace.outlier_rows)
     registered = fit.registration_stage(campaign, "laser_tracker")
-    model, _ = blocks.extended_model(
-        campaign.chain, data, sensor.marker, registered.t_nr, effects, laplace.held, priors
-    )
+    model, _ = extended_model(campaign.chain, data, sensor.marker, registered.t_nr, effects, laplace.held, priors)
     theta = evidence.posterior_mode(model).theta if priors is not None else flat_fit(model)
     return prediction.Calibration("loop", {**model.fixed, **model.values(theta)}, effects, settings.model)
 

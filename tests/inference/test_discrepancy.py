@@ -9,6 +9,7 @@ from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import discrepancy, fit
+from remaster.inference.laplace_report import laplace_fit
 
 from ..conftest import REPO
 
@@ -59,7 +60,7 @@ def test_fleet_copies_of_a_robot_the_model_lacks_an_effect_of_drift_by_about_one
             "simulated.parquet",
         )
         model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
-        laplace = fit.laplace_fit(model)
+        laplace = laplace_fit(model)
         names = list(model.names)
         summary = pd.DataFrame(
             {

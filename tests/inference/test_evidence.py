@@ -7,6 +7,7 @@ import pytest
 
 from remaster.campaigns import arm_kinds
 from remaster.inference import blocks, evidence, fit
+from remaster.inference.readings import Readings
 from remaster.robot.priors import Priors
 
 from ..conftest import REPO
@@ -27,10 +28,10 @@ def _clustered_campaign(rng):
     cluster = centre + rng.uniform(-1e-3, 1e-3, (20, 7)) * np.array([1, 1, 0, 1, 1, 1, 1])
     q = np.vstack([wide, cluster])
     folds = np.concatenate([np.zeros(10, int), np.repeat(np.arange(1, 5), 5)])
-    data = blocks.Readings(np.arange(len(q)), q, np.zeros((len(q), 3)))
+    data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)))
     model = blocks.BlockModel(chain, data, sensor.marker, registration.t_nr, (), analysis.held)
     truth = model.predict(np.zeros(len(model.names)))
-    data = blocks.Readings(data.rows, q, truth + rng.normal(0.0, NOISE, truth.shape))
+    data = Readings(data.rows, q, truth + rng.normal(0.0, NOISE, truth.shape))
     return blocks.BlockModel(chain, data, sensor.marker, registration.t_nr, (), analysis.held), folds
 
 
@@ -112,7 +113,7 @@ def test_a_jackknife_group_whose_refit_departs_is_left_out_of_u_between_and_name
     measures that freedom rather than the design, is left out; the four others give u_between, and
     the loop's warning names the group."""
     from remaster.loop import jackknife
-    from remaster.loop.selection import Fitted
+    from remaster.loop.fitted import Fitted
 
     model, folds = _clustered_campaign(np.random.default_rng(3))
     mode = evidence.posterior_mode(model)

@@ -14,7 +14,12 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.errors import InputError
-from remaster.inference import fit
+from remaster.inference import fit, posterior_targets
+from remaster.inference.cross_check import cross_check, disagreeing
+from remaster.inference.laplace_report import LaplaceReport, laplace_fit, laplace_report
+from remaster.inference.posterior_sampling import sample, sampler_diagnostics, samples_frame
+from remaster.inference.posterior_summary import posterior_summary, remastering
+from remaster.inference.posterior_targets import PosteriorTarget
 
 from ..conftest import REPO
 
@@ -51,12 +56,12 @@ def simulated_sensor(chain, rng, n=80, noise=5e-5, missing=()):
 def fitted(chain, sensor, methods=("default",), seed=0):
     registration = fit.register(chain, sensor)
     model, analysis, excluded = fit.build_model(chain, sensor, registration.t_nr)
-    laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
+    laplace = LaplaceReport.of(laplace_report(laplace_fit(model), analysis, excluded))
     samples, reports = {}, {}
     for method in methods:
-        chains = fit.sample(model, laplace, method, FAST[method], np.random.default_rng(seed))
-        samples[method] = fit.samples_frame(chains)
-        reports[method] = fit.sampler_diagnostics(chains, 1.0)
+        chains = sample(model, laplace, method, FAST[method], np.random.default_rng(seed))
+        samples[method] = samples_frame(chains)
+        reports[method] = sampler_diagnostics(chains, 1.0)
     return laplace, samples, reports
 
 
@@ -67,7 +72,7 @@ def test_intervals_cover_the_truth_about_95_percent(iiwa):
         rng = np.random.default_rng(1000 + seed)
         sensor, truth = simulated_sensor(iiwa, rng)
         laplace, samples, _ = fitted(iiwa, sensor, seed=seed)
-        summary = fit.posterior_summary(samples["default"], laplace)
+        summary = posterior_summary(samples["default"], laplace)
         for j in range(1, 7):
             row = summary.loc[f"zero_offsets.q{j + 1}"]
             covered += bool(row["q2.5"] <= truth[j] <= row["q97.5"])
@@ -86,28 +91,28 @@ def test_samplers_agree_and_unseen_points_are_excluded(iiwa):
     laplace, samples, reports = fitted(iiwa, sensor, methods=("default", "emcee", "paper"))
     assert laplace.marker_not_seen_rows == (3, 17)
     assert laplace.held == {"zero_offsets.q1": 0.0}
-    table = fit.cross_check(samples, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100, floor=0.1)
+    table = cross_check(samples, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100, floor=0.1)
     assert {"z_default", "z_emcee", "z_laplace", "z_paper"} <= set(table.columns)
     assert table["checked_emcee"].all() and table["checked_laplace"].all()
     assert (table.loc[table["checked_paper"], "z_paper"].abs() <= 4.0).all()
     assert not table["disagrees_emcee"].any() and (table["disagreement"] == "").all()
-    assert fit.disagreeing(table) == {}
+    assert disagreeing(table) == {}
     # a method shifted by several posterior std is caught, marked on its parameter and nowhere
     # else, and the table comes back (the campaign's report is made anyway)
     shifted = samples["emcee"].copy()
     shifted["zero_offsets.q3"] += 5 * shifted["zero_offsets.q3"].std()
-    marked = fit.cross_check(
+    marked = cross_check(
         {**samples, "emcee": shifted}, reports, laplace, tolerance=4.0, max_rhat=1.1, min_ess=100, floor=0.1
     )
     assert marked.loc[marked["disagrees_emcee"], "parameter"].tolist() == ["zero_offsets.q3"]
     assert marked.set_index("parameter").loc["zero_offsets.q3", "z_emcee"] > 4.0
-    assert fit.disagreeing(marked) == {"zero_offsets.q3": ["emcee"]}
+    assert disagreeing(marked) == {"zero_offsets.q3": ["emcee"]}
     assert [o[:3] for o in marked.attrs["disagreements"]] == [("zero_offsets.q3", "emcee", "default")]
     # as cross_check.csv holds it: the empty marks come back as NaN, the disagreement as written
     written = marked.astype({"disagreement": object}).replace("", np.nan)
-    assert fit.disagreeing(written) == {"zero_offsets.q3": ["emcee"]}
+    assert disagreeing(written) == {"zero_offsets.q3": ["emcee"]}
     # a sampler without diagnostics is shown, not checked: its shift is no disagreement
-    unreported = fit.cross_check(
+    unreported = cross_check(
         {**samples, "emcee": shifted},
         {"paper": reports["paper"]},
         laplace,
@@ -116,7 +121,7 @@ def test_samplers_agree_and_unseen_points_are_excluded(iiwa):
         min_ess=100,
         floor=0.1,
     )
-    assert not unreported["checked_emcee"].any() and fit.disagreeing(unreported) == {}
+    assert not unreported["checked_emcee"].any() and disagreeing(unreported) == {}
 
 
 def test_laplace_and_mcmc_sigma_match_the_noise(iiwa):
@@ -152,7 +157,7 @@ def test_kuka_twin_identifiable_offsets_recovered_within_uncertainty():
             + link_turns(campaign.chain, scenario.robot_from_truth(truth).link_motions)
         )
         laplace, samples, _ = fitted(campaign.chain, sensor)
-        summary = fit.posterior_summary(samples["default"], laplace)
+        summary = posterior_summary(samples["default"], laplace)
         assert summary.loc["zero_offsets.q1", "status"].startswith("held")
         for j in range(1, 7):
             row = summary.loc[f"zero_offsets.q{j + 1}"]
@@ -174,8 +179,8 @@ def test_remastering_file_and_tables(iiwa):
     rng = np.random.default_rng(2)
     sensor, truth = simulated_sensor(iiwa, rng)
     laplace, samples, _ = fitted(iiwa, sensor)
-    summary = fit.posterior_summary(samples["default"], laplace)
-    remaster = fit.remastering(summary.reset_index(), iiwa.joint_names, "sim", "laser_tracker")
+    summary = posterior_summary(samples["default"], laplace)
+    remaster = remastering(summary.reset_index(), iiwa.joint_names, "sim", "laser_tracker")
     assert remaster["joints"][0]["status"].startswith("held") and remaster["joints"][0]["std_deg"] is None
     for j in range(1, 7):
         entry = remaster["joints"][j]
@@ -224,7 +229,7 @@ def test_gross_error_is_flagged_listed_and_left_out(iiwa):
     np.testing.assert_array_equal(outliers, [37])
     robust, analysis, excluded = fit.build_model(iiwa, glitched, registration.t_nr, exclude=outliers)
     assert 37 not in robust.data.rows and robust.n_points == model.n_points - 1
-    report = fit.laplace_report(fit.laplace_fit(robust), analysis, excluded, outliers, robust)
+    report = laplace_report(laplace_fit(robust), analysis, excluded, outliers, robust)
     assert report["excluded_rows_outliers"] == [37] and report["points_fitted"] == robust.n_points
     offsets = np.array(report["theta_map"][6:])
     std = np.array(report["std"][6:])
@@ -237,10 +242,10 @@ def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tm
     exactly, and a key that is not there is named with its file."""
     sensor, _ = simulated_sensor(iiwa, rng, missing=(4,))
     model, analysis, excluded = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
-    content = fit.laplace_report(fit.laplace_fit(model), analysis, excluded, (7, 2), model)
+    content = laplace_report(laplace_fit(model), analysis, excluded, (7, 2), model)
     path = tmp_path / "laplace.json"
     files.write_json(path, content)
-    report = fit.LaplaceReport.read(path)
+    report = LaplaceReport.read(path)
     assert report.names == model.names and report.parameters == model.all_names
     assert np.array_equal(report.covariance, content["covariance"]) and report.sigma_map == content["sigma_map"]
     assert report.held == {"zero_offsets.q1": 0.0} and report.null_directions
@@ -251,7 +256,7 @@ def test_a_laplace_report_missing_a_key_names_the_file_and_the_key(iiwa, rng, tm
     del content["identifiability"]["held_at_controller_value"]
     files.write_json(path, content)
     with pytest.raises(InputError, match=r"laplace.json: identifiability/held_at_controller_value: missing"):
-        fit.LaplaceReport.read(path)
+        LaplaceReport.read(path)
 
 
 def test_a_registration_report_comes_back_typed_and_a_missing_key_is_named(iiwa, rng, tmp_path):
@@ -276,10 +281,12 @@ def test_many_log_posteriors_are_the_same_a_slice_at_a_time(iiwa, rng, monkeypat
     with the campaign: the same numbers as one stacked call and as one vector at a time."""
     sensor, _ = simulated_sensor(iiwa, rng)
     model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
-    target = fit.PosteriorTarget(model)
+    target = PosteriorTarget(model)
     thetas = np.column_stack([rng.normal(0.0, 1e-4, (25, len(model.names))), rng.uniform(1e-4, 1e-3, 25)])
     whole = target.log_prob_many(thetas)
-    monkeypatch.setattr(fit, "POINTS_PER_CALL", 4 * model.n_points)  # 4 vectors a slice, the last one short
+    monkeypatch.setattr(
+        posterior_targets, "POINTS_PER_CALL", 4 * model.n_points
+    )  # 4 vectors a slice, the last one short
     assert np.array_equal(target.log_prob_many(thetas), whole)
     assert whole[3] == target.log_prob(thetas[3]) and target.log_prob_many(thetas[:0]).shape == (0,)
 
@@ -290,17 +297,19 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     same draws give the same chain as the Python loop over its log_prob, bit for bit, for the
     paper's sampler and the adaptive one, with the sum of squares over the rows or expanded (a
     campaign of many rows); a proposal with sigma <= 0 is rejected, not an error."""
-    from remaster.inference import samplers
+    from remaster.inference.sampling.metropolis import metropolis_adaptive, metropolis_paper
+    from remaster.inference.sampling.random_walk import _Progress, _start, _walk
+    from remaster.inference.sampling.target import CallableTarget, SamplingError
 
     sensor, _ = simulated_sensor(iiwa, rng, n=rows)
     model, _, _ = fit.build_model(iiwa, sensor, fit.register(iiwa, sensor).t_nr)
     assert (model._expansion()[0].shape[0] > 0) == (rows == 600)
-    compiled = fit.PosteriorTarget(model)
-    python = samplers.CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
+    compiled = PosteriorTarget(model)
+    python = CallableTarget(compiled.names, compiled.scale, compiled.log_prob_many, compiled.log_prob)
     assert compiled.walk_block is not None and getattr(python, "walk_block", None) is None
     start = np.append(np.zeros(len(model.names)), 2e-5)  # sigma near 0: some proposals fall below it
     runs = [
-        samplers.metropolis_paper(
+        metropolis_paper(
             t, np.random.default_rng(3), start, n_samples=9000, burn_in=5000, half_width=0.05, trace_every=7
         )
         for t in (compiled, python)
@@ -309,7 +318,7 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     assert np.array_equal(runs[0].settings["burn_in_trace"], runs[1].settings["burn_in_trace"])
     assert runs[0].acceptance_rate == runs[1].acceptance_rate and 0 < runs[0].acceptance_rate < 1
     adaptive = [
-        samplers.metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
+        metropolis_adaptive(t, np.random.default_rng(4), start, n_samples=6000, burn_in=2000)
         for t in (compiled, python)
     ]
     assert np.array_equal(adaptive[0].samples, adaptive[1].samples)
@@ -318,15 +327,15 @@ def test_the_compiled_walk_is_the_python_walk_to_the_bit(iiwa, rng, rows):
     steps[3, 0] = np.nan
     states, _, _, nan_at = model.metropolis_block(start, compiled.log_prob(start), steps, np.zeros(6))
     assert nan_at == 3 and np.isfinite(states[:3]).all()
-    with pytest.raises(samplers.SamplingError, match="log_prob returned NaN"):
-        samplers._walk(
+    with pytest.raises(SamplingError, match="log_prob returned NaN"):
+        _walk(
             compiled,
             np.random.default_rng(0),
-            samplers._start(compiled, start),
+            _start(compiled, start),
             10,
             lambda rng, m: np.where(np.arange(m)[:, None] == 3, np.nan, 0.0) * np.ones((m, len(start))),
             False,
-            samplers._Progress(None, 10),
+            _Progress(None, 10),
         )
 
 

@@ -12,9 +12,23 @@ import pytest
 from remaster import diagnostics, files
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
-from remaster.inference import fit, identifiability, samplers
+from remaster.inference import fit, identifiability
 from remaster.inference.blocks import paper_model
+from remaster.inference.cross_check import cross_check, disagreeing
+from remaster.inference.laplace_report import LaplaceReport, laplace_fit, laplace_report
+from remaster.inference.least_squares import NotIdentifiable, least_squares_laplace
 from remaster.inference.model import display_scale
+from remaster.inference.posterior_sampling import (
+    converged,
+    overdispersed_starts,
+    sample,
+    sampler_diagnostics,
+    samples_frame,
+)
+from remaster.inference.posterior_summary import posterior_summary
+from remaster.inference.sampling.chains import extend
+from remaster.inference.sampling.metropolis import metropolis_adaptive
+from remaster.inference.sampling.target import CallableTarget, Chain
 from remaster.robot import ik, kinematics
 
 CRITERIA = {"max_rhat": 1.05, "min_ess": 200}
@@ -42,8 +56,8 @@ def laplace_of(chain, sensor):
     """(model, identifiability, LaplaceReport as later stages read it) of one sensor."""
     registration = fit.register(chain, sensor)
     model, analysis, excluded = fit.build_model(chain, sensor, registration.t_nr)
-    content = fit.laplace_report(fit.laplace_fit(model), analysis, excluded, (), model)
-    return model, analysis, fit.LaplaceReport.of(json.loads(json.dumps(content)))
+    content = laplace_report(laplace_fit(model), analysis, excluded, (), model)
+    return model, analysis, LaplaceReport.of(json.loads(json.dumps(content)))
 
 
 # ----------------------------------------------------------------------------- identifiability
@@ -95,8 +109,8 @@ def test_a_7_axis_arm_with_joints_1_and_7_still_and_the_marker_on_axis_7(iiwa, o
         assert abs(laplace.theta_map[k] - truth[j - 1]) < 4 * laplace.std[k]
     # the default sampler runs on the reduced model and the summary states the held joints
     settings = {"chains": 2, "samples": 3000, "burn_in": 1000, "convergence": CRITERIA, "max_doublings": 2}
-    chains = fit.sample(model, laplace, "default", settings, np.random.default_rng(1))
-    summary = fit.posterior_summary(fit.samples_frame(chains), laplace)
+    chains = sample(model, laplace, "default", settings, np.random.default_rng(1))
+    summary = posterior_summary(samples_frame(chains), laplace)
     assert (summary.loc[["zero_offsets.q1", "zero_offsets.q2", "zero_offsets.q7"], "status"] != "estimated").all()
     assert (summary.drop(["zero_offsets.q1", "zero_offsets.q2", "zero_offsets.q7"])["status"] == "estimated").all()
 
@@ -161,14 +175,14 @@ def test_a_sensor_that_sees_a_handful_of_near_collinear_points(iiwa):
     assert laplace.held_statements[0].startswith("zero_offsets.q1 is held")
     assert "registration." in laplace.held_statements[0]
     settings = {"chains": 2, "samples": 4000, "burn_in": 1500, "convergence": CRITERIA, "max_doublings": 2}
-    chains = fit.sample(model, laplace, "default", settings, np.random.default_rng(2))
-    report = fit.sampler_diagnostics(chains, 1.0)
-    samples = {"default": fit.samples_frame(chains)}
-    table = fit.cross_check(samples, {"default": report}, laplace, tolerance=4.0, floor=0.1, **CRITERIA)
+    chains = sample(model, laplace, "default", settings, np.random.default_rng(2))
+    report = sampler_diagnostics(chains, 1.0)
+    samples = {"default": samples_frame(chains)}
+    table = cross_check(samples, {"default": report}, laplace, tolerance=4.0, floor=0.1, **CRITERIA)
     assert set(table["parameter"]) == set(laplace.names) | {"noise.sigma"}
     # the weak direction makes the chains slow: they ran on to the bound, and agree with Laplace
     assert report["doublings"] == 2 and report["kept_per_chain"] == 2500 * 4
-    assert fit.disagreeing(table) == {} and table["checked_laplace"].all()
+    assert disagreeing(table) == {} and table["checked_laplace"].all()
 
 
 def test_a_registration_only_direction_holds_the_registration_parameter_with_the_largest_share():
@@ -189,7 +203,7 @@ def test_a_registration_only_direction_holds_the_registration_parameter_with_the
     assert combinations["zero_offsets.q3"] == pytest.approx({"zero_offsets.q3": 1.0, "registration.alpha": -100.0})
     free = [i for i, n in enumerate(names) if n not in combinations]
     y = rng.normal(size=30)
-    result = samplers.least_squares_laplace(
+    result = least_squares_laplace(
         lambda b: y - jacobian[:, free] @ b, np.zeros(len(free)), scale[free], names=[names[i] for i in free]
     )
     assert np.all(np.isfinite(result.std))
@@ -214,20 +228,20 @@ def test_the_analysis_and_the_fit_apply_one_test():
     steps[:, 2] *= 100.0  # the joint's column dominates in step units, the translations' in SI
     jacobian = steps / scale
     si = np.linalg.svd(jacobian, compute_uv=False)
-    singular, _, _ = samplers.undetermined_directions(jacobian, scale)
-    assert si[-1] > 1e-7 * si[0] and singular[-1] < samplers.RCOND * singular[0]
+    singular, _, _ = identifiability.undetermined_directions(jacobian, scale)
+    assert si[-1] > 1e-7 * si[0] and singular[-1] < identifiability.RCOND * singular[0]
     y = rng.normal(size=20)
-    with pytest.raises(samplers.NotIdentifiable, match="registration.x"):
-        samplers.least_squares_laplace(lambda b: y - jacobian @ b, np.zeros(3), scale, names=names)
+    with pytest.raises(NotIdentifiable, match="registration.x"):
+        least_squares_laplace(lambda b: y - jacobian @ b, np.zeros(3), scale, names=names)
     combinations, directions = identifiability.hold_undetermined(jacobian, names, scale)
     assert list(combinations) == ["registration.y"] and len(directions) == 1
     assert combinations["registration.y"] == pytest.approx(
         {"registration.y": 1.0, "registration.x": -1 / 1.02}, rel=1e-3
     )
     free = [0, 2]
-    result = samplers.least_squares_laplace(lambda b: y - jacobian[:, free] @ b, np.zeros(2), scale[free])
+    result = least_squares_laplace(lambda b: y - jacobian[:, free] @ b, np.zeros(2), scale[free])
     assert np.all(np.isfinite(result.std))
-    assert identifiability.RELATIVE_THRESHOLD == 2 * samplers.RCOND
+    assert identifiability.RELATIVE_THRESHOLD == 2 * identifiability.RCOND
 
 
 # ----------------------------------------------------------------------------- the default sampler
@@ -242,18 +256,18 @@ def test_the_default_sampler_doubles_until_its_criteria_hold(iiwa):
     sensor, _ = simulated_sensor(iiwa, rng, n=40)
     model, _, laplace = laplace_of(iiwa, sensor)
     short = {"chains": 2, "samples": 1600, "burn_in": 1000}
-    once = fit.sample(model, laplace, "default", short, np.random.default_rng(3))
-    first = fit.sampler_diagnostics(once, 1.0)
-    assert not fit.converged(first, **CRITERIA) and first["kept_per_chain"] == 600 and first["doublings"] == 0
-    doubled = fit.sample(
+    once = sample(model, laplace, "default", short, np.random.default_rng(3))
+    first = sampler_diagnostics(once, 1.0)
+    assert not converged(first, **CRITERIA) and first["kept_per_chain"] == 600 and first["doublings"] == 0
+    doubled = sample(
         model, laplace, "default", {**short, "convergence": CRITERIA, "max_doublings": 5}, np.random.default_rng(3)
     )
-    report = fit.sampler_diagnostics(doubled, 1.0)
+    report = sampler_diagnostics(doubled, 1.0)
     assert report["doublings"] >= 1 and report["kept_per_chain"] == 600 * 2 ** report["doublings"]
-    assert fit.converged(report, **CRITERIA)
+    assert converged(report, **CRITERIA)
     for before, after in zip(once, doubled):  # the same chains, only longer
         assert np.array_equal(after.samples[: before.n_steps], before.samples)
-    capped = fit.sample(
+    capped = sample(
         model, laplace, "default", {**short, "convergence": CRITERIA, "max_doublings": 0}, np.random.default_rng(3)
     )
     assert np.array_equal(capped[0].samples, once[0].samples)
@@ -264,7 +278,7 @@ def test_the_default_sampler_starts_from_the_laplace_approximation():
     (a correlation of 0.99 stays 0.99), and sigma stays positive."""
     covariance = np.array([[1.0, 0.99, 0.0], [0.99, 1.0, 0.0], [0.0, 0.0, 0.25]]) * 1e-8
     start = np.array([1e-3, -1e-3, 5e-5])
-    starts = fit.overdispersed_starts(start, covariance, 20_000, np.random.default_rng(0))
+    starts = overdispersed_starts(start, covariance, 20_000, np.random.default_rng(0))
     spread = np.cov((starts - start).T)
     assert np.corrcoef((starts - start)[:, :2].T)[0, 1] == pytest.approx(0.99, abs=0.002)
     assert np.sqrt(spread[0, 0]) == pytest.approx(3e-4, rel=0.02)
@@ -272,7 +286,7 @@ def test_the_default_sampler_starts_from_the_laplace_approximation():
 
 
 def test_an_extended_chain_samples_the_same_posterior():
-    """`samplers.extend` continues a chain with its frozen proposal: on a Gaussian with known
+    """`extend` continues a chain with its frozen proposal: on a Gaussian with known
     moments the doubled chain's mean and std are right, and its acceptance counts both parts."""
     names = ("a", "noise.sigma")
     mean, std = np.array([1e-3, 2e-4]), np.array([1e-4, 1e-5])
@@ -280,18 +294,18 @@ def test_an_extended_chain_samples_the_same_posterior():
     def many(thetas):
         return -0.5 * np.sum(((thetas - mean) / std) ** 2, axis=1)
 
-    target = samplers.CallableTarget(names, np.array([1e-3, 1e-3]), many)
-    chain = samplers.metropolis_adaptive(target, np.random.default_rng(1), mean, n_samples=6000, burn_in=2000)
-    longer = samplers.extend(target, np.random.default_rng(2), chain, chain.n_steps)
+    target = CallableTarget(names, np.array([1e-3, 1e-3]), many)
+    chain = metropolis_adaptive(target, np.random.default_rng(1), mean, n_samples=6000, burn_in=2000)
+    longer = extend(target, np.random.default_rng(2), chain, chain.n_steps)
     assert longer.n_steps == 2 * chain.n_steps and longer.settings["doublings"] == 1
     assert np.array_equal(longer.samples[: chain.n_steps], chain.samples)
     report = diagnostics.chain_report([longer])
     np.testing.assert_allclose(report["mean"], mean, atol=4 * report["mcse"].max() + 1e-9)
     np.testing.assert_allclose(report["std"], std, rtol=0.1)
     assert 0.1 < longer.acceptance_rate < 0.6
-    ensemble = samplers.Chain(np.zeros((4, 2)), np.zeros(4), 0.5, names, "emcee", {}, n_walkers=2)
+    ensemble = Chain(np.zeros((4, 2)), np.zeros(4), 0.5, names, "emcee", {}, n_walkers=2)
     with pytest.raises(ValueError, match="emcee chain cannot be extended"):
-        samplers.extend(target, np.random.default_rng(0), ensemble, 10)
+        extend(target, np.random.default_rng(0), ensemble, 10)
 
 
 # ----------------------------------------------------------------------------- NaN and missing values
@@ -310,12 +324,12 @@ def test_an_extended_chain_samples_the_same_posterior():
     ],
 )
 def test_converged_is_false_not_a_crash_on_a_missing_value(report):
-    assert fit.converged(report, 1.05, 200) is False
+    assert converged(report, 1.05, 200) is False
 
 
 def test_converged_on_numbers():
-    assert fit.converged({"max_rhat": 1.01, "min_ess": 300}, 1.05, 200) is True
-    assert fit.converged({"max_rhat": 1.2, "min_ess": 300}, 1.05, 200) is False
+    assert converged({"max_rhat": 1.01, "min_ess": 300}, 1.05, 200) is True
+    assert converged({"max_rhat": 1.2, "min_ess": 300}, 1.05, 200) is False
 
 
 def test_a_chain_that_never_moves_has_no_rhat_and_is_not_converged(tmp_path):
@@ -327,14 +341,14 @@ def test_a_chain_that_never_moves_has_no_rhat_and_is_not_converged(tmp_path):
     for _ in range(2):
         samples = rng.normal(size=(4000, 3))
         samples[:, 1] = 0.25
-        chains.append(samplers.Chain(samples, np.zeros(4000), 0.3, names, "metropolis_adaptive", {}))
-    report = fit.sampler_diagnostics(chains, 2.0)
+        chains.append(Chain(samples, np.zeros(4000), 0.3, names, "metropolis_adaptive", {}))
+    report = sampler_diagnostics(chains, 2.0)
     assert math.isnan(report["max_rhat"]) and report["rhat_undefined"] == ["stuck"]
     assert report["min_ess"] == pytest.approx(2.0)  # the stuck parameter: one effective sample per chain
-    assert not fit.converged(report, 1.05, 1.0)
+    assert not converged(report, 1.05, 1.0)
     path = files.write_json(tmp_path / "diagnostics.json", report)
     read = files.read_json(path)
-    assert read["max_rhat"] is None and not fit.converged(read, 1.05, 1.0)
+    assert read["max_rhat"] is None and not converged(read, 1.05, 1.0)
 
 
 def test_chain_report_and_moments_on_nan_and_empty_chains():
@@ -382,7 +396,7 @@ def test_the_prepare_stage_finishes_on_the_arms_real_calibrations_meet(kind, tmp
     campaign = folders.read_campaign(folders.write_campaign(tmp_path / spec["name"], out.metadata, out.tables), REPO)
     for sensor in campaign.sensors:
         _, content = fit.prepare_stage(campaign, sensor, 0.01)
-        laplace = fit.LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
+        laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
         assert set(laplace.held) == HELD.get(kind, {"zero_offsets.q1"})
         assert [s.split(" ")[0] for s in laplace.held_statements] == list(laplace.held)
         assert np.all(np.isfinite(laplace.std))
@@ -400,7 +414,7 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     registration, content = fit.prepare_stage(campaign, "laser_tracker", 0.01)
     registration = fit.Registration.of(registration)
-    laplace = fit.LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
+    laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
     model, _, _ = fit.build_model(
         campaign.chain, campaign.sensors["laser_tracker"], registration.t_nr, exclude=laplace.outlier_rows
     )
@@ -409,8 +423,8 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
         ("default", {"chains": 2, "samples": 12000, "burn_in": 2000}),
         ("emcee", {"walkers": 32, "steps": 1500, "burn_in": 500}),
     ):
-        chains = fit.sample(model, laplace, method, settings, np.random.default_rng(3))
-        samples[method], reports[method] = fit.samples_frame(chains), fit.sampler_diagnostics(chains, 1.0)
+        chains = sample(model, laplace, method, settings, np.random.default_rng(3))
+        samples[method], reports[method] = samples_frame(chains), sampler_diagnostics(chains, 1.0)
     samples["emcee"]["zero_offsets.q3"] += 5 * samples["emcee"]["zero_offsets.q3"].std()
     result = fit_summary.fit_summary_stage(
         campaign,
@@ -422,7 +436,7 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
         np.random.default_rng(4),
         fit_summary.SummarySettings({"tolerance": 4.0, "max_rhat": 1.5, "min_ess": 50, "floor": 0.1}, 50, 20),
     )
-    assert fit.disagreeing(result.cross_check) == {"zero_offsets.q3": ["emcee"]}
+    assert disagreeing(result.cross_check) == {"zero_offsets.q3": ["emcee"]}
     summary = result.summary.set_index("parameter")
     assert summary.loc["zero_offsets.q3", "mean"] == pytest.approx(samples["default"]["zero_offsets.q3"].mean())
     assert len(result.remastering["joints"]) == 7 and "report" in result.accuracy

@@ -10,8 +10,13 @@ import pytest
 from scipy import stats
 
 from remaster.campaigns import folders
-from remaster.inference import blocks, fit, samplers
+from remaster.inference.extensions import extended_model
 from remaster.inference.gauge import MARKER, FoldedTarget, Gauge, MarkerTurn, last_axis, sampling_coordinates
+from remaster.inference.posterior_sampling import sampler_diagnostics
+from remaster.inference.readings import readings
+from remaster.inference.sampling.chains import run_chains
+from remaster.inference.sampling.independence import metropolis_independence
+from remaster.inference.sampling.target import CallableTarget
 from remaster.robot.kinematics import marker_positions
 from remaster.robot.priors import priors_from, with_defaults
 
@@ -46,8 +51,8 @@ def twin_model(iiwa):
     link-geometry parameters absorbed at every configuration held (as the loop holds them)."""
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
     sensor = campaign.sensors["laser_tracker"]
-    data = blocks.readings(campaign.chain, sensor, "optimization")
-    model, _ = blocks.extended_model(
+    data = readings(campaign.chain, sensor, "optimization")
+    model, _ = extended_model(
         campaign.chain,
         data,
         sensor.marker,
@@ -122,15 +127,15 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
         folded = gauge.fold(theta)
         return -0.5 * np.sum(((folded - mean) / std) ** 2, axis=-1) - gauge.unfold(folded)[1]
 
-    target = samplers.CallableTarget(names, np.full(4, 1e-3), log_prob_xyz)
+    target = CallableTarget(names, np.full(4, 1e-3), log_prob_xyz)
     laplace_mean = gauge.unfold(mean)[0]
     steps = np.eye(4) * 1e-9
     jacobian = ((gauge.unfold(mean + steps)[0] - gauge.unfold(mean - steps)[0]) / 2e-9).T
     covariance = jacobian @ np.diag(std**2) @ jacobian.T
     start, folded_covariance = gauge.laplace(laplace_mean, covariance, target.scale)
     np.testing.assert_allclose(folded_covariance, np.diag(std**2), rtol=1e-5, atol=1e-20)
-    chains = samplers.run_chains(
-        samplers.metropolis_independence,
+    chains = run_chains(
+        metropolis_independence,
         FoldedTarget(target, gauge),
         np.random.default_rng(5),
         2,
@@ -141,7 +146,7 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
         burn_in=1000,
     )
     back = [gauge.back(c) for c in chains]
-    report = fit.sampler_diagnostics(back, 1.0)
+    report = sampler_diagnostics(back, 1.0)
     assert report["max_rhat"] <= 1.05 and report["min_ess"] >= 200
     draws = gauge.fold(np.concatenate([c.samples for c in back]))
     assert np.all(np.abs(draws.mean(axis=0) - mean) < 4 * std / np.sqrt(report["min_ess"]))
@@ -154,8 +159,8 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
     in_plane = relative - np.outer(relative @ turn.axis, turn.axis)
     np.testing.assert_allclose(np.linalg.norm(in_plane, axis=1), turn.radius, atol=5 * std[0])
     assert np.ptp(relative @ turn.tangential) > 0.03
-    plain = samplers.run_chains(
-        samplers.metropolis_independence,
+    plain = run_chains(
+        metropolis_independence,
         target,
         np.random.default_rng(5),
         2,
@@ -165,7 +170,7 @@ def test_a_ridge_curved_in_xyz_is_sampled_right_in_the_folded_coordinates(iiwa):
         n_samples=6000,
         burn_in=1000,
     )
-    assert fit.sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
+    assert sampler_diagnostics(plain, 1.0)["min_ess"] < report["min_ess"] / 4
 
 
 def test_the_coordinates_are_those_the_laplace_approximation_fits_best(iiwa):
@@ -192,7 +197,7 @@ def test_the_coordinates_are_those_the_laplace_approximation_fits_best(iiwa):
         (in_turned, start, jacobian @ np.diag(std**2) @ jacobian.T, "folded"),
         (in_xyz, mean, np.diag(std**2), "model parameters"),
     ):
-        target = samplers.CallableTarget(names, np.full(4, 1e-3), log_prob)
+        target = CallableTarget(names, np.full(4, 1e-3), log_prob)
         *_, gauge, report = sampling_coordinates(target, model, centre, covariance, np.random.default_rng(2))
         assert report["chosen"] == expected, report
         assert report["laplace_log_weight_std"][expected] < 0.1  # exactly Gaussian there

@@ -10,8 +10,9 @@ from scipy import stats
 from remaster import files
 from remaster.campaigns import scenario
 from remaster.campaigns.campaign import sensor_data
-from remaster.inference import blocks, evidence, fit
+from remaster.inference import evidence, fit
 from remaster.inference.gp import loop_candidate
+from remaster.inference.parameter_blocks import EXTENSIONS
 from remaster.loop import loop_closure, noise_floor
 
 from ..conftest import REPO, loop_settings
@@ -104,7 +105,7 @@ def cyclic(iiwa):
 
 # the GP's case is an effect outside every candidate: joint_harmonics (the joints' cyclic errors as
 # harmonics, tests/loop/test_joint_harmonics.py) is not offered here
-OUTSIDE = tuple(c for c in blocks.EXTENSIONS if c != "joint_harmonics")
+OUTSIDE = tuple(c for c in EXTENSIONS if c != "joint_harmonics")
 
 
 def run(iiwa, cyclic, **changes):

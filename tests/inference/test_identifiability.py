@@ -12,9 +12,12 @@ import pytest
 import remaster
 from remaster import files
 from remaster.campaigns import arm_kinds, folders, scenario
-from remaster.inference import fit, identifiability, samplers
+from remaster.inference import fit, identifiability
 from remaster.inference.blocks import paper_model
+from remaster.inference.laplace_report import LaplaceReport, laplace_fit, laplace_report
+from remaster.inference.least_squares import RCOND, undetermined_directions
 from remaster.inference.model import display_scale
+from remaster.inference.posterior_summary import mode_summary, remastering
 
 from ..conftest import REPO
 from .test_fit import simulated_sensor
@@ -76,27 +79,27 @@ def test_a_marker_a_few_mm_off_the_last_axis_holds_and_names_joint_7(iiwa):
     full = paper_model(iiwa, q, sensor.table[["x", "y", "z"]].to_numpy(), sensor.marker, registration.t_nr)
     structural = identifiability.analyse(full)
     assert set(structural.held) == {"zero_offsets.q1"}  # the premise: visible to the singular values
-    old = fit.laplace_fit(paper_model(iiwa, q, full.measured, sensor.marker, registration.t_nr, structural.held))
+    old = laplace_fit(paper_model(iiwa, q, full.measured, sensor.marker, registration.t_nr, structural.held))
     assert old.std[old.names.index(Q7)] > 2 * identifiability.STD_BOUND
 
     model, analysis, excluded = fit.build_model(iiwa, sensor, registration.t_nr)
     assert set(analysis.held) == {"zero_offsets.q1", Q7} and Q7 not in model.names
     assert analysis.sigma == pytest.approx(old.sigma_map, rel=0.05)
     assert analysis.loose[Q7] == pytest.approx(old.std[old.names.index(Q7)], rel=0.01)
-    result = fit.laplace_fit(model)  # no NotIdentifiable
+    result = laplace_fit(model)  # no NotIdentifiable
     zero = [i for i, n in enumerate(result.names) if n.startswith("zero_offsets.")]
     assert np.all(result.std[zero] < identifiability.STD_BOUND)
-    laplace = fit.LaplaceReport.of(json.loads(json.dumps(fit.laplace_report(result, analysis, excluded, (), model))))
+    laplace = LaplaceReport.of(json.loads(json.dumps(laplace_report(result, analysis, excluded, (), model))))
     assert laplace.held_reasons == {
         "zero_offsets.q1": "not identifiable",
         Q7: f"not determined: std {math.degrees(analysis.loose[Q7]):.3g} deg > 0.5 deg",
     }
     statement = next(s for s in laplace.held_statements if s.startswith(Q7))
     assert "no better than the controller's marks (0.5 deg)" in statement
-    summary = fit.mode_summary(laplace)
+    summary = mode_summary(laplace)
     assert summary.loc[Q7, "status"].startswith("held: not determined")
     assert summary.loc["zero_offsets.q1", "status"] == "held: not identifiable"
-    joints = fit.remastering(summary, iiwa.joint_names, "sim", "laser_tracker")["joints"]
+    joints = remastering(summary, iiwa.joint_names, "sim", "laser_tracker")["joints"]
     assert joints[6]["std_deg"] is None and joints[6]["correction_deg"] == 0.0
     assert joints[6]["status"].startswith("held: not determined")
 
@@ -113,14 +116,14 @@ def test_a_normal_campaigns_held_set_is_unchanged(iiwa):
     for sensor in campaign.sensors.values():
         model, analysis, _ = fit.build_model(campaign.chain, sensor, fit.register(campaign.chain, sensor).t_nr)
         assert analysis.held == {"zero_offsets.q1": 0.0}
-        result = fit.laplace_fit(model)
+        result = laplace_fit(model)
         assert result.std[result.names.index(Q7)] < 0.2 * identifiability.STD_BOUND
 
 
 def test_the_analysis_and_the_fit_share_one_singular_value_test():
     """The fit's test is the analysis's: one function, one threshold (the analysis at twice it)."""
-    assert samplers.undetermined_directions is identifiability.undetermined_directions
-    assert samplers.RCOND is identifiability.RCOND and identifiability.RELATIVE_THRESHOLD == 2 * samplers.RCOND
+    assert undetermined_directions is identifiability.undetermined_directions
+    assert RCOND is identifiability.RCOND and identifiability.RELATIVE_THRESHOLD == 2 * RCOND
 
 
 def test_a_campaign_with_its_marker_3_mm_off_axis_is_calibrated_with_joint_7_held(tmp_path):
@@ -129,7 +132,7 @@ def test_a_campaign_with_its_marker_3_mm_off_axis_is_calibrated_with_joint_7_hel
     named with its reason, and the rest of the zero-offsets estimated."""
     campaign = off_axis_campaign(tmp_path)
     _, content = fit.prepare_stage(campaign, "laser_tracker", 0.01)
-    laplace = fit.LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
+    laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
     assert set(laplace.held) == {"zero_offsets.q1", Q7}
     assert laplace.held_reasons[Q7].startswith("not determined: std")
     assert content["identifiability"]["not_determined_std_deg"][Q7] > 0.5

@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 
 from remaster.inference import blocks
+from remaster.inference.extensions import structural_redundancy
+from remaster.inference.readings import Readings
 
 MARKER = np.array([-0.1, 0.0, 0.02])
 
 
 def model_on(chain, q):
     zeros = np.zeros_like(q)
-    data = blocks.Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), zeros, zeros)
+    data = Readings(np.arange(len(q)), q, np.zeros((len(q), 3)), zeros, zeros)
     return blocks.BlockModel(chain, data, MARKER, np.eye(4), ("marker_offset", "link_geometry"))
 
 
@@ -29,7 +31,7 @@ def test_what_is_kept_is_complete_and_minimal(robot, joints, request, rng):
     chain = request.getfixturevalue(robot)
     q = rng.uniform(np.maximum(chain.lower, -np.pi), np.minimum(chain.upper, np.pi), (150, joints))
     model = model_on(chain, q)
-    absorbed = blocks.structural_redundancy(model)
+    absorbed = structural_redundancy(model)
     jacobian = model.jacobian(np.zeros(len(model.names)), 1e-6)
     kept = [i for i, n in enumerate(model.names) if n not in absorbed]
     base = [i for i, n in enumerate(model.names) if model.block_of[n] != "link_geometry"]

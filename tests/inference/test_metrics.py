@@ -16,7 +16,10 @@ from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.evaluation import accuracy
 from remaster.inference import fit, metrics
 from remaster.inference.blocks import paper_model
+from remaster.inference.laplace_report import LaplaceReport, laplace_fit, laplace_report
 from remaster.inference.model import SIGMA, parameter_names
+from remaster.inference.posterior_sampling import sample, samples_frame
+from remaster.inference.posterior_summary import posterior_summary
 from remaster.reporting import figures_accuracy
 from remaster.units import shown
 
@@ -185,8 +188,8 @@ def fitted_stage(campaign, seed=0, sensor_name="laser_tracker", **sizes):
     sensor = campaign.sensors[sensor_name]
     registration = fit.register(campaign.chain, sensor)
     model, analysis, excluded = fit.build_model(campaign.chain, sensor, registration.t_nr)
-    laplace = fit.LaplaceReport.of(fit.laplace_report(fit.laplace_fit(model), analysis, excluded))
-    samples = fit.samples_frame(fit.sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
+    laplace = LaplaceReport.of(laplace_report(laplace_fit(model), analysis, excluded))
+    samples = samples_frame(sample(model, laplace, "default", SMALL_FIT, np.random.default_rng(seed)))
     out = accuracy.accuracy_tables(
         campaign,
         sensor_name,
@@ -465,7 +468,7 @@ def test_the_twin_reproduces_the_papers_headline_means(sensor_name):
 
 def test_sensor_comparison(stage):
     _, out, _, laplace, samples = stage
-    summary = fit.posterior_summary(samples, laplace)
+    summary = posterior_summary(samples, laplace)
     other = summary.copy()
     other["mean"] += 2 * other["std"].fillna(0.0)
     table = accuracy.sensor_comparison(

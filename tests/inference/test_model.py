@@ -7,6 +7,8 @@ from remaster import noise, spatial
 from remaster.inference import blocks, identifiability
 from remaster.inference.blocks import paper_model
 from remaster.inference.model import SIGMA, correction_transforms, display_scale, parameter_names
+from remaster.inference.parameter_blocks import BASE, block_parameters
+from remaster.inference.readings import Readings
 from remaster.robot import kinematics
 
 from ..conftest import UR5_DH
@@ -65,11 +67,11 @@ def test_the_papers_model_sums_its_squares_compiled(iiwa, rng):
     vector and a stack; a model with an extension block or a noise shape has no compiled path."""
     q, measured, marker, t_nr, _ = simulated(iiwa, rng, n=30, noise=1e-5)
     model = paper_model(iiwa, q, measured, marker, t_nr)
-    assert model.blocks == blocks.BASE and model.compiled_posterior
+    assert model.blocks == BASE and model.compiled_posterior
     many = rng.normal(0, 1e-3, (4, 13))
     np.testing.assert_allclose(model.sum_squares(many), np.sum(model.residuals(many) ** 2, axis=(1, 2)), rtol=1e-12)
     assert model.sum_squares(many[1]) == model.sum_squares(many)[1]
-    data = blocks.Readings(np.arange(len(q)), q, measured)
+    data = Readings(np.arange(len(q)), q, measured)
     assert not blocks.BlockModel(iiwa, data, marker, t_nr, ("sensor_scale",)).compiled_posterior
     shaped = model.with_noise(noise.RangeTransverse(1.0))
     assert not shaped.compiled_posterior
@@ -167,7 +169,7 @@ def test_a_massless_arms_compliance_is_its_gravity_regressor_and_predicts_as_the
     from remaster.calibration.prediction import Predictor
 
     bare = dataclasses.replace(iiwa, inertias=None)
-    names = blocks.block_parameters("joint_compliance", bare).names
+    names = block_parameters("joint_compliance", bare).names
     assert len(names) == 4 * 28 + 7 and "joint_compliance.q2.body4.mx" in names
     assert "joint_compliance.q2" not in names and "joint_compliance.payload_q2" in names
     q = rng.uniform(np.maximum(iiwa.lower, -2.5), np.minimum(iiwa.upper, 2.5), (40, 7))

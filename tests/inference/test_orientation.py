@@ -12,8 +12,10 @@ import pytest
 from remaster import spatial
 from remaster.campaigns import arm_kinds
 from remaster.inference import fit
-from remaster.inference.blocks import Readings, paper_model
+from remaster.inference.blocks import paper_model
+from remaster.inference.laplace_report import laplace_fit
 from remaster.inference.model import correction_transforms
+from remaster.inference.readings import Readings
 from remaster.robot.kinematics import ForwardKinematics, flange_rotations
 
 from ..conftest import REPO
@@ -66,7 +68,7 @@ def laplace_of(chain, sensor):
     registration = fit.register(chain, sensor)
     model, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
     model = fit.balanced_orientation(model)
-    return model, analysis, fit.laplace_fit(model)
+    return model, analysis, laplace_fit(model)
 
 
 def test_flange_rotations_are_the_forward_kinematics_rotations(iiwa, rng):
@@ -136,9 +138,9 @@ def test_where_the_model_lacks_an_effect_of_the_positions_the_balance_keeps_thei
     stated, _, _ = fit.build_model(chain, sensor, registration.t_nr)
     points, _, _ = fit.build_model(chain, points_alone(sensor), registration.t_nr)
     sigma = {
-        "stated": fit.laplace_fit(stated).sigma_map,
-        "balanced": fit.laplace_fit(fit.balanced_orientation(stated)).sigma_map,
-        "points": fit.laplace_fit(points).sigma_map,
+        "stated": laplace_fit(stated).sigma_map,
+        "balanced": laplace_fit(fit.balanced_orientation(stated)).sigma_map,
+        "points": laplace_fit(points).sigma_map,
     }
     assert sigma["stated"] < 0.8 * sigma["points"]
     assert sigma["balanced"] == pytest.approx(sigma["points"], rel=0.05)

@@ -1,6 +1,6 @@
 """The refit's independence sampling against known answers: a proposal that follows a curved valley
-(`samplers.RidgeProposal`) on a twisted Gaussian whose moments are known in closed form, and sigma
-integrated out (`fit.SigmaMarginalTarget`) against quadrature of the joint posterior."""
+(`RidgeProposal`) on a twisted Gaussian whose moments are known in closed form, and sigma
+integrated out (`posterior_targets.SigmaMarginalTarget`) against quadrature of the joint posterior."""
 
 from __future__ import annotations
 
@@ -9,8 +9,11 @@ import pytest
 from scipy import integrate, stats
 
 from remaster import diagnostics
-from remaster.inference import fit, samplers
 from remaster.inference.blocks import paper_model
+from remaster.inference.posterior_targets import PosteriorTarget, SigmaMarginalTarget
+from remaster.inference.sampling.chains import run_chains
+from remaster.inference.sampling.independence import RidgeProposal, metropolis_independence
+from remaster.inference.sampling.target import CallableTarget, Chain
 
 from .test_model import simulated
 
@@ -29,15 +32,15 @@ def twisted(y):
     return -0.5 * ((y[:, 0] / S) ** 2 + x2**2 + y[:, 2] ** 2 + y[:, 3] ** 2)
 
 
-TARGET = samplers.CallableTarget(NAMES, np.ones(4), twisted)
+TARGET = CallableTarget(NAMES, np.ones(4), twisted)
 MODE = np.array([0.0, -B * S**2, 0.0, 0.0])
 LAPLACE = np.diag([S**2, 1.0, 1.0, 1.0])
 EXACT_VARIANCE = np.array([S**2, 1 + 2 * B**2 * S**4, 1.0, 1.0])
 
 
 def run(proposal, seed=3, n_samples=6000):
-    return samplers.run_chains(
-        samplers.metropolis_independence,
+    return run_chains(
+        metropolis_independence,
         TARGET,
         np.random.default_rng(seed),
         2,
@@ -53,7 +56,7 @@ def run(proposal, seed=3, n_samples=6000):
 
 
 def test_the_bent_direction_is_found_and_the_straight_ones_left_gaussian():
-    proposal = samplers.RidgeProposal.fit(TARGET, MODE, LAPLACE, dof=16.0, inflation=1.1)
+    proposal = RidgeProposal.fit(TARGET, MODE, LAPLACE, dof=16.0, inflation=1.1)
     assert proposal is not None
     bent = proposal.report(NAMES)
     assert len(bent) == 1 and bent[0][0][0] == "y1" and abs(bent[0][0][1]) == pytest.approx(1.0)
@@ -64,17 +67,17 @@ def test_the_bent_direction_is_found_and_the_straight_ones_left_gaussian():
     np.testing.assert_allclose(floor[:, 1], B * (y1**2 - S**2), atol=1e-3 * S**2)
     np.testing.assert_allclose(floor[:, [0, 2, 3]], 0.0, atol=1e-6)
     # a Gaussian target has no bent direction: the Student-t is the proposal
-    gaussian = samplers.CallableTarget(NAMES, np.ones(4), lambda y: -0.5 * np.sum(np.atleast_2d(y) ** 2, axis=1))
-    assert samplers.RidgeProposal.fit(gaussian, np.zeros(4), np.eye(4), dof=16.0, inflation=1.1) is None
+    gaussian = CallableTarget(NAMES, np.ones(4), lambda y: -0.5 * np.sum(np.atleast_2d(y) ** 2, axis=1))
+    assert RidgeProposal.fit(gaussian, np.zeros(4), np.eye(4), dof=16.0, inflation=1.1) is None
 
 
 def test_draws_follow_the_stated_density():
     """log_density is the density the draws come from: it integrates to one, and the draws'
     mean of a function equals its integral against it (2-D, on a grid)."""
-    target = samplers.CallableTarget(
+    target = CallableTarget(
         NAMES[:2], np.ones(2), lambda y: twisted(np.column_stack([y, np.zeros((len(np.atleast_2d(y)), 2))]))
     )
-    proposal = samplers.RidgeProposal.fit(target, MODE[:2], LAPLACE[:2, :2], dof=16.0, inflation=1.1)
+    proposal = RidgeProposal.fit(target, MODE[:2], LAPLACE[:2, :2], dof=16.0, inflation=1.1)
     g1, g2 = np.linspace(-40, 40, 801), np.linspace(-30, 40, 701)
     grid = np.stack(np.meshgrid(g1, g2, indexing="ij"), axis=-1).reshape(-1, 2)
     density = np.exp(proposal.log_density(grid)).reshape(len(g1), len(g2))
@@ -87,7 +90,7 @@ def test_draws_follow_the_stated_density():
 
 
 def test_independence_sampling_along_the_valley_recovers_the_exact_moments():
-    proposal = samplers.RidgeProposal.fit(TARGET, MODE, LAPLACE, dof=16.0, inflation=1.1)
+    proposal = RidgeProposal.fit(TARGET, MODE, LAPLACE, dof=16.0, inflation=1.1)
     chains = run(proposal)
     report = diagnostics.chain_report(chains, list(NAMES))
     assert report["rhat"].max() < 1.02 and report["ess_bulk"].min() > 2000
@@ -110,7 +113,7 @@ def model(iiwa):
 def test_sigma_integrates_out_as_quadrature_of_the_joint_posterior(model):
     """log p(theta) from the closed form against log of the joint posterior integrated over sigma
     numerically, at a few parameter vectors: equal up to one constant."""
-    joint, marginal = fit.PosteriorTarget(model), fit.SigmaMarginalTarget(model)
+    joint, marginal = PosteriorTarget(model), SigmaMarginalTarget(model)
     thetas = np.random.default_rng(5).normal(0.0, 1e-4, (4, len(model.names)))
     closed = marginal.log_prob_many(thetas)
     numeric = []
@@ -128,11 +131,11 @@ def test_sigma_is_drawn_from_its_conditional_posterior(model):
     """Given theta, sigma's draws follow p(sigma | theta) ~ sigma^-(N + 2) exp(-SS / 2 sigma^2),
     its CDF by quadrature; the joint log-posterior is stored with them."""
     theta = np.zeros(len(model.names))
-    chain = samplers.Chain(np.repeat(theta[None], 4000, axis=0), np.zeros(4000), 0.5, model.names, "test")
-    completed = fit.SigmaMarginalTarget(model).with_sigma(chain, np.random.default_rng(6))
+    chain = Chain(np.repeat(theta[None], 4000, axis=0), np.zeros(4000), 0.5, model.names, "test")
+    completed = SigmaMarginalTarget(model).with_sigma(chain, np.random.default_rng(6))
     assert completed.names[-1] == "noise.sigma"
     sigma = completed.samples[:, -1]
-    joint = fit.PosteriorTarget(model)
+    joint = PosteriorTarget(model)
     scale = np.sqrt(model.sum_squares(theta) / (3 * model.n_points))
     peak = joint.log_prob(np.append(theta, scale))
 

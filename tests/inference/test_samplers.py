@@ -17,8 +17,10 @@ from scipy import signal, stats
 
 from remaster import diagnostics
 from remaster.diagnostics import SamplerDisagreement
-from remaster.inference import samplers
-from remaster.inference.samplers import CallableTarget, NotIdentifiable, SamplingError
+from remaster.inference.least_squares import NotIdentifiable, least_squares_laplace
+from remaster.inference.sampling.chains import run_chains, run_emcee
+from remaster.inference.sampling.metropolis import metropolis_adaptive, metropolis_paper
+from remaster.inference.sampling.target import CallableTarget, SamplingError
 
 MM = 1e-3
 DEG = math.pi / 180
@@ -112,8 +114,8 @@ def assert_ks(chains):
 
 def test_adaptive_metropolis_matches_exact_posterior(target):
     starts = START + np.array([[0.1, -0.1, 0.1, 0.0, 0.2], [-0.1, 0.1, 0.0, 0.1, -0.2]]) * MM
-    chains = samplers.run_chains(
-        samplers.metropolis_adaptive, target, np.random.default_rng(11), 2, starts, n_samples=30_000, burn_in=8_000
+    chains = run_chains(
+        metropolis_adaptive, target, np.random.default_rng(11), 2, starts, n_samples=30_000, burn_in=8_000
     )
     assert_matches_exact(chains)
     assert_ks(chains)
@@ -123,7 +125,7 @@ def test_adaptive_metropolis_matches_exact_posterior(target):
 
 
 def test_adaptive_proposal_is_learnt_then_frozen(target):
-    chain = samplers.metropolis_adaptive(target, np.random.default_rng(3), START, n_samples=25_000, burn_in=20_000)
+    chain = metropolis_adaptive(target, np.random.default_rng(3), START, n_samples=25_000, burn_in=20_000)
     exact = np.zeros((5, 5))
     exact[:4, :4] = COVARIANCE
     exact[4, 4] = exact_moments()[1][4] ** 2
@@ -141,15 +143,13 @@ def test_adaptive_proposal_is_learnt_then_frozen(target):
 def test_adaptive_recovers_from_a_bad_initial_covariance(target, factor):
     """Steps 1000x too small or too large at first: the doubling windows still find the scale."""
     initial = np.diag(np.append(STD, 0.1 * MM) ** 2) * factor
-    chain = samplers.metropolis_adaptive(
-        target, np.random.default_rng(5), START, initial, n_samples=25_000, burn_in=10_000
-    )
+    chain = metropolis_adaptive(target, np.random.default_rng(5), START, initial, n_samples=25_000, burn_in=10_000)
     assert 0.15 < chain.acceptance_rate < 0.45
     assert_matches_exact([chain])
 
 
 def test_emcee_matches_exact_posterior(target):
-    chain = samplers.run_emcee(
+    chain = run_emcee(
         target, np.random.default_rng(12), START, np.append(STD, 0.1 * MM), n_walkers=20, n_steps=3_000, burn_in=600
     )
     assert chain.samples.shape == (2_400 * 20, 5) and chain.n_walkers == 20
@@ -165,7 +165,7 @@ def test_paper_metropolis_shapes_and_convergence():
     n_data, sum_squares = 5_000, 5_000 * MM**2  # sigma = 1 mm +- 0.01 mm
     easy = gaussian_sigma_target(mu, np.diag(std**2), n_data, sum_squares)
     calls = []
-    chain = samplers.metropolis_paper(
+    chain = metropolis_paper(
         easy,
         np.random.default_rng(21),
         [0, 0, MM],
@@ -191,9 +191,9 @@ def test_paper_metropolis_shapes_and_convergence():
 def small_runs():
     """(label, callable(target, rng)) for every sampler, with tiny step counts."""
     return [
-        ("paper", lambda t, rng: samplers.metropolis_paper(t, rng, START, n_samples=2_000, burn_in=1_000)),
-        ("adaptive", lambda t, rng: samplers.metropolis_adaptive(t, rng, START, n_samples=3_000, burn_in=1_000)),
-        ("emcee", lambda t, rng: samplers.run_emcee(t, rng, START, 0.05 * MM, n_walkers=12, n_steps=300, burn_in=100)),
+        ("paper", lambda t, rng: metropolis_paper(t, rng, START, n_samples=2_000, burn_in=1_000)),
+        ("adaptive", lambda t, rng: metropolis_adaptive(t, rng, START, n_samples=3_000, burn_in=1_000)),
+        ("emcee", lambda t, rng: run_emcee(t, rng, START, 0.05 * MM, n_walkers=12, n_steps=300, burn_in=100)),
     ]
 
 
@@ -218,8 +218,8 @@ def test_stored_log_prob_is_the_target_log_prob(target, label, run):
 
 def test_run_chains_uses_independent_reproducible_generators(target):
     def run(seed):
-        return samplers.run_chains(
-            samplers.metropolis_adaptive, target, np.random.default_rng(seed), 3, START, n_samples=1_500, burn_in=500
+        return run_chains(
+            metropolis_adaptive, target, np.random.default_rng(seed), 3, START, n_samples=1_500, burn_in=500
         )
 
     first, again = run(4), run(4)
@@ -227,29 +227,27 @@ def test_run_chains_uses_independent_reproducible_generators(target):
     assert all(a.samples.tobytes() == b.samples.tobytes() for a, b in zip(first, again))
     assert first[0].samples.tobytes() != first[1].samples.tobytes()  # same start, different streams
     with pytest.raises(ValueError, match="n_chains >= 2"):
-        samplers.run_chains(samplers.metropolis_adaptive, target, np.random.default_rng(0), 1, START)
+        run_chains(metropolis_adaptive, target, np.random.default_rng(0), 1, START)
 
 
 def test_bad_starts_and_nan_log_prob_are_named(target):
     with pytest.raises(SamplingError, match="noise.sigma"):
-        samplers.metropolis_paper(target, np.random.default_rng(0), [0, 0, 0, 0, 0.0], n_samples=10, burn_in=0)
+        metropolis_paper(target, np.random.default_rng(0), [0, 0, 0, 0, 0.0], n_samples=10, burn_in=0)
     with pytest.raises(SamplingError, match="shape"):
-        samplers.metropolis_adaptive(target, np.random.default_rng(0), [0, 0, MM], n_samples=10, burn_in=0)
+        metropolis_adaptive(target, np.random.default_rng(0), [0, 0, MM], n_samples=10, burn_in=0)
     with pytest.raises(ValueError, match="burn_in"):
-        samplers.metropolis_paper(target, np.random.default_rng(0), START, n_samples=10, burn_in=10)
+        metropolis_paper(target, np.random.default_rng(0), START, n_samples=10, burn_in=10)
     with pytest.raises(ValueError, match="walkers"):
-        samplers.run_emcee(target, np.random.default_rng(0), START, MM, n_walkers=8, n_steps=10, burn_in=0)
+        run_emcee(target, np.random.default_rng(0), START, MM, n_walkers=8, n_steps=10, burn_in=0)
     nan_away = CallableTarget(
         ("x", "noise.sigma"), [MM, MM], lambda t: np.where(t[:, 0] > 0.02 * MM, np.nan, -(t[:, 0] ** 2) / MM**2)
     )
     with pytest.raises(SamplingError, match="NaN"):
-        samplers.metropolis_paper(nan_away, np.random.default_rng(0), [0, MM], n_samples=5_000, burn_in=0)
+        metropolis_paper(nan_away, np.random.default_rng(0), [0, MM], n_samples=5_000, burn_in=0)
 
 
 def test_chain_summary_names_method_and_parameters(target):
-    chain = samplers.run_emcee(
-        target, np.random.default_rng(2), START, 0.05 * MM, n_walkers=12, n_steps=200, burn_in=50
-    )
+    chain = run_emcee(target, np.random.default_rng(2), START, 0.05 * MM, n_walkers=12, n_steps=200, burn_in=50)
     text = chain.summary()
     assert text.startswith("emcee: 150 kept steps x 12 walker(s)")
     assert all(name in text for name in NAMES)
@@ -267,7 +265,7 @@ def test_emcee_runs_on_until_its_criteria_hold_and_no_longer(target):
         return paths.shape[0] >= 600
 
     def run(**kw):
-        return samplers.run_emcee(
+        return run_emcee(
             target, np.random.default_rng(3), START, 0.05 * MM, n_walkers=12, n_steps=200, burn_in=50, **kw
         )
 
@@ -297,7 +295,7 @@ def test_laplace_equals_closed_form_ols():
     x, y = linear_problem()
     k, m = x.shape
     scale = np.array([MM, MM, DEG])  # unequal step units must not change the answer
-    fit = samplers.least_squares_laplace(lambda b: y - x @ b, np.zeros(m), scale, names=("b0", "b1", "b2"))
+    fit = least_squares_laplace(lambda b: y - x @ b, np.zeros(m), scale, names=("b0", "b1", "b2"))
     beta, *_ = np.linalg.lstsq(x, y, rcond=None)
     rss = float(np.sum((y - x @ beta) ** 2))
     np.testing.assert_allclose(fit.theta_map, beta, rtol=1e-8, atol=1e-15)
@@ -311,7 +309,7 @@ def test_laplace_equals_closed_form_ols():
     assert fit.sigma_std == pytest.approx(fit.sigma_mean / math.sqrt(2 * (k - m + 1)), rel=0.05)  # large-k form
     assert fit.full_covariance().shape == (4, 4) and fit.theta_start[-1] == fit.sigma_map
     # an analytic Jacobian gives the same
-    exact_j = samplers.least_squares_laplace(lambda b: y - x @ b, np.zeros(m), scale, jacobian=lambda b: -x)
+    exact_j = least_squares_laplace(lambda b: y - x @ b, np.zeros(m), scale, jacobian=lambda b: -x)
     np.testing.assert_allclose(exact_j.covariance, fit.covariance, rtol=1e-6)
 
 
@@ -319,20 +317,20 @@ def test_laplace_names_the_undetermined_parameters():
     x, y = linear_problem()
     x = np.column_stack([x, 2 * x[:, 1]])  # b3 duplicates b1
     with pytest.raises(NotIdentifiable, match=r"b1.*b3|b3.*b1") as info:
-        samplers.least_squares_laplace(lambda b: y - x @ b, np.zeros(4), MM, names=("b0", "b1", "b2", "b3"))
+        least_squares_laplace(lambda b: y - x @ b, np.zeros(4), MM, names=("b0", "b1", "b2", "b3"))
     assert [set(c) for c in info.value.combinations] == [{"b1", "b3"}]
     assert "b0" not in str(info.value).split(":")[-1]
     with pytest.raises(ValueError, match="residuals"):
-        samplers.least_squares_laplace(lambda b: y[:4] - x[:4, :3] @ b, np.zeros(3), MM)
+        least_squares_laplace(lambda b: y[:4] - x[:4, :3] @ b, np.zeros(3), MM)
 
 
 def test_laplace_restarts_need_rng_and_find_the_global_minimum():
     # two minima: (b - 1)^2 (b + 1)^2 style residuals; the restart from near +1 wins when it is lower
     residuals = lambda b: np.array([(b[0] ** 2 - 1.0) * 10, b[0] - 0.9, 0.01, -0.01, 0.02])  # noqa: E731
     with pytest.raises(ValueError, match="rng"):
-        samplers.least_squares_laplace(residuals, [-1.0], 1.0, n_restarts=2)
-    single = samplers.least_squares_laplace(residuals, [-1.0], 1.0)
-    multi = samplers.least_squares_laplace(
+        least_squares_laplace(residuals, [-1.0], 1.0, n_restarts=2)
+    single = least_squares_laplace(residuals, [-1.0], 1.0)
+    multi = least_squares_laplace(
         residuals, [-1.0], 1.0, rng=np.random.default_rng(0), n_restarts=16, restart_spread=3.0
     )
     assert single.theta_map[0] < 0 < multi.theta_map[0] and multi.cost < single.cost
@@ -343,17 +341,17 @@ def test_laplace_and_samplers_agree_on_a_linear_model():
     x, y = linear_problem(seed=8, k=30)
     k, m = x.shape
     names = ("b0", "b1", "b2", "noise.sigma")
-    fit = samplers.least_squares_laplace(lambda b: y - x @ b, np.zeros(m), MM, names=names[:3])
+    fit = least_squares_laplace(lambda b: y - x @ b, np.zeros(m), MM, names=names[:3])
 
     def many(thetas):
         r = y - thetas[:, :m] @ x.T
         return sigma_log_posterior(thetas[:, m], k, np.sum(r * r, axis=1))
 
     posterior = CallableTarget(names, np.full(4, MM), many)
-    adaptive = samplers.metropolis_adaptive(
+    adaptive = metropolis_adaptive(
         posterior, np.random.default_rng(1), fit.theta_start, fit.full_covariance(), n_samples=25_000, burn_in=3_000
     )
-    ensemble = samplers.run_emcee(
+    ensemble = run_emcee(
         posterior,
         np.random.default_rng(2),
         fit.theta_start,
@@ -459,8 +457,7 @@ def test_rhat_flags_unconverged_chains_at_its_stated_rate():
 
 def test_chain_report_columns(target):
     chains = [
-        samplers.metropolis_adaptive(target, np.random.default_rng(s), START, n_samples=3_000, burn_in=1_000)
-        for s in (1, 2)
+        metropolis_adaptive(target, np.random.default_rng(s), START, n_samples=3_000, burn_in=1_000) for s in (1, 2)
     ]
     report = diagnostics.chain_report(chains)
     assert list(report.index) == list(NAMES) and report.index.name == "parameter"

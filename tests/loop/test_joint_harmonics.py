@@ -22,6 +22,8 @@ from remaster.campaigns.arm_kinds import (
 )
 from remaster.campaigns.campaign import sensor_data
 from remaster.inference import blocks, fit
+from remaster.inference.extensions import identifiable_extension
+from remaster.inference.readings import Readings
 from remaster.loop import harmonics, loop_closure
 from remaster.loop.result import LoopReport
 from remaster.reporting import figures_loop, tables_loop
@@ -38,7 +40,7 @@ def test_the_block_adds_its_harmonics_to_the_joint_angles(iiwa):
     rng = np.random.default_rng(4)
     q = rng.uniform(-1.5, 1.5, (30, 7))
     zeros = np.zeros_like(q)
-    data = blocks.Readings(np.arange(30), q, np.zeros((30, 3)), zeros, zeros, harmonic_orders=2)
+    data = Readings(np.arange(30), q, np.zeros((30, 3)), zeros, zeros, harmonic_orders=2)
     marker, t_nr = np.array([0.1, 0.0, 0.05]), np.eye(4)
     model = blocks.BlockModel(iiwa, data, marker, t_nr, ["joint_harmonics"])
     assert len([n for n in model.names if n.startswith("joint_harmonics.")]) == 7 * 2 * 2
@@ -52,9 +54,7 @@ def test_the_block_adds_its_harmonics_to_the_joint_angles(iiwa):
     shifted[:, 1] += 1e-3 * np.cos(q[:, 1]) - 2e-3 * np.sin(2 * q[:, 1])
     shifted[:, 4] += 5e-4 * np.sin(q[:, 4])
     shifted[:, 2] += 1e-3
-    plain = blocks.BlockModel(
-        iiwa, blocks.Readings(np.arange(30), shifted, np.zeros((30, 3)), zeros, zeros), marker, t_nr
-    )
+    plain = blocks.BlockModel(iiwa, Readings(np.arange(30), shifted, np.zeros((30, 3)), zeros, zeros), marker, t_nr)
     np.testing.assert_allclose(
         model.predict(model.vector(values)), plain.predict(np.zeros(len(plain.names))), atol=1e-12
     )
@@ -65,8 +65,8 @@ def test_a_joint_that_never_moves_has_no_harmonic_the_data_see(iiwa):
     q = rng.uniform(-1.5, 1.5, (40, 7))
     q[:, 2] = 0.0
     zeros = np.zeros_like(q)
-    data = blocks.Readings(np.arange(40), q, np.zeros((40, 3)), zeros, zeros, harmonic_orders=2)
-    reduction = blocks.identifiable_extension(
+    data = Readings(np.arange(40), q, np.zeros((40, 3)), zeros, zeros, harmonic_orders=2)
+    reduction = identifiable_extension(
         blocks.BlockModel(iiwa, data, np.array([0.1, 0.0, 0.05]), np.eye(4), ["joint_harmonics"])
     )
     for k in (1, 2):

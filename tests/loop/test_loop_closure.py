@@ -13,7 +13,13 @@ from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import SETS, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_chain
 from remaster.inference import blocks, fit
-from remaster.loop import loop_closure, selection
+from remaster.inference.extensions import extended_model
+from remaster.inference.laplace_report import LaplaceReport
+from remaster.inference.parameter_blocks import EXTENSIONS, link_labels
+from remaster.inference.readings import Readings, readings
+from remaster.loop import loop_closure
+from remaster.loop.candidates import pair_name
+from remaster.loop.screened_selection import fitted_rows
 from remaster.reporting import figures_loop, tables_loop
 from remaster.robot import kinematics
 from remaster.robot.gravity import gravity_torques
@@ -75,13 +81,13 @@ def closed(chain, sensor, settings=LAPLACE_ONLY, seed=0):
 
 
 def test_the_loops_base_is_the_paper_fits_model(iiwa):
-    """The loop's base blocks on its readings (`blocks.readings`) are the paper fit's model
+    """The loop's base blocks on its readings (`readings.readings`) are the paper fit's model
     (`fit.build_model`): the same rows, parameters and predictions, to the bit."""
     sensor = simulated(iiwa, "none")
     registration = fit.register(iiwa, sensor)
     paper, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
     model = blocks.BlockModel(
-        iiwa, blocks.readings(iiwa, sensor, "optimization"), sensor.marker, registration.t_nr, (), analysis.held
+        iiwa, readings(iiwa, sensor, "optimization"), sensor.marker, registration.t_nr, (), analysis.held
     )
     assert model.names == paper.names and np.array_equal(model.data.rows, paper.data.rows)
     theta = np.random.default_rng(3).normal(0.0, 1e-3, (4, len(model.names)))
@@ -98,10 +104,10 @@ def test_a_stack_of_vectors_is_each_vector_exactly(iiwa, rng, monkeypatch):
     _, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
     model = blocks.BlockModel(
         iiwa,
-        blocks.readings(iiwa, sensor, "optimization"),
+        readings(iiwa, sensor, "optimization"),
         sensor.marker,
         registration.t_nr,
-        blocks.EXTENSIONS,
+        EXTENSIONS,
         analysis.held,
     )
     theta = rng.normal(0.0, 1e-4, (model._CHUNK + 3, len(model.names)))
@@ -126,7 +132,7 @@ def test_the_compiled_angles_are_the_joint_angles(iiwa, rng, size):
     sensor = simulated(iiwa, "none")
     model = blocks.BlockModel(
         iiwa,
-        blocks.readings(iiwa, sensor, "optimization"),
+        readings(iiwa, sensor, "optimization"),
         sensor.marker,
         np.eye(4),
         ("joint_compliance", "joint_scale"),
@@ -174,7 +180,7 @@ def test_each_block_with_the_true_values_reproduces_the_simulator(iiwa, rng, eff
         scale_error=2e-4 if effect == "sensor_scale" else 0.0,
     )
     torques = gravity_torques(iiwa, q + offsets, PAYLOAD["mass"], PAYLOAD["com"])  # at the true angles here
-    data = blocks.Readings(
+    data = Readings(
         rows=np.arange(n),
         q=q,
         measured=measure(iiwa, robot, sensor, q, rng, elapsed),
@@ -207,7 +213,7 @@ def link_values(chain, true):
     nominal = np.concatenate([chain.joint_transforms, chain.tool_transform[None]])
     moved = np.concatenate([true.joint_transforms, true.tool_transform[None]])
     motions = kinematics.small_motion_of(np.linalg.inv(nominal) @ moved)
-    return {name: motions[row, column] for row, column, name in blocks.link_labels(chain)}
+    return {name: motions[row, column] for row, column, name in link_labels(chain)}
 
 
 def test_parameters_the_data_cannot_see_are_held(iiwa):
@@ -217,10 +223,10 @@ def test_parameters_the_data_cannot_see_are_held(iiwa):
     sensor = simulated(iiwa, "none")
     registration = fit.register(iiwa, sensor)
     _, analysis, _ = fit.build_model(iiwa, sensor, registration.t_nr)
-    data = blocks.readings(iiwa, sensor, "optimization")
+    data = readings(iiwa, sensor, "optimization")
     dropped = {}
     for effect in EFFECTS:
-        model, reduction = blocks.extended_model(iiwa, data, sensor.marker, registration.t_nr, [effect], analysis.held)
+        model, reduction = extended_model(iiwa, data, sensor.marker, registration.t_nr, [effect], analysis.held)
         dropped.update(reduction.dropped)
         assert set(reduction.kept) | set(reduction.dropped) == {n for n in model.all_names if n.startswith(effect)}
         assert not set(reduction.dropped) & set(model.names)
@@ -259,8 +265,8 @@ def test_nothing_is_added_when_nothing_is_missing(iiwa):
     assert report["effects_added"] == []
     # drift too (the table has a time column), compliance and link geometry together once neither
     # passed alone, and the residual GP last
-    pair = selection.pair_name(("joint_compliance", "link_geometry"))
-    assert set(report["candidates"]) == set(blocks.EXTENSIONS) | {pair, "residual_gp"}
+    pair = pair_name(("joint_compliance", "link_geometry"))
+    assert set(report["candidates"]) == set(EXTENSIONS) | {pair, "residual_gp"}
     assert all(not scores[0]["passed"] for scores in report["candidates"].values())
     assert report["closure"]["closed"] is True and report["residual_gp"]["structure_found"] is False
     assert report["validation_rmse_after_mm"] == report["validation_rmse_before_mm"]
@@ -478,7 +484,7 @@ def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_say
     campaign = folders.read_campaign(folders.write_campaign(tmp_path / "six-rows", out.metadata, out.tables), REPO)
     assert (campaign.sensors["laser_tracker"].table["set"] == "optimization").sum() == 6
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
     assert len(laplace.outlier_rows) == 0 and "too few data to screen, every point kept" in caplog.text
     report = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(0), LAPLACE_ONLY
@@ -544,7 +550,7 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
     labels = rng.permutation(np.arange(100, 124))  # pose labels unrelated to their measurement order
     poses = np.repeat(labels, sizes)
     n = len(poses)
-    data = blocks.Readings(
+    data = Readings(
         rows=np.arange(n) * 2,
         q=rng.normal(size=(n, 7)),
         measured=rng.normal(size=(n, 3)),
@@ -552,7 +558,7 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
         weights=rng.uniform(0.5, 2.0, size=(n, 3)),
         orientations=rng.normal(size=(n, 3, 3)),
     )
-    fitted, fitted_poses, record = loop_closure.fitted_rows(data, poses, limit)
+    fitted, fitted_poses, record = fitted_rows(data, poses, limit)
     assert record["of"] == n and record["rows"] == len(fitted.rows) and record["limit"] == limit
     if n <= limit:
         assert fitted is data and record["one_in"] == 1
@@ -568,8 +574,8 @@ def test_a_larger_set_is_thinned_to_whole_poses_in_measurement_order(limit):
 
 def test_a_pose_larger_than_the_limit_is_thinned_by_rows():
     """A continuous log under one pose label cannot be thinned by whole poses: one row in k."""
-    data = blocks.Readings(rows=np.arange(100), q=np.zeros((100, 6)), measured=np.zeros((100, 3)))
-    fitted, poses, record = loop_closure.fitted_rows(data, np.zeros(100, dtype=int), 30)
+    data = Readings(rows=np.arange(100), q=np.zeros((100, 6)), measured=np.zeros((100, 3)))
+    fitted, poses, record = fitted_rows(data, np.zeros(100, dtype=int), 30)
     assert record == {"limit": 30, "rows": 25, "of": 100, "one_in": 4, "unit": "row"}
     np.testing.assert_array_equal(fitted.rows, np.arange(0, 100, 4))
     assert len(poses) == 25

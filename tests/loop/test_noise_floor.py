@@ -10,6 +10,7 @@ from scipy import stats
 
 from remaster.campaigns import arm_kinds
 from remaster.inference import blocks, evidence, fit
+from remaster.inference.readings import readings
 from remaster.loop import noise_floor
 
 from ..conftest import REPO
@@ -28,7 +29,7 @@ def correct_model():
     chain, sensor = arm_kinds.simulated_sensor(spec, "laser_tracker", REPO)
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
-    data = blocks.readings(chain, sensor, "optimization")
+    data = readings(chain, sensor, "optimization")
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
     folds = evidence.pose_folds(poses, 5)
     model = blocks.BlockModel(chain, data, sensor.marker, registration.t_nr, (), analysis.held)

@@ -16,6 +16,7 @@ from remaster.campaigns.arm_kinds import chain_of, iiwa_scenario
 from remaster.campaigns.campaign import sensor_data
 from remaster.errors import InputError
 from remaster.inference import blocks, fit
+from remaster.inference.readings import readings
 
 from ..conftest import REPO
 
@@ -78,7 +79,7 @@ def test_the_weighted_likelihood_is_the_sum_of_normal_densities(simulated, rng):
     stds = rng.uniform(0.5e-5, 3e-5, (len(table), 3))
     table[["std_x", "std_y", "std_z"]] = stds
     sensor = _sensor(simulated, table)
-    data = blocks.readings(chain, sensor, "optimization")
+    data = readings(chain, sensor, "optimization")
     measured_rows = sensor.measured_rows()
     reference = math.sqrt(np.mean(stds[measured_rows] ** 2))
     np.testing.assert_allclose(data.weights, stds[data.rows] / reference, rtol=1e-12)
@@ -92,7 +93,7 @@ def test_the_weighted_likelihood_is_the_sum_of_normal_densities(simulated, rng):
     expected = stats.norm.logpdf(residuals, scale=sigma * stds[data.rows] / reference).sum()
     assert loglik == pytest.approx(expected, rel=1e-10)
     # without the columns: the paper's isotropic likelihood
-    plain = blocks.readings(chain, _sensor(simulated, simulated[2]), "optimization")
+    plain = readings(chain, _sensor(simulated, simulated[2]), "optimization")
     assert plain.weights is None
 
 

@@ -1,4 +1,4 @@
-"""Parametric effects scored again with the residual model present (`selection.residual_backward_pass`):
+"""Parametric effects scored again with the residual model present (`backward.residual_backward_pass`):
 once the residual GP is added, a block kept only because it absorbed part of what the GP explains is
 removed, and a block the truth has stays. The truth is made by the simulator in its own form: a
 cyclic transmission error of orders 3 and 4 (beyond the `joint_harmonics` block's orders 1-2, so only
@@ -15,8 +15,13 @@ import numpy as np
 import pytest
 
 from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
-from remaster.inference import blocks, evidence, fit
-from remaster.loop import selection
+from remaster.inference import evidence, fit
+from remaster.inference.readings import readings
+from remaster.loop.backward import residual_backward_pass
+from remaster.loop.candidates import GP
+from remaster.loop.fitted import fit_blocks
+from remaster.loop.residual_gp import gp_candidate
+from remaster.loop.tracker_noise import choose_noise
 
 from ..conftest import REPO, loop_settings
 
@@ -50,29 +55,27 @@ def case(scale_error: float = 0.0, growth: float = 0.0, extensions=("sensor_scal
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
     settings = loop_settings(mcmc=None)
-    data = blocks.readings(chain, sensor, "optimization", settings.model)
+    data = readings(chain, sensor, "optimization", settings.model)
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
     folds = evidence.pose_folds(poses, settings.cv_folds)
     args = (chain, data, sensor.marker, registration.t_nr)
-    current = selection.fit_blocks(*args, extensions, analysis.held, folds, settings.priors)
+    current = fit_blocks(*args, extensions, analysis.held, folds, settings.priors)
     rotation = current.model.sensor_rotation(current.theta)
-    gp = selection.gp_candidate(current, data, rotation, folds, settings)
+    gp = gp_candidate(current, data, rotation, folds, settings)
     return args, analysis.held, folds, settings, data, current, gp
 
 
 def forced(scale_error: float):
     """`sensor_scale` forced into the model, scored again with the GP present."""
     args, held, folds, settings, _, current, gp = case(scale_error)
-    return selection.residual_backward_pass(
-        *args, held, folds, settings, current, gp, ["sensor_scale"], number=3
-    ), current
+    return residual_backward_pass(*args, held, folds, settings, current, gp, ["sensor_scale"], number=3), current
 
 
 @pytest.mark.parametrize(("scale_error", "kept"), [(0.0, False), (1.0e-3, True)])
 def test_a_block_is_kept_with_the_gp_present_only_when_the_truth_has_it(scale_error, kept):
     (final, added, gp, rounds, removals), current = forced(scale_error)
     first = rounds[0]
-    assert first["pass"] == "backward" and first["with"] == selection.GP
+    assert first["pass"] == "backward" and first["with"] == GP
     scores = first["scores"]["sensor_scale"]
     assert scores["passed"] is kept
     assert added == (["sensor_scale"] if kept else [])
@@ -108,7 +111,7 @@ def test_the_tracker_noise_is_chosen_for_what_the_residual_model_leaves(growth, 
     on the parametric fit alone, before the GP, the same data give 0.73 per metre at +11.5 nats: the
     noise shape takes up some of the model error)."""
     _, _, folds, settings, data, current, gp = case(growth=growth, extensions=())
-    fitted, report = selection.choose_noise(current, folds, settings, data.q, gp.gp.hyper)
+    fitted, report = choose_noise(current, folds, settings, data.q, gp.gp.hyper)
     assert report["chosen"] == chosen
     assert report["residual_model"].startswith("residual_gp present")
     if chosen == "range_transverse":
@@ -131,6 +134,6 @@ def test_through_inducing_inputs_the_tracker_noise_is_chosen_as_by_the_dense_for
     monkeypatch.setattr(with_parameters, "MAX_NOISE_ROWS", 50)
     monkeypatch.setattr(with_parameters, "NOISE_INDUCING", 60)
     _, _, folds, settings, data, current, gp = case(growth=growth, extensions=())
-    _, report = selection.choose_noise(current, folds, settings, data.q, gp.gp.hyper)
+    _, report = choose_noise(current, folds, settings, data.q, gp.gp.hyper)
     assert report["residual_model"].startswith("residual_gp present (gp_joint through 60 inducing inputs")
     assert report["chosen"] == chosen

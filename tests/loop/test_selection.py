@@ -6,8 +6,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from remaster.inference import blocks, evidence, fit
+from remaster.inference import evidence, fit
+from remaster.inference.readings import readings
 from remaster.loop import selection
+from remaster.loop.backward import backward_pass
+from remaster.loop.candidates import pair_name
+from remaster.loop.fitted import fit_blocks
+from remaster.loop.held_out import Regions, cv_threshold
+from remaster.loop.link_priors import link_prior_scale, scaled_priors
+from remaster.loop.scoring import judged, passes, score
 from remaster.robot.priors import Priors
 
 from ..conftest import REPO, loop_settings
@@ -23,19 +30,19 @@ def test_the_fold_threshold_is_students_t_at_the_normal_level():
     assert evidence.t_threshold(z, 10) == pytest.approx(2.262, abs=1e-3)
     assert evidence.t_threshold(z, 100_000) == pytest.approx(z, abs=1e-3)
     settings = loop_settings(cv_standard_errors=z)
-    assert selection.cv_threshold(settings) == pytest.approx(2.776, abs=1e-3)  # the schema's 5 folds
+    assert cv_threshold(settings) == pytest.approx(2.776, abs=1e-3)  # the schema's 5 folds
     # a fall of 2.5 standard errors passes the normal threshold but not t with 4 degrees of freedom
     scores = {"log_evidence_gain": 50.0, "cv_mse_fall_in_se": 2.5, "cv_folds": 5}
-    assert not selection.passes(scores, settings)
-    assert selection.passes({**scores, "cv_mse_fall_in_se": 2.8}, settings)
+    assert not passes(scores, settings)
+    assert passes({**scores, "cv_mse_fall_in_se": 2.8}, settings)
     # what it missed, with its numbers: the candidate table's reason for not adding it
-    assert selection.judged(dict(scores), settings)["why_not"] == "cross-validated fall 2.5 SE, not above 2.78"
-    lost = selection.judged({**scores, "log_evidence_gain": -1.0, "time_blocked_cv_mse_fall_mm2": -0.1}, settings)
+    assert judged(dict(scores), settings)["why_not"] == "cross-validated fall 2.5 SE, not above 2.78"
+    lost = judged({**scores, "log_evidence_gain": -1.0, "time_blocked_cv_mse_fall_mm2": -0.1}, settings)
     assert not lost["passed"] and lost["why_not"].startswith("evidence gain -1 nats, not above 5")
     assert lost["why_not"].endswith(
         "no fall over the time blocks (it does not predict a stretch of the campaign it did not see)"
     )
-    assert selection.judged({**scores, "cv_mse_fall_in_se": 2.8}, settings) == {
+    assert judged({**scores, "cv_mse_fall_in_se": 2.8}, settings) == {
         **scores,
         "cv_mse_fall_in_se": 2.8,
         "passed": True,
@@ -63,10 +70,10 @@ def _forced(chain, sensor, forced):
     """The fit with the blocks `forced` (as if a forward pass had added them), and its inputs."""
     registration = fit.register(chain, sensor)
     _, analysis, _ = fit.build_model(chain, sensor, registration.t_nr)
-    data = blocks.readings(chain, sensor, "optimization", LAPLACE_ONLY.model)
+    data = readings(chain, sensor, "optimization", LAPLACE_ONLY.model)
     poses = sensor.table.loc[data.rows, "pose"].to_numpy()
     folds = evidence.pose_folds(poses, LAPLACE_ONLY.cv_folds)
-    current = selection.fit_blocks(
+    current = fit_blocks(
         chain, data, sensor.marker, registration.t_nr, tuple(forced), analysis.held, folds, LAPLACE_ONLY.priors
     )
     return (chain, data, sensor.marker, registration.t_nr, analysis.held, folds), current
@@ -78,9 +85,7 @@ def test_the_backward_pass_removes_a_block_with_no_effect_and_keeps_the_true_one
     without the scale, and the pass stops there (a second round removes nothing)."""
     sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
     args, current = _forced(iiwa, sensor, ("joint_compliance", "sensor_scale"))
-    final, kept, rounds, removals = selection.backward_pass(
-        *args, LAPLACE_ONLY, current, ["joint_compliance", "sensor_scale"], 2
-    )
+    final, kept, rounds, removals = backward_pass(*args, LAPLACE_ONLY, current, ["joint_compliance", "sensor_scale"], 2)
     assert kept == ["joint_compliance"]
     assert [r["removed"] for r in rounds] == ["sensor_scale", None]
     assert [r["round"] for r in rounds] == [3, 4] and all(r["pass"] == "backward" for r in rounds)
@@ -128,14 +133,14 @@ def test_compliance_and_link_geometry_are_offered_together_when_neither_passes_a
     with both blocks (the link geometry's marker offset with it); the candidates table names it."""
     from remaster.reporting import tables_loop
 
-    real = selection.score
+    real = score
 
     def both_or_nothing(current, fitted, settings, blocked=None, regions=None):
         out = real(current, fitted, settings, blocked, regions)
         both = {"joint_compliance", "link_geometry"} <= set(fitted.model.blocks)
         return {**out, "passed": both, "why_not": "" if both else "forced: alone it never passes"}
 
-    monkeypatch.setattr(selection, "score", both_or_nothing)
+    monkeypatch.setattr(selection, "score", both_or_nothing)  # where the forward rounds look it up
     truth = {
         "joint_compliance": COMPLIANCE,
         "payload": HEAVY,
@@ -146,7 +151,7 @@ def test_compliance_and_link_geometry_are_offered_together_when_neither_passes_a
     )
     report = closed(iiwa, simulated(iiwa, "compliance and links", truth), settings).report
     first = report.rounds[0]
-    pair = selection.pair_name(("joint_compliance", "link_geometry"))
+    pair = pair_name(("joint_compliance", "link_geometry"))
     assert first["added"] == pair
     assert {"joint_compliance", "link_geometry", "marker_offset"} <= set(report.effects_added)
     table = tables_loop.candidates_table({"laser_tracker": report}).set_index(["Candidate", "Round"])
@@ -159,7 +164,7 @@ def test_the_link_priors_widen_only_where_their_evidence_asks(iiwa, tmp_path):
     a direction weak: the evidence chooses a wider link prior; a robot whose only error is its
     zero-offsets keeps the configured one."""
     from benchmarks.bench_weak_design import campaign_of
-    from remaster.inference.blocks import readings
+    from remaster.inference.readings import readings
 
     settings = loop_settings()
     campaign = campaign_of(5, tmp_path)
@@ -167,21 +172,18 @@ def test_the_link_priors_widen_only_where_their_evidence_asks(iiwa, tmp_path):
     registration = fit.register(campaign.chain, sensor)
     _, analysis, _ = fit.build_model(campaign.chain, sensor, registration.t_nr)
     data = readings(campaign.chain, sensor, "optimization")
-    scale, evidence_at = selection.link_prior_scale(
+    scale, evidence_at = link_prior_scale(
         campaign.chain, data, sensor.marker, registration.t_nr, analysis.held, settings.priors
     )
     assert scale > 1.0 and evidence_at[f"x{scale:g}"] == max(evidence_at.values())
-    widened = selection.scaled_priors(settings.priors, scale)
+    widened = scaled_priors(settings.priors, scale)
     assert widened.values["link_rotation_deg"] == scale * settings.priors.values["link_rotation_deg"]
     assert widened.values["marker_offset_mm"] == settings.priors.values["marker_offset_mm"]
     exact = simulated(iiwa, "none")
     registration = fit.register(iiwa, exact)
     _, analysis, _ = fit.build_model(iiwa, exact, registration.t_nr)
     data = readings(iiwa, exact, "optimization")
-    assert (
-        selection.link_prior_scale(iiwa, data, exact.marker, registration.t_nr, analysis.held, settings.priors)[0]
-        == 1.0
-    )
+    assert link_prior_scale(iiwa, data, exact.marker, registration.t_nr, analysis.held, settings.priors)[0] == 1.0
 
 
 def test_an_estimate_far_beyond_its_prior_is_a_symptom_not_the_effect(iiwa):
@@ -193,9 +195,9 @@ def test_an_estimate_far_beyond_its_prior_is_a_symptom_not_the_effect(iiwa):
 
     def scored(priors):
         chain, data, marker, t_nr, held, folds = args
-        with_it = selection.fit_blocks(chain, data, marker, t_nr, ("joint_compliance",), held, folds, priors)
-        without = selection.fit_blocks(chain, data, marker, t_nr, (), held, folds, priors)
-        return selection.score(without, with_it, dataclasses.replace(LAPLACE_ONLY, priors=priors))
+        with_it = fit_blocks(chain, data, marker, t_nr, ("joint_compliance",), held, folds, priors)
+        without = fit_blocks(chain, data, marker, t_nr, (), held, folds, priors)
+        return score(without, with_it, dataclasses.replace(LAPLACE_ONLY, priors=priors))
 
     configured = scored(LAPLACE_ONLY.priors)
     assert configured["passed"] and configured["beyond_prior"]["prior_stds"] < 1.0
@@ -276,8 +278,8 @@ def test_the_regions_are_the_campaigns_regions(iiwa):
     """k-means of cos/sin of the joints finds the five regions the configurations were drawn in: each
     a fold; the tool axis is cut into five regions too (its spread is wide)."""
     sensor, region = region_campaign(iiwa)
-    data = blocks.readings(iiwa, sensor, "optimization", REGION_SETTINGS.model)
-    regions = selection.Regions.of(iiwa, data, sensor.table.loc[data.rows, "pose"].to_numpy(), 5)
+    data = readings(iiwa, sensor, "optimization", REGION_SETTINGS.model)
+    regions = Regions.of(iiwa, data, sensor.table.loc[data.rows, "pose"].to_numpy(), 5)
     joint = regions.folds["joint_space"]
     assert all(len(set(joint[region == r])) == 1 for r in range(5)) and len(set(joint)) == 5
     assert set(regions.folds) == {"joint_space", "tool_axis"} and not regions.skipped
@@ -315,7 +317,7 @@ def test_one_wild_region_shows_and_does_not_veto():
     scores = {"log_evidence_gain": 50.0, "cv_mse_fall_in_se": 5.0, "cv_folds": 5}
     falls = [np.log(1 / 0.9)] * 9 + [np.log(0.1)]
     wild = {**scores, "region_median_log_fall": float(np.median(falls)), "region_folds_improved": 9}
-    assert selection.passes({**wild, "region_folds_total": 10}, settings)
+    assert passes({**wild, "region_folds_total": 10}, settings)
     worse = {**scores, "region_median_log_fall": -0.05, "region_folds_improved": 4, "region_folds_total": 10}
-    why = selection.judged(worse, settings)["why_not"]
+    why = judged(worse, settings)["why_not"]
     assert why.startswith("most held-out regions not predicted better (4 of 10, median fall -5.1 %)")

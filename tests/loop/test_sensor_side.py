@@ -1,4 +1,4 @@
-"""Sensor-side effects: the sensor frame's distortion block (`blocks.distortion_matrix`) against
+"""Sensor-side effects: the sensor frame's distortion block (`parameter_blocks.distortion_matrix`) against
 hand-computed strains and the simulator's own distortion, a simulated anisotropic motion-capture
 distortion attributed to the sensor by the loop closure (and not to compliance), and the one map
 of which side each effect lives on (`remaster.loop.sides`)."""
@@ -15,6 +15,14 @@ from remaster import spatial
 from remaster.campaigns.arm_kinds import iiwa_scenario, simulated_sensor
 from remaster.campaigns.simulation import Sensor, TrueRobot, frame_distortion, looking_at, measure, sensor_side
 from remaster.inference import blocks
+from remaster.inference.parameter_blocks import (
+    BASE,
+    DISTORTION_PARTS,
+    EXTENSIONS,
+    distortion_coefficients,
+    distortion_matrix,
+)
+from remaster.inference.readings import Readings
 from remaster.loop import sides
 from remaster.robot.gravity import gravity_torques
 
@@ -45,17 +53,17 @@ TRUE_SCALE = 0.5e-3 / 3.0  # the isotropic part: sensor_scale's
 
 def test_the_strain_coefficients_are_the_hand_computed_ones():
     error = frame_distortion(DISTORTION["scale"], DISTORTION["shear"]) - np.eye(3)
-    found = blocks.distortion_coefficients(error)
+    found = distortion_coefficients(error)
     assert found == pytest.approx(TRUE_STRAIN, abs=1e-15)
     # back to the matrix: symmetric, traceless, the hand-computed entries
-    strain = blocks.distortion_matrix([TRUE_STRAIN[f"sensor_distortion.{p}"] for p in blocks.DISTORTION_PARTS])
+    strain = distortion_matrix([TRUE_STRAIN[f"sensor_distortion.{p}"] for p in DISTORTION_PARTS])
     expected = np.diag([1.5e-3, -1.0e-3, 0.0]) - TRUE_SCALE * np.eye(3)
     expected[0, 1] = expected[1, 0] = 0.4e-3
     np.testing.assert_allclose(strain, expected, atol=1e-15)
     # what the block leaves to others: a rotation (the registration's) and an isotropic scale
     rotation = np.array([[0.0, -1e-3, 2e-3], [1e-3, 0.0, -3e-3], [-2e-3, 3e-3, 0.0]])
-    assert all(v == 0.0 for v in blocks.distortion_coefficients(rotation).values())
-    assert all(abs(v) < 1e-18 for v in blocks.distortion_coefficients(4e-4 * np.eye(3)).values())
+    assert all(v == 0.0 for v in distortion_coefficients(rotation).values())
+    assert all(abs(v) < 1e-18 for v in distortion_coefficients(4e-4 * np.eye(3)).values())
 
 
 def test_the_block_with_the_true_strain_reproduces_the_simulators_distortion(iiwa, rng):
@@ -67,10 +75,10 @@ def test_the_block_with_the_true_strain_reproduces_the_simulators_distortion(iiw
     distortion = frame_distortion([1.2e-3, -0.4e-3, -0.8e-3], [0.0, 0.0, 0.0])
     measured = sensor_side(measure(iiwa, TrueRobot(zero_offsets=offsets), sensor, q, rng), None, None, distortion)
     torques = gravity_torques(iiwa, q)
-    data = blocks.Readings(np.arange(n), q, measured, torques, np.zeros_like(torques))
+    data = Readings(np.arange(n), q, measured, torques, np.zeros_like(torques))
     model = blocks.BlockModel(iiwa, data, sensor.marker, sensor.robot_to_sensor, ["sensor_distortion"])
     values = {f"zero_offsets.q{j + 1}": offsets[j] for j in range(7)}
-    with_strain = {**values, **blocks.distortion_coefficients(distortion - np.eye(3))}
+    with_strain = {**values, **distortion_coefficients(distortion - np.eye(3))}
     assert np.abs(model.residuals(model.vector(with_strain))).max() < 1e-12
     assert np.abs(model.residuals(model.vector(values))).max() > 5e-4  # the strain's values matter
 
@@ -90,9 +98,9 @@ def test_the_sensor_frame_carries_the_distortion(iiwa, rng):
 
 
 def test_every_block_has_a_side_and_the_report_names_it():
-    for block in blocks.BASE + blocks.EXTENSIONS:
+    for block in BASE + EXTENSIONS:
         assert sides.side_of(block) in (sides.ROBOT, sides.SENSOR), block
-    assert {b for b in blocks.EXTENSIONS if sides.side_of(b) == sides.SENSOR} == {
+    assert {b for b in EXTENSIONS if sides.side_of(b) == sides.SENSOR} == {
         "marker_offset",
         "sensor_scale",
         "sensor_distortion",

@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from remaster.inference.fit import LaplaceReport
+from remaster.inference.laplace_report import LaplaceReport
 from remaster.inference.uncertainty import coverage_factor
 from remaster.reporting import certificate
 
@@ -244,7 +244,7 @@ def test_near_the_data_the_priors_can_decide_and_the_certificate_then_gives_no_n
 
 
 def _cross_check(disagree: dict[str, str]) -> pd.DataFrame:
-    """A cross_check.csv as `fit.cross_check` writes it: every parameter, `disagreement` the
+    """A cross_check.csv as `cross_check.cross_check` writes it: every parameter, `disagreement` the
     methods that disagree on it ("" where none)."""
     names = ["zero_offsets.q2", "noise.sigma"]
     return pd.DataFrame(

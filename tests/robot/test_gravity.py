@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from remaster.inference import blocks
+from remaster.inference.readings import ModelSettings, readings
 from remaster.robot import kinematics
 from remaster.robot.gravity import STANDARD_GRAVITY, gravity_torques, loaded_torques, tool_report
 
@@ -78,7 +78,7 @@ def test_a_urdf_that_carries_the_tool_gives_the_payload(iiwa, rng, flange):
     assert payload.mass == pytest.approx(1.2) and payload.com == pytest.approx((0.0, 0.0, 0.045 + 0.02))
     note = payload.report()["note"]
     assert "tool_plate" in note and "configured payload (1 kg) is not added" in note
-    assert blocks.ModelSettings(payload_mass=1.0).payload(chain) == payload
+    assert ModelSettings(payload_mass=1.0).payload(chain) == payload
     assert tool_report(chain)["links"] == ["tool_plate"] and tool_report(iiwa) is None
 
 
@@ -93,7 +93,7 @@ def test_a_urdf_without_a_tool_takes_the_configured_payload(iiwa, rng):
 
 def test_the_payload_compliance_of_a_urdf_tool_comes_out_zero_not_minus_the_joints(rng):
     """Joint deflections c tau, tau the true torques (arm and URDF tool plate), regressed per joint
-    on the readings' regressors c tau_model + c' tau_payload (`blocks.readings`): with the tool
+    on the readings' regressors c tau_model + c' tau_payload (`readings.readings`): with the tool
     counted once c' = 0 and c is the truth; adding the configured 1 kg on top of the URDF's plate,
     as before, gave c' = -c."""
     import pandas as pd
@@ -109,14 +109,14 @@ def test_the_payload_compliance_of_a_urdf_tool_comes_out_zero_not_minus_the_join
     sensor = sensor_data(
         "laser_tracker", {"kind": "laser_tracker", "marker": [0, 0, 0.05], "noise": 1e-5}, table, 7, "t.parquet"
     )
-    readings = blocks.readings(chain, sensor, "optimization", blocks.ModelSettings(payload_mass=1.0))
+    data = readings(chain, sensor, "optimization", ModelSettings(payload_mass=1.0))
     true = gravity_torques(chain, q)  # the URDF's masses, tool plate included: the truth
     compliance = 50e-6
     old = gravity_torques(chain, q, 1.0, (0.0, 0.0, 0.02))  # the configured payload added on top
     for j in (1, 3):  # joints 2 and 4 (joint 6's own torque, link 7's, has the shape of the plate's)
         deflection = compliance * true[:, j]
         fitted = np.linalg.lstsq(
-            np.column_stack([readings.torques[:, j], readings.payload_torques[:, j]]), deflection, rcond=None
+            np.column_stack([data.torques[:, j], data.payload_torques[:, j]]), deflection, rcond=None
         )[0]
         assert fitted == pytest.approx([compliance, 0.0], abs=1e-12)
         before = np.linalg.lstsq(np.column_stack([old[:, j], old[:, j] - true[:, j]]), deflection, rcond=None)[0]
@@ -130,7 +130,7 @@ def test_predictions_take_the_torques_the_fit_took(rng):
 
     chain = with_tool_plate("iiwa_link_ee")
     q = rng.uniform(chain.lower, chain.upper, (5, 7))
-    settings = blocks.ModelSettings(payload_mass=1.0)
+    settings = ModelSettings(payload_mass=1.0)
     predictor = prediction.Predictor(chain, q, np.zeros(3), ("joint_compliance",), settings)
     loaded = loaded_torques(chain, q, settings.payload_mass, settings.payload_com)
     np.testing.assert_array_equal(predictor.model.data.torques, loaded.torques)

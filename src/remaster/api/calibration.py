@@ -5,7 +5,7 @@ The stages are the workflow's own functions, in its order: the registration and 
 claims (`evaluation.workspace`) and the acceptance test on the validation set
 (`evaluation.acceptance`). What the workflow adds besides (the paper model's MCMC samplers, the
 tables, figures and certificate) is not run: the paper model is its Laplace mode
-(`fit.mode_summary`), as where no sampler ran.
+(`posterior_summary.mode_summary`), as where no sampler ran.
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ from ..campaigns.campaign import Campaign
 from ..errors import InputError
 from ..evaluation import acceptance, workspace
 from ..inference import fit
+from ..inference.laplace_report import LaplaceReport
+from ..inference.posterior_summary import mode_summary
 from ..loop import loop_closure
 from ..loop import settings as loop_settings
 from ..loop.result import LoopReport, LoopResults
@@ -39,7 +41,7 @@ class Calibration:
     campaign, sensor: what was calibrated; settings: the full configuration it ran with
     (`configuration.settings`); registration: the sensor's initial registration (t_nr (4, 4), m);
     laplace: the zero-offset (paper) model's Laplace fit; summary: its posterior summary at the
-    mode (`fit.mode_summary`: one row per parameter, mean and std in SI and display units, status);
+    mode (`posterior_summary.mode_summary`: one row per parameter, mean and std in SI and display units, status);
     loop: the loop closure's report (as loop_closure.json holds it), its MCMC refit's samples (SI;
     None without MCMC) and its residual GP's training rows; workspace: the workspace claims
     (`workspace.WorkspaceAccuracy`: `claims` in mm, one row per model, configurations, frame and
@@ -50,7 +52,7 @@ class Calibration:
     sensor: str
     settings: Mapping[str, Any]
     registration: fit.Registration
-    laplace: fit.LaplaceReport
+    laplace: LaplaceReport
     summary: pd.DataFrame
     loop: LoopResults
     workspace: workspace.WorkspaceAccuracy
@@ -148,12 +150,12 @@ def _stages(
 ) -> Calibration:
     """The stages of `calibrate` with their random streams (stream(stage)) and the workspace's propagation."""
     registration = fit.registration_stage(campaign, sensor)
-    laplace = fit.LaplaceReport.of(fit.laplace_stage(campaign, sensor, registration, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registration, config["outliers"]["alpha"]))
     settings = loop_settings.from_config(config)
     settings = replace(settings, candidates=tuple(c for c in settings.candidates if c not in without))
     closed = loop_closure.loop_closure_stage(campaign, sensor, registration, laplace, stream("loop_closure"), settings)
     loop = LoopResults(as_read_back(closed.report), closed.samples, closed.gp)
-    summary = fit.mode_summary(laplace)
+    summary = mode_summary(laplace)
     data = campaign.sensors[sensor]
     claims = workspace.workspace_accuracy(
         campaign.chain,

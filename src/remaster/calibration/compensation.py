@@ -61,11 +61,11 @@ from .. import spatial
 from ..calibration.prediction import Calibration, Predictor, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows, require_columns
-from ..inference.blocks import DISTORTION_PARTS, distortion_matrix
 from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
+from ..inference.parameter_blocks import DISTORTION_PARTS, distortion_matrix
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM

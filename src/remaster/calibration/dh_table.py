@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import spatial
 from ..errors import KinematicsError
-from ..inference.blocks import calibrated_transforms
+from ..inference.parameter_blocks import calibrated_transforms
 from ..robot.kinematics import KinematicChain, chain_from_dh, flange_poses
 from ..units import DEG, MM
 

@@ -42,8 +42,8 @@ from ..calibration import dh_table, ur_kinematics
 from ..calibration.prediction import SETUP_BLOCKS, Calibration, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..errors import InputError
-from ..inference.blocks import calibrated_transforms
 from ..inference.model import by_parameter
+from ..inference.parameter_blocks import calibrated_transforms
 from ..inference.uncertainty import coverage_factor, with_between
 from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport

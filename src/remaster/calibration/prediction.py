@@ -31,8 +31,10 @@ from .. import identity, seeding
 from ..campaigns.campaign import Campaign, SensorData
 from ..errors import InputError, require_columns
 from ..inference import metrics
-from ..inference.blocks import EXTENSIONS, BlockModel, ModelSettings, Readings, link_errors
-from ..inference.fit import LaplaceReport
+from ..inference.blocks import BlockModel
+from ..inference.laplace_report import LaplaceReport
+from ..inference.parameter_blocks import EXTENSIONS, link_errors
+from ..inference.readings import ModelSettings, Readings
 from ..loop.result import LoopReport
 from ..robot.gravity import loaded_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
@@ -51,7 +53,7 @@ class Calibration:
     """One model's calibrated kinematics of one campaign and sensor.
 
     model: 'nominal', 'paper' or 'loop'; values: {parameter name: SI value} of every parameter
-    (held ones at their held value); blocks: the extension blocks of the model (`blocks.EXTENSIONS`
+    (held ones at their held value); blocks: the extension blocks of the model (`parameter_blocks.EXTENSIONS`
     names, set-up blocks dropped); settings: payload for the gravity torques; draws: posterior
     samples (m, P) of its free parameters (SI, columns = names), None or empty without them.
     """
@@ -169,7 +171,7 @@ def _free_draws(samples: pd.DataFrame | None, names: Sequence[str], label: str) 
 
 
 def paper_calibration(summary: pd.DataFrame, samples: pd.DataFrame | None = None, label: str = "") -> Calibration:
-    """The paper's model from its posterior summary (`fit.posterior_summary`: parameter, mean SI,
+    """The paper's model from its posterior summary (`posterior_summary.posterior_summary`: parameter, mean SI,
     status) and, when given, its posterior samples (free parameters' columns)."""
     if "parameter" in summary.columns:
         summary = summary.set_index("parameter")

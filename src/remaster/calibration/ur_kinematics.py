@@ -7,7 +7,7 @@ fixed-axis convention, R = Rz(yaw) Ry(pitch) Rx(roll)) followed by a rotation ab
 axis, between its base_link_inertia and wrist_3_link frames; what follows (flange, tool0) is fixed
 by the description. A chain whose six joints all turn about their frames' z axes (a standard DH
 table, or a URDF written that way) maps onto it joint by joint: origin j is the calibrated fixed
-transform before joint j with its zero-offset folded in (`blocks.calibrated_transforms`: a robot
+transform before joint j with its zero-offset folded in (`parameter_blocks.calibrated_transforms`: a robot
 commanded to q is where the calibrated model says), so the frames are remaster's base frame and, as
 wrist_3_link, its flange frame. What the calibrated model puts after the last joint (a UR's d6)
 moves in front of it where it commutes with the joint (a translation along its axis and a rotation
@@ -27,7 +27,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .. import spatial
-from ..inference.blocks import calibrated_transforms
+from ..inference.parameter_blocks import calibrated_transforms
 from ..robot.kinematics import KinematicChain
 
 UR_JOINTS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")

@@ -3,7 +3,7 @@ and the sensors' agreement.
 
 Functions only (no files). An *entry* is one sensor's posterior summary in one campaign:
 `Entry(campaign, date, sensor, summary, robot="", kind=None)`, or a plain tuple of the first four
-to six of those. `summary` is the table `fit.posterior_summary` gives (SI; indexed by parameter
+to six of those. `summary` is the table `posterior_summary.posterior_summary` gives (SI; indexed by parameter
 or with a `parameter` column; columns mean, std, status); `robot` is `robot_identity` of the
 campaign ('' everywhere = one robot); `kind` is the sensor's kind from campaign.yaml (default:
 the sensor's name); `loop` is the loop closure's parameter table (`loop_closure.json` refit
@@ -447,7 +447,7 @@ def entries_of(
     loops: Mapping[tuple[str, str], LoopReport] | None = None,
 ) -> list[Entry]:
     """Comparison entries from each campaign's campaign.yaml content (campaign -> mapping), each
-    sensor's posterior summary ((campaign, sensor) -> `fit.posterior_summary` table) and, when
+    sensor's posterior summary ((campaign, sensor) -> `posterior_summary.posterior_summary` table) and, when
     given, its loop closure's report ((campaign, sensor) -> `LoopReport.read`)."""
     loops = loops or {}
     return [

@@ -33,7 +33,7 @@ from .. import identity, seeding
 from ..calibration.prediction import MODELS, Calibrated, Calibration, robot_configurations
 from ..errors import InputError
 from ..inference import metrics
-from ..inference.blocks import block_parameters
+from ..inference.parameter_blocks import block_parameters
 from ..robot.kinematics import KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM

@@ -83,12 +83,13 @@ from .. import noise, spatial
 from ..errors import InputError, format_rows, report_reader, require_columns
 from ..files import read_json, write_json
 from ..inference import blocks
-from ..inference.blocks import BlockModel, ModelSettings, Readings
+from ..inference.blocks import BlockModel
 from ..inference.bounds import QUANTILE
-from ..inference.fit import LaplaceReport
 from ..inference.gp import loop_candidate
+from ..inference.laplace_report import LaplaceReport
 from ..inference.metrics import rms_per_axis
 from ..inference.model import SIGMA
+from ..inference.readings import ModelSettings, Readings, readings
 from ..loop.result import LoopReport, LoopResults
 from ..robot import registration
 from ..robot.kinematics import KinematicChain
@@ -827,7 +828,7 @@ def acceptance_stage(
         drift_column=(report.settings or {}).get("drift_column"),
         harmonic_orders=report.harmonic_orders,
     )
-    data = blocks.readings(chain, measured, "validation", model_settings, flagged)
+    data = readings(chain, measured, "validation", model_settings, flagged)
     if len(data.rows) < MIN_VALIDATION_ROWS:
         text, verdict = _untested(len(data.rows))
         warnings = [f"acceptance test {text}"]

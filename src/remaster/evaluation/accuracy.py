@@ -12,7 +12,7 @@ Two remastered robots are compared (the metrics themselves are `remaster.inferen
   iteration); its Theta1 is reported. Three points carry the sensor's and the robot's errors into
   the frame, so the paper's scoring is the larger.
 - Bayesian: the MLE, i.e. the posterior means of the free parameters (as in the paper and
-  `fit.posterior_summary`), held parameters at their held value, with its fitted registration
+  `posterior_summary.posterior_summary`), held parameters at their held value, with its fitted registration
   T*(Theta1_MLE) T_NR.
 
 Per sensor and method: relative and post-registration accuracy on the optimization set;
@@ -53,7 +53,8 @@ from .. import spatial
 from ..campaigns.campaign import Campaign, SensorData
 from ..errors import InputError
 from ..inference import metrics
-from ..inference.fit import LaplaceReport, Registration
+from ..inference.fit import Registration
+from ..inference.laplace_report import LaplaceReport
 from ..inference.model import (
     SIGMA,
     by_parameter,
@@ -377,8 +378,8 @@ def accuracy_tables(
 ) -> dict:
     """Every accuracy metric of one sensor, Vernier and Bayesian (see the module docstring).
 
-    registration: `fit.Registration` (its t_nr); laplace: `fit.LaplaceReport`;
-    samples: `fit.samples_frame` (SI). rng draws the posterior rows, the random configurations and
+    registration: `fit.Registration` (its t_nr); laplace: `laplace_report.LaplaceReport`;
+    samples: `posterior_sampling.samples_frame` (SI). rng draws the posterior rows, the random configurations and
     the Gaussian errors, in that order. Returns:
 
     - the metric tables `METRIC_TABLES`: one row per method (Vernier, Bayesian) with method,
@@ -708,7 +709,7 @@ def sensor_comparison(summaries: dict[str, pd.DataFrame], accuracy: dict) -> pd.
     sqrt(std_a^2 + std_b^2); then per accuracy metric each sensor's mean error (mm) and the
     difference (no std: the sensors measure different markers, so it is descriptive).
 
-    summaries: sensor -> `fit.posterior_summary` (indexed by parameter or with a parameter
+    summaries: sensor -> `posterior_summary.posterior_summary` (indexed by parameter or with a parameter
     column); accuracy: sensor -> {table name: metric rows} (e.g. `accuracy_tables`' output).
     Columns: kind, quantity, unit, '<Sensor> estimate', '<Sensor> std' per sensor, difference,
     difference / combined std, note. Differences compare the first two sensors in the paper's

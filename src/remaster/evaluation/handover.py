@@ -16,7 +16,7 @@ from ..calibration import exports
 from ..calibration.prediction import Propagation, loop_calibration, paper_calibration
 from ..campaigns.campaign import Campaign
 from ..evaluation import rigid_urdf, workspace
-from ..inference.fit import LaplaceReport
+from ..inference.laplace_report import LaplaceReport
 from ..loop.result import LoopResults
 
 

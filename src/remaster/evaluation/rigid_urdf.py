@@ -32,9 +32,10 @@ from .. import identity, seeding
 from ..calibration.exports import calibrated_urdf
 from ..calibration.prediction import Calibration, Predictor
 from ..campaigns.campaign import Campaign
-from ..inference import samplers
-from ..inference.blocks import BlockModel, Readings
+from ..inference.blocks import BlockModel
 from ..inference.evidence import forward_differences
+from ..inference.least_squares import least_squares_mode
+from ..inference.readings import Readings
 from ..robot.kinematics import KinematicChain
 from ..units import MM
 from .workspace import fit_domain
@@ -141,7 +142,7 @@ def fit_rigid(chain: KinematicChain, loop: Calibration, fit_q, marker, free=URDF
 
     model = models[0]
     start = model.vector(loop.values)
-    fitted = samplers.least_squares_mode(
+    fitted = least_squares_mode(
         residuals, start, model.scale, lambda t: forward_differences(residuals, t), method="lm"
     ).x
     return _urdf_part(model.values(fitted))

@@ -52,7 +52,7 @@ cannot see what the model cannot represent: that ratio is kept as information on
 says what the next campaign must add: the joints whose measured range covers less than
 `FULL_RANGE_FRACTION` of their limits, more tool orientations when every measured flange axis lies
 within `MIN_TOOL_SPREAD_DEG` of one direction, and the parameters the data barely moved from their
-prior but random configurations would show (`blocks.identifiable_extension` there); those no
+prior but random configurations would show (`extensions.identifiable_extension` there); those no
 external measurement sees anywhere (a base height absorbed by the registration) are listed apart.
 
 SI inside (m, rad); the returned tables are in mm.
@@ -72,11 +72,11 @@ from ..campaigns.campaign import SensorData
 from ..errors import InputError
 from ..evaluation.domain import ACROSS, FULL_RANGE_FRACTION, INSIDE, MIN_TOOL_SPREAD_DEG, MeasuredDomain
 from ..inference import metrics
-from ..inference.blocks import identifiable_extension
 from ..inference.bounds import bound_on_percentile_over_configurations
-from ..inference.fit import LaplaceReport
+from ..inference.extensions import identifiable_extension
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP, evenly_spaced
+from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
 from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport, LoopResults

@@ -34,7 +34,8 @@ import pandas as pd
 from ..campaigns.campaign import Campaign
 from . import metrics
 from .blocks import BlockModel
-from .fit import LaplaceReport, Registration, build_model
+from .fit import Registration, build_model
+from .laplace_report import LaplaceReport
 from .model import by_parameter, display_scale
 
 SOURCE = "paper posterior mean; std from the pose-clustered sandwich covariance"
@@ -56,7 +57,7 @@ def sandwich_covariance(jacobian, residuals, poses) -> np.ndarray:
 
 
 def discrepancy_summary(model: BlockModel, theta, poses, summary: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
-    """The fit's summary (`fit.posterior_summary`, SI) with every estimated parameter's std and 95 %
+    """The fit's summary (`posterior_summary.posterior_summary`, SI) with every estimated parameter's std and 95 %
     interval (mean +- 1.96 std) from the sandwich at theta (P,), the paper's fit of `model`
     (outliers out); poses (n,) the pose of each of the model's readings. And a JSON-ready report: each std over
     the paper posterior's."""

@@ -39,10 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 
-from . import chi_square, samplers
+from . import chi_square
 from .blocks import BlockModel
 from .gp.likelihood import LOG_2PI
 from .identifiability import JACOBIAN_STEP
+from .least_squares import least_squares_mode
 
 MAX_SIGMA_ROUNDS = 20
 SIGMA_TOLERANCE = 1e-4  # relative change of sigma at which the MAP has settled (sigma only weighs the priors)
@@ -84,7 +85,7 @@ class PosteriorMode:
         return float(math.sqrt(self.covariance[-1, -1]))
 
     def sampler_start(self) -> dict:
-        """What `fit.sample` reads: MAP, covariance of theta and sigma's std."""
+        """What `posterior_sampling.sample` reads: MAP, covariance of theta and sigma's std."""
         return {
             "theta_map": self.theta.tolist(),
             "sigma_map": self.sigma,
@@ -114,7 +115,7 @@ def posterior_mode(model: BlockModel, start=None) -> PosteriorMode:
             )
 
         # Levenberg-Marquardt (MINPACK): no SVD of the whole Jacobian per step, unlike 'trf'
-        theta = samplers.least_squares_mode(
+        theta = least_squares_mode(
             stacked, theta, model.scale, lambda t: forward_differences(stacked, t), method="lm"
         ).x
         previous, sigma = sigma, math.sqrt(float(np.sum(model.weighted_residuals(theta) ** 2)) / (k + 1))
@@ -139,7 +140,7 @@ def forward_differences(function, x) -> np.ndarray:
 def laplace_at(model: BlockModel, theta, sigma: float) -> PosteriorMode:
     """The Laplace approximation and evidence at (theta (P,) SI, sigma m), taken as the mode.
 
-    Not `samplers.least_squares_laplace`, which approximates another posterior for another use:
+    Not `least_squares_laplace`, which approximates another posterior for another use:
     this one is a block model's joint posterior in (theta, log sigma), its priors' precision and
     noise shape (whitened residuals) in the (P + 1)-square Hessian, sigma correlated with theta, at
     the joint mode (sigma^2 = SS / (k + 1), `posterior_mode`); and it gives the log evidence the
@@ -254,7 +255,7 @@ def _fold_mode(mode: PosteriorMode, train: np.ndarray) -> np.ndarray:
         )
 
     jacobian = lambda t: forward_differences(stacked, t)  # noqa: E731
-    return samplers.least_squares_mode(stacked, mode.theta, model.scale, jacobian, method="lm").x
+    return least_squares_mode(stacked, mode.theta, model.scale, jacobian, method="lm").x
 
 
 def _prior_steps(model: BlockModel, step: np.ndarray) -> float:

@@ -7,7 +7,7 @@ as the data: a Laplace approximation cannot follow it, and an independence propo
 is nearly always refused off it. In cylindrical coordinates about the last joint's axis the ridge is
 straight and the posterior is close to Gaussian. (The link-geometry errors that the registration or
 the marker absorb at every configuration, those of the base link and of the tool, are not
-parameters of the model at all: `blocks.structural_redundancy` holds them.) `Gauge` maps parameter
+parameters of the model at all: `extensions.structural_redundancy` holds them.) `Gauge` maps parameter
 vectors both ways with the log-Jacobian that keeps the posterior the same; `FoldedTarget` is a
 sampler target in the folded coordinates, and `Gauge.back` returns its chains in the model's own
 parameters.
@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..robot.kinematics import KinematicChain
-from . import samplers
+from .sampling.target import Chain, Target
 
-MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `blocks.block_parameters`' order
+MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `parameter_blocks.block_parameters`' order
 TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
 MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates
@@ -164,7 +164,7 @@ class Gauge:
         inverse = np.linalg.inv(jacobian)
         return folded, inverse @ covariance @ inverse.T
 
-    def back(self, chain: samplers.Chain) -> samplers.Chain:
+    def back(self, chain: Chain) -> Chain:
         """A chain run on `FoldedTarget`, in the model's own parameters and log-posterior."""
         samples, log_jacobian = self.unfold(chain.samples)
         return replace(chain, samples=samples, log_prob=chain.log_prob - log_jacobian, names=self.names)
@@ -174,7 +174,7 @@ class Gauge:
 class FoldedTarget:
     """`target`'s posterior in the folded coordinates: log p(unfold(u)) + log |d unfold / d u|."""
 
-    target: samplers.Target
+    target: Target
     gauge: Gauge
 
     @property
@@ -201,7 +201,7 @@ LAPLACE_CHECK_DRAWS = 256  # per option: the log-weights' spread to a few per ce
 
 
 def laplace_mismatch(
-    target: samplers.Target, mean, covariance, rng: np.random.Generator, draws: int = LAPLACE_CHECK_DRAWS
+    target: Target, mean, covariance, rng: np.random.Generator, draws: int = LAPLACE_CHECK_DRAWS
 ) -> float:
     """How far a posterior is from its Gaussian approximation N(mean (P,), covariance (P, P)):
     the standard deviation of log p(x) - log N(x) over draws from it (0 for a Gaussian posterior;
@@ -214,9 +214,9 @@ def laplace_mismatch(
 
 
 def sampling_coordinates(
-    target: samplers.Target, model, mean, covariance, rng: np.random.Generator
-) -> tuple[samplers.Target, np.ndarray, np.ndarray, Gauge | None, dict]:
-    """The coordinates in which `target` (a `fit.PosteriorTarget` of a block model) is closest to
+    target: Target, model, mean, covariance, rng: np.random.Generator
+) -> tuple[Target, np.ndarray, np.ndarray, Gauge | None, dict]:
+    """The coordinates in which `target` (a `posterior_targets.PosteriorTarget` of a block model) is closest to
     its Laplace approximation (mean (P,), covariance (P, P), model parameters): the model's own, or
     the marker turned about the last joint's axis where that applies (it straightens the marker's
     trade with the last joint but bends its trade with the registration, the one a campaign whose

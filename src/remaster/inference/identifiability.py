@@ -6,8 +6,8 @@ prior gives an improper posterior along it. remaster never reports such a direct
 spurious small std: for each one it holds one parameter at its controller value (a zero
 correction) and says so.
 
-The test is the one `samplers.least_squares_laplace` applies to the fit that follows, and it
-lives here (`undetermined_directions`, imported by `samplers`): singular values of the Jacobian
+The test is the one `least_squares.least_squares_laplace` applies to the fit that follows, and it
+lives here (`undetermined_directions`, imported by `least_squares`): singular values of the Jacobian
 in step units (J * scale: mm and deg, so that the test does not depend on metres against
 radians) below RCOND times the largest. Holding by a different test would leave combinations between the two tests
 neither held nor allowed, and the Laplace fit would stop on them (NotIdentifiable); so the
@@ -46,7 +46,7 @@ from .model import display_unit
 
 # A singular value of the Jacobian in step units (J * scale: mm and deg) below RCOND x the largest
 # is an undetermined combination: its variance would be 1e12 times the best-determined one's.
-# `samplers.least_squares_laplace` refuses it and `analyse` holds it, by the same test
+# `least_squares.least_squares_laplace` refuses it and `analyse` holds it, by the same test
 # (`undetermined_directions`), so that no combination is left between the two.
 RCOND = 1e-6
 

@@ -44,8 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
 
-from ..inference.blocks import Readings
 from ..inference.identifiability import JACOBIAN_STEP
+from ..inference.readings import Readings
 from ..units import MM
 
 MAX_ROUNDS = 4  # fits of the loop in the optimization set's screen: the first and at most three refits

@@ -3,7 +3,7 @@ error function f_j with its 95 % band (docs/methods.md, "Joint-space harmonics")
 
 The block adds f_j(q_j) = sum_k a_jk cos(k q_j) + b_jk sin(k q_j) to joint j's angle (rad). Once
 the selection has added it, each pair (a_jk, b_jk) the data see (neither coefficient dropped by
-`blocks.identifiable_extension`) is tested against 0 with the other pairs present: the chi-square
+`extensions.identifiable_extension`) is tested against 0 with the other pairs present: the chi-square
 m^T C^-1 m of its posterior mean m (2,) and covariance C (2, 2) (the final fit's Laplace
 approximation), 2 degrees of freedom, p = exp(-chi2 / 2). A pair is named when p is below
 `level` / (number of pairs tested): Bonferroni over the pairs, so that a robot without any
@@ -24,8 +24,8 @@ import re
 import numpy as np
 import pandas as pd
 
-from ..inference.blocks import Reduction
 from ..inference.evidence import PosteriorMode
+from ..inference.extensions import Reduction
 
 BLOCK = "joint_harmonics"
 GRID = 61  # angles across a joint's measured range at which f_j and its band are given

@@ -6,7 +6,7 @@ independent noise; what the model still lacks makes the estimate depend on which
 measured, so that two campaigns of one arm differ by more than either posterior allows. The
 jackknife sees that: the model is refitted at its posterior mode (from the full fit's mode, same
 blocks, held parameters, priors and noise shape) leaving out one group of whole poses at a time, the
-groups contiguous in time (`selection.TimeBlocked`: the time column, or the row order as the
+groups contiguous in time (`held_out.TimeBlocked`: the time column, or the row order as the
 measurement order; K = loop_closure/jackknife_groups), so that each refit sees a design that lacks a
 whole stretch of the campaign rather than a thinned copy of the same design (groups of poses
 assigned in turn measure resampling noise and add nothing on dense designs), and the spread of
@@ -27,7 +27,8 @@ import numpy as np
 from ..inference import evidence
 from ..inference.uncertainty import between_design, jackknife_variance
 from ..units import DEG
-from .selection import Fitted, TimeBlocked
+from .fitted import Fitted
+from .held_out import TimeBlocked
 
 ZERO_OFFSET_PREFIX = "zero_offsets."
 MIN_GROUPS = 3  # two groups give a spread of one difference: no estimate of a variance worth the name

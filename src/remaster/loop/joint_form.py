@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..inference import blocks
-from ..inference.blocks import Readings
 from ..inference.gp import joint_error
 from ..inference.identifiability import JACOBIAN_STEP
+from ..inference.readings import Readings
 from ..robot.kinematics import KinematicChain
 from .selection import Selection
 

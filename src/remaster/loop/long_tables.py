@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .selection import Signature
+from .scoring import Signature
 
 
 def signatures_frame(signatures: dict[int, dict[str, Signature]]) -> pd.DataFrame:

@@ -2,7 +2,7 @@
 
 Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only:
 
-1. Diagnose: for each candidate block (`blocks.EXTENSIONS`; drift only when the table has a
+1. Diagnose: for each candidate block (`parameter_blocks.EXTENSIONS`; drift only when the table has a
    time or temperature column), fit current + candidate at its posterior mode under the
    extension priors (`remaster.robot.priors`, `remaster.inference.evidence`) and score it by
    - its Laplace evidence gain, log Z(with it) - log Z(current): the priors make the extended
@@ -44,9 +44,10 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    fit's parameters and registration, without the rows flagged as gross errors (and, in the table
    and `gross_errors`, with them). Nothing is selected, tuned or stopped on it.
 
-The steps live in `selection` (1, 2), `refit` (3) and here (4, the report); `settings` reads the
-configuration, `report` is loop_closure.json typed, `frames` the long tables of signatures and
-residuals; the campaign's tables are `remaster.reporting.tables_loop`.
+The steps live in `selection` (1, 2; `screened_selection` repeats them without the rows their
+final model flags), `refit` (3) and here (4, the report; `closure_test` its test of whether the loop
+is closed); `settings` reads the configuration, `report` is loop_closure.json typed, `frames` the
+long tables of signatures and residuals; the campaign's tables are `remaster.reporting.tables_loop`.
 
 Accuracy measures (per set, in mm): post-registration RMSE sqrt(mean |E_i|^2) over the points,
 the RMS per axis (comparable to sigma and the sensor noise), the paper's mean post-registration
@@ -56,43 +57,36 @@ configurations of each pose (`remaster.inference.metrics`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np  # scipy and emcee are imported in the functions that use them (test_architecture: light readers)
 import pandas as pd
 
-from .. import noise
 from ..campaigns.campaign import SETS, Campaign, SensorData
 from ..files import write_csv, write_parquet
-from ..inference import blocks, evidence, fit
-from ..inference.blocks import Readings
+from ..inference import evidence, fit
 from ..inference.gp import loop_candidate
-from ..inference.gp.residual import RELEVANT_RANGE
+from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
+from ..inference.posterior_sampling import samples_frame
+from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import gross, harmonics, joint_form, noise_floor
+from . import harmonics, joint_form, noise_floor
+from .closure_test import closure_report, gp_report
+from .fitted import accuracy
 from .harmonics import harmonics_report
+from .held_out import cv_threshold, fold_warning
 from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
+from .link_priors import link_prior_scale, scaled_priors
 from .long_tables import residuals_frame, signatures_frame
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
-from .selection import (
-    BASE_STEP,
-    GP,
-    Selection,
-    Signature,
-    accuracy,
-    cv_threshold,
-    fold_warning,
-    link_prior_scale,
-    scaled_priors,
-    select,
-    symptom_text,
-)
+from .scoring import Signature, symptom_text
+from .screened_selection import Screened, fitted_rows, gross_report, gross_warnings, select_screened
+from .selection import Selection
 from .settings import LoopSettings
 
 MEASURES = (
@@ -159,112 +153,6 @@ class LoopClosure:
         write_parquet(gp, self.gp)
 
 
-@dataclass(frozen=True, eq=False)
-class _Screened:
-    """Steps 1-2 made without exactly the rows their own final model flags as gross errors.
-    selection: the selection; data, poses: {set: readings, pose labels} without the flagged rows;
-    every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
-    screens: {set: `gross.Screen`}; provisional: the prepare stage's rows; history: the screen's
-    rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
-    noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
-    optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or one
-    pose in k of a set larger than the loop fits); thinning: `fitted_rows`' record."""
-
-    selection: Selection
-    data: dict[str, Readings]
-    poses: dict[str, np.ndarray]
-    fitted: Readings
-    fitted_poses: np.ndarray
-    thinning: dict
-    every: dict[str, Readings]
-    every_poses: dict[str, np.ndarray]
-    flagged: dict[str, np.ndarray]
-    screens: dict[str, gross.Screen]
-    provisional: np.ndarray
-    history: list[dict]
-    settled: bool
-    frame_problem: str | None
-
-
-def _select_screened(
-    chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
-) -> _Screened:
-    """Select on the optimization set without the rows `exclude` (the prepare stage's provisional
-    screen), screen every optimization row with the final model (`remaster.loop.gross`) and select
-    again without the rows it finds, until they are the ones it was fitted without (bounded, a
-    cycle stops it); then screen the validation set with the final model."""
-    every = {s: blocks.readings(chain, sensor, s, settings.model) for s in SETS}
-    every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
-    provisional = np.sort(np.asarray(exclude, dtype=int))
-    excluded, screens, history, settled = provisional, {}, [], False
-    for _ in range(gross.MAX_ROUNDS):
-        data = {s: blocks.readings(chain, sensor, s, settings.model, excluded) for s in SETS}
-        poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
-        frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
-        tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
-        fitted, fitted_poses, thinning = fitted_rows(data["optimization"], poses["optimization"], settings.fit_rows)
-        selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=tracker)
-        screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
-        found = screens["optimization"].gross
-        history.append({"fitted_without": excluded.tolist(), "found": found.tolist()})
-        if np.array_equal(found, excluded):
-            settled = True
-            break
-        if any(np.array_equal(found, np.asarray(h["fitted_without"], dtype=int)) for h in history):
-            break  # the screen turns in a cycle: the last fit stands, and the report says so
-        excluded = found
-    # the validation set is screened here, with the final model, after every choice has been made
-    screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
-    flagged = {"optimization": excluded, "validation": screens["validation"].gross}
-    data["validation"] = blocks.readings(chain, sensor, "validation", settings.model, flagged["validation"])
-    poses["validation"] = sensor.table.loc[data["validation"].rows, "pose"].to_numpy()
-    return _Screened(
-        selection,
-        data,
-        poses,
-        fitted,
-        fitted_poses,
-        thinning,
-        every,
-        every_poses,
-        flagged,
-        screens,
-        provisional,
-        history,
-        settled,
-        frame_problem,
-    )
-
-
-def fitted_rows(data: Readings, poses, limit: int) -> tuple[Readings, np.ndarray, dict]:
-    """The optimization readings (n rows) the loop fits, their poses (n,) and the record of how they
-    were chosen: every row when there are at most `limit`; else whole poses, one in k in
-    measurement order (of their first row), k the smallest that leaves at most `limit` rows, so
-    that the rows fitted span the campaign's time and configurations as the set does. When no k
-    does (a pose of more rows than that: a continuous log under one label), one row in k."""
-    poses = np.asarray(poses)
-    n = len(data.rows)
-    record = {"limit": int(limit), "rows": n, "of": n, "one_in": 1, "unit": "pose"}
-    if n <= limit:
-        return data, poses, record
-    labels, first, member = np.unique(poses, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty(len(labels), dtype=int)
-    rank[order] = np.arange(len(labels))
-    per_pose = np.bincount(member, minlength=len(labels))[order]  # rows of each pose, in measurement order
-    if per_pose[0] <= limit:  # then some k does: the first pose alone at the latest
-        k = 2
-        while per_pose[::k].sum() > limit:
-            k += 1
-        keep = rank[member] % k == 0
-        record["one_in"] = k
-    else:
-        keep = np.arange(n) % math.ceil(n / limit) == 0
-        record.update(one_in=math.ceil(n / limit), unit="row")
-    record["rows"] = int(keep.sum())
-    return data.subset(keep), poses[keep], record
-
-
 def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr, settings: LoopSettings):
     """loop_closure.json's `residual_gp` (`gp_report`), with where what is left lives in the joints'
     own terms when the GP found structure (`joint_form.joint_error_form`, a diagnostic)."""
@@ -278,7 +166,7 @@ def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr,
     return section
 
 
-def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
+def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
     """The report's warnings: the closure test's, too few poses for the folds, nothing explaining
     what is left (with where it lives), the gross-error screen's, and an MCMC refit short of the
     convergence criteria."""
@@ -329,7 +217,7 @@ def _warnings(closed: dict, screened: _Screened, gp_section: dict | None, mcmc, 
 
 def symptom_warnings(selection: Selection) -> list[str]:
     """One warning per candidate effect refused as a symptom in the selection's rounds
-    (`selection.beyond_prior`): its estimate far beyond its physical prior, it imitated something
+    (`scoring.beyond_prior`): its estimate far beyond its physical prior, it imitated something
     else in the data, which stays unexplained by it."""
     seen = {}
     for entry in selection.rounds:
@@ -362,7 +250,7 @@ def departed_warning(selection: Selection) -> str | None:
     )
 
 
-def _data_warnings(sensor: SensorData, screened: _Screened, between: dict, settings: LoopSettings) -> list[str]:
+def _data_warnings(sensor: SensorData, screened: Screened, between: dict, settings: LoopSettings) -> list[str]:
     """The report's warnings on what the data lack: too few rows for the jackknife and the
     candidates (`jackknife.too_few_warning`), jackknife groups whose refit departed
     (`jackknife.departed_groups_warning`), and a drift candidate left out because its time or
@@ -433,7 +321,7 @@ def _refit_fields(final, mcmc, before_table: pd.DataFrame, after_table: pd.DataF
     }
 
 
-def _accuracies(screened: _Screened) -> tuple[dict, dict, dict, dict]:
+def _accuracies(screened: Screened) -> tuple[dict, dict, dict, dict]:
     """(before, predicted, after, kept): each set's accuracy measures with the zero-offset model and
     the selected one, without the rows flagged as gross errors, the selected model's predictions
     (m), and, for a set with flagged rows, both measures with them ({set: {'before', 'after'}})."""
@@ -464,11 +352,11 @@ def _link_priors(
     chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
 ) -> tuple[LoopSettings, dict]:
     """The settings with the link geometry's prior at the scale its evidence chooses on the
-    optimization set (`selection.link_prior_scale`; the provisional gross errors left out), and
+    optimization set (`link_priors.link_prior_scale`; the provisional gross errors left out), and
     loop_closure.json's `link_prior_scale` (the scale and each scale's log evidence)."""
     if "link_geometry" not in settings.candidates:
         return settings, {"scale": 1.0, "log_evidence": {}, "why": "link_geometry not offered"}
-    every = blocks.readings(chain, sensor, "optimization", settings.model, exclude)
+    every = readings(chain, sensor, "optimization", settings.model, exclude)
     data = fitted_rows(every, sensor.table.loc[every.rows, "pose"].to_numpy(), settings.fit_rows)[0]
     scale, at = link_prior_scale(chain, data, sensor.marker, t_nr, base_held, settings.priors)
     chosen = replace(settings, priors=scaled_priors(settings.priors, scale))
@@ -508,13 +396,13 @@ def close_loop(
     screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
     finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""
     settings, link_scale = _link_priors(chain, sensor, t_nr, base_held, settings, exclude)
-    screened = _select_screened(chain, sensor, t_nr, base_held, settings, exclude)
+    screened = select_screened(chain, sensor, t_nr, base_held, settings, exclude)
     selection, data, flagged = screened.selection, screened.data, screened.flagged
     base, final = selection.base, selection.final
     samples, mcmc = None, None
     if settings.mcmc is not None:
         chains, mcmc = refit(final.mode, settings, rng)
-        samples = fit.samples_frame(chains)
+        samples = samples_frame(chains)
     before_table = parameter_table(base)
     after_table = parameter_table(final, samples)
     sigma_before = base.mode.sigma
@@ -572,226 +460,6 @@ def close_loop(
     return LoopClosure(report, table, selection.signatures, residuals, samples, gp, {s: data[s].rows for s in SETS})
 
 
-def _screen(selection: Selection, fitted: Readings, every, every_poses, set_name: str, settings) -> gross.Screen:
-    """Every measured row of one set judged by the selection's final model (`remaster.loop.gross`),
-    fitted on the readings `fitted`."""
-    level = settings.gross_errors
-    return gross.screen(
-        selection,
-        fitted,
-        every[set_name],
-        every_poses[set_name],
-        set_name,
-        float(level["alpha"]),
-        float(level["max_share"]),
-    )
-
-
-def gross_report(
-    flagged: Mapping[str, np.ndarray],
-    screens: Mapping[str, gross.Screen],
-    provisional: np.ndarray,
-    history: list[dict],
-    settled: bool,
-    kept: Mapping[str, Mapping[str, dict]],
-    level: Mapping[str, float],
-) -> dict:
-    """loop_closure.json's `gross_errors`: the table rows flagged in each set ('optimization': the
-    rows the final model was fitted without; 'validation'), the level, the rule, each set's screen
-    (`gross.Screen.report`), the prepare stage's provisional rows and which of them the final model
-    restored (or which it added), the screen's rounds, and the accuracy with the flagged rows."""
-    final = set(flagged["optimization"].tolist())
-    return {
-        "optimization": [int(r) for r in flagged["optimization"]],
-        "validation": [int(r) for r in flagged["validation"]],
-        "alpha": float(level["alpha"]),
-        "max_share": float(level["max_share"]),
-        "method": gross.METHOD,
-        "isolated": gross.ISOLATED,
-        "screens": {s: screen.report() for s, screen in screens.items()},
-        "provisional": [int(r) for r in provisional],
-        "restored": sorted(int(r) for r in provisional if int(r) not in final),
-        "added": sorted(int(r) for r in final - set(provisional.tolist())),
-        "rounds": history,
-        "settled": settled,
-        "with_flagged_rows": {s: dict(pair) for s, pair in kept.items()},
-    }
-
-
-def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gross.Screen], settled: bool) -> list[str]:
-    """What the screen with the final model says beyond its lists (which the certificate gives with
-    the accuracy with and without the rows): a set whose many rows beyond the threshold are a
-    systematic departure, and a screen that did not settle."""
-    out = []
-    for set_name in SETS:
-        screen = screens[set_name]
-        if screen.systematic:
-            out.append(
-                f"{set_name} set: {int(screen.beyond.sum())} of {len(screen.rows)} rows beyond the gross-error "
-                f"threshold of the final model: a systematic departure, not gross errors (none left out)"
-            )
-    if not settled:
-        out.append(
-            "the gross-error screen did not settle: the final model, fitted without rows "
-            f"{[int(r) for r in flagged['optimization']]}, finds rows {screens['optimization'].gross.tolist()}"
-        )
-    return out
-
-
-def _closure_steps(selection: Selection) -> list[tuple[str, float, int, tuple | None]]:
-    """(name, held-out RMS per axis (m), held-out numbers, a correct model's held-out cumulants:
-    `noise_floor.verdict`) of the zero-offset model and of the model after each added or removed
-    step, in their order."""
-    base = selection.base.cv
-    steps = [(BASE_STEP, base.rmse / math.sqrt(3.0), base.held_out_numbers, base.null_cumulants)]
-    for r in sorted(selection.rounds, key=_step_order):
-        if r["added"]:
-            scores = r["scores"][r["added"]]
-            steps.append(
-                (
-                    r["added"],
-                    scores["cv_rmse_mm"] * MM / math.sqrt(3.0),
-                    scores["cv_held_out_numbers"],
-                    scores.get("cv_null_cumulants"),
-                )
-            )
-        elif r.get("removed"):  # the model without it: the removed block's scores were taken against it
-            name = "without " + " + ".join([r["removed"], *r.get("removed_with", [])])
-            name += f" ({GP} present)" if r.get("with") == GP else ""  # named as the selection's path names it
-            scores = r["scores"][r["removed"]]
-            steps.append(
-                (
-                    name,
-                    scores["cv_rmse_before_mm"] * MM / math.sqrt(3.0),
-                    scores["cv_held_out_numbers_before"],
-                    scores.get("cv_null_cumulants_before"),
-                )
-            )
-    return steps
-
-
-def closure_report(
-    selection: Selection,
-    data: Readings,
-    stated_noise: float | None,
-    level: float,
-    measured_noise: float | None = None,
-) -> dict:
-    """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
-    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
-    each round's cross-validated RMS per axis and verdict, each added step's share of the structured
-    residual, the final verdict, the chosen noise model's std against the floor, and the warnings
-    they call for."""
-    repeats, repeated = noise_floor.repeatability(data.q, data.measured)
-    floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
-    steps = _closure_steps(selection)
-    in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
-    rounds = [
-        {
-            "after": name,
-            **noise_floor.verdict(rms, floor, level, numbers, cumulants),
-            "time_blocked_rms_per_axis_mm": in_time.get(name),
-        }
-        for name, rms, numbers, cumulants in steps
-    ]
-    shares = {
-        name: noise_floor.share(before[1], after[1], tested)
-        for before, after, tested in zip(steps, steps[1:], rounds)
-        for name in (after[0],)
-    }
-    final = rounds[-1]
-    warnings = []
-    if final["closed"] is False:
-        minor = [
-            f"{name} ({100 * value:.0f} %)"
-            for name, value in shares.items()
-            # effects in the final model only: not a removal step, nor an effect a backward pass took out
-            if value is not None and value < noise_floor.MAIN_CAUSE_SHARE and name in selection.added
-        ]
-        warnings.append(
-            f"loop {final['text']}"
-            + (
-                f"; effects added that explain only a small share of what was left, not its cause: {', '.join(minor)}"
-                if minor
-                else ""
-            )
-        )
-    noise_model_rms = None
-    chosen = selection.noise or {}
-    if chosen.get("chosen") == "range_transverse":
-        noise_model_rms = noise_floor.range_transverse_rms(
-            chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
-        )
-        if floor is not None and noise_model_rms > noise_floor.NOISE_MODEL_RATIO * floor:
-            warnings.append(
-                f"the chosen range/transverse noise model's std per axis ({noise_model_rms / MM:.3g} mm) is "
-                f"{noise_model_rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
-                "error the model lacks; the closure is tested against the floor"
-            )
-    return {
-        "stated_noise_mm": None if stated_noise is None else stated_noise / MM,
-        "measured_point_std_mm": None if measured_noise is None else measured_noise / MM,
-        "noise_model_rms_per_axis_mm": None if noise_model_rms is None else noise_model_rms / MM,
-        "repeatability_mm": None if repeats is None else repeats / MM,
-        "repeated_configurations": repeated,
-        "noise_floor_mm": None if floor is None else floor / MM,
-        "level": level,
-        "measure": "pose-grouped cross-validated RMS per axis on the optimization set",
-        "time_blocked": None
-        if selection.time_blocked is None
-        else {k: v for k, v in selection.time_blocked.items() if k != "rms_per_axis_mm"},
-        "region_folds": None if selection.regions is None else selection.regions.report(),
-        "rounds": rounds,
-        "share_of_structured_residual": shares,
-        "main_causes": [n for n, v in shares.items() if v is not None and v >= noise_floor.MAIN_CAUSE_SHARE],
-        "closed": final["closed"],
-        "verdict": final["text"],
-        "warnings": warnings,
-    }
-
-
-def gp_report(selection: Selection, standard_errors: float) -> dict | None:
-    """Where the residual the parametric effects left lives: the GP's hyperparameters, each joint's
-    relevance (measured range / lengthscale), the joints it depends on, and the share of that
-    residual which is structured (cross-validated fall of its mean square) vs noise, over the pose
-    folds and over blocks contiguous in time (`selection.TimeBlocked`). The joints are named only
-    when there is structure to trace: the GP's pose-grouped cross-validated fall exceeds
-    `standard_errors` standard errors (`selection.cv_threshold`). None when the GP was not tried."""
-    if selection.gp is None:
-        return None
-    candidate = selection.gp
-    relevance = candidate.relevance()
-    columns = [f"q{j + 1}" for j in range(len(relevance))]
-    order = np.argsort(-relevance)
-    fall = evidence.cv_gain(selection.final.cv, evidence.CrossValidation(candidate.mse, candidate.points))
-    structured = fall["cv_mse_fall_in_se"] > standard_errors
-    before = float(np.sum(selection.final.cv.mse * selection.final.cv.points))
-    after = float(np.sum(candidate.mse * candidate.points))
-    return {
-        "added": selection.gp_added,
-        "hyperparameters": candidate.gp.hyper.report(),
-        "relevance": dict(zip(columns, relevance.tolist())),
-        "structure_found": bool(structured),
-        "depends_on": [columns[j] for j in order if structured and relevance[j] >= RELEVANT_RANGE],
-        "most_relevant_joint": columns[int(order[0])] if structured else None,
-        "structured_fraction": max(0.0, 1.0 - after / before) if before > 0 else 0.0,
-        "cv_gain": fall["cv_gain"],
-        "cv_mse_fall_in_se": fall["cv_mse_fall_in_se"],
-        "time_blocked": (selection.time_blocked or {}).get("residual_gp"),
-        "frame": "robot (the residual rotated back by the final fit's registration)",
-        "rows": int(len(candidate.q)),
-        "inducing": int(len(candidate.gp.inducing)),
-        "rotation_robot_to_sensor": selection.rotation.tolist(),
-    }
-
-
-def _step_order(r: dict) -> tuple[int, int]:
-    """Rounds in the order their models were fitted: the GP, tried last, may be recorded in the last
-    forward round, before the backward pass's rounds; the backward rounds with the GP present come
-    after it."""
-    return (2 if r.get("with") == GP else 1 if r["added"] == GP else 0, r["round"])
-
-
 def _backward(r: dict) -> dict:
     """A backward round's pass and removed block, for loop_closure.json's rounds."""
     if r.get("pass") != "backward":
@@ -812,7 +480,7 @@ def loop_closure_stage(
     campaign: Campaign,
     sensor: str,
     registration: fit.Registration,
-    laplace: fit.LaplaceReport,
+    laplace: LaplaceReport,
     rng: np.random.Generator,
     settings: LoopSettings,
 ) -> LoopClosure:

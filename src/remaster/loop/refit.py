@@ -11,10 +11,16 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..inference import evidence, fit, gauge, metrics, samplers
+from ..inference import evidence, gauge, metrics
 from ..inference.model import SIGMA
+from ..inference.posterior_sampling import converged, converged_ensemble, sampler_diagnostics
+from ..inference.posterior_summary import moments
+from ..inference.posterior_targets import PosteriorTarget, SigmaMarginalTarget
+from ..inference.sampling.chains import run_chains, run_emcee
+from ..inference.sampling.independence import RidgeProposal, metropolis_independence
+from ..inference.sampling.target import Chain
 from ..units import DEG, MM
-from .selection import Fitted
+from .fitted import Fitted
 from .settings import LoopSettings
 
 # The refit's Student-t proposal: a t in P dimensions is a Gaussian whose scale varies by a factor
@@ -38,8 +44,8 @@ MIN_WALKERS = 32  # the ensemble's walkers: at least this, and 2 P + 2 for P par
 
 def _diagnosed(chains, started: float, criteria) -> tuple[dict, bool]:
     """(sampler diagnostics of chains in the model's own parameters, whether they meet the criteria)."""
-    report = fit.sampler_diagnostics(chains, time.perf_counter() - started)
-    return report, fit.converged(report, criteria["max_rhat"], criteria["min_ess"])
+    report = sampler_diagnostics(chains, time.perf_counter() - started)
+    return report, converged(report, criteria["max_rhat"], criteria["min_ess"])
 
 
 def _attempt(sampler: str, run: dict, report: dict, done: bool) -> dict:
@@ -59,7 +65,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     mode's Laplace ball (`refit`'s fallback): (chains in the model's parameters, diagnostics,
     converged, the attempt's record)."""
     started = time.perf_counter()
-    joint = fit.PosteriorTarget(mode.model)
+    joint = PosteriorTarget(mode.model)
     centre, spread = np.append(mode.theta, mode.sigma), np.sqrt(np.diag(mode.covariance))
     back = None
     if folds is not None:
@@ -71,7 +77,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     # as long as the first run's samples (with the first run's 500 steps it was still drifting
     # and the doublings could not wash that out: 24,500 steps on the twin, against 4,000 now)
     steps, burn_in = 2 * int(run["samples"]), int(run["samples"])
-    ensemble = samplers.run_emcee(
+    ensemble = run_emcee(
         joint,
         rng,
         centre,
@@ -79,7 +85,7 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
         n_walkers=walkers,
         n_steps=steps,
         burn_in=burn_in,
-        enough=fit.converged_ensemble(joint.names, criteria),
+        enough=converged_ensemble(joint.names, criteria),
         max_doublings=int(criteria["max_doublings"]),
     )
     chains = [ensemble if back is None else back.back(ensemble)]
@@ -89,15 +95,13 @@ def _ensemble(mode: evidence.PosteriorMode, folds, run: dict, criteria, rng: np.
     return chains, report, done, attempt
 
 
-def refit(
-    mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator
-) -> tuple[list[samplers.Chain], dict]:
-    """Chains of the model's posterior by independence Metropolis (`samplers.metropolis_independence`)
-    over the model's parameters with sigma integrated out (`fit.SigmaMarginalTarget`; sigma is
+def refit(mode: evidence.PosteriorMode, settings: LoopSettings, rng: np.random.Generator) -> tuple[list[Chain], dict]:
+    """Chains of the model's posterior by independence Metropolis (`metropolis_independence`)
+    over the model's parameters with sigma integrated out (`posterior_targets.SigmaMarginalTarget`; sigma is
     then drawn exactly for each sample), in the coordinates where the Laplace approximation fits
     best (`gauge.sampling_coordinates`: the model's exact symmetries folded out), from a proposal
     that follows the valleys along which the posterior leaves that approximation
-    (`samplers.RidgeProposal`; a Student-t when there is none), its kept steps doubled until the
+    (`RidgeProposal`; a Student-t when there is none), its kept steps doubled until the
     criteria hold (every R-hat <= max_rhat and every ESS >= min_ess), at most max_doublings times.
     When they still miss, emcee's ensemble (2 P + 2 walkers, at least
     MIN_WALKERS) runs on the joint posterior from the same mode, a burn-in as long as the first
@@ -105,7 +109,7 @@ def refit(
     Returns the chains, in the model's own parameters, and a JSON-ready report: the last run's
     diagnostics, every attempt (with its sampler), the coordinates, the bent directions, and
     `converged`."""
-    marginal = fit.SigmaMarginalTarget(mode.model)
+    marginal = SigmaMarginalTarget(mode.model)
     target, mean, covariance, folds, coordinates = gauge.sampling_coordinates(
         marginal, mode.model, mode.theta, mode.covariance[:-1, :-1], rng
     )
@@ -113,14 +117,14 @@ def refit(
     attempts = []
     started = time.perf_counter()
     dof = PROPOSAL_DOF_PER_PARAMETER * len(mean)
-    proposal = samplers.RidgeProposal.fit(target, mean, covariance, dof, PROPOSAL_INFLATION)
+    proposal = RidgeProposal.fit(target, mean, covariance, dof, PROPOSAL_INFLATION)
     coordinates["bent"] = [] if proposal is None else proposal.report(target.names)
     # proposals are independent of the state, so a longer run is a fresh one: doubled until the
     # criteria hold, as the ensemble's is, at most max_doublings times
     for doubling in range(int(criteria["max_doublings"]) + 1):
         length = {**run, "samples": int(run["burn_in"]) + (int(run["samples"]) - int(run["burn_in"])) * 2**doubling}
-        chains = samplers.run_chains(
-            samplers.metropolis_independence,
+        chains = run_chains(
+            metropolis_independence,
             target,
             rng,
             int(run["chains"]),
@@ -160,7 +164,7 @@ def parameter_table(fitted: Fitted, samples: pd.DataFrame | None = None) -> pd.D
     model = fitted.model
     names = list(model.names) + [SIGMA]
     if samples is not None:
-        summary = fit.moments(samples[names])
+        summary = moments(samples[names])
         mean, std, low, high = (summary[c].to_numpy() for c in ("mean", "std", "q2.5", "q97.5"))
         source = "MCMC (the refit's samples)"
     else:

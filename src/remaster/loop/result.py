@@ -46,7 +46,7 @@ class LoopReport:
     'validation' the table rows (ints) flagged as gross errors and left out (the optimization rows
     are the ones the final model was fitted without), with the level, the rule, each set's screen,
     the provisional rows and those restored, and the accuracy with the flagged rows
-    (`loop_closure.gross_report`); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`}
+    (`screened_selection.gross_report`); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`}
     the zero-offsets' spread across designs of the zero-offset model and the final model; harmonics: the joints and orders of `joint_harmonics` the data support, with each
     named f_j and its band (`remaster.loop.harmonics`; None when the block was not added); source: the file it was read from (not written)."""
 

@@ -4,7 +4,7 @@ Every value comes from the configuration: src/remaster/data/config.schema.yaml i
 their defaults live (the workflow fills them in when it validates config.yaml, `remaster.configuration.settings`
 for a Python caller), so `settings_from`
 requires every key and has no defaults of its own. Only the candidate list is the library's
-(`blocks.EXTENSIONS`), and the prior sets a `priors` section leaves out are `robot.priors.DEFAULTS`.
+(`parameter_blocks.EXTENSIONS`), and the prior sets a `priors` section leaves out are `robot.priors.DEFAULTS`.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from ..inference import blocks
-from ..inference.blocks import ModelSettings
+from ..inference.parameter_blocks import EXTENSIONS
+from ..inference.readings import ModelSettings
 from ..robot.priors import Priors, priors_from, with_defaults
 
 
@@ -37,7 +37,7 @@ class LoopSettings:
     harmonic_level: the family-wise level at which a joint's harmonic order is named once
     `joint_harmonics` is added (`remaster.loop.harmonics`; its orders are `model.harmonic_orders`);
     fit_rows: the optimization rows the loop fits at most (a larger set is thinned to every k-th
-    pose, `remaster.loop.loop_closure.fitted_rows`)."""
+    pose, `remaster.loop.screened_selection.fitted_rows`)."""
 
     candidates: tuple[str, ...]
     min_log_evidence_gain: float
@@ -88,7 +88,7 @@ def settings_from(config: Mapping, priors_config: Mapping, convergence: Mapping,
     payload = config["payload"]
     priors_config = with_defaults(priors_config)
     return LoopSettings(
-        candidates=blocks.EXTENSIONS,
+        candidates=EXTENSIONS,
         min_log_evidence_gain=float(config["min_log_evidence_gain"]),
         cv_folds=int(config["cv_folds"]),
         cv_standard_errors=float(config["cv_standard_errors"]),

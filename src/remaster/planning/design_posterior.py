@@ -3,7 +3,7 @@ set of measurements would let the calibration predict (docs/planning.md).
 
 The complete error model is the loop closure's (`remaster.inference.blocks`): registration,
 zero-offsets, link geometry (every fixed transform's small rigid motion, made minimal by
-`blocks.structural_redundancy`) and the marker offset, under the priors of config.yaml
+`extensions.structural_redundancy`) and the marker offset, under the priors of config.yaml
 (`remaster.robot.priors`). Linearized at zero corrections, with the sensor's isotropic noise sigma
 (m), the posterior covariance of the parameters after measuring configurations q_1..q_n is
 
@@ -32,7 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..inference import identifiability
-from ..inference.blocks import BlockModel, Readings, spread_configurations, structural_redundancy
+from ..inference.blocks import BlockModel
+from ..inference.extensions import spread_configurations, structural_redundancy
+from ..inference.readings import Readings
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import Priors
 

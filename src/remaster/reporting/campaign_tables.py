@@ -24,7 +24,7 @@ from ..calibration import exports
 from ..campaigns.campaign import Campaign
 from ..evaluation import accuracy, budget, iso9283, workspace
 from ..evaluation.acceptance import Acceptance
-from ..inference.fit import LaplaceReport
+from ..inference.laplace_report import LaplaceReport
 from ..loop.result import LoopReport
 from . import certificate, tables, tables_loop
 

@@ -32,7 +32,8 @@ from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
 from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
 from ..evaluation.workspace import claim_rows, priors_decide
 from ..inference import metrics
-from ..inference.fit import LaplaceReport, disagreeing
+from ..inference.cross_check import disagreeing
+from ..inference.laplace_report import LaplaceReport
 from ..inference.uncertainty import coverage_factor, cr2_mean
 from ..labels import sensor_label
 from ..loop.result import LoopReport
@@ -49,7 +50,7 @@ class CertificateInputs:
     metrics/configuration_errors.csv; loop_residuals: loop_closure/residuals.parquet (m);
     workspace_accuracy: loop_closure/workspace_accuracy.csv; workspace: loop_closure/workspace.json;
     loop: loop_closure.json; controller_offsets: calibrated/controller_offsets.csv; cross_check:
-    fit/cross_check.csv (`fit.cross_check`: which samplers confirm the fit), None when not read;
+    fit/cross_check.csv (`cross_check.cross_check`: which samplers confirm the fit), None when not read;
     acceptance: acceptance.json (`evaluation.acceptance`: the validation set as the acceptance test),
     None when not read."""
 

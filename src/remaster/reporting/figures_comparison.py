@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..inference.blocks import EXTENSIONS  # noqa: E402
+from ..inference.parameter_blocks import EXTENSIONS  # noqa: E402
 from ..labels import paper_order, sensor_label  # noqa: E402
 from .figures import _grid  # noqa: E402
 
@@ -123,7 +123,7 @@ def zero_offsets_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure
 def loop_effects_over_time_figure(table: pd.DataFrame, title: str) -> plt.Figure:
     """The parameters of the effects the loop closure added (zero-offsets left out: they have
     their own figure), each in its display unit against the campaign date, drawn as
-    `zero_offsets_over_time_figure` draws; blocks in `blocks.EXTENSIONS` order, parameters in
+    `zero_offsets_over_time_figure` draws; blocks in `parameter_blocks.EXTENSIONS` order, parameters in
     model order within a block. With no effect added in any
     campaign, a figure that says so.
 

@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..campaigns.campaign import SETS  # noqa: E402
-from ..loop.selection import Signature  # noqa: E402
+from ..loop.scoring import Signature
 from ..units import MM  # noqa: E402
 from .figures import _grid, error_histogram_axes, finished, note  # noqa: E402
 

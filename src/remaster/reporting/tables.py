@@ -307,7 +307,7 @@ def write_table(stem: str | PurePath, table: pd.DataFrame, caption: str, label: 
 def zero_offsets_table(summaries: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """Table MLE_zero_offsets: per joint, each sensor's MLE (posterior mean) and std in deg.
 
-    summaries: sensor -> `fit.posterior_summary` table (SI). A parameter held because the data
+    summaries: sensor -> `posterior_summary.posterior_summary` table (SI). A parameter held because the data
     cannot determine it is marked 'held' instead of given a number.
     """
     summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
@@ -337,7 +337,7 @@ REGISTRATION_ROWS = (
 
 def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str, dict] | None = None) -> pd.DataFrame:
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
-    the paper's row order; with `fits` (sensor -> `fit.LaplaceReport`), three more rows: points
+    the paper's row order; with `fits` (sensor -> `laplace_report.LaplaceReport`), three more rows: points
     fitted, points without a measurement and points flagged as gross errors by the zero-offset
     model's provisional screen (both left out of this fit; the final list is the loop closure's)."""
     summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}

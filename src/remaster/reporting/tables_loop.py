@@ -83,7 +83,7 @@ def _fold_falls(entry: dict) -> str | float:
 
 
 def _why_not(entry: dict, step: dict) -> str:
-    """A forward candidate not added: the criteria it missed (`selection.shortfalls`), or that it
+    """A forward candidate not added: the criteria it missed (`scoring.shortfalls`), or that it
     passed and the round's added candidate gained more evidence; '' for a report without them."""
     if entry.get("why_not"):
         return f"no: {entry['why_not']}"
@@ -93,7 +93,7 @@ def _why_not(entry: dict, step: dict) -> str:
 
 def _region_falls(entry: dict) -> str | float:
     """Each held-out region's fall of the held-out error (%), per fold set ('joint_space: 99 / 89 (departed)
-    / ...; tool_axis: ...'), departed folds marked (they count: `selection.region_gain`); NaN without
+    / ...; tool_axis: ...'), departed folds marked (they count: `scoring.region_gain`); NaN without
     regions."""
     sets = entry.get("region_folds")
     if not sets:
@@ -161,9 +161,9 @@ def _noise_row(sensor: str, noise_model: dict) -> dict | None:
 def candidates_table(reports: dict[str, LoopReport]) -> pd.DataFrame:
     """Every candidate's scores in every round, per sensor: evidence gain, cross-validated fall
     (pose-grouped, in standard errors), BIC gain, the fraction of the residual it explains, and
-    whether it was added; in the backward pass (`selection.backward_pass`) each added block's
+    whether it was added; in the backward pass (`backward.backward_pass`) each added block's
     scores against the model without it, and whether it was removed (with the residual GP present
-    in both once it is added: `selection.residual_backward_pass`). A candidate `select` skipped
+    in both once it is added: `backward.residual_backward_pass`). A candidate `select` skipped
     (nothing of it identifiable) has no scores: NaN, and the reason in the last column. A laser
     tracker's range/transverse noise model (`remaster.noise`) gets a row of its own, after the
     rounds: its evidence gain, or why it was not offered."""
