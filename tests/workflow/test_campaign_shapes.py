@@ -56,6 +56,7 @@ def shapes(tiny, tmp_path_factory, iiwa):
     return root / "results"
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_a_campaign_whose_marker_sits_on_the_last_axis_gets_its_certificate(shapes):
     """The on-axis campaign's certificate names what its data cannot tell apart."""
     text = (shapes / "onaxis" / "certificate.md").read_text(encoding="utf-8")
@@ -63,6 +64,7 @@ def test_a_campaign_whose_marker_sits_on_the_last_axis_gets_its_certificate(shap
     assert "| iiwa_joint_7 |  |  |  |  | held: not identifiable |" in text
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_a_full_pose_campaign_runs_end_to_end_and_its_certificate_says_what_orientation_added(shapes):
     """Its probe sits on joint 7's axis, so its points alone cannot see joint 7's zero-offset; the
     certificate says the orientations determine it, and the zero-offset model's correction of joint 7

@@ -26,6 +26,7 @@ def result_bytes(folder, campaign):
     return {str(p.relative_to(folder)): p.read_bytes() for pattern in patterns for p in sorted(folder.glob(pattern))}
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_a_run_killed_half_way_completes_with_identical_results(tiny):
     """A second run of one of the two campaigns into another folder, killed while sampling and
     started again: it finishes, and every table and result of that campaign equals the first,

@@ -58,6 +58,7 @@ def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
     assert not (tiny / "results").exists()
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_real_run_builds_everything_then_nothing(tiny):
     result = run(tiny)
     assert result.returncode == 0, result.stderr[-3000:]
@@ -77,6 +78,7 @@ def test_real_run_builds_everything_then_nothing(tiny):
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_the_next_configurations_of_a_calibrated_campaign(tiny, tmp_path):
     """`remaster plan --from-results` on the workflow's own results (the tiny twin's planner held joint
     3): the campaign alone is the n = 0 row, both criteria start from it, and the workspace
@@ -113,6 +115,7 @@ def test_the_next_configurations_of_a_calibrated_campaign(tiny, tmp_path):
     assert abs(next_rows["q3"].iloc[0]) > 0.05 and len(files.read_csv(tmp_path / "robust.csv")) == 3
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_changing_one_campaign_reruns_only_its_jobs(tiny):
     """A new measurement value in one campaign plans only that campaign's jobs and the
     cross-campaign ones (comparison, audit, report); the other campaign's results stay. (The plan
@@ -249,6 +252,7 @@ def _report_structure(page: str):
     return reader.titles, reader.sizes, [t for t, n in zip(reader.titles, reader.content) if n == 0]
 
 
+@pytest.mark.slow  # a real workflow run of minutes
 def test_the_report_opens_with_verdicts_then_each_campaigns_certificate(tiny, tmp_path):
     """The page a metrologist opens: the overview of every campaign's verdict first, each campaign
     then opens with its certificate (the long tables fold away), every image is a real PNG and no
