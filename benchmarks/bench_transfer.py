@@ -52,7 +52,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.doc_sections import publish  # noqa: E402
-from benchmarks.transfer_pairs import WITHIN, models_of, pair_rms, target_of, verdict  # noqa: E402
+from benchmarks.transfer_pairs import SIGNIFICANT, WITHIN, models_of, pair_rms, target_of, verdict  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
 from remaster import identity  # noqa: E402
 from remaster.campaigns import scenario  # noqa: E402
@@ -386,6 +386,7 @@ def _verdict(record: dict) -> str:
     ratio = sum(r["within_baseline"] for r in pairs)
     nominal = sum(r["below_nominal"] for r in pairs)
     farther = [r for r in pairs if not r["not_above_zero_offset"]]
+    told = [r for r in farther if not r.get("not_significantly_above_zero_offset", False)]
     # the loop added nothing: the zero-offset model's form, its estimate the loop's refit
     same_form = sum(not effects[(r["arm"], r["truth"], r["calibrated_on"], r["seed"])] for r in farther)
     worst = max((r["loop_rms_mm"] / r["paper_rms_mm"] for r in farther), default=1.0)
@@ -401,7 +402,9 @@ def _verdict(record: dict) -> str:
         f"({'pass' if ratio == n else 'FAIL'}); below the nominal model on {nominal} of {n} "
         f"({'pass' if nominal == n else 'FAIL'}); no farther than the zero-offset model on {n - len(farther)} of {n} "
         f"({'pass' if not farther else 'FAIL'}: {same_form} of the {len(farther)} misses from a loop that added "
-        f"nothing, the zero-offset model's form refitted; worst loop / zero-offset {worst:.2f}); all three on {met}. "
+        f"nothing, the zero-offset model's form refitted; {len(told)} of them farther by more than "
+        f"{SIGNIFICANT:.0f} standard errors of the rows' paired difference; worst loop / zero-offset {worst:.2f}); "
+        f"all three on {met}. "
         f"Drift flagged where the truth did not change: {len(false_drift)} of {len(unchanged)} campaign pairs "
         f"({'pass' if not false_drift else 'FAIL'}; {remounted} of them with the marker remounted, a set-up change); "
         f"where it changed: {seen} of {len(changed)}. Transfers with more than {100 * MAX_OUTSIDE:.0f} % of the "

@@ -70,18 +70,26 @@ def noisy(iiwa):
 
 
 def test_own_paper_model_on_itself_is_a_direct_validation(iiwa, noisy):
-    """(a) X = Y, paper model: FK with the zero-offsets, Kabsch on the optimization rows used,
-    errors on the validation rows, computed directly."""
+    """(a) X = Y, paper model: flange poses from FK with the zero-offsets, the registration and the
+    marker fitted on the optimization rows used (the sensor's stated noise, the default marker
+    prior), errors on the validation rows, computed directly."""
     estimate = OFFSETS + 1e-4  # a posterior mean a little off the truth
     errors = transfer.transfer_errors(paper(estimate), entry(iiwa, "x", "2020-01-01", noisy, {}, excluded=[7]))
     opt = np.setdiff1d(np.arange(24), [3, 7])
     val = np.arange(24, 40)
     q, xyz = noisy.q(), noisy.positions()
-    fk = ForwardKinematics(iiwa, q).points(MARKER, estimate)
+    flange = ForwardKinematics(iiwa, q + estimate).flange_poses()
+    np.testing.assert_allclose(
+        flange[:, :3, :3] @ MARKER + flange[:, :3, 3], ForwardKinematics(iiwa, q).points(MARKER, estimate), atol=1e-12
+    )
+    fitted, marker = registration.kabsch_with_marker(
+        flange[opt], MARKER, xyz[opt], NOISE, prediction.DEFAULT_MARKER_STD
+    )
     direct = np.linalg.norm(
-        xyz[val] - spatial.transform_points(registration.kabsch(fk[opt], xyz[opt]), fk[val]), axis=1
+        xyz[val] - spatial.transform_points(fitted, flange[val, :3, :3] @ marker + flange[val, :3, 3]), axis=1
     )
     np.testing.assert_allclose(errors, direct, rtol=1e-9, atol=1e-12)
+    assert np.linalg.norm(marker - MARKER) < 5 * NOISE  # the marker was right: the refit leaves it near
     table = transfer.transfer_table([entry(iiwa, "x", "2020-01-01", noisy, {"paper": paper(estimate)}, [7])])
     assert list(table.columns) == transfer.TRANSFER_COLUMNS
     row = table.iloc[0]
@@ -136,6 +144,21 @@ def test_transfer_of_exact_predictions_is_zero(iiwa):
     assert table.loc[("nominal", "x", "y"), "count"] == 12
     assert ("loop", "y", "x") not in table.index  # y has no loop model
     assert table.reset_index()["calibrated_on"].iloc[0] == "x"  # date order
+
+
+def test_a_remounted_marker_is_refitted_not_carried(iiwa):
+    """Y's marker sits where the nominal says, X's loop model found it 0.5 mm away (X's own mount):
+    the transfer refits the marker with Y's registration, so X's kinematics predict Y exactly."""
+    rng = np.random.default_rng(8)
+    values = loop_values(iiwa)
+    loop = prediction.Calibration("loop", values, ("link_geometry", "marker_offset"))
+    q = random_configurations(iiwa, 30, rng) * 0.6
+    unmoved = {k: v for k, v in values.items() if not k.startswith("marker_offset")}
+    robot = prediction.robot_points(iiwa, q, MARKER, unmoved, loop.blocks)
+    y = entry(iiwa, "y", "2021-01-01", sensor_table(q, spatial.transform_points(sensor_from_robot(), robot), 18), {})
+    carried = np.linalg.norm(robot - prediction.robot_points(iiwa, q, MARKER, values, loop.blocks), axis=1)
+    assert carried.min() > 4e-4  # what carrying X's marker would cost
+    assert np.sqrt(np.mean(transfer.transfer_errors(loop, y) ** 2)) < 1e-8
 
 
 def draws_around(calibration: prediction.Calibration, std: float, count: int, rng) -> pd.DataFrame:

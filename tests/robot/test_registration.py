@@ -111,3 +111,66 @@ def test_a_stack_of_fits_is_the_registrations_kabsch_of_each(rng):
     mirrored = targets * np.array([1.0, 1.0, -1.0])
     rotations, _, _ = registration.rigid_fits(targets, mirrored)
     np.testing.assert_allclose(np.linalg.det(rotations), 1.0, atol=1e-12)
+
+
+def flange_poses(rng, n: int, turning: float = np.pi) -> np.ndarray:
+    """n flange poses (n, 4, 4): positions in a 1.6 m cube, orientations within `turning` rad per Euler angle."""
+    return np.array(
+        [
+            spatial.homogeneous(
+                spatial.euler_zyx_to_matrix(*rng.uniform(-turning, turning, 3)), rng.uniform(-0.8, 0.8, 3)
+            )
+            for _ in range(n)
+        ]
+    )
+
+
+def test_marker_and_registration_recovered_together(rng):
+    """A remounted marker: the registration and the marker's true position come back from noiseless
+    points, though the prior's centre is 0.5 mm off."""
+    truth, marker = random_transform(rng), np.array([0.01, -0.02, 0.15])
+    poses = flange_poses(rng, 40)
+    sensor = spatial.transform_points(truth, poses[:, :3, :3] @ marker + poses[:, :3, 3])
+    fitted, found = registration.kabsch_with_marker(poses, marker + [5e-4, -3e-4, 2e-4], sensor, 1e-9, 1e-3)
+    np.testing.assert_allclose(found, marker, atol=1e-10)
+    np.testing.assert_allclose(fitted, truth, atol=1e-9)
+
+
+def test_marker_is_the_most_probable_under_its_prior(rng):
+    """With noise, the pair is the posterior mode: the same as a direct minimisation of the
+    9-parameter objective (scipy's least squares over the registration's rotation vector,
+    translation and the marker, the prior as three residuals)."""
+    from scipy.optimize import least_squares
+
+    truth, marker, noise, std = random_transform(rng), np.array([0.0, 0.03, 0.1]), 2e-4, 5e-4
+    poses = flange_poses(rng, 12, turning=0.3)  # little turning: the prior matters
+    sensor = spatial.transform_points(truth, poses[:, :3, :3] @ marker + poses[:, :3, 3])
+    sensor += rng.normal(0, noise, sensor.shape)
+    prior = marker + [4e-4, 0.0, -4e-4]
+    fitted, found = registration.kabsch_with_marker(poses, prior, sensor, noise, std)
+
+    def residuals(x):
+        transform = spatial.homogeneous(spatial.rotation_vector_to_matrix(x[:3][None])[0], x[3:6])
+        points = poses[:, :3, :3] @ x[6:] + poses[:, :3, 3]
+        return np.concatenate(
+            [((spatial.transform_points(transform, points) - sensor) / noise).ravel(), (x[6:] - prior) / std]
+        )
+
+    start = np.concatenate([spatial.matrix_to_rotation_vector(truth[:3, :3][None])[0], truth[:3, 3], prior])
+    direct = least_squares(residuals, start, xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+    np.testing.assert_allclose(found, direct[6:], atol=1e-8)
+    np.testing.assert_allclose(fitted[:3, 3], direct[3:6], atol=1e-8)
+
+
+def test_one_tool_orientation_keeps_the_marker_given(rng):
+    """Every pose with one orientation: a marker offset is a translation of the registration, so
+    the marker stays at its prior centre and the registration takes the rest."""
+    truth, rotation = random_transform(rng), spatial.euler_zyx_to_matrix(0.3, -0.2, 0.1)
+    poses = np.array([spatial.homogeneous(rotation, p) for p in rng.uniform(-0.8, 0.8, (30, 3))])
+    marker = np.array([0.0, 0.0, 0.1])
+    sensor = spatial.transform_points(truth, poses[:, :3, :3] @ marker + poses[:, :3, 3])
+    given = marker + [3e-4, 0.0, 0.0]
+    fitted, found = registration.kabsch_with_marker(poses, given, sensor, 1e-5, 1e-3)
+    np.testing.assert_allclose(found, given, atol=1e-12)
+    residual = sensor - spatial.transform_points(fitted, poses[:, :3, :3] @ found + poses[:, :3, 3])
+    assert np.abs(residual).max() < 1e-9

@@ -13,7 +13,7 @@ A `Calibration` is one campaign's (and sensor's) kinematics under one model:
 Only what belongs to the robot (and its marker) is carried: the registration, the sensor scale and
 the sensor frame's distortion belong to one campaign's sensor set-up and the drift to one campaign's clock or temperature, so
 they are left out (`SETUP_BLOCKS`); a calibration applied elsewhere gets that campaign's own
-registration.
+registration, and its marker refitted about the one carried (`comparing.transfer`).
 
 SI inside (m, rad).
 """
@@ -36,6 +36,7 @@ from ..inference.laplace_report import LaplaceReport
 from ..inference.parameter_blocks import EXTENSIONS, link_errors
 from ..inference.readings import ModelSettings, Readings
 from ..loop.result import LoopReport
+from ..robot import priors
 from ..robot.gravity import loaded_torques
 from ..robot.kinematics import ForwardKinematics, KinematicChain, perturbed_chain
 
@@ -46,6 +47,7 @@ ZERO_OFFSET_PREFIX = "zero_offsets.q"
 # one campaign's set-up: never transferred (the sensor's frame distortion is its sensor's, like its scale)
 SETUP_BLOCKS = ("registration", "sensor_scale", "drift", "noise", "sensor_distortion")
 ESTIMATED = "estimated"
+DEFAULT_MARKER_STD = priors.DEFAULTS[priors.DEFAULTS[priors.CLASS_KEY]]["marker_offset_mm"] * priors.MM
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,7 +204,9 @@ def loop_calibration(report: LoopReport, samples: pd.DataFrame | None = None, la
 
 class Calibrated(NamedTuple):
     """One campaign's sensor with its calibrations. robot: `identity.robot_identity`; date: ISO
-    text; models: {model name: Calibration}; excluded: table rows the fit left out as gross errors."""
+    text; models: {model name: Calibration}; excluded: table rows the fit left out as gross errors;
+    marker_std: the prior std (m per axis) of the marker's position on the flange, what a transfer to
+    this campaign refits it within (the loop closure's prior, else the default class's)."""
 
     campaign: str
     date: str
@@ -211,6 +215,7 @@ class Calibrated(NamedTuple):
     chain: KinematicChain
     models: Mapping[str, Calibration]
     excluded: tuple[int, ...] = ()
+    marker_std: float = DEFAULT_MARKER_STD
 
     @property
     def kind(self) -> str:
@@ -235,6 +240,11 @@ def calibrated(
     if loop is not None:
         models["loop"] = loop_calibration(loop, loop_samples, label)
     excluded = laplace.outlier_rows
+    marker_std = (
+        DEFAULT_MARKER_STD
+        if loop is None
+        else float(loop.settings["priors"]["std_display_units"]["marker_offset_mm"]) * priors.MM
+    )
     return Calibrated(
         campaign.name,
         campaign.date.isoformat(),
@@ -243,6 +253,7 @@ def calibrated(
         campaign.chain,
         models,
         excluded,
+        marker_std,
     )
 
 

@@ -301,8 +301,8 @@ PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement
 
 CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
-    "each campaign's validation set of the same sensor, registration refitted on that campaign's "
-    "optimization set with the calibration's kinematics frozen (registration, sensor scale and drift "
+    "each campaign's validation set of the same sensor, registration and marker refitted on that campaign's "
+    "optimization set with the calibration's kinematics frozen (registration, sensor scale, marker and drift "
     "not transferred); the diagonal is the ordinary validation.",
     "transfer_nominal": "Transfer heat-map, nominal kinematics: validation RMSE (mm), calibrated on (rows) against "
     "evaluated on (columns)",

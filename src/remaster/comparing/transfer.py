@@ -3,16 +3,20 @@
 Campaign X's calibration (`prediction.Calibration`: nominal, paper or loop) is applied to campaign
 Y's readings of the same sensor (same sensor name, campaigns of one `identity.robot_identity`):
 
-1. robot-frame marker positions from X's kinematics at Y's readings (Y's nominal marker plus X's
-   marker offset; a compliance acts through the gravity torques at Y's readings);
-2. Y's registration refitted on Y's OPTIMIZATION rows with X's kinematics frozen (Kabsch, 6 DOF:
-   Y's sensor stood elsewhere);
-3. the post-registration errors |measured - T p| on Y's VALIDATION rows: rmse_mm, mean_mm, p95_mm.
+1. flange poses from X's kinematics at Y's readings (a compliance acts through the gravity torques
+   at Y's readings);
+2. Y's set-up refitted on Y's OPTIMIZATION rows with X's kinematics frozen: the registration (6 DOF:
+   Y's sensor stood elsewhere) and the marker on the flange (3 DOF: a marker is remounted between
+   campaigns), `registration.kabsch_with_marker`, the marker's prior centred on Y's nominal marker
+   plus X's marker offset with the marker's prior std (`Calibrated.marker_std`), so what Y's tool
+   orientations cannot turn keeps X's marker;
+3. the post-registration errors |measured - T F m| on Y's VALIDATION rows: rmse_mm, mean_mm, p95_mm.
 
-X = Y is the campaign's ordinary validation with a least-squares registration. Rows whose marker
-was not seen (NaN) and Y's flagged gross errors are left out of both steps; `count` counts the
-validation rows used. The registration and sensor scale (Y's sensor set-up) and the drift (X's
-clock or temperature) are not transferred: they are refitted or do not apply.
+X = Y is the campaign's ordinary validation with the registration and the marker refitted. Rows
+whose marker was not seen (NaN) and Y's flagged gross errors are left out of both steps; `count`
+counts the validation rows used. The registration, sensor scale and marker (Y's sensor set-up, the
+sensor's side of `loop.sides`) and the drift (X's clock or temperature) are not transferred: they are
+refitted or do not apply.
 
 SI inside; the table in mm.
 """
@@ -27,7 +31,7 @@ import pandas as pd
 from .. import spatial
 from ..calibration.prediction import MODELS, Calibrated, Calibration, Propagation, calibrated_entries
 from ..errors import InputError
-from ..inference import metrics
+from ..inference import gauge, metrics
 from ..robot import registration
 
 TRANSFER_COLUMNS = [
@@ -42,6 +46,7 @@ TRANSFER_COLUMNS = [
     "p95_mm",
 ]
 MIN_REGISTRATION_POINTS = 3
+MIN_NOISE = 1e-9  # m: a noiseless simulation still weighs the marker's prior by a finite ratio
 
 
 def transfer_errors(calibration: Calibration, target: Calibrated) -> np.ndarray:
@@ -58,10 +63,20 @@ def transfer_errors(calibration: Calibration, target: Calibrated) -> np.ndarray:
     measured = {s: sensor.table.loc[r, xyz].to_numpy(float) for s, r in rows.items()}
     # one predictor over both sets: one gravity-torque computation, one kernel set-up
     everything = calibration.predictor(target.chain, np.vstack([q["optimization"], q["validation"]]), sensor.marker)
-    points = everything.points(calibration.values)
+    flange = everything.flange_poses(calibration.values)
+    carried = np.asarray(sensor.marker, dtype=float) + [calibration.values.get(n, 0.0) for n in gauge.MARKER]
     n_opt = len(q["optimization"])
-    sensor_from_robot = registration.kabsch(points[:n_opt], measured["optimization"])
-    predicted = spatial.transform_points(sensor_from_robot, points[n_opt:])
+    noise = sensor.noise
+    if noise is None:  # no stated noise: the residual of the registration with the carried marker
+        points = flange[:n_opt, :3, :3] @ carried + flange[:n_opt, :3, 3]
+        residual = measured["optimization"] - spatial.transform_points(
+            registration.kabsch(points, measured["optimization"]), points
+        )
+        noise = float(np.sqrt(np.mean(residual**2))) or MIN_NOISE
+    sensor_from_robot, marker = registration.kabsch_with_marker(
+        flange[:n_opt], carried, measured["optimization"], max(noise, MIN_NOISE), target.marker_std
+    )
+    predicted = spatial.transform_points(sensor_from_robot, flange[n_opt:, :3, :3] @ marker + flange[n_opt:, :3, 3])
     return np.linalg.norm(measured["validation"] - predicted, axis=1)
 
 
