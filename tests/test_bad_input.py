@@ -34,7 +34,9 @@ TINY_FIT = {
         "paper": {"chains": 2, "samples": 300, "burn_in": 200},
         "default": {"chains": 2, "samples": 300, "burn_in": 100},
         "emcee": {"walkers": 32, "steps": 200, "burn_in": 100},
-    }
+    },
+    "accuracy": {"draws": 200, "random_configurations": 100},
+    "loop_closure": {"mcmc": {"chains": 2, "samples": 600, "burn_in": 300}},
 }
 
 
@@ -706,6 +708,12 @@ def test_one_bad_campaign_fails_its_own_jobs_and_the_others_complete(tmp_path, t
     metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
     files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
     (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
+    # the good campaign with its laser tracker alone: a second sensor would add jobs, not checks
+    (raw / "tiny" / "motion_capture.parquet").unlink()
+    files.write_yaml(
+        raw / "tiny" / "campaign.yaml",
+        {**metadata, "sensors": {"laser_tracker": metadata["sensors"]["laser_tracker"]}},
+    )
     earlier = tmp_path / "results"  # what an earlier run left: the broken campaign's certificate, the report
     (earlier / "broken").mkdir(parents=True)
     (earlier / "broken" / "certificate.md").write_text("an earlier run's verdict")
