@@ -11,6 +11,8 @@ to change):
   moved on the tool plate, the robot unchanged);
 - designs (a UR5 given by its DH table, joints without limits as a UR's +-2 pi: the iiwa's limits are
   below pi): random configurations with joint 1 in one range, and the same with joint 1 ONE TURN up;
+  both arms read each joint at its output (campaign.yaml robot/joint_encoders: output, as the bundled
+  iiwa and UR5 campaigns declare);
 - truths: zero-offsets plus a smooth nonlinear joint error of joints 1 and 2 (a sine of 0.3-0.35
   cycles per turn: no harmonic of the turn, which a joint scale imitates over one range); or backlash
   (half the play of joints 2-4, by the direction each joint approached the reading from); or, on
@@ -19,7 +21,7 @@ to change):
 
 Each campaign goes through the pipeline's stages in-process (`truth_claims.check`) and is held on
 every other campaign of its group (`transfer_pairs`: the source's kinematics frozen, the target's
-registration refitted on its optimization rows, RMS over its validation rows) beside complete-model
+registration and marker refitted on its optimization rows, RMS over its validation rows) beside complete-model
 least squares fitted on the source, the zero-offset model and the nominal model; with the share of
 the target's validation commands where the true error of the source's `remaster predict` (its own
 sensor set-up) exceeds its per-command 95 % bound. Every pair of campaigns is also compared by
@@ -168,6 +170,9 @@ def spec_of(arm: str, truth: str, design: str, seed: int) -> dict:
         spec["sensors"] = copy.deepcopy(chosen.sensors) if chosen.sensors else spec["sensors"]
         offsets = UR5_OFFSETS_DEG
     n_joints = len(offsets)
+    # both arms read each joint at its output, after the gear, as their bundled campaigns declare:
+    # a joint scale is then an encoder's graduation (tens of ppm), not a gear ratio's error
+    spec["robot"] = {**spec["robot"], "joint_encoders": "output"}
     spec["name"], spec["date"] = name, (FIRST_DATE + dt.timedelta(days=k)).isoformat()
     spec["truth"] = {"zero_offsets_deg": list(offsets), **TRUTHS[truth](n_joints), **chosen.truth}
     return spec
