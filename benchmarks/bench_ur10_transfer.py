@@ -114,7 +114,8 @@ def markdown(record: dict) -> str:
         f"Measured {record['date']} by `benchmarks/bench_ur10_transfer.py` on the real UR10's series "
         f"({', '.join(f'{k.upper()} {v}' for k, v in SERIES.items())}): each source calibrated "
         f"on {record['subsample'] or 'all'} of its optimization rows at most (seeded choice, seed {record['seed']}), "
-        "each target's registration refitted on its optimization rows with the source's kinematics frozen, "
+        f"joint encoders {record.get('joint_encoders', 'as declared')} (robot/joint_encoders: the joint scale's prior), "
+        "each target's registration and marker refitted on its optimization rows with the source's kinematics frozen, "
         "RMS over its validation rows (mm). Least squares: zero-offsets, every link, the marker offset and "
         "joint compliance, flat; rigid: the same without the compliance (shown, not a target). Baseline: least "
         "squares, or from D the better of it and the nominal model.",
@@ -180,6 +181,12 @@ def main() -> None:
     )
     parser.add_argument("--subsample", type=int, default=1500, help="optimization rows a source keeps (0: all)")
     parser.add_argument("--seed", type=int, default=20181113)
+    parser.add_argument(
+        "--joint-encoders",
+        default="output",
+        help="robot/joint_encoders for every series (a UR reads its joints at the output; '' keeps what the series "
+        "declare, which is nothing: the motor's prior)",
+    )
     parser.add_argument("--rewrite", action="store_true", help="the tables again from results/ur10_transfer.json")
     args = parser.parse_args()
     if args.rewrite:
@@ -192,6 +199,10 @@ def main() -> None:
     if unknown or any(len(p) != 2 for p in pairs):
         parser.error(f"pairs are source:target of {', '.join(SERIES)}")
     campaigns = {k: api.calibration.as_campaign(args.data / SERIES[k]) for k in sorted({k for p in pairs for k in p})}
+    if args.joint_encoders:  # what a user of a UR declares: it reads each joint at its output
+        campaigns = {
+            k: replace(c, robot={**c.robot, "joint_encoders": args.joint_encoders}) for k, c in campaigns.items()
+        }
     rng = np.random.default_rng(args.seed)
     sources, targets, rows = {}, {}, []
     for key in sorted({s for s, _ in pairs}):
@@ -207,6 +218,7 @@ def main() -> None:
         "data": str(args.data),
         "subsample": args.subsample,
         "seed": args.seed,
+        "joint_encoders": args.joint_encoders or "as declared",
         "within": WITHIN,
         "sources": {k: {n: v for n, v in s.items() if n != "models"} for k, s in sources.items()},
         "pairs": rows,
