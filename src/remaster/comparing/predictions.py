@@ -303,7 +303,7 @@ CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "transfer": "Transfer between campaigns of one robot: each campaign's calibration (nominal, paper, loop) on "
     "each campaign's validation set of the same sensor, registration and marker refitted on that campaign's "
     "optimization set with the calibration's kinematics frozen (registration, sensor scale, marker and drift "
-    "not transferred); the diagonal is the ordinary validation.",
+    "not transferred); the diagonal is the campaign's own validation of its kinematics.",
     "transfer_nominal": "Transfer heat-map, nominal kinematics: validation RMSE (mm), calibrated on (rows) against "
     "evaluated on (columns)",
     "transfer_paper": "Transfer heat-map, the paper's model: validation RMSE (mm), calibrated on (rows) against "
