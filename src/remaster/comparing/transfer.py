@@ -71,7 +71,7 @@ def transfer_errors(calibration: Calibration, target: Calibrated) -> np.ndarray:
     sensor_from_robot, marker = refitted_set_up(
         flange[:n_opt], carried, measured["optimization"], sensor.noise, target.marker_std
     )
-    predicted = spatial.transform_points(sensor_from_robot, flange[n_opt:, :3, :3] @ marker + flange[n_opt:, :3, 3])
+    predicted = spatial.transform_points(sensor_from_robot, spatial.transform_points(flange[n_opt:], marker))
     return np.linalg.norm(measured["validation"] - predicted, axis=1)
 
 
@@ -85,7 +85,7 @@ def refitted_set_up(flange, carried, measured, stated_noise, marker_std) -> tupl
     floor = max(stated_noise or 0.0, MIN_NOISE)
     marker, noise = np.asarray(carried, dtype=float), None
     for _ in range(SCATTER_ROUNDS):
-        points = flange[:, :3, :3] @ marker + flange[:, :3, 3]
+        points = spatial.transform_points(flange, marker)
         residual = measured - spatial.transform_points(registration.kabsch(points, measured), points)
         scatter = max(floor, float(np.sqrt(np.mean(residual**2))))
         if noise is not None and abs(scatter - noise) <= 0.01 * noise:

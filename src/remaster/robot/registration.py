@@ -117,7 +117,7 @@ def kabsch_with_marker(
     information = np.einsum("nji,njk->ik", turned, turned) + (noise / marker_std) ** 2 * np.eye(3)
     current = prior
     for _ in range(iterations):
-        sensor_from_robot = kabsch(rotations @ current + positions, measured)
+        sensor_from_robot = kabsch(spatial.transform_points(poses, current), measured)
         rotation = sensor_from_robot[:3, :3]
         # the sensor's points in the robot frame's axes, centred: turned_i m = those - moved_i
         aligned = (measured - measured.mean(axis=0)) @ rotation - moved
@@ -128,8 +128,7 @@ def kabsch_with_marker(
         current = updated
         if step < 1e-9:
             break
-    points = (rotations @ current) + positions
-    return kabsch(points, measured), current
+    return kabsch(spatial.transform_points(poses, current), measured), current
 
 
 def rigid_transforms(source, target, weights=None) -> np.ndarray:
