@@ -182,6 +182,46 @@ def test_the_tracker_samples_drive_the_rows_paired_with_joint_states(tmp_path, i
     assert report["unmatched_rows"] == 1
 
 
+def test_a_tracker_stamping_on_its_own_clock_is_paired_by_the_bags_log_time(tmp_path, iiwa, rng):
+    """A tracker driver that stamps its samples on the tracker's clock (here 37 s ahead of the robot's)
+    pairs no sample by header stamp; with stamp: log each sample's time is when the bag logged it (3 ms
+    after it was taken), on the same clock as the joint states, and the rows are those of a recording
+    stamped on one clock."""
+    _, topics, _, _ = recording(iiwa, rng)
+    one_clock = tmp_path / "one_clock"
+    one_clock.mkdir()
+    config = write_config(one_clock, write_bag(one_clock / "bag", "mcap", topics), sensor={"still": 1e-9})
+    reference, _ = run_import(config, one_clock)
+    for _, m in topics["/tracker"][1]:
+        m.header.stamp.sec += 37
+    bag = write_bag(tmp_path / "bag", "mcap", topics)
+    message = import_error(tmp_path, bag, sensor={"still": 1e-9})
+    assert "(are both stamped on one clock? stamp: log takes the bag's log time of each)" in message
+
+    table, report = run_import(write_config(tmp_path, bag, sensor={"still": 1e-9, "stamp": "log"}), tmp_path)
+    assert report["sensors"]["laser_tracker"]["stamp"] == "log"
+    assert table["time"].tolist() == [t + pd.Timedelta(3, "ms") for t in reference["time"]]
+    columns = [f"q{j}" for j in range(1, 8)] + ["x", "y", "z", "set", "pose"]
+    pd.testing.assert_frame_equal(table[columns], reference[columns])
+
+
+def test_an_unset_or_unknown_sensor_stamp_is_refused(tmp_path, iiwa, rng):
+    _, topics, _, _ = recording(iiwa, rng, n=8)
+    bag = write_bag(tmp_path / "bag", "mcap", topics)
+    message = import_error(tmp_path, bag, sensor={"stamp": "receipt"})
+    assert message.endswith("sensors/laser_tracker/stamp: must be one of header, log (got 'receipt')")
+    topics["/tracker"][1][0][1].header.stamp.sec = 0
+    topics["/tracker"][1][0][1].header.stamp.nanosec = 0
+    bag = write_bag(tmp_path / "unset", "mcap", topics)
+    message = import_error(tmp_path, bag)
+    assert message.endswith(
+        "header stamp 0 (never set by the publisher) on message 1: use sensors/laser_tracker/stamp: log to take "
+        "the bag's log time"
+    )
+    table, report = run_import(write_config(tmp_path, bag, sensor={"stamp": "log", "still": 1e-9}), tmp_path)
+    assert (len(table), report["sensors"]["laser_tracker"]["stamp"]) == (9, "log")  # but the moving sample
+
+
 def test_without_still_a_sample_far_from_every_joint_state_is_excluded(tmp_path, iiwa, rng):
     poses, topics, samples, _ = recording(iiwa, rng, moving_sample=False)
     bag = write_bag(tmp_path / "bag", "sqlite3", topics)
@@ -290,17 +330,22 @@ def test_a_damaged_sqlite3_bag_is_named(tmp_path, iiwa, rng):
 
 
 @pytest.mark.slow
-def test_a_sqlite3_bag_imported_calibrates_end_to_end(tmp_path, iiwa, rng):
-    """40 poses recorded in a sqlite3 bag with zero-offsets of 0.02 deg, the last 10 the validation
-    window: the campaign imports and calibrates, the fit lowers the validation set's error and the
-    acceptance test runs on it."""
+def test_a_bag_of_either_storage_imported_calibrates_end_to_end(tmp_path, iiwa, rng):
+    """40 poses recorded with zero-offsets of 0.02 deg, the last 10 the validation window, written as
+    an MCAP and as a sqlite3 bag: both import into the same campaign, which calibrates, the fit lowers
+    the validation set's error and the acceptance test runs on it."""
     truth = np.deg2rad([0.02, -0.02, 0.01, 0.02, -0.01, 0.02, 0.01])
     _, topics, _, _ = recording(iiwa, rng, n=40, moving_sample=False, zero_offsets=truth)
-    bag = write_bag(tmp_path / "bag", "sqlite3", topics)
     window = {"from": utc(START + 30 * DWELL).isoformat(), "to": utc(START + 40 * DWELL).isoformat()}
-    config = write_config(tmp_path, bag, controller={"validation": window}, sensor={"still": 1e-9})
-    folder, report = folders.import_campaign(config, tmp_path / "raw", repo_root=REPO)
-    assert report["sensors"]["laser_tracker"]["validation"] == 10
+    tables = {}
+    for storage in STORAGES:
+        (tmp_path / storage).mkdir()
+        bag = write_bag(tmp_path / storage / "bag", storage, topics)
+        config = write_config(tmp_path / storage, bag, controller={"validation": window}, sensor={"still": 1e-9})
+        folder, report = folders.import_campaign(config, tmp_path / storage / "raw", repo_root=REPO)
+        assert report["sensors"]["laser_tracker"]["validation"] == 10
+        tables[storage] = folders.read_campaign(folder, repo_root=REPO).sensors["laser_tracker"].table
+    pd.testing.assert_frame_equal(tables["mcap"], tables["sqlite3"])
     quick = {
         "loop_closure": {"residual_gp": {"enabled": False}},
         "accuracy": {"draws": 200, "random_configurations": 100},

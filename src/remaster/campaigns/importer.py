@@ -78,8 +78,8 @@ sensors:
 ```
 
 The sensor's samples then drive the rows (`_paired_table`): each gets the joint state nearest its
-header stamp within `tolerance` s, or, with `still` (rad), the two around it interpolated when no
-joint moved more than that between them; the others are excluded and listed in the report. Rows
+time (its header stamp, or with `stamp: log` the bag's log time) within `tolerance` s, or, with
+`still` (rad), the two around it interpolated when no joint moved more than that between them; the others are excluded and listed in the report. Rows
 inside the controller's `validation` window form the validation set (for a CSV sensor matched to
 the bag's joint states too); `validation: {bag: <file>}` instead imports a second bag of the same
 topics as the validation set (`validation_spec`, `joined`).
@@ -148,13 +148,14 @@ ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")  # a sensor topic's export: a pose's orientation
 QUATERNION_NORM = 1e-3  # a unit quaternion's norm off 1 by more than this is not one (or not w, x, y, z)
 BAG_KEYS = ("bag", "topic", "joints", "stamp", "unit", "validation")
-BAG_SENSOR_KEYS = ("bag", "topic", "child_frame", "match", "tolerance", "still")  # a sensor topic's import keys
+TOPIC_ONLY_KEYS = ("bag", "child_frame", "still", "stamp")  # a sensor topic's import keys a CSV export has not
+BAG_SENSOR_KEYS = ("topic", "match", "tolerance") + TOPIC_ONLY_KEYS  # a sensor topic's import keys
 _NOT_FOR_BAG_SENSOR = {  # a CSV export's sensor keys -> why they do not apply to a sensor topic
     "file": "give file (a CSV export) or topic (of a bag), not both",
     "xyz": "a message's position is its x, y, z",
     "unit": "a message's position is in m (ROS's unit)",
     "key": "a sensor topic is matched by time",
-    "time": "a sample's time is its header stamp",
+    "time": "a sample's time is its header stamp or the bag's log time: choose with stamp",
     "orientation": "a pose's or transform's orientation is its quaternion, read when the sensor has orientation_noise",
 }
 BAG_STAMPS = {"header": "header.stamp", "log": "log time"}  # stamp -> the name of a bag's time in messages
@@ -275,7 +276,8 @@ class BagSpec:
     """A bag's topic. The controller's: sensor_msgs/msg/JointState messages, the time of each stamp
     "header" (its header.stamp) or "log" (the bag's log time), and `validation` the time window
     (from, to: ns since the Unix epoch, UTC, both included) of the validation set. A sensor's:
-    measurements (bags.MEASUREMENTS) stamped by their header, `child_frame` the transforms taken
+    measurements (bags.MEASUREMENTS), the time of each its header.stamp or the bag's log time as
+    for the controller, `child_frame` the transforms taken
     (TransformStamped, TFMessage; all when None) and `still` (rad): a sample with no joint state
     within its tolerance gets the two around it interpolated when none of their joints differs by
     more than this (the robot was still between them)."""
@@ -692,6 +694,7 @@ def _bag_sensor_spec(name: str, section: Mapping, controller: ControllerSpec, so
         orientation=QUATERNION_COLUMNS if section.get("orientation_noise") is not None else None,
         bag=BagSpec(
             _text(section, "topic", where, source),
+            stamp=_choice(section, "stamp", tuple(BAG_STAMPS), where, source, "header"),
             child_frame=_text(section, "child_frame", where, source),
             still=None if still is None else _positive(section, "still", where, source, "rad"),
         ),
@@ -711,7 +714,7 @@ def _sensor_spec(name: str, section: Mapping, controller: ControllerSpec, source
             file=source,
             key=f"{where}/file",
         )
-    stray = [k for k in ("bag", "child_frame", "still") if k in section]
+    stray = [k for k in TOPIC_ONLY_KEYS if k in section]
     if stray:
         raise InputError(
             "only applies to a sensor topic (sensors/<name>/topic)", file=source, key=f"{where}/{stray[0]}"
@@ -785,7 +788,7 @@ def parse_config(config: Any, source: str) -> ImportSpec:
     for name, section in sensors.items():
         _check_keys(
             _mapping(section, f"sensors/{name}", source),
-            SENSOR_KEYS + SENSOR_IMPORT_KEYS + ("bag", "topic", "child_frame", "still"),
+            SENSOR_KEYS + SENSOR_IMPORT_KEYS + ("topic",) + TOPIC_ONLY_KEYS,
             f"sensors/{name}",
             source,
         )
@@ -935,8 +938,9 @@ def joint_state_export(states: Sequence, spec: ControllerSpec, source: str) -> E
 def measurement_export(samples: Sequence, spec: SensorSpec, source: str) -> Export:
     """A sensor topic's samples (`bags.Measurement`, in log-time order) as the sensor's export: a row
     per sample, the cells x, y, z (m) and, for a full-pose probe (spec.orientation), its quaternion,
-    and the text of its header stamp (UTC, to the ns); `lines` the messages' indices, `times` their
-    stamps, `frame_id` theirs. InputError naming the bag (`source`) and the topic: no sample (no
+    and the text of its time (its header stamp or the bag's log time: spec.bag.stamp; UTC, to the
+    ns); `lines` the messages' indices, `times` those times, `frame_id` theirs. InputError naming
+    the bag (`source`) and the topic: no sample (no
     transform to spec.bag.child_frame), a header stamp 0, positions in more than one frame, a
     point where the probe needs an orientation."""
     topic = spec.bag.topic
@@ -947,8 +951,9 @@ def measurement_export(samples: Sequence, spec: SensorSpec, source: str) -> Expo
             key=topic,
         )
     lines = np.array([m.index for m in samples], dtype=np.int64)
-    ns = np.array([m.stamp for m in samples], dtype=np.int64)
-    _stamps_set(ns, lines, source, topic, "a sample's time is its header stamp")
+    header = spec.bag.stamp == "header"
+    ns = np.array([m.stamp if header else m.log_time for m in samples], dtype=np.int64)
+    _stamps_set(ns, lines, source, topic, f"use sensors/{spec.name}/stamp: log to take the bag's log time")
     frames: dict[str, list[int]] = {}
     for m in samples:
         frames.setdefault(m.frame_id, []).append(m.index)
@@ -1271,7 +1276,7 @@ def _paired_table(
     if not kept.size:  # nothing to calibrate from: a wrong tolerance, or stamps on two clocks
         raise InputError(
             f"no sample has a joint state (controller/topic {controller_spec.bag.topic}) within "
-            f"sensors/{spec.name}/tolerance {spec.tolerance:g} s; the first: {reasons[0]} (are both stamped on one clock?)",
+            f"sensors/{spec.name}/tolerance {spec.tolerance:g} s; the first: {reasons[0]} (are both stamped on one clock? stamp: log takes the bag's log time of each)",
             file=export.source,
             key=spec.bag.topic,
         )
@@ -1294,6 +1299,7 @@ def _paired_table(
         "file": export.source,
         "topic": spec.bag.topic,
         "frame_id": export.frame_id,
+        "stamp": spec.bag.stamp,
         "match": "time",
         "rows": int(len(export.cells)),
         "matched": int(kept.size),
