@@ -1,13 +1,17 @@
 """`remaster.api`: the configuration with the schema's defaults (the same the workflow fills in),
 and a small simulated campaign calibrated, predicted at, compensated and compared in-process."""
 
+import ast
 import copy
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 import remaster
 from remaster import api, configuration, files
+from remaster.api import stages
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.arm_kinds import chain_of, iiwa_rigid_link_errors
 from remaster.errors import InputError
@@ -44,6 +48,63 @@ def test_the_package_exports_the_interface():
     assert remaster.calibrate is api.calibrate and remaster.settings is api.settings
     with pytest.raises(AttributeError):
         remaster.calibrat  # noqa: B018
+
+
+def test_the_interface_and_its_stages_load_nothing_heavy_until_a_name_is_used():
+    """Each workflow job is a fresh Python: `from remaster import api` and `remaster.api.stages`
+    import none of the library's stages, and a stage used loads its own module, not the others'."""
+    modules = sorted({module for module, _ in stages.STAGES.values()})
+    code = (
+        "import sys\nfrom remaster import api\nimport remaster.api.stages\n"
+        "def loaded():\n"
+        f"    return [m for m in {modules!r} if 'remaster.' + m in sys.modules]\n"
+        "light = [m for m in ('remaster.api.calibration', 'remaster.api.use', 'remaster.configuration')"
+        " if m in sys.modules]\n"
+        "before = loaded()\napi.stages.draw_campaign_figure\n"
+        "print(light, before, loaded())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "[] [] ['reporting.campaign_figures']"
+
+
+def test_every_stage_is_a_function_of_its_module_and_the_names_behave_as_imported():
+    import importlib
+
+    assert list(stages.STAGES) == stages.__all__ and set(stages.__all__) <= set(dir(stages))
+    for name, (module, attribute) in stages.STAGES.items():
+        function = getattr(stages, name)
+        assert callable(function) and function is getattr(importlib.import_module(f"remaster.{module}"), attribute)
+    assert set(api.__all__) <= set(dir(api)) and api.calibration.calibrate is api.calibrate
+    with pytest.raises(AttributeError):
+        stages.fit_everything  # noqa: B018
+    with pytest.raises(AttributeError):
+        api.calibrat  # noqa: B018
+
+
+def _stages_called(source: str) -> list[str]:
+    """The names of `api.stages.<name>` in `source`, in the order they appear."""
+    return [
+        node.attr
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.Attribute)
+        and isinstance(node.value, ast.Attribute)
+        and node.value.attr == "stages"
+        and isinstance(node.value.value, ast.Name)
+        and node.value.value.id == "api"
+    ]
+
+
+def test_every_workflow_script_calls_one_stage_through_the_api():
+    """Each script reads its inputs, calls one stage of `remaster.api.stages` and writes its outputs;
+    every stage is some script's."""
+    assert _stages_called("api.stages.close_loop(x, api.stages.build_report)\napi.settings()\n") == [
+        "close_loop",
+        "build_report",
+    ]
+    scripts = sorted((REPO / "workflow" / "scripts").glob("*.py"))
+    called = {p.stem: _stages_called(p.read_text(encoding="utf-8")) for p in scripts}
+    assert {s: c for s, c in called.items() if len(c) != 1} == {}, "a script calls exactly one stage"
+    assert sorted(c for (c,) in called.values()) == sorted(stages.STAGES)
 
 
 SIZES = {"optimization": {"poses": 16, "configurations": 80}, "validation": {"poses": 8, "configurations": 40}}

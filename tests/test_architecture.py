@@ -220,8 +220,44 @@ SOLVERS = ("scipy.optimize", "scipy.linalg", "scipy.stats", "emcee", "numba", "p
 READERS = ("tables", "figures", "campaign_figures", "comparison_figures", "report", "campaign_summary", "audit")
 
 
+def _stage_modules(source: str) -> set[str]:
+    """The package modules (dotted below remaster) that the stages `source` uses through
+    `remaster.api.stages` load: `api.stages.<name>` (after `from remaster import api`), `stages.<name>`
+    (after `from remaster.api import stages`) or `from remaster.api.stages import <name>`, each
+    resolved by the stages' table (`api.stages.STAGES`)."""
+    from remaster.api.stages import STAGES
+
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute):
+            held = node.value  # api.stages, or stages
+            if isinstance(held, ast.Attribute) and held.attr == "stages" and isinstance(held.value, ast.Name):
+                through_api = held.value.id == "api"
+            else:
+                through_api = isinstance(held, ast.Name) and held.id == "stages"
+            if through_api:
+                names.add(node.attr)
+        elif isinstance(node, ast.ImportFrom) and node.module == "remaster.api.stages":
+            names |= {a.name for a in node.names}
+    unknown = names - set(STAGES)
+    assert not unknown, f"not stages of remaster.api.stages: {sorted(unknown)}"
+    return {STAGES[name][0] for name in names}
+
+
+def test_the_import_detector_sees_the_stages_a_script_calls_through_the_api():
+    source = (
+        "from remaster import api\napi.stages.sample_posterior(1)\nf = api.stages.build_report\n"
+        "from remaster.api import stages\nstages.close_loop()\nfrom remaster.api.stages import make_audit_record\n"
+    )
+    assert _stage_modules(source) == {"inference.fit", "reporting.report", "loop.loop_closure", "audit"}
+    assert _stage_modules("from remaster import api\napi.calibrate(1)\n") == set()
+
+
 def _library_imports(script: Path) -> list[str]:
-    return sorted(_imported_modules(script.read_text(encoding="utf-8"), "", _modules()))
+    """The package modules a script loads: those it imports, and those of the stages it calls
+    through `remaster.api.stages`."""
+    source = script.read_text(encoding="utf-8")
+    return sorted(_imported_modules(source, "", _modules()) | _stage_modules(source))
 
 
 def test_jobs_that_only_read_results_import_no_solver():
@@ -240,6 +276,8 @@ def test_jobs_that_only_read_results_import_no_solver():
     )
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert loaded == "", f"importing {imports} loads {loaded}"
+    # every reader's stage is seen (through remaster.api.stages), not only its direct imports
+    assert {"reporting.report", "reporting.campaign_figures", "reporting.figures_comparison", "audit"} <= set(imports)
     # the check itself sees a solver when one is imported
     seen = subprocess.run(
         [

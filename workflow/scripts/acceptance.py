@@ -2,9 +2,8 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, seeding
+from remaster import api, files, results, seeding
 from remaster.campaigns import folders
-from remaster.evaluation import acceptance
 from remaster.loop.result import LoopResults
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -16,7 +15,7 @@ with files.log_to(snakemake.log[0]):
     read = results.read_results(
         dict(i.items()), ("registration", "laplace", "paper_samples", "loop", "loop_samples", "gp")
     )
-    result = acceptance.acceptance_stage(
+    result = api.stages.run_acceptance_test(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         read["registration"].t_nr,

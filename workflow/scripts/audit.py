@@ -3,7 +3,7 @@ code's hash, the seed and every result's hash."""
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import audit, files, provenance
+from remaster import api, files, provenance
 from remaster.campaigns import folders
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -13,7 +13,7 @@ snakemake: Snakemake = globals()["snakemake"]
 with files.log_to(snakemake.log[0]):
     p = snakemake.params
     campaigns = folders.campaign_folders(snakemake.input.campaigns)
-    record = audit.audit_record(
+    record = api.stages.make_audit_record(
         # the digests `remaster predict` and `compensate` compute again to check a campaign is unchanged
         {c: folders.campaign_digests(folder) for c, folder in campaigns.items()},
         {c: provenance.file_digests(paths) for c, paths in p.results.items()},

@@ -3,10 +3,9 @@ controller offsets and, for a DH campaign, the calibrated DH tables (and a UR's 
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, seeding
+from remaster import api, files, results, seeding
 from remaster.calibration import prediction
 from remaster.campaigns import folders
-from remaster.evaluation import handover
 from remaster.loop.result import LoopResults
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -16,7 +15,7 @@ snakemake: Snakemake = globals()["snakemake"]
 w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
 with files.log_to(snakemake.log[0]):
     read = results.read_results(dict(i.items()), ("summary", "laplace", "loop", "samples", "gp"))
-    result = handover.calibrated_outputs_stage(
+    result = api.stages.make_calibrated_outputs(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         read["summary"],

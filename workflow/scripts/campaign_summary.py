@@ -2,7 +2,7 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files
+from remaster import api, files
 from remaster.campaigns import folders
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -11,7 +11,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 with files.log_to(snakemake.log[0]):
     p = snakemake.params
-    summary = folders.summarize_folder(
+    summary = api.stages.summarize_campaign(
         folders.campaign_folder(snakemake.input.campaign), p.memory_limit, p.draws, p.fit_rows
     )
     files.write_json(snakemake.output.summary, summary)

@@ -5,8 +5,7 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, stage_inputs
-from remaster.comparing import comparison
+from remaster import api, files, results, stage_inputs
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -15,7 +14,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 with files.log_to(snakemake.log[0]):
     named = dict(snakemake.input.items())
-    result = comparison.comparison_tables(
+    result = api.stages.compare_campaigns(
         {c: files.read_yaml(f) for c, f in stage_inputs.by_sensor(named, "metadata").items()},
         {pair: results.read_result("summary", f) for pair, f in stage_inputs.by_pair(named, "summary").items()},
         {pair: results.read_result("loop", f) for pair, f in stage_inputs.by_pair(named, "loop").items()},

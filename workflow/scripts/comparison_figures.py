@@ -5,8 +5,7 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files
-from remaster.reporting import figures_comparison
+from remaster import api, files
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -15,5 +14,5 @@ snakemake: Snakemake = globals()["snakemake"]
 with files.log_to(snakemake.log[0]):
     comparison_tables = {name: files.read_csv(path) for name, path in snakemake.input.items()}
     p = snakemake.params
-    for stem, figure in figures_comparison.comparison_figures(comparison_tables, dict(p.robots), p.models):
+    for stem, figure in api.stages.draw_comparison_figures(comparison_tables, dict(p.robots), p.models):
         files.write_figure(Path(snakemake.output[stem][0]).with_suffix(""), figure)

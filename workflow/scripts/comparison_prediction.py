@@ -5,10 +5,10 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, stage_inputs
+from remaster import api, files, results, stage_inputs
 from remaster.calibration import prediction
 from remaster.campaigns import folders
-from remaster.comparing import predictions, transfer
+from remaster.comparing import predictions
 from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
@@ -22,7 +22,7 @@ with files.log_to(snakemake.log[0]):
     def each(kind):
         return {pair: results.read_result(kind, f) for pair, f in stage_inputs.by_pair(named, kind).items()}
 
-    result = transfer.prediction_stage(
+    result = api.stages.compare_predictions(
         {c: folders.read_campaign(f) for c, f in folders.campaign_folders(i.campaigns).items()},
         each("summary"),
         each("laplace"),

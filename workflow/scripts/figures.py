@@ -4,8 +4,7 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files
-from remaster.reporting import campaign_figures
+from remaster import api, files
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -14,5 +13,5 @@ snakemake: Snakemake = globals()["snakemake"]
 w, out = snakemake.wildcards, snakemake.output
 with files.log_to(snakemake.log[0]):
     inputs = {name: str(path) for name, path in snakemake.input.items()}
-    for name, figure in campaign_figures.sensor_figures(w.campaign, w.sensor, inputs, snakemake.params.burn_in):
+    for name, figure in api.stages.draw_sensor_figures(w.campaign, w.sensor, inputs, snakemake.params.burn_in):
         files.write_figure(Path(out[name][0]).with_suffix(""), figure)

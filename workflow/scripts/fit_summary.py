@@ -3,7 +3,7 @@ remastering and the accuracy metrics."""
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, seeding, stage_inputs
+from remaster import api, files, results, seeding, stage_inputs
 from remaster.campaigns import folders
 from remaster.evaluation import fit_summary
 
@@ -14,7 +14,7 @@ snakemake: Snakemake = globals()["snakemake"]
 w, i, out, p = snakemake.wildcards, snakemake.input, snakemake.output, snakemake.params
 with files.log_to(snakemake.log[0]):
     named = dict(i.items())
-    result = fit_summary.fit_summary_stage(
+    result = api.stages.summarize_fit(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         results.read_result("registration", i.registration),

@@ -2,9 +2,9 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, seeding
+from remaster import api, files, results, seeding
 from remaster.campaigns import folders
-from remaster.loop import loop_closure, settings
+from remaster.loop import settings
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -12,7 +12,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, p, out = snakemake.wildcards, snakemake.input, snakemake.params, snakemake.output
 with files.log_to(snakemake.log[0]):
-    result = loop_closure.loop_closure_stage(
+    result = api.stages.close_loop(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         results.read_result("registration", i.registration),

@@ -2,9 +2,8 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files
+from remaster import api, files
 from remaster.campaigns import folders
-from remaster.inference import fit
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -12,6 +11,8 @@ snakemake: Snakemake = globals()["snakemake"]
 
 with files.log_to(snakemake.log[0]):
     campaign = folders.read_campaign(folders.campaign_folder(snakemake.input.campaign))
-    registration, laplace = fit.prepare_stage(campaign, snakemake.wildcards.sensor, snakemake.params.outlier_alpha)
+    registration, laplace = api.stages.register_and_fit_laplace(
+        campaign, snakemake.wildcards.sensor, snakemake.params.outlier_alpha
+    )
     files.write_json(snakemake.output.registration, registration)
     files.write_json(snakemake.output.laplace, laplace)

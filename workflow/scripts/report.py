@@ -5,9 +5,9 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files
+from remaster import api, files
 from remaster.comparing import predictions
-from remaster.reporting import report, tables
+from remaster.reporting import tables
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -24,7 +24,7 @@ def read_part(part):
 
 with files.log_to(snakemake.log[0]):
     p = snakemake.params
-    page = report.build(
+    page = api.stages.build_report(
         {name: read_part(part) for name, part in p.layout.items()},
         {**tables.CAPTIONS, **predictions.CAPTIONS},
         audit=files.read_json(snakemake.input.audit),

@@ -2,9 +2,8 @@
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, results, seeding
+from remaster import api, files, results, seeding
 from remaster.campaigns import folders
-from remaster.inference import fit
 
 # The job (input, output, params, wildcards, log) that Snakemake's script directive defines before
 # this file runs; named here so that readers and linters see where it comes from.
@@ -12,7 +11,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 w, i, out = snakemake.wildcards, snakemake.input, snakemake.output
 with files.log_to(snakemake.log[0]) as log:
-    samples, trace, diagnostics = fit.sampling_stage(
+    samples, trace, diagnostics = api.stages.sample_posterior(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         results.read_result("registration", i.registration),

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from snakemake.iocontainers import Snakemake
 
-from remaster import files, stage_inputs
+from remaster import api, files, stage_inputs
 from remaster.campaigns import folders
 from remaster.reporting import campaign_tables, certificate, tables
 
@@ -14,7 +14,7 @@ snakemake: Snakemake = globals()["snakemake"]
 
 i, out = snakemake.input, snakemake.output
 with files.log_to(snakemake.log[0]):
-    result = campaign_tables.campaign_tables(
+    result = api.stages.make_campaign_tables(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         snakemake.wildcards.campaign,
         files.read_json(i.summary),
