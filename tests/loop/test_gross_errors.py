@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 import pytest
-import scipy.stats
 
 from remaster import files
 from remaster.campaigns import scenario
@@ -91,29 +90,16 @@ def test_the_simulator_injects_glitches_of_the_stated_sizes_and_records_their_ro
             scenario.simulate(_spec(3, glitches=bad), iiwa)
 
 
-@pytest.mark.parametrize(
-    "truth, seeds", [(None, range(1, 4)), (COMPLIANCE, range(1, 7))], ids=["offsets", "compliance"]
-)
-def test_clean_campaigns_flag_no_more_rows_than_the_level_allows(iiwa, truth, seeds):
-    """At the configured level (0.01) nothing is flagged. At a level high enough to count (0.2), on
-    the compliance campaigns, the rows beyond the threshold over 2 x 6 sets stay within what a
-    family-wise level allows: their number per set has mean at most alpha under the model
-    (Bonferroni: n rows at alpha / n each), so the total is at most Poisson(12 alpha) bar its 1 %
-    tail. The compliance campaigns' zero-offset model flags good rows provisionally; the final model
-    (with the compliance) restores them."""
-    strict, counting = loop_settings(mcmc=None), loop_settings(mcmc=None, gross_errors={"alpha": 0.2, "max_share": 0.1})
-    beyond, restored = 0, 0
-    for seed in seeds:
-        spec = _spec(seed, truth)
-        found = _closed(iiwa, spec, strict)[0].report.gross_errors
-        assert found["optimization"] == [] and found["validation"] == [] and found["settled"]
-        restored += len(found["restored"])
-        if truth is not None:
-            screens = _closed(iiwa, spec, counting)[0].report.gross_errors["screens"]
-            beyond += sum(len(screens[s]["beyond_threshold"]) for s in ("optimization", "validation"))
+@pytest.mark.parametrize("truth", [None, COMPLIANCE], ids=["offsets", "compliance"])
+def test_a_clean_campaign_flags_no_row_at_the_configured_level(iiwa, truth):
+    """One seed of each truth: at the configured level (0.01) nothing is flagged in either set and
+    the screen settles. The compliance campaign's zero-offset model flags good rows provisionally; the
+    final model (with the compliance) restores them. The rate over seeds (and the rows beyond the
+    threshold at a level high enough to count) is measured by benchmarks/bench_gross_errors.py."""
+    found = _closed(iiwa, _spec(1, truth), loop_settings(mcmc=None))[0].report.gross_errors
+    assert found["optimization"] == [] and found["validation"] == [] and found["settled"]
     if truth is not None:
-        assert beyond <= scipy.stats.poisson.ppf(0.99, 2 * len(seeds) * 0.2)
-        assert restored > 0  # what the zero-offset model's screen got wrong
+        assert len(found["restored"]) > 0  # what the zero-offset model's screen got wrong
 
 
 @pytest.fixture(scope="module")
