@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from datetime import date
@@ -55,9 +54,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.truth_claims import REPO  # noqa: E402
 from remaster import api, configuration, files, identity, spatial  # noqa: E402
+from remaster.api.truth import simulated_campaign  # noqa: E402
 from remaster.calibration import exports  # noqa: E402
 from remaster.calibration.prediction import loop_calibration, paper_calibration  # noqa: E402
-from remaster.campaigns import folders, scenario  # noqa: E402
+from remaster.campaigns import scenario  # noqa: E402
 from remaster.campaigns.arm_kinds import IIWA  # noqa: E402
 from remaster.campaigns.simulation import true_sensor_positions  # noqa: E402
 from remaster.evaluation import rigid_urdf, workspace  # noqa: E402
@@ -102,17 +102,6 @@ def case_spec(case: str, seed: int, optimization: int, validation: int) -> dict:
     return spec
 
 
-def simulated(spec: dict, chain) -> tuple:
-    """(campaign, truth) written to a temporary folder and read back as the workflow reads them."""
-    out = scenario.simulate(spec, chain)
-    with tempfile.TemporaryDirectory() as temporary:
-        root = Path(temporary)
-        folders.write_campaign(root / spec["name"], out.metadata, out.tables)
-        files.write_json(root / "truth.json", out.truth)
-        truth = files.read_json(root / "truth.json")
-        return folders.read_campaign(root / spec["name"], repo_root=REPO), truth
-
-
 def urdf_texts(calibration, seed: int) -> tuple[dict[str, str], dict]:
     """({file: URDF text} as the calibrated stage writes them (`handover.calibrated_outputs_stage`),
     rigid_urdf's own distances from the loop model at its default tools)."""
@@ -140,7 +129,7 @@ def stats(d_mm) -> dict:
 def one_run(case: str, seed: int, args, chain, settings) -> dict:
     """Every model's distances at every tool for one simulated campaign."""
     started = time.perf_counter()
-    campaign, truth = simulated(case_spec(case, seed, args.optimization, args.validation), chain)
+    campaign, truth = simulated_campaign(case_spec(case, seed, args.optimization, args.validation), chain, REPO)
     calibration = api.calibrate(campaign, SENSOR, settings, seed=seed)
     data = campaign.sensors[SENSOR]
     q = workspace.fit_domain(campaign.chain, data, calibration.laplace.outlier_rows).configurations(

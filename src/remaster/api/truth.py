@@ -171,7 +171,7 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
     true 95th percentile there; with the acceptance test. With elsewhere_q (m, N) rad, e.g. another
     design's commands: both models' `remaster predict` there against the truth (`TruthCheck.elsewhere`).
     repo_root: where the campaign's shared URDF is (default: the current directory)."""
-    campaign, truth = _simulated(spec, chain, repo_root)
+    campaign, truth = simulated_campaign(spec, chain, repo_root)
     calibration = calibrate(campaign, sensor, probe.configuration(), seed=probe.seed, without=probe.without)
     robot, rng = calibration.robot("loop"), np.random.default_rng(probe.seed)
     device = scenario.sensor_from_truth(truth, sensor, campaign.sensors[sensor].marker)
@@ -228,7 +228,7 @@ def check(spec: dict, chain, sensor: str, probe: Probe = Probe(), elsewhere_q=No
     )
 
 
-def _simulated(spec: dict, chain, repo_root) -> tuple:
+def simulated_campaign(spec: dict, chain, repo_root) -> tuple:
     """(the campaign, its truth) of `spec` simulated, written to a temporary folder and read back as
     the workflow reads them (the truth as data/truth holds it: plain lists)."""
     simulated = scenario.simulate(spec, chain)
