@@ -53,15 +53,7 @@ from remaster.loop import settings as loop_settings  # noqa: E402
 RESULTS = REPO / "benchmarks" / "results"
 SENSOR = "laser_tracker"
 # the regions' centres (rad): four near one another, the last beyond them (joints 2, 4 and 6 bent the other way)
-CENTRES = np.array(
-    [
-        [0.0, 0.5, 0.0, 1.2, 0.0, 0.6, 0.0],
-        [0.8, 0.6, 0.0, 1.0, 0.6, 0.4, 0.8],
-        [-0.8, 0.4, 0.0, 1.4, -0.6, 0.8, -0.8],
-        [0.4, 0.9, 0.0, 0.7, 0.3, -0.3, 0.4],
-        [0.2, -0.9, 0.0, -1.3, 0.4, -1.0, 1.5],
-    ]
-)
+CENTRES = arm_kinds.IIWA_REGION_CENTRES
 FAR = 4  # the region beyond the others
 HALF_WIDTH = 0.15  # rad, each region's box about its centre
 LATTICE = 4  # points per lattice joint (joints 1, 2, 4) of a region's grid

@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from remaster.campaigns.arm_kinds import IIWA_REGION_CENTRES
 from remaster.inference import evidence, fit
 from remaster.inference.readings import readings
 from remaster.loop import selection
@@ -215,17 +216,8 @@ def test_an_estimate_far_beyond_its_prior_is_a_symptom_not_the_effect(iiwa):
 
 # --------------------------------------------------------------------------- held-out regions
 
-# five regions of the iiwa's joint space (rad), ten configurations each within 0.15 rad; the last
-# region beyond the others (joints 2, 4 and 6 bent the other way)
-REGION_CENTRES = np.array(
-    [
-        [0.0, 0.5, 0.0, 1.2, 0.0, 0.6, 0.0],
-        [0.8, 0.6, 0.0, 1.0, 0.6, 0.4, 0.8],
-        [-0.8, 0.4, 0.0, 1.4, -0.6, 0.8, -0.8],
-        [0.4, 0.9, 0.0, 0.7, 0.3, -0.3, 0.4],
-        [0.2, -0.9, 0.0, -1.3, 0.4, -1.0, 1.5],
-    ]
-)
+# ten configurations within 0.15 rad of each of five regions of the iiwa's joint space
+REGION_CENTRES = IIWA_REGION_CENTRES
 _region_campaigns = {}
 
 

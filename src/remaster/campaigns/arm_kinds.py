@@ -21,6 +21,18 @@ from .robot_model import load_chain
 from .scenario import simulate
 
 IIWA = {"urdf": "data/robots/kuka_iiwa14.urdf", "base": "iiwa_link_0", "flange": "iiwa_link_ee"}
+# five regions of the iiwa's joint space (rad, q1..q7), four near one another and the last beyond
+# them (joints 2, 4 and 6 bent the other way): a campaign measured in regions, where a region fold
+# holds one out (tests/loop/test_selection.py, benchmarks/bench_region_grid.py)
+IIWA_REGION_CENTRES = np.array(
+    [
+        [0.0, 0.5, 0.0, 1.2, 0.0, 0.6, 0.0],
+        [0.8, 0.6, 0.0, 1.0, 0.6, 0.4, 0.8],
+        [-0.8, 0.4, 0.0, 1.4, -0.6, 0.8, -0.8],
+        [0.4, 0.9, 0.0, 0.7, 0.3, -0.3, 0.4],
+        [0.2, -0.9, 0.0, -1.3, 0.4, -1.0, 1.5],
+    ]
+)
 # the UR5's standard DH table: [a (m), alpha (rad), d (m), theta (rad)] per joint
 UR5_DH = [
     [0.0, math.pi / 2, 0.089159, 0.0],
