@@ -65,9 +65,10 @@ def loop_settings(config=None, **changes):
 def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.json", **fields):
     """A loop closure's report (`remaster.loop.result.LoopReport`) as read from its file, with what
     the later stages read: the refit's parameter rows, the effects added, the closure test, and
-    neutral values for the rest (1 kg tool plate, 0.5 deg marks' tolerance, no tracker noise model,
+    neutral values for the rest (1 kg tool plate, the industrial class's priors, no tracker noise model,
     no gross error, no between-design component); `fields` overrides any top-level key."""
     from remaster.loop.result import LoopReport
+    from remaster.robot import priors
 
     accuracy = {s: {"rmse_mm": 0.02, "rms_per_axis_mm": 0.01} for s in ("optimization", "validation")}
     content = {
@@ -77,7 +78,7 @@ def loop_report(parameters=(), effects=(), closure=None, source="loop_closure.js
         "settings": {
             "payload_mass_kg": 1.0,
             "payload_com_m": [0.0, 0.0, 0.02],
-            "priors": {"std_display_units": {"held_zero_offset_deg": 0.5}},
+            "priors": {"std_display_units": dict(priors.DEFAULTS["industrial"])},
             "harmonic_orders": 1,
         },
         "effects_added": list(effects),

@@ -16,6 +16,7 @@ from scipy import stats
 from remaster import audit, files, layout, spatial
 from remaster import results as results_module
 from remaster.calibration import compensation, prediction
+from remaster.calibration.tool_link import ToolSplit
 from remaster.campaigns import folders
 from remaster.campaigns.scenario import robot_from_truth, sensor_from_truth
 from remaster.campaigns.simulation import true_marker_positions, true_sensor_positions
@@ -195,6 +196,28 @@ def test_a_tcp_leaves_the_marker_effects_out_and_says_so(iiwa, rng):
     q = commands(iiwa, rng, 4)
     poses = robot.predictor(q).flange_poses(robot.calibration.values)
     np.testing.assert_allclose(robot.robot_points(q), poses[:, :3, :3] @ [0.0, 0.0, 0.2] + poses[:, :3, 3], atol=1e-12)
+
+
+def test_a_tcp_takes_the_priors_split_of_the_marker_offset_and_its_bound_carries_it(iiwa, rng):
+    """At a TCP the marker's fitted offset is split between its mount and the flange by the priors
+    (`tool_link.ToolSplit`): the position is the flange's pose applied to the tool point plus the
+    expected shift, every bound carries what the split leaves, and the notes say it is not determined."""
+    tcp = np.array([0.0, 0.0, 0.2])
+    split = ToolSplit.of(MARKER, tcp, 1 * MM, 1 * MM, 0.1 * DEG)
+    robot = replace(synthetic_robot(iiwa, rng, spread=1e-7, tcp=tcp), tool=split)
+    assert "marker_offset" in robot.blocks
+    assert any(n.startswith("not determined: where the TCP sits on the flange") for n in robot.notes("robot"))
+    q = commands(iiwa, rng, 6)
+    values = robot.calibration.values
+    poses = robot.predictor(q).flange_poses(values)
+    shift = split.mean([values[f"marker_offset.{a}"] for a in "xyz"])
+    np.testing.assert_allclose(robot.robot_points(q), poses[:, :3, :3] @ (tcp + shift) + poses[:, :3, 3], atol=1e-12)
+    table = compensation.predict(robot, q, "robot", 2000, np.random.default_rng(4))
+    # the posterior's own spread is a few um: the bound is the split's, about 2.8 std of a 3-D Gaussian
+    expected = 2.8 * np.sqrt(np.trace(split.covariance) / 3.0) / MM
+    np.testing.assert_allclose(table["bound95_mm"], expected, rtol=0.15)
+    at_marker = compensation.predict(synthetic_robot(iiwa, rng, spread=1e-7), q, "robot", 2000, np.random.default_rng(4))
+    assert np.all(at_marker["bound95_mm"] < 0.1 * table["bound95_mm"])
 
 
 # --------------------------------------------------------------------------- bad input

@@ -59,13 +59,14 @@ from scipy.spatial.transform import Rotation
 
 from .. import spatial
 from ..calibration.prediction import Calibration, Predictor, loop_calibration, paper_calibration
+from ..calibration.tool_link import ToolSplit
 from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows, require_columns
 from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
-from ..inference.parameter_blocks import DISTORTION_PARTS, distortion_matrix
+from ..inference.parameter_blocks import DISTORTION_PARTS, MARKER_OFFSET, distortion_matrix
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM
@@ -103,7 +104,10 @@ class CalibratedRobot:
     the marker lies on, are unseen in the sensor frame too); near: how near a command is to the
     configurations the fit measured (`robot.nearness`); declared (m): the model error per axis the
     calibration declares (`LoopReport.declared_model_error`: zero where the loop closed), drawn
-    independently per axis and command in every bound, as the acceptance test claims it."""
+    independently per axis and command in every bound, as the acceptance test claims it; tool:
+    at a TCP, how the priors split the marker's offset between its mount and the flange
+    (`tool_link.ToolSplit`: the TCP's shift, its mean in the positions, drawn in every bound),
+    None at the marker."""
 
     chain: KinematicChain
     calibration: Calibration
@@ -118,10 +122,24 @@ class CalibratedRobot:
     absorbed: frozenset[str] = frozenset()
     near: Nearness | None = None
     declared: float = 0.0
+    tool: ToolSplit | None = None
 
     @property
     def blocks(self) -> tuple[str, ...]:
-        return tuple(b for b in self.calibration.blocks if self.at_marker or b != "marker_offset")
+        """The model's blocks at this point: at a TCP the marker's offset is not the tool's; with a
+        split, the marker_offset block carries the TCP's shift instead (`at_point`)."""
+        if self.at_marker:
+            return self.calibration.blocks
+        own = tuple(b for b in self.calibration.blocks if b != "marker_offset")
+        return own + ("marker_offset",) if self.tool is not None else own
+
+    def at_point(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Parameter values at this point: at a TCP with a split, the marker offset (absent: 0)
+        replaced by the TCP's expected shift given it; unchanged at the marker."""
+        if self.at_marker or self.tool is None:
+            return dict(values)
+        shift = self.tool.mean([values.get(n, 0.0) for n in MARKER_OFFSET])
+        return {**values, **dict(zip(MARKER_OFFSET, shift))}
 
     def held_drawn(self, frame: str) -> list[str]:
         """The held zero-offsets drawn at the marks' tolerance in `frame`: in the sensor frame,
@@ -143,16 +161,18 @@ class CalibratedRobot:
                 "--frame sensor gives positions in this campaign's sensor set-up, where the registration holds "
                 f"the zero-offset of {', '.join(n.split('.')[-1] for n in sorted(self.absorbed))}"
             )
-        if not self.at_marker and ("marker_offset" in self.calibration.blocks or self.gp is not None):
-            left = [
-                n
-                for n, has in (
-                    ("marker offset", "marker_offset" in self.calibration.blocks),
-                    ("residual GP", self.gp is not None),
-                )
-                if has
-            ]
-            out.append(f"the loop's {' and '.join(left)} were measured at the marker: not applied to a TCP")
+        if not self.at_marker and self.tool is not None:
+            offset = np.array([self.calibration.values.get(n, 0.0) for n in MARKER_OFFSET])
+            out.append(
+                "not determined: where the TCP sits on the flange relative to the marker (one marker per row moves "
+                f"alike whether the marker's mount or the flange is off); the marker's fitted offset "
+                f"({np.linalg.norm(offset) / MM:.3g} mm) is split by the priors, which leave "
+                f"{', '.join(f'{v / MM:.2g}' for v in self.tool.std)} mm (flange x, y, z) in every bound"
+            )
+        elif not self.at_marker and "marker_offset" in self.calibration.blocks:
+            out.append("the loop's marker offset was measured at the marker: not applied to a TCP")
+        if not self.at_marker and self.gp is not None:
+            out.append("the loop's residual GP was measured at the marker: not applied to a TCP")
         if self.declared > 0:
             out.append(
                 f"the loop is not closed: the bounds include the model error it declares, {self.declared / MM:.3g} mm "
@@ -170,7 +190,7 @@ class CalibratedRobot:
 
     def robot_points(self, q, values: Mapping[str, float] | None = None) -> np.ndarray:
         """Positions (n, 3) m in the robot frame at commands q (n, N) rad (posterior mean by default)."""
-        points = self.predictor(q).points(self.calibration.values if values is None else values)
+        points = self.predictor(q).points(self.at_point(self.calibration.values if values is None else values))
         return points + self.gp.mean(q) if self._gp_applies() else points
 
     def robot_to_sensor(self, values: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -204,6 +224,10 @@ class CalibratedRobot:
         chosen = self.samples.iloc[rows]
         base = {**self.calibration.values, **self.setup}
         draws = [{**base, **row} for row in chosen.drop(columns=[SIGMA]).to_dict(orient="records")]
+        if not self.at_marker and self.tool is not None:
+            offsets = np.array([[d.get(n, 0.0) for n in MARKER_OFFSET] for d in draws])
+            shifts = self.tool.draw(offsets, rng)
+            draws = [{**d, **dict(zip(MARKER_OFFSET, row))} for d, row in zip(draws, shifts)]
         names = self.held_drawn(frame)
         if names:
             shifts = self.held_tolerance * rng.standard_normal((count, len(names)))
@@ -283,6 +307,7 @@ def calibrated_robot(
     tolerance = loop.held_zero_offset_std
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)
+    tool = None if tcp is None else ToolSplit.of(marker, point, *loop.tool_link_stds)
     return CalibratedRobot(
         campaign.chain,
         calibration,
@@ -302,6 +327,7 @@ def calibrated_robot(
             calibration.linear_joints,
         ),
         loop.declared_model_error(model) or 0.0,
+        tool,
     )
 
 

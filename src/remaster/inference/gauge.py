@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..robot.kinematics import KinematicChain
+from .parameter_blocks import MARKER_OFFSET as MARKER
 from .sampling.target import Chain, Target
 
-MARKER = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # `parameter_blocks.block_parameters`' order
 TURNED = ("marker_offset.radial", "marker_offset.tangential", "marker_offset.axial")
 MIN_RADIUS_IN_STD = 5.0  # polar coordinates need the marker well off the axis: its radius >> its spread
 JACOBIAN_STEP = 1e-6  # of a parameter's step unit (`Target.scale`), for the Laplace's change of coordinates

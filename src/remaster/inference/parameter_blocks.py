@@ -52,6 +52,7 @@ EXTENSIONS = (
 )
 PPM = 1e-6
 MICRORAD_PER_NM = 1e-6
+MARKER_OFFSET = ("marker_offset.x", "marker_offset.y", "marker_offset.z")  # flange frame
 # The sensor frame distortion D (3, 3), symmetric and traceless (`distortion_matrix`): its
 # antisymmetric part is a rotation, the registration's, and its trace is `sensor_scale`'s, so five
 # parameters are left: two normal strains in an orthonormal basis of the traceless diagonals, so
@@ -138,7 +139,7 @@ def block_parameters(
         scale = np.array([display_scale(n) for n in names])
         return Parameters(names, scale, tuple(display_unit(n) for n in names))
     if block == "marker_offset":
-        return Parameters(("marker_offset.x", "marker_offset.y", "marker_offset.z"), np.full(3, MM), ("mm",) * 3)
+        return Parameters(MARKER_OFFSET, np.full(3, MM), ("mm",) * 3)
     if block == "sensor_scale":
         return Parameters(("sensor_scale.s",), np.array([PPM]), ("ppm",))
     if block == "sensor_distortion":

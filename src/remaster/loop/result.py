@@ -106,6 +106,17 @@ class LoopReport:
         return float(self.settings["priors"]["std_display_units"]["held_zero_offset_deg"]) * DEG
 
     @property
+    def tool_link_stds(self) -> tuple[float, float, float]:
+        """(marker mount m, tool link translation m, tool link rotation rad): the prior stds per axis
+        that split the marker's fitted offset between its mount and the flange (`calibration.tool_link`)."""
+        stds = self.settings["priors"]["std_display_units"]
+        return (
+            float(stds["marker_offset_mm"]) * MM,
+            float(stds["link_translation_mm"]) * MM,
+            float(stds["link_rotation_deg"]) * DEG,
+        )
+
+    @property
     def sigma_after(self) -> float:
         """m: the noise std of the selected model."""
         return float(self.sigma_after_mm) * MM
@@ -163,6 +174,9 @@ class LoopReport:
             ("settings", "payload_com_m"),
             ("settings", "harmonic_orders"),
             ("settings", "priors", "std_display_units", "held_zero_offset_deg"),
+            ("settings", "priors", "std_display_units", "marker_offset_mm"),
+            ("settings", "priors", "std_display_units", "link_translation_mm"),
+            ("settings", "priors", "std_display_units", "link_rotation_deg"),
             ("identifiability", "dropped"),
             ("refit", "parameters"),
         ):
