@@ -216,7 +216,9 @@ def test_a_tcp_takes_the_priors_split_of_the_marker_offset_and_its_bound_carries
     # the posterior's own spread is a few um: the bound is the split's, about 2.8 std of a 3-D Gaussian
     expected = 2.8 * np.sqrt(np.trace(split.covariance) / 3.0) / MM
     np.testing.assert_allclose(table["bound95_mm"], expected, rtol=0.15)
-    at_marker = compensation.predict(synthetic_robot(iiwa, rng, spread=1e-7), q, "robot", 2000, np.random.default_rng(4))
+    at_marker = compensation.predict(
+        synthetic_robot(iiwa, rng, spread=1e-7), q, "robot", 2000, np.random.default_rng(4)
+    )
     assert np.all(at_marker["bound95_mm"] < 0.1 * table["bound95_mm"])
 
 
