@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import cli, files
+from remaster import cli, configuration, files
 from remaster import results as results_module
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
@@ -27,7 +27,7 @@ from remaster.reporting import figures
 from remaster.robot import kinematics, registration
 
 from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
-from .conftest import REPO, SNAKEMAKE
+from .conftest import REPO, SNAKEMAKE, validated_config
 
 TINY_FIT = {
     "fit": {
@@ -505,85 +505,117 @@ def tiny(tmp_path_factory, iiwa):
     return root
 
 
-@pytest.mark.workflow
-def test_config_misspelt_key(tmp_path):
-    assert_refused(dry_run(tmp_path, {"raw_dri": "data/raw"}), "'raw_dri' was unexpected")
+# The workflow validates its configuration against the schema, then refuses with
+# `configuration.workflow_run` what the schema cannot check: the tests below call both in-process
+# (`validated_config`: the schema's defaults filled in as Snakemake fills them).
+# test_config_raw_dir_that_does_not_exist shows such a refusal reaching the user through Snakemake,
+# tests/workflow/test_workflow.py::test_bad_config_is_refused_by_the_schema a schema's refusal.
+CONFIG = "bad-config.yaml"  # the config file(s) a refusal names
 
 
-@pytest.mark.workflow
+def config_refusal(settings: dict) -> InputError:
+    """What the workflow refuses `settings` with, after the schema (`configuration.workflow_run`)."""
+    with pytest.raises(InputError) as refused:
+        configuration.workflow_run(validated_config(settings), CONFIG)
+    return refused.value
+
+
+def test_config_misspelt_key():
+    with pytest.raises(InputError, match=re.escape("Additional properties are not allowed ('raw_dri' was unexpected)")):
+        validated_config({"raw_dri": "data/raw"})
+
+
 def test_config_key_given_twice(tmp_path):
+    """remaster's loader refuses the file, which Snakemake would read keeping the last value; the
+    workflow reads its YAML config files again with it before anything else (common.smk), as
+    tests/campaigns/test_safe_loading.py::test_config_with_a_python_tag_is_refused_by_the_workflow
+    shows through Snakemake."""
     config = tmp_path / "twice.yaml"
     config.write_text("seed: 1\nseed: 2\n")
-    result = subprocess.run(
-        SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
-    )
-    assert_refused(result, f"{config}: seed: line 2: duplicate key (first on line 1)")
+    with pytest.raises(InputError) as refused:
+        files.read_yaml(config)
+    assert str(refused.value).startswith(f"{config}: seed: line 2: duplicate key (first on line 1)")
 
 
 @pytest.mark.workflow
 def test_config_raw_dir_that_does_not_exist(tmp_path):
+    """Through Snakemake, a dry run: the refusal names the config file in force and the key, before any job."""
+    message = f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory (it should hold one folder per campaign)"
+    assert str(config_refusal({"raw_dir": str(tmp_path / "nowhere")})) == f"{CONFIG}: {message}"
     result = dry_run(tmp_path, {"raw_dir": str(tmp_path / "nowhere")})
-    assert_refused(result, "bad-config.yaml", f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory")
+    assert_refused(result, f"{tmp_path / 'bad-config.yaml'} + config.yaml: {message}")
+    assert not (tmp_path / "results").exists()
 
 
-@pytest.mark.workflow
-def test_config_relative_path_leading_outside_the_repository(tmp_path):
-    result = dry_run(tmp_path, {"results_dir": "../results"})
-    assert_refused(result, "results_dir: '../results' leads outside the repository", "absolute path")
-
-
-@pytest.mark.workflow
-def test_config_results_inside_raw_data(tmp_path, tiny):
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tiny / "raw" / "results")})
-    assert_refused(result, "results_dir:", "overlaps raw_dir")
-    assert not (tiny / "raw" / "results").exists()
-
-
-@pytest.mark.workflow
-def test_config_results_dir_that_is_a_file(tmp_path, tiny):
-    (tmp_path / "results.txt").write_text("not a folder")
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results.txt")})
-    assert_refused(result, "results_dir:", "exists and is not a directory")
-
-
-@pytest.mark.workflow
-def test_config_burn_in_not_shorter_than_the_run(tmp_path):
-    result = dry_run(tmp_path, {"fit": {"emcee": {"steps": 500, "burn_in": 500}}})
-    assert_refused(result, "fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500")
-    result = dry_run(tmp_path, {"loop_closure": {"mcmc": {"samples": 1000, "burn_in": 1000}}})
-    assert_refused(result, "loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000")
-
-
-@pytest.mark.workflow
-def test_config_campaign_that_is_not_there(tmp_path):
-    assert_refused(
-        dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
-        "campaigns: no data/raw/<name>/campaign.yaml for kuka-twim",
+def test_config_relative_path_leading_outside_the_repository():
+    assert str(config_refusal({"results_dir": "../results"})) == (
+        f"{CONFIG}: results_dir: '../results' leads outside the repository; relative paths are taken from the "
+        "repository root: give an absolute path for a folder elsewhere"
     )
 
 
-@pytest.mark.workflow
-def test_config_failed_campaigns_are_not_also_run(tmp_path):
+def test_config_results_inside_raw_data(tmp_path):
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    assert str(config_refusal({"raw_dir": str(raw), "results_dir": str(raw / "results")})) == (
+        f"{CONFIG}: results_dir: '{raw / 'results'}' overlaps raw_dir '{raw}': generated files and campaign data "
+        "must live in separate folders"
+    )
+    assert not (raw / "results").exists()
+    refused = config_refusal({"raw_dir": str(raw), "results_dir": str(tmp_path)})  # containing it
+    assert refused.key == "results_dir" and "overlaps raw_dir" in str(refused)
+
+
+def test_config_results_dir_that_is_a_file(tmp_path):
+    (tmp_path / "raw").mkdir()
+    (tmp_path / "results.txt").write_text("not a folder")
+    refused = config_refusal({"raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results.txt")})
+    assert str(refused) == f"{CONFIG}: results_dir: '{tmp_path / 'results.txt'}' exists and is not a directory"
+
+
+def test_config_burn_in_not_shorter_than_the_run():
+    assert str(config_refusal({"fit": {"emcee": {"steps": 500, "burn_in": 500}}})) == (
+        f"{CONFIG}: fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500: no sample would be kept"
+    )
+    assert str(config_refusal({"loop_closure": {"mcmc": {"samples": 1000, "burn_in": 1000}}})) == (
+        f"{CONFIG}: loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000: "
+        "no sample would be kept"
+    )
+
+
+def test_config_campaign_that_is_not_there(monkeypatch):
+    monkeypatch.chdir(REPO)  # the workflow's working folder: raw_dir's default data/raw is taken from it
+    assert str(config_refusal({"campaigns": ["kuka-twin", "kuka-twim"]})) == (
+        f"{CONFIG}: campaigns: no data/raw/<name>/campaign.yaml for kuka-twim"
+    )
+
+
+def test_config_failed_campaigns_are_not_also_run(monkeypatch):
     """failed_campaigns is what the workflow sets when it runs again on the campaigns that did not
     fail (entry 115): a campaign both failed and run is refused."""
-    assert_refused(
-        dry_run(tmp_path, {"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}}),
-        "failed_campaigns: kuka-twin also in the run's campaigns",
+    monkeypatch.chdir(REPO)
+    refused = config_refusal({"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}})
+    assert str(refused).startswith(f"{CONFIG}: failed_campaigns: kuka-twin also in the run's campaigns")
+
+
+def test_config_raw_dir_without_any_campaign(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert str(config_refusal({"raw_dir": str(tmp_path / "empty")})) == (
+        f"{CONFIG}: raw_dir: '{tmp_path / 'empty'}' holds no campaign folder (<name>/campaign.yaml): nothing to process"
     )
 
 
-@pytest.mark.workflow
-def test_config_raw_dir_without_any_campaign(tmp_path):
-    (tmp_path / "empty").mkdir()
-    assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
-
-
-@pytest.mark.workflow
-def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path, tiny):
-    """The decision's other half: raw_dir and results_dir outside the repository, given as absolute paths."""
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT})
-    assert result.returncode == 0, result.stderr[-2000:]
-    assert "campaign_summary" in result.stdout and not (tmp_path / "results").exists()
+def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path):
+    """The decision's other half: raw_dir and results_dir outside the repository, given as absolute
+    paths. A dry run of such a configuration plans the campaigns' jobs and writes nothing:
+    test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned."""
+    for name in ("cell3", "cell1"):
+        (tmp_path / "raw" / name).mkdir(parents=True)
+        (tmp_path / "raw" / name / "campaign.yaml").write_text(f"name: {name}\n")
+    settings = {"raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT}
+    run = configuration.workflow_run(validated_config(settings), CONFIG)
+    assert run == (str(tmp_path / "raw"), str(tmp_path / "results"), ["cell1", "cell3"])
+    assert not (tmp_path / "results").exists()
 
 
 @pytest.mark.workflow
@@ -661,6 +693,8 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
     assert "campaign=tiny" in planned and "campaign=broken" in planned
+    # raw_dir and results_dir outside the repository, by absolute paths: planned, and nothing written
+    assert "campaign_summary" in planned and not (tmp_path / "results").exists()
     if "symlink" not in damage:
         return
     # each campaign's first job, for real: the broken one's names its link, the other's runs
