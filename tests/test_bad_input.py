@@ -661,47 +661,47 @@ def test_the_one_column_check_names_the_file_the_missing_columns_and_what_it_has
         require_columns(table, ["sigma"], file="s.parquet", of="the posterior samples")
 
 
+DAMAGES = ("empty-parquet", "latin-1-yaml", "yaml-list", "dangling-symlink", "symlink-loop")
+
+
 @pytest.mark.workflow
-@pytest.mark.parametrize("damage", ["empty parquet", "latin-1 yaml", "yaml list", "dangling symlink", "symlink loop"])
-def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny, damage):
-    """Graph building reads no campaign's data: a damaged campaign beside a good one still gives a
-    plan with both campaigns' jobs (its own first job reports the file with the reader's message;
-    `--keep-going` runs the others to the end). A Parquet file that is a symbolic link leading to no
-    file (dangling, or a loop) is not declared as an input, which would stop graph building
-    (MissingInputException): the campaign's first job names it, and the other's runs."""
+def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny):
+    """Graph building reads no campaign's data: damaged campaigns beside a good one still give a
+    plan with every campaign's jobs (a damaged campaign's own first job reports the file with the
+    reader's message; `--keep-going` runs the others to the end). One dry run of the five damages,
+    each a campaign named after it: a 0-byte Parquet file, a campaign.yaml in Latin-1, one holding
+    a list, a Parquet file that is a symbolic link to no file, one that is a loop of links. Such a
+    link is not declared as an input, which would stop graph building (MissingInputException): the
+    campaign's first job names it, and the good campaign's runs."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
-    shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
-    if damage == "empty parquet":
-        (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
-    elif damage == "latin-1 yaml":
-        text = (raw / "broken" / "campaign.yaml").read_text(encoding="utf-8")
-        (raw / "broken" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
-    elif damage == "yaml list":
-        (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
-    elif "symlink" in damage:  # the campaign otherwise sound (named as its folder), but for its link
-        metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
-        files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
-    if damage == "dangling symlink":
-        (raw / "broken" / "motion_capture.parquet").unlink()
-        (raw / "broken" / "motion_capture.parquet").symlink_to(tmp_path / "moved" / "motion_capture.parquet")
-    if damage == "symlink loop":
-        (raw / "broken" / "motion_capture.parquet").unlink()
-        (raw / "broken" / "motion_capture.parquet").symlink_to(raw / "broken" / "loop.lnk")
-        (raw / "broken" / "loop.lnk").symlink_to(raw / "broken" / "motion_capture.parquet")
+    for damage in DAMAGES:
+        shutil.copytree(tiny / "raw" / "tiny", raw / damage)
+    (raw / "empty-parquet" / "motion_capture.parquet").write_bytes(b"")
+    text = (raw / "latin-1-yaml" / "campaign.yaml").read_text(encoding="utf-8")
+    (raw / "latin-1-yaml" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
+    (raw / "yaml-list" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+    links = {"dangling-symlink": tmp_path / "moved" / "motion_capture.parquet"}
+    links["symlink-loop"] = raw / "symlink-loop" / "loop.lnk"
+    for damage, target in links.items():  # the campaign otherwise sound (named as its folder), but for its link
+        metadata = files.read_yaml(raw / damage / "campaign.yaml")
+        files.write_yaml(raw / damage / "campaign.yaml", {**metadata, "name": damage})
+        (raw / damage / "motion_capture.parquet").unlink()
+        (raw / damage / "motion_capture.parquet").symlink_to(target)
+    (raw / "symlink-loop" / "loop.lnk").symlink_to(raw / "symlink-loop" / "motion_capture.parquet")
     result = dry_run(tmp_path, {"raw_dir": str(raw), "results_dir": str(tmp_path / "results"), **TINY_FIT})
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
-    assert "campaign=tiny" in planned and "campaign=broken" in planned
+    for campaign in ("tiny", *DAMAGES):
+        assert f"campaign={campaign}" in planned, campaign
     # raw_dir and results_dir outside the repository, by absolute paths: planned, and nothing written
     assert "campaign_summary" in planned and not (tmp_path / "results").exists()
-    if "symlink" not in damage:
-        return
-    # each campaign's first job, for real: the broken one's names its link, the other's runs
+    # the first job of each campaign with a link, and of the good one, for real: each names its link,
+    # the good one's runs
     results = tmp_path / "results"
     result = subprocess.run(
         SNAKEMAKE
-        + [str(results / c / "campaign" / "summary.json") for c in ("broken", "tiny")]
+        + [str(results / c / "campaign" / "summary.json") for c in (*links, "tiny")]
         + ["-j1", "--configfile", str(tmp_path / "bad-config.yaml")],
         cwd=REPO,
         capture_output=True,
@@ -710,14 +710,14 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     )
     assert result.returncode != 0 and "Error in rule campaign_summary" in result.stdout + result.stderr
     assert (results / "tiny" / "campaign" / "summary.json").is_file()
-    assert not (results / "broken" / "campaign" / "summary.json").exists()
-    link = raw / "broken" / "motion_capture.parquet"
-    reason = (
-        f"a symbolic link to '{tmp_path / 'moved' / 'motion_capture.parquet'}', which does not exist"
-        if damage == "dangling symlink"
-        else f"a symbolic link (to '{raw / 'broken' / 'loop.lnk'}') that loops back on itself"
-    )
-    assert f"{link}: {reason}" in (results / "logs" / "broken" / "campaign_summary.log").read_text()
+    reasons = {
+        "dangling-symlink": f"a symbolic link to '{links['dangling-symlink']}', which does not exist",
+        "symlink-loop": f"a symbolic link (to '{links['symlink-loop']}') that loops back on itself",
+    }
+    for damage, reason in reasons.items():
+        assert not (results / damage / "campaign" / "summary.json").exists()
+        link = raw / damage / "motion_capture.parquet"
+        assert f"{link}: {reason}" in (results / "logs" / damage / "campaign_summary.log").read_text(), damage
 
 
 @pytest.mark.workflow
