@@ -14,9 +14,11 @@ FILE_MODULES = {"pathlib", "shutil", "tempfile", "glob", "os"}
 # campaigns.robot_model: the robot description a campaign names; provenance: digests of files and code;
 # results: a stage's results read back (by the command line and the workflow's scripts); api.truth: a
 # simulated campaign written to a temporary folder and read back as the workflow reads it; campaigns.bags:
-# a ROS 2 bag, whose sqlite3 storage its reader (rosbags) opens by path
+# a ROS 2 bag, whose sqlite3 storage its reader (rosbags) opens by path; configuration: the workflow's
+# folders (raw_dir, results_dir) checked and its campaigns listed (`workflow_run`)
 FILE_ACCESS = {
     "files",
+    "configuration",
     "campaigns.folders",
     "campaigns.robot_model",
     "campaigns.bags",

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import cli, files
+from remaster import cli, configuration, files
 from remaster import results as results_module
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import JOINT_MARGIN, minimum_optimization_points, summarize
@@ -27,7 +27,7 @@ from remaster.reporting import figures
 from remaster.robot import kinematics, registration
 
 from .campaigns.test_campaign import SENSOR, SMALL_DH, make_campaign, metadata, read_error, sensor_table
-from .conftest import REPO, SNAKEMAKE
+from .conftest import REPO, SNAKEMAKE, validated_config
 
 TINY_FIT = {
     "fit": {
@@ -505,85 +505,117 @@ def tiny(tmp_path_factory, iiwa):
     return root
 
 
-@pytest.mark.workflow
-def test_config_misspelt_key(tmp_path):
-    assert_refused(dry_run(tmp_path, {"raw_dri": "data/raw"}), "'raw_dri' was unexpected")
+# The workflow validates its configuration against the schema, then refuses with
+# `configuration.workflow_run` what the schema cannot check: the tests below call both in-process
+# (`validated_config`: the schema's defaults filled in as Snakemake fills them).
+# test_config_raw_dir_that_does_not_exist shows such a refusal reaching the user through Snakemake,
+# tests/workflow/test_workflow.py::test_bad_config_is_refused_by_the_schema a schema's refusal.
+CONFIG = "bad-config.yaml"  # the config file(s) a refusal names
 
 
-@pytest.mark.workflow
+def config_refusal(settings: dict) -> InputError:
+    """What the workflow refuses `settings` with, after the schema (`configuration.workflow_run`)."""
+    with pytest.raises(InputError) as refused:
+        configuration.workflow_run(validated_config(settings), CONFIG)
+    return refused.value
+
+
+def test_config_misspelt_key():
+    with pytest.raises(InputError, match=re.escape("Additional properties are not allowed ('raw_dri' was unexpected)")):
+        validated_config({"raw_dri": "data/raw"})
+
+
 def test_config_key_given_twice(tmp_path):
+    """remaster's loader refuses the file, which Snakemake would read keeping the last value; the
+    workflow reads its YAML config files again with it before anything else (common.smk), as
+    tests/campaigns/test_safe_loading.py::test_config_with_a_python_tag_is_refused_by_the_workflow
+    shows through Snakemake."""
     config = tmp_path / "twice.yaml"
     config.write_text("seed: 1\nseed: 2\n")
-    result = subprocess.run(
-        SNAKEMAKE + ["-n", "--configfile", str(config)], cwd=REPO, capture_output=True, text=True, timeout=300
-    )
-    assert_refused(result, f"{config}: seed: line 2: duplicate key (first on line 1)")
+    with pytest.raises(InputError) as refused:
+        files.read_yaml(config)
+    assert str(refused.value).startswith(f"{config}: seed: line 2: duplicate key (first on line 1)")
 
 
 @pytest.mark.workflow
 def test_config_raw_dir_that_does_not_exist(tmp_path):
+    """Through Snakemake, a dry run: the refusal names the config file in force and the key, before any job."""
+    message = f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory (it should hold one folder per campaign)"
+    assert str(config_refusal({"raw_dir": str(tmp_path / "nowhere")})) == f"{CONFIG}: {message}"
     result = dry_run(tmp_path, {"raw_dir": str(tmp_path / "nowhere")})
-    assert_refused(result, "bad-config.yaml", f"raw_dir: '{tmp_path / 'nowhere'}' is not a directory")
+    assert_refused(result, f"{tmp_path / 'bad-config.yaml'} + config.yaml: {message}")
+    assert not (tmp_path / "results").exists()
 
 
-@pytest.mark.workflow
-def test_config_relative_path_leading_outside_the_repository(tmp_path):
-    result = dry_run(tmp_path, {"results_dir": "../results"})
-    assert_refused(result, "results_dir: '../results' leads outside the repository", "absolute path")
-
-
-@pytest.mark.workflow
-def test_config_results_inside_raw_data(tmp_path, tiny):
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tiny / "raw" / "results")})
-    assert_refused(result, "results_dir:", "overlaps raw_dir")
-    assert not (tiny / "raw" / "results").exists()
-
-
-@pytest.mark.workflow
-def test_config_results_dir_that_is_a_file(tmp_path, tiny):
-    (tmp_path / "results.txt").write_text("not a folder")
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results.txt")})
-    assert_refused(result, "results_dir:", "exists and is not a directory")
-
-
-@pytest.mark.workflow
-def test_config_burn_in_not_shorter_than_the_run(tmp_path):
-    result = dry_run(tmp_path, {"fit": {"emcee": {"steps": 500, "burn_in": 500}}})
-    assert_refused(result, "fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500")
-    result = dry_run(tmp_path, {"loop_closure": {"mcmc": {"samples": 1000, "burn_in": 1000}}})
-    assert_refused(result, "loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000")
-
-
-@pytest.mark.workflow
-def test_config_campaign_that_is_not_there(tmp_path):
-    assert_refused(
-        dry_run(tmp_path, {"campaigns": ["kuka-twin", "kuka-twim"]}),
-        "campaigns: no data/raw/<name>/campaign.yaml for kuka-twim",
+def test_config_relative_path_leading_outside_the_repository():
+    assert str(config_refusal({"results_dir": "../results"})) == (
+        f"{CONFIG}: results_dir: '../results' leads outside the repository; relative paths are taken from the "
+        "repository root: give an absolute path for a folder elsewhere"
     )
 
 
-@pytest.mark.workflow
-def test_config_failed_campaigns_are_not_also_run(tmp_path):
+def test_config_results_inside_raw_data(tmp_path):
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    assert str(config_refusal({"raw_dir": str(raw), "results_dir": str(raw / "results")})) == (
+        f"{CONFIG}: results_dir: '{raw / 'results'}' overlaps raw_dir '{raw}': generated files and campaign data "
+        "must live in separate folders"
+    )
+    assert not (raw / "results").exists()
+    refused = config_refusal({"raw_dir": str(raw), "results_dir": str(tmp_path)})  # containing it
+    assert refused.key == "results_dir" and "overlaps raw_dir" in str(refused)
+
+
+def test_config_results_dir_that_is_a_file(tmp_path):
+    (tmp_path / "raw").mkdir()
+    (tmp_path / "results.txt").write_text("not a folder")
+    refused = config_refusal({"raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results.txt")})
+    assert str(refused) == f"{CONFIG}: results_dir: '{tmp_path / 'results.txt'}' exists and is not a directory"
+
+
+def test_config_burn_in_not_shorter_than_the_run():
+    assert str(config_refusal({"fit": {"emcee": {"steps": 500, "burn_in": 500}}})) == (
+        f"{CONFIG}: fit/emcee/burn_in: 500 is not below fit/emcee/steps = 500: no sample would be kept"
+    )
+    assert str(config_refusal({"loop_closure": {"mcmc": {"samples": 1000, "burn_in": 1000}}})) == (
+        f"{CONFIG}: loop_closure/mcmc/burn_in: 1000 is not below loop_closure/mcmc/samples = 1000: "
+        "no sample would be kept"
+    )
+
+
+def test_config_campaign_that_is_not_there(monkeypatch):
+    monkeypatch.chdir(REPO)  # the workflow's working folder: raw_dir's default data/raw is taken from it
+    assert str(config_refusal({"campaigns": ["kuka-twin", "kuka-twim"]})) == (
+        f"{CONFIG}: campaigns: no data/raw/<name>/campaign.yaml for kuka-twim"
+    )
+
+
+def test_config_failed_campaigns_are_not_also_run(monkeypatch):
     """failed_campaigns is what the workflow sets when it runs again on the campaigns that did not
     fail (entry 115): a campaign both failed and run is refused."""
-    assert_refused(
-        dry_run(tmp_path, {"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}}),
-        "failed_campaigns: kuka-twin also in the run's campaigns",
+    monkeypatch.chdir(REPO)
+    refused = config_refusal({"campaigns": ["kuka-twin"], "failed_campaigns": {"kuka-twin": "InputError: x"}})
+    assert str(refused).startswith(f"{CONFIG}: failed_campaigns: kuka-twin also in the run's campaigns")
+
+
+def test_config_raw_dir_without_any_campaign(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert str(config_refusal({"raw_dir": str(tmp_path / "empty")})) == (
+        f"{CONFIG}: raw_dir: '{tmp_path / 'empty'}' holds no campaign folder (<name>/campaign.yaml): nothing to process"
     )
 
 
-@pytest.mark.workflow
-def test_config_raw_dir_without_any_campaign(tmp_path):
-    (tmp_path / "empty").mkdir()
-    assert_refused(dry_run(tmp_path, {"raw_dir": str(tmp_path / "empty")}), "holds no campaign folder")
-
-
-@pytest.mark.workflow
-def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path, tiny):
-    """The decision's other half: raw_dir and results_dir outside the repository, given as absolute paths."""
-    result = dry_run(tmp_path, {"raw_dir": str(tiny / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT})
-    assert result.returncode == 0, result.stderr[-2000:]
-    assert "campaign_summary" in result.stdout and not (tmp_path / "results").exists()
+def test_config_campaigns_anywhere_by_absolute_path_are_accepted(tmp_path):
+    """The decision's other half: raw_dir and results_dir outside the repository, given as absolute
+    paths. A dry run of such a configuration plans the campaigns' jobs and writes nothing:
+    test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned."""
+    for name in ("cell3", "cell1"):
+        (tmp_path / "raw" / name).mkdir(parents=True)
+        (tmp_path / "raw" / name / "campaign.yaml").write_text(f"name: {name}\n")
+    settings = {"raw_dir": str(tmp_path / "raw"), "results_dir": str(tmp_path / "results"), **TINY_FIT}
+    run = configuration.workflow_run(validated_config(settings), CONFIG)
+    assert run == (str(tmp_path / "raw"), str(tmp_path / "results"), ["cell1", "cell3"])
+    assert not (tmp_path / "results").exists()
 
 
 @pytest.mark.workflow
@@ -629,45 +661,47 @@ def test_the_one_column_check_names_the_file_the_missing_columns_and_what_it_has
         require_columns(table, ["sigma"], file="s.parquet", of="the posterior samples")
 
 
+DAMAGES = ("empty-parquet", "latin-1-yaml", "yaml-list", "dangling-symlink", "symlink-loop")
+
+
 @pytest.mark.workflow
-@pytest.mark.parametrize("damage", ["empty parquet", "latin-1 yaml", "yaml list", "dangling symlink", "symlink loop"])
-def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny, damage):
-    """Graph building reads no campaign's data: a damaged campaign beside a good one still gives a
-    plan with both campaigns' jobs (its own first job reports the file with the reader's message;
-    `--keep-going` runs the others to the end). A Parquet file that is a symbolic link leading to no
-    file (dangling, or a loop) is not declared as an input, which would stop graph building
-    (MissingInputException): the campaign's first job names it, and the other's runs."""
+def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp_path, tiny):
+    """Graph building reads no campaign's data: damaged campaigns beside a good one still give a
+    plan with every campaign's jobs (a damaged campaign's own first job reports the file with the
+    reader's message; `--keep-going` runs the others to the end). One dry run of the five damages,
+    each a campaign named after it: a 0-byte Parquet file, a campaign.yaml in Latin-1, one holding
+    a list, a Parquet file that is a symbolic link to no file, one that is a loop of links. Such a
+    link is not declared as an input, which would stop graph building (MissingInputException): the
+    campaign's first job names it, and the good campaign's runs."""
     raw = tmp_path / "raw"
     shutil.copytree(tiny / "raw" / "tiny", raw / "tiny")
-    shutil.copytree(tiny / "raw" / "tiny", raw / "broken")
-    if damage == "empty parquet":
-        (raw / "broken" / "motion_capture.parquet").write_bytes(b"")
-    elif damage == "latin-1 yaml":
-        text = (raw / "broken" / "campaign.yaml").read_text(encoding="utf-8")
-        (raw / "broken" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
-    elif damage == "yaml list":
-        (raw / "broken" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
-    elif "symlink" in damage:  # the campaign otherwise sound (named as its folder), but for its link
-        metadata = files.read_yaml(raw / "broken" / "campaign.yaml")
-        files.write_yaml(raw / "broken" / "campaign.yaml", {**metadata, "name": "broken"})
-    if damage == "dangling symlink":
-        (raw / "broken" / "motion_capture.parquet").unlink()
-        (raw / "broken" / "motion_capture.parquet").symlink_to(tmp_path / "moved" / "motion_capture.parquet")
-    if damage == "symlink loop":
-        (raw / "broken" / "motion_capture.parquet").unlink()
-        (raw / "broken" / "motion_capture.parquet").symlink_to(raw / "broken" / "loop.lnk")
-        (raw / "broken" / "loop.lnk").symlink_to(raw / "broken" / "motion_capture.parquet")
+    for damage in DAMAGES:
+        shutil.copytree(tiny / "raw" / "tiny", raw / damage)
+    (raw / "empty-parquet" / "motion_capture.parquet").write_bytes(b"")
+    text = (raw / "latin-1-yaml" / "campaign.yaml").read_text(encoding="utf-8")
+    (raw / "latin-1-yaml" / "campaign.yaml").write_bytes((text + "# café\n").encode("latin-1"))
+    (raw / "yaml-list" / "campaign.yaml").write_text("- 1\n- 2\n", encoding="utf-8")
+    links = {"dangling-symlink": tmp_path / "moved" / "motion_capture.parquet"}
+    links["symlink-loop"] = raw / "symlink-loop" / "loop.lnk"
+    for damage, target in links.items():  # the campaign otherwise sound (named as its folder), but for its link
+        metadata = files.read_yaml(raw / damage / "campaign.yaml")
+        files.write_yaml(raw / damage / "campaign.yaml", {**metadata, "name": damage})
+        (raw / damage / "motion_capture.parquet").unlink()
+        (raw / damage / "motion_capture.parquet").symlink_to(target)
+    (raw / "symlink-loop" / "loop.lnk").symlink_to(raw / "symlink-loop" / "motion_capture.parquet")
     result = dry_run(tmp_path, {"raw_dir": str(raw), "results_dir": str(tmp_path / "results"), **TINY_FIT})
     assert result.returncode == 0, (result.stdout + result.stderr)[-2000:]
     planned = result.stdout
-    assert "campaign=tiny" in planned and "campaign=broken" in planned
-    if "symlink" not in damage:
-        return
-    # each campaign's first job, for real: the broken one's names its link, the other's runs
+    for campaign in ("tiny", *DAMAGES):
+        assert f"campaign={campaign}" in planned, campaign
+    # raw_dir and results_dir outside the repository, by absolute paths: planned, and nothing written
+    assert "campaign_summary" in planned and not (tmp_path / "results").exists()
+    # the first job of each campaign with a link, and of the good one, for real: each names its link,
+    # the good one's runs
     results = tmp_path / "results"
     result = subprocess.run(
         SNAKEMAKE
-        + [str(results / c / "campaign" / "summary.json") for c in ("broken", "tiny")]
+        + [str(results / c / "campaign" / "summary.json") for c in (*links, "tiny")]
         + ["-j1", "--configfile", str(tmp_path / "bad-config.yaml")],
         cwd=REPO,
         capture_output=True,
@@ -676,14 +710,14 @@ def test_one_unreadable_campaign_does_not_stop_the_others_from_being_planned(tmp
     )
     assert result.returncode != 0 and "Error in rule campaign_summary" in result.stdout + result.stderr
     assert (results / "tiny" / "campaign" / "summary.json").is_file()
-    assert not (results / "broken" / "campaign" / "summary.json").exists()
-    link = raw / "broken" / "motion_capture.parquet"
-    reason = (
-        f"a symbolic link to '{tmp_path / 'moved' / 'motion_capture.parquet'}', which does not exist"
-        if damage == "dangling symlink"
-        else f"a symbolic link (to '{raw / 'broken' / 'loop.lnk'}') that loops back on itself"
-    )
-    assert f"{link}: {reason}" in (results / "logs" / "broken" / "campaign_summary.log").read_text()
+    reasons = {
+        "dangling-symlink": f"a symbolic link to '{links['dangling-symlink']}', which does not exist",
+        "symlink-loop": f"a symbolic link (to '{links['symlink-loop']}') that loops back on itself",
+    }
+    for damage, reason in reasons.items():
+        assert not (results / damage / "campaign" / "summary.json").exists()
+        link = raw / damage / "motion_capture.parquet"
+        assert f"{link}: {reason}" in (results / "logs" / damage / "campaign_summary.log").read_text(), damage
 
 
 @pytest.mark.workflow

@@ -1,6 +1,7 @@
 # Validates config.yaml against its schema (filling defaults), checks what the schema cannot
-# (paths, burn-in shorter than the run) and lists the campaigns to process. Every refusal names the
-# config file(s) and the key (docs/bad-input.md).
+# (paths, burn-in shorter than the run) and lists the campaigns to process
+# (`remaster.configuration.workflow_run`). Every refusal names the config file(s) and the key
+# (docs/bad-input.md).
 import os
 import re
 import subprocess
@@ -31,57 +32,6 @@ validate(config, str(configuration.SCHEMA))
 for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(variable, "1")
 
-CONFIG_FILES = " + ".join(str(f) for f in workflow.configfiles) or "config"
-
-
-def config_error(key, message):
-    """The error for a bad setting: the config file(s) (or --config), the key, what is wrong."""
-    return ValueError(f"{CONFIG_FILES}: {key}: {message}")
-
-
-def checked_path(key):
-    """A path setting. Relative paths are taken from the repository root and may not lead out of
-    it (`..`): a folder elsewhere is given by its absolute path, e.g. --config raw_dir=/data/campaigns."""
-    value = config[key]
-    if not value.strip():
-        raise config_error(key, "is empty")
-    if not os.path.isabs(value) and os.path.normpath(value).split(os.sep)[0] == "..":
-        raise config_error(
-            key,
-            f"{value!r} leads outside the repository; relative paths are taken from the "
-            f"repository root: give an absolute path for a folder elsewhere",
-        )
-    return os.path.normpath(value)
-
-
-def check_paths(raw, results):
-    if not Path(raw).is_dir():
-        raise config_error("raw_dir", f"{raw!r} is not a directory (it should hold one folder per campaign)")
-    if Path(results).exists() and not Path(results).is_dir():
-        raise config_error("results_dir", f"{results!r} exists and is not a directory")
-    raw_path, results_path = Path(raw).resolve(), Path(results).resolve()
-    if raw_path == results_path or raw_path in results_path.parents or results_path in raw_path.parents:
-        raise config_error(
-            "results_dir",
-            f"{results!r} overlaps raw_dir {raw!r}: generated files and campaign "
-            f"data must live in separate folders",
-        )
-
-
-def check_fit_settings():
-    """Every sampler's burn-in shorter than its run: the paper model's three and the loop closure's refit."""
-    runs = [
-        (f"fit/{method}", config["fit"][method], length)
-        for method, length in (("paper", "samples"), ("default", "samples"), ("emcee", "steps"))
-    ]
-    for key, settings, length in runs + [("loop_closure/mcmc", config["loop_closure"]["mcmc"], "samples")]:
-        if settings["burn_in"] >= settings[length]:
-            raise config_error(
-                f"{key}/burn_in",
-                f"{settings['burn_in']} is not below {key}/{length} " f"= {settings[length]}: no sample would be kept",
-            )
-
-
 # Bytes one job may use: max_job_memory_gb, or this machine's memory shared by the two jobs of -j2.
 JOB_MEMORY_LIMIT = (
     config["max_job_memory_gb"] * 1e9
@@ -89,32 +39,12 @@ JOB_MEMORY_LIMIT = (
     else os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2
 )
 
-RAW = checked_path("raw_dir")
-RESULTS = checked_path("results_dir")
-check_paths(RAW, RESULTS)
-check_fit_settings()
+# what the schema cannot check (paths, burn-ins shorter than their runs) and the run's campaigns,
+# each refusal naming the config file(s) in force (or --config) and the key
+RAW, RESULTS, CAMPAIGNS = configuration.workflow_run(
+    config, " + ".join(str(f) for f in workflow.configfiles) or "config"
+)
 
-
-def list_campaigns():
-    if config["campaigns"]:
-        missing = [c for c in config["campaigns"] if not Path(RAW, c, "campaign.yaml").is_file()]
-        if missing:
-            raise config_error("campaigns", f"no {RAW}/<name>/campaign.yaml for {', '.join(missing)}")
-        return list(config["campaigns"])
-    found = sorted(p.parent.name for p in Path(RAW).glob("*/campaign.yaml"))
-    if not found:
-        raise config_error("raw_dir", f"{RAW!r} holds no campaign folder (<name>/campaign.yaml): nothing to process")
-    return found
-
-
-CAMPAIGNS = list_campaigns()
-# the campaigns that failed in the run this one completes (Snakefile: onerror): not also run here
-if set(config["failed_campaigns"]) & set(CAMPAIGNS):
-    raise config_error(
-        "failed_campaigns",
-        f"{', '.join(sorted(set(config['failed_campaigns']) & set(CAMPAIGNS)))} also in the run's campaigns: "
-        "failed_campaigns is set by the workflow for the campaigns it leaves out",
-    )
 # a sensor's results folder, `remaster.layout`'s (the command line reads from it): {campaign} and
 # {sensor} are the wildcards
 SENSOR = f"{RESULTS}/{layout.SENSOR_FOLDER}"
