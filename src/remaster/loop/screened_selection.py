@@ -61,7 +61,7 @@ def select_screened(
     every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
     provisional = np.sort(np.asarray(exclude, dtype=int))
     excluded, screens, history, settled = provisional, {}, [], False
-    for _ in range(gross.MAX_ROUNDS):
+    for round_ in range(gross.MAX_ROUNDS):
         data = {s: readings(chain, sensor, s, settings.model, excluded) for s in SETS}
         poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
@@ -76,6 +76,8 @@ def select_screened(
             break
         if any(np.array_equal(found, np.asarray(h["fitted_without"], dtype=int)) for h in history):
             break  # the screen turns in a cycle: the last fit stands, and the report says so
+        if round_ == gross.MAX_ROUNDS - 1:
+            break  # no refit is left: the rows flagged stay the ones the final model was fitted without
         excluded = found
     # the validation set is screened here, with the final model, after every choice has been made
     screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
