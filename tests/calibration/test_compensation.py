@@ -222,6 +222,26 @@ def test_a_tcp_takes_the_priors_split_of_the_marker_offset_and_its_bound_carries
     assert np.all(at_marker["bound95_mm"] < 0.1 * table["bound95_mm"])
 
 
+def test_at_the_marker_the_last_joints_held_zero_is_in_the_fitted_marker_offset(iiwa, rng):
+    """A held last-joint zero-offset is not drawn again at the marker, whose fitted offset holds its
+    turn (`carried_by_marker_offset`): the bound is the posterior's own few um, not the 1.7 mm a
+    0.5 deg turn of a marker 100 mm off the axis would give; at a TCP there it is drawn, and the
+    notes say which."""
+    point = np.array([0.1, 0.0, 0.05])
+    held = {"zero_offsets.q7": 0.0}
+    marker = replace(synthetic_robot(iiwa, np.random.default_rng(1), 1e-7, held=held), point=point)
+    tcp = replace(marker, at_marker=False)
+    q = commands(iiwa, rng, 8)
+    at_marker = compensation.predict(marker, q, "robot", 2000, np.random.default_rng(2))
+    at_tcp = compensation.predict(tcp, q, "robot", 2000, np.random.default_rng(2))
+    assert marker.held_drawn("robot") == [] and tcp.held_drawn("robot") == ["zero_offsets.q7"]
+    assert np.all(at_marker["bound95_mm"] < 0.01)
+    # a turn about the last axis at 0.5 deg (1 sigma), 100 mm off it: about 1.96 sigma * 100 mm
+    np.testing.assert_allclose(at_tcp["bound95_mm"], 1.96 * 0.5 * DEG * 0.1 / MM, rtol=0.15)
+    assert any("q7, held at the controller's mark, is carried at the marker" in n for n in marker.notes("robot"))
+    assert not any("carried at the marker" in n for n in tcp.notes("robot"))
+
+
 # --------------------------------------------------------------------------- bad input
 
 

@@ -14,6 +14,8 @@ A `CalibratedRobot` is one campaign's sensor under one model, 'paper' or 'loop'
   sensor scale and frame distortion (D = 0 unless the loop added it): targets measured by the same sensor in the same set-up (a fixture, a workpiece).
   There the held zero-offsets a registration absorbs are part of it, whose posterior is drawn
   instead; one held because the marker never sees it (the marker on its axis) is drawn in both.
+  At the marker, the last joint's held zero-offset is in the fitted marker offset where the loop
+  fits one (its turn moves the marker as an offset does), and is not drawn again.
 
 **predict**: positions (n, 3) at commands q at the posterior mean (residual GP mean added), the
 nominal model's positions (in the sensor frame through the campaign's initial registration T_NR, as
@@ -66,7 +68,7 @@ from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
-from ..inference.parameter_blocks import DISTORTION_PARTS, MARKER_OFFSET, distortion_matrix
+from ..inference.parameter_blocks import DISTORTION_PARTS, MARKER_OFFSET, carried_by_marker_offset, distortion_matrix
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..robot.nearness import Nearness
 from ..units import MM
@@ -141,10 +143,20 @@ class CalibratedRobot:
         shift = self.tool.mean([values.get(n, 0.0) for n in MARKER_OFFSET])
         return {**values, **dict(zip(MARKER_OFFSET, shift))}
 
+    @property
+    def carried_by_marker(self) -> frozenset[str]:
+        """The held zero-offsets the posterior's free marker offset carries at the marker
+        (`parameter_blocks.carried_by_marker_offset`: the last joint's); none at a TCP."""
+        if not self.at_marker:
+            return frozenset()
+        return carried_by_marker_offset(self.chain.n_joints, self.held, self.samples.columns)
+
     def held_drawn(self, frame: str) -> list[str]:
         """The held zero-offsets drawn at the marks' tolerance in `frame`: in the sensor frame,
-        those no registration absorbs."""
-        return sorted(n for n in self.held if frame == "robot" or n not in self.absorbed)
+        those no registration absorbs; in either, not one the marker offset carries."""
+        return sorted(
+            n for n in self.held if (frame == "robot" or n not in self.absorbed) and n not in self.carried_by_marker
+        )
 
     def notes(self, frame: str) -> list[str]:
         """What the user should know about this model, point and frame."""
@@ -155,6 +167,11 @@ class CalibratedRobot:
             out.append(
                 f"{frame} frame: the zero-offset of {joints}, which these data do not see, is at the controller's "
                 f"mark and drawn at its tolerance ({np.degrees(self.held_tolerance):.3g} deg) in the bounds"
+            )
+        for name in sorted(self.carried_by_marker):
+            out.append(
+                f"the zero-offset of {name.split('.')[-1]}, held at the controller's mark, is carried at the marker by "
+                "the fitted marker offset (the last joint's turn moves the marker as an offset does): not drawn again"
             )
         if frame == "robot" and self.absorbed:
             out.append(

@@ -35,7 +35,9 @@ Two kinds of claim:
   (`LoopReport.declared_model_error`), drawn per axis and configuration. Held zero-offsets are drawn at the
   controller marks' tolerance here too: the registration removes joint 1's, but one held only
   because these data never turned it (the last joint when the tool keeps one orientation) moves
-  the marker at other poses. The loop-closed posterior is the reference
+  the marker at other poses. Not the last joint's where the loop fits a marker offset: its turn
+  moves the marker as an offset does at every configuration, so the fitted offset holds it
+  (`parameter_blocks.carried_by_marker_offset`). The loop-closed posterior is the reference
   because it is the model with the most evidence the loop found: for the loop-closed model itself
   this is its own posterior spread; for the paper's model (its posterior means) it adds what the
   loop closure found the paper's model lacks. What no candidate effect explains is in the
@@ -78,6 +80,7 @@ from ..inference.gp import loop_candidate
 from ..inference.gp.residual import ResidualGP, evenly_spaced
 from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
+from ..inference.parameter_blocks import carried_by_marker_offset
 from ..loop.refit import PRIOR_DOMINATED
 from ..loop.result import LoopReport, LoopResults
 from ..robot.kinematics import KinematicChain
@@ -202,7 +205,9 @@ class _Posterior:
     """The posterior as `workspace_accuracy` propagates it: the loop-closed and the paper's
     calibrations; the loop's draws ({parameter: value} each, every parameter) with their noise std
     sigma (m); the held zero-offsets {name: rad}, drawn at the marks' tolerance (rad); what the data
-    cannot see {name: value}, held in the paper's tables; the residual GP, None without one; the
+    cannot see {name: value}, held in the paper's tables; carried: the held zero-offsets the loop's
+    free marker offset carries (`parameter_blocks.carried_by_marker_offset`), not drawn; the
+    residual GP, None without one; the
     model error per axis (m) the loop declares (`LoopReport.declared_model_error`, zero where it
     closed), drawn independently per axis and configuration in the claims; each estimated
     parameter's prior std (SI), for `data_draws`."""
@@ -217,6 +222,12 @@ class _Posterior:
     gp: ResidualGP | None
     declared: float = 0.0
     prior_std: Mapping[str, float] = field(default_factory=dict)
+    carried: frozenset[str] = frozenset()
+
+    @property
+    def drawn(self) -> dict[str, float]:
+        """The held zero-offsets drawn at the marks' tolerance: not one the marker offset carries."""
+        return {n: v for n, v in self.held.items() if n not in self.carried}
 
     @cached_property
     def data_draws(self) -> list[dict]:
@@ -244,7 +255,9 @@ class _Posterior:
         return [{**d, **dict(zip(every, row))} for d, row in zip(self.draws, data.tolist())]
 
 
-def _posterior(paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopResults, rng, count: int) -> _Posterior:
+def _posterior(
+    chain: KinematicChain, paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopResults, rng, count: int
+) -> _Posterior:
     """`count` draws of the loop closure's MCMC samples (rng), and what goes with them (`_Posterior`)."""
     samples = loop.samples
     if samples is None or samples.empty or SIGMA not in samples.columns:
@@ -256,19 +269,21 @@ def _posterior(paper_summary: pd.DataFrame, laplace: LaplaceReport, loop: LoopRe
     calibration = loop_calibration(loop.report, samples, loop.label)
     rows = rng.choice(len(samples), count, replace=len(samples) < count)
     gp = loop_candidate.from_results(loop.gp_rows, loop.report.residual_gp)
+    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
     return _Posterior(
         loop=calibration,
         paper=paper_calibration(paper_summary, None, loop.label),
         draws=[{**calibration.values, **d} for d in calibration.draws.iloc[rows].to_dict(orient="records")],
         # with a residual GP the noise is its white part
         sigma=samples[SIGMA].to_numpy(float)[rows] if gp is None else np.full(count, gp.hyper.noise_std),
-        held={n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")},
+        held=held,
         tolerance=loop.report.held_zero_offset_std,
         # what the data cannot see is held in the paper's robot-frame rows (joint 1 there): the same here
         unseen={n: calibration.values[n] for n in loop.report.unseen_by_data if n in calibration.values},
         gp=gp,
         declared=loop.report.declared_model_error("loop") or 0.0,
         prior_std=_prior_std(loop.report.parameters),
+        carried=carried_by_marker_offset(chain.n_joints, held, calibration.draws.columns),
     )
 
 
@@ -294,7 +309,7 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
     # the claims: every parameter under its posterior, held zero-offsets at the marks' tolerance
     # (a registration removes joint 1's; one held only because the tool never turned stays)
     points_parametric = predictor.points_of_draws(
-        _held_draws(posterior.draws, posterior.held, posterior.tolerance, rng)
+        _held_draws(posterior.draws, posterior.drawn, posterior.tolerance, rng)
     )
     points = points_parametric + corrections
     if posterior.declared > 0:  # a loop not closed claims what it measured beyond the noise
@@ -360,7 +375,7 @@ def workspace_accuracy(
     a draw of it jointly across the configurations (`ResidualGP.draws`),
     and the noise is the GP's white part: far from the data its variance, back to its prior, is
     what the claim carries."""
-    posterior = _posterior(paper_summary, laplace, loop, rng, propagation.draws)
+    posterior = _posterior(chain, paper_summary, laplace, loop, rng, propagation.draws)
     n_random, seed = propagation.random_configurations, propagation.seed
     measured = sensor.q("optimization")
     used = evenly_spaced(len(measured), n_random)
@@ -379,7 +394,7 @@ def workspace_accuracy(
     # what no campaign can see (absorbed by a registration, or without effect) anywhere in the joint space
     predictor = posterior.loop.predictor(chain, q_sets["random"], sensor.marker)
     nowhere = sorted(identifiable_extension(predictor.model).dropped)
-    report = _report(domain, sensor, claims, posterior.loop, loop.report, posterior.held, nowhere)
+    report = _report(domain, sensor, claims, posterior.loop, loop.report, posterior.held, nowhere, posterior.carried)
     report["draws"] = int(propagation.draws)
     report["random_configurations"] = int(n_random)
     report["measured_configurations"] = {
@@ -408,9 +423,11 @@ def _claim(claims: pd.DataFrame, model: str, where: str, column: str = "mean_mm"
     return float(rows[column].iloc[0]) if len(rows) else np.nan
 
 
-def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, nowhere) -> dict:
+def _report(
+    domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_report: LoopReport, held, nowhere, carried
+) -> dict:
     """workspace.json without its sizes (`workspace_accuracy` adds them): where the claims hold,
-    the held zero-offsets, what the next campaign must add and the warnings."""
+    the held zero-offsets (and those the fitted marker offset carries, not drawn), what the next campaign must add and the warnings."""
     dominated = [n for n in loop_report.prior_dominated if n not in nowhere]
     suggestions = _suggestions(domain, dominated)
     where = ACROSS if domain.covers_the_limits else INSIDE
@@ -464,6 +481,7 @@ def _report(domain: MeasuredDomain, sensor, claims, loop: Calibration, loop_repo
         "frames": dict(FRAMES),
         "held_zero_offsets": sorted(held),
         "held_tolerance_deg": loop_report.held_zero_offset_std / DEG,
+        "held_in_marker_offset": sorted(carried),
         "held_note": HELD_NOTE.format(held=", ".join(sorted(held)) or "none") if held else "",
         "reference": "each draw of the loop-closed posterior (the model with the most evidence), with its noise",
         "holds": holds,

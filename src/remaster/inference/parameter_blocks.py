@@ -199,3 +199,14 @@ def available(block: str, data: Readings) -> bool:
     """Whether the data can carry a block at all (a drift needs a time or temperature column
     that varies)."""
     return block != "drift" or (data.drift is not None and np.ptp(data.drift) > 0)
+
+
+def carried_by_marker_offset(n_joints: int, held, free) -> frozenset[str]:
+    """Of the held zero-offsets `held` (names), those a marker offset among the `free` parameter
+    names carries at the marker: the last joint's. Its turn moves every point fixed to the flange
+    by a constant change of the point's flange-frame position, at every configuration, which is
+    what a marker offset is; where the offset is free, the marker's fitted place holds the turn, and
+    drawing it again at the controller marks' tolerance would count it twice. A TCP elsewhere on the
+    flange moves otherwise than the marker under that turn: not there."""
+    last = f"zero_offsets.q{n_joints}"
+    return frozenset({last}) if last in set(held) and set(MARKER_OFFSET) <= set(free) else frozenset()
