@@ -191,6 +191,7 @@ def sbc_one(task: tuple) -> dict:
         "outside_share_validation": 1.0 - checked.planned_held_fraction,
         "claim_covers_near": checked.claims["domain"].covers,
         "validation_over_noise": checked.validation_rms_per_axis_mm / checked.noise_mm,
+        "declared_model_error_mm": (checked.report.declared_model_error("loop") or 0.0) / 1e-3,
         "own_posterior": checked.own_posterior,
         "seconds": time.perf_counter() - started,
     }

@@ -38,12 +38,16 @@ def correct_model():
     return chain, data, sensor.marker, registration.t_nr, analysis.held, folds, mode
 
 
-def _noisy_fits(correct_model, seeds):
+def _noisy_fits(correct_model, seeds, discrepancy=0.0):
+    """Cross-validations of the exact model over `seeds` noise draws, each number also moved by a
+    model error of std `discrepancy` (m) that no parameter follows (drawn independently, as the
+    declared model error is)."""
     chain, data, marker, t_nr, held, folds, mode = correct_model
     truth = data.measured
     rng = np.random.default_rng(12)
     for _ in range(seeds):
-        noisy = replace(data, measured=truth + rng.normal(0.0, NOISE, truth.shape))
+        moved = rng.normal(0.0, discrepancy, truth.shape) if discrepancy else 0.0
+        noisy = replace(data, measured=truth + moved + rng.normal(0.0, NOISE, truth.shape))
         model = blocks.BlockModel(chain, noisy, marker, t_nr, (), held)
         yield evidence.cross_validate(evidence.posterior_mode(model, mode.theta), folds)
 
@@ -59,6 +63,23 @@ def test_the_held_out_inflation_is_what_a_correct_model_shows_over_noise_draws(c
     assert abs(observed.mean() - predicted.mean()) < 4.0 * standard_error
     assert predicted.mean() > 1.2  # what the plain floor would have missed
     assert np.ptp(predicted) < 0.01 * predicted.mean()  # the Jacobian's, not the draw's
+
+
+def test_the_structured_residual_is_what_a_fit_of_every_row_leaves(correct_model):
+    """A model error of 3 x the noise per number that no parameter follows, over 60 draws on the
+    25-configuration campaign: the structured residual the verdict states is that error (its mean
+    square within 4 standard errors of 9 NOISE^2), not the held-out excess, which the folds'
+    parameter spread inflates by the same factor as the noise (c, 1.55 here)."""
+    fits = list(_noisy_fits(correct_model, SEEDS, discrepancy=3.0 * NOISE))
+    tested = [
+        noise_floor.verdict(cv.rmse / np.sqrt(3.0), NOISE, 0.01, cv.held_out_numbers, cv.null_cumulants) for cv in fits
+    ]
+    squares = np.array([(t["structured_mm"] * 1e-3) ** 2 for t in tested]) / NOISE**2
+    assert all(t["closed"] is False for t in tested)
+    assert abs(squares.mean() - 9.0) < 4.0 * squares.std(ddof=1) / np.sqrt(SEEDS)
+    excess = np.array([(t["rms_per_axis_mm"] ** 2 - t["held_out_floor_mm"] ** 2) * 1e-6 for t in tested]) / NOISE**2
+    ratio = np.mean([cv.noise_inflation for cv in fits])
+    assert ratio > 1.4 and abs(excess.mean() / squares.mean() - ratio) < 0.05 * ratio  # the excess is c s^2
 
 
 def test_a_correct_models_closure_p_values_are_uniform_over_noise_draws(correct_model):
@@ -111,7 +132,8 @@ def test_the_held_out_floor_enters_the_verdict_and_the_share():
     assert closed["closed"] is True and closed["held_out_floor_mm"] == pytest.approx(np.sqrt(2) * 1e-2)
     assert closed["p_value"] == pytest.approx(stats.chi2.sf(75 * 2.25 / 2.0, 75))
     open_ = noise_floor.verdict(5e-5, 1e-5, 0.01, 75, doubled)
-    assert open_["structured_mm"] == pytest.approx(np.sqrt(25 - 2) * 1e-2)
+    # the excess over the held-out floor, (25 - 2) floor^2, is twice the structured residual's square
+    assert open_["structured_mm"] == pytest.approx(np.sqrt((25 - 2) / 2) * 1e-2)
     assert noise_floor.share(5e-5, 4e-5, open_) == pytest.approx(9 / 23)
     # the same ratio over many more numbers is beyond the level
     assert noise_floor.verdict(1.05e-5, 1e-5, 0.01, 52_500)["closed"] is False
