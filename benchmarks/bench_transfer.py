@@ -69,6 +69,7 @@ from remaster.campaigns.arm_kinds import (  # noqa: E402
     ur5_with_dh_errors,
 )
 from remaster.comparing import comparison  # noqa: E402
+from remaster.inference import discrepancy  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
 SENSOR = "laser_tracker"
@@ -185,24 +186,30 @@ def validation_q(spec: dict) -> np.ndarray:
     return rows[[c for c in rows.columns if c.startswith("q") and c[1:].isdigit()]].to_numpy(float)
 
 
-def with_laplace_std(calibration):
-    """The zero-offset model's summary at its mode with the Laplace std (no sampler ran in-process)."""
+def as_compared(calibration):
+    """The zero-offset model's summary as the workflow's comparison across campaigns reads it
+    (`summary_discrepancy`): the fit's means with the pose-clustered sandwich stds, which carry
+    what the model lacks (`discrepancy.discrepancy_stage`), from its summary at the mode."""
     summary = calibration.summary.copy()
     laplace = calibration.laplace
     summary.loc[list(laplace.names), "std"] = np.asarray(laplace.std, dtype=float)
-    return summary
+    compared, _ = discrepancy.discrepancy_stage(
+        calibration.campaign, calibration.sensor, calibration.registration, laplace, summary
+    )
+    return compared
 
 
 def drift_of(first, second) -> dict:
-    """What `remaster.comparing.comparison` says between two calibrations (`api.Calibration`): the
-    zero-offsets (Laplace std) and the loop closure's robot parameters (setup and sensor blocks left
-    out) flagged as drifted, and how many of each were compared."""
+    """What `remaster.comparing.comparison` says between two calibrations (`api.Calibration`), as the
+    workflow's comparison does: the zero-offsets (sandwich stds, `as_compared`) and the loop
+    closure's robot parameters (setup and sensor blocks left out) flagged as drifted, and how many
+    of each were compared."""
     entries = [
         comparison.Entry(
             c.campaign.name,
             c.campaign.date,
             c.sensor,
-            with_laplace_std(c),
+            as_compared(c),
             identity.robot_identity(c.campaign),
             "laser_tracker",
             c.loop.report.parameters,
