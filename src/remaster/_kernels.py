@@ -357,6 +357,94 @@ def expanded_sum_squares(expansion, every, t_nr):
     return out
 
 
+@_compiled(fastmath={"contract"}, inline="always")
+def _orientation_residual(rotations, tail, sensor, cos_a, sin_a, measured, r, t, out):
+    """One reading's residual rotation log(M P^T) as a rotation vector into out (3,) rad, P =
+    sensor rotations[0] Rz(a_0) ... rotations[N-1] Rz(a_N-1) tail (`orientation_residuals`), from
+    the angles' cosines and sines (N,); r and t (3, 3) are scratch."""
+    r[:, :] = sensor
+    for j in range(cos_a.shape[0]):
+        for a in range(3):
+            for b in range(3):
+                t[a, b] = r[a, 0] * rotations[j, 0, b] + r[a, 1] * rotations[j, 1, b] + r[a, 2] * rotations[j, 2, b]
+        c, s = cos_a[j], sin_a[j]
+        for a in range(3):
+            r[a, 0] = c * t[a, 0] + s * t[a, 1]
+            r[a, 1] = c * t[a, 1] - s * t[a, 0]
+            r[a, 2] = t[a, 2]
+    for a in range(3):
+        for b in range(3):
+            t[a, b] = r[a, 0] * tail[0, b] + r[a, 1] * tail[1, b] + r[a, 2] * tail[2, b]
+    # e = M t^T: only its antisymmetric part and trace are needed
+    e = measured
+    e10 = e[1, 0] * t[0, 0] + e[1, 1] * t[0, 1] + e[1, 2] * t[0, 2]
+    e01 = e[0, 0] * t[1, 0] + e[0, 1] * t[1, 1] + e[0, 2] * t[1, 2]
+    e20 = e[2, 0] * t[0, 0] + e[2, 1] * t[0, 1] + e[2, 2] * t[0, 2]
+    e02 = e[0, 0] * t[2, 0] + e[0, 1] * t[2, 1] + e[0, 2] * t[2, 2]
+    e21 = e[2, 0] * t[1, 0] + e[2, 1] * t[1, 1] + e[2, 2] * t[1, 2]
+    e12 = e[1, 0] * t[2, 0] + e[1, 1] * t[2, 1] + e[1, 2] * t[2, 2]
+    trace = 0.0
+    for a in range(3):
+        trace += e[a, 0] * t[a, 0] + e[a, 1] * t[a, 1] + e[a, 2] * t[a, 2]
+    v0, v1, v2 = 0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)
+    sine = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    angle = np.arctan2(sine, 0.5 * (trace - 1.0))
+    ratio = 1.0 + angle * angle / 6.0 if sine < 1e-8 else angle / sine
+    out[0], out[1], out[2] = ratio * v0, ratio * v1, ratio * v2
+
+
+@_compiled(fastmath={"contract"})
+def orientation_residuals(rotations, tail, sensor, angles, measured):
+    """A full-pose probe's residual rotations log(M_i P_ki^T) as rotation vectors (m, n, 3) rad,
+    P_ki = sensor[k] rotations[0] Rz(angles[k, i, 0]) ... rotations[N-1] Rz(angles[k, i, N-1]) tail:
+    rotations (N, 3, 3) the kernel form's; tail (3, 3) the last basis's transpose, the tool's and
+    the probe's rotations; sensor (m, 3, 3); angles (m, n, N) rad; measured M (n, 3, 3).
+    `remaster.robot.kinematics.flange_rotations` and `spatial.matrix_to_rotation_vector` are the
+    reference."""
+    m, n, joints = angles.shape
+    out = np.empty((m, n, 3))
+    r = np.empty((3, 3))
+    t = np.empty((3, 3))
+    for k in range(m):
+        for i in range(n):
+            cos_a, sin_a = np.cos(angles[k, i]), np.sin(angles[k, i])
+            _orientation_residual(rotations, tail, sensor[k], cos_a, sin_a, measured[i], r, t, out[k, i])
+    return out
+
+
+@_compiled(fastmath={"contract"})
+def orientation_sum_squares(rotations, tail, every, t_nr, cos_q, sin_q, measured, weight):
+    """The paper's model's orientation part of the sum of squares, weight^2 sum_i |log(M_i P_i^T)|^2
+    (`orientation_residuals`), for m parameter vectors every (m, 6 + N) (the registration, then the
+    zero-offsets added to the readings, whose cosines and sines are cos_q, sin_q (n, N)): (m,).
+    measured M (n, 3, 3)."""
+    m, n, joints = every.shape[0], cos_q.shape[0], cos_q.shape[1]
+    out = np.zeros(m)
+    rotation = np.empty((3, 3))
+    translation = np.empty(3)
+    cos_d, sin_d = np.empty(joints), np.empty(joints)
+    cos_a, sin_a = np.empty(joints), np.empty(joints)
+    residual = np.empty(3)
+    r = np.empty((3, 3))
+    t = np.empty((3, 3))
+    for k in range(m):
+        _registration(every[k], t_nr, rotation, translation)
+        for j in range(joints):
+            cos_d[j] = np.cos(every[k, 6 + j])
+            sin_d[j] = np.sin(every[k, 6 + j])
+        total = 0.0
+        for i in range(n):
+            for j in range(joints):  # cos and sin of q + offset by the angle-sum formulas, as `_points`
+                cos_a[j] = cos_q[i, j] * cos_d[j] - sin_q[i, j] * sin_d[j]
+                sin_a[j] = sin_q[i, j] * cos_d[j] + cos_q[i, j] * sin_d[j]
+            _orientation_residual(rotations, tail, rotation, cos_a, sin_a, measured[i], r, t, residual)
+            for a in range(3):
+                e = weight * residual[a]
+                total += e * e
+        out[k] = total
+    return out
+
+
 @_compiled()
 def metropolis_walk(
     rotations,
@@ -367,6 +455,7 @@ def metropolis_walk(
     t_nr,
     measured,
     expansion,
+    orientation,
     fixed_values,
     free_index,
     theta,
@@ -383,9 +472,12 @@ def metropolis_walk(
     log-posterior is NaN (-1 when none): the caller raises. The sum of squares by
     `expanded_sum_squares` when expansion (`expansion_sums`' arrays and reference) holds terms,
     else `registered_sum_squares`: the same arithmetic, in the same order, as the paper's model's
-    `BlockModel.log_posterior`, so the chain is the Python loop's to the bit."""
+    `BlockModel.log_posterior`, so the chain is the Python loop's to the bit. orientation (tail,
+    the readings' cosines and sines (n_o, N) each, measured rotations (n_o, 3, 3), weight (1,)): a
+    full-pose probe's, whose `orientation_sum_squares` is added (n_o = 0: points alone)."""
     m, p = steps.shape
-    power = -(3 * cos_q.shape[1] + 2)
+    tail, orientation_cos, orientation_sin, orientation_measured, orientation_weight = orientation
+    power = -(3 * (cos_q.shape[1] + orientation_cos.shape[0]) + 2)
     every = fixed_values.copy().reshape(1, -1)
     current = theta.copy()
     proposal = np.empty(p)
@@ -404,6 +496,10 @@ def metropolis_walk(
                 energy = expanded_sum_squares(expansion, every, t_nr)[0]
             else:
                 energy = registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured)[0]
+            if orientation_cos.shape[0] > 0:
+                energy += orientation_sum_squares(
+                    rotations, tail, every, t_nr, orientation_cos, orientation_sin, orientation_measured, orientation_weight[0]
+                )[0]
             lp_proposal = power * np.log(sigma) - energy / (2.0 * sigma * sigma)
         if lp_proposal != lp_proposal:
             return accepted, i
@@ -414,51 +510,3 @@ def metropolis_walk(
         states[i] = current
         log_probs[i] = lp
     return accepted, -1
-
-
-@_compiled(fastmath={"contract"})
-def orientation_residuals(rotations, tail, sensor, angles, measured):
-    """A full-pose probe's residual rotations log(M_i P_ki^T) as rotation vectors (m, n, 3) rad,
-    P_ki = sensor[k] rotations[0] Rz(angles[k, i, 0]) ... rotations[N-1] Rz(angles[k, i, N-1]) tail:
-    rotations (N, 3, 3) the kernel form's; tail (3, 3) the last basis's transpose, the tool's and
-    the probe's rotations; sensor (m, 3, 3); angles (m, n, N) rad; measured M (n, 3, 3).
-    `remaster.robot.kinematics.flange_rotations` and `spatial.matrix_to_rotation_vector` are the
-    reference."""
-    m, n, joints = angles.shape
-    out = np.empty((m, n, 3))
-    r = np.empty((3, 3))
-    t = np.empty((3, 3))
-    for k in range(m):
-        for i in range(n):
-            r[:, :] = sensor[k]
-            for j in range(joints):
-                for a in range(3):
-                    for b in range(3):
-                        t[a, b] = (
-                            r[a, 0] * rotations[j, 0, b] + r[a, 1] * rotations[j, 1, b] + r[a, 2] * rotations[j, 2, b]
-                        )
-                c, s = np.cos(angles[k, i, j]), np.sin(angles[k, i, j])
-                for a in range(3):
-                    r[a, 0] = c * t[a, 0] + s * t[a, 1]
-                    r[a, 1] = c * t[a, 1] - s * t[a, 0]
-                    r[a, 2] = t[a, 2]
-            for a in range(3):
-                for b in range(3):
-                    t[a, b] = r[a, 0] * tail[0, b] + r[a, 1] * tail[1, b] + r[a, 2] * tail[2, b]
-            # e = M t^T: only its antisymmetric part and trace are needed
-            e = measured[i]
-            e10 = e[1, 0] * t[0, 0] + e[1, 1] * t[0, 1] + e[1, 2] * t[0, 2]
-            e01 = e[0, 0] * t[1, 0] + e[0, 1] * t[1, 1] + e[0, 2] * t[1, 2]
-            e20 = e[2, 0] * t[0, 0] + e[2, 1] * t[0, 1] + e[2, 2] * t[0, 2]
-            e02 = e[0, 0] * t[2, 0] + e[0, 1] * t[2, 1] + e[0, 2] * t[2, 2]
-            e21 = e[2, 0] * t[1, 0] + e[2, 1] * t[1, 1] + e[2, 2] * t[1, 2]
-            e12 = e[1, 0] * t[2, 0] + e[1, 1] * t[2, 1] + e[1, 2] * t[2, 2]
-            trace = 0.0
-            for a in range(3):
-                trace += e[a, 0] * t[a, 0] + e[a, 1] * t[a, 1] + e[a, 2] * t[a, 2]
-            v0, v1, v2 = 0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)
-            sine = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-            angle = np.arctan2(sine, 0.5 * (trace - 1.0))
-            ratio = 1.0 + angle * angle / 6.0 if sine < 1e-8 else angle / sine
-            out[k, i, 0], out[k, i, 1], out[k, i, 2] = ratio * v0, ratio * v1, ratio * v2
-    return out

@@ -133,13 +133,25 @@ class BlockModel:
             self.noise_log_det += float(np.sum(np.log(scaling)))
         self._has_prior = bool(np.any(self._prior_precision))
         self._setup_orientation(data)
-        # the paper's model (no extension block, isotropic noise: `paper_model`) has its sum of squares
-        # and its random walk compiled: the samplers evaluate it hundreds of thousands of times
-        self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None and not self.has_orientation
+        # the paper's model (no extension block, isotropic noise: `paper_model`, a full-pose probe's
+        # orientations included) has its sum of squares and its random walk compiled: the samplers
+        # evaluate it hundreds of thousands of times
+        self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None
         self._expanded = None
         if self.compiled_posterior:
             self._start = self._kernel.start(self.marker)
             self._measured_t = np.ascontiguousarray(self.measured.T)
+            self._orientation_kernel = (
+                (
+                    self._orientation_tail,
+                    np.ascontiguousarray(np.cos(self.q[self._orientation_at])),
+                    np.ascontiguousarray(np.sin(self.q[self._orientation_at])),
+                    self._measured_rotations,
+                    np.array([float(self.data.orientation_weight)]),
+                )
+                if self.has_orientation
+                else (np.eye(3), *2 * [np.zeros((0, self.chain.n_joints))], np.zeros((0, 3, 3)), np.zeros(1))
+            )
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
@@ -407,6 +419,11 @@ class BlockModel:
                 self.t_nr,
                 self._measured_t,
             )
+        if self.has_orientation:
+            tail, cos_q, sin_q, measured, weight = self._orientation_kernel
+            energy = energy + _kernels.orientation_sum_squares(
+                self._kernel.rotations, tail, stack, self.t_nr, cos_q, sin_q, measured, weight[0]
+            )
         return energy if every.ndim == 2 else energy[0]
 
     def _expansion(self) -> tuple:
@@ -415,7 +432,7 @@ class BlockModel:
         rows per term (3^N terms): an evaluation then costs the same at any number of rows. Below,
         arrays without terms (each evaluation sums over the rows)."""
         if self._expanded is None:
-            if self.n_rows >= EXPANDED_ROWS_PER_TERM * 3**self.chain.n_joints:
+            if self.n_points >= EXPANDED_ROWS_PER_TERM * 3**self.chain.n_joints:
                 sums = _kernels.expansion_sums(
                     self._kernel.rotations,
                     self._kernel.shifts,
@@ -450,6 +467,7 @@ class BlockModel:
             self.t_nr,
             self._measured_t,
             self._expansion(),
+            self._orientation_kernel,
             self.fixed_values,
             self._free_index,
             np.asarray(theta, dtype=float),
