@@ -135,7 +135,9 @@ def main() -> None:
     parser.add_argument("--base", default=DEFAULT_BASE, help="commit to compare with (default: %(default)s)")
     parser.add_argument("--repeats", type=int, default=2, help="runs of each checkout (default: %(default)s)")
     parser.add_argument("--campaigns", nargs="+", default=DEFAULT_CAMPAIGNS)
-    parser.add_argument("--target", type=float, default=1.0, help="the ratio this / base to reach (default: %(default)s)")
+    parser.add_argument(
+        "--target", type=float, default=1.0, help="the ratio this / base to reach (default: %(default)s)"
+    )
     parser.add_argument("--tests", action="store_true", help="also time the README's test command in both")
     parser.add_argument("--keep", type=Path, help="leave each checkout's last results in KEEP/base and KEEP/this")
     args = parser.parse_args()

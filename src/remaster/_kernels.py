@@ -498,7 +498,14 @@ def metropolis_walk(
                 energy = registered_sum_squares(rotations, shifts, start, cos_q, sin_q, every, t_nr, measured)[0]
             if orientation_cos.shape[0] > 0:
                 energy += orientation_sum_squares(
-                    rotations, tail, every, t_nr, orientation_cos, orientation_sin, orientation_measured, orientation_weight[0]
+                    rotations,
+                    tail,
+                    every,
+                    t_nr,
+                    orientation_cos,
+                    orientation_sin,
+                    orientation_measured,
+                    orientation_weight[0],
                 )[0]
             lp_proposal = power * np.log(sigma) - energy / (2.0 * sigma * sigma)
         if lp_proposal != lp_proposal:
