@@ -358,16 +358,17 @@ def expanded_sum_squares(expansion, every, t_nr):
 
 
 @_compiled(fastmath={"contract"}, inline="always")
-def _orientation_residual(rotations, tail, sensor, cos_a, sin_a, measured, r, t, out):
+def _orientation_residual(rotations, tail, sensor, cos_sin, measured, scratch, out):
     """One reading's residual rotation log(M P^T) as a rotation vector into out (3,) rad, P =
     sensor rotations[0] Rz(a_0) ... rotations[N-1] Rz(a_N-1) tail (`orientation_residuals`), from
-    the angles' cosines and sines (N,); r and t (3, 3) are scratch."""
+    the angles' cosines and sines cos_sin (2, N); scratch (2, 3, 3)."""
+    r, t = scratch[0], scratch[1]
     r[:, :] = sensor
-    for j in range(cos_a.shape[0]):
+    for j in range(cos_sin.shape[1]):
         for a in range(3):
             for b in range(3):
                 t[a, b] = r[a, 0] * rotations[j, 0, b] + r[a, 1] * rotations[j, 1, b] + r[a, 2] * rotations[j, 2, b]
-        c, s = cos_a[j], sin_a[j]
+        c, s = cos_sin[0, j], cos_sin[1, j]
         for a in range(3):
             r[a, 0] = c * t[a, 0] + s * t[a, 1]
             r[a, 1] = c * t[a, 1] - s * t[a, 0]
@@ -403,12 +404,12 @@ def orientation_residuals(rotations, tail, sensor, angles, measured):
     reference."""
     m, n, joints = angles.shape
     out = np.empty((m, n, 3))
-    r = np.empty((3, 3))
-    t = np.empty((3, 3))
+    scratch = np.empty((2, 3, 3))
+    cos_sin = np.empty((2, joints))
     for k in range(m):
         for i in range(n):
-            cos_a, sin_a = np.cos(angles[k, i]), np.sin(angles[k, i])
-            _orientation_residual(rotations, tail, sensor[k], cos_a, sin_a, measured[i], r, t, out[k, i])
+            cos_sin[0], cos_sin[1] = np.cos(angles[k, i]), np.sin(angles[k, i])
+            _orientation_residual(rotations, tail, sensor[k], cos_sin, measured[i], scratch, out[k, i])
     return out
 
 
@@ -423,10 +424,9 @@ def orientation_sum_squares(rotations, tail, every, t_nr, cos_q, sin_q, measured
     rotation = np.empty((3, 3))
     translation = np.empty(3)
     cos_d, sin_d = np.empty(joints), np.empty(joints)
-    cos_a, sin_a = np.empty(joints), np.empty(joints)
+    cos_sin = np.empty((2, joints))
     residual = np.empty(3)
-    r = np.empty((3, 3))
-    t = np.empty((3, 3))
+    scratch = np.empty((2, 3, 3))
     for k in range(m):
         _registration(every[k], t_nr, rotation, translation)
         for j in range(joints):
@@ -435,9 +435,9 @@ def orientation_sum_squares(rotations, tail, every, t_nr, cos_q, sin_q, measured
         total = 0.0
         for i in range(n):
             for j in range(joints):  # cos and sin of q + offset by the angle-sum formulas, as `_points`
-                cos_a[j] = cos_q[i, j] * cos_d[j] - sin_q[i, j] * sin_d[j]
-                sin_a[j] = sin_q[i, j] * cos_d[j] + cos_q[i, j] * sin_d[j]
-            _orientation_residual(rotations, tail, rotation, cos_a, sin_a, measured[i], r, t, residual)
+                cos_sin[0, j] = cos_q[i, j] * cos_d[j] - sin_q[i, j] * sin_d[j]
+                cos_sin[1, j] = sin_q[i, j] * cos_d[j] + cos_q[i, j] * sin_d[j]
+            _orientation_residual(rotations, tail, rotation, cos_sin, measured[i], scratch, residual)
             for a in range(3):
                 e = weight * residual[a]
                 total += e * e

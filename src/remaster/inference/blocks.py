@@ -133,25 +133,34 @@ class BlockModel:
             self.noise_log_det += float(np.sum(np.log(scaling)))
         self._has_prior = bool(np.any(self._prior_precision))
         self._setup_orientation(data)
-        # the paper's model (no extension block, isotropic noise: `paper_model`, a full-pose probe's
-        # orientations included) has its sum of squares and its random walk compiled: the samplers
-        # evaluate it hundreds of thousands of times
+        self._setup_compiled()
+
+    def _setup_compiled(self) -> None:
+        """The paper's model (no extension block, isotropic noise: `paper_model`, a full-pose probe's
+        orientations included) has its sum of squares and its random walk compiled: the samplers
+        evaluate it hundreds of thousands of times. Its arrays in the kernels' form."""
         self.compiled_posterior = len(self.blocks) == len(BASE) and self._whitening is None
         self._expanded = None
-        if self.compiled_posterior:
-            self._start = self._kernel.start(self.marker)
-            self._measured_t = np.ascontiguousarray(self.measured.T)
+        if not self.compiled_posterior:
+            return
+        self._start = self._kernel.start(self.marker)
+        self._measured_t = np.ascontiguousarray(self.measured.T)
+        if not self.has_orientation:
             self._orientation_kernel = (
-                (
-                    self._orientation_tail,
-                    np.ascontiguousarray(np.cos(self.q[self._orientation_at])),
-                    np.ascontiguousarray(np.sin(self.q[self._orientation_at])),
-                    self._measured_rotations,
-                    np.array([float(self.data.orientation_weight)]),
-                )
-                if self.has_orientation
-                else (np.eye(3), *2 * [np.zeros((0, self.chain.n_joints))], np.zeros((0, 3, 3)), np.zeros(1))
+                np.eye(3),
+                *2 * [np.zeros((0, self.chain.n_joints))],
+                np.zeros((0, 3, 3)),
+                np.zeros(1),
             )
+            return
+        q = self.q[self._orientation_at]
+        self._orientation_kernel = (
+            self._orientation_tail,
+            np.ascontiguousarray(np.cos(q)),
+            np.ascontiguousarray(np.sin(q)),
+            self._measured_rotations,
+            np.array([float(self.data.orientation_weight)]),
+        )
 
     def _setup_joint_space(self, parts: Sequence[Parameters]) -> None:
         """values (K, n) and joints (K,) of the joint-space parameters: angle_j += theta_k values_k."""
