@@ -56,7 +56,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.doc_sections import publish  # noqa: E402
 from benchmarks.transfer_pairs import SIGNIFICANT, WITHIN, models_of, pair_rms, target_of, verdict  # noqa: E402
 from benchmarks.truth_claims import REPO, check  # noqa: E402
-from remaster import identity  # noqa: E402
+from remaster import api, files, identity  # noqa: E402
 from remaster.campaigns import scenario  # noqa: E402
 from remaster.campaigns.arm_kinds import (  # noqa: E402
     IIWA_OFFSETS_DEG,
@@ -224,6 +224,15 @@ def drift_of(first, second) -> dict:
         compared = table[table["status"] == "compared"]
         out[f"{key}_compared"] = len(compared)
         out[f"{key}_flagged"] = compared.loc[compared["flagged"], "parameter"].astype(str).tolist()
+    # what the workflow's comparison_prediction says: the change of predicted position at configurations
+    # inside both campaigns' measured domains, against the two posteriors' own spread
+    predicted = api.compare(first, second, settings=files.read_yaml(REPO / "config.yaml"))["prediction_drift"]
+    loop_model = predicted[predicted["model"] == "loop"]
+    compared = loop_model[loop_model["status"] == "compared"]
+    out["prediction_compared"] = len(compared)
+    out["prediction_flagged"] = bool(compared["flagged"].any())
+    out["prediction_mean_mm"] = float(compared["mean_mm"].iloc[0]) if len(compared) else float("nan")
+    out["prediction_null_p95_mm"] = float(compared["null_p95_of_mean_mm"].iloc[0]) if len(compared) else float("nan")
     return out
 
 
@@ -337,10 +346,24 @@ def _flagged(part: list[dict], key: str) -> str:
     return ", ".join(counts) + (f" ({', '.join(names)})" if names else "")
 
 
+def _prediction_flagged(part: list[dict]) -> str:
+    """Seeds whose loop-closed predictions were flagged of those compared, and each seed's mean change
+    beside its null's 95th percentile (mm); '-' for a record made before they were compared."""
+    if "prediction_flagged" not in part[0]:
+        return "-"
+    compared = [d for d in part if d["prediction_compared"]]
+    changes = ", ".join(
+        f"{d['prediction_mean_mm']:.3f} / {d['prediction_null_p95_mm']:.3f}" if d["prediction_compared"] else "n/c"
+        for d in part
+    )
+    return f"{sum(d['prediction_flagged'] for d in compared)} of {len(compared)} ({changes})"
+
+
 def _drift_lines(drifts: list[dict]) -> list[str]:
     lines = [
-        "| arm | truth | campaigns | truth changed | seeds | zero-offsets flagged | loop parameters flagged |",
-        "|---|---|---|---|---|---|---|",
+        "| arm | truth | campaigns | truth changed | seeds | zero-offsets flagged | loop parameters flagged | "
+        "predicted positions flagged (mean change, mm: per seed) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     keys = list(dict.fromkeys((d["arm"], d["truth"], d["first"], d["second"]) for d in drifts))
     for arm, truth, first, second in keys:
@@ -348,7 +371,7 @@ def _drift_lines(drifts: list[dict]) -> list[str]:
 
         lines.append(
             f"| {arm} | {truth} | {first} / {second} | {'yes' if part[0]['truth_changed'] else 'no'} | {len(part)} | "
-            f"{_flagged(part, 'zero_offsets')} | {_flagged(part, 'loop')} |"
+            f"{_flagged(part, 'zero_offsets')} | {_flagged(part, 'loop')} | {_prediction_flagged(part)} |"
         )
     return lines
 
@@ -409,6 +432,15 @@ def _verdict(record: dict) -> str:
     seen = sum(bool(d["zero_offsets_flagged"] or d["loop_flagged"]) for d in changed)
     outside = sum(r["outside_share"] > MAX_OUTSIDE for r in pairs)
     n = len(pairs)
+    by_prediction = ""
+    if drifts and "prediction_flagged" in drifts[0]:
+        false_predicted = sum(d["prediction_flagged"] for d in unchanged)
+        seen_predicted = sum(d["prediction_flagged"] for d in changed)
+        by_prediction = (
+            f" By predicted positions inside both campaigns' domains (the workflow's prediction drift, loop-closed "
+            f"model): flagged where the truth did not change on {false_predicted} of {len(unchanged)} pairs, "
+            f"where it changed on {seen_predicted} of {len(changed)}."
+        )
     return (
         f"Targets: loop-closed within {WITHIN}x least squares on {ratio} of {n} transfers "
         f"({'pass' if ratio == n else 'FAIL'}); below the nominal model on {nominal} of {n} "
@@ -419,7 +451,7 @@ def _verdict(record: dict) -> str:
         f"all three on {met}. "
         f"Drift flagged where the truth did not change: {len(false_drift)} of {len(unchanged)} campaign pairs "
         f"({'pass' if not false_drift else 'FAIL'}; {remounted} of them with the marker remounted, a set-up change); "
-        f"where it changed: {seen} of {len(changed)}. Transfers with more than {100 * MAX_OUTSIDE:.0f} % of the "
+        f"where it changed: {seen} of {len(changed)}.{by_prediction} Transfers with more than {100 * MAX_OUTSIDE:.0f} % of the "
         f"commands outside their bound: {outside} of {n}. Wall time {record['seconds']:.0f} s."
     )
 
