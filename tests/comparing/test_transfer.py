@@ -214,6 +214,36 @@ def test_prediction_of_a_model_against_itself_and_against_a_rotated_joint(iiwa):
     assert unsampled["status"] == "no null: no posterior samples of A"
 
 
+def test_a_joint_one_campaign_did_not_see_is_in_the_null_at_the_marks_tolerance(iiwa):
+    """A campaign that held joint 7's zero-offset at the controller's mark (its data did not see it)
+    against one that estimated it 0.34 deg away: compared as if the mark were known, the difference is
+    a flagged drift; with the held joint drawn at the marks' 0.5 deg (`Calibration.unseen_std`, as
+    `remaster predict` draws it), the null holds it and nothing is flagged. Between two calibrations
+    that both held it, joint 7 cancels and joint 2 moved by 0.01 deg is flagged; draws without an
+    unseen joint take the generator as before."""
+    rng = np.random.default_rng(7)
+    q = random_configurations(iiwa, 300, rng)
+    seen = paper(OFFSETS)
+    seen = prediction.Calibration("paper", seen.values, draws=draws_around(seen, 1e-6, 400, rng))
+    held_values = {**seen.values, "zero_offsets.q7": 0.0}
+    held_draws = seen.draws.drop(columns=["zero_offsets.q7"])
+    as_known = prediction.Calibration("paper", held_values, draws=held_draws)
+    unseen = dataclasses.replace(as_known, unseen_std={"zero_offsets.q7": np.radians(0.5)})
+    assert predictions.compare_predictions(iiwa, q, MARKER, seen, as_known, 100, np.random.default_rng(1))["flagged"]
+    held = predictions.compare_predictions(iiwa, q, MARKER, seen, unseen, 100, np.random.default_rng(1))
+    assert not held["flagged"] and held["null_p95_of_mean_mm"] > held["mean_mm"] > 0.5
+    d = np.radians(0.01)
+    moved = dataclasses.replace(
+        unseen,
+        values={**held_values, "zero_offsets.q2": OFFSETS[1] + d},
+        draws=held_draws.assign(**{"zero_offsets.q2": held_draws["zero_offsets.q2"] + d}),
+    )
+    assert predictions.compare_predictions(iiwa, q, MARKER, unseen, moved, 100, np.random.default_rng(1))["flagged"]
+    draws = [as_known.draw_values(5, np.random.default_rng(3)), unseen.draw_values(5, np.random.default_rng(3))]
+    assert [d["zero_offsets.q2"] for d in draws[0]] == [d["zero_offsets.q2"] for d in draws[1]]
+    assert {d["zero_offsets.q7"] for d in draws[0]} == {0.0} and len({d["zero_offsets.q7"] for d in draws[1]}) == 5
+
+
 def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     """Consecutive campaigns of one sensor kind, and the sensors of one campaign, with models of
     different effects still compared (by prediction)."""

@@ -313,14 +313,7 @@ def calibrated_robot(
         setup = _setup_values(loop.parameters)
         samples, gp = results["loop_samples"], loop_candidate.from_results(results.get("gp"), loop.residual_gp)
     laplace = results["laplace"]
-    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
-    absorbed = frozenset(
-        n
-        for direction in laplace.null_directions
-        if any(k.startswith("registration.") for k in direction)
-        for n in direction
-        if n in held
-    )
+    held, absorbed = laplace.held_zero_offsets, laplace.absorbed_by_registration
     tolerance = loop.held_zero_offset_std
     marker = campaign.sensors[sensor].marker
     point = marker if tcp is None else np.asarray(tcp, dtype=float)

@@ -21,7 +21,7 @@ SI inside (m, rad).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -33,7 +33,7 @@ from ..errors import InputError, require_columns
 from ..inference import metrics
 from ..inference.blocks import BlockModel
 from ..inference.laplace_report import LaplaceReport
-from ..inference.parameter_blocks import EXTENSIONS, link_errors
+from ..inference.parameter_blocks import EXTENSIONS, carried_by_marker_offset, link_errors
 from ..inference.readings import ModelSettings, Readings
 from ..loop.result import LoopReport
 from ..robot import priors
@@ -57,7 +57,10 @@ class Calibration:
     model: 'nominal', 'paper' or 'loop'; values: {parameter name: SI value} of every parameter
     (held ones at their held value); blocks: the extension blocks of the model (`parameter_blocks.EXTENSIONS`
     names, set-up blocks dropped); settings: payload for the gravity torques; draws: posterior
-    samples (m, P) of its free parameters (SI, columns = names), None or empty without them.
+    samples (m, P) of its free parameters (SI, columns = names), None or empty without them;
+    unseen_std: {held zero-offset: std rad} of the joints these data did not see, which a sensor
+    registered anew would (none a registration absorbs, none a fitted marker offset carries): drawn
+    at the controller marks' tolerance about their held value with the posterior's draws.
     """
 
     model: str
@@ -65,6 +68,7 @@ class Calibration:
     blocks: tuple[str, ...] = ()
     settings: ModelSettings = DEFAULT_SETTINGS
     draws: pd.DataFrame | None = None
+    unseen_std: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def effects(self) -> str:
@@ -93,8 +97,14 @@ class Calibration:
         if self.draws is None or self.draws.empty:
             return None
         rows = rng.choice(len(self.draws), count, replace=len(self.draws) < count)
-        free = self.draws.iloc[rows]
-        return [{**self.values, **row} for row in free.to_dict(orient="records")]
+        free = self.draws.iloc[rows].to_dict(orient="records")
+        if self.unseen_std:  # drawn only where there are some: the other calibrations' draws stay as they were
+            names = sorted(self.unseen_std)
+            shifts = rng.standard_normal((count, len(names))) * np.array([self.unseen_std[n] for n in names])
+            free = [
+                {**row, **{n: self.values[n] + d for n, d in zip(names, shift)}} for row, shift in zip(free, shifts)
+            ]
+        return [{**self.values, **row} for row in free]
 
 
 class Predictor:
@@ -239,6 +249,9 @@ def calibrated(
     models = {"nominal": Calibration("nominal"), "paper": paper_calibration(summary, paper_samples, label)}
     if loop is not None:
         models["loop"] = loop_calibration(loop, loop_samples, label)
+        models = {
+            name: with_unseen(c, campaign.chain, laplace, loop.held_zero_offset_std) for name, c in models.items()
+        }
     excluded = laplace.outlier_rows
     marker_std = (
         DEFAULT_MARKER_STD
@@ -255,6 +268,21 @@ def calibrated(
         excluded,
         marker_std,
     )
+
+
+def with_unseen(
+    calibration: Calibration, chain: KinematicChain, laplace: LaplaceReport, tolerance: float
+) -> Calibration:
+    """The calibration with the held zero-offsets its data did not see drawn at `tolerance` (rad) in
+    its draws (`Calibration.unseen_std`): those no registration absorbs, and at the marker not the
+    last joint's where a fitted marker offset carries it (`CalibratedRobot.held_drawn`'s rule for a
+    sensor frame). Unchanged without draws."""
+    if calibration.draws is None or calibration.draws.empty:
+        return calibration
+    held = laplace.held_zero_offsets
+    carried = carried_by_marker_offset(chain.n_joints, held, calibration.draws.columns)
+    names = [n for n in held if n in calibration.values and n not in laplace.absorbed_by_registration | carried]
+    return replace(calibration, unseen_std={n: tolerance for n in names}) if names else calibration
 
 
 @dataclass(frozen=True)

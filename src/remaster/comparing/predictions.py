@@ -25,6 +25,7 @@ SI inside (m, rad); the tables are in mm.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -81,7 +82,13 @@ def compare_predictions(
     """What B predicts against what A predicts at configurations q (n, N) rad, marker (3,) m
     (flange frame, each model's marker offset added): count (the configurations), mean_mm and p95_mm of
     |p_B - p_A| at the posterior means, draw_pairs and null_p95_of_mean_mm from `draw_pairs`
-    posterior draw pairs (rng chooses the draws), flagged (see the module docstring)."""
+    posterior draw pairs (rng chooses the draws), flagged (see the module docstring). A joint one
+    calibration did not see (`Calibration.unseen_std`) is drawn at the marks' tolerance in its
+    draws; one neither saw, held at the same value, is not drawn."""
+    # a joint neither campaign saw is held at the same mark in both: its unknown turn is the same
+    # robot's in both predictions and cancels in their difference, so neither draws it
+    both = {n for n in a.unseen_std.keys() & b.unseen_std.keys() if a.values[n] == b.values[n]}
+    a, b = (replace(c, unseen_std={n: s for n, s in c.unseen_std.items() if n not in both}) for c in (a, b))
     pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
     mean_a, mean_b = pa.points(a.values), pb.points(b.values)
     distance = np.linalg.norm(mean_b - mean_a, axis=1)
@@ -285,12 +292,11 @@ def _without_marker_offset(entry: Calibrated) -> Calibrated:
         if "marker_offset" not in c.blocks:
             return c
         draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
-        return Calibration(
-            c.model,
-            {k: v for k, v in c.values.items() if k not in names},
-            tuple(b for b in c.blocks if b != "marker_offset"),
-            c.settings,
-            draws,
+        return replace(
+            c,
+            values={k: v for k, v in c.values.items() if k not in names},
+            blocks=tuple(b for b in c.blocks if b != "marker_offset"),
+            draws=draws,
         )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})

@@ -269,7 +269,7 @@ def _posterior(
     calibration = loop_calibration(loop.report, samples, loop.label)
     rows = rng.choice(len(samples), count, replace=len(samples) < count)
     gp = loop_candidate.from_results(loop.gp_rows, loop.report.residual_gp)
-    held = {n: v for n, v in laplace.held.items() if n.startswith("zero_offsets.")}
+    held = laplace.held_zero_offsets
     return _Posterior(
         loop=calibration,
         paper=paper_calibration(paper_summary, None, loop.label),

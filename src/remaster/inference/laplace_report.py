@@ -116,6 +116,24 @@ class LaplaceReport:
     orientation: dict | None = None
     held_reasons: Mapping[str, str] | None = None
 
+    @property
+    def held_zero_offsets(self) -> dict[str, float]:
+        """{zero-offset: value} held at the controller's value: the joints these data do not see."""
+        return {n: v for n, v in self.held.items() if n.startswith("zero_offsets.")}
+
+    @property
+    def absorbed_by_registration(self) -> frozenset[str]:
+        """The held zero-offsets a blind combination shares with the registration: a registration
+        absorbs them (joint 1's turn about a vertical base axis, say), so no sensor frame sees them."""
+        held = self.held_zero_offsets
+        return frozenset(
+            n
+            for direction in self.null_directions
+            if any(k.startswith("registration.") for k in direction)
+            for n in direction
+            if n in held
+        )
+
     @classmethod
     def of(cls, content: Mapping, source: str = "laplace.json") -> LaplaceReport:
         """From the JSON content; a missing key is an InputError naming the file and the key."""
