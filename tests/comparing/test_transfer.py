@@ -260,7 +260,8 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     assert drift[["campaign_a", "campaign_b", "model"]].values.tolist() == [["a", "b", "paper"], ["a", "b", "loop"]]
     rows = drift.set_index("model")
     assert rows.loc["loop", "mean_mm"] == 0.0 and rows.loc["paper", "mean_mm"] > 0.1
-    assert rows.loc["loop", "effects_a"] == "link_geometry + marker_offset"
+    # the marker is the campaigns' set-up, not the robot: left out of the drift as of the agreement
+    assert rows.loc["loop", "effects_a"] == "link_geometry"
     again = predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=10)
     pd.testing.assert_frame_equal(drift, again)  # one fixed set of configurations per robot and seed
     agreement = predictions.prediction_agreement(entries, n_configurations=50, seed=3, draw_pairs=10)
@@ -270,6 +271,37 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     ]
     # the marker offset is each sensor's own: left out between sensors
     assert set(agreement["effects_a"]) == {"none", "link_geometry"} and (agreement["mean_mm"] == 0.0).all()
+
+
+def test_a_remounted_marker_is_no_drift_and_the_joint_its_offset_carried_is_drawn(iiwa, noisy):
+    """Two campaigns of one robot whose loop models differ only by the marker offset (the reflector
+    remounted) and by joint 7's zero-offset, which the second held at the mark where its fitted marker
+    offset carried the turn: the drift compares the robot without the markers, so the remount is no
+    drift, and joint 7 is drawn at the marks' tolerance in the second's null once no offset carries it."""
+    rng = np.random.default_rng(5)
+    values = {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(OFFSETS)}
+    values.update({"marker_offset.x": 4e-4, "marker_offset.y": 0.0, "marker_offset.z": -3e-4})
+    first = prediction.Calibration("loop", values, ("marker_offset",))
+    first = dataclasses.replace(
+        first, draws=pd.DataFrame({n: v + 1e-6 * rng.standard_normal(300) for n, v in values.items()})
+    )
+    remounted = {**values, "marker_offset.x": -6e-4, "marker_offset.z": 5e-4, "zero_offsets.q7": 0.0}
+    held = first.draws.drop(columns=["zero_offsets.q7"]).assign(**{"marker_offset.x": -6e-4, "marker_offset.z": 5e-4})
+    second = prediction.Calibration("loop", remounted, ("marker_offset",), draws=held)
+    second = dataclasses.replace(
+        second, unseen_std={"zero_offsets.q7": np.radians(0.5)}, carried=frozenset({"zero_offsets.q7"})
+    )
+    assert second.drawn_unseen == {} and predictions._without_marker_offset(
+        entry(iiwa, "b", "2021-01-01", noisy, {"loop": second})
+    ).models["loop"].drawn_unseen == {"zero_offsets.q7": np.radians(0.5)}
+    entries = [
+        entry(iiwa, "a", "2020-01-01", noisy, {"loop": first}),
+        entry(iiwa, "b", "2021-01-01", noisy, {"loop": second}),
+    ]
+    drift = predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=50).set_index("model")
+    assert drift.loc["loop", "effects_a"] == "none" and drift.loc["loop", "status"] == "compared"
+    assert not drift.loc["loop", "flagged"]
+    assert drift.loc["loop", "null_p95_of_mean_mm"] > drift.loc["loop", "mean_mm"] > 0.1  # joint 7's turn, drawn
 
 
 def test_transfer_heat_map(iiwa, noisy):

@@ -59,8 +59,9 @@ class Calibration:
     names, set-up blocks dropped); settings: payload for the gravity torques; draws: posterior
     samples (m, P) of its free parameters (SI, columns = names), None or empty without them;
     unseen_std: {held zero-offset: std rad} of the joints these data did not see, which a sensor
-    registered anew would (none a registration absorbs, none a fitted marker offset carries): drawn
-    at the controller marks' tolerance about their held value with the posterior's draws.
+    registered anew would (none a registration absorbs): drawn at the controller marks' tolerance
+    about their held value with the posterior's draws, but for those in `carried`, which the model's
+    fitted marker offset carries at the marker (drawn again once the marker offset is left out).
     """
 
     model: str
@@ -69,6 +70,12 @@ class Calibration:
     settings: ModelSettings = DEFAULT_SETTINGS
     draws: pd.DataFrame | None = None
     unseen_std: Mapping[str, float] = field(default_factory=dict)
+    carried: frozenset[str] = frozenset()
+
+    @property
+    def drawn_unseen(self) -> dict[str, float]:
+        """{held zero-offset: std rad} that `draw_values` draws: `unseen_std` but for `carried`."""
+        return {n: s for n, s in self.unseen_std.items() if n not in self.carried}
 
     @property
     def effects(self) -> str:
@@ -98,9 +105,10 @@ class Calibration:
             return None
         rows = rng.choice(len(self.draws), count, replace=len(self.draws) < count)
         free = self.draws.iloc[rows].to_dict(orient="records")
-        if self.unseen_std:  # drawn only where there are some: the other calibrations' draws stay as they were
-            names = sorted(self.unseen_std)
-            shifts = rng.standard_normal((count, len(names))) * np.array([self.unseen_std[n] for n in names])
+        unseen = self.drawn_unseen
+        if unseen:  # drawn only where there are some: the other calibrations' draws stay as they were
+            names = sorted(unseen)
+            shifts = rng.standard_normal((count, len(names))) * np.array([unseen[n] for n in names])
             free = [
                 {**row, **{n: self.values[n] + d for n, d in zip(names, shift)}} for row, shift in zip(free, shifts)
             ]
@@ -275,14 +283,16 @@ def with_unseen(
 ) -> Calibration:
     """The calibration with the held zero-offsets its data did not see drawn at `tolerance` (rad) in
     its draws (`Calibration.unseen_std`): those no registration absorbs, and at the marker not the
-    last joint's where a fitted marker offset carries it (`CalibratedRobot.held_drawn`'s rule for a
-    sensor frame). Unchanged without draws."""
+    last joint's where a fitted marker offset carries it (`Calibration.carried`;
+    `CalibratedRobot.held_drawn`'s rule for a sensor frame). Unchanged without draws."""
     if calibration.draws is None or calibration.draws.empty:
         return calibration
     held = laplace.held_zero_offsets
-    carried = carried_by_marker_offset(chain.n_joints, held, calibration.draws.columns)
-    names = [n for n in held if n in calibration.values and n not in laplace.absorbed_by_registration | carried]
-    return replace(calibration, unseen_std={n: tolerance for n in names}) if names else calibration
+    names = [n for n in held if n in calibration.values and n not in laplace.absorbed_by_registration]
+    if not names:
+        return calibration
+    carried = carried_by_marker_offset(chain.n_joints, names, calibration.draws.columns)
+    return replace(calibration, unseen_std={n: tolerance for n in names}, carried=carried)
 
 
 @dataclass(frozen=True)

@@ -87,7 +87,7 @@ def compare_predictions(
     draws; one neither saw, held at the same value, is not drawn."""
     # a joint neither campaign saw is held at the same mark in both: its unknown turn is the same
     # robot's in both predictions and cancels in their difference, so neither draws it
-    both = {n for n in a.unseen_std.keys() & b.unseen_std.keys() if a.values[n] == b.values[n]}
+    both = {n for n in a.drawn_unseen.keys() & b.drawn_unseen.keys() if a.values[n] == b.values[n]}
     a, b = (replace(c, unseen_std={n: s for n, s in c.unseen_std.items() if n not in both}) for c in (a, b))
     pa, pb = a.predictor(chain, q, marker), b.predictor(chain, q, marker)
     mean_a, mean_b = pa.points(a.values), pb.points(b.values)
@@ -208,8 +208,10 @@ def prediction_drift(
     `comparison.drift_between` makes them) as the change of predicted marker position, robot
     frame, at configurations inside both campaigns' measured domains (`shared_configurations`, up
     to 2 n_configurations), per model (paper, loop); fewer than `MIN_SHARED_CONFIGURATIONS` there:
-    not compared, not flagged. The marker is campaign A's sensor's nominal one (each model's marker
-    offset added). Columns DRIFT_COLUMNS (mm)."""
+    not compared, not flagged. The marker is campaign A's sensor's nominal one, the models' marker
+    offsets left out: a marker is part of a campaign's set-up (remounted between campaigns, refitted
+    in a transfer), not of the robot, and a last joint's held zero-offset that an offset carried is
+    drawn instead. Columns DRIFT_COLUMNS (mm)."""
     entries = list(entries)
     frame = _entries_frame(entries)
     rows = []
@@ -232,7 +234,8 @@ def prediction_drift(
                 shared[key] = shared_configurations(a, b, n_configurations, seed, model)
             q = shared[key]
             if len(q) >= MIN_SHARED_CONFIGURATIONS:
-                rows += _pair_rows(a, b, q, a.sensor.marker, draw_pairs, seed, labels, (model,))
+                robot_a, robot_b = _without_marker_offset(a), _without_marker_offset(b)
+                rows += _pair_rows(robot_a, robot_b, q, a.sensor.marker, draw_pairs, seed, labels, (model,))
                 continue
             status = (
                 f"not compared: {len(q)} configurations inside both campaigns' measured domains (fewer than "
@@ -297,6 +300,7 @@ def _without_marker_offset(entry: Calibrated) -> Calibrated:
             values={k: v for k, v in c.values.items() if k not in names},
             blocks=tuple(b for b in c.blocks if b != "marker_offset"),
             draws=draws,
+            carried=frozenset(),  # no marker offset carries the last joint's turn any more: drawn
         )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
