@@ -202,3 +202,14 @@ def test_a_smooth_residual_keeps_the_fewest_inducing_inputs_and_the_count_stops_
     short = Hyperparameters(np.array([0.01, 0.01, 0.01]), 1e-4, 2e-5)
     assert residual.inducing_count(q, short, at_least=20, at_most=100) == 100
     assert residual.inducing_count(q, short, at_least=20) == len(q)  # every row: the exact GP
+
+
+def test_a_matrix_applied_to_each_draw_is_the_product_draw_by_draw():
+    """The draws' one matrix product (`residual._applied_to_draws`) is matrix @ z[k] for every draw
+    k, each axis apart: the same numbers as the product taken draw by draw, to rounding."""
+    from remaster.inference.gp import residual
+
+    rng = np.random.default_rng(2)
+    matrix, z = rng.normal(size=(7, 5)), rng.normal(size=(4, 5, 3))
+    expected = np.stack([matrix @ z[k] for k in range(len(z))])
+    np.testing.assert_allclose(residual._applied_to_draws(matrix, z), expected, rtol=1e-13, atol=1e-13)
