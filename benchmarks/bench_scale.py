@@ -105,9 +105,8 @@ def stages(folder: Path, config: dict) -> list[dict]:
             sensor,
             registration,
             laplace,
-            "paper",
-            paper,
-            seeding.generator(seed, "scale", "paper"),
+            {"paper": paper},
+            {"paper": seeding.generator(seed, "scale", "paper")},
         ),
         per=paper["chains"] * paper["samples"],
     )
@@ -119,11 +118,10 @@ def stages(folder: Path, config: dict) -> list[dict]:
             sensor,
             registration,
             laplace,
-            "default",
-            config["fit"]["default"],
-            seeding.generator(seed, "scale", "default"),
+            {"default": config["fit"]["default"]},
+            {"default": seeding.generator(seed, "scale", "default")},
         ),
-    )
+    )["default"]
     record(
         "accuracy",
         measured(

@@ -50,16 +50,79 @@ def _walkers(samples) -> np.ndarray:
     return x
 
 
+def _geyer_ess(ess_of_pairs, ary: np.ndarray, autocov: np.ndarray) -> float | None:
+    """The effective sample size of chains ary (C, n) with autocovariances autocov (C, n), by
+    Geyer's initial positive then monotone sequence, as arviz-stats' `_ess` computes it (every
+    operation the same, so the same float), with its step-by-step loops replaced by array
+    operations: a chain of a few thousand autocorrelation times ran them for seconds per parameter.
+    None where a correlation is not finite: the library's own loop treats those.
+
+    ess_of_pairs(tau_hat, ess) finishes as the library does (the floor on tau_hat)."""
+    n_chain, n_draw = ary.shape
+    # the mean over chains at every lag, summed as np.mean sums one lag's column
+    acov_mean = np.ascontiguousarray(autocov.T).mean(axis=1)
+    mean_var = acov_mean[0] * n_draw / (n_draw - 1.0)
+    var_plus = mean_var * (n_draw - 1.0) / n_draw
+    if n_chain > 1:
+        var_plus += np.var(ary.mean(axis=1), axis=None, ddof=1)
+    rho = 1.0 - (mean_var - acov_mean) / var_plus  # the correlation at every lag
+    if not np.isfinite(rho).all():
+        return None
+    rho[0] = 1.0
+    pair_sums = rho[0 : n_draw - 1 : 2] + rho[1:n_draw:2]  # lags (0, 1), (2, 3), ...
+    # the pairs the initial positive sequence reads: while the previous pair's sum is positive
+    last_pair = max((n_draw - 3) // 2, 0)
+    nonpositive = np.flatnonzero(pair_sums <= 0.0)
+    read = min(last_pair, nonpositive[0] if len(nonpositive) else last_pair)
+    kept = np.zeros(n_draw)
+    kept[:2] = rho[:2]
+    kept_pairs = read if read == 0 or pair_sums[read] >= 0 else read - 1
+    kept[2 : 2 * kept_pairs + 2] = rho[2 : 2 * kept_pairs + 2]
+    if read and rho[2 * read] > 0:
+        kept[2 * read] = rho[2 * read]
+    if read >= 2:  # the monotone sequence: a pair's sum is at most the previous pair's
+        sums = np.minimum.accumulate(pair_sums[:read])
+        raised = np.flatnonzero(pair_sums[1:read] > sums[:-1]) + 1
+        kept[2 * raised] = kept[2 * raised + 1] = sums[raised - 1] / 2.0
+    max_t = 2 * read - 1
+    tau_hat = -1.0 + 2.0 * np.sum(kept[: max_t + 1]) + np.sum(kept[max_t + 1 : max_t + 2])
+    return ess_of_pairs(tau_hat, n_chain * n_draw)
+
+
+def _array_stats():
+    """arviz-stats' array statistics with its ESS's Geyer sequence computed by `_geyer_ess`."""
+    global _ARRAY_STATS
+    if _ARRAY_STATS is None:
+        from arviz_stats.base.array import BaseArray  # imports scipy.stats: not in jobs that only read results
+
+        class ArrayStatistics(BaseArray):
+            def _ess(self, ary, relative=False):
+                ary = np.asarray(ary, dtype=float)
+                if (np.max(ary) - np.min(ary)) < np.finfo(float).resolution:
+                    return ary.size
+
+                def finish(tau_hat, ess):
+                    tau_hat = max(tau_hat, 1 / np.log10(ess))
+                    return (1 if relative else ess) / tau_hat
+
+                fast = _geyer_ess(finish, ary, self.autocov(ary, axis=1))
+                return super()._ess(ary, relative) if fast is None else fast
+
+        _ARRAY_STATS = ArrayStatistics()
+    return _ARRAY_STATS
+
+
+_ARRAY_STATS = None
+
+
 def _per_parameter(function, chains: np.ndarray, **options) -> np.ndarray:
     """(P,) an arviz-stats array statistic of chains (C, n, P), NaN where it cannot be computed
     (too few draws, a NaN sample) rather than a warning."""
     import warnings
 
-    from arviz_stats.base import array_stats  # imports scipy.stats: not in jobs that only read results
-
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
-        statistic = getattr(array_stats, function)
+        statistic = getattr(_array_stats(), function)
         return np.asarray(statistic(chains, chain_axis=0, draw_axis=1, **options), dtype=float).reshape(-1)
 
 

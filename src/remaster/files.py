@@ -185,6 +185,15 @@ def json_text(data: Any, label: str = "JSON") -> str:
     return json.dumps(plain(data), sort_keys=True, indent=2, ensure_ascii=False, default=fallback, allow_nan=False)
 
 
+def number_or_nan(value) -> float:
+    """A number as `write_json` wrote it, back as a float: NaN for null (a NaN or infinity
+    written) and for anything that is not a number (a missing value is a blank, never a crash)."""
+    try:
+        return float(value) if value is not None else math.nan
+    except (TypeError, ValueError):
+        return math.nan
+
+
 @contextlib.contextmanager
 def _written(path: Path):
     """A file beside `path` to write to (hidden, same suffix: writers infer the format from it),

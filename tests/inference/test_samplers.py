@@ -400,6 +400,27 @@ def test_ess_of_ar1_chains_is_n_over_tau():
     assert np.all(diagnostics.effective_sample_size(chain, "tail") < 200_000 / 3)
 
 
+def test_ess_equals_arviz_stats_own_geyer_loop_to_the_bit():
+    """The ESS's Geyer sequences as array operations give the float arviz-stats' loop gives, on
+    chains from independent to a random walk (the paper sampler's), short and long, one to 64
+    walkers, ties and 0/1 indicators (the tail ESS's), a NaN and a constant chain."""
+    from arviz_stats.base.array import BaseArray
+
+    library, ours = BaseArray(), diagnostics._array_stats()
+    rng = np.random.default_rng(7)
+    cases = []
+    for phi in (0.0, 0.5, 0.9, 0.999, -0.6):
+        for chains, draws in ((1, 5), (2, 7), (4, 400), (64, 120), (2, 3000)):
+            cases.append(ar1(rng, phi, draws, (chains,)).T.copy())
+    cases += [np.round(cases[12]), (cases[17] > 0).astype(float), np.cumsum(rng.standard_normal((4, 5000)), axis=1)]
+    with_nan = cases[8].copy()
+    with_nan[0, 3] = np.nan
+    cases += [with_nan, np.ones((2, 50))]
+    for case in cases:
+        expected, got = library._ess(case), ours._ess(case)
+        assert got == expected or (math.isnan(got) and math.isnan(expected)), (case.shape, expected, got)
+
+
 def test_mcse_covers_the_spread_of_chain_means():
     """Over 400 seeds, the means of AR(1) chains scatter by the MCSE the report gives (the true
     Monte Carlo error is sqrt(tau / n)), and 95 % of them lie within 1.96 MCSE of the truth."""

@@ -1,7 +1,8 @@
-# Stage 2: per campaign and sensor, the registration and Laplace fit (prepare), one job per sampler
-# (the expensive, parallel part), then the samplers' cross-check, the posterior summary, the model
-# discrepancy, the remastering file and the accuracy metrics of the paper's tables (paper, sections
-# Optimization, Quantifying Positional Accuracy and Validation).
+# Stage 2: per campaign and sensor, the registration and Laplace fit (prepare), the three samplers
+# (the expensive part; one job, so that the model is built and the libraries loaded once), then the
+# samplers' cross-check, the posterior summary, the model discrepancy, the remastering file and the
+# accuracy metrics of the paper's tables (paper, sections Optimization, Quantifying Positional
+# Accuracy and Validation).
 from remaster.evaluation.accuracy import TABLE_NAMES
 
 ACC = f"{SENSOR}/{layout.METRICS}"
@@ -33,19 +34,17 @@ rule sample:
         registration=rules.prepare.output.registration,
         laplace=rules.prepare.output.laplace,
     output:
-        samples=f"{SENSOR}/{layout.SAMPLES}",
-        trace=f"{SENSOR}/{layout.TRACE}",
-        diagnostics=f"{SENSOR}/{layout.DIAGNOSTICS}",
+        **{f"samples__{m}": f"{SENSOR}/{layout.SAMPLES.format(method=m)}" for m in FIT_METHODS},
+        **{f"trace__{m}": f"{SENSOR}/{layout.TRACE.format(method=m)}" for m in FIT_METHODS},
+        **{f"diagnostics__{m}": f"{SENSOR}/{layout.DIAGNOSTICS.format(method=m)}" for m in FIT_METHODS},
     log:
-        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/sample_{{method}}.log",
-    wildcard_constraints:
-        method="|".join(FIT_METHODS),
+        f"{RESULTS}/logs/{{campaign}}/{{sensor}}/sample.log",
     resources:
         mem_mb=campaign_mem_mb,
-        runtime=runtime_minutes(10, at_least=15),
+        runtime=runtime_minutes(30, at_least=45),
     params:
         # emcee and the default sampler run until the cross-check's convergence criteria hold (fit/<method>/max_doublings)
-        settings=lambda wc: {**config["fit"][wc.method], "convergence": config["fit"]["cross_check"]},
+        settings={m: {**config["fit"][m], "convergence": config["fit"]["cross_check"]} for m in FIT_METHODS},
         seed=config["seed"],
     script:
         "../scripts/sample.py"

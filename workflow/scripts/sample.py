@@ -1,4 +1,4 @@
-"""Posterior samples of one sampling method for one sensor (expensive: plotting reads the file)."""
+"""Posterior samples of every sampling method for one sensor (expensive: plotting reads the files)."""
 
 from snakemake.iocontainers import Snakemake
 
@@ -10,17 +10,18 @@ from remaster.campaigns import folders
 snakemake: Snakemake = globals()["snakemake"]
 
 w, i, out = snakemake.wildcards, snakemake.input, snakemake.output
+settings = dict(snakemake.params.settings)
 with files.log_to(snakemake.log[0]) as log:
-    samples, trace, diagnostics = api.stages.sample_posterior(
+    methods = api.stages.sample_posterior(
         folders.read_campaign(folders.campaign_folder(i.campaign)),
         w.sensor,
         results.read_result("registration", i.registration),
         results.read_result("laplace", i.laplace),
-        w.method,
-        dict(snakemake.params.settings),
-        seeding.generator(snakemake.params.seed, w.campaign, w.sensor, w.method),
-        progress=lambda step, total, rate: log.info("%s: step %d of %d, acceptance %.3f", w.method, step, total, rate),
+        settings,
+        {method: seeding.generator(snakemake.params.seed, w.campaign, w.sensor, method) for method in settings},
+        progress=lambda method, step, total, rate: log.info("%s: step %d of %d, acceptance %.3f", method, step, total, rate),
     )
-    files.write_parquet(out.samples, samples)
-    files.write_parquet(out.trace, trace)
-    files.write_json(out.diagnostics, diagnostics)
+    for method, (samples, trace, diagnostics) in methods.items():
+        files.write_parquet(out[f"samples__{method}"], samples)
+        files.write_parquet(out[f"trace__{method}"], trace)
+        files.write_json(out[f"diagnostics__{method}"], diagnostics)

@@ -4,7 +4,7 @@ reading its inputs and writing its outputs. In the pipeline's order:
     summarize_campaign          a campaign folder read, checked and summarized (summary.json)
     register_and_fit_laplace    one sensor's initial registration, outlier screen and the zero-offset
                                 (paper) model's Laplace fit (registration.json, fit/laplace.json)
-    sample_posterior            one sampling method's posterior samples, trace and diagnostics
+    sample_posterior            every sampling method's posterior samples, trace and diagnostics
     summarize_fit               the samplers cross-checked, the posterior summary, the discrepancy,
                                 the remastering and the accuracy metrics
     close_loop                  the loop closure: candidate effects scored, supported ones added, refit

@@ -16,6 +16,7 @@ Points whose marker was not seen are excluded from the fit and listed.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -283,20 +284,27 @@ def sampling_stage(
     sensor: str,
     registration: Registration,
     laplace: LaplaceReport,
-    method: str,
-    settings: dict,
-    rng: np.random.Generator,
+    settings: Mapping[str, dict],
+    rngs: Mapping[str, np.random.Generator],
     progress=None,
-) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
-    """(posterior samples, thinned trace of the whole run, sampler diagnostics) of one method for one sensor."""
+) -> dict[str, tuple[pd.DataFrame, pd.DataFrame, dict]]:
+    """{method: (posterior samples, thinned trace of the whole run, sampler diagnostics)} of every
+    method of `settings` ({method: its settings}) for one sensor, in that order. Each method draws
+    from its own generator (rngs[method]), so what one gives does not depend on which others ran;
+    the model is built once. progress(method, step, total, acceptance rate), if given, is called
+    as each run goes."""
     model, _, _ = _model(
         campaign, sensor, registration, exclude=laplace.outlier_rows, orientation_weight=laplace.orientation_weight
     )
     laplace.check_names(model.names)
-    started = time.perf_counter()
-    chains = sample(model, laplace, method, settings, rng, progress)
-    seconds = time.perf_counter() - started
-    return samples_frame(chains), trace_frame(chains), sampler_diagnostics(chains, seconds)
+    results = {}
+    for method, method_settings in settings.items():
+        report = None if progress is None else functools.partial(progress, method)
+        started = time.perf_counter()
+        chains = sample(model, laplace, method, method_settings, rngs[method], report)
+        seconds = time.perf_counter() - started
+        results[method] = samples_frame(chains), trace_frame(chains), sampler_diagnostics(chains, seconds)
+    return results
 
 
 def prepare_stage(campaign: Campaign, sensor: str, outlier_alpha: float) -> tuple[dict, dict]:

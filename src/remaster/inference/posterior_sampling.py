@@ -13,6 +13,7 @@ import numpy as np  # scipy and emcee are imported in the functions that use the
 import pandas as pd
 
 from .. import diagnostics
+from ..files import number_or_nan
 from .blocks import BlockModel
 from .laplace_report import LaplaceReport
 from .posterior_targets import PosteriorTarget
@@ -226,13 +227,5 @@ def converged(diagnostics_report: Mapping | None, max_rhat: float, min_ess: floa
     that is missing, None (NaN as a JSON file holds it) or NaN is not a pass: no diagnostics,
     no verdict of convergence."""
     report = diagnostics_report or {}
-    rhat, ess = _number(report.get("max_rhat")), _number(report.get("min_ess"))
+    rhat, ess = number_or_nan(report.get("max_rhat")), number_or_nan(report.get("min_ess"))
     return rhat <= max_rhat and ess >= min_ess  # False for NaN
-
-
-def _number(value) -> float:
-    """value as a float, NaN for None or anything that is not a number."""
-    try:
-        return float(value) if value is not None else math.nan
-    except (TypeError, ValueError):
-        return math.nan

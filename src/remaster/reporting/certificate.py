@@ -31,6 +31,7 @@ from ..evaluation.acceptance import CANNOT_TEST, DIAGNOSES, UNTESTED, Acceptance
 from ..evaluation.accuracy import REGISTRATION_AS_FITTED as AS_IS
 from ..evaluation.accuracy import VERNIER_LEAST_SQUARES
 from ..evaluation.workspace import claim_rows, priors_decide
+from ..files import number_or_nan
 from ..inference import metrics
 from ..inference.cross_check import disagreeing
 from ..inference.laplace_report import LaplaceReport
@@ -243,7 +244,7 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                 status = f"held: {reason}"
             if model == "loop" and f"q{index + 1}" in oriented:
                 status = (
-                    f"held at the zero-offset fit's {_number(r['correction_deg']):.4g} deg, which the orientations "
+                    f"held at the zero-offset fit's {number_or_nan(r['correction_deg']):.4g} deg, which the orientations "
                     "determine (the loop fits the points alone)"
                 )
             rows.append(
@@ -251,23 +252,14 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                     "Sensor": sensor_label(sensor),
                     "Model": label,
                     "Joint": r["joint"],
-                    "Correction (deg)": _number(r["correction_deg"]) if estimated else np.nan,
-                    "U(Correction) (deg)": _number(r.get("U_deg")) if estimated else np.nan,
-                    "u_between (deg)": _number(r.get("u_between_deg")) if estimated else np.nan,
-                    "k": _number(r.get("k")) if estimated else np.nan,
+                    "Correction (deg)": number_or_nan(r["correction_deg"]) if estimated else np.nan,
+                    "U(Correction) (deg)": number_or_nan(r.get("U_deg")) if estimated else np.nan,
+                    "u_between (deg)": number_or_nan(r.get("u_between_deg")) if estimated else np.nan,
+                    "k": number_or_nan(r.get("k")) if estimated else np.nan,
                     "Status": status,
                 }
             )
     return rows
-
-
-def _number(value) -> float:
-    """value as a float; NaN for None, NaN or anything else that is not a number (a missing value
-    is a blank in the certificate, never a crash)."""
-    try:
-        return float(value) if value is not None else np.nan
-    except (TypeError, ValueError):
-        return np.nan
 
 
 def second_sampler(inputs: CertificateInputs) -> tuple[str, dict[str, list[str]]]:
