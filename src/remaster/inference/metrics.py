@@ -199,7 +199,10 @@ def registered_distances(model_points, reference_points) -> np.ndarray:
     (m, n, 3) after the least-squares rigid motion of the model's points onto each set (Kabsch,
     batched: `robot.registration.rigid_fits`): the error a sensor registered over these n points would see."""
     reference = np.asarray(reference_points, dtype=float)
-    model = np.broadcast_to(np.asarray(model_points, dtype=float), reference.shape)
+    model = np.asarray(model_points, dtype=float)
     rotations, centre_m, centre_r = registration.rigid_fits(model, reference)
-    a, b = model - centre_m[:, None], reference - centre_r[:, None]
-    return np.linalg.norm(a @ np.swapaxes(rotations, 1, 2) - b, axis=-1)
+    # one model set (n, 3) is centred once; each set's rotation then applies to it by broadcasting
+    a = model - (centre_m[:, None] if model.ndim == 3 else centre_m[0])
+    error = a @ np.swapaxes(rotations, 1, 2)
+    error -= reference - centre_r[:, None]
+    return np.sqrt(np.einsum("...i,...i->...", error, error))

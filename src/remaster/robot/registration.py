@@ -147,19 +147,19 @@ def rigid_fits(source, target, weights=None) -> tuple[np.ndarray, np.ndarray, np
     equal weights. Returns rotations R (m, 3, 3) (proper: never a reflection) and the centres
     c_source, c_target (m, 3) m (weighted means). No checks: `kabsch` checks one set."""
     target = np.asarray(target, dtype=float)
-    source = np.broadcast_to(np.asarray(source, dtype=float), target.shape)
+    source = np.asarray(source, dtype=float)  # one set (n, 3) is centred once, not once per target set
     if weights is None:
         centre_s, centre_t = source.mean(axis=-2), target.mean(axis=-2)
     else:
         w = np.asarray(weights, dtype=float)
         centre_s, centre_t = w @ source, w @ target
-    a, b = source - centre_s[:, None], target - centre_t[:, None]
+    a, b = source - centre_s[..., None, :], target - centre_t[:, None]
     a_t = np.swapaxes(a if weights is None else a * w[:, None], -1, -2)
     u, _, vt = np.linalg.svd(a_t @ b)  # (m, 3, 3) covariances; matmul, not einsum: 10x faster
     v, ut = np.swapaxes(vt, -1, -2), np.swapaxes(u, -1, -2)
     flip = np.ones((len(target), 3))
     flip[:, 2] = np.sign(np.linalg.det(v @ ut))
-    return v @ (flip[:, :, None] * ut), centre_s, centre_t
+    return v @ (flip[:, :, None] * ut), np.broadcast_to(centre_s, centre_t.shape).copy(), centre_t
 
 
 # Up to this many points the farthest pair is found among all pairs (n^2 / 2 distances, 25 MB at

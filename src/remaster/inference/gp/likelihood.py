@@ -44,13 +44,23 @@ def exact_log_likelihood(q, residuals, hyper: Hyperparameters) -> float:
     return _cholesky_log_likelihood(covariance_with_noise(q, hyper), np.asarray(residuals, dtype=float))[0]
 
 
+def _inverse_from_cholesky(lower: np.ndarray) -> np.ndarray:
+    """The inverse (n, n) of L L^T from its lower Cholesky factor L (n, n) (LAPACK potri: half the
+    work of solving against the identity, the gradient's costliest step)."""
+    from scipy.linalg import lapack
+
+    inverse, info = lapack.dpotri(lower, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"the covariance's inverse failed (LAPACK potri info {info})")
+    return np.tril(inverse) + np.tril(inverse, -1).T
+
+
 def negative_log_marginal_likelihood(
     log_params: np.ndarray, distances: np.ndarray, y: np.ndarray
 ) -> tuple[float, np.ndarray]:
     """-log p(y) of the exact GP and its gradient in (log l_j..., log s, log noise); distances
     (J, n, n) the per-joint 1 - cos differences (`kernels.circle_distances`), y (n, outputs).
     1e25 with a zero gradient where the covariance is not positive definite (the optimiser steps back)."""
-    import scipy.linalg
 
     n_len = len(distances)
     weights = np.exp(-2.0 * log_params[:n_len])
@@ -60,10 +70,10 @@ def negative_log_marginal_likelihood(
     cov[np.diag_indices_from(cov)] += noise2
     try:
         log_likelihood, factor, alpha = _cholesky_log_likelihood(cov, y)
+        inverse = _inverse_from_cholesky(factor[0])
     except np.linalg.LinAlgError:
         return 1e25, np.zeros_like(log_params)
-    n, outputs = y.shape
-    inverse = scipy.linalg.cho_solve(factor, np.eye(n), check_finite=False)
+    outputs = y.shape[1]
     w = alpha @ alpha.T - outputs * inverse  # d log p = 1/2 tr(W dK)
     g = w * (signal2 * shape)
     gradient = np.empty_like(log_params)
