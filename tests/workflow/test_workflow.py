@@ -29,7 +29,7 @@ def planned_rules(root, *targets, config="config.yaml"):
 
 
 def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
-    """Per sensor: prepare, three samplers, fit summary, loop closure, acceptance test, calibrated
+    """Per sensor: prepare, its three samplers (one job), fit summary, loop closure, acceptance test, calibrated
     outputs, figures;
     per campaign: summary, tables, its figure; across campaigns: comparison (two), their figures,
     audit, report. tiny has two sensors, tiny2 one."""
@@ -38,7 +38,7 @@ def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
     assert planned == {
         "campaign_summary": campaigns,
         "prepare": sensors,
-        "sample": 3 * sensors,
+        "sample": sensors,
         "fit_summary": sensors,
         "loop_closure": sensors,
         "acceptance": sensors,
