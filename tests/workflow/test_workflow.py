@@ -54,9 +54,9 @@ def test_dry_run_plans_a_job_per_campaign_and_stage(tiny):
         "all": 1,
     }
     per_campaign = sum(n for rule, n in planned.items() if rule not in CROSS_CAMPAIGN_RULES)
-    # the job layout's bound: at most 20 jobs per campaign on average (a two-sensor campaign plans 21 since
-    # the acceptance test has its own job, a one-sensor campaign 12) and 10 across
-    assert per_campaign == 9 * sensors + 3 * campaigns <= 20 * campaigns
+    # the job layout's bound: at most 20 jobs per campaign on average (a two-sensor campaign plans 17, a
+    # one-sensor campaign 10) and 10 across
+    assert per_campaign == 7 * sensors + 3 * campaigns <= 20 * campaigns
     assert sum(planned.get(rule, 0) for rule in CROSS_CAMPAIGN_RULES) <= 10
     assert not (tiny / "results").exists()
 
