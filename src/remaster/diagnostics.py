@@ -11,7 +11,8 @@ smaller of the 5 % and 95 % quantiles' ESS) and the Monte Carlo standard error o
 walker is a chain for the ESS and the MCSE. R-hat compares the chains as given: an ensemble is one
 chain, its walkers pooled step by step in time order (the walkers of an affine-invariant ensemble
 move by each other's positions, so they are not the independent chains R-hat compares; the fit
-passes the two halves of one ensemble as two chains).
+passes the two halves of one ensemble as two chains). The ESS's Geyer sequences are computed as
+array operations (`_geyer_ess`), to the same float as arviz-stats' own step-by-step loop.
 """
 
 from __future__ import annotations
