@@ -99,8 +99,11 @@ TRUTH_EFFECTS = {
 # SBC's own design (Talts et al. 2018): truths drawn per seed from the priors the fit uses, so that where the
 # priors, not the data, decide (a joint held, the link geometry the zero-offsets trade with) a calibrated
 # posterior still ranks its truth uniformly; every fixed transform moved by the configured class's link priors
-PRIOR_TRUTHS = {"rigid links from the prior": "link_errors"}
+# every fixed transform moved by the configured class's link priors; every joint's cyclic error drawn
+# from the joint-harmonic prior at each order the loop offers
+PRIOR_TRUTHS = {"rigid links from the prior": "link_errors", "cyclic from the prior": "cyclic_error"}
 TRUTH_EFFECTS["rigid links from the prior"] = ("link_geometry",)
+TRUTH_EFFECTS["cyclic from the prior"] = ("joint_harmonics",)
 MISSING = ("compliance", ("joint_compliance",))  # the truth, and the candidates the loop is not offered
 # simulation-based calibration (--sbc): (truth, design, sensor) in the order they run, on campaigns measured
 # by the twin's two sensors (a 10 um laser tracker, a 30 um motion capture) so that a truth's two sensors see
@@ -111,6 +114,7 @@ SBC_CELLS = (
     ("cyclic", "q3 held", "laser_tracker"),
     ("rigid links from the prior", "q3 held", "motion_capture"),
     ("rigid links from the prior", "q3 held", "laser_tracker"),
+    ("cyclic from the prior", "q3 held", "laser_tracker"),
 )
 SBC_SENSORS = {"laser_tracker": dict(TRACKER), "motion_capture": dict(MOTION_CAPTURE)}
 SBC_LEVEL, SBC_TAIL, SBC_BINS = 0.01, 0.025, 10
@@ -118,12 +122,27 @@ SBC_LEVEL, SBC_TAIL, SBC_BINS = 0.01, 0.025, 10
 
 def truth_of(truth: str, seed: int) -> dict:
     """The scenario's truth block of a truth kind at one seed: fixed (`TRUTHS`), or drawn from the
-    configured priors (`PRIOR_TRUTHS`: link errors of the default arm class's `link_translation_mm`
-    and `link_rotation_deg`, from the simulator's own draw of the seed)."""
+    configured priors (`PRIOR_TRUTHS`): link errors of the default arm class's `link_translation_mm`
+    and `link_rotation_deg`, from the simulator's own draw of the seed; or a cyclic error on every
+    joint, its coefficients a_jk, b_jk (a cos k q + b sin k q, orders k = 1..loop_closure/harmonics/
+    orders) each drawn from N(0, joint_harmonic_deg^2), written as the simulator's A sin(k q + phi)."""
     if truth not in PRIOR_TRUTHS:
         return TRUTHS[truth]
-    config = configuration.settings(files.read_yaml(REPO / "config.yaml"))["priors"]
-    stds = priors.DEFAULTS[config["arm_class"]] | config[config["arm_class"]]
+    config = configuration.settings(files.read_yaml(REPO / "config.yaml"))
+    stds = priors.DEFAULTS[config["priors"]["arm_class"]] | config["priors"][config["priors"]["arm_class"]]
+    if PRIOR_TRUTHS[truth] == "cyclic_error":
+        rng = np.random.default_rng(2000 + seed)
+        terms = []
+        for order in range(1, config["loop_closure"]["harmonics"]["orders"] + 1):
+            a, b = rng.normal(0.0, stds["joint_harmonic_deg"], (2, 7))
+            terms.append(
+                {
+                    "amplitude_deg": np.hypot(a, b).tolist(),
+                    "cycles_per_turn": [float(order)] * 7,
+                    "phase_deg": np.degrees(np.arctan2(a, b)).tolist(),
+                }
+            )
+        return {"cyclic_error": terms}
     return {
         "link_errors": {
             "translation_std": stds["link_translation_mm"] * MM,

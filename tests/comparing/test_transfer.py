@@ -273,35 +273,49 @@ def test_prediction_drift_and_agreement_tables(iiwa, noisy):
     assert set(agreement["effects_a"]) == {"none", "link_geometry"} and (agreement["mean_mm"] == 0.0).all()
 
 
-def test_a_remounted_marker_is_no_drift_and_the_joint_its_offset_carried_is_drawn(iiwa, noisy):
-    """Two campaigns of one robot whose loop models differ only by the marker offset (the reflector
-    remounted) and by joint 7's zero-offset, which the second held at the mark where its fitted marker
-    offset carried the turn: the drift compares the robot without the markers, so the remount is no
-    drift, and joint 7 is drawn at the marks' tolerance in the second's null once no offset carries it."""
+def test_a_remounted_marker_is_no_drift_with_or_without_a_marker_offset(iiwa, noisy):
+    """A reflector remounted between two campaigns of one robot. Where the loop models fitted a
+    marker offset, the second held joint 7 at the mark (its offset carried the turn); where a model
+    has no marker offset, its joint 7 estimate carries the mount (the marker's tangential move reads
+    as a turn). Either way the comparison leaves the set-up out, joint 7 held alike in both: no
+    drift. A full-pose probe's orientations tell the turn from the mount: there the same turn is
+    compared, and flagged."""
     rng = np.random.default_rng(5)
     values = {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(OFFSETS)}
     values.update({"marker_offset.x": 4e-4, "marker_offset.y": 0.0, "marker_offset.z": -3e-4})
-    first = prediction.Calibration("loop", values, ("marker_offset",))
-    first = dataclasses.replace(
-        first, draws=pd.DataFrame({n: v + 1e-6 * rng.standard_normal(300) for n, v in values.items()})
-    )
+
+    def with_draws(c: prediction.Calibration) -> prediction.Calibration:
+        draws = {n: v + 1e-6 * rng.standard_normal(300) for n, v in c.values.items()}
+        return dataclasses.replace(c, draws=pd.DataFrame(draws))
+
+    def drift(first, second, sensor=noisy):
+        entries = [
+            entry(iiwa, "a", "2020-01-01", sensor, {first.model: first}),
+            entry(iiwa, "b", "2021-01-01", sensor, {second.model: second}),
+        ]
+        return predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=50).iloc[0]
+
+    first = with_draws(prediction.Calibration("loop", values, ("marker_offset",)))
     remounted = {**values, "marker_offset.x": -6e-4, "marker_offset.z": 5e-4, "zero_offsets.q7": 0.0}
     held = first.draws.drop(columns=["zero_offsets.q7"]).assign(**{"marker_offset.x": -6e-4, "marker_offset.z": 5e-4})
     second = prediction.Calibration("loop", remounted, ("marker_offset",), draws=held)
     second = dataclasses.replace(
         second, unseen_std={"zero_offsets.q7": np.radians(0.5)}, carried=frozenset({"zero_offsets.q7"})
     )
-    assert second.drawn_unseen == {} and predictions._without_marker_offset(
-        entry(iiwa, "b", "2021-01-01", noisy, {"loop": second})
-    ).models["loop"].drawn_unseen == {"zero_offsets.q7": np.radians(0.5)}
-    entries = [
-        entry(iiwa, "a", "2020-01-01", noisy, {"loop": first}),
-        entry(iiwa, "b", "2021-01-01", noisy, {"loop": second}),
-    ]
-    drift = predictions.prediction_drift(entries, n_configurations=50, seed=3, draw_pairs=50).set_index("model")
-    assert drift.loc["loop", "effects_a"] == "none" and drift.loc["loop", "status"] == "compared"
-    assert not drift.loc["loop", "flagged"]
-    assert drift.loc["loop", "null_p95_of_mean_mm"] > drift.loc["loop", "mean_mm"] > 0.1  # joint 7's turn, drawn
+    robot = predictions._without_set_up(entry(iiwa, "b", "2021-01-01", noisy, {"loop": second})).models["loop"]
+    assert robot.drawn_unseen == {} and robot.values["zero_offsets.q7"] == 0.0 and robot.blocks == ()
+    row = drift(first, second)
+    assert row["status"] == "compared" and row["mean_mm"] == 0.0 and not row["flagged"]
+    # no marker offset: the mount read as joint 7 turned by 0.3 deg
+    turned = {**values, "zero_offsets.q7": values["zero_offsets.q7"] + np.radians(0.3)}
+    paper_a, paper_b = (with_draws(paper([v[f"zero_offsets.q{j + 1}"] for j in range(7)])) for v in (values, turned))
+    row = drift(paper_a, paper_b)
+    assert row["mean_mm"] == 0.0 and not row["flagged"]
+    # a full-pose probe sees the turn apart from the mount: compared, and the 0.3 deg turn flagged
+    probe = dataclasses.replace(noisy, table=noisy.table.assign(rx=0.0, ry=0.0, rz=0.0))
+    assert probe.has_orientation
+    row = drift(paper_a, paper_b, probe)
+    assert row["mean_mm"] > 0.3 and row["flagged"]
 
 
 def test_transfer_heat_map(iiwa, noisy):

@@ -234,7 +234,7 @@ def prediction_drift(
                 shared[key] = shared_configurations(a, b, n_configurations, seed, model)
             q = shared[key]
             if len(q) >= MIN_SHARED_CONFIGURATIONS:
-                robot_a, robot_b = _without_marker_offset(a), _without_marker_offset(b)
+                robot_a, robot_b = _without_set_up(a), _without_set_up(b)
                 rows += _pair_rows(robot_a, robot_b, q, a.sensor.marker, draw_pairs, seed, labels, (model,))
                 continue
             status = (
@@ -265,8 +265,8 @@ def prediction_agreement(
     """The sensors' agreement within each campaign (pairs as `comparison.sensor_agreement` makes
     them) as the difference of predicted positions, robot frame, at the robot's fixed random
     configurations, per model. The point is the midpoint of the two sensors' nominal markers,
-    and the marker offsets are left out: each sensor has its own marker, and the comparison is of
-    the robot. Columns AGREEMENT_COLUMNS (mm)."""
+    and each sensor's set-up is left out (`_without_set_up`): each sensor has its own marker, and
+    the comparison is of the robot. Columns AGREEMENT_COLUMNS (mm)."""
     entries = list(entries)
     frame = _entries_frame(entries)
     rows, configurations = [], {}
@@ -274,7 +274,7 @@ def prediction_agreement(
         a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
         if a.robot not in configurations:
             configurations[a.robot] = robot_configurations(a.chain, a.robot, n_configurations, seed)
-        a, b = _without_marker_offset(a), _without_marker_offset(b)
+        a, b = _without_set_up(a), _without_set_up(b)
         labels = {
             "campaign": a.campaign,
             "date": a.date,
@@ -287,20 +287,34 @@ def prediction_agreement(
     return _table(rows, AGREEMENT_COLUMNS)
 
 
-def _without_marker_offset(entry: Calibrated) -> Calibrated:
-    """The entry with its models' marker offsets left out (values, blocks and draws)."""
+def _without_set_up(entry: Calibrated) -> Calibrated:
+    """The entry as a robot, its campaign's set-up left out: its models' marker offsets (values,
+    blocks and draws) and, where the sensor measured one marker's position only, the last joint's
+    zero-offset, held at the controller's mark (0) in every draw. At the marker a turn of the last
+    joint moves the marker as its place on the flange does, so one marker cannot tell them apart: a
+    model without a marker offset carries the marker's mount error in that turn (a remounted marker
+    reads as a turned joint), and one with a marker offset held the turn (the offset carried it).
+    Held alike in both calibrations compared, it cancels in their difference; a full-pose probe's
+    orientations tell the turn from the mount, and there it is compared."""
     names = set(block_parameters("marker_offset", entry.chain).names)
+    last = f"zero_offsets.q{entry.chain.n_joints}"
+    set_up = names | (set() if entry.sensor.has_orientation else {last})
 
     def strip(c: Calibration) -> Calibration:
-        if "marker_offset" not in c.blocks:
+        if not set_up & (set(c.values) | set(c.unseen_std)) and "marker_offset" not in c.blocks:
             return c
-        draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
+        values = {k: v for k, v in c.values.items() if k not in names}
+        if last in set_up:
+            values[last] = 0.0
+        draws = None if c.draws is None else c.draws.drop(columns=[n for n in set_up if n in c.draws.columns])
         return replace(
             c,
-            values={k: v for k, v in c.values.items() if k not in names},
+            values=values,
             blocks=tuple(b for b in c.blocks if b != "marker_offset"),
             draws=draws,
-            carried=frozenset(),  # no marker offset carries the last joint's turn any more: drawn
+            unseen_std={n: s for n, s in c.unseen_std.items() if n not in set_up},
+            # a full-pose probe's held last joint, carried by no marker offset any more: drawn
+            carried=frozenset(),
         )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
