@@ -289,35 +289,48 @@ def prediction_agreement(
 
 def _without_set_up(entry: Calibrated) -> Calibrated:
     """The entry as a robot, its campaign's set-up left out: its models' marker offsets (values,
-    blocks and draws) and, where the sensor measured one marker's position only, the last joint's
-    zero-offset, held at the controller's mark (0) in every draw. At the marker a turn of the last
-    joint moves the marker as its place on the flange does, so one marker cannot tell them apart: a
-    model without a marker offset carries the marker's mount error in that turn (a remounted marker
-    reads as a turned joint), and one with a marker offset held the turn (the offset carried it).
-    Held alike in both calibrations compared, it cancels in their difference; a full-pose probe's
-    orientations tell the turn from the mount, and there it is compared."""
+    blocks and draws) and, where the sensor measured one marker's position only, what its last
+    joint's zero-offset owes to the marker's mount. At the marker a turn of the last joint moves the
+    marker as its place on the flange does, so one marker cannot tell them apart: a model without
+    a marker offset carries the marker's mount error in that turn (a remounted marker reads as a
+    turned joint), one with a marker offset held the turn (the offset carried it). Its draws take
+    the turn about its value at the mount's uncertainty (`_turn_of_mount`), in every model of such a
+    sensor; a full-pose probe's orientations tell the turn from the mount, and there it is drawn
+    only where the data did not see it."""
     names = set(block_parameters("marker_offset", entry.chain).names)
     last = f"zero_offsets.q{entry.chain.n_joints}"
-    set_up = names | (set() if entry.sensor.has_orientation else {last})
+    mount = None if entry.sensor.has_orientation else _turn_of_mount(entry)
 
     def strip(c: Calibration) -> Calibration:
-        if not set_up & (set(c.values) | set(c.unseen_std)) and "marker_offset" not in c.blocks:
+        turned = mount is not None and last in c.values and c.draws is not None and not c.draws.empty
+        if "marker_offset" not in c.blocks and not turned:
             return c
-        values = {k: v for k, v in c.values.items() if k not in names}
-        if last in set_up:
-            values[last] = 0.0
-        draws = None if c.draws is None else c.draws.drop(columns=[n for n in set_up if n in c.draws.columns])
+        draws = None if c.draws is None else c.draws.drop(columns=[n for n in names if n in c.draws.columns])
+        unseen = dict(c.unseen_std)
+        if turned:
+            unseen[last] = max(unseen.get(last, 0.0), mount)
         return replace(
             c,
-            values=values,
+            values={k: v for k, v in c.values.items() if k not in names},
             blocks=tuple(b for b in c.blocks if b != "marker_offset"),
             draws=draws,
-            unseen_std={n: s for n, s in c.unseen_std.items() if n not in set_up},
-            # a full-pose probe's held last joint, carried by no marker offset any more: drawn
-            carried=frozenset(),
+            unseen_std=unseen,
+            carried=frozenset(),  # no marker offset carries the last joint's turn any more: drawn
         )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
+
+
+def _turn_of_mount(entry: Calibrated) -> float:
+    """The std (rad) of the last joint's turn that the marker's mount (its prior std per axis,
+    `Calibrated.marker_std`) leaves open: the mount over the nominal marker's distance from the last
+    joint's axis, at most pi (a marker on the axis: any turn)."""
+    chain = entry.chain
+    tool = np.asarray(chain.tool_transform, dtype=float)
+    point = tool[:3, :3] @ np.asarray(entry.sensor.marker, dtype=float) + tool[:3, 3]  # the last joint's frame
+    axis = np.asarray(chain.joint_axes[-1], dtype=float)
+    radius = float(np.linalg.norm(point - (point @ axis) * axis))
+    return float(min(entry.marker_std / radius, np.pi)) if radius > 0 else float(np.pi)
 
 
 PREDICTION_TABLES = {"prediction_drift": prediction_drift, "prediction_agreement": prediction_agreement}
