@@ -51,14 +51,14 @@ def _walkers(samples) -> np.ndarray:
     return x
 
 
-def _geyer_ess(ess_of_pairs, ary: np.ndarray, autocov: np.ndarray) -> float | None:
+def _geyer_ess(finish, ary: np.ndarray, autocov: np.ndarray) -> float | None:
     """The effective sample size of chains ary (C, n) with autocovariances autocov (C, n), by
     Geyer's initial positive then monotone sequence, as arviz-stats' `_ess` computes it (every
     operation the same, so the same float), with its step-by-step loops replaced by array
     operations: a chain of a few thousand autocorrelation times ran them for seconds per parameter.
     None where a correlation is not finite: the library's own loop treats those.
 
-    ess_of_pairs(tau_hat, ess) finishes as the library does (the floor on tau_hat)."""
+    finish(tau_hat, ess) ends as the library does (the floor on tau_hat, relative or not)."""
     n_chain, n_draw = ary.shape
     # the mean over chains at every lag, summed as np.mean sums one lag's column
     acov_mean = np.ascontiguousarray(autocov.T).mean(axis=1)
@@ -87,7 +87,7 @@ def _geyer_ess(ess_of_pairs, ary: np.ndarray, autocov: np.ndarray) -> float | No
         kept[2 * raised] = kept[2 * raised + 1] = sums[raised - 1] / 2.0
     max_t = 2 * read - 1
     tau_hat = -1.0 + 2.0 * np.sum(kept[: max_t + 1]) + np.sum(kept[max_t + 1 : max_t + 2])
-    return ess_of_pairs(tau_hat, n_chain * n_draw)
+    return finish(tau_hat, n_chain * n_draw)
 
 
 def _array_stats():
