@@ -19,7 +19,9 @@ with files.log_to(snakemake.log[0]) as log:
         results.read_result("laplace", i.laplace),
         settings,
         {method: seeding.generator(snakemake.params.seed, w.campaign, w.sensor, method) for method in settings},
-        progress=lambda method, step, total, rate: log.info("%s: step %d of %d, acceptance %.3f", method, step, total, rate),
+        progress=lambda method, step, total, rate: log.info(
+            "%s: step %d of %d, acceptance %.3f", method, step, total, rate
+        ),
     )
     for method, (samples, trace, diagnostics) in methods.items():
         files.write_parquet(out[f"samples__{method}"], samples)
