@@ -113,6 +113,26 @@ def test_a_stack_of_fits_is_the_registrations_kabsch_of_each(rng):
     np.testing.assert_allclose(np.linalg.det(rotations), 1.0, atol=1e-12)
 
 
+def test_one_model_set_registers_onto_many_as_its_copies_do(rng):
+    """One model set (n, 3) against m target sets is centred once: the same rotations, centres and
+    registered distances as the set repeated m times, and the distances are each target's own
+    Kabsch residual."""
+    from remaster.inference import metrics
+
+    model = rng.uniform(-1, 1, (30, 3))
+    targets = np.array(
+        [spatial.transform_points(random_transform(rng), model) + 1e-3 * rng.standard_normal((30, 3)) for _ in range(5)]
+    )
+    copies = np.broadcast_to(model, targets.shape).copy()
+    for one, repeated in zip(registration.rigid_fits(model, targets), registration.rigid_fits(copies, targets)):
+        np.testing.assert_allclose(one, repeated, rtol=0, atol=1e-12)
+    distances = metrics.registered_distances(model, targets)
+    np.testing.assert_allclose(distances, metrics.registered_distances(copies, targets), rtol=0, atol=1e-12)
+    for row, target in zip(distances, targets):
+        own = spatial.transform_points(registration.kabsch(model, target), model) - target
+        np.testing.assert_allclose(row, np.linalg.norm(own, axis=1), rtol=0, atol=1e-12)
+
+
 def flange_poses(rng, n: int, turning: float = np.pi) -> np.ndarray:
     """n flange poses (n, 4, 4): positions in a 1.6 m cube, orientations within `turning` rad per Euler angle."""
     return np.array(
