@@ -159,13 +159,12 @@ def one(task: tuple) -> dict:
     spec = iiwa_scenario(f"coverage-{seed}", seed=seed, truth=TRUTHS[truth], plan=DESIGNS[design])
     checked = check(spec, chain_of(spec, REPO), "laser_tracker", n_random=200, draws=400, seed=seed, without=without)
     claim = checked.claims["domain"]
-    table = checked.report.parameters.set_index("parameter")
-    between = (checked.report.between_design.get("loop") or {}).get("parameters", {})
-    corrections = {}
-    for name, row in table.iterrows():
-        if str(name).startswith("zero_offsets.") and row["status"] == "estimated":
-            u_between = math.radians(between.get(name, {}).get("u_between_deg", 0.0))
-            corrections[str(name)] = [float(row["mean"]), math.hypot(float(row["std"]), u_between)]
+    # the certificate's corrections and combined standard uncertainties (U / k), where it gives a U
+    corrections = {
+        f"zero_offsets.q{j + 1}": [float(row["correction_rad"]), float(row["U_deg"]) / float(row["k"]) * DEG]
+        for j, row in checked.calibration.corrections().iterrows()
+        if row["status"] == "estimated" and np.isfinite(row["U_deg"])
+    }
     return {
         "truth": truth,
         "design": design,
@@ -296,6 +295,10 @@ def _rank_rows(part: list[dict]) -> list[dict]:
         p_value = float(stats.kstest(ranks, "uniform").pvalue)
         # a parameter's (truth - posterior mean) / posterior std over seeds: sd 1 where the data decide it
         z = np.array([r["ranks"][name]["z"] for r in part if "z" in r["ranks"].get(name, {})])
+        # the same against the certificate's correction and U / k (its posterior std, u_between, u_model)
+        certified = [r["ranks"][name] for r in part if "z_certified" in r["ranks"].get(name, {})]
+        z_c = np.array([c["z_certified"] for c in certified])
+        beyond_u = np.array([abs(c["z_certified"]) > c["k_certified"] for c in certified])
         rows.append(
             {
                 "statistic": name,
@@ -308,6 +311,8 @@ def _rank_rows(part: list[dict]) -> list[dict]:
                 "median_rank": float(np.median(ranks)),
                 "z_mean": float(z.mean()) if z.size > 1 else None,
                 "z_sd": float(z.std(ddof=1)) if z.size > 1 else None,
+                "z_certified_sd": float(z_c.std(ddof=1)) if z_c.size > 1 else None,
+                "beyond_certified_U": float(beyond_u.mean()) if z_c.size > 1 else None,
             }
         )
     return rows
@@ -581,8 +586,8 @@ def _rank_table(rows: list[dict]) -> list[str]:
     """The markdown table of `_rank_rows`."""
     lines = [
         "| statistic | seeds | KS p | uniform at 1 % | ranks < 0.025 | ranks > 0.975 | median rank | "
-        "histogram (tenths of [0, 1]) | z over seeds: mean, sd |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "histogram (tenths of [0, 1]) | z over seeds: mean, sd | against the certificate's U: z sd, beyond U |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         label = SBC_LABELS.get(r["statistic"], r["statistic"].replace("zero_offsets.", "zero-offset "))
@@ -591,6 +596,11 @@ def _rank_table(rows: list[dict]) -> list[str]:
             f"{100 * r['below']:.0f} % | {100 * r['above']:.0f} % | {r['median_rank']:.2f} | "
             f"{' '.join(str(c) for c in r['histogram'])} | "
             + (f"{r['z_mean']:.2f}, {r['z_sd']:.2f} |" if r.get("z_sd") is not None else "- |")
+            + (
+                f" {r['z_certified_sd']:.2f}, {100 * r['beyond_certified_U']:.0f} % |"
+                if r.get("z_certified_sd") is not None
+                else " - |"
+            )
         )
     return lines
 

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .. import configuration, files, identity, seeding
-from ..calibration import compensation, prediction
+from ..calibration import compensation, exports, prediction
 from ..campaigns import folders
 from ..campaigns.campaign import Campaign
 from ..errors import InputError
@@ -86,6 +86,11 @@ class Calibration:
             "loop_samples": self.loop.samples,
             "gp": self.loop.gp_rows,
         }
+
+    def corrections(self) -> pd.DataFrame:
+        """The loop-closed model's zero-offset corrections as the certificate gives them
+        (`exports.controller_offsets`: correction, std, u_between, u_model and U, deg and rad)."""
+        return exports.loop_offsets(self.campaign.chain.joint_names, self.loop.report)
 
     def robot(self, model: str = "loop", tcp=None) -> compensation.CalibratedRobot:
         """The calibrated robot `remaster predict` and `compensate` use: model 'loop' (default) or

@@ -34,6 +34,7 @@ from ..evaluation.acceptance import Acceptance
 from ..inference import metrics
 from ..loop.result import LoopReport
 from ..robot import kinematics
+from ..units import DEG
 from .calibration import Calibration, calibrate
 from .use import predict
 
@@ -306,16 +307,26 @@ class _Truth:
 
     def zero_offset_ranks(self) -> dict:
         """{name: rank, the recoverable truth (rad), its z-score} of each zero-offset the loop
-        estimated, among the loop's posterior samples of it (`recoverable_zero_offsets`)."""
+        estimated, among the loop's posterior samples of it (`recoverable_zero_offsets`), and
+        z_certified, k_certified: its z against the certificate's correction and combined standard
+        uncertainty (U / k: the posterior std, u_between and u_model) and that U's coverage factor k
+        (absent where the certificate gives no U)."""
         loop, chain = self.calibration.loop, self.calibration.campaign.chain
         table = loop.report.parameters
         estimated = (table["status"] == "estimated") & table["parameter"].astype(str).str.startswith("zero_offsets.")
         truth = recoverable_zero_offsets(chain, self.true_robot)
+        certified = self.calibration.corrections().set_index("joint")
         out = {}
         for name in table.loc[estimated, "parameter"].astype(str):
-            draws, value = loop.samples[name].to_numpy(float), float(truth[int(name.split(".q")[-1]) - 1])
+            j = int(name.split(".q")[-1]) - 1
+            draws, value = loop.samples[name].to_numpy(float), float(truth[j])
             z = (value - draws.mean()) / draws.std()
             out[name] = {"rank": float(normalized_rank(value, draws)), "truth": value, "z": float(z)}
+            row = certified.loc[chain.joint_names[j]]
+            u_c = float(row["U_deg"]) / float(row["k"]) * DEG  # the certificate's combined standard uncertainty
+            if np.isfinite(u_c) and u_c > 0:
+                out[name]["z_certified"] = float((value - float(row["correction_rad"])) / u_c)
+                out[name]["k_certified"] = float(row["k"])
         return out
 
     def elsewhere(self, q, rng) -> dict:

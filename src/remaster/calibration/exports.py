@@ -20,10 +20,12 @@ reading + correction), in degrees (KUKA and most industrial controllers) and rad
 posterior std and 95 % interval, for the paper's model and the loop-closed model; held joints get
 none and say why. Each correction's expanded uncertainty holds how far it moves with the poses
 measured too: u_between, the zero-offsets' spread across designs beyond the posterior's
-(loop_closure.json between_design, `remaster.loop.jackknife`), u_c = sqrt(std^2 + u_between^2), its
-effective degrees of freedom (Welch-Satterthwaite, `uncertainty.with_between`) and U = k u_c with
-k = t_0.975(dof). Where the jackknife was not computed (too few poses), u_between is NaN and U = k std
-at k normal.
+(loop_closure.json between_design, `remaster.loop.jackknife`), and for the loop-closed model,
+where its residual holds a field it lacks (the residual GP added, or the loop not closed), u_model,
+that field's share (loop_closure.json model_error_share, `remaster.loop.model_error_share`);
+u_c = sqrt(std^2 + u_between^2 + u_model^2), its effective degrees of freedom (Welch-Satterthwaite,
+`uncertainty.with_between`) and U = k u_c with k = t_0.975(dof). Where the jackknife was not
+computed (too few poses), u_between is NaN and U = k sqrt(std^2 + u_model^2) at k normal.
 
 SI inside (m, rad).
 """
@@ -62,6 +64,7 @@ OFFSET_COLUMNS = [
     "correction_rad",
     "std_rad",
     "u_between_deg",
+    "u_model_deg",
     "U_deg",
     "dof",
     "k",
@@ -169,12 +172,17 @@ def effects_yaml(calibration: Calibration, table: pd.DataFrame | None, left: lis
     return out
 
 
-def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Mapping) -> pd.DataFrame:
+def controller_offsets(
+    joint_names, table: pd.DataFrame, model: str, between: Mapping, share: Mapping | None = None
+) -> pd.DataFrame:
     """`OFFSET_COLUMNS` per joint of one model from its parameter table (parameter, mean, std,
-    q2.5, q97.5 SI, status) and its between-design component (`jackknife.zero_offset_jackknife`:
-    groups, parameters {name: u_between_deg, jackknife_std_deg}, empty when not computed)."""
+    q2.5, q97.5 SI, status), its between-design component (`jackknife.zero_offset_jackknife`:
+    groups, parameters {name: u_between_deg, jackknife_std_deg}, empty when not computed) and the
+    share of a residual field it lacks (`model_error_share.zero_offset_model_error`: parameters
+    {name: u_model_deg}; None or not computed: none)."""
     table = by_parameter(table)
     spread = between["parameters"]
+    field = (share or {}).get("parameters") or {}
     rows = []
     for j, joint in enumerate(joint_names):
         name = f"zero_offsets.q{j + 1}"
@@ -183,11 +191,12 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Ma
         estimated = status == "estimated"
         value = float(r["mean"])
         std = float(r["std"]) / DEG if estimated else np.nan
+        u_m = float(field[name]["u_model_deg"]) if estimated and name in field else np.nan
         if estimated and name in spread:
             u_b, u_j = float(spread[name]["u_between_deg"]), float(spread[name]["jackknife_std_deg"])
-            u_c, dof = (float(v) for v in with_between(std, u_b, u_j, int(between["groups"])))
-        else:  # held, or no between-design component computed: the posterior alone
-            u_b, u_c, dof = np.nan, std, np.inf if estimated else np.nan
+            u_c, dof = (float(v) for v in with_between(std, u_b, u_j, int(between["groups"]), np.nan_to_num(u_m)))
+        else:  # held, or no between-design component computed: the posterior and the field's share
+            u_b, u_c, dof = np.nan, float(np.hypot(std, np.nan_to_num(u_m))), np.inf if estimated else np.nan
         k = coverage_factor(dof)
         rows.append(
             {
@@ -200,6 +209,7 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Ma
                 "correction_rad": value,
                 "std_rad": float(r["std"]) if estimated else np.nan,
                 "u_between_deg": u_b,
+                "u_model_deg": u_m,
                 "U_deg": k * u_c,
                 "dof": dof,
                 "k": k,
@@ -207,6 +217,13 @@ def controller_offsets(joint_names, table: pd.DataFrame, model: str, between: Ma
             }
         )
     return pd.DataFrame(rows, columns=OFFSET_COLUMNS)
+
+
+def loop_offsets(joint_names, report: LoopReport) -> pd.DataFrame:
+    """`controller_offsets` of the loop-closed model from its loop closure's report."""
+    return controller_offsets(
+        joint_names, report.parameters, "loop", report.between_design["loop"], report.model_error_share
+    )
 
 
 def not_determined(row) -> str:
@@ -267,7 +284,7 @@ def calibrated_stage(
     offsets = pd.concat(
         [
             controller_offsets(chain.joint_names, summary, "paper", between["paper"]),
-            controller_offsets(chain.joint_names, table, "loop", between["loop"]),
+            loop_offsets(chain.joint_names, loop_report),
         ],
         ignore_index=True,
     )
@@ -342,7 +359,7 @@ DH_FILES = {
 def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """One campaign's controller offsets, every sensor ({sensor: `OFFSET_COLUMNS` frame}), display
     columns: Sensor, Model, Joint, Correction (deg), Std (deg), 95 % interval (deg), u_between (deg),
-    U(Correction) (deg) with its dof and k, Correction (rad), Status."""
+    u_model (deg), U(Correction) (deg) with its dof and k, Correction (rad), Status."""
     frames = [
         pd.DataFrame(
             {
@@ -354,6 +371,7 @@ def offsets_table(offsets: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
                 "2.5% (deg)": f["q2.5_deg"],
                 "97.5% (deg)": f["q97.5_deg"],
                 "u_between (deg)": f["u_between_deg"],
+                "u_model (deg)": f.get("u_model_deg", np.nan),  # absent in files written before it existed
                 "U(Correction) (deg)": f["U_deg"],
                 "dof": f["dof"],
                 "k": f["k"],

@@ -90,12 +90,13 @@ def between_design(u_posterior, u_jackknife, groups: int) -> tuple[np.ndarray, n
     return u_b, with_between(u_p, u_b, u_j, groups)[1]
 
 
-def with_between(u_posterior, u_between, u_jackknife, groups: int) -> tuple[np.ndarray, np.ndarray]:
-    """(u_c, nu_eff) of u_c^2 = u_p^2 + u_b^2, u_p taken as known and u_b^2 as a difference whose
-    variance is that of the jackknife's u_J^2 over K = `groups` groups: nu_eff = (K-1) u_c^4 / u_J^4
-    (Welch-Satterthwaite), inf where u_J = 0. Arrays (P,) or scalars."""
-    u_p, u_b, u_j = (np.asarray(v, dtype=float) for v in (u_posterior, u_between, u_jackknife))
-    combined = u_p**2 + u_b**2
+def with_between(u_posterior, u_between, u_jackknife, groups: int, u_model=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(u_c, nu_eff) of u_c^2 = u_p^2 + u_b^2 + u_m^2, u_p and the model error's share u_m (a Type B
+    component, `remaster.loop.model_error_share`; 0 where there is none) taken as known and u_b^2 as a
+    difference whose variance is that of the jackknife's u_J^2 over K = `groups` groups:
+    nu_eff = (K-1) u_c^4 / u_J^4 (Welch-Satterthwaite), inf where u_J = 0. Arrays (P,) or scalars."""
+    u_p, u_b, u_j, u_m = (np.asarray(v, dtype=float) for v in (u_posterior, u_between, u_jackknife, u_model))
+    combined = u_p**2 + u_b**2 + u_m**2
     with np.errstate(divide="ignore", invalid="ignore"):
         dof = np.where(u_j > 0, (groups - 1) * combined**2 / np.where(u_j > 0, u_j, 1.0) ** 4, np.inf)
     return np.sqrt(combined), dof

@@ -82,6 +82,7 @@ from .held_out import cv_threshold, fold_warning
 from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
 from .link_priors import link_prior_scale, scaled_priors
 from .long_tables import residuals_frame, signatures_frame
+from .model_error_share import zero_offset_model_error
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
 from .scoring import Signature, symptom_text
@@ -164,6 +165,19 @@ def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr,
             else {"computed": False, "why": "the residual GP found no structure to trace"}
         )
     return section
+
+
+def _zero_offset_spreads(screened: Screened, closed: bool | None, settings: LoopSettings) -> tuple[dict, dict]:
+    """What the certificate's U holds beyond the posterior: how far the zero-offsets move with the
+    poses measured ({'paper', 'loop': `jackknife.zero_offset_jackknife`}), and how far a residual
+    field the final model lacks moves them (`model_error_share.zero_offset_model_error`)."""
+    selection, poses = screened.selection, screened.fitted_poses
+    between = {
+        name: zero_offset_jackknife(model, poses, settings.jackknife_groups)
+        for name, model in (("paper", selection.base), ("loop", selection.final))
+    }
+    hyper = selection.gp.gp.hyper if selection.gp is not None else None
+    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added, poses)
 
 
 def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
@@ -418,11 +432,7 @@ def close_loop(
         noise_floor.point_std_rms(sensor.point_std(fitted.rows)),
     )
     gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
-    # how far the zero-offsets move with the poses measured (the certificate's between-design component)
-    between = {
-        name: zero_offset_jackknife(model, screened.fitted_poses, settings.jackknife_groups)
-        for name, model in (("paper", base), ("loop", final))
-    }
+    between, model_share = _zero_offset_spreads(screened, closed["closed"], settings)
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,
@@ -446,6 +456,7 @@ def close_loop(
         noise_model=_noise_model(selection, sensor, settings, screened.frame_problem),
         gross_errors=gross_report(flagged, *screen, kept, settings.gross_errors),
         between_design=between,
+        model_error_share=model_share,
         harmonics=harmonics_report(final.mode, final.reduction, fitted.q, settings.harmonic_level, samples)
         if harmonics.BLOCK in selection.added
         else None,

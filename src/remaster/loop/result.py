@@ -23,8 +23,9 @@ from .sides import sides_of
 
 NOT_WRITTEN = ("source",)  # where the report was read from: not part of the file
 # written when known: campaign (`loop_closure_stage` sets it; `close_loop` alone does not) and
-# harmonics (when the joint_harmonics block was added)
-OPTIONAL = ("campaign", "harmonics")
+# harmonics (when the joint_harmonics block was added); model_error_share (absent in files written
+# before it existed: read as not computed)
+OPTIONAL = ("campaign", "harmonics", "model_error_share")
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +48,9 @@ class LoopReport:
     are the ones the final model was fitted without), with the level, the rule, each set's screen,
     the provisional rows and those restored, and the accuracy with the flagged rows
     (`screened_selection.gross_report`); between_design: {'paper', 'loop': `jackknife.zero_offset_jackknife`}
-    the zero-offsets' spread across designs of the zero-offset model and the final model; harmonics: the joints and orders of `joint_harmonics` the data support, with each
+    the zero-offsets' spread across designs of the zero-offset model and the final model;
+    model_error_share: what a residual field the final model lacks moves its zero-offsets by
+    (`model_error_share.zero_offset_model_error`; None when not recorded); harmonics: the joints and orders of `joint_harmonics` the data support, with each
     named f_j and its band (`remaster.loop.harmonics`; None when the block was not added); source: the file it was read from (not written)."""
 
     sensor: str
@@ -76,6 +79,7 @@ class LoopReport:
     between_design: Mapping[str, Any]
     campaign: str | None = None
     harmonics: Mapping[str, Any] | None = None
+    model_error_share: Mapping[str, Any] | None = None
     source: str = "loop_closure.json"
 
     # ----------------------------------------------------------------------- what the later stages use

@@ -226,7 +226,8 @@ CORRECTION_MODELS = (
 
 def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
     """Both models' zero-offset corrections (calibrated/controller_offsets.csv) with U = k u_c, u_c
-    the posterior std and the between-design component together and k from t at their effective
+    the posterior std, the between-design component and (the loop-closed model's, where its residual
+    holds a field it lacks) that field's share together and k from t at their effective
     degrees of freedom (`calibrated.controller_offsets`): the loop-closed model's first."""
     offsets = inputs.controller_offsets
     # the loop's points cannot see what a full-pose probe's orientations alone determine: held there at
@@ -255,6 +256,7 @@ def correction_rows(sensor: str, inputs: CertificateInputs) -> list[dict]:
                     "Correction (deg)": number_or_nan(r["correction_deg"]) if estimated else np.nan,
                     "U(Correction) (deg)": number_or_nan(r.get("U_deg")) if estimated else np.nan,
                     "u_between (deg)": number_or_nan(r.get("u_between_deg")) if estimated else np.nan,
+                    "u_model (deg)": number_or_nan(r.get("u_model_deg")) if estimated else np.nan,
                     "k": number_or_nan(r.get("k")) if estimated else np.nan,
                     "Status": status,
                 }
@@ -684,7 +686,9 @@ def certificate(summary: dict, per_sensor: dict[str, CertificateInputs]) -> Cert
         "(loop.urdf, loop_effects.yaml): once those are modelled its zero-offsets are the joints' own; a "
         "controller that takes zero-offsets alone gets the zero-offset model's, which also absorb what "
         "it lacks at the measured poses. Each U (95 %) holds the posterior std and how far the "
-        "correction moves with the poses measured (u_between, a jackknife over pose groups), k from t "
+        "correction moves with the poses measured (u_between, a jackknife over pose groups) and, where the "
+        "loop-closed model's residual holds a field it lacks (the residual GP added, or the loop not closed), "
+        "how far that field moves the correction (u_model), k from t "
         "at their effective degrees of freedom; a loop-closed correction whose U is large is traded "
         "against the link geometry, and only their combination (loop.urdf's joint origins) is determined."
     )

@@ -58,8 +58,9 @@ CAPTIONS = {
     "95th percentile stays below with 95 % posterior probability).",
     "certificate_corrections": "Zero-offset corrections to add to the controller's zero: the loop-closed model's, "
     "to type in with its other effects, and the zero-offset model's, for a controller that takes "
-    "zero-offsets alone; U (95 %) holds the posterior std and the between-design component u_between "
-    "(how far a correction moves with the poses measured: jackknife over pose groups), k from t at "
+    "zero-offsets alone; U (95 %) holds the posterior std, the between-design component u_between "
+    "(how far a correction moves with the poses measured: jackknife over pose groups) and, for the "
+    "loop-closed model where its residual holds a field it lacks, that field's share u_model, k from t at "
     "their effective degrees of freedom; held joints get none.",
     "zero_offsets": "Zero-offsets of every joint from each sensor: MLE (posterior mean) and std (deg).",
     "registration_params": "Registration corrections and the isotropic Gaussian error from each sensor.",
@@ -114,7 +115,7 @@ CAPTIONS = {
     "noise, or why it was not offered).",
     "controller_offsets": "Zero-offset corrections to add to the controller's zero (true angle = reading + "
     "correction), in degrees and radians, with posterior std and 95 % interval, the between-design "
-    "component u_between and U (95 %, k from t at dof), for the paper's model and the loop-closed "
+    "component u_between, the residual field's share u_model (the loop-closed model) and U (95 %, k from t at dof), for the paper's model and the loop-closed "
     "model; held joints get none.",
     "calibrated_files": "The calibration in the robot's own terms, per sensor: calibrated URDFs (same links and "
     "joints as the input), the effects a URDF cannot hold, the controller offsets and, for a "

@@ -1,0 +1,68 @@
+"""The zero-offsets' share of a residual field the model lacks: the field's variance through a
+linear map against known answers, the sensitivity against a refit, and when it applies."""
+
+import dataclasses
+
+import numpy as np
+
+from remaster.inference import evidence
+from remaster.inference.gp.kernels import Hyperparameters, kernel
+from remaster.loop import model_error_share
+
+from .test_loop_closure import EFFECTS, simulated
+from .test_selection import _forced
+
+
+def _field(lengthscale: float, signal: float = 2e-5) -> Hyperparameters:
+    return Hyperparameters(np.full(3, lengthscale), signal, 0.0)
+
+
+def test_the_fields_variance_through_a_mean_is_known_at_both_ends():
+    """The mean of the x coordinates over n configurations: a field constant over the joints (long
+    lengthscales) passes whole (variance s^2), a field independent from one configuration to the
+    next (short lengthscales, configurations far apart) averages down to s^2 / n; in between, the
+    chunked sum is the full diag(B K B^T)."""
+    rng = np.random.default_rng(3)
+    n = 40
+    q = rng.uniform(-2.5, 2.5, (n, 3))
+    mean_x = np.zeros((1, n, 3))
+    mean_x[0, :, 0] = 1.0 / n
+    signal = 2e-5
+    assert np.isclose(model_error_share.field_variance(q, _field(1e6), mean_x)[0], signal**2, rtol=1e-9)
+    assert np.isclose(model_error_share.field_variance(q, _field(1e-3), mean_x)[0], signal**2 / n, rtol=1e-6)
+    rows = rng.normal(size=(4, n, 3))
+    hyper = _field(0.7)
+    full = kernel(q, q, hyper)
+    expected = sum(np.einsum("mi,ij,mj->m", rows[:, :, a], full, rows[:, :, a]) for a in range(3))
+    assert np.allclose(model_error_share.field_variance(q, hyper, rows, chunk=7), expected, rtol=1e-12)
+
+
+def test_the_sensitivity_is_how_the_mode_moves_with_a_field_added(iiwa):
+    """A smooth field of a few um added to the measured positions moves the zero-offset fit's mode
+    by the sensitivity times the field, to first order (the refit from the same start)."""
+    sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
+    (_, data, *_), fitted = _forced(iiwa, sensor, ())
+    q = data.q
+    field = 4e-6 * np.stack([np.sin(q[:, 1]), np.cos(q[:, 3]), np.sin(q[:, 0] + q[:, 5])], axis=1)
+    moved = fitted.model.on(dataclasses.replace(data, measured=data.measured + field))
+    refit = evidence.posterior_mode(moved, fitted.theta).theta - fitted.theta
+    rows = np.array([i for i, n in enumerate(fitted.model.names) if n.startswith("zero_offsets.")])
+    predicted = np.einsum("pna,na->p", model_error_share.sensitivity(fitted, rows), field)
+    assert np.allclose(predicted, refit[rows], rtol=0.01, atol=0.005 * np.abs(refit[rows]).max())
+
+
+def test_it_applies_where_the_calibration_carries_a_field_and_only_there(iiwa):
+    assert model_error_share.applies(False, False) and model_error_share.applies(True, True)
+    assert not model_error_share.applies(True, False) and not model_error_share.applies(None, False)
+    sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
+    (_, data, *_), fitted = _forced(iiwa, sensor, ())
+    poses = np.arange(len(data.q)) // 5
+    closed = model_error_share.zero_offset_model_error(fitted, None, True, False, poses)
+    assert not closed["computed"] and "closed" in closed["why"]
+    few = model_error_share.zero_offset_model_error(fitted, None, False, False, np.zeros(len(data.q)))
+    assert not few["computed"] and "poses" in few["why"]
+    # the compliance the model lacks leaves a field: its share is there for every free zero-offset
+    share = model_error_share.zero_offset_model_error(fitted, None, False, False, poses)
+    free = [n for n in fitted.model.names if n.startswith("zero_offsets.")]
+    assert share["computed"] and sorted(share["parameters"]) == sorted(free)
+    assert all(p["u_model_deg"] > 0 for p in share["parameters"].values())
