@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 import pytest
+from scipy import stats
 
 from remaster import spatial
 from remaster.calibration import dh_table, exports, prediction
@@ -122,6 +123,32 @@ def test_controller_offsets_carry_the_between_design_component():
     assert row["k"] == pytest.approx(2.262157, abs=1e-6) and row["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
     alone = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED).iloc[0]
     assert np.isnan(alone["u_between_deg"]) and alone["U_deg"] == pytest.approx(1.959964 * 0.03, rel=1e-6)
+
+
+def test_controller_offsets_carry_the_residual_fields_share_as_a_type_b_component():
+    """posterior std 0.03 deg, jackknife std 0.05 over 10 groups (u_between 0.04) and a field's share
+    u_model 0.06: u_c = sqrt(0.03^2 + 0.04^2 + 0.06^2) = 0.0781, dof = 9 u_c^4 / u_J^4 = 51.0 (only the
+    jackknife's variance is estimated); without a jackknife U = 1.96 sqrt(0.03^2 + 0.06^2)."""
+    table = pd.DataFrame(
+        {
+            "parameter": ["zero_offsets.q1"],
+            "mean": [0.3 * DEG],
+            "std": [0.03 * DEG],
+            "q2.5": [0.24 * DEG],
+            "q97.5": [0.36 * DEG],
+            "status": ["estimated"],
+        }
+    )
+    between = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
+    share = {"computed": True, "parameters": {"zero_offsets.q1": {"u_model_deg": 0.06}}}
+    row = exports.controller_offsets(["a1"], table, "loop", between, share).iloc[0]
+    u_c = np.sqrt(0.03**2 + 0.04**2 + 0.06**2)
+    assert row["u_model_deg"] == 0.06 and row["dof"] == pytest.approx(9 * u_c**4 / 0.05**4)
+    assert row["U_deg"] == pytest.approx(stats.t.ppf(0.975, 9 * u_c**4 / 0.05**4) * u_c, rel=1e-9)
+    alone = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED, share).iloc[0]
+    assert alone["U_deg"] == pytest.approx(stats.norm.ppf(0.975) * np.hypot(0.03, 0.06), rel=1e-9)
+    none = exports.controller_offsets(["a1"], table, "loop", between, {"computed": False, "why": "closed"}).iloc[0]
+    assert np.isnan(none["u_model_deg"]) and none["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
 
 
 def test_a_correction_whose_posterior_is_its_priors_is_not_determined_and_names_what_is():

@@ -56,13 +56,15 @@ def test_it_applies_where_the_calibration_carries_a_field_and_only_there(iiwa):
     assert not model_error_share.applies(True, False) and not model_error_share.applies(None, False)
     sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
     (_, data, *_), fitted = _forced(iiwa, sensor, ())
-    poses = np.arange(len(data.q)) // 5
-    closed = model_error_share.zero_offset_model_error(fitted, None, True, False, poses)
+    closed = model_error_share.zero_offset_model_error(fitted, None, True, False)
     assert not closed["computed"] and "closed" in closed["why"]
-    few = model_error_share.zero_offset_model_error(fitted, None, False, False, np.zeros(len(data.q)))
-    assert not few["computed"] and "poses" in few["why"]
+    few_rows = fitted.model.on(data.subset(np.arange(len(data.q)) < 30))  # 30 configurations, 9 hyperparameters
+    few = model_error_share.zero_offset_model_error(
+        dataclasses.replace(fitted, mode=evidence.posterior_mode(few_rows, fitted.theta)), None, False, False
+    )
+    assert not few["computed"] and "30 configurations" in few["why"]
     # the compliance the model lacks leaves a field: its share is there for every free zero-offset
-    share = model_error_share.zero_offset_model_error(fitted, None, False, False, poses)
+    share = model_error_share.zero_offset_model_error(fitted, None, False, False)
     free = [n for n in fitted.model.names if n.startswith("zero_offsets.")]
     assert share["computed"] and sorted(share["parameters"]) == sorted(free)
     assert all(p["u_model_deg"] > 0 for p in share["parameters"].values())

@@ -177,7 +177,7 @@ def _zero_offset_spreads(screened: Screened, closed: bool | None, settings: Loop
         for name, model in (("paper", selection.base), ("loop", selection.final))
     }
     hyper = selection.gp.gp.hyper if selection.gp is not None else None
-    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added, poses)
+    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added)
 
 
 def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:

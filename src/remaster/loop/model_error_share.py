@@ -34,14 +34,16 @@ import dataclasses
 
 import numpy as np
 
-from ..inference.gp.kernels import Hyperparameters, kernel
+from ..inference.gp.kernels import Hyperparameters, kernel, turned_joints
 from ..inference.gp.residual import fit_hyperparameters
 from ..units import DEG
 from .fitted import Fitted
-from .selection import MIN_GP_POSES
 
 ZERO_OFFSET_PREFIX = "zero_offsets."
 ROW_CHUNK = 1024  # rows of the kernel held at once: (chunk, n) floats
+# the kernel's hyperparameters are fitted on the rows themselves (no cross-validation by pose, unlike
+# the GP candidate): a few distinct configurations per hyperparameter, as for any regression
+ROWS_PER_HYPERPARAMETER = 5
 METHOD = (
     "the residual field's share: a Gaussian process over the joints (the residual GP's kernel, fitted on what the "
     "model left) propagated through the fit, u_model^2 = diag(B K B^T), B = C J^T W / sigma^2"
@@ -78,13 +80,11 @@ def field_variance(q, hyper: Hyperparameters, sensitivity_rows: np.ndarray, chun
     return total
 
 
-def zero_offset_model_error(
-    fitted: Fitted, hyper: Hyperparameters | None, closed: bool | None, gp_added: bool, poses
-) -> dict:
+def zero_offset_model_error(fitted: Fitted, hyper: Hyperparameters | None, closed: bool | None, gp_added: bool) -> dict:
     """The residual field's share of the fit's free zero-offsets (module docstring). hyper: the
     residual GP's kernel when the loop fitted one (None: fitted here on the fit's residuals; the three
     axes alike, the frame does not matter); closed: the closure test's verdict;
-    gp_added: the residual GP is part of the calibration; poses (n,) the fit's pose labels. JSON-ready: computed, why or method, the
+    gp_added: the residual GP is part of the calibration. JSON-ready: computed, why or method, the
     kernel, and per zero-offset u_model_deg."""
     if not applies(closed, gp_added):
         return {"computed": False, "why": "the loop closed without a residual field: its residual is the noise"}
@@ -93,10 +93,13 @@ def zero_offset_model_error(
     if len(rows) == 0:
         return {"computed": False, "why": "no zero-offset is free in the loop model"}
     q = fitted.model.data.q
-    if hyper is None and len(np.unique(poses)) < MIN_GP_POSES:
+    hyperparameters = int(turned_joints(q).sum()) + 2  # a lengthscale per turned joint, signal and noise
+    configurations = len(np.unique(np.round(q, 6), axis=0))
+    if hyper is None and configurations < ROWS_PER_HYPERPARAMETER * hyperparameters:
         return {
             "computed": False,
-            "why": f"fewer than {MIN_GP_POSES} poses: a smooth residual field cannot be told from the noise",
+            "why": f"{configurations} configurations: fewer than {ROWS_PER_HYPERPARAMETER} per hyperparameter of the "
+            f"field's kernel ({hyperparameters}) leave it undetermined",
         }
     if hyper is None:
         hyper = fit_hyperparameters(q, fitted.residuals())
