@@ -309,8 +309,8 @@ class _Truth:
         """{name: rank, the recoverable truth (rad), its z-score} of each zero-offset the loop
         estimated, among the loop's posterior samples of it (`recoverable_zero_offsets`), and
         z_certified, k_certified: its z against the certificate's correction and combined standard
-        uncertainty (U / k: the posterior std, u_between and u_model) and that U's coverage factor k
-        (absent where the certificate gives no U)."""
+        uncertainty (U / k: the posterior std, u_between and u_model), that U's coverage factor k and
+        u_model / (U / k) (absent where the certificate gives no U)."""
         loop, chain = self.calibration.loop, self.calibration.campaign.chain
         table = loop.report.parameters
         estimated = (table["status"] == "estimated") & table["parameter"].astype(str).str.startswith("zero_offsets.")
@@ -327,6 +327,7 @@ class _Truth:
             if np.isfinite(u_c) and u_c > 0:
                 out[name]["z_certified"] = float((value - float(row["correction_rad"])) / u_c)
                 out[name]["k_certified"] = float(row["k"])
+                out[name]["u_model_fraction"] = float(np.nan_to_num(row["u_model_deg"]) * DEG / u_c)
         return out
 
     def elsewhere(self, q, rng) -> dict:
