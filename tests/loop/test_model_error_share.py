@@ -63,6 +63,9 @@ def test_it_applies_where_the_calibration_carries_a_field_and_only_there(iiwa):
         dataclasses.replace(fitted, mode=evidence.posterior_mode(few_rows, fitted.theta)), None, False, False
     )
     assert not few["computed"] and "30 configurations" in few["why"]
+    (said,) = model_error_share.not_computed_warning(few, False, False)
+    assert "30 configurations" in said and "understates" in said
+    assert model_error_share.not_computed_warning(closed, True, False) == []
     # the compliance the model lacks leaves a field: its share is there for every free zero-offset
     share = model_error_share.zero_offset_model_error(fitted, None, False, False)
     free = [n for n in fitted.model.names if n.startswith("zero_offsets.")]

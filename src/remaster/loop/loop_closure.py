@@ -82,7 +82,7 @@ from .held_out import cv_threshold, fold_warning
 from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
 from .link_priors import link_prior_scale, scaled_priors
 from .long_tables import residuals_frame, signatures_frame
-from .model_error_share import zero_offset_model_error
+from .model_error_share import not_computed_warning, zero_offset_model_error
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
 from .scoring import Signature, symptom_text
@@ -450,6 +450,7 @@ def close_loop(
         warnings=tuple(
             _warnings(closed, screened, gp_section, mcmc, settings)
             + _data_warnings(sensor, screened, between, settings)
+            + not_computed_warning(model_share, closed["closed"], selection.gp_added)
         ),
         closure={k: v for k, v in closed.items() if k != "warnings"},
         residual_gp=gp_section,

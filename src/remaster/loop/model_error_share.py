@@ -112,3 +112,15 @@ def zero_offset_model_error(fitted: Fitted, hyper: Hyperparameters | None, close
         "kernel": hyper.report(),
         "parameters": {names[i]: {"u_model_deg": float(u / DEG)} for i, u in zip(rows, u_model)},
     }
+
+
+def not_computed_warning(share: dict, closed: bool | None, gp_added: bool) -> list[str]:
+    """The loop report's warning when the calibration carries a residual field whose share of the
+    zero-offsets could not be computed (`zero_offset_model_error`'s why), else none."""
+    if share.get("computed") or not applies(closed, gp_added):
+        return []
+    return [
+        "the loop-closed model's residual holds a field it lacks, and its share of the zero-offsets is not "
+        f"computed ({share['why']}): their U holds the posterior and the between-design spread only, and "
+        "understates what that field moves them by"
+    ]
