@@ -38,8 +38,8 @@ from ..inference.gp.kernels import Hyperparameters, kernel, turned_joints
 from ..inference.gp.residual import fit_hyperparameters
 from ..units import DEG
 from .fitted import Fitted
+from .jackknife import ZERO_OFFSET_PREFIX
 
-ZERO_OFFSET_PREFIX = "zero_offsets."
 ROW_CHUNK = 1024  # rows of the kernel held at once: (chunk, n) floats
 # the kernel's hyperparameters are fitted on the rows themselves (no cross-validation by pose, unlike
 # the GP candidate): a few distinct configurations per hyperparameter, as for any regression
