@@ -33,7 +33,10 @@ design, sensor; campaigns measured by a laser tracker and a motion capture): per
 rank among the calibration's posterior draws, each draw taken as the arm (`TruthCheck.ranks`: the mean PIT of
 the commands' errors inside the measured ranges, across the limits, at the validation set; the registered
 p95 inside the measured ranges; each estimated zero-offset); per cell and statistic, a Kolmogorov-Smirnov
-test of the ranks against the uniform, their shares in the 2.5 % tails and their histogram. Writes
+test of the ranks against the uniform, their shares in the 2.5 % tails and their histogram; and each
+zero-offset's z against the certificate's correction and U / k (posterior std, u_between, u_model) with the
+share beyond its U. One cell withholds the truth's form from the loop's candidates (`WITHHELD`): there no
+loop closes, and what the certificate's U holds of a model error is what its z tests. Writes
 benchmarks/results/sbc.json (each campaign as it ends; a rerun adds only the campaigns it lacks) and sbc.md,
 and the tables into docs/validation.md between its bench_sbc markers:
     .venv/bin/python benchmarks/bench_coverage.py --sbc [--seeds N] [--first SEED] [--cells I ...] [--draws K]
