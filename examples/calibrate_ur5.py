@@ -1,5 +1,6 @@
 """Calibrate the bundled UR5 (data/raw/jacobi-ur5-gts3800: 1000 grid configurations measured by a
-laser tracker, 20 random ones kept for validation) and print what the calibration found and the
+laser tracker, 20 random ones kept for validation) and print what the calibration found, the
+zero-offset corrections to type into the controller with their expanded uncertainty, and the
 acceptance test's verdict.
 
     python examples/calibrate_ur5.py
@@ -36,6 +37,10 @@ def main() -> None:
     )
     across = workspace.claim_rows(calibration.claims, "loop", "random").iloc[0]  # registered, with noise
     print(f"workspace claim across the joint limits: 95 % of positions within {across['p95_bound_mm']:.3f} mm")
+    print("corrections to add to the controller's zero (loop-closed model, with its other effects):")
+    for _, row in calibration.corrections().iterrows():
+        value = f"{row['correction_deg']:+.4f} deg, U {row['U_deg']:.4f} deg" if row["status"] == "estimated" else ""
+        print(f"  {row['joint']}: {value or row['status']}")
     print(f"verdict: {calibration.verdict}")
     print(calibration.acceptance.diagnosis_text)
 

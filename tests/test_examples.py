@@ -37,6 +37,13 @@ def test_calibrate_ur5_prints_its_effects_its_validation_and_its_verdict():
     before, after = map(float, re.search(r"validation RMSE: ([\d.]+) mm .*, ([\d.]+) mm", out).groups())
     assert after < before  # the effects the loop added lower the validation error
     assert re.search(r"^verdict: (pass|fail|not tested)$", out, re.MULTILINE)
+    corrections = re.findall(r"^  joint\d: (.*)$", out, re.MULTILINE)
+    assert len(corrections) == 6 and corrections[0].startswith("held")  # the UR5's base joint: no sensor sees it
+    # a number with its U, or "not determined" naming the combination the data determine
+    assert all(
+        re.fullmatch(r"[+-][\d.]+ deg, U [\d.]+ deg|not determined: .*the data determine .*", c)
+        for c in corrections[1:5]
+    )
 
 
 @pytest.mark.slow
