@@ -13,7 +13,7 @@ from remaster.campaigns.campaign import sensor_data
 from remaster.inference import evidence, fit
 from remaster.inference.gp import loop_candidate
 from remaster.inference.parameter_blocks import EXTENSIONS
-from remaster.loop import loop_closure, noise_floor
+from remaster.loop import closure_test, loop_closure, noise_floor
 
 from ..conftest import REPO, loop_settings
 from .test_gp_residual import NOISE, readings, smooth_residual
@@ -137,6 +137,10 @@ def test_without_the_gp_the_loop_says_it_is_not_closed_and_where_the_residual_li
     assert report.closure["closed"] is False
     assert report.closure["main_causes"] == []
     assert any(w.startswith("loop not closed") and "not its cause" in w for w in report.warnings)
+    # what its declared model error does not hold, and that its zero-offsets' U carries the field's share
+    (closure,) = [w for w in report.warnings if w.startswith("loop not closed")]
+    assert closure.endswith(closure_test.SHAPE_OF_THE_DECLARED_ERROR)
+    assert report.model_error_share["computed"] and report.model_error_share["parameters"]
     assert any(w.startswith("no candidate effect explains what is left") for w in report.warnings)
 
 
