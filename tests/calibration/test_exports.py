@@ -104,20 +104,24 @@ def test_controller_offsets_in_degrees_and_radians_with_held_joints_flagged():
     assert np.isnan(offsets.loc["a1", "std_deg"]) and offsets.loc["a1", "status"].startswith("held")
 
 
+# one estimated zero-offset (0.3 deg, posterior std 0.03 deg) and its jackknife over 10 groups (std 0.05 deg)
+ONE_JOINT = pd.DataFrame(
+    {
+        "parameter": ["zero_offsets.q1"],
+        "mean": [0.3 * DEG],
+        "std": [0.03 * DEG],
+        "q2.5": [0.24 * DEG],
+        "q97.5": [0.36 * DEG],
+        "status": ["estimated"],
+    }
+)
+JACKKNIFED = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
+
+
 def test_controller_offsets_carry_the_between_design_component():
     """posterior std 0.03 deg, jackknife std 0.05 over 10 groups: u_between = 0.04, u_c = 0.05 set
     by the jackknife, dof = K - 1 = 9, k = t_0.975(9) = 2.262; no jackknife: k normal, U = 1.96 std."""
-    table = pd.DataFrame(
-        {
-            "parameter": ["zero_offsets.q1"],
-            "mean": [0.3 * DEG],
-            "std": [0.03 * DEG],
-            "q2.5": [0.24 * DEG],
-            "q97.5": [0.36 * DEG],
-            "status": ["estimated"],
-        }
-    )
-    between = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
+    table, between = ONE_JOINT, JACKKNIFED
     row = exports.controller_offsets(["a1"], table, "loop", between).iloc[0]
     assert row["u_between_deg"] == 0.04 and row["dof"] == pytest.approx(9.0)
     assert row["k"] == pytest.approx(2.262157, abs=1e-6) and row["U_deg"] == pytest.approx(2.262157 * 0.05, rel=1e-6)
@@ -127,23 +131,13 @@ def test_controller_offsets_carry_the_between_design_component():
 
 def test_controller_offsets_carry_the_residual_fields_share_as_a_type_b_component():
     """posterior std 0.03 deg, jackknife std 0.05 over 10 groups (u_between 0.04) and a field's share
-    u_model 0.06: u_c = sqrt(0.03^2 + 0.04^2 + 0.06^2) = 0.0781, dof = 9 u_c^4 / u_J^4 = 51.0 (only the
+    u_model 0.06: u_c = sqrt(0.03^2 + 0.04^2 + 0.06^2) = 0.0781, dof = 9 u_c^4 / u_J^4 = 53.6 (only the
     jackknife's variance is estimated); without a jackknife U = 1.96 sqrt(0.03^2 + 0.06^2)."""
-    table = pd.DataFrame(
-        {
-            "parameter": ["zero_offsets.q1"],
-            "mean": [0.3 * DEG],
-            "std": [0.03 * DEG],
-            "q2.5": [0.24 * DEG],
-            "q97.5": [0.36 * DEG],
-            "status": ["estimated"],
-        }
-    )
-    between = {"groups": 10, "parameters": {"zero_offsets.q1": {"u_between_deg": 0.04, "jackknife_std_deg": 0.05}}}
+    table, between = ONE_JOINT, JACKKNIFED
     share = {"computed": True, "parameters": {"zero_offsets.q1": {"u_model_deg": 0.06}}}
     row = exports.controller_offsets(["a1"], table, "loop", between, share).iloc[0]
     u_c = np.sqrt(0.03**2 + 0.04**2 + 0.06**2)
-    assert row["u_model_deg"] == 0.06 and row["dof"] == pytest.approx(9 * u_c**4 / 0.05**4)
+    assert row["u_model_deg"] == 0.06 and row["dof"] == pytest.approx(53.5824, rel=1e-6)  # 9 u_c^4 / u_J^4
     assert row["U_deg"] == pytest.approx(stats.t.ppf(0.975, 9 * u_c**4 / 0.05**4) * u_c, rel=1e-9)
     alone = exports.controller_offsets(["a1"], table, "loop", NOT_COMPUTED, share).iloc[0]
     assert alone["U_deg"] == pytest.approx(stats.norm.ppf(0.975) * np.hypot(0.03, 0.06), rel=1e-9)

@@ -276,6 +276,12 @@ class BlockModel:
             self.chain, self.data, self.marker, self.t_nr, self.blocks[len(BASE) :], self.fixed, self.priors, noise
         )
 
+    def whitening_matrices(self) -> np.ndarray:
+        """(n_points, 3, 3): each position's whitening W_i (`whitened` of unit residuals, column a = W_i e_a;
+        the identity for isotropic noise)."""
+        unit = np.broadcast_to(np.eye(3)[:, None, :], (3, self.n_points, 3))
+        return np.moveaxis(self.whitened(unit), 0, -1)
+
     def whitened(self, residuals) -> np.ndarray:
         """Residuals (n, 3) or (m, n, 3) in units of the noise's range std: W_i e_i (`remaster.noise`);
         unchanged for isotropic noise."""

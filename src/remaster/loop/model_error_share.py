@@ -59,11 +59,10 @@ def sensitivity(fitted: Fitted, rows: np.ndarray) -> np.ndarray:
     """(len(rows), n, 3) rad/m: how the free parameters `rows` (indices) of the fit's mode move with a
     residual e (n, 3) m added to its measured positions, B = C J^T W / sigma^2 (module docstring)."""
     mode = fitted.mode
-    p, n = len(mode.theta), fitted.model.n_rows
+    p, n = len(mode.theta), fitted.model.n_points
     jacobian = mode.jacobian[: 3 * n]  # the positions' rows; a full-pose probe's orientations follow
     out = (mode.covariance[rows][:, :p] @ jacobian.T / mode.sigma**2).reshape(len(rows), n, 3)
-    whitening = fitted.model._whitening
-    return out if whitening is None else np.einsum("pni,nij->pnj", out, whitening)
+    return np.einsum("pni,nij->pnj", out, fitted.model.whitening_matrices())
 
 
 def field_variance(q, hyper: Hyperparameters, sensitivity_rows: np.ndarray, chunk: int = ROW_CHUNK) -> np.ndarray:

@@ -126,8 +126,7 @@ def choose_noise(
 def _noise_shapes(model: BlockModel, shaped: BlockModel) -> np.ndarray:
     """(n, 3, 3): the covariance over sigma^2 of each row's noise under `shaped`'s noise model, in the
     coordinates of `model`'s whitened residuals (M (S / sigma^2) M^T, M model's whitening)."""
-    unit = np.broadcast_to(np.eye(3)[:, None, :], (3, model.n_points, 3))
-    whitening = np.moveaxis(model.whitened(unit), 0, -1)  # (n, 3, 3): M_i, column a = M_i e_a
-    shaped_whitening = np.moveaxis(shaped.whitened(unit), 0, -1)
+    whitening = model.whitening_matrices()  # (n, 3, 3): M_i, column a = M_i e_a
+    shaped_whitening = shaped.whitening_matrices()
     inverse = np.linalg.inv(shaped_whitening)  # S_i / sigma^2 = W_i^-1 W_i^-T
     return whitening @ inverse @ np.swapaxes(inverse, 1, 2) @ np.swapaxes(whitening, 1, 2)
