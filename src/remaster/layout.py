@@ -46,6 +46,25 @@ ACCEPTANCE = "acceptance.json"
 METRICS = "metrics"
 CALIBRATED = "calibrated"
 
+# the figures (PNG and PDF of each): one sensor's, as <campaign>/figures/<name>_<sensor>, in the order
+# they are drawn; and each robot's over its campaigns, as comparison/<name>_<robot>, with the
+# comparison table each draws
+SENSOR_FIGURES = (
+    "zero_offset_trace",
+    "zero_offset_histograms",
+    "tcp_scatter",
+    "post_registration_histograms",
+    "loop_signatures",
+    "loop_residuals",
+    "loop_residual_joints",
+    "loop_harmonics",
+    "workspace_accuracy",
+)
+OVER_TIME_FIGURES = {
+    "zero_offsets_over_time": "zero_offsets_over_time",
+    "loop_effects_over_time": "loop_parameters_over_time",
+}
+
 # what `remaster predict` and `remaster compensate` read of a sensor's results, by key
 SENSOR_RESULTS = {
     "registration": REGISTRATION,

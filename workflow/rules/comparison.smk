@@ -7,7 +7,7 @@ from types import SimpleNamespace
 from remaster.comparing.comparison import TABLES as COMPARISON_TABLES
 from remaster.calibration.prediction import MODELS as TRANSFER_MODELS
 from remaster.comparing.predictions import PREDICTION_TABLES
-from remaster.reporting.figures_comparison import OVER_TIME_FIGURES
+from remaster.layout import OVER_TIME_FIGURES
 
 COMPARISON = f"{RESULTS}/comparison"
 PREDICTION_COMPARISON_TABLES = ["transfer", *PREDICTION_TABLES]
@@ -64,7 +64,7 @@ rule comparison_prediction:
 
 rule comparison_figures:
     input:
-        **{t: f"{COMPARISON}/{t}.csv" for t in ["transfer", *(v[0] for v in OVER_TIME_FIGURES.values())]},
+        **{t: f"{COMPARISON}/{t}.csv" for t in ["transfer", *OVER_TIME_FIGURES.values()]},
     output:
         **{f"{f}_{r}": multiext(f"{COMPARISON}/{f}_{r}", ".png", ".pdf") for f in OVER_TIME_FIGURES for r in ROBOTS},
         **{

@@ -4,7 +4,7 @@
 # how many sensors a campaign has). Tables and figures only read result files. The paper's twins
 # (config paper_twins) also get each accuracy table beside the paper's published numbers: a
 # second rule, because their set of files is larger; each campaign matches one of the two.
-from remaster.reporting.campaign_figures import SENSOR_FIGURES
+from remaster.layout import SENSOR_FIGURES
 
 TABLES = f"{RESULTS}/{{campaign}}/tables"
 FIGURES = f"{RESULTS}/{{campaign}}/figures"

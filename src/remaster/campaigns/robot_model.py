@@ -7,7 +7,9 @@ Here rather than beside `remaster.robot`: the section is a campaign's (checked b
 
 from __future__ import annotations
 
+import functools
 import math
+import types
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -34,12 +36,24 @@ def urdf_candidates(urdf: str, folder: Path, repo_root: Path) -> list[Path]:
 
 def robot_section(folder: str | Path) -> Mapping:
     """campaign.yaml's `robot` section as written, for planning a workflow before the campaign is
-    read; {} when it does not parse (reading the campaign says why, with file and key)."""
+    read; {} when it does not parse (reading the campaign says why, with file and key). Read
+    again only when the file changed: planning a workflow asks for it a hundred times."""
+    path = Path(folder) / CAMPAIGN_FILE
     try:
-        robot = read_yaml(Path(folder) / CAMPAIGN_FILE).get("robot")
+        stat = path.stat()
+    except OSError:
+        return {}
+    return _robot_section_of(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=256)
+def _robot_section_of(path: str, modified_ns: int, size: int) -> Mapping:
+    """The `robot` section of the campaign.yaml at `path` as it was at (modified_ns, size), read-only."""
+    try:
+        robot = read_yaml(path).get("robot")
     except (OSError, InputError, AttributeError):
         return {}
-    return robot if isinstance(robot, Mapping) else {}
+    return types.MappingProxyType(robot) if isinstance(robot, Mapping) else {}
 
 
 def robot_files(folder: str | Path, repo_root: str | Path = ".") -> list[Path]:

@@ -18,23 +18,11 @@ from ..loop import long_tables
 from ..loop.result import LoopReport
 from . import figures, figures_accuracy, figures_loop
 
-SENSOR_FIGURES = (
-    "zero_offset_trace",
-    "zero_offset_histograms",
-    "tcp_scatter",
-    "post_registration_histograms",
-    "loop_signatures",
-    "loop_residuals",
-    "loop_residual_joints",
-    "loop_harmonics",
-    "workspace_accuracy",
-)
-
 
 def sensor_figures(
     campaign: str, sensor: str, files: Mapping[str, str], burn_in: int
 ) -> Iterator[tuple[str, plt.Figure]]:
-    """(figure name, figure) for every figure of one sensor (SENSOR_FIGURES, in order); `campaign`:
+    """(figure name, figure) for every figure of one sensor (`layout.SENSOR_FIGURES`, in order); `campaign`:
     its folder name (titles); `burn_in`: the paper sampler's, marked on its trace."""
 
     def title(what: str) -> str:

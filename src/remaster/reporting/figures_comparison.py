@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .. import layout  # noqa: E402
 from ..inference.parameter_blocks import EXTENSIONS  # noqa: E402
 from ..labels import paper_order, sensor_label  # noqa: E402
 from .figures import _grid  # noqa: E402
@@ -215,10 +216,14 @@ def _suptitle(fig: plt.Figure, title: str, fontsize: float) -> None:
 
 
 # figure -> (the comparison table it draws, how, title)
-OVER_TIME_FIGURES = {
-    "zero_offsets_over_time": ("zero_offsets_over_time", zero_offsets_over_time_figure, "Zero-offsets over time"),
+OVER_TIME_FIGURES = {  # figure -> (the comparison table it draws, its drawing, its title)
+    "zero_offsets_over_time": (
+        layout.OVER_TIME_FIGURES["zero_offsets_over_time"],
+        zero_offsets_over_time_figure,
+        "Zero-offsets over time",
+    ),
     "loop_effects_over_time": (
-        "loop_parameters_over_time",
+        layout.OVER_TIME_FIGURES["loop_effects_over_time"],
         loop_effects_over_time_figure,
         "Loop-closure effects over time",
     ),

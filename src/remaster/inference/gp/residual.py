@@ -27,6 +27,9 @@ SI inside (m, rad).
 
 from __future__ import annotations
 
+import collections
+import dataclasses
+import hashlib
 import math
 
 import numpy as np  # scipy is imported in the functions that use it (test_architecture: light readers)
@@ -92,13 +95,36 @@ def inducing_count(q, hyper: Hyperparameters, at_least: int = INDUCING, at_most:
     return m
 
 
+# The hyperparameters of the last few fits, by a digest of their inputs: the loop fits the same GP on
+# the same residuals more than once (as a candidate, then for its time blocks and its backward pass)
+_FITTED: collections.OrderedDict[bytes, Hyperparameters] = collections.OrderedDict()
+_FITTED_KEPT = 8
+
+
 def fit_hyperparameters(q, residuals, subset: int = SUBSET, start: Hyperparameters | None = None) -> Hyperparameters:
     """Type-II maximum likelihood of (l_j, s, noise) on at most `subset` evenly spaced rows of q
     (n, N) rad and residuals (n, 3) m; from `start` when given (one start), else from a smooth
-    and a wiggly start."""
+    and a wiggly start. The same inputs give the same fit, found again rather than refitted."""
+    q, y = np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(residuals, dtype=float)
+    started = None if start is None else (start.signal_std, start.noise_std)  # a float's repr is exact
+    digest = hashlib.sha256(repr((q.shape, y.shape, subset, started)).encode())
+    for array in (q, y) if start is None else (q, y, np.asarray(start.lengthscales, dtype=float)):
+        digest.update(array.tobytes())
+    key = digest.digest()
+    if key not in _FITTED:
+        _FITTED[key] = _fitted_hyperparameters(q, y, subset, start)
+        if len(_FITTED) > _FITTED_KEPT:
+            _FITTED.popitem(last=False)
+    found = _FITTED[key]
+    return dataclasses.replace(found, lengthscales=found.lengthscales.copy())
+
+
+def _fitted_hyperparameters(
+    q: np.ndarray, y: np.ndarray, subset: int, start: Hyperparameters | None
+) -> Hyperparameters:
+    """`fit_hyperparameters`, computed."""
     import scipy.optimize
 
-    q, y = np.asarray(q, dtype=float), np.asarray(residuals, dtype=float)
     rows = evenly_spaced(len(q), subset)
     q_s, y_s = q[rows], y[rows]
     spread = np.ptp(q, axis=0)
