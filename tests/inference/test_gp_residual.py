@@ -41,6 +41,24 @@ def test_the_hyperparameters_find_the_noise_and_the_joints(learnt):
     assert np.all(relevance[[0, 4, 5, 6]] < residual.RELEVANT_RANGE)
 
 
+def test_the_same_inputs_give_the_same_fit_found_again_and_a_copy_of_it(learnt, monkeypatch):
+    """A second fit of the same rows is the first one's result, not a refit; other residuals or
+    another start are fitted; what a caller does to the returned lengthscales stays its own."""
+    q, y, hyper, _ = learnt
+    fitted = []
+    compute = residual._fitted_hyperparameters
+    monkeypatch.setattr(residual, "_fitted_hyperparameters", lambda *args: fitted.append(1) or compute(*args))
+    again = residual.fit_hyperparameters(q, y)
+    assert not fitted and again.lengthscales is not hyper.lengthscales
+    np.testing.assert_array_equal(again.lengthscales, hyper.lengthscales)
+    assert (again.signal_std, again.noise_std, again.at_bounds) == (hyper.signal_std, hyper.noise_std, hyper.at_bounds)
+    again.lengthscales[0] = 99.0
+    np.testing.assert_array_equal(residual.fit_hyperparameters(q, y).lengthscales, hyper.lengthscales)
+    other = residual.fit_hyperparameters(q[:300], y[:300] * 1.5, subset=200)
+    from_start = residual.fit_hyperparameters(q[:300], y[:300] * 1.5, subset=200, start=other)
+    assert len(fitted) == 2 and from_start.noise_std == pytest.approx(other.noise_std, rel=1e-3)
+
+
 def test_hyperparameters_left_on_a_bound_are_named(learnt):
     """A search's parameters within 1e-3 (in log) of a bound are named with the bound; the fit of a
     residual of joints 2 and 4 leaves neither of their lengthscales nor its signal or noise on a
