@@ -14,6 +14,7 @@ Pinocchio is the reference (`pinocchio_model`); the batched NumPy code is the ho
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field, replace
 
@@ -553,10 +554,20 @@ class ForwardKinematics:
         self.q = q
         self.cos_q = np.cos(q)
         self.sin_q = np.sin(q)
-        self.kernel = KernelForm.of(chain)
-        self.kernel_rotations, self.kernel_shifts = self.kernel.rotations, self.kernel.shifts
-        self.kernel_cos_q = np.ascontiguousarray(self.cos_q.T)
-        self.kernel_sin_q = np.ascontiguousarray(self.sin_q.T)
+
+    # the compiled kernels' form, built at the first point asked for: poses alone (a DH table's
+    # least squares builds a chain per step) never need it
+    @functools.cached_property
+    def kernel(self) -> KernelForm:
+        return KernelForm.of(self.chain)
+
+    @functools.cached_property
+    def kernel_cos_q(self) -> np.ndarray:
+        return np.ascontiguousarray(self.cos_q.T)
+
+    @functools.cached_property
+    def kernel_sin_q(self) -> np.ndarray:
+        return np.ascontiguousarray(self.sin_q.T)
 
     def flange_point(self, point_in_flange) -> np.ndarray:
         """A point given in the flange frame, in the last joint's z-aligned frame (3,)."""
@@ -579,8 +590,8 @@ class ForwardKinematics:
         offsets = np.zeros(self.chain.n_joints) if zero_offsets is None else np.asarray(zero_offsets, dtype=float)
         stack = np.atleast_2d(offsets)
         out = _kernels.points(
-            self.kernel_rotations,
-            self.kernel_shifts,
+            self.kernel.rotations,
+            self.kernel.shifts,
             self.flange_point(point_in_flange),
             self.kernel_cos_q,
             self.kernel_sin_q,
