@@ -216,7 +216,7 @@ def _suptitle(fig: plt.Figure, title: str, fontsize: float) -> None:
 
 
 # figure -> (the comparison table it draws, how, title)
-OVER_TIME_FIGURES = {  # figure -> (the comparison table it draws, its drawing, its title)
+OVER_TIME_FIGURES = {
     "zero_offsets_over_time": (
         layout.OVER_TIME_FIGURES["zero_offsets_over_time"],
         zero_offsets_over_time_figure,
