@@ -14,7 +14,7 @@ import pytest
 
 from remaster.campaigns.campaign import SETS, validate_metadata, validate_sensor_table
 from remaster.campaigns.folders import read_campaign, write_campaign
-from remaster.campaigns.robot_model import load_chain
+from remaster.campaigns.robot_model import load_chain, robot_section
 from remaster.errors import InputError, KinematicsError
 from remaster.files import read_yaml, write_json
 from remaster.robot.kinematics import max_chain_difference
@@ -564,3 +564,20 @@ def test_the_users_tools_are_read_in_metres_of_the_flange_frame(tmp_path):
 def test_a_tool_in_millimetres_or_not_a_point_is_refused_naming_it(tmp_path, tools, key, message):
     error = read_error(make_campaign(tmp_path, metadata() | {"tools": tools}))
     assert error.key == key and message in str(error) and "campaign.yaml" in str(error)
+
+
+def test_the_robot_section_for_planning_follows_every_change_of_campaign_yaml(tmp_path):
+    """Planning asks for campaign.yaml's robot section many times and reads it once per change: an
+    edit is seen at the next call, what it returns cannot be changed by a caller, and a file that is
+    missing or does not parse gives {} (reading the campaign says why)."""
+    path = tmp_path / "campaign.yaml"
+    assert robot_section(tmp_path) == {}
+    path.write_text("robot:\n  urdf: a.urdf\n", encoding="utf-8")
+    first = robot_section(tmp_path)
+    assert dict(first) == {"urdf": "a.urdf"} and robot_section(tmp_path) is first
+    with pytest.raises(TypeError):
+        first["urdf"] = "b.urdf"
+    path.write_text("robot:\n  urdf: another.urdf\n", encoding="utf-8")
+    assert dict(robot_section(tmp_path)) == {"urdf": "another.urdf"}
+    path.write_text("robot: [unclosed\n", encoding="utf-8")
+    assert robot_section(tmp_path) == {}
