@@ -23,6 +23,7 @@ from remaster.campaigns.simulation import true_marker_positions, true_sensor_pos
 from remaster.cli import main as cli
 from remaster.errors import InputError
 from remaster.inference import fit
+from remaster.inference.gp.kernels import Hyperparameters
 from remaster.inference.model import SIGMA
 from remaster.inference.parameter_blocks import link_labels
 from remaster.inference.posterior_summary import mode_summary
@@ -354,6 +355,26 @@ def test_a_declared_model_error_is_in_every_bound(tmp_path_factory):
     expected = declared * chi.ppf(0.95) / MM
     monte_carlo = declared / MM * np.sqrt(0.95 * 0.05 / 4000) / chi.pdf(chi.ppf(0.95))
     np.testing.assert_allclose(wide["bound95_mm"], expected, atol=4 * monte_carlo + own["bound95_mm"].max())
+
+
+@pytest.mark.usefixtures("twin_fitted")
+def test_a_declared_field_moves_one_arms_commands_together_and_keeps_each_commands_spread(tmp_path_factory):
+    """The declared model error as a field (`LoopReport.declared_field`) smooth over the joints:
+    drawn `jointly`, every command of one draw moves together, as one arm's field does, where drawn
+    per command (predict's bounds) they move apart; each command's spread is the declared error's
+    either way, so a per-command bound is the same."""
+    campaign, robot, _, _ = twin("loop", tmp_path_factory)
+    q = campaign.sensors["laser_tracker"].q("validation")[:20]
+    declared = 1.0 * MM
+    smooth = Hyperparameters(np.full(7, 1e3), declared, 0.0)
+    robot = replace(robot, declared=declared, declared_field=smooth)
+    mean = robot.in_frame(robot.robot_points(q), "sensor")
+    per_command = robot.draw_points(q, "sensor", 2000, np.random.default_rng(1))[0] - mean
+    jointly = robot.draw_points(q, "sensor", 2000, np.random.default_rng(1), jointly=True)[0] - mean
+    for draws in (per_command, jointly):
+        np.testing.assert_allclose(draws.std(axis=0), declared, rtol=0.1)
+    assert (jointly - jointly.mean(axis=1, keepdims=True)).std() < 0.1 * declared
+    assert (per_command - per_command.mean(axis=1, keepdims=True)).std() > 0.9 * declared
 
 
 def closed_loop(frame: str, tmp_path_factory):

@@ -3,8 +3,11 @@ hyperparameters find the noise and the joints, its mean and variance are honest 
 return to the prior far from it, with every row inducing it is the exact GP, and Titsias' bound is
 a lower bound on the exact likelihood."""
 
+import dataclasses
+
 import numpy as np
 import pytest
+from scipy import stats
 
 from remaster.inference.gp import kernels, likelihood, residual
 from remaster.inference.gp.kernels import Hyperparameters, kernel
@@ -151,6 +154,32 @@ def test_joint_draws_have_the_marginals_and_move_together_where_readings_are_nea
     np.testing.assert_allclose(centred.T @ centred / 4000, exact, atol=0.1 * exact.diagonal().max())
     correlation = np.corrcoef(centred.T)
     assert correlation[0, 3] > 0.9 and abs(correlation[0, 1]) < 0.3
+
+
+def test_a_prior_field_has_the_kernels_covariance_and_its_p95_over_readings_is_one_arms():
+    """`field_draws` (a field the model lacks, as a loop that does not close declares it): over 4000
+    draws each reading's covariance with the others is the kernel's on each axis, readings repeated
+    included (an indefinite factor falls back to the nearest PSD one); a field smooth over the
+    readings gives each draw one p95 over them, spread from draw to draw as a single value's
+    |N(0, s^2 I3)| is, where independent draws at each reading give nearly the same p95 every time."""
+    rng = np.random.default_rng(4)
+    q = readings(rng, 30)
+    q[5] = q[4]  # a configuration measured twice
+    signal = 1e-4
+    hyper = Hyperparameters(np.array([0.8, 0.8, np.inf, 0.8, 0.8, 0.8, 0.8]), signal, 0.0)
+    draws = residual.field_draws(q, hyper, 4000, np.random.default_rng(5))
+    assert draws.shape == (4000, 30, 3)
+    np.testing.assert_allclose(draws[:, 4], draws[:, 5], atol=1e-3 * signal)
+    for axis in range(3):
+        covariance = draws[:, :, axis].T @ draws[:, :, axis] / 4000
+        np.testing.assert_allclose(covariance, kernel(q, q, hyper), atol=0.1 * signal**2)
+    smooth = dataclasses.replace(hyper, lengthscales=np.where(hyper.turned, 1e3, np.inf))
+    many = readings(rng, 300)
+    field_p95 = np.quantile(np.linalg.norm(residual.field_draws(many, smooth, 2000, rng), axis=-1), 0.95, axis=1)
+    white_p95 = np.quantile(np.linalg.norm(signal * rng.standard_normal((2000, 300, 3)), axis=-1), 0.95, axis=1)
+    chi = stats.chi(3)
+    assert np.quantile(field_p95, 0.95) == pytest.approx(signal * chi.ppf(0.95), rel=0.05)
+    assert np.std(field_p95) > 3 * np.std(white_p95)
 
 
 def test_a_reading_one_turn_away_is_the_same_configuration_and_the_kernel_stays_positive_definite():

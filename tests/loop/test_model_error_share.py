@@ -10,6 +10,7 @@ from remaster.inference import evidence
 from remaster.inference.gp.kernels import Hyperparameters, kernel
 from remaster.loop import model_error_share
 
+from ..conftest import loop_report
 from .test_loop_closure import EFFECTS, simulated
 from .test_selection import _forced
 
@@ -83,3 +84,20 @@ def test_it_applies_where_the_calibration_carries_a_field_and_only_there(iiwa):
     free = [n for n in fitted.model.names if n.startswith("zero_offsets.")]
     assert share["computed"] and sorted(share["parameters"]) == sorted(free)
     assert all(p["u_model_deg"] > 0 for p in share["parameters"].values())
+
+
+def test_the_declared_model_error_is_a_field_of_the_residuals_kernel_only_where_one_was_fitted():
+    """`LoopReport.declared_field`: a loop not closed declares its structured residual per axis as
+    the signal of the kernel its residual field was fitted with (no noise: the noise is the
+    posterior's); a closed loop, or a field whose kernel was not fitted, declares no field."""
+    kernel_report = _field(0.6, 3e-5).report()
+    not_closed = {"rounds": [{"closed": False, "structured_mm": 0.12}]}
+    share = {"computed": True, "kernel": {**kernel_report, "noise_std_m": 1e-5}}
+    field = loop_report(closure=not_closed, model_error_share=share).declared_field()
+    assert field.signal_std == 0.12e-3 and field.noise_std == 0.0
+    np.testing.assert_array_equal(field.lengthscales, np.full(3, 0.6))
+    closed = {"rounds": [{"closed": True, "structured_mm": 0.0}]}
+    assert loop_report(closure=closed, model_error_share=share).declared_field() is None
+    unfitted = {"computed": False, "why": "20 configurations"}
+    assert loop_report(closure=not_closed, model_error_share=unfitted).declared_field() is None
+    assert loop_report(closure=not_closed).declared_field() is None

@@ -265,15 +265,15 @@ class _Truth:
 
     def claims(self, q_domain, probe: Probe) -> dict[str, Claim]:
         """The loop model's workspace claims (registered, without noise) near the data (q_domain)
-        and across the limits, each against the true p95 of its posterior mean's registered error."""
-        campaign, sensor = self.calibration.campaign, self.calibration.sensor
-        loop = prediction.loop_calibration(self.calibration.loop.report, self.calibration.loop.samples)
+        and across the limits, each against the true p95 of its posterior mean's registered error: the
+        mean the claim is made about, the residual GP's correction included where the loop added it."""
+        campaign = self.calibration.campaign
         random = prediction.robot_configurations(
             campaign.chain, identity.robot_identity(campaign), probe.n_random, probe.seed
         )
         held = {}
         for where, configurations in (("domain", q_domain), ("random", random)):
-            mean = loop.predictor(campaign.chain, configurations, campaign.sensors[sensor].marker).points(loop.values)
+            mean = self.robot.robot_points(configurations)
             true_points = true_marker_positions(
                 campaign.chain, self.true_robot, self.device, configurations, np.zeros(len(configurations))
             )
@@ -347,8 +347,9 @@ class _Truth:
 def posterior_errors(robot, q, count: int, rng) -> np.ndarray:
     """(count, n) mm: each of `count` fresh posterior draws of `robot` (a calibrated robot) taken as
     the arm's truth, the distance of its marker at command q_i (n, N) from the prediction (sensor
-    frame, as `remaster predict` states it): what the arm's true error would be."""
-    in_sensor, _ = robot.draw_points(q, "sensor", count, rng)
+    frame, as `remaster predict` states it): what the arm's true error would be, its residual field
+    drawn as one arm's across the commands (`draw_points(jointly=True)`)."""
+    in_sensor, _ = robot.draw_points(q, "sensor", count, rng, jointly=True)
     mean = robot.in_frame(robot.robot_points(q), "sensor")
     return np.linalg.norm(in_sensor - mean, axis=-1) / 1e-3
 
@@ -362,8 +363,9 @@ def posterior_outside(robot, q, bound_mm, count: int, rng) -> np.ndarray:
 def posterior_p95(robot, q, count: int, rng) -> np.ndarray:
     """(count,) mm: each of `count` fresh posterior draws taken as the arm's truth, the 95th
     percentile over configurations q (n, N) of its registered distance from the posterior mean
-    (robot frame): the arm's p95 the workspace claim bounds."""
-    in_robot, _ = robot.draw_points(q, "robot", count, rng)
+    (robot frame): the arm's p95 the workspace claim bounds, its residual field drawn as one
+    (`draw_points(jointly=True)`)."""
+    in_robot, _ = robot.draw_points(q, "robot", count, rng, jointly=True)
     return np.quantile(metrics.registered_distances(robot.robot_points(q), in_robot), 0.95, axis=1) / 1e-3
 
 

@@ -66,7 +66,8 @@ from ..campaigns.campaign import Campaign
 from ..errors import InputError, format_rows, require_columns
 from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
-from ..inference.gp.residual import ResidualGP
+from ..inference.gp.kernels import Hyperparameters
+from ..inference.gp.residual import ResidualGP, field_draws
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..inference.parameter_blocks import DISTORTION_PARTS, MARKER_OFFSET, carried_by_marker_offset, distortion_matrix
 from ..robot.kinematics import ForwardKinematics, KinematicChain
@@ -106,7 +107,10 @@ class CalibratedRobot:
     the marker lies on, are unseen in the sensor frame too); near: how near a command is to the
     configurations the fit measured (`robot.nearness`); declared (m): the model error per axis the
     calibration declares (`LoopReport.declared_model_error`: zero where the loop closed), drawn
-    independently per axis and command in every bound, as the acceptance test claims it; tool:
+    independently per axis and command in every bound, as the acceptance test claims it;
+    declared_field: the same error as a field over the joints (`LoopReport.declared_field`, the loop
+    model's; None: none fitted), drawn where a statistic over commands asks for one arm's field
+    (`draw_points(jointly=True)`); tool:
     at a TCP, how the priors split the marker's offset between its mount and the flange
     (`tool_link.ToolSplit`: the TCP's shift, its mean in the positions, drawn in every bound),
     None at the marker."""
@@ -125,6 +129,7 @@ class CalibratedRobot:
     near: Nearness | None = None
     declared: float = 0.0
     tool: ToolSplit | None = None
+    declared_field: Hyperparameters | None = None
 
     @property
     def blocks(self) -> tuple[str, ...]:
@@ -252,18 +257,27 @@ class CalibratedRobot:
         sigma = np.full(count, self.gp.hyper.noise_std) if self._gp_applies() else chosen[SIGMA].to_numpy(float)
         return draws, sigma
 
-    def draw_points(self, q, frame: str, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def draw_points(
+        self, q, frame: str, count: int, rng: np.random.Generator, jointly: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Positions (K, n, 3) in `frame` at commands q for K = count posterior draws (GP draws
-        added), and the same with each draw's noise; (0, n, 3) without samples."""
+        added), and the same with each draw's noise; (0, n, 3) without samples. The residual GP and
+        the declared model error are drawn per command (what a per-command bound needs, at any number
+        of commands) or, `jointly`, as fields across the commands (`ResidualGP.draws`,
+        `residual.field_draws`), so that a statistic over them (a p95) is one of an arm's."""
         draws, sigma = self.draws(count, frame, rng)
         if not draws:
             empty = np.zeros((0, len(q), 3))
             return empty, empty
         points = self.predictor(q).points_of_draws(draws)
-        if self._gp_applies():
+        if self._gp_applies() and jointly:
+            points = points + self.gp.draws(q, count, rng)
+        elif self._gp_applies():
             std = np.sqrt(self.gp.variance(q))
             points = points + self.gp.mean(q) + std[None, :, None] * rng.standard_normal(points.shape)
-        if self.declared > 0:
+        if self.declared > 0 and jointly and self.declared_field is not None:
+            points = points + field_draws(q, self.declared_field, count, rng)
+        elif self.declared > 0:
             points = points + self.declared * rng.standard_normal(points.shape)
         if frame == "sensor":
             points = np.stack([self.in_frame(p, frame, d) for p, d in zip(points, draws)])
@@ -338,6 +352,7 @@ def calibrated_robot(
         ),
         loop.declared_model_error(model) or 0.0,
         tool,
+        loop.declared_field() if model == "loop" else None,
     )
 
 

@@ -32,7 +32,10 @@ Two kinds of claim:
   test is moved onto the draw's points by least squares (`metrics.registered_distances`) and
   |T_d p_model(q) - (p_d(q) + n_d)| is its error at q ("with noise"; "without noise" leaves n_d
   out). Where the loop is not closed, p_d carries the model error it declares
-  (`LoopReport.declared_model_error`), drawn per axis and configuration. Held zero-offsets are drawn at the
+  (`LoopReport.declared_model_error`), drawn as a field over the joints with the kernel of its residual
+  (`LoopReport.declared_field`: what a model lacks is correlated from one configuration to the next, and
+  a p95 over configurations of independent draws has almost no spread), or per axis and configuration
+  where the loop fitted no kernel. Held zero-offsets are drawn at the
   controller marks' tolerance here too: the registration removes joint 1's, but one held only
   because these data never turned it (the last joint when the tool keeps one orientation) moves
   the marker at other poses. Not the last joint's where the loop fits a marker offset: its turn
@@ -77,7 +80,8 @@ from ..inference import metrics
 from ..inference.bounds import bound_on_percentile_over_configurations
 from ..inference.extensions import identifiable_extension
 from ..inference.gp import loop_candidate
-from ..inference.gp.residual import ResidualGP, evenly_spaced
+from ..inference.gp.kernels import Hyperparameters
+from ..inference.gp.residual import ResidualGP, evenly_spaced, field_draws
 from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
 from ..inference.parameter_blocks import carried_by_marker_offset
@@ -162,6 +166,17 @@ def _gp_draws(gp: ResidualGP | None, q, count: int, rng: np.random.Generator):
     return gp.mean(q), gp.draws(q, count, rng)
 
 
+def _declared_draws(posterior: _Posterior, q, count: int, rng: np.random.Generator) -> np.ndarray:
+    """`count` draws (count, n, 3) m of the model error a loop not closed declares at readings q (n, N):
+    a field over the joints of its residual's kernel where the loop fitted one (what the model lacks
+    is correlated from one configuration to the next, so each draw's p95 over q is one of a field the
+    arm could have: docs/validation.md), else independent per axis and configuration. Each reading's
+    marginal is the same either way, N(0, declared^2) per axis."""
+    if posterior.declared_field is None:
+        return posterior.declared * rng.standard_normal((count, len(q), 3))
+    return field_draws(q, posterior.declared_field, count, rng)
+
+
 def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, rng: np.random.Generator):
     """The draws with every held zero-offset drawn from N(held value, tolerance^2)."""
     names = sorted(held)
@@ -209,8 +224,9 @@ class _Posterior:
     free marker offset carries (`parameter_blocks.carried_by_marker_offset`), not drawn; the
     residual GP, None without one; the
     model error per axis (m) the loop declares (`LoopReport.declared_model_error`, zero where it
-    closed), drawn independently per axis and configuration in the claims; each estimated
-    parameter's prior std (SI), for `data_draws`."""
+    closed) and its field (`LoopReport.declared_field`: drawn as a field over the joints in the
+    claims; None: independently per axis and configuration); each estimated parameter's prior std
+    (SI), for `data_draws`."""
 
     loop: Calibration
     paper: Calibration
@@ -221,6 +237,7 @@ class _Posterior:
     unseen: dict[str, float]
     gp: ResidualGP | None
     declared: float = 0.0
+    declared_field: Hyperparameters | None = None
     prior_std: Mapping[str, float] = field(default_factory=dict)
     carried: frozenset[str] = frozenset()
 
@@ -282,6 +299,7 @@ def _posterior(
         unseen={n: calibration.values[n] for n in loop.report.unseen_by_data if n in calibration.values},
         gp=gp,
         declared=loop.report.declared_model_error("loop") or 0.0,
+        declared_field=loop.report.declared_field(),
         prior_std=_prior_std(loop.report.parameters),
         carried=carried_by_marker_offset(chain.n_joints, held, calibration.draws.columns),
     )
@@ -313,7 +331,7 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
     )
     points = points_parametric + corrections
     if posterior.declared > 0:  # a loop not closed claims what it measured beyond the noise
-        points = points + posterior.declared * rng.standard_normal(points.shape)
+        points = points + _declared_draws(posterior, q, count, rng)
     noisy = _with_noise(points, posterior.sigma, rng)
     # the part the data determine: the same draws with what the priors decide held (same noise)
     data_points = predictor.points_of_draws(posterior.data_draws) + (points - points_parametric)

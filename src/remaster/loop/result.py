@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..errors import InputError, report_reader
 from ..files import read_json, write_json
+from ..inference.gp.kernels import Hyperparameters
 from ..units import DEG, MM
 from .sides import sides_of
 
@@ -143,6 +144,20 @@ class LoopReport:
         if step.get("closed") is None or step.get("structured_mm") is None:
             return None
         return 0.0 if step["closed"] else float(step["structured_mm"]) * MM
+
+    def declared_field(self) -> Hyperparameters | None:
+        """The loop model's declared model error as a field over the joints: the kernel of its residual
+        field (`model_error_share`: the residual GP's, or fitted on what the model left) with the
+        declared error per axis (`declared_model_error('loop')`) as its signal std and no noise (an
+        `inference.gp.kernels.Hyperparameters`); None where the loop declares none or the kernel was not
+        computed (too few configurations to fit it: the error is then drawn independently per
+        configuration)."""
+        declared = self.declared_model_error("loop")
+        share = self.model_error_share or {}
+        if not declared or not share.get("computed") or "kernel" not in share:
+            return None
+        kernel = Hyperparameters.from_report(share["kernel"])
+        return Hyperparameters(kernel.lengthscales, declared, 0.0, kernel.at_bounds)
 
     @property
     def unseen_by_data(self) -> tuple[str, ...]:

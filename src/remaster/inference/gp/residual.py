@@ -238,17 +238,37 @@ class ResidualGP:
         z = rng.standard_normal((count, len(self.inducing), 3))
         out = self.mean(q)[None] + self.hyper.noise_std * _applied_to_draws(shared.T, z)
         whitened = scipy.linalg.solve_triangular(self._k_factor[0], k_sm.T, lower=True)  # Q** = W^T W
-        for begin in range(0, len(q), DRAW_BLOCK):
-            block = slice(begin, begin + DRAW_BLOCK)
-            rest = kernel(q[block], q[block], self.hyper) - whitened[:, block].T @ whitened[:, block]
-            rest[np.diag_indices(len(rest))] += JITTER * self.hyper.signal_std**2
-            try:
-                factor = np.linalg.cholesky(rest)
-            except np.linalg.LinAlgError:  # round-off made it indefinite: the nearest PSD factor
-                values, vectors = np.linalg.eigh(rest)
-                factor = vectors * np.sqrt(np.clip(values, 0.0, None))
-            out[:, block] += _applied_to_draws(factor, rng.standard_normal((count, len(rest), 3)))
+        out += field_draws(
+            q,
+            self.hyper,
+            count,
+            rng,
+            explained=lambda block: whitened[:, block].T @ whitened[:, block],
+        )
         return out
+
+
+def field_draws(q, hyper: Hyperparameters, count: int, rng: np.random.Generator, explained=None) -> np.ndarray:
+    """`count` draws (count, n, 3) m of a zero-mean field over readings q (n, N) rad of kernel `hyper`
+    (its signal; three axes alike and independent), jointly within blocks of DRAW_BLOCK readings (a
+    Cholesky factor each; independent between blocks), so that a statistic over the readings (a p95)
+    is one of a field the robot could have. explained(block): a covariance (b, b) the caller draws
+    otherwise, taken off the kernel's (the inducing inputs' part of a fitted GP)."""
+    q = np.asarray(q, dtype=float)
+    out = np.zeros((count, len(q), 3))
+    for begin in range(0, len(q), DRAW_BLOCK):
+        block = slice(begin, begin + DRAW_BLOCK)
+        rest = kernel(q[block], q[block], hyper)
+        if explained is not None:
+            rest = rest - explained(block)
+        rest[np.diag_indices(len(rest))] += JITTER * hyper.signal_std**2
+        try:
+            factor = np.linalg.cholesky(rest)
+        except np.linalg.LinAlgError:  # round-off (or readings repeated) made it indefinite: the nearest PSD factor
+            values, vectors = np.linalg.eigh(rest)
+            factor = vectors * np.sqrt(np.clip(values, 0.0, None))
+        out[:, block] = _applied_to_draws(factor, rng.standard_normal((count, len(rest), 3)))
+    return out
 
 
 def _applied_to_draws(matrix: np.ndarray, z: np.ndarray) -> np.ndarray:
