@@ -18,11 +18,12 @@ from .candidates import GP
 from .selection import BASE_STEP, Selection
 
 # measured on simulated arms whose loop could not close (docs/validation.md, the truth's rank among the
-# posterior's draws): a field the model lacks is not independent from one configuration to the next
+# posterior's draws): the declared error is a size measured on held-out poses, not a model of what is missing
 SHAPE_OF_THE_DECLARED_ERROR = (
-    "its bounds and claims carry the model error it declares as independent per axis and configuration, while "
-    "what the model lacks is a field over the joints: the workspace claims can understate its 95th percentile "
-    "(measured on simulated arms: docs/validation.md)"
+    "its bounds and claims carry the model error it declares (per command in a bound; in the workspace claims "
+    "as a field over the joints where a kernel was fitted to the residual), a size measured on held-out poses, "
+    "not a model of what is missing: near the data the bounds can be wider than the arm's errors and the "
+    "workspace claim below its 95th percentile (measured on simulated arms: docs/validation.md)"
 )
 
 
