@@ -593,7 +593,8 @@ def sbc_markdown(record: dict) -> str:
                 "",
                 f"The {cell['held_seeds']} of these seeds whose loop added the effects that express the truth "
                 f"({', '.join(TRUTH_EFFECTS[cell['truth']])}; on the others the model lacks the truth's form, and a loop "
-                "that did not close declares a model error, drawn per axis and command, in every draw):",
+                "that did not close declares a model error, in every draw: per command, or one field across them where "
+                "the loop fitted a kernel to the residual):",
                 "",
                 *_rank_table(cell["held_rows"]),
             ]
