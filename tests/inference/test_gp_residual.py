@@ -157,7 +157,8 @@ def test_joint_draws_have_the_marginals_and_move_together_where_readings_are_nea
 
 
 def test_a_prior_field_has_the_kernels_covariance_and_its_p95_over_readings_is_one_arms():
-    """`field_draws` (a field the model lacks, as a loop that does not close declares it): over 4000
+    """`field_draws` (a field the model lacks, as a loop that does not close declares it, through
+    `model_error_draws`, which draws it independently per reading without a kernel): over 4000
     draws each reading's covariance with the others is the kernel's on each axis, readings repeated
     included (an indefinite factor falls back to the nearest PSD one); a field smooth over the
     readings gives each draw one p95 over them, spread from draw to draw as a single value's
@@ -175,8 +176,12 @@ def test_a_prior_field_has_the_kernels_covariance_and_its_p95_over_readings_is_o
         np.testing.assert_allclose(covariance, kernel(q, q, hyper), atol=0.1 * signal**2)
     smooth = dataclasses.replace(hyper, lengthscales=np.where(hyper.turned, 1e3, np.inf))
     many = readings(rng, 300)
-    field_p95 = np.quantile(np.linalg.norm(residual.field_draws(many, smooth, 2000, rng), axis=-1), 0.95, axis=1)
-    white_p95 = np.quantile(np.linalg.norm(signal * rng.standard_normal((2000, 300, 3)), axis=-1), 0.95, axis=1)
+    field_p95 = np.quantile(
+        np.linalg.norm(residual.model_error_draws(signal, smooth, many, 2000, rng), axis=-1), 0.95, axis=1
+    )
+    white = residual.model_error_draws(signal, None, many, 2000, rng)  # the same error without a field
+    assert white.shape == (2000, 300, 3) and white.std() == pytest.approx(signal, rel=0.01)
+    white_p95 = np.quantile(np.linalg.norm(white, axis=-1), 0.95, axis=1)
     chi = stats.chi(3)
     assert np.quantile(field_p95, 0.95) == pytest.approx(signal * chi.ppf(0.95), rel=0.05)
     assert np.std(field_p95) > 3 * np.std(white_p95)

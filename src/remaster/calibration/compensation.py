@@ -67,7 +67,7 @@ from ..errors import InputError, format_rows, require_columns
 from ..inference.bounds import bound_at_points
 from ..inference.gp import loop_candidate
 from ..inference.gp.kernels import Hyperparameters
-from ..inference.gp.residual import ResidualGP, field_draws
+from ..inference.gp.residual import ResidualGP, model_error_draws
 from ..inference.model import REGISTRATION, SIGMA, correction_transforms
 from ..inference.parameter_blocks import DISTORTION_PARTS, MARKER_OFFSET, carried_by_marker_offset, distortion_matrix
 from ..robot.kinematics import ForwardKinematics, KinematicChain
@@ -264,7 +264,7 @@ class CalibratedRobot:
         added), and the same with each draw's noise; (0, n, 3) without samples. The residual GP and
         the declared model error are drawn per command (what a per-command bound needs, at any number
         of commands) or, `jointly`, as fields across the commands (`ResidualGP.draws`,
-        `residual.field_draws`), so that a statistic over them (a p95) is one of an arm's."""
+        `residual.model_error_draws`), so that a statistic over them (a p95) is one of an arm's."""
         draws, sigma = self.draws(count, frame, rng)
         if not draws:
             empty = np.zeros((0, len(q), 3))
@@ -275,10 +275,9 @@ class CalibratedRobot:
         elif self._gp_applies():
             std = np.sqrt(self.gp.variance(q))
             points = points + self.gp.mean(q) + std[None, :, None] * rng.standard_normal(points.shape)
-        if self.declared > 0 and jointly and self.declared_field is not None:
-            points = points + field_draws(q, self.declared_field, count, rng)
-        elif self.declared > 0:
-            points = points + self.declared * rng.standard_normal(points.shape)
+        if self.declared > 0:
+            field = self.declared_field if jointly else None
+            points = points + model_error_draws(self.declared, field, q, count, rng)
         if frame == "sensor":
             points = np.stack([self.in_frame(p, frame, d) for p, d in zip(points, draws)])
         return points, points + sigma[:, None, None] * rng.standard_normal(points.shape)

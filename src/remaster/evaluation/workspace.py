@@ -81,7 +81,7 @@ from ..inference.bounds import bound_on_percentile_over_configurations
 from ..inference.extensions import identifiable_extension
 from ..inference.gp import loop_candidate
 from ..inference.gp.kernels import Hyperparameters
-from ..inference.gp.residual import ResidualGP, evenly_spaced, field_draws
+from ..inference.gp.residual import ResidualGP, evenly_spaced, model_error_draws
 from ..inference.laplace_report import LaplaceReport
 from ..inference.model import SIGMA
 from ..inference.parameter_blocks import carried_by_marker_offset
@@ -164,17 +164,6 @@ def _gp_draws(gp: ResidualGP | None, q, count: int, rng: np.random.Generator):
     if gp is None:
         return 0.0, 0.0
     return gp.mean(q), gp.draws(q, count, rng)
-
-
-def _declared_draws(posterior: _Posterior, q, count: int, rng: np.random.Generator) -> np.ndarray:
-    """`count` draws (count, n, 3) m of the model error a loop not closed declares at readings q (n, N):
-    a field over the joints of its residual's kernel where the loop fitted one (what the model lacks
-    is correlated from one configuration to the next, so each draw's p95 over q is one of a field the
-    arm could have: docs/validation.md), else independent per axis and configuration. Each reading's
-    marginal is the same either way, N(0, declared^2) per axis."""
-    if posterior.declared_field is None:
-        return posterior.declared * rng.standard_normal((count, len(q), 3))
-    return field_draws(q, posterior.declared_field, count, rng)
 
 
 def _held_draws(draws: list[dict], held: Mapping[str, float], tolerance: float, rng: np.random.Generator):
@@ -331,7 +320,7 @@ def _claims_at(chain: KinematicChain, marker, where: str, q, posterior: _Posteri
     )
     points = points_parametric + corrections
     if posterior.declared > 0:  # a loop not closed claims what it measured beyond the noise
-        points = points + _declared_draws(posterior, q, count, rng)
+        points = points + model_error_draws(posterior.declared, posterior.declared_field, q, count, rng)
     noisy = _with_noise(points, posterior.sigma, rng)
     # the part the data determine: the same draws with what the priors decide held (same noise)
     data_points = predictor.points_of_draws(posterior.data_draws) + (points - points_parametric)

@@ -271,6 +271,17 @@ def field_draws(q, hyper: Hyperparameters, count: int, rng: np.random.Generator,
     return out
 
 
+def model_error_draws(
+    size: float, field: Hyperparameters | None, q, count: int, rng: np.random.Generator
+) -> np.ndarray:
+    """`count` draws (count, n, 3) m of a model error of `size` per axis (m) at readings q (n, N): one
+    field across the readings of kernel `field` (`field_draws`; its signal std is the size), or, without
+    one, independent per axis and reading. Each reading's marginal is N(0, size^2) per axis either way."""
+    if field is None:
+        return size * rng.standard_normal((count, len(q), 3))
+    return field_draws(q, field, count, rng)
+
+
 def _applied_to_draws(matrix: np.ndarray, z: np.ndarray) -> np.ndarray:
     """matrix (a, b) applied to each draw of z (k, b, c): (k, a, c), as one matrix product (the
     equivalent einsum loops in C without BLAS, about 80x slower at 2000 draws of 1000 readings)."""
