@@ -1,6 +1,8 @@
 """A laser tracker's range/transverse noise: the whitening is S^-1/2, the simulator draws it, and the
 loop closure chooses it by evidence only when the data have it."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -67,7 +69,7 @@ def test_the_simulator_draws_range_and_transverse_noise_of_the_stated_size(tmp_p
     assert np.std(np.linalg.norm(transverse, axis=1)) > 2 * np.std(along)
 
 
-def noise_choice(campaign):
+def noise_choice(campaign, floor=math.inf):
     sensor = campaign.sensors["laser_tracker"]
     registration = fit.registration_stage(campaign, "laser_tracker")
     data = readings(campaign.chain, sensor, "optimization")
@@ -80,7 +82,7 @@ def noise_choice(campaign):
         {"zero_offsets.q1": 0.0},
         poses,
         loop_settings(candidates=(), residual_gp=None),
-        tracker=True,
+        tracker=floor,
     )
 
 
@@ -149,3 +151,17 @@ def test_the_config_turns_the_tracker_noise_off_or_sets_its_prior():
     assert tracker_noise({"enabled": False}).tracker_noise is None
     wide = tracker_noise({"growth_per_m": 0.5, "growth_factor": 10})
     assert wide.tracker_noise == {"growth_per_m": 0.5, "growth_factor": 10.0}
+
+
+def test_a_range_std_above_the_noise_floor_is_model_error_and_not_kept(tmp_path, iiwa):
+    """The tracker's transverse growth found against the floor of its stated range noise (10 um): kept.
+    Against a floor a fifth of that, its range std is 4 x the floor, as where the shape takes up an effect
+    the model lacks: the isotropic noise stays, and the report says why."""
+    campaign, _ = tracker_campaign(tmp_path, iiwa, 2.0)
+    kept = noise_choice(campaign, floor=1e-5).noise
+    assert kept["chosen"] == "range_transverse" and "refused" not in kept and kept["noise_floor_mm"] == 0.01
+    selection = noise_choice(campaign, floor=2e-6)
+    refused = selection.noise
+    assert refused["chosen"] == "isotropic" and refused["log_evidence_gain"] > 5.0
+    assert selection.final.model.noise is None
+    assert "range std" in refused["refused"] and "x the instrument's noise floor (0.002 mm)" in refused["refused"]

@@ -96,7 +96,8 @@ class TruthCheck:
     posterior samples (SI); acceptance: the acceptance test on the validation set (config.yaml's
     settings); elsewhere: at configurations another design measured (`check`'s elsewhere_q), the
     loop model's true error and per-command bound and the zero-offset model's true error (mm,
-    arrays: `error_mm`, `bound_mm`, `paper_error_mm`; `own_outside`: `posterior_outside` there), None
+    arrays: `error_mm`, `bound_mm`, `paper_error_mm`; `determined`: whether predict states the bound as
+    determined; `own_outside`: `posterior_outside` there), None
     without them; own_posterior: what the
     calibration's own posterior expects of the seed-level statistics near the data
     (`own_posterior_expectations`); ranks: simulation-based calibration, the truth's normalized rank
@@ -259,9 +260,15 @@ class _Truth:
 
     def errors(self, q, rng, model: str = "loop") -> tuple[np.ndarray, np.ndarray]:
         """(true error of `remaster predict` (sensor frame) at q (n, N), its per-command 95 % bound), mm."""
+        error, bound, _ = self.predicted(q, rng, model)
+        return error, bound
+
+    def predicted(self, q, rng, model: str = "loop") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`errors` and (n,) bool whether `remaster predict` states each bound as determined (near the
+        data, no held joint moved: its `determined` column)."""
         at = predict(self.calibration, q, model=model, frame="sensor", draws=self.draws, seed=rng)
         error = np.linalg.norm(at[["x", "y", "z"]].to_numpy() - self.true_points(q), axis=1) / 1e-3
-        return error, at["bound95_mm"].to_numpy()
+        return error, at["bound95_mm"].to_numpy(), at["determined"].to_numpy(dtype=bool)
 
     def claims(self, q_domain, probe: Probe) -> dict[str, Claim]:
         """The loop model's workspace claims (registered, without noise) near the data (q_domain)
@@ -334,11 +341,12 @@ class _Truth:
         """`TruthCheck.elsewhere` at configurations q (m, N) rad (drawn after everything else of
         `check`, so that it changes none of it)."""
         q = np.asarray(q, dtype=float)
-        loop_error, loop_bound = self.errors(q, rng)
+        loop_error, loop_bound, determined = self.predicted(q, rng)
         paper_error, _ = self.errors(q, rng, "paper")
         return {
             "error_mm": loop_error,
             "bound_mm": loop_bound,
+            "determined": determined,
             "paper_error_mm": paper_error,
             "own_outside": posterior_outside(self.robot, q, loop_bound, self.draws, rng),
         }

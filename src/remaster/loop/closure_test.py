@@ -59,20 +59,39 @@ def _closure_steps(selection: Selection) -> list[tuple[str, float, int, tuple | 
     return steps
 
 
+def _noise_model(chosen: dict, floor: float | None, measured) -> tuple[float | None, list[str]]:
+    """The chosen noise model's std per axis (m; None for the isotropic noise) at the measured
+    positions (n, 3), and what the certificate warns of it: a range/transverse shape not kept, or one
+    kept whose std per axis is well above the floor."""
+    warnings = []
+    if chosen.get("refused"):
+        warnings.append(f"the laser tracker's range/transverse noise model was not kept: {chosen['refused']}")
+    if chosen.get("chosen") != "range_transverse":
+        return None, warnings
+    rms = noise_floor.range_transverse_rms(chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], measured)
+    if floor is not None and rms > noise_floor.NOISE_MODEL_RATIO * floor:
+        warnings.append(
+            f"the chosen range/transverse noise model's std per axis ({rms / MM:.3g} mm) is "
+            f"{rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
+            "error the model lacks; the closure is tested against the floor"
+        )
+    return rms, warnings
+
+
 def closure_report(
     selection: Selection,
     data: Readings,
     stated_noise: float | None,
     level: float,
-    measured_noise: float | None = None,
+    point_std=None,
 ) -> dict:
     """The closure test after every round (`remaster.loop.noise_floor`) on the optimization readings: the
-    noise floor (stated, repeats, and measured_noise: the per-point std columns' RMS per axis, m),
+    noise floor (stated, repeats, and the instrument's per-point std (n, 3) m or None),
     each round's cross-validated RMS per axis and verdict, each added step's share of the structured
     residual, the final verdict, the chosen noise model's std against the floor, and the warnings
     they call for."""
-    repeats, repeated = noise_floor.repeatability(data.q, data.measured)
-    floor = noise_floor.noise_floor(stated_noise, repeats, measured_noise)
+    floor, repeats, repeated = noise_floor.floor_of(data.q, data.measured, stated_noise, point_std)
+    measured_noise = noise_floor.point_std_rms(point_std)
     steps = _closure_steps(selection)
     in_time = (selection.time_blocked or {}).get("rms_per_axis_mm", {})
     rounds = [
@@ -106,18 +125,8 @@ def closure_report(
             )
             + f"; {SHAPE_OF_THE_DECLARED_ERROR}"
         )
-    noise_model_rms = None
-    chosen = selection.noise or {}
-    if chosen.get("chosen") == "range_transverse":
-        noise_model_rms = noise_floor.range_transverse_rms(
-            chosen["sigma_range_mm"] * MM, chosen["transverse_growth_per_m"], data.measured
-        )
-        if floor is not None and noise_model_rms > noise_floor.NOISE_MODEL_RATIO * floor:
-            warnings.append(
-                f"the chosen range/transverse noise model's std per axis ({noise_model_rms / MM:.3g} mm) is "
-                f"{noise_model_rms / floor:.1f} x the instrument's noise floor ({floor / MM:.3g} mm): it takes up "
-                "error the model lacks; the closure is tested against the floor"
-            )
+    noise_model_rms, said = _noise_model(selection.noise or {}, floor, data.measured)
+    warnings += said
     return {
         "stated_noise_mm": None if stated_noise is None else stated_noise / MM,
         "measured_point_std_mm": None if measured_noise is None else measured_noise / MM,

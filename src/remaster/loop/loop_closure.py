@@ -74,7 +74,7 @@ from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
 from ..robot.priors import priors_from
 from ..units import MM
-from . import harmonics, joint_form, noise_floor
+from . import harmonics, joint_form
 from .closure_test import closure_report, gp_report
 from .fitted import accuracy
 from .harmonics import harmonics_report
@@ -429,7 +429,7 @@ def close_loop(
         fitted,
         sensor.noise,
         settings.closure_level,
-        noise_floor.point_std_rms(sensor.point_std(fitted.rows)),
+        sensor.point_std(fitted.rows),
     )
     gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
     between, model_share = _zero_offset_spreads(screened, closed["closed"], settings)

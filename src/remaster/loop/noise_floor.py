@@ -6,7 +6,8 @@ The noise floor (m, per axis) is what no model of the robot can remove: the sens
 the spread of those repeats (sensor noise and the robot's repeatability together; pooled within-
 configuration standard deviation per axis). It is the largest of those that are known. A noise
 model fitted to the residuals (a tracker's range/transverse shape) is not the floor: its std is
-compared with the floor, and one well above it is model error the noise model took up.
+compared with the floor, and one well above it is model error the noise model took up (a range std
+above NOISE_MODEL_RATIO times the floor: the shape is not kept, `tracker_noise.choose_noise`).
 
 After each round of the loop the residual is measured by its pose-grouped cross-validated RMS per
 axis on the optimization set (held-out poses: an in-sample residual would flatter a larger
@@ -88,6 +89,14 @@ def noise_floor(stated: float | None, repeats: float | None, measured: float | N
     (the RMS per axis of the campaign's `std` columns) that are known (m), else None."""
     known = [v for v in (stated, repeats, measured) if v is not None]
     return max(known) if known else None
+
+
+def floor_of(q, measured, stated: float | None, point_std=None) -> tuple[float | None, float | None, int]:
+    """The noise floor (m per axis) of readings q (n, N) and their measured positions (n, 3): the
+    stated noise, their repeats' spread and the instrument's per-point std (n, 3) or None; with the
+    repeats' spread and how many configurations were repeated."""
+    repeats, repeated = repeatability(q, measured)
+    return noise_floor(stated, repeats, point_std_rms(point_std)), repeats, repeated
 
 
 def point_std_rms(point_std) -> float | None:

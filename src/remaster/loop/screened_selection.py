@@ -18,7 +18,7 @@ from .. import noise
 from ..campaigns.campaign import SETS, SensorData
 from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
-from . import gross
+from . import gross, noise_floor
 from .selection import Selection, select
 from .settings import LoopSettings
 
@@ -67,7 +67,13 @@ def select_screened(
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
         tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
         fitted, fitted_poses, thinning = fitted_rows(data["optimization"], poses["optimization"], settings.fit_rows)
-        selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=tracker)
+        floor = (
+            noise_floor.floor_of(fitted.q, fitted.measured, sensor.noise, sensor.point_std(fitted.rows))[0]
+            if tracker
+            else None
+        )
+        offered = (math.inf if floor is None else floor) if tracker else None
+        selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=offered)
         screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
         found = screens["optimization"].gross
         history.append({"fitted_without": excluded.tolist(), "found": found.tolist()})

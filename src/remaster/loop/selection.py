@@ -9,6 +9,7 @@ range/transverse noise (`tracker_noise`), for what the residual model leaves.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -123,11 +124,12 @@ def select(
     base_held: Mapping[str, float],
     poses,
     settings: LoopSettings,
-    tracker: bool = False,
+    tracker: float | None = None,
 ) -> Selection:
     """Diagnose and decide (`remaster.loop.loop_closure`, steps 1 and 2) on the optimization readings;
-    poses (n,) their pose labels, which make the cross-validation folds; tracker: whether the
-    sensor is a laser tracker, whose range/transverse noise is then offered."""
+    poses (n,) their pose labels, which make the cross-validation folds; tracker: where the sensor is
+    a laser tracker whose range/transverse noise is offered (`choose_noise`), the instrument's noise
+    floor (m; inf when it is not known), else None."""
     folds = selection_folds(poses, settings.cv_folds)
     in_time = TimeBlocked.of(data, poses, settings.cv_folds)
     blocked = in_time.folds if in_time else None
@@ -169,12 +171,13 @@ def select(
     path += removed
     # the tracker's noise shape is chosen after the residual model: before it, an anisotropic noise
     # can take up model error (a joint-space error seen from the tracker head looks transverse)
-    offer_noise = tracker and settings.tracker_noise is not None
+    offer_noise = tracker is not None and settings.tracker_noise is not None
+    floor = tracker if tracker is not None and math.isfinite(tracker) else None
     rotation = current.model.sensor_rotation(current.theta)
     if settings.residual_gp is None or len(np.unique(poses)) < MIN_GP_POSES:
         noise_choice = None
         if offer_noise:
-            current, noise_choice = choose_noise(current, folds, settings)
+            current, noise_choice = choose_noise(current, folds, settings, floor=floor)
             path[-1] = (path[-1][0], current)
             rotation = current.model.sensor_rotation(current.theta)
         time_blocked = in_time.report(path) if in_time else None
@@ -200,9 +203,9 @@ def select(
     if offer_noise:
         hyper = gp.gp.hyper if GP in added else None
         try:
-            current, noise_choice = choose_noise(current, folds, settings, data.q if hyper else None, hyper)
+            current, noise_choice = choose_noise(current, folds, settings, data.q if hyper else None, hyper, floor)
         except np.linalg.LinAlgError as exc:  # the GP-present comparison is not determined: without it, said so
-            current, noise_choice = choose_noise(current, folds, settings)
+            current, noise_choice = choose_noise(current, folds, settings, floor=floor)
             noise_choice["residual_model"] = f"residual_gp added; compared without it: {exc}"
         if noise_choice["chosen"] != "isotropic" and hyper is not None:
             gp = gp_candidate(current, data, current.model.sensor_rotation(current.theta), folds, settings)

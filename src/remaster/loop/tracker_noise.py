@@ -15,6 +15,7 @@ from ..inference.blocks import BlockModel
 from ..inference.gp import with_parameters
 from ..inference.gp.kernels import Hyperparameters
 from ..units import MM
+from . import noise_floor
 from .fitted import Fitted
 from .settings import LoopSettings
 
@@ -27,13 +28,18 @@ def choose_noise(
     settings: LoopSettings,
     q=None,
     hyper: Hyperparameters | None = None,
+    floor: float | None = None,
 ) -> tuple[Fitted, dict]:
     """The current model with a laser tracker's range/transverse noise (`remaster.noise`) against
     its isotropic noise: g at the mode of log Z(g) + log prior(g), the model's evidence with g
     integrated by a Laplace step in log g; taken when it gains `min_log_evidence_gain`. With the
     residual GP added (its hyperparameters `hyper`, readings q (n, N)), every evidence is taken with
     the GP present (`remaster.inference.gp.with_parameters`), so the noise shape is chosen after the residual
-    model, for what the residual model leaves. Returns the chosen fit and a JSON-ready report."""
+    model, for what the residual model leaves. A shape whose range std is above
+    `noise_floor.NOISE_MODEL_RATIO` times the instrument's noise floor `floor` (m; None: not known)
+    took up error the model lacks (a symptom, not the sensor's noise; the transverse std may grow
+    beyond the floor, the range std may not): not kept, and the report says why (`refused`).
+    Returns the chosen fit and a JSON-ready report."""
     import scipy.optimize
 
     prior = settings.tracker_noise
@@ -92,6 +98,15 @@ def choose_noise(
     growth = math.exp(best.x)
     distance = np.linalg.norm(current.model.measured, axis=1)
     chosen = bool(gain > settings.min_log_evidence_gain)
+    refused = None
+    # along the beam no transverse growth widens the noise: a range std above the floor is model error
+    if chosen and floor is not None and mode.sigma > noise_floor.NOISE_MODEL_RATIO * floor:
+        chosen, refused = (
+            False,
+            f"it gains {gain:.1f} nats, but its range std ({mode.sigma / MM:.3g} mm) is {mode.sigma / floor:.1f} x "
+            f"the instrument's noise floor ({floor / MM:.3g} mm): it takes up error the model lacks, not the "
+            "sensor's noise; the isotropic noise is kept",
+        )
     report = {
         "offered": True,
         "compared": "range/transverse (laser tracker) against isotropic",
@@ -114,7 +129,9 @@ def choose_noise(
         * math.sqrt(1.0 + (growth * float(np.median(distance))) ** 2)
         / MM,
         "median_distance_m": float(np.median(distance)),
+        "noise_floor_mm": None if floor is None else floor / MM,
         "chosen": "range_transverse" if chosen else "isotropic",
+        **({"refused": refused} if refused else {}),
         "note": "sigma of the chosen range/transverse model is the range std; the transverse std grows with "
         "the distance from the sensor frame's origin, which must be the tracker head",
     }
