@@ -307,6 +307,8 @@ def group(task: tuple) -> dict:
             "added": added(c),
             "noise": (c.loop.report.noise_model or {}).get("chosen"),
             "noise_refused": "refused" in (c.loop.report.noise_model or {}),
+            # the zero-offset model's provisional gross errors the loop's final screen took back
+            "restored_rows": list((c.loop.report.gross_errors or {}).get("restored", [])),
             "declared_model_error_mm": _in_mm(c.loop.report.declared_model_error("loop")),
             "least_squares_parameters": sources[d]["least_squares_parameters"],
             "check_seconds": checks[d][2],
@@ -441,6 +443,15 @@ def _verdict(record: dict) -> str:
     told = [r for r in farther if not r.get("not_significantly_above_zero_offset", False)]
     # the loop added nothing: the zero-offset model's form, its estimate the loop's refit
     same_form = sum(not effects[(r["arm"], r["truth"], r["calibrated_on"], r["seed"])] for r in farther)
+    restored = {
+        (c["arm"], c["truth"], c["design"], c["seed"]): bool(c.get("restored_rows")) for c in record["campaigns"]
+    }
+    other_rows = sum(
+        restored.get((r["arm"], r["truth"], r["calibrated_on"], r["seed"]), False)
+        and not effects[(r["arm"], r["truth"], r["calibrated_on"], r["seed"])]
+        for r in farther
+    )
+    rows_known = "restored_rows" in record["campaigns"][0] if record["campaigns"] else False
     worst = max((r["loop_rms_mm"] / r["paper_rms_mm"] for r in farther), default=1.0)
     unchanged = [d for d in drifts if not d["truth_changed"]]
     false_drift = [d for d in unchanged if d["zero_offsets_flagged"] or d["loop_flagged"]]
@@ -465,7 +476,14 @@ def _verdict(record: dict) -> str:
         f"({'pass' if ratio == n else 'FAIL'}); below the nominal model on {nominal} of {n} "
         f"({'pass' if nominal == n else 'FAIL'}); no farther than the zero-offset model on {n - len(farther)} of {n} "
         f"({'pass' if not farther else 'FAIL'}: {same_form} of the {len(farther)} misses from a loop that added "
-        f"nothing, the zero-offset model's form refitted; {len(told)} of them farther by more than "
+        f"nothing, the zero-offset model's form refitted"
+        + (
+            f" ({other_rows} of them on other rows: the loop's screen took back rows the zero-offset model's "
+            f"provisional screen left out, in {sum(restored.values())} of the {len(restored)} campaigns)"
+            if rows_known
+            else ""
+        )
+        + f"; {len(told)} of them farther by more than "
         f"{SIGNIFICANT:.0f} standard errors of the rows' paired difference; worst loop / zero-offset {worst:.2f}); "
         f"all three on {met}. "
         f"Drift flagged where the truth did not change: {len(false_drift)} of {len(unchanged)} campaign pairs "

@@ -138,3 +138,19 @@ def test_a_range_transverse_noise_implies_its_rms_per_axis():
     expected = 1e-5 * math.sqrt((11.0 / 3.0 + 5.0 / 3.0) / 2.0)
     assert noise_floor.range_transverse_rms(1e-5, 1.0, points) == pytest.approx(expected, rel=1e-12)
     assert noise_floor.range_transverse_rms(1e-5, 0.0, points) == pytest.approx(1e-5, rel=1e-12)
+
+
+def test_the_certificate_warns_of_a_noise_shape_not_kept_and_of_one_kept_above_the_floor():
+    from remaster.loop import closure_test
+
+    points = np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    refused = {"chosen": "isotropic", "refused": "it takes up error the model lacks"}
+    rms, warnings = closure_test._noise_model(refused, 1e-5, points)
+    assert rms is None and warnings == [
+        "the laser tracker's range/transverse noise model was not kept: it takes up error the model lacks"
+    ]
+    kept = {"chosen": "range_transverse", "sigma_range_mm": 0.01, "transverse_growth_per_m": 1.0}
+    rms, warnings = closure_test._noise_model(kept, 1e-5, points)  # 1.63 x the floor per axis
+    assert rms == pytest.approx(1e-5 * math.sqrt(8.0 / 3.0)) and "1.6 x the instrument's noise floor" in warnings[0]
+    assert closure_test._noise_model(kept, 2e-5, points) == (rms, [])
+    assert closure_test._noise_model({"chosen": "isotropic"}, 1e-5, points) == (None, [])
