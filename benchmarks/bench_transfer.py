@@ -213,17 +213,22 @@ def drift_of(first, second) -> dict:
             identity.robot_identity(c.campaign),
             "laser_tracker",
             c.loop.report.parameters,
+            c.loop.report.closed,
         )
         for c in (first, second)
     ]
-    zero = comparison.drift_between(entries)
-    loop = comparison.loop_parameter_drift(entries)
+    significance = files.read_yaml(REPO / "config.yaml")["comparison"]["significance"]  # as the workflow's
+    zero = comparison.drift_between(entries, significance)
+    loop = comparison.loop_parameter_drift(entries, significance)
     loop = loop[~loop["block"].isin(comparison.SENSOR_BLOCKS + comparison.CAMPAIGN_BLOCKS)]
     out = {}
     for key, table in (("zero_offsets", zero), ("loop", loop)):
         compared = table[table["status"] == "compared"]
         out[f"{key}_compared"] = len(compared)
         out[f"{key}_flagged"] = compared.loc[compared["flagged"], "parameter"].astype(str).tolist()
+        # beyond the threshold, not flagged: a loop that did not close carries what its model lacks
+        beyond = (compared["z"].abs() > significance) & ~compared["flagged"].astype(bool)
+        out[f"{key}_not_attributed"] = compared.loc[beyond, "parameter"].astype(str).tolist()
     # what the workflow's comparison_prediction says: the change of predicted position at configurations
     # inside both campaigns' measured domains, against the two posteriors' own spread
     predicted = api.compare(first, second, settings=files.read_yaml(REPO / "config.yaml"))["prediction_drift"]
@@ -458,6 +463,10 @@ def _verdict(record: dict) -> str:
     remounted = sum("marker remounted" in (d["first"], d["second"]) for d in false_drift)
     changed = [d for d in drifts if d["truth_changed"]]
     seen = sum(bool(d["zero_offsets_flagged"] or d["loop_flagged"]) for d in changed)
+    unattributed = [
+        sum(bool(d.get("zero_offsets_not_attributed") or d.get("loop_not_attributed")) for d in part)
+        for part in (unchanged, changed)
+    ]
     outside = sum(r["outside_share"] > MAX_OUTSIDE for r in pairs)
     claimed = [r for r in pairs if np.isfinite(r.get("outside_determined_share", np.nan))]
     claimed_outside = sum(r["outside_determined_share"] > MAX_OUTSIDE for r in claimed)
@@ -488,7 +497,8 @@ def _verdict(record: dict) -> str:
         f"all three on {met}. "
         f"Drift flagged where the truth did not change: {len(false_drift)} of {len(unchanged)} campaign pairs "
         f"({'pass' if not false_drift else 'FAIL'}; {remounted} of them with the marker remounted, a set-up change); "
-        f"where it changed: {seen} of {len(changed)}.{by_prediction} Transfers with more than {100 * MAX_OUTSIDE:.0f} % of the "
+        f"where it changed: {seen} of {len(changed)}; beyond the stds but not attributed to the robot (a loop that "
+        f"did not close): {unattributed[0]} and {unattributed[1]}.{by_prediction} Transfers with more than {100 * MAX_OUTSIDE:.0f} % of the "
         f"commands outside their bound: {outside} of {n}; of the commands whose bound predict states as determined "
         f"(near the data): {claimed_outside} of the {len(claimed)} transfers with any. Wall time {record['seconds']:.0f} s."
     )

@@ -103,6 +103,7 @@ def compare(*calibrations: Calibration, settings: Mapping[str, Any] | None = Non
             identity.robot_identity(c.campaign),
             c.campaign.sensors[c.sensor].kind,
             c.loop.report.parameters,
+            c.loop.report.closed,
         )
         for c in keyed.values()
     ]

@@ -15,7 +15,11 @@ Two estimates a and b of one zero-offset, from independent fits, are compared by
 
     diff = b - a (deg),   combined = sqrt(std_a^2 + std_b^2),   z = diff / combined,
 
-flagged where |z| > significance. A parameter held at the controller's value (not identifiable)
+flagged where |z| > significance and both campaigns' loops closed (`loops_closed`). Where one did
+not, its model lacks what is left in its residual and its parameters carry that in its own design's
+proportions: two designs of one unchanged robot then differ by more than their stds, and the
+difference is shown (z) but not flagged as the robot's drift (compare what they predict instead,
+`remaster.comparing.predictions`). A parameter held at the controller's value (not identifiable)
 in either fit, or absent from one model (an effect the loop closure added in one campaign only),
 is reported as not comparable, with no numbers.
 """
@@ -38,7 +42,18 @@ from ..loop.result import LoopReport
 
 ESTIMATED = "estimated"
 
-OVER_TIME_COLUMNS = ["campaign", "date", "robot", "sensor", "kind", "parameter", "mean_deg", "std_deg", "status"]
+OVER_TIME_COLUMNS = [
+    "campaign",
+    "date",
+    "robot",
+    "sensor",
+    "kind",
+    "parameter",
+    "mean_deg",
+    "std_deg",
+    "status",
+    "loop_closed",
+]
 _PAIR_COLUMNS = [
     "mean_a_deg",
     "std_a_deg",
@@ -47,6 +62,7 @@ _PAIR_COLUMNS = [
     "diff_deg",
     "combined_std_deg",
     "z",
+    "loops_closed",
     "flagged",
     "status",
 ]
@@ -80,6 +96,7 @@ LOOP_OVER_TIME_COLUMNS = [
     "std",
     "status",
     "effects",
+    "loop_closed",
 ]
 NO_EFFECTS = "none"  # the effects of a loop-closure model that added none (the paper's blocks only)
 _LOOP_PAIR_COLUMNS = [c.removesuffix("_deg") for c in _PAIR_COLUMNS]
@@ -109,7 +126,8 @@ LOOP_AGREEMENT_COLUMNS = [
 
 
 class Entry(NamedTuple):
-    """One sensor's posterior summary (SI) in one campaign; see the module docstring."""
+    """One sensor's posterior summary (SI) in one campaign; see the module docstring. loop_closed: the
+    loop closure's verdict (`LoopReport.closed`; None: not known)."""
 
     campaign: str
     date: str | dt.date
@@ -118,6 +136,7 @@ class Entry(NamedTuple):
     robot: str = ""
     kind: str | None = None
     loop: pd.DataFrame | None = None
+    loop_closed: bool | None = None
 
 
 # --------------------------------------------------------------------------- entries
@@ -203,6 +222,7 @@ def _long_table(entries: Iterable, rows_of, columns: list[str]) -> pd.DataFrame:
                     robot=entry.robot,
                     sensor=entry.sensor,
                     kind=entry.kind,
+                    loop_closed=entry.loop_closed,
                     position=np.arange(len(rows)),
                 )
             )
@@ -228,6 +248,7 @@ def _compare(
     a zero-offset fitted beside other effects is another quantity (compare such models by what
     they predict, `remaster.calibration.prediction`)."""
     differ = None
+    closed = _both_closed(a, b)
     if "effects" in a.columns and "effects" in b.columns and len(a) and len(b):
         effects_a, effects_b = str(a["effects"].iloc[0]), str(b["effects"].iloc[0])
         if effects_a != effects_b:
@@ -262,6 +283,7 @@ def _compare(
                     f"diff{unit}": np.nan,
                     f"combined_std{unit}": np.nan,
                     "z": np.nan,
+                    "loops_closed": closed,
                     "flagged": False,
                     "status": "not comparable: " + "; ".join(why),
                 }
@@ -273,12 +295,25 @@ def _compare(
                     f"diff{unit}": diff,
                     f"combined_std{unit}": combined,
                     "z": diff / combined,
-                    "flagged": bool(abs(diff / combined) > significance),
+                    "loops_closed": closed,
+                    # beyond the stds, but a loop not closed carries what its model lacks: not the robot's
+                    "flagged": bool(abs(diff / combined) > significance) and closed is not False,
                     "status": "compared",
                 }
             )
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _both_closed(a: pd.DataFrame, b: pd.DataFrame) -> bool | None:
+    """Whether both sides' loops closed: False where either did not, None where either is not known."""
+    verdicts = [
+        frame["loop_closed"].iloc[0] if "loop_closed" in frame.columns and len(frame) else None for frame in (a, b)
+    ]
+    verdicts = [None if v is None or (isinstance(v, float) and np.isnan(v)) else bool(v) for v in verdicts]
+    if False in verdicts:
+        return False
+    return None if None in verdicts else True
 
 
 def _described(pairs: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
@@ -459,6 +494,7 @@ def entries_of(
             robot_identity(metadata[campaign]),
             metadata[campaign]["sensors"][sensor]["kind"],
             loops[(campaign, sensor)].parameters if (campaign, sensor) in loops else None,
+            loops[(campaign, sensor)].closed if (campaign, sensor) in loops else None,
         )
         for (campaign, sensor), summary in summaries.items()
     ]

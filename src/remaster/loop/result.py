@@ -131,6 +131,13 @@ class LoopReport:
         """{effect added: 'robot', 'sensor' or 'unattributed'} (`remaster.loop.sides`)."""
         return sides_of(self.effects_added)
 
+    @property
+    def closed(self) -> bool | None:
+        """The closure test's verdict on the final model: its residual down to the noise floor (None
+        where the closure knew no floor)."""
+        value = (self.closure or {}).get("closed")
+        return None if value is None else bool(value)
+
     def declared_model_error(self, model: str) -> float | None:
         """The model error per axis (m) a calibration declares: zero where the closure found the
         loop closed (its residual at the sensor's noise: that is the claim), else the structured

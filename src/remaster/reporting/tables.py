@@ -135,17 +135,18 @@ CAPTIONS = {
     "loop_signatures": "The residual against each candidate effect's signature, first round",
     "loop_residuals": "Post-registration errors before and after the loop closure",
     "zero_offsets_over_time": "Zero-offsets of every campaign and sensor over time (deg; std from the "
-    "pose-clustered sandwich, which includes what the model lacks)",
+    "pose-clustered sandwich, which includes what the model lacks; loop_closed: the loop closure's verdict)",
     "drift_between_campaigns": "Drift of the zero-offsets between consecutive campaigns of the same robot and "
     "sensor kind, in units of their combined uncertainty (pose-clustered sandwich "
-    "stds, which include what the model lacks); flagged where significant.",
+    "stds, which include what the model lacks); flagged where significant and both loops closed (a loop not "
+    "closed carries what its model lacks in its design's proportions: shown, not attributed to the robot).",
     "sensor_agreement": "Agreement of the sensors of each campaign, in units of their combined uncertainty "
-    "(pose-clustered sandwich stds).",
+    "(pose-clustered sandwich stds); flagged where significant and both loops closed.",
     "loop_parameters_over_time": "Loop closure over time: the zero-offsets refitted with the effects the loop "
     "closure added, and those effects' parameters, per campaign and sensor (display "
     "units in column unit).",
     "loop_parameter_drift": "Drift of the loop-closure parameters between consecutive campaigns of the same robot "
-    "and sensor kind, in units of their combined uncertainty; flagged where significant.",
+    "and sensor kind, in units of their combined uncertainty; flagged where significant and both loops closed.",
     "loop_parameter_agreement": "Agreement of the sensors of each campaign on the loop-closure parameters (each "
     "sensor's own marker offset and scale left out).",
     "loop_effects_over_time": "Parameters of the effects the loop closure added, over time",
