@@ -217,7 +217,8 @@ def drift_of(first, second) -> dict:
         )
         for c in (first, second)
     ]
-    significance = files.read_yaml(REPO / "config.yaml")["comparison"]["significance"]  # as the workflow's
+    config = files.read_yaml(REPO / "config.yaml")
+    significance = config["comparison"]["significance"]  # as the workflow's
     zero = comparison.drift_between(entries, significance)
     loop = comparison.loop_parameter_drift(entries, significance)
     loop = loop[~loop["block"].isin(comparison.SENSOR_BLOCKS + comparison.CAMPAIGN_BLOCKS)]
@@ -231,7 +232,7 @@ def drift_of(first, second) -> dict:
         out[f"{key}_not_attributed"] = compared.loc[beyond, "parameter"].astype(str).tolist()
     # what the workflow's comparison_prediction says: the change of predicted position at configurations
     # inside both campaigns' measured domains, against the two posteriors' own spread
-    predicted = api.compare(first, second, settings=files.read_yaml(REPO / "config.yaml"))["prediction_drift"]
+    predicted = api.compare(first, second, settings=config)["prediction_drift"]
     loop_model = predicted[predicted["model"] == "loop"]
     compared = loop_model[loop_model["status"] == "compared"]
     out["prediction_compared"] = len(compared)

@@ -67,12 +67,10 @@ def select_screened(
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
         tracker = sensor.kind == "laser_tracker" and settings.tracker_noise is not None and frame_problem is None
         fitted, fitted_poses, thinning = fitted_rows(data["optimization"], poses["optimization"], settings.fit_rows)
-        floor = (
-            noise_floor.floor_of(fitted.q, fitted.measured, sensor.noise, sensor.point_std(fitted.rows))[0]
-            if tracker
-            else None
-        )
-        offered = (math.inf if floor is None else floor) if tracker else None
+        offered = None  # the tracker's noise shape is offered against its noise floor (inf: not known)
+        if tracker:
+            floor, _, _ = noise_floor.floor_of(fitted.q, fitted.measured, sensor.noise, sensor.point_std(fitted.rows))
+            offered = math.inf if floor is None else floor
         selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=offered)
         screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
         found = screens["optimization"].gross
