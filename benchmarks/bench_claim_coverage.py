@@ -65,7 +65,7 @@ def one_seed(spec: dict, chain, config: dict, sensor: str, seed: int) -> dict:
     truth = files.read_json(folder.parent / "truth.json")  # as data/truth holds it: plain lists
     campaign = folders.read_campaign(folder, repo_root=REPO)
     registered = fit.registration_stage(campaign, sensor)
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     result = loop_closure.loop_closure_stage(
         campaign, sensor, registered, laplace, np.random.default_rng(SEED), settings

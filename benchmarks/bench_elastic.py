@@ -87,7 +87,7 @@ def run(root: Path, mode: str) -> dict:
     try:
         start = time.perf_counter()
         registered = fit.registration_stage(campaign, SENSOR)
-        laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]["alpha"]))
+        laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, config["outliers"]))
         settings = settings_from(
             config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]
         )

@@ -164,7 +164,7 @@ def one(seed: int) -> dict:
             COMPLETE,
         )
         gross = report.gross_errors
-        # the same least squares on the rows the loop's final model kept (the provisional screen of the
+        # the same least squares on the rows the loop's final model kept (the gross-error screen of the
         # zero-offset model may leave out a whole region its error is largest in: shown, not a target)
         on_kept = least_squares_validation(
             campaign,
@@ -245,7 +245,7 @@ def _worst_refused(run: dict) -> str:
 
 
 def _screen(gross: dict) -> str:
-    """The zero-offset model's provisional gross-error screen: rows left out (their regions) / restored."""
+    """The zero-offset model's gross-error screen: rows left out (their regions) / restored."""
     regions = ", ".join(str(r) for r in gross["provisional_regions"]) or "-"
     return f"{gross['provisional']} ({regions}) / {gross['restored']}"
 
@@ -272,7 +272,7 @@ def markdown(record: dict) -> str:
         )
     lines += [
         "",
-        "Least squares, the target's baseline, is fitted on the rows the zero-offset model's provisional gross-error "
+        "Least squares, the target's baseline, is fitted on the rows the zero-offset model's gross-error "
         "screen kept; where that screen left out a whole region (every row it left out the loop's final model "
         "restored), least squares extrapolates to it: the column beside fits the rows the loop's final model kept.",
         "",

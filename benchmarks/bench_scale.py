@@ -94,7 +94,7 @@ def stages(folder: Path, config: dict) -> list[dict]:
     campaign = record("read", measured(folders.read_campaign, folder))
     registration = record("registration", measured(fit.registration_stage, campaign, sensor))
     laplace = LaplaceReport.of(
-        record("laplace", measured(fit.laplace_stage, campaign, sensor, registration, config["outliers"]["alpha"]))
+        record("laplace", measured(fit.laplace_stage, campaign, sensor, registration, config["outliers"]))
     )
     paper = {**config["fit"]["paper"], "samples": PAPER_STEPS, "burn_in": PAPER_STEPS // 2}
     record(

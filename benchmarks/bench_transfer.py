@@ -313,7 +313,7 @@ def group(task: tuple) -> dict:
             "added": added(c),
             "noise": (c.loop.report.noise_model or {}).get("chosen"),
             "noise_refused": "refused" in (c.loop.report.noise_model or {}),
-            # the zero-offset model's provisional gross errors the loop's final screen took back
+            # the zero-offset model's gross errors the loop's final screen took back
             "restored_rows": list((c.loop.report.gross_errors or {}).get("restored", [])),
             "declared_model_error_mm": _in_mm(c.loop.report.declared_model_error("loop")),
             "least_squares_parameters": sources[d]["least_squares_parameters"],
@@ -489,7 +489,7 @@ def _verdict(record: dict) -> str:
         f"nothing, the zero-offset model's form refitted"
         + (
             f" ({other_rows} of them on other rows: the loop's screen took back rows the zero-offset model's "
-            f"provisional screen left out, in {sum(restored.values())} of the {len(restored)} campaigns)"
+            f"screen left out, in {sum(restored.values())} of the {len(restored)} campaigns)"
             if rows_known
             else ""
         )

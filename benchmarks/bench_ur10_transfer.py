@@ -91,7 +91,7 @@ def subsampled(campaign, keep: int, rng: np.random.Generator):
 def target_of(campaign) -> prediction.Calibrated:
     """A series as a transfer's target: its readings and the rows its own zero-offset fit flagged as gross errors."""
     registered = fit.registration_stage(campaign, SENSOR)
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, api.settings()["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, SENSOR, registered, api.settings()["outliers"]))
     return transfer_pairs.target_of(campaign, SENSOR, laplace.outlier_rows)
 
 

@@ -85,7 +85,7 @@ def calibrated(campaign, seed: int) -> dict:
     config = files.read_yaml(REPO / "config.yaml")
     validate(config, str(REPO / "workflow" / "schemas" / "config.schema.yaml"))  # the schema's defaults
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, config["outliers"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     settings = replace(settings, mcmc=None)
     rng = np.random.default_rng(seed)

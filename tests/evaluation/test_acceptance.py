@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from remaster import files, spatial
+from remaster import api, files, spatial
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.arm_kinds import MOTION_CAPTURE, TRACKER, chain_of, iiwa_scenario
 from remaster.campaigns.simulation import frame_distortion, sensor_move, sensor_side
@@ -357,7 +357,7 @@ def accepted(
     campaign = folders.read_campaign(folder, repo_root=REPO)
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, sensor)
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registered, config["outliers"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     settings = dataclasses.replace(settings, candidates=tuple(c for c in settings.candidates if c not in without))
     loop = loop_closure.loop_closure_stage(campaign, sensor, registered, laplace, np.random.default_rng(seed), settings)
@@ -468,7 +468,7 @@ def test_gross_error_rows_of_the_validation_set_are_left_out_and_listed():
     campaign = folders.read_campaign(folder, repo_root=REPO)
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, api.settings()["outliers"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     loop = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(5), settings
@@ -512,7 +512,7 @@ def test_a_campaign_without_a_validation_set_is_not_tested_and_says_so(tmp_path)
     campaign = folders.read_campaign(folder, repo_root=REPO)
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, api.settings()["outliers"]))
     settings = settings_from(config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"])
     loop = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(5), settings

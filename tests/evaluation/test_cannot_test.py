@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import files, spatial
+from remaster import api, files, spatial
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.arm_kinds import TRACKER, chain_of, iiwa_scenario
 from remaster.errors import InputError
@@ -111,7 +111,7 @@ def _campaign(tmp: Path, spec: dict, simulated_campaign, table: pd.DataFrame):
 def _accepted(campaign) -> tuple[Acceptance, LaplaceReport]:
     config = validated_config(files.read_yaml(REPO / "config.yaml"))
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, api.settings()["outliers"]))
     result = acceptance.acceptance_stage(
         campaign,
         "laser_tracker",

@@ -146,7 +146,7 @@ def fitted(name: str, sensor: str, tmp_path_factory):
         campaign = folders.read_campaign(REPO / "data" / "raw" / name, repo_root=REPO)
         config = CONFIG
         registered = fit.registration_stage(campaign, sensor)
-        _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"]["alpha"])
+        _laplace_content[key] = fit.laplace_stage(campaign, sensor, registered, config["outliers"])
         laplace = LaplaceReport.of(_laplace_content[key])
         settings = settings_from(
             config["loop_closure"], config["priors"], config["fit"]["cross_check"], config["outliers"]

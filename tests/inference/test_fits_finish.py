@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster import diagnostics, files
+from remaster import api, diagnostics, files
 from remaster.campaigns.campaign import sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure
 from remaster.inference import fit, identifiability
@@ -395,7 +395,7 @@ def test_the_prepare_stage_finishes_on_the_arms_real_calibrations_meet(kind, tmp
     spec, _, out = simulated(kind)
     campaign = folders.read_campaign(folders.write_campaign(tmp_path / spec["name"], out.metadata, out.tables), REPO)
     for sensor in campaign.sensors:
-        _, content = fit.prepare_stage(campaign, sensor, 0.01)
+        _, content = fit.prepare_stage(campaign, sensor, api.settings()["outliers"])
         laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
         assert set(laplace.held) == HELD.get(kind, {"zero_offsets.q1"})
         assert [s.split(" ")[0] for s in laplace.held_statements] == list(laplace.held)
@@ -412,7 +412,7 @@ def test_the_fit_summary_goes_on_when_the_samplers_disagree():
     from ..conftest import REPO
 
     campaign = folders.read_campaign(REPO / "data" / "raw" / "kuka-twin", repo_root=REPO)
-    registration, content = fit.prepare_stage(campaign, "laser_tracker", 0.01)
+    registration, content = fit.prepare_stage(campaign, "laser_tracker", api.settings()["outliers"])
     registration = fit.Registration.of(registration)
     laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
     model, _, _ = fit.build_model(

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import remaster
-from remaster import files
+from remaster import api, files
 from remaster.campaigns import arm_kinds, folders, scenario
 from remaster.inference import fit, identifiability
 from remaster.inference.blocks import paper_model
@@ -131,7 +131,7 @@ def test_a_campaign_with_its_marker_3_mm_off_axis_is_calibrated_with_joint_7_hel
     workspace, acceptance): no exception, joint 7 held in the zero-offset fit and the loop's refit,
     named with its reason, and the rest of the zero-offsets estimated."""
     campaign = off_axis_campaign(tmp_path)
-    _, content = fit.prepare_stage(campaign, "laser_tracker", 0.01)
+    _, content = fit.prepare_stage(campaign, "laser_tracker", api.settings()["outliers"])
     laplace = LaplaceReport.of(json.loads(json.dumps(files.plain(content))))
     assert set(laplace.held) == {"zero_offsets.q1", Q7}
     assert laplace.held_reasons[Q7].startswith("not determined: std")

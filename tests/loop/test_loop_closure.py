@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from remaster import files
+from remaster import api, files
 from remaster.campaigns import folders, scenario
 from remaster.campaigns.campaign import SETS, sensor_data
 from remaster.campaigns.simulation import Sensor, TrueRobot, looking_at, measure, true_chain
@@ -484,7 +484,7 @@ def test_a_campaign_of_six_optimization_rows_keeps_the_zero_offset_model_and_say
     campaign = folders.read_campaign(folders.write_campaign(tmp_path / "six-rows", out.metadata, out.tables), REPO)
     assert (campaign.sensors["laser_tracker"].table["set"] == "optimization").sum() == 6
     registered = fit.registration_stage(campaign, "laser_tracker")
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, 0.01))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, "laser_tracker", registered, api.settings()["outliers"]))
     assert len(laplace.outlier_rows) == 0 and "too few data to screen, every point kept" in caplog.text
     report = loop_closure.loop_closure_stage(
         campaign, "laser_tracker", registered, laplace, np.random.default_rng(0), LAPLACE_ONLY

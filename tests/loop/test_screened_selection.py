@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from remaster.loop import gross, screened_selection
+from remaster.inference import gross_errors
+from remaster.loop import screened_selection
 
 
 class _Readings:
@@ -72,11 +73,11 @@ def test_a_screen_out_of_refits_flags_what_its_final_model_was_fitted_without(st
     accuracy is taken on) are the final model's, and the warning names both lists apart."""
     stand_ins.finds = lambda fit: [fit + 1]
     screened = _run()
-    assert len(stand_ins.fits) == gross.MAX_ROUNDS and not screened.settled
-    assert screened.flagged["optimization"].tolist() == stand_ins.fits[-1] == [gross.MAX_ROUNDS - 1]
-    assert gross.MAX_ROUNDS - 1 not in screened.data["optimization"].rows.tolist()
+    assert len(stand_ins.fits) == gross_errors.MAX_ROUNDS and not screened.settled
+    assert screened.flagged["optimization"].tolist() == stand_ins.fits[-1] == [gross_errors.MAX_ROUNDS - 1]
+    assert gross_errors.MAX_ROUNDS - 1 not in screened.data["optimization"].rows.tolist()
     warning = screened_selection.gross_warnings(screened.flagged, screened.screens, screened.settled)
     assert warning == [
-        f"the gross-error screen did not settle: the final model, fitted without rows [{gross.MAX_ROUNDS - 1}], "
-        f"finds rows [{gross.MAX_ROUNDS}]"
+        f"the gross-error screen did not settle: the final model, fitted without rows [{gross_errors.MAX_ROUNDS - 1}], "
+        f"finds rows [{gross_errors.MAX_ROUNDS}]"
     ]

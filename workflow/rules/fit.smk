@@ -23,7 +23,7 @@ rule prepare:
         mem_mb=campaign_mem_mb,
         runtime=runtime_minutes(1),
     params:
-        outlier_alpha=config["outliers"]["alpha"],
+        outliers=config["outliers"],
     script:
         "../scripts/prepare.py"
 

@@ -12,7 +12,7 @@ snakemake: Snakemake = globals()["snakemake"]
 with files.log_to(snakemake.log[0]):
     campaign = folders.read_campaign(folders.campaign_folder(snakemake.input.campaign))
     registration, laplace = api.stages.register_and_fit_laplace(
-        campaign, snakemake.wildcards.sensor, snakemake.params.outlier_alpha
+        campaign, snakemake.wildcards.sensor, snakemake.params.outliers
     )
     files.write_json(snakemake.output.registration, registration)
     files.write_json(snakemake.output.laplace, laplace)

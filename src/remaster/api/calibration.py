@@ -155,7 +155,7 @@ def _stages(
 ) -> Calibration:
     """The stages of `calibrate` with their random streams (stream(stage)) and the workspace's propagation."""
     registration = fit.registration_stage(campaign, sensor)
-    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registration, config["outliers"]["alpha"]))
+    laplace = LaplaceReport.of(fit.laplace_stage(campaign, sensor, registration, config["outliers"]))
     settings = loop_settings.from_config(config)
     settings = replace(settings, candidates=tuple(c for c in settings.candidates if c not in without))
     closed = loop_closure.loop_closure_stage(campaign, sensor, registration, laplace, stream("loop_closure"), settings)

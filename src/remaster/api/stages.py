@@ -22,7 +22,7 @@ reading its inputs and writing its outputs. In the pipeline's order:
 
     from remaster import api
 
-    registration, laplace = api.stages.register_and_fit_laplace(campaign, "laser_tracker", outlier_alpha)
+    registration, laplace = api.stages.register_and_fit_laplace(campaign, "laser_tracker", config["outliers"])
 
 Each workflow job is a fresh Python process, and the stages' modules are heavy (SciPy, Numba,
 Matplotlib): a name is imported from its module on first use only (then kept here), so that a job

@@ -33,7 +33,7 @@ from ..files import read_json
 from ..robot import registration
 from ..robot.kinematics import ForwardKinematics, KinematicChain
 from ..spatial import transform_points
-from . import identifiability, metrics
+from . import gross_errors, identifiability, metrics
 from .blocks import BlockModel, paper_model
 from .laplace_report import LaplaceReport, laplace_fit, laplace_report, orientation_added
 from .least_squares import least_squares_mode
@@ -188,10 +188,10 @@ def flag_outliers(model: BlockModel, alpha: float) -> np.ndarray:
     |E_i| > sigma_r sqrt(chi2_3 quantile at 1 - alpha / n) (Bonferroni). The robust loss keeps one
     glitch of several mm from dragging the fit towards it.
 
-    Provisional: judged by the zero-offset model, whose residuals are not Gaussian where it lacks an
-    effect, so it flags good rows there and can miss a glitch behind the model's error. Its rows
-    stay out of the paper model's fit only; the loop closure screens every row again with its final
-    model (`remaster.loop.gross`), and that screen's rows are the gross errors listed."""
+    Provisional: a robust scale of residuals that are not noise where the model lacks an effect
+    flags good rows there. Its rows are where `screened_rows` starts (the fit's own Beta/F screen,
+    which restores them), and the loop closure screens every row again with its final model
+    (`remaster.loop.gross`), whose rows are the gross errors listed."""
     import scipy.optimize
     import scipy.special
 
@@ -250,15 +250,51 @@ def _model(campaign: Campaign, sensor: str, registration: Registration, exclude=
     )
 
 
-def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outlier_alpha: float) -> dict:
-    """Outlier screening, identifiability analysis and least-squares/Laplace fit of one sensor,
-    JSON-ready. The screen is provisional (`flag_outliers`): its rows are left out of the paper
-    model's fit and listed; the loop closure starts without them and screens every row again."""
-    model, _, _ = _model(campaign, sensor, registration)
-    outliers = flag_outliers(model, outlier_alpha)
+def screened_rows(chain: KinematicChain, data: SensorData, t_nr, outliers: Mapping[str, float]):
+    """(the optimization rows of one sensor the zero-offset model leaves out as gross errors, the
+    screen's record for fit/laplace.json); t_nr (4, 4) the initial registration, outliers the
+    config's `outliers` (alpha, max_share). The robust screen (`flag_outliers`) gives where it starts; then the
+    zero-offset model's least-squares fit of the points judges every optimization row by the rule the
+    loop closure's final screen applies (`gross_errors.least_squares_screen`: Beta/F laws, isolated
+    rows only), refitted without the rows it finds until they are the rows it left out. A robust
+    scale of residuals that are not noise (an effect the model lacks) flags good rows, which the
+    fit's own sum of squares does not."""
+    alpha, max_share = float(outliers["alpha"]), float(outliers["max_share"])
+    provisional = flag_outliers(build_model(chain, data, t_nr)[0], alpha)
+    every, _, _ = build_model(chain, data, t_nr, orientation=False)
+    poses = data.table.loc[every.data.rows, "pose"].to_numpy()
+    minimum = len(every.names) + 1  # residual components a fit of the points needs beyond its parameters
+
+    def fit_and_screen(excluded):
+        points, _, _ = build_model(chain, data, t_nr, exclude=excluded, orientation=False)
+        screen = gross_errors.least_squares_screen(points, laplace_fit(points), every.data, poses, alpha, max_share)
+        found = screen.gross
+        if 3 * (every.n_points - len(found)) <= minimum:
+            found = found[:0]  # leaving them out would leave the fit undetermined (as `flag_outliers`)
+        return screen, found
+
+    turns = gross_errors.settle(fit_and_screen, provisional)
+    record = {
+        "robust_screen": [int(r) for r in provisional],
+        "method": gross_errors.LEAST_SQUARES_METHOD,
+        "isolated": gross_errors.ISOLATED,
+        "alpha": alpha,
+        "max_share": max_share,
+        **turns.report(),
+        "screen": turns.fit.report(),
+    }
+    return turns.excluded, record
+
+
+def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outliers: Mapping[str, float]) -> dict:
+    """Gross-error screening (`screened_rows`), identifiability analysis and least-squares/Laplace
+    fit of one sensor, JSON-ready; outliers: the config's `outliers` (alpha, max_share). The rows
+    screened out are left out of the paper model's fit and listed; the loop closure starts without
+    them and screens every row again with its final model."""
+    outliers, screen = screened_rows(campaign.chain, campaign.sensors[sensor], registration.t_nr, outliers)
     if len(outliers):
         log.warning(
-            "%s: %d points flagged provisionally as gross errors (zero-offset model) and left out of its fit: rows %s",
+            "%s: %d points flagged as gross errors by the zero-offset model and left out of its fit: rows %s",
             sensor,
             len(outliers),
             outliers.tolist(),
@@ -270,6 +306,7 @@ def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, o
     model = balanced_orientation(model)
     result = laplace_fit(model)
     report = laplace_report(result, analysis, excluded, outliers, model)
+    report["outlier_screen"] = screen
     if model.has_orientation:
         points, points_analysis, _ = build_model(
             campaign.chain, campaign.sensors[sensor], registration.t_nr, exclude=outliers, orientation=False
@@ -307,9 +344,9 @@ def sampling_stage(
     return results
 
 
-def prepare_stage(campaign: Campaign, sensor: str, outlier_alpha: float) -> tuple[dict, dict]:
+def prepare_stage(campaign: Campaign, sensor: str, outliers: Mapping[str, float]) -> tuple[dict, dict]:
     """(registration.json, laplace.json) contents of one sensor: the initial registration, then the
     outlier screen, identifiability analysis and Laplace fit from it. The fit starts from the
     registration as its file holds it (`Registration.of(report)`), so the two files always agree."""
     registration = registration_stage(campaign, sensor).report()
-    return registration, laplace_stage(campaign, sensor, Registration.of(registration), outlier_alpha)
+    return registration, laplace_stage(campaign, sensor, Registration.of(registration), outliers)

@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import noise
 from ..campaigns.campaign import SETS, SensorData
+from ..inference import gross_errors
 from ..inference.readings import Readings, readings
 from ..robot.kinematics import KinematicChain
 from . import gross, noise_floor
@@ -28,7 +29,7 @@ class Screened:
     """Steps 1-2 made without exactly the rows their own final model flags as gross errors.
     selection: the selection; data, poses: {set: readings, pose labels} without the flagged rows;
     every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
-    screens: {set: `gross.Screen`}; provisional: the prepare stage's rows; history: the screen's
+    screens: {set: `gross_errors.Screen`}; provisional: the prepare stage's rows; history: the screen's
     rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
     noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
     optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or one
@@ -43,7 +44,7 @@ class Screened:
     every: dict[str, Readings]
     every_poses: dict[str, np.ndarray]
     flagged: dict[str, np.ndarray]
-    screens: dict[str, gross.Screen]
+    screens: dict[str, gross_errors.Screen]
     provisional: np.ndarray
     history: list[dict]
     settled: bool
@@ -60,8 +61,9 @@ def select_screened(
     every = {s: readings(chain, sensor, s, settings.model) for s in SETS}
     every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
     provisional = np.sort(np.asarray(exclude, dtype=int))
-    excluded, screens, history, settled = provisional, {}, [], False
-    for round_ in range(gross.MAX_ROUNDS):
+    screens = {}
+
+    def fit_and_screen(excluded):
         data = {s: readings(chain, sensor, s, settings.model, excluded) for s in SETS}
         poses = {s: sensor.table.loc[data[s].rows, "pose"].to_numpy() for s in SETS}
         frame_problem = noise.frame_problem(t_nr, data["optimization"].measured)
@@ -73,16 +75,10 @@ def select_screened(
             offered = math.inf if floor is None else floor
         selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=offered)
         screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
-        found = screens["optimization"].gross
-        history.append({"fitted_without": excluded.tolist(), "found": found.tolist()})
-        if np.array_equal(found, excluded):
-            settled = True
-            break
-        if any(np.array_equal(found, np.asarray(h["fitted_without"], dtype=int)) for h in history):
-            break  # the screen turns in a cycle: the last fit stands, and the report says so
-        if round_ == gross.MAX_ROUNDS - 1:
-            break  # no refit is left: the rows flagged stay the ones the final model was fitted without
-        excluded = found
+        return (selection, data, poses, fitted, fitted_poses, thinning, frame_problem), screens["optimization"].gross
+
+    turns = gross_errors.settle(fit_and_screen, provisional)
+    (selection, data, poses, fitted, fitted_poses, thinning, frame_problem), excluded = turns.fit, turns.excluded
     # the validation set is screened here, with the final model, after every choice has been made
     screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
     flagged = {"optimization": excluded, "validation": screens["validation"].gross}
@@ -100,8 +96,8 @@ def select_screened(
         flagged,
         screens,
         provisional,
-        history,
-        settled,
+        turns.history,
+        turns.settled,
         frame_problem,
     )
 
@@ -135,7 +131,7 @@ def fitted_rows(data: Readings, poses, limit: int) -> tuple[Readings, np.ndarray
     return data.subset(keep), poses[keep], record
 
 
-def _screen(selection: Selection, fitted: Readings, every, every_poses, set_name: str, settings) -> gross.Screen:
+def _screen(selection: Selection, fitted: Readings, every, every_poses, set_name: str, settings) -> gross_errors.Screen:
     """Every measured row of one set judged by the selection's final model (`remaster.loop.gross`),
     fitted on the readings `fitted`."""
     level = settings.gross_errors
@@ -152,7 +148,7 @@ def _screen(selection: Selection, fitted: Readings, every, every_poses, set_name
 
 def gross_report(
     flagged: Mapping[str, np.ndarray],
-    screens: Mapping[str, gross.Screen],
+    screens: Mapping[str, gross_errors.Screen],
     provisional: np.ndarray,
     history: list[dict],
     settled: bool,
@@ -161,7 +157,7 @@ def gross_report(
 ) -> dict:
     """loop_closure.json's `gross_errors`: the table rows flagged in each set ('optimization': the
     rows the final model was fitted without; 'validation'), the level, the rule, each set's screen
-    (`gross.Screen.report`), the prepare stage's provisional rows and which of them the final model
+    (`gross_errors.Screen.report`), the prepare stage's provisional rows and which of them the final model
     restored (or which it added), the screen's rounds, and the accuracy with the flagged rows."""
     final = set(flagged["optimization"].tolist())
     return {
@@ -170,7 +166,7 @@ def gross_report(
         "alpha": float(level["alpha"]),
         "max_share": float(level["max_share"]),
         "method": gross.METHOD,
-        "isolated": gross.ISOLATED,
+        "isolated": gross_errors.ISOLATED,
         "screens": {s: screen.report() for s, screen in screens.items()},
         "provisional": [int(r) for r in provisional],
         "restored": sorted(int(r) for r in provisional if int(r) not in final),
@@ -181,7 +177,9 @@ def gross_report(
     }
 
 
-def gross_warnings(flagged: Mapping[str, np.ndarray], screens: Mapping[str, gross.Screen], settled: bool) -> list[str]:
+def gross_warnings(
+    flagged: Mapping[str, np.ndarray], screens: Mapping[str, gross_errors.Screen], settled: bool
+) -> list[str]:
     """What the screen with the final model says beyond its lists (which the certificate gives with
     the accuracy with and without the rows): a set whose many rows beyond the threshold are a
     systematic departure, and a screen that did not settle."""

@@ -553,7 +553,7 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
     """The rows the loop closure's final model flagged as gross errors (loop_closure.json
     `gross_errors`), in each set: the optimization rows left out of the loop's fit, the validation
     rows with every validation mean error before/after with them and without them; and the
-    zero-offset model's provisional rows (fit/laplace.json) that the final model restored."""
+    zero-offset model's rows (fit/laplace.json) that the final model restored."""
     found = inputs.loop.gross_errors
     provisional = list(inputs.laplace.outlier_rows)
     out = []
@@ -566,7 +566,7 @@ def gross_error_warnings(label: str, inputs: CertificateInputs) -> list[str]:
     restored = [r for r in provisional if r not in optimization]
     if restored:
         out.append(
-            f"{label}: the zero-offset model's provisional screen left rows {restored} out of its own fit; the "
+            f"{label}: the zero-offset model's screen left rows {restored} out of its own fit; the "
             "final model finds them within the threshold and restored them in the loop closure"
         )
     if validation:

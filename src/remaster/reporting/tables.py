@@ -341,7 +341,7 @@ def registration_params_table(summaries: dict[str, pd.DataFrame], fits: dict[str
     """Table MLE_other_params: registration corrections and sigma, MLE and std per sensor, in
     the paper's row order; with `fits` (sensor -> `laplace_report.LaplaceReport`), three more rows: points
     fitted, points without a measurement and points flagged as gross errors by the zero-offset
-    model's provisional screen (both left out of this fit; the final list is the loop closure's)."""
+    model's screen (both left out of this fit; the final list is the loop closure's)."""
     summaries = {sensor: by_parameter(summaries[sensor]) for sensor in paper_order(summaries)}
     rows = []
     for name, label in REGISTRATION_ROWS:
