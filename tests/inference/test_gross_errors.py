@@ -3,33 +3,18 @@ prepare stage (`fit.screened_rows`): on a campaign whose zero-offset model lacks
 screen flags good rows and the fit's own Beta/F screen restores them; glitches of 2-5 mm injected
 by the simulator (rows recorded in its truth) are found; the turns stop at a cycle."""
 
-import copy
-
 import numpy as np
 
-from remaster import api, files
+from remaster import api
 from remaster.campaigns import folders, scenario
 from remaster.inference import fit, gross_errors
 
 from ..conftest import REPO
-
-OFFSETS_DEG = [0.35, -0.21, 0.12, 0.18, -0.27, 0.09, 0.62]
-COMPLIANCE = {
-    "joint_compliance": [0.0, 2.5e-5, 0.0, 3.0e-5, 0.0, 5.0e-5, 0.0],
-    "payload": {"mass": 2.5, "com": [0, 0, 0.03]},
-}
+from ..loop.test_gross_errors import COMPLIANCE, _spec
 
 
 def _campaign(tmp_path, seed: int, truth=None, glitches=None):
-    spec = files.read_yaml(REPO / "data" / "simulation" / "kuka-compliance.yaml")
-    spec["seed"] = seed
-    spec["plan"]["sets"] = {
-        "optimization": {"poses": 12, "configurations": 60},
-        "validation": {"poses": 8, "configurations": 40},
-    }
-    spec["truth"] = {"zero_offsets_deg": OFFSETS_DEG, **(truth or {})}
-    if glitches is not None:
-        spec["sensors"]["laser_tracker"]["gross_errors"] = copy.deepcopy(glitches)
+    spec = _spec(seed, truth, glitches)
     out = scenario.simulate(spec, folders.read_campaign(REPO / "data" / "raw" / "kuka-compliance", REPO).chain)
     folder = folders.write_campaign(tmp_path / str(seed) / spec["name"], out.metadata, out.tables)
     return folders.read_campaign(folder, REPO), out.truth

@@ -69,6 +69,12 @@ class Screen:
     scale: float
     law: str
 
+    @classmethod
+    def pending(cls, set_name: str, rows, poses, fitted, error, alpha: float, max_share: float) -> Screen:
+        """The set's rows before they are judged: distances and thresholds still empty."""
+        nothing = np.empty(0)
+        return cls(set_name, rows, np.asarray(poses), fitted, error, nothing, nothing, alpha, max_share, math.nan, "")
+
     @property
     def beyond(self) -> np.ndarray:
         """(n,) rows beyond the threshold."""
@@ -145,20 +151,7 @@ class Screen:
 
 def empty_screen(set_name: str, rows, poses, alpha: float, max_share: float) -> Screen:
     """The screen of a set without measured rows."""
-    nothing = np.empty(0)
-    return Screen(
-        set_name,
-        rows,
-        np.asarray(poses),
-        nothing.astype(bool),
-        nothing,
-        nothing,
-        nothing,
-        alpha,
-        max_share,
-        math.nan,
-        "",
-    )
+    return Screen.pending(set_name, rows, poses, np.empty(0, dtype=bool), np.empty(0), alpha, max_share)
 
 
 def beta_quantile(a: float, b: float, upper: float) -> float:
@@ -249,19 +242,7 @@ def least_squares_screen(fitted_model, result, every, poses, alpha: float, max_s
     sum_squares = 2.0 * result.cost
     s2 = sum_squares / dof if dof > 0 else math.nan
     hat = leverage(model, theta, result.covariance) / s2 if dof > 0 else np.zeros((len(every.rows), 3, 3))
-    judged = Screen(
-        "optimization",
-        every.rows,
-        np.asarray(poses),
-        is_fitted,
-        np.linalg.norm(raw, axis=1),
-        np.empty(0),
-        np.empty(0),
-        alpha,
-        max_share,
-        math.nan,
-        "",
-    )
+    judged = Screen.pending("optimization", every.rows, poses, is_fitted, np.linalg.norm(raw, axis=1), alpha, max_share)
     return studentized(judged, model.whitened(raw), hat, sum_squares, dof)
 
 

@@ -89,17 +89,5 @@ def screen(selection, fitted: Readings, data: Readings, poses, set_name: str, al
     hat = leverage(model, final.theta, covariance) / mode.sigma**2
     own = mode.jacobian.reshape(-1, 3, mode.jacobian.shape[1])
     used = float(np.einsum("nip,pq,niq->", own, covariance, own) / mode.sigma**2)  # tr H over the fitted rows
-    judged = Screen(
-        set_name,
-        data.rows,
-        np.asarray(poses),
-        is_fitted,
-        np.linalg.norm(raw, axis=1),
-        np.empty(0),
-        np.empty(0),
-        alpha,
-        max_share,
-        math.nan,
-        "",
-    )
+    judged = Screen.pending(set_name, data.rows, poses, is_fitted, np.linalg.norm(raw, axis=1), alpha, max_share)
     return studentized(judged, model.whitened(raw), hat, mode.sum_squares, mode.n_residuals - used)
