@@ -237,8 +237,10 @@ def drift_of(first, second) -> dict:
     compared = loop_model[loop_model["status"] == "compared"]
     out["prediction_compared"] = len(compared)
     out["prediction_flagged"] = bool(compared["flagged"].any())
-    out["prediction_mean_mm"] = float(compared["mean_mm"].iloc[0]) if len(compared) else float("nan")
-    out["prediction_null_p95_mm"] = float(compared["null_p95_of_mean_mm"].iloc[0]) if len(compared) else float("nan")
+    out["prediction_mean_mm"] = float(compared["aligned_mean_mm"].iloc[0]) if len(compared) else float("nan")
+    out["prediction_null_p95_mm"] = (
+        float(compared["null_p95_of_aligned_mean_mm"].iloc[0]) if len(compared) else float("nan")
+    )
     return out
 
 
@@ -387,7 +389,7 @@ def _prediction_flagged(part: list[dict]) -> str:
 def _drift_lines(drifts: list[dict]) -> list[str]:
     lines = [
         "| arm | truth | campaigns | truth changed | seeds | zero-offsets flagged | loop parameters flagged | "
-        "predicted positions flagged (mean change, mm: per seed) |",
+        "predicted positions flagged (mean change left after the best rigid motion / its null p95, mm: per seed) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     keys = list(dict.fromkeys((d["arm"], d["truth"], d["first"], d["second"]) for d in drifts))

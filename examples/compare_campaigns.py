@@ -40,7 +40,11 @@ def main() -> None:
     print(offsets[["parameter", "unit", "diff", "combined_std", "z", "flagged"]].round(4).to_string(index=False))
     predicted = tables["prediction_drift"]
     print("predicted positions, drift across the joint space:")
-    print(predicted[["model", "mean_mm", "p95_mm", "null_p95_of_mean_mm", "flagged"]].round(4).to_string(index=False))
+    print(
+        predicted[["model", "mean_mm", "p95_mm", "aligned_mean_mm", "null_p95_of_aligned_mean_mm", "flagged"]]
+        .round(4)
+        .to_string(index=False)
+    )
 
 
 if __name__ == "__main__":

@@ -35,8 +35,9 @@ PREDICTION_NOTES = (
     "the calibration fitted that campaign's set-up). The nominal rows are the robot as the controller knows it.",
     "Drift and agreement by prediction: the change of predicted marker position (robot frame) over one fixed "
     "set of random configurations of the robot, at the posterior means (mean_mm, p95_mm). It is flagged when "
-    "its mean exceeds null_p95_of_mean_mm, the 95th percentile of the same mean under posterior uncertainty "
-    "alone: unlike the parameter tables, it stays meaningful between models of different effects.",
+    "what is left of it after the rigid motion that best aligns the two (aligned_mean_mm: a re-registration "
+    "absorbs the rest) exceeds null_p95_of_aligned_mean_mm, the 95th percentile of the same under posterior "
+    "uncertainty alone: unlike the parameter tables, it stays meaningful between models of different effects.",
 )
 
 
