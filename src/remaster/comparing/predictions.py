@@ -7,8 +7,7 @@ calibrations differ by what their priors say, not by what the robot did; a pair 
 not meet is not compared (`status` says so). Nearness takes each joint on the circle (a campaign
 that read q1 one turn from the other's measured the same configurations) but, per model, the
 joints the model corrects in proportion to the reading (a joint scale): there a turn is not
-measured. The agreement of one campaign's sensors is compared over the robot's one fixed set of
-random configurations.
+measured. The agreement of one campaign's sensors is compared inside both sensors' domains too.
 
 Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
 d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q, in the robot
@@ -37,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from .. import identity, seeding
-from ..calibration.prediction import MODELS, Calibrated, Calibration, robot_configurations
+from ..calibration.prediction import MODELS, Calibrated, Calibration
 from ..errors import InputError
 from ..inference import metrics
 from ..inference.parameter_blocks import block_parameters
@@ -251,36 +250,7 @@ def prediction_drift(
             "date_b": b.date,
             "sensor_b": b.sensor.name,
         }
-        shared: dict[tuple, np.ndarray] = {}  # by the models' linear joints: most models share their configurations
-        for model in _compared_models(a, b):
-            key = (a.models[model].linear_joints, b.models[model].linear_joints)
-            if key not in shared:
-                shared[key] = shared_configurations(a, b, n_configurations, seed, model)
-            q = shared[key]
-            if len(q) >= MIN_SHARED_CONFIGURATIONS:
-                robot_a, robot_b = _without_set_up(a), _without_set_up(b)
-                rows += _pair_rows(robot_a, robot_b, q, a.sensor.marker, draw_pairs, seed, labels, (model,))
-                continue
-            status = (
-                f"not compared: {len(q)} configurations inside both campaigns' measured domains (fewer than "
-                f"{MIN_SHARED_CONFIGURATIONS}): where one campaign did not measure, its calibration is its priors'"
-            )
-            rows.append(
-                {
-                    **labels,
-                    "model": model,
-                    "effects_a": a.models[model].effects,
-                    "effects_b": b.models[model].effects,
-                    "count": len(q),
-                    "mean_mm": np.nan,
-                    "p95_mm": np.nan,
-                    "draw_pairs": 0,
-                    "aligned_mean_mm": np.nan,
-                    "null_p95_of_aligned_mean_mm": np.nan,
-                    "flagged": False,
-                    "status": status,
-                }
-            )
+        rows += _rows_in_both_domains(a, b, a.sensor.marker, (n_configurations, seed, draw_pairs), labels)
     return _table(rows, DRIFT_COLUMNS)
 
 
@@ -288,18 +258,16 @@ def prediction_agreement(
     entries: Iterable[Calibrated], n_configurations: int = 1000, seed: int = 0, draw_pairs: int = 200
 ) -> pd.DataFrame:
     """The sensors' agreement within each campaign (pairs as `comparison.sensor_agreement` makes
-    them) as the difference of predicted positions, robot frame, at the robot's fixed random
-    configurations, per model. The point is the midpoint of the two sensors' nominal markers,
+    them) as the difference of predicted positions, robot frame, at configurations inside both
+    sensors' measured domains (as `prediction_drift`: elsewhere two calibrations differ by what
+    their priors say), per model. The point is the midpoint of the two sensors' nominal markers,
     and each sensor's set-up is left out (`_without_set_up`): each sensor has its own marker, and
     the comparison is of the robot. Columns AGREEMENT_COLUMNS (mm)."""
     entries = list(entries)
     frame = _entries_frame(entries)
-    rows, configurations = [], {}
+    rows = []
     for a_rows, b_rows in comparison.sensor_pairs(frame):
         a, b = entries[int(a_rows["entry"].iloc[0])], entries[int(b_rows["entry"].iloc[0])]
-        if a.robot not in configurations:
-            configurations[a.robot] = robot_configurations(a.chain, a.robot, n_configurations, seed)
-        a, b = _without_set_up(a), _without_set_up(b)
         labels = {
             "campaign": a.campaign,
             "date": a.date,
@@ -308,8 +276,48 @@ def prediction_agreement(
             "sensor_b": b.sensor.name,
         }
         marker = (np.asarray(a.sensor.marker) + np.asarray(b.sensor.marker)) / 2.0
-        rows += _pair_rows(a, b, configurations[a.robot], marker, draw_pairs, seed, labels)
+        rows += _rows_in_both_domains(a, b, marker, (n_configurations, seed, draw_pairs), labels)
     return _table(rows, AGREEMENT_COLUMNS)
+
+
+def _rows_in_both_domains(
+    a: Calibrated, b: Calibrated, marker, sizes: tuple[int, int, int], labels: dict
+) -> list[dict]:
+    """One row per model both entries have, compared at configurations inside both entries' measured
+    domains (`shared_configurations`; sizes: n_configurations, seed, draw_pairs), each entry's
+    set-up left out (`_without_set_up`); fewer than MIN_SHARED_CONFIGURATIONS there: not compared."""
+    n_configurations, seed, draw_pairs = sizes
+    rows, robot_a, robot_b = [], _without_set_up(a), _without_set_up(b)
+    shared: dict[tuple, np.ndarray] = {}  # by the models' linear joints: most models share their configurations
+    for model in _compared_models(a, b):
+        key = (a.models[model].linear_joints, b.models[model].linear_joints)
+        if key not in shared:
+            shared[key] = shared_configurations(a, b, n_configurations, seed, model)
+        q = shared[key]
+        if len(q) >= MIN_SHARED_CONFIGURATIONS:
+            rows += _pair_rows(robot_a, robot_b, q, marker, draw_pairs, seed, labels, (model,))
+            continue
+        status = (
+            f"not compared: {len(q)} configurations inside both measured domains (fewer than "
+            f"{MIN_SHARED_CONFIGURATIONS}): where one did not measure, its calibration is its priors'"
+        )
+        rows.append(
+            {
+                **labels,
+                "model": model,
+                "effects_a": a.models[model].effects,
+                "effects_b": b.models[model].effects,
+                "count": len(q),
+                "mean_mm": np.nan,
+                "p95_mm": np.nan,
+                "draw_pairs": 0,
+                "aligned_mean_mm": np.nan,
+                "null_p95_of_aligned_mean_mm": np.nan,
+                "flagged": False,
+                "status": status,
+            }
+        )
+    return rows
 
 
 def _without_set_up(entry: Calibrated) -> Calibrated:
@@ -378,5 +386,5 @@ CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "exceeds the 95th percentile of its posterior null; not compared "
     "where the domains do not meet.",
     "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
-    "(robot frame, mm) over the robot's random configurations; flagged as for the drift.",
+    "(robot frame, mm) at configurations inside both sensors' measured domains; flagged as for the drift.",
 }

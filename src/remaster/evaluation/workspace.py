@@ -11,7 +11,7 @@ Configurations, three sets:
 - 'domain': random configurations near the measured ones (within the data's own spacing, in how
   far the marker moves), a held joint at its value (`domain.MeasuredDomain`, `robot.nearness`);
 - 'random': the robot's one fixed set of random configurations across the joint limits
-  (`prediction.robot_configurations`, shared with the comparison by prediction), where the
+  (`prediction.robot_configurations`), where the
   parameters the data did not determine spread by their priors.
 
 Two kinds of claim:

@@ -33,8 +33,8 @@ PREDICTION_NOTES = (
     "frozen. The diagonal is each campaign's own validation; off the diagonal is what the calibration is worth "
     "on another campaign of the robot: close to the diagonal, the robot has not changed; larger, it has (or "
     "the calibration fitted that campaign's set-up). The nominal rows are the robot as the controller knows it.",
-    "Drift and agreement by prediction: the change of predicted marker position (robot frame) over one fixed "
-    "set of random configurations of the robot, at the posterior means (mean_mm, p95_mm). It is flagged when "
+    "Drift and agreement by prediction: the change of predicted marker position (robot frame) at configurations "
+    "inside both calibrations' measured domains, at the posterior means (mean_mm, p95_mm). It is flagged when "
     "what is left of it after the rigid motion that best aligns the two (aligned_mean_mm: a re-registration "
     "absorbs the rest) exceeds null_p95_of_aligned_mean_mm, the 95th percentile of the same under posterior "
     "uncertainty alone: unlike the parameter tables, it stays meaningful between models of different effects.",
