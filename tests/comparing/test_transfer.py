@@ -321,8 +321,10 @@ def test_a_remounted_marker_is_no_drift_with_or_without_a_marker_offset(iiwa, no
     marker offset, the second held joint 7 at the mark (its offset carried the turn); where a model
     has no marker offset, its joint 7 estimate carries the mount (the marker's tangential move reads
     as a turn). Either way the comparison leaves the set-up out, joint 7 drawn in both at what the
-    mount leaves open (1 mm over the marker's 0.1 m from the axis): no drift. A full-pose probe's
-    orientations tell the turn from the mount: there the same turn is compared, and flagged."""
+    mount leaves open (1 mm over the marker's 0.1 m from the axis), and one marker's position cannot
+    tell the turn from the mount: the predictions are compared at the marker's foot on joint 7's
+    axis, which the turn does not move: no drift. A full-pose probe's orientations tell the turn
+    from the mount: there the marker itself is compared, and the same turn flagged."""
     rng = np.random.default_rng(5)
     values = {f"zero_offsets.q{j + 1}": float(v) for j, v in enumerate(OFFSETS)}
     values.update({"marker_offset.x": 4e-4, "marker_offset.y": 0.0, "marker_offset.z": -3e-4})
@@ -350,12 +352,17 @@ def test_a_remounted_marker_is_no_drift_with_or_without_a_marker_offset(iiwa, no
     assert robot.blocks == () and robot.drawn_unseen == {"zero_offsets.q7": pytest.approx(mount)}
     row = drift(first, second)
     assert row["status"] == "compared" and not row["flagged"]
-    assert row["null_p95_of_aligned_mean_mm"] > row["mean_mm"] > 0.1  # joint 7's turn, drawn
+    assert row["mean_mm"] < 1e-3  # joint 7's turn moves nothing on its axis
     # no marker offset: the mount read as joint 7 turned by 0.3 deg
     turned = {**values, "zero_offsets.q7": values["zero_offsets.q7"] + np.radians(0.3)}
     paper_a, paper_b = (with_draws(paper([v[f"zero_offsets.q{j + 1}"] for j in range(7)])) for v in (values, turned))
     row = drift(paper_a, paper_b)
-    assert row["null_p95_of_aligned_mean_mm"] > row["mean_mm"] > 0.3 and not row["flagged"]
+    assert row["mean_mm"] < 1e-3 and not row["flagged"]
+    # what the mount's turn no longer hides: joint 2 moved by 0.01 deg, flagged
+    shifted = {**values, "zero_offsets.q2": values["zero_offsets.q2"] + np.radians(0.01)}
+    paper_c = with_draws(paper([shifted[f"zero_offsets.q{j + 1}"] for j in range(7)]))
+    row = drift(paper_a, paper_c)
+    assert row["flagged"] and row["aligned_mean_mm"] > 10 * row["null_p95_of_aligned_mean_mm"]
     # a full-pose probe sees the turn apart from the mount: compared, and the 0.3 deg turn flagged
     probe = dataclasses.replace(noisy, table=noisy.table.assign(rx=0.0, ry=0.0, rz=0.0))
     assert probe.has_orientation

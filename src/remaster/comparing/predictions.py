@@ -234,7 +234,8 @@ def prediction_drift(
     not compared, not flagged. The marker is campaign A's sensor's nominal one, the models' marker
     offsets left out: a marker is part of a campaign's set-up (remounted between campaigns, refitted
     in a transfer), not of the robot, and a last joint's held zero-offset that an offset carried is
-    drawn instead. Columns DRIFT_COLUMNS (mm)."""
+    drawn instead; where either sensor measured one marker's position, the point compared is the
+    marker's foot on the last joint's axis, which that turn does not move. Columns DRIFT_COLUMNS (mm)."""
     entries = list(entries)
     frame = _entries_frame(entries)
     rows = []
@@ -288,6 +289,10 @@ def _rows_in_both_domains(
     set-up left out (`_without_set_up`); fewer than MIN_SHARED_CONFIGURATIONS there: not compared."""
     n_configurations, seed, draw_pairs = sizes
     rows, robot_a, robot_b = [], _without_set_up(a), _without_set_up(b)
+    if not (a.sensor.has_orientation and b.sensor.has_orientation):
+        # one marker's position cannot tell the last joint's turn from the marker's mount: compared
+        # where that turn moves nothing, the marker's foot on the last joint's axis
+        marker = on_last_axis(a.chain, marker)
     shared: dict[tuple, np.ndarray] = {}  # by the models' linear joints: most models share their configurations
     for model in _compared_models(a, b):
         key = (a.models[model].linear_joints, b.models[model].linear_joints)
@@ -352,6 +357,15 @@ def _without_set_up(entry: Calibrated) -> Calibrated:
         )
 
     return entry._replace(models={m: strip(c) for m, c in entry.models.items()})
+
+
+def on_last_axis(chain: KinematicChain, point) -> np.ndarray:
+    """(3,) m the point of the last joint's axis nearest `point` (3,) m, both in the flange frame."""
+    tool = np.asarray(chain.tool_transform, dtype=float)
+    in_joint = tool[:3, :3] @ np.asarray(point, dtype=float) + tool[:3, 3]  # the last joint's frame
+    axis = np.asarray(chain.joint_axes[-1], dtype=float)
+    foot = (in_joint @ axis) * axis
+    return tool[:3, :3].T @ (foot - tool[:3, 3])
 
 
 def _turn_of_mount(entry: Calibrated) -> float:
