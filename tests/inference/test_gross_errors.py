@@ -88,3 +88,17 @@ def test_an_isolated_row_is_a_gross_error_and_a_shared_or_common_departure_is_no
     assert judged([2, 3], poses) == []  # both configurations of pose 1
     assert judged([1, 3, 5], poses) == []  # 3 > 0.1 x 20: systematic
     assert judged([0], np.arange(5)) == [0]  # a single row is always isolated (max(1, ...))
+
+
+def test_a_screen_that_cannot_be_fitted_keeps_the_robust_screens_rows_and_says_why(tmp_path, monkeypatch):
+    """A full-pose probe of a few rows may be fitted with its orientations and not by its points
+    alone: the robust screen's rows stand and the record says why, no traceback."""
+    campaign, _ = _campaign(tmp_path, 1, COMPLIANCE)
+
+    def cannot(model):
+        raise ValueError("9 residuals cannot determine 12 parameters and sigma (need k > P + 1)")
+
+    monkeypatch.setattr(fit, "laplace_fit", cannot)
+    rows, record = _screened(campaign)
+    assert rows.tolist() == record["robust_screen"] and len(rows) > 0
+    assert record["not_made"].startswith("9 residuals cannot determine") and "rounds" not in record

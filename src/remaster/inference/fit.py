@@ -273,17 +273,23 @@ def screened_rows(chain: KinematicChain, data: SensorData, t_nr, outliers: Mappi
             found = found[:0]  # leaving them out would leave the fit undetermined (as `flag_outliers`)
         return screen, found
 
-    turns = gross_errors.settle(fit_and_screen, provisional)
     record = {
         "robust_screen": [int(r) for r in provisional],
         "method": gross_errors.LEAST_SQUARES_METHOD,
         "isolated": gross_errors.ISOLATED,
         "alpha": alpha,
         "max_share": max_share,
-        **turns.report(),
-        "screen": turns.fit.report(),
     }
-    return turns.excluded, record
+    try:
+        turns = gross_errors.settle(fit_and_screen, provisional)
+    except ValueError as error:  # a full-pose probe's few points alone cannot be fitted: its robust screen stands
+        log.warning(
+            "the zero-offset model's screen of the points alone could not be made (%s): rows %s left out",
+            error,
+            provisional.tolist(),
+        )
+        return provisional, {**record, "not_made": str(error)}
+    return turns.excluded, {**record, **turns.report(), "screen": turns.fit.report()}
 
 
 def laplace_stage(campaign: Campaign, sensor: str, registration: Registration, outliers: Mapping[str, float]) -> dict:
