@@ -363,6 +363,14 @@ def test_a_remounted_marker_is_no_drift_with_or_without_a_marker_offset(iiwa, no
     paper_c = with_draws(paper([shifted[f"zero_offsets.q{j + 1}"] for j in range(7)]))
     row = drift(paper_a, paper_c)
     assert row["flagged"] and row["aligned_mean_mm"] > 10 * row["null_p95_of_aligned_mean_mm"]
+    assert row["beyond_null"] and row["loops_closed"] is None  # verdicts not given: flagged as before
+    # beyond the null between a loop that closed and one that did not: shown, not the robot's drift
+    verdicts = [
+        entry(iiwa, "a", "2020-01-01", noisy, {"paper": paper_a})._replace(loop_closed=True),
+        entry(iiwa, "b", "2021-01-01", noisy, {"paper": paper_c})._replace(loop_closed=False),
+    ]
+    row = predictions.prediction_drift(verdicts, n_configurations=50, seed=3, draw_pairs=50).iloc[0]
+    assert row["beyond_null"] and row["loops_closed"] is not None and not row["loops_closed"] and not row["flagged"]
     # a full-pose probe sees the turn apart from the mount: compared, and the 0.3 deg turn flagged
     probe = dataclasses.replace(noisy, table=noisy.table.assign(rx=0.0, ry=0.0, rz=0.0))
     assert probe.has_orientation

@@ -224,7 +224,8 @@ class Calibrated(NamedTuple):
     """One campaign's sensor with its calibrations. robot: `identity.robot_identity`; date: ISO
     text; models: {model name: Calibration}; excluded: table rows the fit left out as gross errors;
     marker_std: the prior std (m per axis) of the marker's position on the flange, what a transfer to
-    this campaign refits it within (the loop closure's prior, else the default class's)."""
+    this campaign refits it within (the loop closure's prior, else the default class's); loop_closed:
+    the loop closure's verdict (`LoopReport.closed`; None: not known)."""
 
     campaign: str
     date: str
@@ -234,6 +235,7 @@ class Calibrated(NamedTuple):
     models: Mapping[str, Calibration]
     excluded: tuple[int, ...] = ()
     marker_std: float = DEFAULT_MARKER_STD
+    loop_closed: bool | None = None
 
     @property
     def kind(self) -> str:
@@ -275,6 +277,7 @@ def calibrated(
         models,
         excluded,
         marker_std,
+        None if loop is None else loop.closed,
     )
 
 

@@ -306,10 +306,14 @@ def _compare(
 
 
 def _both_closed(a: pd.DataFrame, b: pd.DataFrame) -> bool | None:
-    """Whether both sides' loops closed: False where either did not, None where either is not known."""
-    verdicts = [
-        frame["loop_closed"].iloc[0] if "loop_closed" in frame.columns and len(frame) else None for frame in (a, b)
-    ]
+    """Whether both sides' loops closed (`both_closed`) by their over-time rows."""
+    return both_closed(
+        *(frame["loop_closed"].iloc[0] if "loop_closed" in frame.columns and len(frame) else None for frame in (a, b))
+    )
+
+
+def both_closed(*verdicts) -> bool | None:
+    """Whether every loop closed: False where one did not, None where one is not known (None, NaN)."""
     verdicts = [None if v is None or (isinstance(v, float) and np.isnan(v)) else bool(v) for v in verdicts]
     if False in verdicts:
         return False

@@ -37,7 +37,7 @@ PREDICTION_NOTES = (
     "inside both calibrations' measured domains, at the posterior means (mean_mm, p95_mm). It is flagged when "
     "what is left of it after the rigid motion that best aligns the two (aligned_mean_mm: a re-registration "
     "absorbs the rest) exceeds null_p95_of_aligned_mean_mm, the 95th percentile of the same under posterior "
-    "uncertainty alone: unlike the parameter tables, it stays meaningful between models of different effects.",
+    "uncertainty alone, and both loops closed: unlike the parameter tables, it stays meaningful between models of different effects.",
 )
 
 
