@@ -237,6 +237,8 @@ def drift_of(first, second) -> dict:
     compared = loop_model[loop_model["status"] == "compared"]
     out["prediction_compared"] = len(compared)
     out["prediction_flagged"] = bool(compared["flagged"].any())
+    # beyond the two posteriors' spread, flagged or not (not: a loop that did not close)
+    out["prediction_beyond_null"] = bool(compared["beyond_null"].any()) if "beyond_null" in compared else False
     out["prediction_mean_mm"] = float(compared["aligned_mean_mm"].iloc[0]) if len(compared) else float("nan")
     out["prediction_null_p95_mm"] = (
         float(compared["null_p95_of_aligned_mean_mm"].iloc[0]) if len(compared) else float("nan")
@@ -478,10 +480,12 @@ def _verdict(record: dict) -> str:
     if drifts and "prediction_flagged" in drifts[0]:
         false_predicted = sum(d["prediction_flagged"] for d in unchanged)
         seen_predicted = sum(d["prediction_flagged"] for d in changed)
+        beyond = [sum(d.get("prediction_beyond_null", False) for d in part) for part in (unchanged, changed)]
         by_prediction = (
             f" By predicted positions inside both campaigns' domains (the workflow's prediction drift, loop-closed "
             f"model): flagged where the truth did not change on {false_predicted} of {len(unchanged)} pairs, "
-            f"where it changed on {seen_predicted} of {len(changed)}."
+            f"where it changed on {seen_predicted} of {len(changed)} (beyond the posteriors' spread, flagged or not: "
+            f"{beyond[0]} and {beyond[1]})."
         )
     return (
         f"Targets: loop-closed within {WITHIN}x least squares on {ratio} of {n} transfers "
