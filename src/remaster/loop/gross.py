@@ -27,7 +27,7 @@ beyond it. More than that is a systematic departure (a moved sensor, a distortio
 model lacks): no row of the set is then a gross error, and the acceptance test judges the set.
 
 The optimization set is screened in turns (`remaster.loop.loop_closure.close_loop`): the loop is
-fitted without the current set of gross errors (first the provisional one), every optimization row
+fitted without the current set of gross errors (first the zero-offset model's), every optimization row
 is screened, and when the screen finds another set the loop is fitted again without it, until the
 set it finds is the one it was fitted without (`gross_errors.settle`). The validation set is
 screened once, with the final model and the optimization registration; it never enters a fit.

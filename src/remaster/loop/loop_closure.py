@@ -35,7 +35,7 @@ Per campaign and sensor, after the zero-offset fit, on the OPTIMIZATION set only
    that every parameter carries uncertainty; say which parameters the data barely moved from
    their prior.
    Before the refit, gross errors are screened with the final model (`remaster.loop.gross`): every
-   optimization row, the prepare stage's provisionally excluded ones included, at the level
+   optimization row, those the zero-offset model's screen left out included, at the level
    `outliers/alpha`; when the rows it finds are not those the loop was fitted without, steps 1-2 run
    again without them, until they are (bounded), so the model, its closure test and its refit are
    computed without exactly the rows listed.
@@ -405,7 +405,7 @@ def close_loop(
 ) -> LoopClosure:
     """Diagnose, decide and refit on the optimization set, then report before and after on both
     sets. t_nr (4, 4): the fit's initial registration; base_held: the zero-offset fit's held
-    parameters (identifiability analysis); exclude: table rows the prepare stage's provisional
+    parameters (identifiability analysis); exclude: table rows the zero-offset model's
     screen left out as gross errors: the first fit leaves them out, then every row of both sets is
     screened with the final model (`remaster.loop.gross`) and the loop refitted without the rows it
     finds until they are the ones it was fitted without; rng feeds the MCMC refit only."""

@@ -54,7 +54,7 @@ class Screened:
 def select_screened(
     chain: KinematicChain, sensor: SensorData, t_nr, base_held, settings: LoopSettings, exclude
 ) -> Screened:
-    """Select on the optimization set without the rows `exclude` (the prepare stage's provisional
+    """Select on the optimization set without the rows `exclude` (the zero-offset model's gross-error
     screen), screen every optimization row with the final model (`remaster.loop.gross`) and select
     again without the rows it finds, until they are the ones it was fitted without (bounded, a
     cycle stops it); then screen the validation set with the final model."""
