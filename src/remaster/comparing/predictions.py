@@ -387,11 +387,8 @@ def _turn_of_mount(entry: Calibrated) -> float:
     """The std (rad) of the last joint's turn that the marker's mount (its prior std per axis,
     `Calibrated.marker_std`) leaves open: the mount over the nominal marker's distance from the last
     joint's axis, at most pi (a marker on the axis: any turn)."""
-    chain = entry.chain
-    tool = np.asarray(chain.tool_transform, dtype=float)
-    point = tool[:3, :3] @ np.asarray(entry.sensor.marker, dtype=float) + tool[:3, 3]  # the last joint's frame
-    axis = np.asarray(chain.joint_axes[-1], dtype=float)
-    radius = float(np.linalg.norm(point - (point @ axis) * axis))
+    marker = np.asarray(entry.sensor.marker, dtype=float)
+    radius = float(np.linalg.norm(marker - on_last_axis(entry.chain, marker)))
     return float(min(entry.marker_std / radius, np.pi)) if radius > 0 else float(np.pi)
 
 

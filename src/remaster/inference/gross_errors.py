@@ -232,12 +232,12 @@ def least_squares_screen(fitted_model, result, every, poses, alpha: float, max_s
     """The rows of `every` (readings of a set's measured rows, poses (n,)) judged by a flat-prior
     least-squares fit (`least_squares.LaplaceResult`: covariance s^2 (J^T J)^-1) of `fitted_model`,
     a block model of points whose readings are some of them: H_i = J_i (J^T J)^-1 J_i^T, tr H = P."""
+    if len(every.rows) == 0:
+        return empty_screen("optimization", every.rows, poses, alpha, max_share)
     model = fitted_model.on(every)
     theta = result.theta_map
     is_fitted = np.isin(every.rows, fitted_model.data.rows)
     raw = model.residuals(theta)
-    if len(every.rows) == 0:
-        return empty_screen("optimization", every.rows, poses, alpha, max_share)
     dof = result.n_residuals - len(theta)
     sum_squares = 2.0 * result.cost
     s2 = sum_squares / dof if dof > 0 else math.nan
