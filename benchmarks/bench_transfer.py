@@ -234,8 +234,9 @@ def drift_of(first, second) -> dict:
     # inside both campaigns' measured domains, against the two posteriors' own spread
     predicted = api.compare(first, second, settings=config)["prediction_drift"]
     loop_model = predicted[predicted["model"] == "loop"]
-    compared = loop_model[loop_model["status"] == "compared"]
+    compared = loop_model[loop_model["draw_pairs"] > 0]  # a null drawn: compared (a turn apart or not)
     out["prediction_compared"] = len(compared)
+    out["prediction_turn_apart"] = bool(compared["turn_apart"].any()) if "turn_apart" in compared else False
     out["prediction_flagged"] = bool(compared["flagged"].any())
     # beyond the two posteriors' spread, flagged or not (not: a loop that did not close)
     out["prediction_beyond_null"] = bool(compared["beyond_null"].any()) if "beyond_null" in compared else False
@@ -382,7 +383,10 @@ def _prediction_flagged(part: list[dict]) -> str:
         return "-"
     compared = [d for d in part if d["prediction_compared"]]
     changes = ", ".join(
-        f"{d['prediction_mean_mm']:.3f} / {d['prediction_null_p95_mm']:.3f}" if d["prediction_compared"] else "n/c"
+        f"{d['prediction_mean_mm']:.3f} / {d['prediction_null_p95_mm']:.3f}"
+        + (" a turn apart" if d.get("prediction_turn_apart") else "")
+        if d["prediction_compared"]
+        else "n/c"
         for d in part
     )
     return f"{sum(d['prediction_flagged'] for d in compared)} of {len(compared)} ({changes})"
@@ -481,11 +485,16 @@ def _verdict(record: dict) -> str:
         false_predicted = sum(d["prediction_flagged"] for d in unchanged)
         seen_predicted = sum(d["prediction_flagged"] for d in changed)
         beyond = [sum(d.get("prediction_beyond_null", False) for d in part) for part in (unchanged, changed)]
+        apart = [
+            sum(d.get("prediction_beyond_null", False) and d.get("prediction_turn_apart", False) for d in part)
+            for part in (unchanged, changed)
+        ]
         by_prediction = (
             f" By predicted positions inside both campaigns' domains (the workflow's prediction drift, loop-closed "
             f"model): flagged where the truth did not change on {false_predicted} of {len(unchanged)} pairs, "
             f"where it changed on {seen_predicted} of {len(changed)} (beyond the posteriors' spread, flagged or not: "
-            f"{beyond[0]} and {beyond[1]})."
+            f"{beyond[0]} and {beyond[1]}; of them compared a turn apart, shown and not flagged: {apart[0]} and "
+            f"{apart[1]})."
         )
     return (
         f"Targets: loop-closed within {WITHIN}x least squares on {ratio} of {n} transfers "

@@ -7,7 +7,8 @@ with many tool orientations; 8,338 optimization and 3,573 validation rows) throu
 encoders declared `output` as a UR's user does. Beside bench_ur10_transfer (a 1,500-row subsample,
 the GP not tried: it is not transferred). Reported: the effects the loop added, the residual GP's
 hyperparameters and any at a bound, the validation RMSE (mm, as loop_closure.json gives it) before
-and after the loop, the acceptance verdict, the time. Target: validation RMSE <= 0.25 mm.
+and after the loop, the acceptance verdict, the time, and the gross-error screen's rounds (the rows
+each selection was fitted without, the rows its final model found, the effects it added). Target: validation RMSE <= 0.25 mm.
 
 Writes benchmarks/results/ur10_grid.json and .md and the table into docs/validation.md between its
 bench_ur10_grid markers. From the repository root:
@@ -57,6 +58,21 @@ def markdown(record: dict) -> str:
         "",
         "Warnings of the loop: " + ("; ".join(record["warnings"]) or "none") + ".",
     ]
+    rounds = record.get("screen_rounds") or []
+    if rounds:
+        lines += [
+            "",
+            "The gross-error screen's rounds (each a whole selection, fitted without the rows the round before found):",
+            "",
+            "| round | rows left out | rows found | of them not left out | left out, not found | effects added |",
+            "|---|---|---|---|---|---|",
+        ]
+        for k, r in enumerate(rounds, 1):
+            without, found = set(r["fitted_without"]), set(r["found"])
+            lines.append(
+                f"| {k} | {len(without)} | {len(found)} | {sorted(found - without)} | {sorted(without - found)} | "
+                f"{', '.join(r.get('added', [])) or 'none'} |"
+            )
     return "\n".join(lines)
 
 
@@ -83,6 +99,9 @@ def main() -> None:
         "validation_rmse_after_mm": report.validation_rmse_after_mm,
         "verdict": calibration.verdict,
         "warnings": list(report.warnings),
+        # the gross-error screen's rounds: each fit's rows left out, the rows its screen found, its effects
+        "screen_rounds": report.gross_errors.get("rounds", []),
+        "screen_settled": report.gross_errors.get("settled"),
         "seconds": time.perf_counter() - started,
     }
     publish(REPO / "benchmarks" / "results", "ur10_grid", record, markdown(record), REPO / "docs" / "validation.md")

@@ -420,6 +420,32 @@ def test_drift_is_compared_where_both_campaigns_measured_one_turn_apart_included
     assert row["count"] < predictions.MIN_SHARED_CONFIGURATIONS
 
 
+def test_a_change_between_campaigns_a_turn_apart_is_shown_not_flagged(iiwa, noisy):
+    """Campaign b measured a's configurations with joint 1 read one turn away. A model periodic in
+    joint 1 sees the same configurations, but the robot is the same there only if all it does is
+    periodic in the turn: a change of prediction beyond the null is shown (`beyond_null`,
+    `turn_apart`), not flagged as drift. Where b measured a's own readings, the same change is flagged."""
+    rng = np.random.default_rng(7)
+    shifted = OFFSETS + np.radians([0.0, 0.01, 0, 0, 0, 0, 0])
+    draws = [
+        pd.DataFrame({f"zero_offsets.q{j + 1}": v + 1e-6 * rng.standard_normal(50) for j, v in enumerate(o)})
+        for o in (OFFSETS, shifted)
+    ]
+    first, second = paper(OFFSETS, draws[0]), paper(shifted, draws[1])
+    table = noisy.table.copy()
+    table["q1"] -= 2 * np.pi
+    for sensor, apart in ((dataclasses.replace(noisy, table=table), True), (noisy, False)):
+        entries = [
+            entry(iiwa, "a", "2020-01-01", noisy, {"paper": first}),
+            entry(iiwa, "b", "2021-01-01", sensor, {"paper": second}),
+        ]
+        row = predictions.prediction_drift(entries, n_configurations=200, seed=3, draw_pairs=50).iloc[0]
+        assert row["beyond_null"] and row["aligned_mean_mm"] > 10 * row["null_p95_of_aligned_mean_mm"]
+        assert row["count"] >= predictions.MIN_SHARED_CONFIGURATIONS
+        assert bool(row["turn_apart"]) is apart and bool(row["flagged"]) is not apart
+        assert (row["status"] == predictions.TURN_APART) is apart
+
+
 def test_a_joint_scale_is_not_periodic_its_model_is_not_compared_one_turn_apart(iiwa, noisy):
     """Campaign b read joint 1 one turn from a's readings. The zero-offset model is periodic in it:
     its drift is compared there, as before. A loop model with a joint scale on joint 1 corrects in

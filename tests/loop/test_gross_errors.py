@@ -116,6 +116,7 @@ def test_glitches_in_both_sets_are_all_found_and_listed(glitched):
         assert set(provisional) != set(injected["optimization"])  # the zero-offset model's screen misses them
         assert result.report.effects_added[0] == "link_geometry" and found["settled"]
         assert found["rounds"][-1]["fitted_without"] == injected["optimization"]  # the model is fitted without them
+        assert found["rounds"][-1]["added"] == list(result.report.effects_added)  # each round's selection recorded
         assert not set(injected["optimization"]) & set(result.rows["optimization"].tolist())
         assert not set(injected["validation"]) & set(result.rows["validation"].tolist())
 

@@ -7,7 +7,11 @@ calibrations differ by what their priors say, not by what the robot did; a pair 
 not meet is not compared (`status` says so). Nearness takes each joint on the circle (a campaign
 that read q1 one turn from the other's measured the same configurations) but, per model, the
 joints the model corrects in proportion to the reading (a joint scale): there a turn is not
-measured. The agreement of one campaign's sensors is compared inside both sensors' domains too.
+measured. Where both campaigns reached enough of those configurations with the same readings
+(every joint's reading as it is, not on the circle), only those are compared; where they share them
+only a turn apart, the change is shown (`turn_apart`) and not flagged: the robot at q and at
+q + 2 pi is one only if all it does is periodic in the turn, which neither campaign's data can
+tell. The agreement of one campaign's sensors is compared inside both sensors' domains too.
 
 Two calibrations A and B are compared at one fixed set of configurations q (n, N) by
 d(q) = |p_B(q) - p_A(q)|, both at their posterior means: `mean_mm`, `p95_mm` over q, in the robot
@@ -55,6 +59,12 @@ NULL_QUANTILE = 0.95
 # configurations inside both campaigns' domains below which a drift is not compared: too few to
 # tell a change of prediction from the posteriors' spread
 MIN_SHARED_CONFIGURATIONS = 20
+TURN_APART = (
+    "compared a turn apart: both campaigns measured these configurations, but with a joint reading one or more "
+    "turns from the other's; a change here is the robot's drift or an effect not periodic in the turn (a cable's "
+    "wind-up, a transmission error of another period), which no data of either campaign can tell apart: shown, "
+    "not flagged"
+)
 
 
 PREDICTION_COLUMNS = [
@@ -66,6 +76,7 @@ PREDICTION_COLUMNS = [
     "null_p95_of_aligned_mean_mm",
     "beyond_null",
     "loops_closed",
+    "turn_apart",
     "flagged",
     "status",
 ]
@@ -174,11 +185,21 @@ def _compared_models(a: Calibrated, b: Calibrated) -> list[str]:
 
 
 def _pair_rows(
-    a: Calibrated, b: Calibrated, q, marker, draw_pairs: int, seed: int, labels: dict, models=None
+    a: Calibrated,
+    b: Calibrated,
+    q,
+    marker,
+    sizes: tuple[int, int],
+    labels: dict,
+    models=None,
+    turn_apart: bool = False,
 ) -> list[dict]:
     """One row per model both entries have (of `models` when given): labels, effects and
-    `compare_predictions`; the draws of each pair and model come from their own generator, so a
-    row does not depend on the others."""
+    `compare_predictions` (sizes: draw_pairs, seed); the draws of each pair and model come from
+    their own generator, so a row does not depend on the others. turn_apart: q are configurations
+    the two reached with a joint a different number of turns (`_same_readings`): a change there is
+    shown, not flagged."""
+    draw_pairs, seed = sizes
     rows = []
     for model in [m for m in _compared_models(a, b) if models is None or m in models]:
         ca, cb = a.models[model], b.models[model]
@@ -195,7 +216,9 @@ def _pair_rows(
         compared = compare_predictions(a.chain, q, marker, ca, cb, draw_pairs, rng)
         closed = comparison.both_closed(a.loop_closed, b.loop_closed)
         # beyond the null, but a loop not closed carries what its model lacks: not the robot's drift
-        flagged = compared["flagged"] and closed is not False
+        flagged = compared["flagged"] and closed is not False and not turn_apart
+        if turn_apart and compared["status"] == "compared":
+            compared["status"] = TURN_APART
         rows.append(
             {
                 **labels,
@@ -205,6 +228,7 @@ def _pair_rows(
                 **compared,
                 "beyond_null": compared["flagged"],
                 "loops_closed": closed,
+                "turn_apart": turn_apart,
                 "flagged": flagged,
             }
         )
@@ -299,21 +323,25 @@ def _rows_in_both_domains(
 ) -> list[dict]:
     """One row per model both entries have, compared at configurations inside both entries' measured
     domains (`shared_configurations`; sizes: n_configurations, seed, draw_pairs), each entry's
-    set-up left out (`_without_set_up`); fewer than MIN_SHARED_CONFIGURATIONS there: not compared."""
+    set-up left out (`_without_set_up`): at those both reached with the same readings
+    (`_same_readings`) when there are MIN_SHARED_CONFIGURATIONS of them, else at every one, a turn
+    apart (`turn_apart`: shown, not flagged); fewer than MIN_SHARED_CONFIGURATIONS: not compared."""
     n_configurations, seed, draw_pairs = sizes
     rows, robot_a, robot_b = [], _without_set_up(a), _without_set_up(b)
     if not (a.sensor.has_orientation and b.sensor.has_orientation):
         # one marker's position cannot tell the last joint's turn from the marker's mount: compared
         # where that turn moves nothing, the marker's foot on the last joint's axis
         marker = on_last_axis(a.chain, marker)
-    shared: dict[tuple, np.ndarray] = {}  # by the models' linear joints: most models share their configurations
+    shared: dict[tuple, tuple[np.ndarray, bool]] = {}  # by the models' linear joints: most models share them
     for model in _compared_models(a, b):
         key = (a.models[model].linear_joints, b.models[model].linear_joints)
         if key not in shared:
-            shared[key] = shared_configurations(a, b, n_configurations, seed, model)
-        q = shared[key]
+            q = shared_configurations(a, b, n_configurations, seed, model)
+            same = q[_same_readings(a, b, q)]
+            shared[key] = (same, False) if len(same) >= MIN_SHARED_CONFIGURATIONS else (q, True)
+        q, turn_apart = shared[key]
         if len(q) >= MIN_SHARED_CONFIGURATIONS:
-            rows += _pair_rows(robot_a, robot_b, q, marker, draw_pairs, seed, labels, (model,))
+            rows += _pair_rows(robot_a, robot_b, q, marker, (draw_pairs, seed), labels, (model,), turn_apart)
             continue
         status = (
             f"not compared: {len(q)} configurations inside both measured domains (fewer than "
@@ -333,11 +361,27 @@ def _rows_in_both_domains(
                 "null_p95_of_aligned_mean_mm": np.nan,
                 "beyond_null": False,
                 "loops_closed": comparison.both_closed(a.loop_closed, b.loop_closed),
+                "turn_apart": False,
                 "flagged": False,
                 "status": status,
             }
         )
     return rows
+
+
+def _same_readings(a: Calibrated, b: Calibrated, q) -> np.ndarray:
+    """(n,) bool: whether each configuration q (n, N) rad, near both entries' data on the circle, is
+    near both with every joint's reading taken as it is (on the line: `Nearness` with every joint
+    linear). Where it is not, one campaign reached it only with a joint a turn from its reading
+    (or turned the other way round across +-pi): a model periodic in that joint sees one
+    configuration, but the robot there is one only if everything it does is periodic in the joint."""
+    if len(q) == 0:
+        return np.zeros(0, dtype=bool)
+    every_joint = tuple(range(a.chain.n_joints))
+    inside = [
+        Nearness.of(e.chain, e.sensor.fit_readings(e.excluded), e.sensor.marker, every_joint).inside(q) for e in (a, b)
+    ]
+    return inside[0] & inside[1]
 
 
 def _without_set_up(entry: Calibrated) -> Calibrated:
@@ -409,7 +453,8 @@ CAPTIONS = {  # the tables' and figures' captions, beside `tables.CAPTIONS`
     "prediction_drift": "Drift between consecutive campaigns of one robot and sensor kind as the change of "
     "predicted marker position (robot frame, mm) at configurations inside both campaigns' measured domains "
     "(count); flagged where the mean change left after the best rigid motion (what a re-registration absorbs) "
-    "exceeds the 95th percentile of its posterior null and both loops closed; not compared "
+    "exceeds the 95th percentile of its posterior null and both loops closed; where the campaigns reached "
+    "these configurations only with a joint a turn apart (turn_apart), shown and not flagged; not compared "
     "where the domains do not meet.",
     "prediction_agreement": "Agreement of the sensors of each campaign as the difference of predicted positions "
     "(robot frame, mm) at configurations inside both sensors' measured domains; flagged as for the drift.",

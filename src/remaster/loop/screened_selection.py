@@ -30,7 +30,7 @@ class Screened:
     selection: the selection; data, poses: {set: readings, pose labels} without the flagged rows;
     every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
     screens: {set: `gross_errors.Screen`}; provisional: the prepare stage's rows; history: the screen's
-    rounds; settled: whether the rows found were the rows left out; frame_problem: why a tracker's
+    rounds (each: the rows fitted without, the rows found, the effects its selection added); settled: whether the rows found were the rows left out; frame_problem: why a tracker's
     noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
     optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or one
     pose in k of a set larger than the loop fits); thinning: `fitted_rows`' record."""
@@ -61,7 +61,7 @@ def select_screened(
     every = {s: readings(chain, sensor, s, settings.model) for s in SETS}
     every_poses = {s: sensor.table.loc[every[s].rows, "pose"].to_numpy() for s in SETS}
     provisional = np.sort(np.asarray(exclude, dtype=int))
-    screens = {}
+    screens, selected = {}, []  # selected: each round's effects, for the screen's record of its rounds
 
     def fit_and_screen(excluded):
         data = {s: readings(chain, sensor, s, settings.model, excluded) for s in SETS}
@@ -75,9 +75,11 @@ def select_screened(
             offered = math.inf if floor is None else floor
         selection = select(chain, fitted, sensor.marker, t_nr, base_held, fitted_poses, settings, tracker=offered)
         screens["optimization"] = _screen(selection, fitted, every, every_poses, "optimization", settings)
+        selected.append(list(selection.added))
         return (selection, data, poses, fitted, fitted_poses, thinning, frame_problem), screens["optimization"].gross
 
     turns = gross_errors.settle(fit_and_screen, provisional)
+    history = [{**record, "added": added} for record, added in zip(turns.history, selected)]
     (selection, data, poses, fitted, fitted_poses, thinning, frame_problem), excluded = turns.fit, turns.excluded
     # the validation set is screened here, with the final model, after every choice has been made
     screens["validation"] = _screen(selection, fitted, every, every_poses, "validation", settings)
@@ -96,7 +98,7 @@ def select_screened(
         flagged,
         screens,
         provisional,
-        turns.history,
+        history,
         turns.settled,
         frame_problem,
     )
