@@ -23,7 +23,7 @@ class _Readings:
 @pytest.fixture
 def stand_ins(monkeypatch):
     """A six-row optimization set and a two-row validation set; each fit records the rows it was
-    fitted without, and its screen finds what `finds(round)` says."""
+    fitted without, and its screen finds what `finds(fit)` says (fit: the fit's index)."""
     table = {"optimization": np.arange(6), "validation": np.arange(6, 8)}
     fits: list[list[int]] = []
 
@@ -32,10 +32,11 @@ def stand_ins(monkeypatch):
 
     def select(chain, fitted, marker, t_nr, base_held, poses, settings, tracker):
         fits.append([r for r in table["optimization"] if r not in set(fitted.rows.tolist())])
-        return len(fits) - 1
+        # a selection that adds an effect on every other fit: each round records what its selection added
+        return types.SimpleNamespace(fit=len(fits) - 1, added=("link_geometry",) * (len(fits) % 2))
 
     def screen(selection, fitted, every, every_poses, set_name, settings):
-        rows = stand_ins.finds(selection) if set_name == "optimization" else []
+        rows = stand_ins.finds(selection.fit) if set_name == "optimization" else []
         return types.SimpleNamespace(gross=np.asarray(rows, dtype=int), systematic=False)
 
     monkeypatch.setattr(screened_selection, "readings", readings)
@@ -65,6 +66,7 @@ def test_a_screen_that_settles_flags_the_rows_its_model_was_fitted_without(stand
     assert screened.data["optimization"].rows.tolist() == [0, 2, 3, 4, 5]
     assert screened.provisional.tolist() == [0]
     assert [round_["found"] for round_ in screened.history] == [[1], [1]]
+    assert [round_["added"] for round_ in screened.history] == [["link_geometry"], []]
 
 
 def test_a_screen_out_of_refits_flags_what_its_final_model_was_fitted_without(stand_ins):
