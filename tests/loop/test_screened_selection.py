@@ -83,3 +83,20 @@ def test_a_screen_out_of_refits_flags_what_its_final_model_was_fitted_without(st
         f"the gross-error screen did not settle: the final model, fitted without rows [{gross_errors.MAX_ROUNDS - 1}], "
         f"finds rows [{gross_errors.MAX_ROUNDS}]"
     ]
+    # with the rounds: their selections differed (the stand-in adds an effect on every other fit), and
+    # a few rows left out deciding the model is said
+    warnings = screened_selection.gross_warnings(screened.flagged, screened.screens, screened.settled, screened.history)
+    assert warnings[0] == warning[0] and len(warnings) == 2
+    assert warnings[1].startswith(
+        "the selection changed between the gross-error screen's rounds (without 1 row: link_geometry; "
+        "without 1 row: nothing;"
+    )
+
+
+def test_a_selection_the_same_in_every_round_gives_no_warning():
+    history = [{"fitted_without": [0], "found": [1], "added": ["link_geometry"]}] * 2
+    screens = {
+        s: types.SimpleNamespace(systematic=False, gross=np.asarray([1])) for s in ("optimization", "validation")
+    }
+    flagged = {"optimization": np.asarray([1]), "validation": np.asarray([], dtype=int)}
+    assert screened_selection.gross_warnings(flagged, screens, True, history) == []

@@ -207,7 +207,7 @@ def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, s
                 else ""
             )
         )
-    warnings += gross_warnings(screened.flagged, screened.screens, screened.settled)
+    warnings += gross_warnings(screened.flagged, screened.screens, screened.settled, screened.history)
     departed = departed_warning(screened.selection)
     if departed:
         warnings.append(departed)

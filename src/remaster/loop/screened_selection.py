@@ -9,7 +9,7 @@ loop_closure.json and its warnings (`gross_report`, `gross_warnings`).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -180,11 +180,16 @@ def gross_report(
 
 
 def gross_warnings(
-    flagged: Mapping[str, np.ndarray], screens: Mapping[str, gross_errors.Screen], settled: bool
+    flagged: Mapping[str, np.ndarray],
+    screens: Mapping[str, gross_errors.Screen],
+    settled: bool,
+    history: Sequence[Mapping] = (),
 ) -> list[str]:
     """What the screen with the final model says beyond its lists (which the certificate gives with
     the accuracy with and without the rows): a set whose many rows beyond the threshold are a
-    systematic departure, and a screen that did not settle."""
+    systematic departure, a screen that did not settle, and a selection that changed between the
+    screen's rounds (`history`, each round's `fitted_without` and `added`): a few rows left out
+    decided which effects were added, so the data do not single out one model among them."""
     out = []
     for set_name in SETS:
         screen = screens[set_name]
@@ -197,5 +202,17 @@ def gross_warnings(
         out.append(
             "the gross-error screen did not settle: the final model, fitted without rows "
             f"{[int(r) for r in flagged['optimization']]}, finds rows {screens['optimization'].gross.tolist()}"
+        )
+    models = [tuple(r["added"]) for r in history if "added" in r]
+    if len(set(models)) > 1:
+        rounds = "; ".join(
+            f"without {len(r['fitted_without'])} row{'' if len(r['fitted_without']) == 1 else 's'}: "
+            f"{', '.join(m) or 'nothing'}"
+            for r, m in zip(history, models)
+        )
+        out.append(
+            f"the selection changed between the gross-error screen's rounds ({rounds}): which few rows are left "
+            "out decides which effects are added, so the data do not single out one model among these; the effects "
+            "added are one of them, not the arm's identified effects (loop_closure.json gross_errors/rounds)"
         )
     return out
