@@ -60,8 +60,8 @@ NULL_QUANTILE = 0.95
 # tell a change of prediction from the posteriors' spread
 MIN_SHARED_CONFIGURATIONS = 20
 TURN_APART = (
-    "compared a turn apart: both campaigns measured these configurations, but with a joint reading one or more "
-    "turns from the other's; a change here is the robot's drift or an effect not periodic in the turn (a cable's "
+    "compared a turn apart: both campaigns measured these configurations, but with a joint read a turn from the "
+    "other's (or the other way round across +-180 deg); a change here is the robot's drift or an effect not periodic in the turn (a cable's "
     "wind-up, a transmission error of another period), which no data of either campaign can tell apart: shown, "
     "not flagged"
 )
@@ -197,8 +197,8 @@ def _pair_rows(
     """One row per model both entries have (of `models` when given): labels, effects and
     `compare_predictions` (sizes: draw_pairs, seed); the draws of each pair and model come from
     their own generator, so a row does not depend on the others. turn_apart: q are configurations
-    the two reached with a joint a different number of turns (`_same_readings`): a change there is
-    shown, not flagged."""
+    near both entries' data only on the circle (`_same_readings`): a change there is shown, not
+    flagged."""
     draw_pairs, seed = sizes
     rows = []
     for model in [m for m in _compared_models(a, b) if models is None or m in models]:

@@ -30,7 +30,8 @@ class Screened:
     selection: the selection; data, poses: {set: readings, pose labels} without the flagged rows;
     every, every_poses: the same with every measured row; flagged: {set: table rows flagged};
     screens: {set: `gross_errors.Screen`}; provisional: the prepare stage's rows; history: the screen's
-    rounds (each: the rows fitted without, the rows found, the effects its selection added); settled: whether the rows found were the rows left out; frame_problem: why a tracker's
+    rounds (each: the rows fitted without, the rows found, the effects its selection added);
+    settled: whether the rows found were the rows left out; frame_problem: why a tracker's
     noise model cannot be offered in the fit's frame (None when it can); fitted, fitted_poses: the
     optimization readings the loop fitted and their poses (`fitted_rows`: every kept row, or one
     pose in k of a set larger than the loop fits); thinning: `fitted_rows`' record."""
