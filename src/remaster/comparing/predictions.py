@@ -197,7 +197,7 @@ def _pair_rows(
     """One row per model both entries have (of `models` when given): labels, effects and
     `compare_predictions` (sizes: draw_pairs, seed); the draws of each pair and model come from
     their own generator, so a row does not depend on the others. turn_apart: q are configurations
-    near both entries' data only on the circle (`_same_readings`): a change there is shown, not
+    near both entries' data only on the circle (`_shared`): a change there is shown, not
     flagged."""
     draw_pairs, seed = sizes
     rows = []
@@ -245,6 +245,15 @@ def shared_configurations(a: Calibrated, b: Calibrated, n: int, seed: int, model
     corrects in proportion to the reading: `Calibration.linear_joints`): n drawn near each entry's
     data (the generator of (seed, 'shared domain', robot slug, both campaigns and sensors), the same
     draws for every model), kept where the other's data are near too."""
+    return _shared(a, b, n, seed, model)[0]
+
+
+def _shared(a: Calibrated, b: Calibrated, n: int, seed: int, model: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """`shared_configurations` q (k, N) and, (k,) bool, whether each is near both entries' data with
+    every joint's reading taken as it is, on the line (the same spacing): where it is not, one
+    campaign reached it only with a joint a turn from its reading (or the other way round across
+    +-pi), and a model periodic in that joint sees one configuration, but the robot there is one
+    only if everything it does is periodic in the joint."""
     rng = seeding.generator(
         seed, "shared domain", identity.robot_slug(a.robot), a.campaign, a.sensor.name, b.campaign, b.sensor.name
     )
@@ -258,7 +267,10 @@ def shared_configurations(a: Calibrated, b: Calibrated, n: int, seed: int, model
         for e in (a, b)
     ]
     q = np.vstack([domain.draw(n, rng, a.chain.lower, a.chain.upper) for domain in near])
-    return q[near[0].inside(q) & near[1].inside(q)]
+    q = q[near[0].inside(q) & near[1].inside(q)]
+    every_joint = tuple(range(a.chain.n_joints))
+    as_read = [replace(domain, linear=every_joint).inside(q) if len(q) else np.zeros(0, bool) for domain in near]
+    return q, as_read[0] & as_read[1]
 
 
 def prediction_drift(
@@ -324,7 +336,7 @@ def _rows_in_both_domains(
     """One row per model both entries have, compared at configurations inside both entries' measured
     domains (`shared_configurations`; sizes: n_configurations, seed, draw_pairs), each entry's
     set-up left out (`_without_set_up`): at those both reached with the same readings
-    (`_same_readings`) when there are MIN_SHARED_CONFIGURATIONS of them, else at every one, a turn
+    (`_shared`) when there are MIN_SHARED_CONFIGURATIONS of them, else at every one, a turn
     apart (`turn_apart`: shown, not flagged); fewer than MIN_SHARED_CONFIGURATIONS: not compared."""
     n_configurations, seed, draw_pairs = sizes
     rows, robot_a, robot_b = [], _without_set_up(a), _without_set_up(b)
@@ -336,8 +348,8 @@ def _rows_in_both_domains(
     for model in _compared_models(a, b):
         key = (a.models[model].linear_joints, b.models[model].linear_joints)
         if key not in shared:
-            q = shared_configurations(a, b, n_configurations, seed, model)
-            same = q[_same_readings(a, b, q)]
+            q, as_read = _shared(a, b, n_configurations, seed, model)
+            same = q[as_read]
             shared[key] = (same, False) if len(same) >= MIN_SHARED_CONFIGURATIONS else (q, True)
         q, turn_apart = shared[key]
         if len(q) >= MIN_SHARED_CONFIGURATIONS:
@@ -367,21 +379,6 @@ def _rows_in_both_domains(
             }
         )
     return rows
-
-
-def _same_readings(a: Calibrated, b: Calibrated, q) -> np.ndarray:
-    """(n,) bool: whether each configuration q (n, N) rad, near both entries' data on the circle, is
-    near both with every joint's reading taken as it is (on the line: `Nearness` with every joint
-    linear). Where it is not, one campaign reached it only with a joint a turn from its reading
-    (or turned the other way round across +-pi): a model periodic in that joint sees one
-    configuration, but the robot there is one only if everything it does is periodic in the joint."""
-    if len(q) == 0:
-        return np.zeros(0, dtype=bool)
-    every_joint = tuple(range(a.chain.n_joints))
-    inside = [
-        Nearness.of(e.chain, e.sensor.fit_readings(e.excluded), e.sensor.marker, every_joint).inside(q) for e in (a, b)
-    ]
-    return inside[0] & inside[1]
 
 
 def _without_set_up(entry: Calibrated) -> Calibrated:
