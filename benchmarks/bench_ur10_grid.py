@@ -8,7 +8,8 @@ encoders declared `output` as a UR's user does. Beside bench_ur10_transfer (a 1,
 the GP not tried: it is not transferred). Reported: the effects the loop added, the residual GP's
 hyperparameters and any at a bound, the validation RMSE (mm, as loop_closure.json gives it) before
 and after the loop, the acceptance verdict, the time, and the gross-error screen's rounds (the rows
-each selection was fitted without, the rows its final model found, the effects it added). Target: validation RMSE <= 0.25 mm.
+each selection was fitted without, the rows its final model found, the effects it added).
+Target: validation RMSE <= 0.25 mm.
 
 Writes benchmarks/results/ur10_grid.json and .md and the table into docs/validation.md between its
 bench_ur10_grid markers. From the repository root:

@@ -60,10 +60,10 @@ NULL_QUANTILE = 0.95
 # tell a change of prediction from the posteriors' spread
 MIN_SHARED_CONFIGURATIONS = 20
 TURN_APART = (
-    "compared a turn apart: both campaigns measured these configurations, but with a joint read a turn from the "
-    "other's (or the other way round across +-180 deg); a change here is the robot's drift or an effect not periodic in the turn (a cable's "
-    "wind-up, a transmission error of another period), which no data of either campaign can tell apart: shown, "
-    "not flagged"
+    "compared a turn apart: both campaigns measured these configurations, but with a joint read a turn from "
+    "the other's (or the other way round across +-180 deg); a change here is the robot's drift or an effect "
+    "not periodic in the turn (a cable's wind-up, a transmission error of another period), which no data of "
+    "either campaign can tell apart: shown, not flagged"
 )
 
 
