@@ -301,10 +301,50 @@ def sbc_summary(runs: list[dict]) -> list[dict]:
                 "seeds_outside_above_25": int(np.sum(outside > 0.25)),
                 "expected_outside_above_25": _expected(part, "outside_above_25"),
                 "claim_covers": int(sum(r["claim_covers_near"] for r in part)),
+                "certified": _certified(part, design),
                 "seconds_per_campaign": float(np.median([r["seconds"] for r in part])),
             }
         )
     return cells
+
+
+def _certified(part: list[dict], design: str) -> dict:
+    """The zero-offsets whose certificate gives a U, pooled over a cell's seeds: how many, and the shares
+    beyond that U and beyond 1.96 posterior stds; all of them, those of the joints the design turns and
+    those of the joint it holds (where a joint error is a constant no fit can tell from the zero-offset)."""
+    held = () if DESIGNS[design].get("q3") == "free" else ("zero_offsets.q3",)
+    entries = [
+        (name, v)
+        for r in part
+        for name, v in r["ranks"].items()
+        if name.startswith("zero_offsets.") and "z_certified" in v
+    ]
+    out = {}
+    for label, chosen in (
+        ("all", entries),
+        ("turned", [e for e in entries if e[0] not in held]),
+        ("held", [e for e in entries if e[0] in held]),
+    ):
+        if chosen:
+            out[label] = {
+                "count": len(chosen),
+                "beyond_U": float(np.mean([abs(v["z_certified"]) > v["k_certified"] for _, v in chosen])),
+                "beyond_posterior": float(np.mean([abs(v["z"]) > 1.96 for _, v in chosen])),
+            }
+    return out
+
+
+def _certified_line(certified: dict) -> list[str]:
+    """`_certified` as a sentence (none where no certificate of the cell gives a U)."""
+    if not certified:
+        return []
+    said = {"all": "all", "turned": "of the joints the design turns", "held": "of the joint it holds"}
+    parts = [
+        f"{said[k]} {v['count']}: {100 * v['beyond_U']:.0f} % beyond U ({100 * v['beyond_posterior']:.0f} % beyond "
+        "1.96 posterior stds)"
+        for k, v in certified.items()
+    ]
+    return ["", "Zero-offsets against the certificate's U (pooled over the seeds): " + "; ".join(parts) + "."]
 
 
 def _rank_rows(part: list[dict]) -> list[dict]:
@@ -587,6 +627,7 @@ def sbc_markdown(record: dict) -> str:
             + f"; the claim near the data covers the true p95 on {cell['claim_covers']}):",
             "",
             *_rank_table(cell["rows"]),
+            *_certified_line(cell.get("certified", {})),
         ]
         if cell.get("held_rows"):
             lines += [

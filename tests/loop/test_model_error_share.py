@@ -4,6 +4,7 @@ linear map against known answers, the sensitivity against a refit, and when it a
 import dataclasses
 
 import numpy as np
+import scipy.special
 
 from remaster import noise
 from remaster.inference import evidence
@@ -37,6 +38,73 @@ def test_the_fields_variance_through_a_mean_is_known_at_both_ends():
     full = kernel(q, q, hyper)
     expected = sum(np.einsum("mi,ij,mj->m", rows[:, :, a], full, rows[:, :, a]) for a in range(3))
     assert np.allclose(model_error_share.field_variance(q, hyper, rows, chunk=7), expected, rtol=1e-12)
+
+
+def _joint_field(rng, n: int, lengthscales, amplitudes=(3e-4, 2e-4)) -> model_error_share.JointField:
+    """Joints 1 and 3 of a 3-joint arm, with random directions (n, 3, 3) m/rad."""
+    return model_error_share.JointField(
+        np.array([0, 2]), np.array(amplitudes), np.array(lengthscales, dtype=float), rng.normal(size=(n, 3, 3))
+    )
+
+
+def test_a_joint_fields_variance_is_its_kernel_without_the_constant_through_the_map():
+    """Against the covariance built entry by entry: e = sum_j a_j(q) f_j(q_j), f_j of the circle
+    kernel s_j^2 exp(-(1 - cos d) / l_j^2) less its constant Fourier term s_j^2 e^-z I_0(z), z = 1 / l_j^2
+    (a joint's error averaged over its turn is its zero-offset)."""
+    rng = np.random.default_rng(5)
+    n = 30
+    q = rng.uniform(-3.0, 3.0, (n, 3))
+    field = _joint_field(rng, n, (0.4, 1.3))
+    rows = rng.normal(size=(4, n, 3))
+    covariance = np.zeros((n, 3, n, 3))
+    for j, s, length in zip(field.joints, field.amplitudes, field.lengthscales):
+        z = 1.0 / length**2
+        d = q[:, None, j] - q[None, :, j]
+        k = s**2 * (np.exp(-(1.0 - np.cos(d)) * z) - scipy.special.ive(0, z))
+        a = field.directions[:, :, j]
+        covariance += np.einsum("ni,nk,kl->nikl", a, k, a)
+    expected = np.einsum("mni,nikl,mkl->m", rows, covariance, rows)
+    assert np.allclose(model_error_share.joint_field_variance(q, field, rows), expected, rtol=1e-9)
+
+
+def test_a_joint_error_constant_over_the_turn_is_the_zero_offset_itself():
+    """A joint error of a lengthscale far beyond the circle is a constant: the zero-offset, which
+    leaves no error of it (u_model -> 0); a short one is not."""
+    rng = np.random.default_rng(6)
+    n = 25
+    q = rng.uniform(-3.0, 3.0, (n, 3))
+    rows = rng.normal(size=(2, n, 3))
+    flat = model_error_share.joint_field_variance(q, _joint_field(rng, n, (1000.0, 1000.0)), rows)
+    short = model_error_share.joint_field_variance(q, _joint_field(rng, n, (0.3, 0.3)), rows)
+    assert np.all(flat < 1e-4 * short)
+
+
+def test_the_joint_field_is_taken_only_where_the_evidence_prefers_that_form(iiwa):
+    """`JointField.preferred` reads the joint-error form's report (degrees) only where it is
+    preferred; the share then is the joint field's, named as such, the free kernel still reported
+    (the declared model error's draws use it)."""
+    joints = {
+        "q2": {"amplitude_deg": 0.03, "lengthscale_rad": 0.8},
+        "q4": {"amplitude_deg": 0.01, "lengthscale_rad": 2.0},
+    }
+    sensor = simulated(iiwa, "joint_compliance", *EFFECTS["joint_compliance"])
+    (_, data, *_), fitted = _forced(iiwa, sensor, ())
+    directions = np.random.default_rng(7).normal(size=(len(data.q), 3, 7))
+    assert model_error_share.JointField.preferred({"preferred": "free", "joints": joints}, directions) is None
+    assert model_error_share.JointField.preferred(None, directions) is None
+    field = model_error_share.JointField.preferred({"preferred": "joint_error", "joints": joints}, directions)
+    np.testing.assert_array_equal(field.joints, [1, 3])
+    np.testing.assert_allclose(field.amplitudes, np.radians([0.03, 0.01]))
+    hyper = Hyperparameters(np.full(7, 0.6), 3e-5, 1e-5)
+    share = model_error_share.zero_offset_model_error(fitted, hyper, False, True, field)
+    rows = np.array([i for i, n in enumerate(fitted.model.names) if n.startswith("zero_offsets.")])
+    expected = np.sqrt(
+        model_error_share.joint_field_variance(data.q, field, model_error_share.sensitivity(fitted, rows))
+    )
+    got = [share["parameters"][fitted.model.names[i]]["u_model_deg"] for i in rows]
+    assert share["form"] == "joint_error" and share["joint_field"]["q2"]["lengthscale_rad"] == 0.8
+    assert np.allclose(np.radians(got), expected) and share["kernel"] == hyper.report()
+    assert model_error_share.zero_offset_model_error(fitted, hyper, False, True)["form"] == "free"
 
 
 def _moved_as_predicted(fitted, data) -> tuple[np.ndarray, np.ndarray]:

@@ -82,7 +82,7 @@ from .held_out import cv_threshold, fold_warning
 from .jackknife import departed_groups_warning, too_few_warning, zero_offset_jackknife
 from .link_priors import link_prior_scale, scaled_priors
 from .long_tables import residuals_frame, signatures_frame
-from .model_error_share import not_computed_warning, zero_offset_model_error
+from .model_error_share import JointField, not_computed_warning, zero_offset_model_error
 from .refit import parameter_table, refit, zero_offset_shifts
 from .result import LoopReport
 from .scoring import Signature, symptom_text
@@ -167,17 +167,30 @@ def _residual_section(selection: Selection, chain, data: Readings, marker, t_nr,
     return section
 
 
-def _zero_offset_spreads(screened: Screened, closed: bool | None, settings: LoopSettings) -> tuple[dict, dict]:
+def _joint_field(gp_section: dict | None, selection: Selection, chain, data: Readings, marker, t_nr):
+    """The residual GP in joint-error form where the evidence prefers it (`model_error_share.JointField`,
+    the directions at the final model's values), else None."""
+    report = (gp_section or {}).get("joint_error_form")
+    if not report or report.get("preferred") != "joint_error":
+        return None
+    directions = joint_form.joint_directions(chain, data, marker, t_nr, selection.final.values())
+    return JointField.preferred(report, directions)
+
+
+def _zero_offset_spreads(
+    screened: Screened, closed: bool | None, settings: LoopSettings, joint_field: JointField | None = None
+) -> tuple[dict, dict]:
     """What the certificate's U holds beyond the posterior: how far the zero-offsets move with the
     poses measured ({'paper', 'loop': `jackknife.zero_offset_jackknife`}), and how far a residual
-    field the final model lacks moves them (`model_error_share.zero_offset_model_error`)."""
+    field the final model lacks moves them (`model_error_share.zero_offset_model_error`; in
+    joint-error form where `joint_field` is given)."""
     selection, poses = screened.selection, screened.fitted_poses
     between = {
         name: zero_offset_jackknife(model, poses, settings.jackknife_groups)
         for name, model in (("paper", selection.base), ("loop", selection.final))
     }
     hyper = selection.gp.gp.hyper if selection.gp is not None else None
-    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added)
+    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added, joint_field)
 
 
 def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
@@ -432,7 +445,8 @@ def close_loop(
         sensor.point_std(fitted.rows),
     )
     gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
-    between, model_share = _zero_offset_spreads(screened, closed["closed"], settings)
+    joint_field = _joint_field(gp_section, selection, chain, fitted, sensor.marker, t_nr)
+    between, model_share = _zero_offset_spreads(screened, closed["closed"], settings, joint_field)
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,

@@ -21,9 +21,20 @@ configuration), the zero-offsets' added variance is
 B_a its columns on axis a (P, n) and K = k(q_i, q_k) over the optimization set's n configurations.
 The mode keeps its value; only the uncertainty widens, as a Type B component (nu = inf).
 
-Limits: the kernel is fitted to the part of the field the model could not absorb; a field whose
-absorbed part is larger than its visible part (smooth over the design, short in the residual) is
-understated. Measured on simulated loops that did not close in docs/validation.md.
+Where the residual GP read in joint-error form is preferred by the evidence
+(`inference.gp.joint_error`: each turned joint's angle error f_j(q_j), a GP on that joint's circle,
+moving the marker along a_j(q), the marker's motion per radian of joint j), the field is taken in
+that form: e(q) = sum_j a_j(q) f_j(q_j), its covariance the circle kernel's Fourier series, each
+f_j's constant left out. A joint's error averaged over its whole turn is its zero-offset, as the
+joint_harmonics block (orders 1 and up) and a transmission error's definition have it: what the
+fit cannot tell from the zero-offset is the part of f_j's harmonics the design's angles do not
+average out, which is the share u_model gives. The form's amplitudes and lengthscales are fitted
+with the model's parameters integrated, so the part of the field a zero-offset absorbs is priced in
+them; the free kernel is fitted on what the model could not absorb, and a field whose absorbed part
+is larger than its visible part (smooth over the design, short in the residual) is understated in
+it. A joint never turned has no f_j: its error at the one angle it was held at is its zero-offset
+to the fit, and no field of the data says how much of it. Measured on simulated loops that did not
+close in docs/validation.md.
 
 SI inside (rad); the report is JSON-ready in degrees where its keys say so.
 """
@@ -34,6 +45,7 @@ import dataclasses
 
 import numpy as np
 
+from ..inference.gp.joint_error import fourier_weights, harmonics
 from ..inference.gp.kernels import Hyperparameters, kernel, turned_joints
 from ..inference.gp.residual import fit_hyperparameters
 from ..units import DEG
@@ -48,6 +60,63 @@ METHOD = (
     "the residual field's share: a Gaussian process over the joints (the residual GP's kernel, fitted on what the "
     "model left) propagated through the fit, u_model^2 = diag(B K B^T), B = C J^T W / sigma^2"
 )
+JOINT_METHOD = (
+    "the residual field's share in joint-error form, which the evidence prefers: each turned joint's angle error a GP "
+    "on its circle (the form's amplitude and lengthscale, fitted with the model's parameters integrated), its constant "
+    "left out (a joint's error averaged over its turn is its zero-offset), propagated through the fit, "
+    "u_model^2 = diag(B K B^T), K = sum_j A_j K_j A_j^T, B = C J^T W / sigma^2"
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class JointField:
+    """A residual field in joint-error form (`inference.gp.joint_error`): the angle error of each joint
+    in `joints` (indices), a GP on its circle of `amplitudes` and `lengthscales` (rad), moving the marker
+    by directions[:, :, j] (n, 3, N) m/rad at the fit's readings (`joint_form.joint_directions`)."""
+
+    joints: np.ndarray
+    amplitudes: np.ndarray
+    lengthscales: np.ndarray
+    directions: np.ndarray
+
+    @classmethod
+    def preferred(cls, report: dict | None, directions: np.ndarray) -> JointField | None:
+        """The field of a `JointErrorForm.report()` where the evidence prefers the joint-error form,
+        else None."""
+        if not report or report.get("preferred") != "joint_error" or not report.get("joints"):
+            return None
+        joints = report["joints"]
+        return cls(
+            np.array([int(name[1:]) - 1 for name in joints]),
+            np.radians([j["amplitude_deg"] for j in joints.values()]),
+            np.array([j["lengthscale_rad"] for j in joints.values()], dtype=float),
+            np.asarray(directions, dtype=float),
+        )
+
+    def report(self) -> dict:
+        return {
+            f"q{j + 1}": {"amplitude_deg": float(np.degrees(a)), "lengthscale_rad": float(length)}
+            for j, a, length in zip(self.joints, self.amplitudes, self.lengthscales)
+        }
+
+
+def joint_field_variance(q, field: JointField, sensitivity_rows: np.ndarray) -> np.ndarray:
+    """(m,) the variance of each of m linear functionals of a joint-error field (`JointField`):
+    sensitivity_rows (m, n, 3) applied to e(q_i) = sum_j a_j(q_i) f_j(q_ij) at readings q (n, N) rad,
+    f_j a GP on joint j's circle without its constant (module docstring), through the circle
+    kernel's Fourier series cut where less than `joint_error.TAIL` of it is left."""
+    q = np.asarray(q, dtype=float)
+    b = np.asarray(sensitivity_rows, dtype=float)
+    total = np.zeros(b.shape[0])
+    for j, amplitude, lengthscale in zip(field.joints, field.amplitudes, field.lengthscales):
+        orders = harmonics(lengthscale)
+        weights, _ = fourier_weights(lengthscale, orders)  # [cos 0q .. cos Kq, sin q .. sin Kq]
+        weights[0] = 0.0  # the constant: the zero-offset itself, not an error of it
+        angle = q[:, j, None] * np.arange(orders + 1)
+        features = np.concatenate([np.cos(angle), np.sin(angle[:, 1:])], axis=1)  # (n, 2K + 1)
+        through = np.einsum("mni,ni,nf->mf", b, field.directions[:, :, j], features)
+        total += amplitude**2 * (through**2 @ weights)
+    return total
 
 
 def applies(closed: bool | None, gp_added: bool) -> bool:
@@ -79,12 +148,20 @@ def field_variance(q, hyper: Hyperparameters, sensitivity_rows: np.ndarray, chun
     return total
 
 
-def zero_offset_model_error(fitted: Fitted, hyper: Hyperparameters | None, closed: bool | None, gp_added: bool) -> dict:
+def zero_offset_model_error(
+    fitted: Fitted,
+    hyper: Hyperparameters | None,
+    closed: bool | None,
+    gp_added: bool,
+    joint_field: JointField | None = None,
+) -> dict:
     """The residual field's share of the fit's free zero-offsets (module docstring). hyper: the
     residual GP's kernel when the loop fitted one (None: fitted here on the fit's residuals; the three
     axes alike, the frame does not matter); closed: the closure test's verdict;
-    gp_added: the residual GP is part of the calibration. JSON-ready: computed, why or method, the
-    kernel, and per zero-offset u_model_deg."""
+    gp_added: the residual GP is part of the calibration; joint_field: the residual GP in joint-error
+    form where the evidence prefers it (`JointField.preferred`), the field then taken in that form.
+    JSON-ready: computed, why or method, the form, the kernel (the free form's, which the declared
+    model error's draws use), the joint field where taken, and per zero-offset u_model_deg."""
     if not applies(closed, gp_added):
         return {"computed": False, "why": "the loop closed without a residual field: its residual is the noise"}
     names = fitted.model.names
@@ -102,12 +179,24 @@ def zero_offset_model_error(fitted: Fitted, hyper: Hyperparameters | None, close
         }
     if hyper is None:
         hyper = fit_hyperparameters(q, fitted.residuals())
-    # the signal's variance is the field's; the kernel's noise is the posterior's own share
-    field = dataclasses.replace(hyper, noise_std=0.0)
-    u_model = np.sqrt(np.maximum(field_variance(q, field, sensitivity(fitted, rows)), 0.0))
+    through = sensitivity(fitted, rows)
+    if joint_field is not None and joint_field.directions.shape[0] == len(q):
+        variance, form = (
+            joint_field_variance(q, joint_field, through),
+            {
+                "method": JOINT_METHOD,
+                "form": "joint_error",
+                "joint_field": joint_field.report(),
+            },
+        )
+    else:
+        # the signal's variance is the field's; the kernel's noise is the posterior's own share
+        variance = field_variance(q, dataclasses.replace(hyper, noise_std=0.0), through)
+        form = {"method": METHOD, "form": "free"}
+    u_model = np.sqrt(np.maximum(variance, 0.0))
     return {
         "computed": True,
-        "method": METHOD,
+        **form,
         "kernel": hyper.report(),
         "parameters": {names[i]: {"u_model_deg": float(u / DEG)} for i, u in zip(rows, u_model)},
     }
