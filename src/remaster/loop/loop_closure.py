@@ -172,7 +172,7 @@ def _joint_field(gp_section: dict | None, selection: Selection, chain, data: Rea
     the directions at the final model's values), else None."""
     report = (gp_section or {}).get("joint_error_form")
     if not report or report.get("preferred") != "joint_error":
-        return None
+        return None  # before the directions: they cost a Jacobian at every reading
     directions = joint_form.joint_directions(chain, data, marker, t_nr, selection.final.values())
     return JointField.preferred(report, directions)
 

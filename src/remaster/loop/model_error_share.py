@@ -180,7 +180,7 @@ def zero_offset_model_error(
     if hyper is None:
         hyper = fit_hyperparameters(q, fitted.residuals())
     through = sensitivity(fitted, rows)
-    if joint_field is not None and joint_field.directions.shape[0] == len(q):
+    if joint_field is not None:
         variance, form = (
             joint_field_variance(q, joint_field, through),
             {
