@@ -9,7 +9,7 @@ import scipy.special
 from remaster import noise
 from remaster.inference import evidence
 from remaster.inference.gp.kernels import Hyperparameters, kernel
-from remaster.loop import model_error_share
+from remaster.loop import loop_closure, model_error_share
 
 from ..conftest import loop_report
 from .test_loop_closure import EFFECTS, simulated
@@ -105,6 +105,24 @@ def test_the_joint_field_is_taken_only_where_the_evidence_prefers_that_form(iiwa
     assert share["form"] == "joint_error" and share["joint_field"]["q2"]["lengthscale_rad"] == 0.8
     assert np.allclose(np.radians(got), expected) and share["kernel"] == hyper.report()
     assert model_error_share.zero_offset_model_error(fitted, hyper, False, True)["form"] == "free"
+
+
+def test_a_joint_form_whose_lengthscale_ends_on_its_lower_bound_is_not_taken_and_says_why():
+    """At the joint-error form's shortest lengthscale f_j takes up structure shorter than a joint
+    error (the real UR10's and UR5's residuals end there): the free form is taken, and the share says why."""
+    short = {
+        "preferred": "joint_error",
+        "joints": {
+            "q2": {"amplitude_deg": 0.28, "lengthscale_rad": 0.05},
+            "q4": {"amplitude_deg": 0.02, "lengthscale_rad": 0.4},
+        },
+    }
+    assert model_error_share.JointField.at_lower_bound(short) == ["q2"]
+    assert model_error_share.JointField.preferred(short, np.zeros((3, 3, 7))) is None
+    (why,) = loop_closure.joint_form_not_taken({"joint_error_form": short}).values()
+    assert "q2" in why and "free form" in why
+    assert loop_closure.joint_form_not_taken({"joint_error_form": {**short, "preferred": "free"}}) == {}
+    assert loop_closure.joint_form_not_taken(None) == {}
 
 
 def _moved_as_predicted(fitted, data) -> tuple[np.ndarray, np.ndarray]:

@@ -171,26 +171,45 @@ def _joint_field(gp_section: dict | None, selection: Selection, chain, data: Rea
     """The residual GP in joint-error form where the evidence prefers it (`model_error_share.JointField`,
     the directions at the final model's values), else None."""
     report = (gp_section or {}).get("joint_error_form")
-    if not report or report.get("preferred") != "joint_error":
+    if not report or report.get("preferred") != "joint_error" or JointField.at_lower_bound(report):
         return None  # before the directions: they cost a Jacobian at every reading
     directions = joint_form.joint_directions(chain, data, marker, t_nr, selection.final.values())
     return JointField.preferred(report, directions)
 
 
 def _zero_offset_spreads(
-    screened: Screened, closed: bool | None, settings: LoopSettings, joint_field: JointField | None = None
+    screened: Screened,
+    closed: bool | None,
+    settings: LoopSettings,
+    gp_section: dict | None = None,
+    joint_field: JointField | None = None,
 ) -> tuple[dict, dict]:
     """What the certificate's U holds beyond the posterior: how far the zero-offsets move with the
     poses measured ({'paper', 'loop': `jackknife.zero_offset_jackknife`}), and how far a residual
     field the final model lacks moves them (`model_error_share.zero_offset_model_error`; in
-    joint-error form where `joint_field` is given)."""
+    joint-error form where `joint_field` is given; where that form is preferred but not taken, why:
+    `joint_form_not_taken`)."""
     selection, poses = screened.selection, screened.fitted_poses
     between = {
         name: zero_offset_jackknife(model, poses, settings.jackknife_groups)
         for name, model in (("paper", selection.base), ("loop", selection.final))
     }
     hyper = selection.gp.gp.hyper if selection.gp is not None else None
-    return between, zero_offset_model_error(selection.final, hyper, closed, selection.gp_added, joint_field)
+    share = zero_offset_model_error(selection.final, hyper, closed, selection.gp_added, joint_field)
+    return between, share | (joint_form_not_taken(gp_section) if share.get("computed") else {})
+
+
+def joint_form_not_taken(gp_section: dict | None) -> dict:
+    """Why `model_error_share` takes the free form where the evidence prefers the joint-error form
+    (a joint's lengthscale on the form's lower bound, `JointField.at_lower_bound`), else {}."""
+    report = (gp_section or {}).get("joint_error_form") or {}
+    short = JointField.at_lower_bound(report) if report.get("preferred") == "joint_error" else []
+    if not short:
+        return {}
+    return {
+        "joint_form_not_taken": f"the joint-error form is preferred, but {', '.join(short)} ended on its shortest "
+        "lengthscale: there f_j takes up structure shorter than a joint error, so the free form is taken"
+    }
 
 
 def _warnings(closed: dict, screened: Screened, gp_section: dict | None, mcmc, settings: LoopSettings) -> list[str]:
@@ -446,7 +465,7 @@ def close_loop(
     )
     gp_section = _residual_section(selection, chain, fitted, sensor.marker, t_nr, settings)
     joint_field = _joint_field(gp_section, selection, chain, fitted, sensor.marker, t_nr)
-    between, model_share = _zero_offset_spreads(screened, closed["closed"], settings, joint_field)
+    between, model_share = _zero_offset_spreads(screened, closed["closed"], settings, gp_section, joint_field)
     screen = (screened.screens, screened.provisional, screened.history, screened.settled)
     report = LoopReport(
         sensor=sensor.name,

@@ -32,7 +32,9 @@ average out, which is the share u_model gives. The form's amplitudes and lengths
 with the model's parameters integrated, so the part of the field a zero-offset absorbs is priced in
 them; the free kernel is fitted on what the model could not absorb, and a field whose absorbed part
 is larger than its visible part (smooth over the design, short in the residual) is understated in
-it. A joint never turned has no f_j: its error at the one angle it was held at is its zero-offset
+it. Where a joint's lengthscale in that form ends on its lower bound, f_j takes up structure shorter
+than any joint error the form allows, not that joint's error: the free form is taken. A joint never
+turned has no f_j: its error at the one angle it was held at is its zero-offset
 to the fit, and no field of the data says how much of it. Measured on simulated loops that did not
 close in docs/validation.md.
 
@@ -42,10 +44,11 @@ SI inside (rad); the report is JSON-ready in degrees where its keys say so.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
-from ..inference.gp.joint_error import fourier_weights, harmonics
+from ..inference.gp.joint_error import LENGTH_BOUNDS, fourier_weights, harmonics
 from ..inference.gp.kernels import Hyperparameters, kernel, turned_joints
 from ..inference.gp.residual import fit_hyperparameters
 from ..units import DEG
@@ -60,6 +63,7 @@ METHOD = (
     "the residual field's share: a Gaussian process over the joints (the residual GP's kernel, fitted on what the "
     "model left) propagated through the fit, u_model^2 = diag(B K B^T), B = C J^T W / sigma^2"
 )
+BOUND_TOLERANCE = 1e-3  # a log lengthscale this close to the joint-error form's bound is on it (`kernels.at_bounds`)
 JOINT_METHOD = (
     "the residual field's share in joint-error form, which the evidence prefers: each turned joint's angle error a GP "
     "on its circle (the form's amplitude and lengthscale, fitted with the model's parameters integrated), its constant "
@@ -79,11 +83,23 @@ class JointField:
     lengthscales: np.ndarray
     directions: np.ndarray
 
+    @staticmethod
+    def at_lower_bound(report: dict | None) -> list[str]:
+        """The joints of a `JointErrorForm.report()` whose lengthscale ended on the form's lower bound
+        (`joint_error.LENGTH_BOUNDS`): there f_j is as short as the form allows and takes up what is not
+        its joint's own error (docs/validation.md, the residual GP in joint-error form), so its
+        amplitude is not a joint error's size."""
+        shortest = math.log(LENGTH_BOUNDS[0]) + BOUND_TOLERANCE
+        joints = (report or {}).get("joints") or {}
+        return [name for name, j in joints.items() if math.log(j["lengthscale_rad"]) < shortest]
+
     @classmethod
     def preferred(cls, report: dict | None, directions: np.ndarray) -> JointField | None:
-        """The field of a `JointErrorForm.report()` where the evidence prefers the joint-error form,
-        else None."""
+        """The field of a `JointErrorForm.report()` where the evidence prefers the joint-error form and
+        no joint's lengthscale is on its lower bound (`at_lower_bound`), else None."""
         if not report or report.get("preferred") != "joint_error" or not report.get("joints"):
+            return None
+        if cls.at_lower_bound(report):
             return None
         joints = report["joints"]
         return cls(
