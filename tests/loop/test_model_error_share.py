@@ -118,6 +118,8 @@ def test_a_joint_form_whose_lengthscale_ends_on_its_lower_bound_is_not_taken_and
         },
     }
     assert model_error_share.JointField.at_lower_bound(short) == ["q2"]
+    assert not model_error_share.JointField.taken(short)
+    assert model_error_share.JointField.taken({**short, "joints": {"q4": short["joints"]["q4"]}})
     assert model_error_share.JointField.preferred(short, np.zeros((3, 3, 7))) is None
     (why,) = loop_closure.joint_form_not_taken({"joint_error_form": short}).values()
     assert "q2" in why and "free form" in why

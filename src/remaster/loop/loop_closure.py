@@ -171,7 +171,7 @@ def _joint_field(gp_section: dict | None, selection: Selection, chain, data: Rea
     """The residual GP in joint-error form where the evidence prefers it (`model_error_share.JointField`,
     the directions at the final model's values), else None."""
     report = (gp_section or {}).get("joint_error_form")
-    if not report or report.get("preferred") != "joint_error" or JointField.at_lower_bound(report):
+    if not JointField.taken(report):
         return None  # before the directions: they cost a Jacobian at every reading
     directions = joint_form.joint_directions(chain, data, marker, t_nr, selection.final.values())
     return JointField.preferred(report, directions)

@@ -94,12 +94,20 @@ class JointField:
         return [name for name, j in joints.items() if math.log(j["lengthscale_rad"]) < shortest]
 
     @classmethod
+    def taken(cls, report: dict | None) -> bool:
+        """Whether a `JointErrorForm.report()` gives the field: the evidence prefers the joint-error form
+        and no joint's lengthscale is on its lower bound (`at_lower_bound`)."""
+        return bool(
+            report
+            and report.get("preferred") == "joint_error"
+            and report.get("joints")
+            and not cls.at_lower_bound(report)
+        )
+
+    @classmethod
     def preferred(cls, report: dict | None, directions: np.ndarray) -> JointField | None:
-        """The field of a `JointErrorForm.report()` where the evidence prefers the joint-error form and
-        no joint's lengthscale is on its lower bound (`at_lower_bound`), else None."""
-        if not report or report.get("preferred") != "joint_error" or not report.get("joints"):
-            return None
-        if cls.at_lower_bound(report):
+        """The field of a `JointErrorForm.report()` where it is `taken`, else None."""
+        if not cls.taken(report):
             return None
         joints = report["joints"]
         return cls(
